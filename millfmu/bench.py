@@ -1,0 +1,124 @@
+"""Benchmarks that print ratios against a baseline run in the same process.
+
+``bench_pbm``: the exact population-balance step against scipy's solve_ivp (BDF, with the
+exact Jacobian) on the same batch grinding problem, at equal accuracy: BDF's tolerances are
+tightened until its error against the closed-form solution expm(A t) m0 is no larger than
+the accuracy target, and the exact stepper's error is measured the same way.
+"""
+
+from __future__ import annotations
+
+import time
+
+import numpy as np
+from scipy.integrate import solve_ivp
+from scipy.linalg import expm
+
+from .kinetics.grid import SizeGrid
+from .kinetics import pbm
+from .mill import MillModel
+from .scene import load_scene
+
+#: Accuracy target: max over output times and classes of |m - m_exact| / total mass [-].
+ACCURACY_TARGET = 1e-6
+
+
+def _best(f, repeats):
+    best = np.inf
+    for _ in range(repeats):
+        t0 = time.perf_counter()
+        r = f()
+        best = min(best, time.perf_counter() - t0)
+    return best, r
+
+
+def bench_pbm(classes=(50, 100, 200), hours=1.0, repeats=3, dt_s=1.0, out=print):
+    """Print the cost of one step and of ``hours`` of batch grinding at 1 s steps, vs BDF."""
+    scene = load_scene()
+    n_steps = int(round(hours * 3600.0 / dt_s))
+    t_eval = np.arange(n_steps + 1) * dt_s
+    out(f"batch grinding, default scene's material and mill, {hours:g} h at {dt_s:g} s steps ({n_steps} steps)")
+    out(f"accuracy: max |m - expm(A t) m0| / total mass over all steps and classes; target {ACCURACY_TARGET:g}")
+    head = (f"{'classes':>7} {'step [us]':>10} {'model step [us]':>15} {'expm setup [ms]':>15} {'ours total [s]':>14} {'ours err':>9} "
+            f"{'BDF rtol':>9} {'BDF err':>9} {'BDF [s]':>9} {'BDF/ours':>9} {'span rtol':>9} {'span err':>9} {'span [s]':>9} {'span/ours':>9}")
+    out("BDF: restarted at every 1 s step (as a co-simulation unit must); span: one solve_ivp call over the whole time")
+    out(head)
+    out("-" * len(head))
+    rows = []
+    for n in classes:
+        grid = SizeGrid.with_classes(scene.grid.x_min_m, scene.grid.x_max_m, n)
+        model = MillModel(scene, grid=grid)
+        a = model.operator.matrix(model.selection_nodes(model.operating_point(model.inputs)))
+        g = pbm.system_matrix(a, 1, 0.0)
+        y0 = model.y.copy()
+        total = y0.sum()
+
+        # Reference: closed form at every output time, m(t) = expm(A t) m0 (by repeated
+        # exact propagation in extended precision-free form would be circular, so use
+        # expm of the whole span at a subset of times).
+        check = np.unique(np.concatenate((np.linspace(0, n_steps // 10, 7), np.linspace(0, n_steps, 13))).round().astype(int))
+        ref = {k: expm(g * t_eval[k]) @ y0 for k in check}
+
+        def ours():
+            phi, _ = pbm.propagators(g, None, dt_s)
+            y = y0.copy()
+            hist = {}
+            for k in range(1, n_steps + 1):
+                y = phi @ y
+                if k in ref:
+                    hist[k] = y
+            return hist
+
+        t_ours, hist = _best(ours, repeats)
+        err_ours = max(np.max(np.abs(hist[k] - ref[k])) for k in check if k > 0) / total
+        _, phi_only = _best(lambda: pbm.propagators(g, None, dt_s)[0], 1)
+        t_setup, _ = _best(lambda: pbm.propagators(g, None, dt_s), repeats)
+        y = y0.copy()
+        t_step, _ = _best(lambda: [phi_only @ y for _ in range(1000)], repeats)
+        t_step /= 1000
+        model.step(dt_s)
+        t_model, _ = _best(lambda: [model.step(dt_s) for _ in range(1000)], repeats)
+        t_model /= 1000
+
+        def bdf_span(rtol):
+            return solve_ivp(lambda t, m: g @ m, (0.0, t_eval[-1]), y0, method="BDF", jac=g, t_eval=t_eval, rtol=rtol, atol=rtol * total * 1e-3)
+
+        def bdf_steps(rtol, upto=n_steps):
+            # As a co-simulation unit must: restart at every communication step, since the
+            # inputs may change there.
+            y = y0.copy()
+            hist = {0: y0}
+            for k in range(1, upto + 1):
+                y = solve_ivp(lambda t, m: g @ m, (0.0, dt_s), y, method="BDF", jac=g, rtol=rtol, atol=rtol * total * 1e-3).y[:, -1]
+                if k in ref:
+                    hist[k] = y
+            return hist
+
+        def tune(run, get, ks):
+            for rtol in (1e-3, 1e-4, 1e-5, 1e-6, 1e-7, 1e-8, 1e-9, 1e-10):
+                err = max(np.max(np.abs(get(run(rtol), k) - ref[k])) for k in ks) / total
+                if err <= max(ACCURACY_TARGET, err_ours):
+                    return rtol, err
+            return None
+
+        c_span = tune(bdf_span, lambda sol, k: sol.y[:, k], check)
+        # Tolerance chosen on the first tenth of the run (the error grows with the number
+        # of restarts), then checked over the whole run below.
+        early = [k for k in check if k <= n_steps // 10] or [check[1]]
+        c_steps = tune(lambda r: bdf_steps(r, max(early)), lambda h, k: h[k], early)
+        if c_span is None or c_steps is None:
+            out(f"{n:7d}  BDF did not reach the accuracy target down to rtol 1e-10")
+            continue
+        t_span, _ = _best(lambda: bdf_span(c_span[0]), repeats)
+        t_steps, hist_b = _best(lambda: bdf_steps(c_steps[0]), 1)
+        c_steps = (c_steps[0], max(np.max(np.abs(hist_b[k] - ref[k])) for k in check) / total)
+        row = dict(classes=n, step_us=t_step * 1e6, model_step_us=t_model * 1e6, setup_ms=t_setup * 1e3, ours_s=t_ours, ours_err=err_ours,
+                   bdf_steps_rtol=c_steps[0], bdf_steps_err=c_steps[1], bdf_steps_s=t_steps, ratio_steps=t_steps / t_ours,
+                   bdf_span_rtol=c_span[0], bdf_span_err=c_span[1], bdf_span_s=t_span, ratio_span=t_span / t_ours)
+        rows.append(row)
+        out(f"{n:7d} {t_step * 1e6:10.2f} {t_model * 1e6:15.1f} {t_setup * 1e3:15.2f} {t_ours:14.4f} {err_ours:9.1e} "
+            f"{c_steps[0]:9.0e} {c_steps[1]:9.1e} {t_steps:9.3f} {t_steps / t_ours:9.0f} "
+            f"{c_span[0]:9.0e} {c_span[1]:9.1e} {t_span:9.4f} {t_span / t_ours:9.1f}")
+    out("ours total = expm setup + all steps; step = one exact step (matrix-vector product); ratios = BDF time / ours total;")
+    out("model step = MillModel.step with all outputs (x10/x50/x90, SF, power, ...).")
+    return rows

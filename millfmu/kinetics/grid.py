@@ -1,0 +1,128 @@
+"""Geometric particle-size grid and size distributions on it.
+
+Classes are ordered by ascending size. Class ``i`` holds particles with sizes in
+``(edges_m[i], edges_m[i+1]]``; the finest class also holds everything below
+``edges_m[0]`` (fragments smaller than the grid's lower bound are kept, not lost).
+Masses are in kg, sizes in m, Q3 is the cumulative mass fraction undersize [-].
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+
+@dataclass(frozen=True)
+class SizeGrid:
+    """Geometric size grid.
+
+    edges_m: class boundaries [m], ascending, length n + 1.
+    """
+
+    edges_m: np.ndarray
+
+    @classmethod
+    def geometric(cls, x_min_m: float, x_max_m: float, classes_per_octave: float) -> "SizeGrid":
+        """Grid from x_min_m upwards with ``classes_per_octave`` classes per doubling of size.
+
+        The number of classes is ceil(classes_per_octave * log2(x_max/x_min)), so the top
+        edge is at or just above x_max_m.
+        """
+        n = max(1, int(math.ceil(classes_per_octave * math.log2(x_max_m / x_min_m) - 1e-9)))
+        ratio = 2.0 ** (1.0 / classes_per_octave)
+        return cls(x_min_m * ratio ** np.arange(n + 1))
+
+    @classmethod
+    def with_classes(cls, x_min_m: float, x_max_m: float, n_classes: int) -> "SizeGrid":
+        """Grid with exactly ``n_classes`` geometric classes between x_min_m and x_max_m."""
+        return cls(np.geomspace(x_min_m, x_max_m, n_classes + 1))
+
+    @property
+    def n(self) -> int:
+        """Number of classes."""
+        return len(self.edges_m) - 1
+
+    @property
+    def x_m(self) -> np.ndarray:
+        """Representative size of each class [m]: geometric mean of its edges."""
+        e = self.edges_m
+        return np.sqrt(e[:-1] * e[1:])
+
+    @property
+    def ratio(self) -> float:
+        """Ratio of neighbouring edges [-]."""
+        return float(self.edges_m[1] / self.edges_m[0])
+
+
+def fractions_from_q3(grid: SizeGrid, q3_at_edges: np.ndarray) -> np.ndarray:
+    """Class mass fractions from Q3 evaluated at the grid's edges.
+
+    Mass below the lowest edge is put into the finest class and mass above the top edge
+    into the coarsest, so the fractions always sum to one.
+    """
+    q = np.clip(np.asarray(q3_at_edges, dtype=float), 0.0, 1.0)
+    q = np.maximum.accumulate(q)
+    w = np.diff(q)
+    w[0] += q[0]
+    w[-1] += 1.0 - q[-1]
+    w = np.maximum(w, 0.0)
+    return w / w.sum()
+
+
+def q3_lognormal(x_m: np.ndarray, x50_m: float, sigma_ln: float) -> np.ndarray:
+    """Log-normal Q3 [-] with median x50_m [m] and standard deviation of ln x, sigma_ln [-]."""
+    from scipy.special import ndtr
+
+    return ndtr(np.log(np.asarray(x_m) / x50_m) / sigma_ln)
+
+
+def q3_rrsb(x_m: np.ndarray, x63_m: float, n: float) -> np.ndarray:
+    """Rosin-Rammler-Sperling-Bennett Q3 = 1 - exp(-(x/x63)^n) (DIN 66145)."""
+    return -np.expm1(-((np.asarray(x_m) / x63_m) ** n))
+
+
+def q3_table(x_m: np.ndarray, sizes_m: np.ndarray, q3: np.ndarray) -> np.ndarray:
+    """Q3 from a table of sizes [m] and cumulative fractions [-], interpolated linearly in ln x.
+
+    Below the first tabulated size Q3 is the first value (that mass sits in the finest
+    class); above the last size it is one.
+    """
+    return np.interp(np.log(np.asarray(x_m)), np.log(sizes_m), q3, left=q3[0], right=1.0)
+
+
+def characteristic_size_m(grid: SizeGrid, fractions: np.ndarray, q: float) -> float:
+    """Size [m] at which Q3 reaches ``q`` (e.g. 0.5 for x50), interpolated in ln x.
+
+    Q3 is taken as zero at the lowest edge and as the cumulative sum at each class's
+    upper edge. Returns nan for an empty distribution.
+    """
+    total = float(np.sum(fractions))
+    if not total > 0.0:
+        return float("nan")
+    cum = np.concatenate(([0.0], np.cumsum(fractions) / total))
+    k = int(np.searchsorted(cum, q, side="left"))
+    if k <= 0:
+        return float(grid.edges_m[0])
+    if k >= len(cum):
+        return float(grid.edges_m[-1])
+    c0, c1 = cum[k - 1], cum[k]
+    le0, le1 = math.log(grid.edges_m[k - 1]), math.log(grid.edges_m[k])
+    f = 0.0 if c1 <= c0 else (q - c0) / (c1 - c0)
+    return float(math.exp(le0 + f * (le1 - le0)))
+
+
+def characteristic_sizes_m(grid: SizeGrid, fractions: np.ndarray, qs) -> tuple:
+    """Sizes [m] at which Q3 reaches each of ``qs``; same rules as :func:`characteristic_size_m`."""
+    cum = np.cumsum(fractions)
+    total = cum[-1]
+    if not total > 0.0:
+        return tuple(math.nan for _ in qs)
+    cum = np.concatenate(([0.0], cum / total))
+    q = np.asarray(qs, dtype=float)
+    k = np.clip(np.searchsorted(cum, q, side="left"), 1, len(cum) - 1)
+    c0, c1 = cum[k - 1], cum[k]
+    le = np.log(grid.edges_m)
+    f = np.where(c1 > c0, (q - c0) / np.where(c1 > c0, c1 - c0, 1.0), 0.0)
+    return tuple(np.exp(le[k - 1] + f * (le[k] - le[k - 1])).tolist())

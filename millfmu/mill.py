@@ -1,0 +1,421 @@
+"""MillModel: the one mill model. State + step(dt, inputs) -> outputs, SI units.
+
+The CLI, the FMU and the flowsheets adapt this class; the physics lives in
+:mod:`millfmu.kinetics`.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, replace
+
+import numpy as np
+
+from .kinetics import grid as kgrid
+from .kinetics import materials, pbm, rates, stress
+from .kinetics.stress_distribution import LogNormalStressSource
+from .scene import PSD, Scene
+
+#: Tolerance on the sum of an input size distribution's mass fractions [-].
+PSD_SUM_TOL = 1e-6
+
+
+class InputError(ValueError):
+    """Bad input to a step: names the variable, the value and what is allowed. The state is unchanged."""
+
+    def __init__(self, name: str, value, allowed: str):
+        self.name, self.value, self.allowed = name, value, allowed
+        super().__init__(f"input {name} = {value!r}: {allowed}")
+
+
+class StepError(RuntimeError):
+    """A step would give non-finite or negative masses. The state is unchanged."""
+
+
+def psd_fractions(grid: kgrid.SizeGrid, p: PSD) -> np.ndarray:
+    """Class mass fractions [-] on ``grid`` for a scene size distribution."""
+    e = grid.edges_m
+    if p.kind == "lognormal":
+        q = kgrid.q3_lognormal(e, p.x50_m, p.sigma_ln)
+    elif p.kind == "rrsb":
+        q = kgrid.q3_rrsb(e, p.x63_m, p.n)
+    elif p.kind == "monodisperse":
+        q = (e >= p.x_m).astype(float)
+    elif p.kind == "table":
+        q = kgrid.q3_table(e, np.asarray(p.sizes_m, float), np.asarray(p.Q3, float))
+    else:  # pragma: no cover - the scene validates kinds
+        raise ValueError(p.kind)
+    return kgrid.fractions_from_q3(grid, q)
+
+
+def build_material(s: Scene):
+    m = s.material
+    brk = materials.AustinBreakage(m.breakage.phi, m.breakage.gamma, m.breakage.beta)
+    if m.model == "mineral":
+        return materials.Mineral(m.density_kg_per_m3, m.youngs_modulus_Pa, m.f_mat_kg_per_J_m, m.x_w_min_J_m_per_kg, brk)
+    if m.model == "yeast":
+        return materials.Yeast(m.density_kg_per_m3, m.youngs_modulus_Pa, m.burst_energy_median_J, m.burst_energy_sigma_ln, brk)
+    sel = m.selection
+    return materials.Austin(m.density_kg_per_m3, m.youngs_modulus_Pa, sel.a_per_s, sel.x0_m, sel.alpha, sel.mu_m, sel.Lambda, brk)
+
+
+@dataclass(frozen=True)
+class _Frozen:
+    """What an exact step needs for one set of frozen inputs and step size."""
+
+    op: rates.OperatingPoint
+    phi: np.ndarray
+    gam: np.ndarray | None
+
+
+class MillModel:
+    """Wet stirred media mill: population balance of particle sizes over time.
+
+    Batch: one perfectly mixed chamber, no flow. Continuous: N equal tanks in series
+    (residence time distribution of the mill), suspension volume flow Q = feed solids mass
+    flow / feed solids concentration; the suspension volume in the chamber is
+    V (1 - phi (1 - eps)).
+
+    ``step(dt_s, **inputs)`` advances by dt_s seconds with inputs held over the step:
+    tip_speed_m_per_s [m/s], solids_mass_fraction [-], bead_filling [-],
+    feed_mass_flow_kg_per_s [kg/s] and psd_in (feed class mass fractions [-], summing to 1).
+    Inputs not given keep their last values (initially the scene's). With
+    ``inputs_end`` (values at the end of the step, linear in between) or with
+    capture = 'psd' (rates depend on the state), the adaptive integrator is used.
+    """
+
+    def __init__(self, scene: Scene, grid: kgrid.SizeGrid | None = None):
+        self.scene = scene
+        g = scene.grid
+        self.grid = grid or kgrid.SizeGrid.geometric(g.x_min_m, g.x_max_m, g.classes_per_octave)
+        self.material = build_material(scene)
+        self.operator = pbm.BreakageOperator(self.grid, self.material.breakage.cdf, inert_fragments=self.material.inert_fragments)
+        self.continuous = scene.operation.mode == "continuous"
+        self.n_tanks = scene.operation.n_tanks if self.continuous else 1
+        self.kinetics_model = scene.kinetics.model
+        self.capture_from_psd = scene.kinetics.capture == "psd"
+        sd = scene.kinetics.stress_distribution
+        self.source = LogNormalStressSource(sd.median_fraction, sd.sigma_ln, sd.collision_factor) if self.kinetics_model == "detailed" else None
+        self._m = self.operator.state_size
+        self._feed_map = pbm.feed_matrix(self._m, self.n_tanks, self.grid.n)
+        self._cache = pbm.PropagatorCache()
+        self._rate_cache: dict = {}
+        self._num_cache: dict = {}
+        self._log_nodes = np.log(self.operator.nodes_m.ravel())
+        self.reset()
+
+    # ---- state ---------------------------------------------------------------------------
+    def reset(self):
+        """Back to the scene's initial state and inputs."""
+        s = self.scene
+        self.inputs = {
+            "tip_speed_m_per_s": s.mill.tip_speed_m_per_s,
+            "solids_mass_fraction": s.suspension.solids_mass_fraction,
+            "bead_filling": s.mill.bead_filling,
+            "feed_mass_flow_kg_per_s": s.operation.feed_mass_flow_kg_per_s if self.continuous else 0.0,
+            "psd_in": psd_fractions(self.grid, s.feed),
+        }
+        init = s.initial if (self.continuous and s.initial is not None) else s.feed
+        w0 = psd_fractions(self.grid, init)
+        op = self.operating_point(self.inputs)
+        mass_per_tank = op.solids_concentration_kg_per_m3 * self.suspension_volume_m3(op) / self.n_tanks
+        y = np.zeros(self.n_tanks * self._m + 1)
+        for k in range(self.n_tanks):
+            y[k * self._m : k * self._m + self.grid.n] = mass_per_tank * w0
+        self.t_s = 0.0
+        self.y = y
+        self.energy_J = 0.0
+        self.stress_number = 0.0
+        self.fed_kg = 0.0
+        self.m0_kg = float(y.sum())
+        self._last = self._outputs(self.y, op, self.inputs, dt_s=0.0, out_kg=0.0)
+
+    def get_state(self) -> dict:
+        """A plain copy of the whole state (numbers and arrays); see :meth:`set_state`."""
+        return {
+            "t_s": self.t_s,
+            "y": self.y.copy(),
+            "energy_J": self.energy_J,
+            "stress_number": self.stress_number,
+            "fed_kg": self.fed_kg,
+            "m0_kg": self.m0_kg,
+            "inputs": {k: (v.copy() if isinstance(v, np.ndarray) else v) for k, v in self.inputs.items()},
+            "last": {k: (v.copy() if isinstance(v, np.ndarray) else v) for k, v in self._last.items()},
+        }
+
+    def set_state(self, state: dict):
+        """Restore a state from :meth:`get_state`; the model continues bit-identically."""
+        y = np.array(state["y"], dtype=float)
+        if y.shape != self.y.shape:
+            raise ValueError(f"state vector has {y.shape[0]} entries; this model needs {self.y.shape[0]}")
+        self.t_s = float(state["t_s"])
+        self.y = y
+        self.energy_J = float(state["energy_J"])
+        self.stress_number = float(state["stress_number"])
+        self.fed_kg = float(state["fed_kg"])
+        self.m0_kg = float(state["m0_kg"])
+        self.inputs = {k: (np.array(v, dtype=float) if k == "psd_in" else float(v)) for k, v in state["inputs"].items()}
+        self._last = {k: (np.array(v) if isinstance(v, (list, np.ndarray)) else v) for k, v in state["last"].items()}
+
+    # ---- operating point -----------------------------------------------------------------
+    def operating_point(self, inputs) -> rates.OperatingPoint:
+        s = self.scene
+        return rates.OperatingPoint(
+            tip_speed_m_per_s=float(inputs["tip_speed_m_per_s"]),
+            filling=float(inputs["bead_filling"]),
+            porosity=s.mill.bead_porosity,
+            r_stirrer_m=s.mill.stirrer_radius_m,
+            d_gb_m=s.beads.diameter_m,
+            rho_gb_kg_per_m3=s.beads.density_kg_per_m3,
+            y_gb_Pa=s.beads.youngs_modulus_Pa,
+            y_p_Pa=s.material.youngs_modulus_Pa,
+            rho_p_kg_per_m3=s.material.density_kg_per_m3,
+            rho_l_kg_per_m3=s.suspension.liquid_density_kg_per_m3,
+            eta_susp_Pa_s=s.suspension.viscosity_Pa_s,
+            solids_mass_fraction=float(inputs["solids_mass_fraction"]),
+            k_c=s.mill.stress_frequency_factor,
+        )
+
+    def suspension_volume_m3(self, op: rates.OperatingPoint) -> float:
+        """Suspension volume in the chamber, V (1 - phi (1 - eps)) [m3]."""
+        return self.scene.mill.chamber_volume_m3 * (1.0 - op.bead_volume_fraction)
+
+    def power_W(self, op: rates.OperatingPoint) -> float:
+        m = self.scene.mill
+        return stress.stirrer_power_W(op.rho_eff_kg_per_m3, op.eta_eff_Pa_s, op.tip_speed_m_per_s, m.stirrer_radius_m, m.n_discs, m.power_number_laminar, m.power_number_turbulent)
+
+    def _number_concentration(self, y, op) -> float:
+        """Product particles per suspension volume from the current PSD [1/m3] (intact cells for yeast)."""
+        n = self.grid.n
+        m = y[:-1].reshape(self.n_tanks, self._m)[:, :n].sum(axis=0)
+        v_p = math.pi / 6.0 * self.grid.x_m**3
+        return float(np.sum(m / (op.rho_p_kg_per_m3 * v_p))) / self.suspension_volume_m3(op)
+
+    def selection_nodes(self, op, n_p=None) -> np.ndarray:
+        """Selection rates at the operator's quadrature nodes [1/s]."""
+        return rates.selection_per_s(self.kinetics_model, self.material, op, self.operator.nodes_m, n_p, self.source)
+
+    def _breakage_matrix(self, op, n_p=None):
+        if n_p is not None:
+            return self.operator.matrix(self.selection_nodes(op, n_p))
+        key = op
+        a = self._rate_cache.get(key)
+        if a is None:
+            a = self.operator.matrix(self.selection_nodes(op))
+            if len(self._rate_cache) > 64:
+                self._rate_cache.clear()
+            self._rate_cache[key] = a
+        return a
+
+    def _system(self, inputs, y=None):
+        """(G, F, u, op) for frozen inputs (and, capture = 'psd', the state y)."""
+        op = self.operating_point(inputs)
+        n_p = self._number_concentration(y, op) if (self.capture_from_psd and y is not None) else None
+        a = self._breakage_matrix(op, n_p)
+        if not self.continuous:
+            return pbm.system_matrix(a, 1, 0.0), None, None, op
+        mdot = float(inputs["feed_mass_flow_kg_per_s"])
+        q = mdot / op.solids_concentration_kg_per_m3 if mdot > 0.0 else 0.0
+        d = q / (self.suspension_volume_m3(op) / self.n_tanks)
+        u = mdot * np.asarray(inputs["psd_in"], dtype=float)
+        return pbm.system_matrix(a, self.n_tanks, d), self._feed_map, u, op
+
+    def _frozen_step(self, inputs, h):
+        g, f, _, op = self._system(inputs)
+        phi, gam = pbm.propagators(g, f, h)
+        return _Frozen(op, phi, gam)
+
+    # ---- inputs ---------------------------------------------------------------------------
+    def check_inputs(self, given: dict) -> dict:
+        """Merge given inputs with the current ones, validating each; raises InputError."""
+        new = dict(self.inputs)
+        for k, v in given.items():
+            if k not in new:
+                raise InputError(k, v, "unknown input; allowed: " + ", ".join(sorted(new)))
+            if k == "psd_in":
+                a = np.asarray(v, dtype=float)
+                if a.shape != (self.grid.n,):
+                    raise InputError(k, f"array of {a.size}", f"must have {self.grid.n} entries (one per size class)")
+                bad = np.flatnonzero(~np.isfinite(a) | (a < 0.0))
+                if bad.size:
+                    raise InputError(f"psd_in[{bad[0] + 1}]", float(a[bad[0]]), "must be finite and >= 0")
+                tot = float(a.sum())
+                if abs(tot - 1.0) > PSD_SUM_TOL:
+                    raise InputError(k, f"sum {tot!r}", f"mass fractions must sum to 1 within {PSD_SUM_TOL:g}")
+                new[k] = a / tot
+                continue
+            try:
+                x = float(v)
+            except (TypeError, ValueError):
+                raise InputError(k, v, "must be a number") from None
+            if not math.isfinite(x):
+                raise InputError(k, x, "must be finite")
+            if k == "tip_speed_m_per_s" and not 0.0 <= x <= 40.0:
+                raise InputError(k, x, "must lie in [0, 40] m/s")
+            if k == "bead_filling":
+                c_v = x * (1.0 - self.scene.mill.bead_porosity)
+                if not (0.0 < x < 1.0) or c_v >= 0.64:
+                    raise InputError(k, x, "must lie in (0, 1) with bead volume fraction below 0.64")
+            if k == "solids_mass_fraction" and not 0.0 < x < 0.8:
+                raise InputError(k, x, "must lie in (0, 0.8)")
+            if k == "feed_mass_flow_kg_per_s" and not 0.0 <= x <= 1e3:
+                raise InputError(k, x, "must lie in [0, 1000] kg/s")
+            new[k] = x
+        return new
+
+    # ---- stepping -------------------------------------------------------------------------
+    def step(self, dt_s: float, inputs_end: dict | None = None, **inputs) -> dict:
+        """Advance by dt_s [s]; returns the outputs at the end of the step (see :meth:`outputs`).
+
+        Raises InputError for bad input and StepError for a non-finite result; either way
+        the state is as it was before the call.
+        """
+        try:
+            h = float(dt_s)
+        except (TypeError, ValueError):
+            raise InputError("dt_s", dt_s, "must be a number > 0 s") from None
+        if not (math.isfinite(h) and h > 0.0):
+            raise InputError("dt_s", dt_s, "must be finite and > 0 s")
+        new_inputs = self.check_inputs(inputs)
+        end_inputs = self.check_inputs({**inputs, **(inputs_end or {})}) if inputs_end else None
+        adaptive = self.capture_from_psd or end_inputs is not None or self.scene.run.integrator == "adaptive"
+        if adaptive:
+            op = self.operating_point(new_inputs)
+
+            def system(t, y):
+                if end_inputs is None:
+                    inp = new_inputs
+                else:
+                    w = min(max((t - self.t_s) / h, 0.0), 1.0)
+                    inp = {k: (1 - w) * np.asarray(new_inputs[k]) + w * np.asarray(end_inputs[k]) for k in new_inputs}
+                gg, ff, uu, _ = self._system(inp, y)
+                return gg, ff, uu
+
+            y_new, _ = pbm.adaptive_exponential_step(self.y, self.t_s, h, system, rtol=self.scene.run.rtol)
+            op_end = self.operating_point(end_inputs or new_inputs)
+        else:
+            # Everything that depends only on the frozen inputs and h is built once.
+            key = (new_inputs["tip_speed_m_per_s"], new_inputs["solids_mass_fraction"], new_inputs["bead_filling"], new_inputs["feed_mass_flow_kg_per_s"], h)
+            frozen = self._cache.get(key, lambda: self._frozen_step(new_inputs, h))
+            op, phi, gam = frozen.op, frozen.phi, frozen.gam
+            y_new = phi @ self.y
+            if gam is not None:
+                y_new += gam @ (new_inputs["feed_mass_flow_kg_per_s"] * new_inputs["psd_in"])
+            op_end = op
+        if not np.all(np.isfinite(y_new)) or np.any(y_new < 0.0):
+            raise StepError(f"step of {h} s at t = {self.t_s} s gave non-finite or negative masses")
+        out_kg = float(y_new[-1] - self.y[-1])
+        fed = float(new_inputs["feed_mass_flow_kg_per_s"]) * h
+        # Power and stress number with the operating point held over the step (trapezoid
+        # between start and end for ramps).
+        p_mean = 0.5 * (self._op_numbers(op)["power_W"] + self._op_numbers(op_end)["power_W"])
+        outs = self._outputs(y_new, op_end, end_inputs or new_inputs, dt_s=h, out_kg=out_kg)
+        sf_mean = 0.5 * (self._last["sf_per_s"] + outs["sf_per_s"]) if adaptive else outs["sf_per_s"]
+        # Commit.
+        self.y = y_new
+        self.t_s += h
+        self.inputs = end_inputs or new_inputs
+        self.energy_J += p_mean * h
+        self.fed_kg += fed
+        self.stress_number += sf_mean * h
+        outs["t_s"] = self.t_s
+        outs["stress_number"] = self.stress_number
+        outs["specific_energy_J_per_kg"] = self._specific_energy()
+        self._last = outs
+        return outs
+
+    def _specific_energy(self) -> float:
+        """Stirrer energy per mass of solids treated [J/kg]: E / (initial holdup + solids fed)."""
+        m = self.m0_kg + self.fed_kg
+        return self.energy_J / m if m > 0.0 else 0.0
+
+    # ---- outputs --------------------------------------------------------------------------
+    def _outputs(self, y, op, inputs, dt_s, out_kg) -> dict:
+        n, m = self.grid.n, self._m
+        tanks = y[:-1].reshape(self.n_tanks, m)
+        content = tanks.sum(axis=0)
+        last = tanks[-1]
+        # Size distribution of the product (continuous: last tank = outlet) or mill content.
+        dist = last if self.continuous else content
+        per_class = dist[:n] + (dist[n:] if self.material.inert_fragments else 0.0)
+        tot = float(per_class.sum())
+        psd = per_class / tot if tot > 0.0 else np.zeros(n)
+        holdup = float(content.sum())
+        x10, x50, x90 = kgrid.characteristic_sizes_m(self.grid, psd, (0.1, 0.5, 0.9)) if tot > 0 else (math.nan,) * 3
+        num = self._op_numbers(op)
+        if math.isfinite(x50):
+            sf_nodes = num["sf_nodes"] if num["sf_nodes"] is not None else self._sf_nodes(op, y).ravel()
+            sf = float(np.interp(math.log(x50), self._log_nodes, sf_nodes))
+        else:
+            sf = 0.0
+        out = {
+            "t_s": self.t_s,
+            "psd": psd,
+            "x10_m": x10,
+            "x50_m": x50,
+            "x90_m": x90,
+            "holdup_kg": holdup,
+            "product_mass_flow_kg_per_s": out_kg / dt_s if dt_s > 0 else 0.0,
+            "feed_mass_flow_kg_per_s": float(inputs["feed_mass_flow_kg_per_s"]),
+            "outflow_total_kg": float(y[-1]),
+            "se_beads_J": num["se_beads_J"],
+            "se_product_J": num["se_product_J"],
+            "sf_per_s": sf,
+            "stress_number": getattr(self, "stress_number", 0.0),
+            "power_W": num["power_W"],
+            "specific_energy_J_per_kg": self._specific_energy() if hasattr(self, "energy_J") else 0.0,
+            "eta_eff_Pa_s": num["eta_eff_Pa_s"],
+            "reynolds": num["reynolds"],
+            "tip_speed_m_per_s": op.tip_speed_m_per_s,
+        }
+        if self.material.inert_fragments:
+            debris = float(content[n:].sum())
+            out["disrupted_fraction"] = debris / holdup if holdup > 0 else 0.0
+        return out
+
+    def _op_numbers(self, op) -> dict:
+        """Scalars of an operating point (cached: the hot path recomputes nothing)."""
+        num = self._num_cache.get(op)
+        if num is None:
+            num = {
+                "se_beads_J": op.se_beads_J,
+                "se_product_J": op.se_product_J,
+                "power_W": self.power_W(op),
+                "eta_eff_Pa_s": op.eta_eff_Pa_s,
+                "reynolds": op.reynolds,
+                # SF per node is state-independent unless capture = 'psd'.
+                "sf_nodes": None if self.capture_from_psd else self._sf_nodes(op, None).ravel(),
+            }
+            if len(self._num_cache) > 256:
+                self._num_cache.clear()
+            self._num_cache[op] = num
+        return num
+
+    def _sf_nodes(self, op, y):
+        if self.kinetics_model == "none":
+            return np.zeros_like(self.operator.nodes_m)
+        n_p = self._number_concentration(y, op) if self.capture_from_psd else None
+        return op.stress_frequency_per_s(self.operator.nodes_m, n_p)
+
+    def outputs(self) -> dict:
+        """Outputs at the current time: psd (class mass fractions [-]), x10_m/x50_m/x90_m [m],
+        holdup_kg, product_mass_flow_kg_per_s (mean over the last step), feed_mass_flow_kg_per_s,
+        se_beads_J/se_product_J [J], sf_per_s (SF at x50 [1/s]), stress_number [-],
+        power_W, specific_energy_J_per_kg, eta_eff_Pa_s, reynolds [-], disrupted_fraction
+        (yeast) [-]."""
+        return self._last
+
+    def total_mass_kg(self) -> float:
+        """Solids in the mill plus all that has left it [kg] (= initial + fed, to round-off)."""
+        return float(self.y.sum())
+
+    def class_rates_per_s(self, inputs=None) -> np.ndarray:
+        """Class-averaged selection rates [1/s] at the given (or current) inputs."""
+        op = self.operating_point(self.check_inputs(inputs or {}))
+        n_p = self._number_concentration(self.y, op) if self.capture_from_psd else None
+        return self.operator.class_rates(self.selection_nodes(op, n_p))
+
+
+def with_grid(scene: Scene, x_min_m: float, x_max_m: float, classes_per_octave: float) -> Scene:
+    """Copy of a scene with another size grid."""
+    return replace(scene, grid=replace(scene.grid, x_min_m=x_min_m, x_max_m=x_max_m, classes_per_octave=classes_per_octave))

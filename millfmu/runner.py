@@ -1,0 +1,205 @@
+"""Run a scene over time and write result.json, psd.csv and PNG plots.
+
+Files are first written to a temporary folder next to the target and moved into place
+only when all of them are complete, so an interrupted or failed run leaves no
+half-written results.
+"""
+
+from __future__ import annotations
+
+import csv
+import json
+import math
+import os
+import shutil
+import tempfile
+from pathlib import Path
+
+import numpy as np
+
+from .mill import MillModel
+from .scene import Scene
+
+#: Scalars written per output time to result.json, with their units.
+RESULT_KEYS = {
+    "t_s": "s",
+    "x10_m": "m",
+    "x50_m": "m",
+    "x90_m": "m",
+    "total_mass_kg": "kg",
+    "holdup_kg": "kg",
+    "product_mass_flow_kg_per_s": "kg/s",
+    "disrupted_fraction": "1",
+    "se_beads_J": "J",
+    "se_product_J": "J",
+    "sf_per_s": "1/s",
+    "stress_number": "1",
+    "specific_energy_J_per_kg": "J/kg",
+    "power_W": "W",
+    "tip_speed_m_per_s": "m/s",
+}
+
+
+def tip_speed_at(scene: Scene, t_s: float) -> float:
+    """Tip speed [m/s] at time t_s from the scene's profile (linear), or the constant one."""
+    prof = scene.run.tip_speed_profile
+    if not prof:
+        return scene.mill.tip_speed_m_per_s
+    ts = [p[0] for p in prof]
+    vs = [p[1] for p in prof]
+    return float(np.interp(t_s, ts, vs))
+
+
+def simulate(scene: Scene, progress: bool = True):
+    """Run the scene; returns (model, records, psd rows) with one record per output time."""
+    model = MillModel(scene)
+    r = scene.run
+    n_steps = int(math.ceil(r.t_end_s / r.dt_s - 1e-9))
+    every = max(1, int(round(r.output_interval_s / r.dt_s)))
+    records, psds = [], []
+
+    def record(out):
+        rec = {k: out.get(k) for k in RESULT_KEYS if k in out or k == "total_mass_kg"}
+        rec["total_mass_kg"] = model.total_mass_kg()
+        if "disrupted_fraction" not in out:
+            rec.pop("disrupted_fraction", None)
+        records.append({k: (float(v) if v is not None else None) for k, v in rec.items()})
+        psds.append(np.cumsum(out["psd"]))
+
+    record(model.outputs())
+    bar = None
+    if progress:
+        from tqdm import tqdm
+
+        # Shown only for runs that take longer than a couple of seconds.
+        bar = tqdm(total=n_steps, unit="step", delay=2.0, desc=scene.scene.name, leave=False)
+    profile = bool(r.tip_speed_profile)
+    try:
+        for i in range(n_steps):
+            t0 = model.t_s
+            h = min(r.dt_s, r.t_end_s - t0)
+            if h <= 1e-12 * r.t_end_s:
+                break
+            if profile:
+                v0, v1 = tip_speed_at(scene, t0), tip_speed_at(scene, t0 + h)
+                end = {"tip_speed_m_per_s": v1} if v1 != v0 else None
+                out = model.step(h, inputs_end=end, tip_speed_m_per_s=v0)
+            else:
+                out = model.step(h)
+            if (i + 1) % every == 0 or i + 1 == n_steps:
+                record(out)
+            if bar is not None:
+                bar.update(1)
+    finally:
+        if bar is not None:
+            bar.close()
+    return model, records, psds
+
+
+def write_results(out_dir: str | Path, scene: Scene, model: MillModel, records, psds, plots: bool = True) -> list[Path]:
+    """Write result.json, psd.csv and PNG plots into out_dir atomically; returns the paths."""
+    out = Path(out_dir)
+    out.parent.mkdir(parents=True, exist_ok=True)
+    tmp = Path(tempfile.mkdtemp(prefix=".millfmu-", dir=out.parent))
+    try:
+        op = model.operating_point(model.inputs)
+        result = {
+            "scene": {
+                "name": scene.scene.name,
+                "description": scene.scene.description,
+                "mode": scene.operation.mode,
+                "material": scene.material.model,
+                "kinetics": scene.kinetics.model,
+                "eta_eff_Pa_s": op.eta_eff_Pa_s,
+                "reynolds": op.reynolds,
+                "rho_eff_kg_per_m3": op.rho_eff_kg_per_m3,
+                "n_classes": model.grid.n,
+                "class_edges_m": model.grid.edges_m.tolist(),
+            },
+            "units": {k: v for k, v in RESULT_KEYS.items()},
+            "outputs": records,
+        }
+        (tmp / "result.json").write_text(json.dumps(result, indent=1, allow_nan=True))
+        with open(tmp / "psd.csv", "w", newline="") as fh:
+            w = csv.writer(fh)
+            w.writerow(["t_s"] + [f"Q3_x_le_{e:.6g}_m" for e in model.grid.edges_m[1:]])
+            for rec, q in zip(records, psds):
+                w.writerow([repr(rec["t_s"])] + [f"{v:.12g}" for v in q])
+        if plots:
+            _plots(tmp, model, records, psds)
+        out.mkdir(parents=True, exist_ok=True)
+        written = []
+        for f in sorted(tmp.iterdir()):
+            os.replace(f, out / f.name)
+            written.append(out / f.name)
+        return written
+    finally:
+        shutil.rmtree(tmp, ignore_errors=True)
+
+
+def _plots(folder: Path, model: MillModel, records, psds):
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    e = model.grid.edges_m
+    t = np.array([r["t_s"] for r in records])
+    idx = np.unique(np.linspace(0, len(records) - 1, min(8, len(records))).round().astype(int))
+    cmap = plt.get_cmap("viridis")
+    fig, (a1, a2) = plt.subplots(1, 2, figsize=(11, 4.2))
+    for k, i in enumerate(idx):
+        c = cmap(k / max(1, len(idx) - 1))
+        q3 = psds[i]
+        a1.semilogx(e[1:] * 1e6, q3, color=c, label=f"t = {t[i]:g} s")
+        dens = np.diff(np.concatenate(([0.0], q3))) / np.diff(np.log10(e))
+        a2.semilogx(model.grid.x_m * 1e6, dens, color=c)
+    a1.set_xlabel("particle size x [µm]")
+    a1.set_ylabel("Q3 [-]")
+    a1.grid(True, which="both", alpha=0.3)
+    a1.legend(fontsize=8)
+    a2.set_xlabel("particle size x [µm]")
+    a2.set_ylabel("q3,lg [-]  (mass density per decade)")
+    a2.grid(True, which="both", alpha=0.3)
+    fig.suptitle(f"{model.scene.scene.name}: size distribution over time")
+    fig.tight_layout()
+    fig.savefig(folder / "psd.png", dpi=110)
+    plt.close(fig)
+
+    fig, ax = plt.subplots(figsize=(6.5, 4.2))
+    for key, lab in (("x10_m", "x10"), ("x50_m", "x50"), ("x90_m", "x90")):
+        ax.plot(t / 60.0, [r[key] * 1e6 for r in records], label=lab)
+    ax.set_yscale("log")
+    ax.set_xlabel("time [min]")
+    ax.set_ylabel("characteristic size [µm]")
+    ax.grid(True, which="both", alpha=0.3)
+    ax.legend()
+    if "disrupted_fraction" in records[0]:
+        ax2 = ax.twinx()
+        ax2.plot(t / 60.0, [r["disrupted_fraction"] for r in records], "k--", label="disrupted")
+        ax2.set_ylabel("disrupted fraction [-]")
+        ax2.set_ylim(0, 1)
+    fig.suptitle(f"{model.scene.scene.name}: characteristic sizes")
+    fig.tight_layout()
+    fig.savefig(folder / "sizes.png", dpi=110)
+    plt.close(fig)
+
+
+def summary_table(records, rows: int = 8) -> str:
+    """A short fixed-width table of the run for the terminal."""
+    idx = np.unique(np.linspace(0, len(records) - 1, min(rows, len(records))).round().astype(int))
+    yeast = "disrupted_fraction" in records[0]
+    head = f"{'t [s]':>9} {'x10 [um]':>9} {'x50 [um]':>9} {'x90 [um]':>9} {'SF@x50 [1/s]':>13} {'E_m [kJ/kg]':>12} {'mass [kg]':>11}"
+    if yeast:
+        head += f" {'disrupted':>9}"
+    lines = [head, "-" * len(head)]
+    for i in idx:
+        r = records[i]
+        line = (
+            f"{r['t_s']:9.1f} {r['x10_m'] * 1e6:9.3f} {r['x50_m'] * 1e6:9.3f} {r['x90_m'] * 1e6:9.3f} "
+            f"{r['sf_per_s']:13.4g} {r['specific_energy_J_per_kg'] / 1e3:12.4g} {r['total_mass_kg']:11.6g}"
+        )
+        if yeast:
+            line += f" {r['disrupted_fraction']:9.4f}"
+        lines.append(line)
+    return "\n".join(lines)

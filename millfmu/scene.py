@@ -1,0 +1,350 @@
+"""Scene files (TOML) read into validated, typed objects in SI units.
+
+Every key carries its unit in its name (``_m``, ``_m_per_s``, ``_kg_per_m3``, ``_Pa``,
+``_Pa_s``, ``_s``, ``_kg_per_s``, ``_J``); dimensionless keys have none. A missing,
+mistyped, unknown or out-of-range value raises :class:`SceneError` naming the key, the value
+and what is allowed. ``millfmu scene-keys`` lists every key with unit, default and bounds.
+"""
+
+from __future__ import annotations
+
+import math
+import sys
+from dataclasses import MISSING, dataclass, field, fields, is_dataclass
+from importlib import resources
+from pathlib import Path
+from typing import Any
+
+if sys.version_info >= (3, 11):
+    import tomllib
+else:  # pragma: no cover
+    import tomli as tomllib
+
+INF = math.inf
+
+
+class SceneError(ValueError):
+    """A scene value is missing, mistyped or out of range. ``key`` is the dotted key."""
+
+    def __init__(self, key: str, value: Any, allowed: str, source: str = "scene"):
+        self.key, self.value, self.allowed, self.source = key, value, allowed, source
+        shown = "(missing)" if value is MISSING else repr(value)
+        super().__init__(f"{source}: {key} = {shown}: {allowed}")
+
+
+def _f(default=MISSING, *, unit="", lo=None, hi=None, lo_open=False, hi_open=False, choices=None, doc=""):
+    """Field with unit, bounds and choices kept as metadata for validation and listing."""
+    md = dict(unit=unit, lo=lo, hi=hi, lo_open=lo_open, hi_open=hi_open, choices=choices, doc=doc)
+    if isinstance(default, list):
+        return field(default_factory=lambda d=default: list(d), metadata=md)
+    if is_dataclass(default):
+        return field(default_factory=lambda d=default: d, metadata=md)
+    return field(default=default, metadata=md)
+
+
+# ---------------------------------------------------------------------------------------
+# Sections
+# ---------------------------------------------------------------------------------------
+@dataclass(frozen=True)
+class SceneInfo:
+    name: str = _f("unnamed", doc="name of the scene")
+    description: str = _f("", doc="free text")
+
+
+@dataclass(frozen=True)
+class Mill:
+    stirrer_radius_m: float = _f(0.036, unit="m", lo=0.0, hi=5.0, lo_open=True, doc="stirrer (disc) radius R; tip speed = omega R")
+    chamber_volume_m3: float = _f(1.0e-3, unit="m3", lo=0.0, hi=100.0, lo_open=True, doc="grinding chamber volume")
+    tip_speed_m_per_s: float = _f(10.0, unit="m/s", lo=0.0, hi=40.0, doc="stirrer tip speed v_t")
+    bead_filling: float = _f(0.8, lo=0.0, hi=1.0, lo_open=True, hi_open=True, doc="bead filling phi: bulk bead volume at rest over chamber volume")
+    bead_porosity: float = _f(0.4, lo=0.2, hi=0.8, doc="porosity of the bead bulk at rest eps")
+    n_discs: int = _f(5, lo=1, hi=1000, doc="number of stirrer discs (stirrer power)")
+    power_number_laminar: float = _f(100.0, lo=0.0, doc="C_lam of Ne = C_lam/Re + C_turb (stirrer power characteristic; fit to the mill)")
+    power_number_turbulent: float = _f(0.1, lo=0.0, doc="C_turb of Ne = C_lam/Re + C_turb")
+    stress_frequency_factor: float = _f(1.0, lo=0.0, doc="k_c of n_c/t = k_c omega n_gb (Kwade's proportionality constant; calibrate)")
+
+
+@dataclass(frozen=True)
+class Beads:
+    diameter_m: float = _f(0.8e-3, unit="m", lo=1e-5, hi=0.05, doc="grinding bead diameter d_gb")
+    density_kg_per_m3: float = _f(2510.0, unit="kg/m3", lo=500.0, hi=20000.0, doc="grinding bead density rho_gb")
+    youngs_modulus_Pa: float = _f(63e9, unit="Pa", lo=0.0, lo_open=True, doc="Young's modulus of the beads Y_GM (elasticity factor)")
+
+
+@dataclass(frozen=True)
+class Suspension:
+    liquid_density_kg_per_m3: float = _f(998.2, unit="kg/m3", lo=500.0, hi=3000.0, doc="liquid density")
+    viscosity_Pa_s: float = _f(1.002e-3, unit="Pa s", lo=0.0, hi=100.0, lo_open=True, doc="suspension viscosity eta_susp (Krieger-Dougherty base)")
+    solids_mass_fraction: float = _f(0.2, lo=0.0, hi=0.8, hi_open=True, doc="product solids mass fraction of the suspension")
+
+
+@dataclass(frozen=True)
+class Breakage:
+    phi: float = _f(0.5, lo=0.0, hi=1.0, doc="Austin breakage function B = phi r^gamma + (1-phi) r^beta")
+    gamma: float = _f(0.9, lo=0.0, lo_open=True, hi=20.0, doc="Austin gamma (fines slope)")
+    beta: float = _f(4.0, lo=0.0, lo_open=True, hi=20.0, doc="Austin beta (coarse slope)")
+
+
+@dataclass(frozen=True)
+class Selection:
+    a_per_s: float = _f(1e-3, unit="1/s", lo=0.0, doc="Austin S = a (x/x0)^alpha / (1 + (x/mu)^Lambda)")
+    x0_m: float = _f(1e-3, unit="m", lo=0.0, lo_open=True, doc="reference size x0")
+    alpha: float = _f(1.0, lo=-10.0, hi=20.0, doc="exponent alpha")
+    mu_m: float = _f(INF, unit="m", lo=0.0, lo_open=True, doc="size of the maximum term mu (inf: none)")
+    Lambda: float = _f(0.0, lo=0.0, hi=20.0, doc="steepness Lambda of the maximum term")
+
+
+@dataclass(frozen=True)
+class Material:
+    model: str = _f("mineral", choices=("mineral", "yeast", "austin"), doc="material model")
+    density_kg_per_m3: float = _f(2710.0, unit="kg/m3", lo=100.0, hi=25000.0, doc="particle density rho_P")
+    youngs_modulus_Pa: float = _f(70e9, unit="Pa", lo=0.0, lo_open=True, doc="particle Young's modulus Y_P (elasticity factor)")
+    f_mat_kg_per_J_m: float = _f(1.0, unit="kg/(J m)", lo=0.0, lo_open=True, doc="mineral: Vogel-Peukert f_Mat")
+    x_w_min_J_m_per_kg: float = _f(1.0, unit="J m/kg", lo=0.0, doc="mineral: Vogel-Peukert x W_m,min")
+    burst_energy_median_J: float = _f(2e-5, unit="J", lo=0.0, lo_open=True, doc="yeast: median burst energy")
+    burst_energy_sigma_ln: float = _f(1.0, lo=0.0, lo_open=True, hi=10.0, doc="yeast: std. deviation of ln(burst energy)")
+    breakage: Breakage = _f(Breakage(), doc="breakage function (fragments; debris for yeast)")
+    selection: Selection = _f(Selection(), doc="austin: selection function straight from the scene")
+
+
+@dataclass(frozen=True)
+class StressDistribution:
+    source: str = _f("lognormal", choices=("lognormal",), doc="stress-energy source of the detailed model")
+    median_fraction: float = _f(0.01, lo=0.0, hi=1.0, lo_open=True, doc="lognormal: median collision energy over SE")
+    sigma_ln: float = _f(1.5, lo=0.0, hi=10.0, lo_open=True, doc="lognormal: std. deviation of ln(energy)")
+    collision_factor: float = _f(1.0, lo=0.0, doc="lognormal: collisions per volume over omega n_gb")
+
+
+@dataclass(frozen=True)
+class Kinetics:
+    model: str = _f("simple", choices=("simple", "detailed", "none"), doc="stress model: Kwade simple, detailed (SE distribution), none (rates from the scene)")
+    capture: str = _f("class", choices=("class", "psd"), doc="number concentration in P_cap: per size class (rates frozen) or from the current PSD (state-dependent)")
+    stress_distribution: StressDistribution = _f(StressDistribution(), doc="detailed model's stress-energy source")
+
+
+@dataclass(frozen=True)
+class Grid:
+    x_min_m: float = _f(0.1e-6, unit="m", lo=1e-10, hi=1.0, doc="lower edge of the finest class")
+    x_max_m: float = _f(200e-6, unit="m", lo=1e-9, hi=1.0, doc="upper edge of the coarsest class (rounded up to whole classes)")
+    classes_per_octave: float = _f(4.0, lo=0.25, hi=64.0, doc="classes per doubling of size")
+
+
+@dataclass(frozen=True)
+class PSD:
+    kind: str = _f("lognormal", choices=("lognormal", "rrsb", "monodisperse", "table"), doc="size distribution by name or table")
+    x50_m: float = _f(None, unit="m", lo=0.0, lo_open=True, doc="lognormal: median size")
+    sigma_ln: float = _f(None, lo=0.0, lo_open=True, hi=10.0, doc="lognormal: std. deviation of ln x")
+    x63_m: float = _f(None, unit="m", lo=0.0, lo_open=True, doc="rrsb: size at Q3 = 0.632")
+    n: float = _f(None, lo=0.0, lo_open=True, hi=50.0, doc="rrsb: uniformity exponent")
+    x_m: float = _f(None, unit="m", lo=0.0, lo_open=True, doc="monodisperse: size")
+    sizes_m: list = _f(None, unit="m", doc="table: sizes, ascending")
+    Q3: list = _f(None, doc="table: cumulative mass fractions undersize at sizes_m, non-decreasing, last = 1")
+
+
+@dataclass(frozen=True)
+class Operation:
+    mode: str = _f("batch", choices=("batch", "continuous"), doc="batch, or continuous through N equal tanks in series")
+    n_tanks: int = _f(1, lo=1, hi=50, doc="continuous: tanks in series for the residence time distribution")
+    feed_mass_flow_kg_per_s: float = _f(0.0, unit="kg/s", lo=0.0, hi=1e3, doc="continuous: solids feed mass flow")
+
+
+@dataclass(frozen=True)
+class Run:
+    t_end_s: float = _f(1800.0, unit="s", lo=0.0, lo_open=True, hi=1e8, doc="end time")
+    dt_s: float = _f(1.0, unit="s", lo=0.0, lo_open=True, doc="step size")
+    output_interval_s: float = _f(60.0, unit="s", lo=0.0, lo_open=True, doc="time between outputs")
+    integrator: str = _f("exact", choices=("exact", "adaptive"), doc="exact step with frozen rates, or adaptive (rates varying within a step)")
+    rtol: float = _f(1e-6, lo=1e-12, hi=0.1, doc="adaptive: relative tolerance")
+    tip_speed_profile: list = _f(None, doc="optional [[t_s, v_t_m_per_s], ...], linear between points")
+
+
+@dataclass(frozen=True)
+class Scene:
+    """A whole scene (SI units)."""
+
+    scene: SceneInfo = _f(SceneInfo())
+    mill: Mill = _f(Mill())
+    beads: Beads = _f(Beads())
+    suspension: Suspension = _f(Suspension())
+    material: Material = _f(Material())
+    kinetics: Kinetics = _f(Kinetics())
+    grid: Grid = _f(Grid())
+    feed: PSD = _f(PSD(kind="lognormal", x50_m=20e-6, sigma_ln=0.8), doc="feed (and, batch, initial) size distribution")
+    initial: PSD = _f(None, doc="continuous: initial content of the mill (default: the feed)")
+    operation: Operation = _f(Operation())
+    run: Run = _f(Run())
+
+
+# ---------------------------------------------------------------------------------------
+# Loading and validation
+# ---------------------------------------------------------------------------------------
+def _describe(md) -> str:
+    if md["choices"]:
+        return "one of " + ", ".join(repr(c) for c in md["choices"])
+    parts = []
+    if md["lo"] is not None:
+        parts.append((">" if md["lo_open"] else ">=") + f" {md['lo']:g}")
+    if md["hi"] is not None:
+        parts.append(("<" if md["hi_open"] else "<=") + f" {md['hi']:g}")
+    unit = f" {md['unit']}" if md["unit"] else ""
+    return ("a number " + " and ".join(parts) + unit) if parts else "a number" + unit
+
+
+def _check_value(key, v, ftype, md, source):
+    if ftype in ("float", float):
+        if isinstance(v, str) and v.strip().lower() in ("inf", "+inf", "infinity"):
+            v = INF
+        if isinstance(v, bool) or not isinstance(v, (int, float)):
+            raise SceneError(key, v, "must be " + _describe(md), source)
+        v = float(v)
+        if math.isnan(v):
+            raise SceneError(key, v, "must be " + _describe(md), source)
+    elif ftype in ("int", int):
+        if isinstance(v, bool) or not isinstance(v, int):
+            raise SceneError(key, v, "must be an integer" + (" " + _describe(md)[9:] if md["lo"] is not None else ""), source)
+    elif ftype in ("str", str):
+        if not isinstance(v, str):
+            raise SceneError(key, v, "must be " + (_describe(md) if md["choices"] else "a string"), source)
+        if md["choices"] and v not in md["choices"]:
+            raise SceneError(key, v, "must be " + _describe(md), source)
+        return v
+    elif ftype in ("list", list):
+        if not isinstance(v, list):
+            raise SceneError(key, v, "must be a list", source)
+        return v
+    lo, hi = md["lo"], md["hi"]
+    if lo is not None and (v < lo or (md["lo_open"] and v == lo)):
+        raise SceneError(key, v, "must be " + _describe(md), source)
+    if hi is not None and (v > hi or (md["hi_open"] and v == hi)):
+        raise SceneError(key, v, "must be " + _describe(md), source)
+    if ftype in ("float", float) and math.isinf(v) and "mu_m" not in key:
+        raise SceneError(key, v, "must be finite", source)
+    return v
+
+
+def _load_section(cls, table, prefix, source):
+    if not isinstance(table, dict):
+        raise SceneError(prefix, table, "must be a table", source)
+    names = {f.name for f in fields(cls)}
+    for k in table:
+        if k not in names:
+            raise SceneError(f"{prefix}.{k}" if prefix else k, table[k], "unknown key; allowed: " + ", ".join(sorted(names)), source)
+    kw = {}
+    for f in fields(cls):
+        key = f"{prefix}.{f.name}" if prefix else f.name
+        md = f.metadata
+        if f.name not in table:
+            continue  # dataclass default
+        v = table[f.name]
+        sub = _section_type(f)
+        if sub is not None:
+            kw[f.name] = _load_section(sub, v, key, source)
+        else:
+            kw[f.name] = _check_value(key, v, f.type, md, source)
+    return cls(**kw)
+
+
+_SECTION_TYPES = {
+    "SceneInfo": SceneInfo, "Mill": Mill, "Beads": Beads, "Suspension": Suspension,
+    "Material": Material, "Breakage": Breakage, "Selection": Selection, "Kinetics": Kinetics,
+    "StressDistribution": StressDistribution, "Grid": Grid, "PSD": PSD, "Operation": Operation,
+    "Run": Run,
+}
+
+
+def _section_type(f):
+    return _SECTION_TYPES.get(f.type if isinstance(f.type, str) else getattr(f.type, "__name__", ""))
+
+
+def _check_psd(p: PSD, key: str, source: str):
+    need = {"lognormal": ("x50_m", "sigma_ln"), "rrsb": ("x63_m", "n"), "monodisperse": ("x_m",), "table": ("sizes_m", "Q3")}
+    for k in need[p.kind]:
+        if getattr(p, k) is None:
+            raise SceneError(f"{key}.{k}", MISSING, f"required for kind = {p.kind!r}", source)
+    if p.kind == "table":
+        s, q = p.sizes_m, p.Q3
+        for name, arr in (("sizes_m", s), ("Q3", q)):
+            for i, v in enumerate(arr):
+                if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v):
+                    raise SceneError(f"{key}.{name}[{i}]", v, "must be a finite number", source)
+        if len(s) != len(q) or len(s) < 2:
+            raise SceneError(f"{key}.Q3", q, f"must have as many entries as sizes_m ({len(s)}), at least 2", source)
+        if any(v <= 0 for v in s) or any(b <= a for a, b in zip(s, s[1:])):
+            raise SceneError(f"{key}.sizes_m", s, "must be positive and strictly ascending (m)", source)
+        if any(v < 0 or v > 1 for v in q) or any(b < a for a, b in zip(q, q[1:])):
+            raise SceneError(f"{key}.Q3", q, "must lie in [0, 1] and not decrease", source)
+        if abs(q[-1] - 1.0) > 1e-6:
+            raise SceneError(f"{key}.Q3", q, "must end at 1 (all mass below the largest size)", source)
+
+
+def _cross_check(s: Scene, source: str):
+    if s.grid.x_max_m <= s.grid.x_min_m * 2 ** (1.0 / s.grid.classes_per_octave):
+        raise SceneError("grid.x_max_m", s.grid.x_max_m, f"must exceed x_min_m = {s.grid.x_min_m:g} m by at least one class", source)
+    n = math.ceil(s.grid.classes_per_octave * math.log2(s.grid.x_max_m / s.grid.x_min_m) - 1e-9)
+    if n > 1000:
+        raise SceneError("grid.classes_per_octave", s.grid.classes_per_octave, f"gives {n} classes; at most 1000 allowed", source)
+    if s.material.model == "austin" and s.kinetics.model != "none":
+        raise SceneError("kinetics.model", s.kinetics.model, "must be 'none' for material.model = 'austin' (rates straight from the scene)", source)
+    if s.material.model != "austin" and s.kinetics.model == "none":
+        raise SceneError("kinetics.model", s.kinetics.model, f"must be 'simple' or 'detailed' for material.model = {s.material.model!r}; 'none' needs material.model = 'austin'", source)
+    if s.material.model == "yeast" and s.kinetics.capture == "psd":
+        pass  # allowed: cells' number concentration from the intact cells
+    c_v = s.mill.bead_filling * (1.0 - s.mill.bead_porosity)
+    if c_v >= 0.64:
+        raise SceneError("mill.bead_filling", s.mill.bead_filling, f"with bead_porosity {s.mill.bead_porosity:g} gives a bead volume fraction {c_v:.3f}; must stay below 0.64 (random close packing)", source)
+    _check_psd(s.feed, "feed", source)
+    if s.initial is not None:
+        _check_psd(s.initial, "initial", source)
+    if s.run.dt_s > s.run.t_end_s:
+        raise SceneError("run.dt_s", s.run.dt_s, f"must not exceed run.t_end_s = {s.run.t_end_s:g} s", source)
+    if s.run.t_end_s / s.run.dt_s > 1e7:
+        raise SceneError("run.dt_s", s.run.dt_s, f"gives {s.run.t_end_s / s.run.dt_s:.3g} steps; at most 1e7", source)
+    prof = s.run.tip_speed_profile
+    if prof is not None:
+        ok = len(prof) >= 1 and all(isinstance(p, list) and len(p) == 2 and all(isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v) for v in p) for p in prof)
+        if not ok or any(b[0] <= a[0] for a, b in zip(prof, prof[1:])) or any(p[1] < 0 or p[1] > 40 for p in prof):
+            raise SceneError("run.tip_speed_profile", prof, "must be [[t_s, v_t_m_per_s], ...] with ascending times and 0 <= v_t <= 40 m/s", source)
+
+
+def scene_from_dict(d: dict, source: str = "scene") -> Scene:
+    """Validate a scene given as a dict (as read from TOML)."""
+    s = _load_section(Scene, d, "", source)
+    _cross_check(s, source)
+    return s
+
+
+def load_scene(path: str | Path | None = None) -> Scene:
+    """Read and validate a scene file; ``None`` gives the embedded default scene."""
+    if path is None:
+        text = resources.files("millfmu.data").joinpath("default_scene.toml").read_text()
+        source = "default scene"
+    else:
+        p = Path(path)
+        source = str(p)
+        try:
+            text = p.read_text()
+        except OSError as e:
+            raise SceneError("(file)", str(p), f"cannot be read: {e.strerror or e}", source) from None
+    try:
+        d = tomllib.loads(text)
+    except tomllib.TOMLDecodeError as e:
+        raise SceneError("(syntax)", str(e), "the file must be valid TOML", source) from None
+    return scene_from_dict(d, source)
+
+
+def default_scene_text() -> str:
+    return resources.files("millfmu.data").joinpath("default_scene.toml").read_text()
+
+
+def iter_keys(cls=Scene, prefix=""):
+    """Yield (dotted key, unit, default, allowed, doc) for every scene key."""
+    for f in fields(cls):
+        key = f"{prefix}.{f.name}" if prefix else f.name
+        sub = _section_type(f)
+        if sub is not None:
+            yield from iter_keys(sub, key)
+            continue
+        md = f.metadata
+        default = f.default if f.default is not MISSING else (f.default_factory() if f.default_factory is not MISSING else None)
+        allowed = _describe(md) if f.type in ("float", "int", float, int) or md["choices"] else str(f.type)
+        yield key, md.get("unit", ""), default, allowed, md.get("doc", "")

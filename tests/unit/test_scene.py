@@ -1,0 +1,88 @@
+"""Scenes: defaults load; every kind of bad value stops with a message naming key, value and what is allowed."""
+
+import json
+import subprocess
+import sys
+
+import pytest
+
+from millfmu.scene import SceneError, load_scene, scene_from_dict
+from tests.conftest import make_scene
+
+
+def test_default_scene_loads_in_si():
+    s = load_scene()
+    assert s.beads.diameter_m == 0.8e-3
+    assert s.mill.tip_speed_m_per_s == 10.0
+    assert s.material.model == "mineral"
+
+
+@pytest.mark.parametrize(
+    "section, values, key, words",
+    [
+        ("mill", {"tip_speed_m_per_s": -3.0}, "mill.tip_speed_m_per_s", ">= 0"),
+        ("mill", {"tip_speed_m_per_s": "fast"}, "mill.tip_speed_m_per_s", "a number"),
+        ("mill", {"bead_filling": 1.0}, "mill.bead_filling", "< 1"),
+        ("mill", {"n_discs": 2.5}, "mill.n_discs", "integer"),
+        ("mill", {"tip_sped_m_per_s": 3.0}, "mill.tip_sped_m_per_s", "unknown key"),
+        ("beads", {"diameter_m": 0.0}, "beads.diameter_m", ">= 1e-05"),
+        ("material", {"model": "granite"}, "material.model", "one of"),
+        ("kinetics", {"model": "none"}, "kinetics.model", "austin"),
+        ("feed", {"kind": "rrsb", "x63_m": 1e-5}, "feed.n", "required"),
+        ("feed", {"kind": "table", "sizes_m": [1e-6, 2e-6], "Q3": [0.5, 0.9]}, "feed.Q3", "end at 1"),
+        ("feed", {"kind": "table", "sizes_m": [2e-6, 1e-6], "Q3": [0.5, 1.0]}, "feed.sizes_m", "ascending"),
+        ("run", {"dt_s": 10000.0}, "run.dt_s", "t_end_s"),
+        ("grid", {"x_max_m": 0.1e-6}, "grid.x_max_m", "x_min_m"),
+    ],
+)
+def test_bad_values_name_key_value_allowed(scene_dict, section, values, key, words):
+    with pytest.raises(SceneError) as e:
+        make_scene(scene_dict, **{section: values})
+    assert e.value.key == key
+    msg = str(e.value)
+    assert key in msg and words in msg
+    bad = list(values.values())[-1] if key.split(".")[-1] in values else None
+    if bad is not None:
+        assert repr(bad) in msg
+
+
+def test_unknown_section(scene_dict):
+    scene_dict["mil"] = {}
+    with pytest.raises(SceneError, match="mil.*unknown key"):
+        scene_from_dict(scene_dict)
+
+
+def test_cli_bad_scene_exit_2_and_nothing_written(tmp_path):
+    bad = tmp_path / "bad.toml"
+    bad.write_text("[mill]\ntip_speed_m_per_s = -1.0\n")
+    out = tmp_path / "out"
+    r = subprocess.run([sys.executable, "-m", "millfmu.cli", "run", str(bad), "--out", str(out)], capture_output=True, text=True)
+    assert r.returncode == 2
+    assert "mill.tip_speed_m_per_s" in r.stderr and "-1.0" in r.stderr and ">= 0" in r.stderr
+    assert not out.exists()
+    assert [p.name for p in tmp_path.iterdir()] == ["bad.toml"]
+
+
+def test_cli_syntax_error_exit_2(tmp_path):
+    bad = tmp_path / "bad.toml"
+    bad.write_text("[mill\n")
+    r = subprocess.run([sys.executable, "-m", "millfmu.cli", "run", str(bad), "--out", str(tmp_path / "o")], capture_output=True, text=True)
+    assert r.returncode == 2 and "TOML" in r.stderr
+
+
+def test_cli_run_default_writes_results(tmp_path):
+    out = tmp_path / "o"
+    r = subprocess.run([sys.executable, "-m", "millfmu.cli", "run", "--out", str(out), "-q"], capture_output=True, text=True)
+    assert r.returncode == 0, r.stderr
+    assert {p.name for p in out.iterdir()} == {"result.json", "psd.csv", "psd.png", "sizes.png"}
+    res = json.loads((out / "result.json").read_text())
+    assert res["scene"]["eta_eff_Pa_s"] > 0 and res["scene"]["reynolds"] > 0
+    recs = res["outputs"]
+    assert recs[0]["t_s"] == 0.0 and recs[-1]["t_s"] == pytest.approx(1800.0)
+    for k in ("x10_m", "x50_m", "x90_m", "total_mass_kg", "se_beads_J", "sf_per_s", "specific_energy_J_per_kg"):
+        assert k in recs[-1]
+    assert recs[-1]["x50_m"] < recs[0]["x50_m"]
+    assert recs[-1]["total_mass_kg"] == pytest.approx(recs[0]["total_mass_kg"], rel=1e-12)
+    lines = (out / "psd.csv").read_text().splitlines()
+    assert len(lines) == len(recs) + 1
+    assert "x50" in r.stdout
