@@ -41,7 +41,7 @@ def test_bad_values_name_key_value_allowed(scene_dict, section, values, key, wor
     assert e.value.key == key
     msg = str(e.value)
     assert key in msg and words in msg
-    bad = list(values.values())[-1] if key.split(".")[-1] in values else None
+    bad = values.get(key.split(".")[-1])
     if bad is not None:
         assert repr(bad) in msg
 
