@@ -10,10 +10,11 @@ import importlib
 import sys
 import time
 
-#: Subcommand groups contributed by sub-packages: module with ``register(subparsers)``.
-#: They are imported only to register their parsers; heavy imports (numba) stay inside
+#: Commands contributed by sub-packages: a module with ``register(subparsers)`` and,
+#: optionally, ``register_bench(bench_subparsers)`` for ``millfmu bench ...``. They are
+#: imported only to register their parsers; heavy imports (numba, pythonfmu) stay inside
 #: their handlers.
-PLUGINS = ("millfmu.dem.cli",)
+PLUGINS = ("millfmu.dem.cli", "fmu_build.cli")
 
 
 def _cmd_run(args) -> int:
@@ -86,6 +87,8 @@ def build_parser() -> argparse.ArgumentParser:
                 raise
             continue
         plugin.register(sub)
+        if hasattr(plugin, "register_bench"):
+            plugin.register_bench(bsub)
     return p
 
 
