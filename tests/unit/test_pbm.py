@@ -1,0 +1,169 @@
+"""Population balance: conservation, non-negativity, step invariance, continuous mass balance, integrator order."""
+
+import numpy as np
+import pytest
+
+from millfmu.kinetics import pbm
+from millfmu.kinetics.grid import SizeGrid, characteristic_size_m, characteristic_sizes_m, fractions_from_q3, q3_lognormal
+from millfmu.mill import InputError, MillModel
+from tests.conftest import make_scene
+
+
+def _operator(n=60, inert=False, alpha=2.0):
+    grid = SizeGrid.with_classes(1e-7, 1e-4, n)
+    op = pbm.BreakageOperator(grid, lambda r: 0.3 * r**0.8 + 0.7 * r**4, inert_fragments=inert)
+    s = 0.05 * (op.nodes_m / 1e-5) ** alpha
+    return op, op.matrix(s)
+
+
+@pytest.mark.parametrize("inert", [False, True])
+def test_operator_columns_sum_to_zero_and_metzler(inert):
+    op, a = _operator(inert=inert)
+    scale = np.abs(np.diag(a)).max()
+    assert np.max(np.abs(a.sum(axis=0))) <= 1e-15 * scale * a.shape[0]
+    off = a - np.diag(np.diag(a))
+    assert off.min() >= 0.0 and np.diag(a).max() <= 0.0
+    if not inert:
+        assert np.allclose(np.tril(a, -1), 0.0)  # fragments only go to finer classes
+
+
+def test_propagator_nonnegative_unit_columns():
+    _, a = _operator()
+    g = pbm.system_matrix(a, 1, 0.0)
+    for h in (1e-3, 1.0, 1e3, 1e6):
+        phi, _ = pbm.propagators(g, None, h)
+        assert phi.min() >= 0.0
+        assert np.allclose(phi.sum(axis=0), 1.0, rtol=0, atol=phi.shape[0] * np.finfo(float).eps)
+
+
+@pytest.mark.parametrize("mode", ["batch", "continuous"])
+def test_step_invariance_frozen_rates(scene_dict, mode):
+    """k steps of h equal one step of k h to 1e-10 relative when rates are frozen."""
+    ops = {"mode": mode, "n_tanks": 3, "feed_mass_flow_kg_per_s": 1e-4} if mode == "continuous" else {"mode": "batch"}
+    s = make_scene(scene_dict, operation=ops)
+    for k, h in ((10, 1.0), (7, 13.0), (100, 0.25)):
+        m1, m2 = MillModel(s), MillModel(s)
+        for _ in range(k):
+            m1.step(h)
+        m2.step(k * h)
+        rel = np.max(np.abs(m1.y - m2.y)) / m2.y.sum()
+        assert rel <= 1e-10, (k, h, rel)
+
+
+def test_batch_mass_conserved_and_nonnegative(scene_dict):
+    m = MillModel(make_scene(scene_dict))
+    m0 = m.total_mass_kg()
+    for h in (0.1, 1.0, 10.0, 1000.0, 1e5):
+        m.step(h)
+        assert m.y.min() >= 0.0
+        assert abs(m.total_mass_kg() - m0) <= 1e-14 * m0
+
+
+def test_continuous_mass_balance_in_out_accumulation(scene_dict):
+    s = make_scene(scene_dict, operation={"mode": "continuous", "n_tanks": 4, "feed_mass_flow_kg_per_s": 2e-4})
+    m = MillModel(s)
+    holdup0 = m.outputs()["holdup_kg"]
+    fed = out = 0.0
+    rng = np.random.default_rng(1)
+    for _ in range(200):
+        h = rng.uniform(0.1, 20.0)
+        mdot = rng.uniform(0.0, 5e-4)
+        o = m.step(h, feed_mass_flow_kg_per_s=mdot)
+        fed += mdot * h
+        out += o["product_mass_flow_kg_per_s"] * h
+        assert m.y.min() >= 0.0
+    acc = o["holdup_kg"] - holdup0
+    assert abs(fed - out - acc) <= 1e-12 * (holdup0 + fed)
+
+
+def test_continuous_steady_state_residence_time(scene_dict):
+    """With zero rates the outlet follows the N-tanks-in-series washout: holdup -> V c for any initial content."""
+    s = make_scene(scene_dict, operation={"mode": "continuous", "n_tanks": 2, "feed_mass_flow_kg_per_s": 1e-3}, mill={"tip_speed_m_per_s": 0.0})
+    m = MillModel(s)
+    op = m.operating_point(m.inputs)
+    q = 1e-3 / op.solids_concentration_kg_per_m3
+    v = m.suspension_volume_m3(op)
+    tau = v / q
+    m.y[:-1] *= 0.5  # half-empty start
+    m.y[-1] = 0.0
+    o = m.step(40 * tau)
+    assert o["holdup_kg"] == pytest.approx(op.solids_concentration_kg_per_m3 * v, rel=1e-9)
+    assert o["product_mass_flow_kg_per_s"] == pytest.approx(1e-3 * (40 * tau - 0.5 * tau) / (40 * tau), rel=1e-6)
+
+
+def test_state_round_trip_bit_identical(scene_dict):
+    m = MillModel(make_scene(scene_dict, operation={"mode": "continuous", "n_tanks": 2, "feed_mass_flow_kg_per_s": 1e-4}))
+    m.step(3.0)
+    st = m.get_state()
+    a = [m.step(h)["x50_m"] for h in (1.0, 2.5, 0.3)]
+    y_a = m.y.copy()
+    m.set_state(st)
+    b = [m.step(h)["x50_m"] for h in (1.0, 2.5, 0.3)]
+    assert a == b and np.array_equal(y_a, m.y)
+
+
+def test_bad_input_leaves_state_unchanged(scene_dict):
+    m = MillModel(make_scene(scene_dict, operation={"mode": "continuous", "feed_mass_flow_kg_per_s": 1e-4}))
+    m.step(1.0)
+    st = m.get_state()
+    n = m.grid.n
+    bad = [
+        {"tip_speed_m_per_s": -1.0}, {"tip_speed_m_per_s": float("nan")}, {"feed_mass_flow_kg_per_s": -1e-3},
+        {"feed_mass_flow_kg_per_s": float("inf")}, {"bead_filling": 1.0}, {"bead_filling": 0.0},
+        {"psd_in": np.full(n, 0.5 / n)}, {"psd_in": np.r_[-0.1, np.full(n - 1, 1.1 / (n - 1))]}, {"psd_in": np.ones(3)},
+        {"solids_mass_fraction": 0.0}, {"bogus": 1.0},
+    ]
+    for b in bad:
+        with pytest.raises(InputError) as e:
+            m.step(1.0, **b)
+        assert list(b)[0] in str(e.value) or "psd_in" in str(e.value)
+        assert np.array_equal(m.y, st["y"]) and m.t_s == st["t_s"]
+    for h in (0.0, -1.0, float("nan")):
+        with pytest.raises(InputError, match="dt_s"):
+            m.step(h)
+
+
+def test_characteristic_sizes_lognormal():
+    grid = SizeGrid.geometric(1e-7, 1e-3, 16)
+    w = fractions_from_q3(grid, q3_lognormal(grid.edges_m, 1e-5, 0.7))
+    x10, x50, x90 = characteristic_sizes_m(grid, w, (0.1, 0.5, 0.9))
+    assert x50 == pytest.approx(1e-5, rel=1e-3)
+    assert x10 == pytest.approx(1e-5 * np.exp(-1.2815516 * 0.7), rel=2e-3)
+    assert x90 == pytest.approx(1e-5 * np.exp(1.2815516 * 0.7), rel=2e-3)
+    assert characteristic_size_m(grid, w, 0.5) == pytest.approx(x50, rel=1e-12)
+
+
+def test_adaptive_exponential_midpoint_second_order():
+    """Fixed-step convergence of the exponential midpoint with a time-varying rate: order ~2."""
+    _, a = _operator(n=30)
+    g0 = pbm.system_matrix(a, 1, 0.0)
+    y0 = np.zeros(g0.shape[0])
+    y0[25] = 1.0
+
+    def system(t, y):
+        return g0 * (1.0 + 0.9 * np.sin(t)), None, None
+
+    def run(n):
+        y, t, h = y0.copy(), 0.0, 4.0 / n
+        for _ in range(n):
+            # rtol=1 accepts the first try: one midpoint step of h/2 twice, fixed step size.
+            y, _ = pbm.adaptive_exponential_step(y, t, h, system, rtol=1.0, atol=1.0)
+            t += h
+        return y
+
+    ref, _ = pbm.adaptive_exponential_step(y0, 0.0, 4.0, system, rtol=1e-12, atol=1e-16)
+    errs = [np.abs(run(n) - ref).sum() for n in (8, 16, 32, 64)]
+    orders = np.log2(np.array(errs[:-1]) / np.array(errs[1:]))
+    assert np.all(orders > 1.9), orders
+
+
+def test_adaptive_ramp_matches_fine_steps(scene_dict):
+    """A tip-speed ramp within one step (adaptive) against many small frozen steps."""
+    s = make_scene(scene_dict)
+    a, b = MillModel(s), MillModel(s)
+    a.step(60.0, inputs_end={"tip_speed_m_per_s": 12.0}, tip_speed_m_per_s=6.0)
+    n = 6000
+    for i in range(n):
+        b.step(60.0 / n, tip_speed_m_per_s=6.0 + 6.0 * (i + 0.5) / n)
+    assert np.abs(a.y - b.y).sum() / b.y.sum() < 1e-5
+    assert abs(a.total_mass_kg() - b.total_mass_kg()) <= 1e-14 * b.total_mass_kg()
