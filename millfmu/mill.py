@@ -121,7 +121,7 @@ class MillModel:
         mass_per_tank = op.solids_concentration_kg_per_m3 * self.suspension_volume_m3(op) / self.n_tanks
         y = np.zeros(self.n_tanks * self._m + 1)
         for k in range(self.n_tanks):
-            y[k * self._m : k * self._m + self.grid.n] = mass_per_tank * w0
+            y[pbm.tank_slice(k, self._m, self.n_tanks)][: self.grid.n] = mass_per_tank * w0
         self.t_s = 0.0
         self.y = y
         self.energy_J = 0.0
@@ -187,7 +187,7 @@ class MillModel:
     def _number_concentration(self, y, op) -> float:
         """Product particles per suspension volume from the current PSD [1/m3] (intact cells for yeast)."""
         n = self.grid.n
-        m = y[:-1].reshape(self.n_tanks, self._m)[:, :n].sum(axis=0)
+        m = y[1:].reshape(self.n_tanks, self._m)[:, :n].sum(axis=0)
         v_p = math.pi / 6.0 * self.grid.x_m**3
         return float(np.sum(m / (op.rho_p_kg_per_m3 * v_p))) / self.suspension_volume_m3(op)
 
@@ -304,7 +304,7 @@ class MillModel:
             op_end = op
         if not np.all(np.isfinite(y_new)) or np.any(y_new < 0.0):
             raise StepError(f"step of {h} s at t = {self.t_s} s gave non-finite or negative masses")
-        out_kg = float(y_new[-1] - self.y[-1])
+        out_kg = float(y_new[0] - self.y[0])
         fed = float(new_inputs["feed_mass_flow_kg_per_s"]) * h
         # Power and stress number with the operating point held over the step (trapezoid
         # between start and end for ramps).
@@ -332,9 +332,9 @@ class MillModel:
     # ---- outputs --------------------------------------------------------------------------
     def _outputs(self, y, op, inputs, dt_s, out_kg) -> dict:
         n, m = self.grid.n, self._m
-        tanks = y[:-1].reshape(self.n_tanks, m)
+        tanks = y[1:].reshape(self.n_tanks, m)  # tank N first
         content = tanks.sum(axis=0)
-        last = tanks[-1]
+        last = tanks[0]
         # Size distribution of the product (continuous: last tank = outlet) or mill content.
         dist = last if self.continuous else content
         per_class = dist[:n] + (dist[n:] if self.material.inert_fragments else 0.0)
@@ -357,7 +357,7 @@ class MillModel:
             "holdup_kg": holdup,
             "product_mass_flow_kg_per_s": out_kg / dt_s if dt_s > 0 else 0.0,
             "feed_mass_flow_kg_per_s": float(inputs["feed_mass_flow_kg_per_s"]),
-            "outflow_total_kg": float(y[-1]),
+            "outflow_total_kg": float(y[0]),
             "se_beads_J": num["se_beads_J"],
             "se_product_J": num["se_product_J"],
             "sf_per_s": sf,
@@ -404,6 +404,10 @@ class MillModel:
         power_W, specific_energy_J_per_kg, eta_eff_Pa_s, reynolds [-], disrupted_fraction
         (yeast) [-]."""
         return self._last
+
+    def tank_masses_kg(self) -> np.ndarray:
+        """Copy of the masses per tank (first tank first) and state entry [kg], shape (N, m)."""
+        return self.y[1:].reshape(self.n_tanks, self._m)[::-1].copy()
 
     def total_mass_kg(self) -> float:
         """Solids in the mill plus all that has left it [kg] (= initial + fed, to round-off)."""

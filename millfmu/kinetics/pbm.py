@@ -13,7 +13,8 @@ entries, so every column sums to zero to round-off: mass is conserved by constru
 
 Continuous operation: N equal, perfectly mixed tanks in series with dilution rate
 D = Q / V_tank [1/s]; the mass that leaves the last tank is summed in an extra state (the
-outflow accumulator), so the whole system matrix G is again column-conservative. With rates
+outflow accumulator), so the whole system matrix G is again column-conservative; the state
+is ordered so that G is upper triangular (see :func:`system_matrix`). With rates
 and inputs frozen over a step h, the step is exact:
 
     y(t + h) = Phi y(t) + Gamma u,  [[Phi, Gamma], [0, I]] = expm([[G, F], [0, 0]] h)
@@ -100,27 +101,38 @@ class BreakageOperator:
 def system_matrix(a: np.ndarray, n_tanks: int, dilution_per_s: float) -> np.ndarray:
     """Matrix G of N tanks in series with breakage operator a, plus the outflow accumulator.
 
-    State layout: [tank 1 (m entries), ..., tank N, outflow]; dilution_per_s = Q / V_tank.
+    State layout: [outflow, tank N (m entries), ..., tank 1]; dilution_per_s = Q / V_tank.
+    In this order every transfer (breakage to finer classes, flow to the next tank, outflow)
+    goes from a higher to a lower index, so G is upper triangular, and so is the augmented
+    matrix of :func:`propagators`; scipy's expm then treats the diagonal exactly, which
+    keeps steps of stiff systems (rates x step ~ 1e11) accurate to round-off.
     For a batch mill use n_tanks = 1, dilution_per_s = 0.
     """
     m = a.shape[0]
     size = n_tanks * m + 1
     g = np.zeros((size, size))
     eye = np.eye(m)
-    for k in range(n_tanks):
-        sl = slice(k * m, (k + 1) * m)
+    for k in range(n_tanks):  # k = 0 is tank 1
+        sl = tank_slice(k, m, n_tanks)
         g[sl, sl] = a - dilution_per_s * eye
         if k + 1 < n_tanks:
-            g[(k + 1) * m : (k + 2) * m, sl] = dilution_per_s * eye
+            g[tank_slice(k + 1, m, n_tanks), sl] = dilution_per_s * eye
         else:
-            g[-1, sl] = dilution_per_s
+            g[0, sl] = dilution_per_s
     return g
+
+
+def tank_slice(k: int, m: int, n_tanks: int) -> slice:
+    """Indices of tank k (0 = the first tank, which gets the feed) in the state vector."""
+    start = 1 + (n_tanks - 1 - k) * m
+    return slice(start, start + m)
 
 
 def feed_matrix(m: int, n_tanks: int, n_in: int) -> np.ndarray:
     """Map of the feed mass flow per class [kg/s] (n_in classes) into the first tank's states."""
     f = np.zeros((n_tanks * m + 1, n_in))
-    f[np.arange(n_in), np.arange(n_in)] = 1.0
+    start = tank_slice(0, m, n_tanks).start
+    f[start + np.arange(n_in), np.arange(n_in)] = 1.0
     return f
 
 

@@ -141,6 +141,8 @@ def selection_per_s(model: str, material, op: OperatingPoint, x_m, n_p_per_m3=No
     n_p_per_m3: product number concentration for the capture probability (None: per class);
     source: a :class:`~millfmu.kinetics.stress_distribution.StressEnergySource` ("detailed").
     """
+    if model not in ("simple", "detailed", "none"):
+        raise ValueError(f"unknown stress model {model!r}; allowed: 'simple', 'detailed', 'none'")
     x = np.asarray(x_m, dtype=float)
     if model == "none":
         return np.asarray(material.selection_per_s(x), dtype=float)
@@ -149,16 +151,15 @@ def selection_per_s(model: str, material, op: OperatingPoint, x_m, n_p_per_m3=No
     if model == "simple":
         sf = op.stress_frequency_per_s(x, n_p_per_m3)
         return sf * material.breakage_probability(x, op.se_product_J)
-    if model == "detailed":
-        total = np.zeros_like(x)
-        for zone in source.zones(op):
-            if zone.collision_rate_per_m3_s <= 0.0:
-                continue
-            e_p = zone.energy_J * op.elasticity_factor
-            p = material.breakage_probability(x[..., None], e_p)
-            # Collisions per chamber volume from this zone times the zone's mean breakage
-            # probability per stress.
-            total += zone.volume_fraction * zone.collision_rate_per_m3_s * (p @ zone.energy_weights)
-        # SF with a unit collision rate, times the zone-weighted rate of breaking stresses.
-        return op.stress_frequency_per_s(x, n_p_per_m3, collision_rate_per_m3_s=1.0) * total
-    raise ValueError(f"unknown stress model {model!r}; allowed: 'simple', 'detailed', 'none'")
+    # detailed
+    total = np.zeros_like(x)
+    for zone in source.zones(op):
+        if zone.collision_rate_per_m3_s <= 0.0:
+            continue
+        e_p = zone.energy_J * op.elasticity_factor
+        p = material.breakage_probability(x[..., None], e_p)
+        # Collisions per chamber volume from this zone times the zone's mean breakage
+        # probability per stress.
+        total += zone.volume_fraction * zone.collision_rate_per_m3_s * (p @ zone.energy_weights)
+    # SF with a unit collision rate, times the zone-weighted rate of breaking stresses.
+    return op.stress_frequency_per_s(x, n_p_per_m3, collision_rate_per_m3_s=1.0) * total
