@@ -181,6 +181,11 @@ class MillSlave(Fmi2Slave):
         self._n_vars = len(self._v)
         self._publish(last)
 
+    def log(self, msg: str, status=Fmi2Status.ok, category=None, debug=None):
+        # The host's logger takes the message as a printf format: a bare '%' (in a
+        # traceback, a value or a scene name) must not be read as a conversion.
+        super().log(msg.replace("%", "%%"), status, category, debug)
+
     # ---- values ----------------------------------------------------------------------------
     def _publish(self, outs: dict):
         """Copy the model's outputs into the value list."""
