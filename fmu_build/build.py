@@ -90,6 +90,34 @@ def _needed_modules(scene_path: Path) -> dict:
     return info["modules"]
 
 
+def toml_text(d: dict) -> str:
+    """TOML text of a scene dict (tables, numbers, strings, booleans, lists of numbers)."""
+
+    def val(v):
+        if isinstance(v, bool):
+            return "true" if v else "false"
+        if isinstance(v, str):
+            return json.dumps(v)
+        if isinstance(v, float) and v in (float("inf"), float("-inf")):
+            return "inf" if v > 0 else "-inf"
+        if isinstance(v, list):
+            return "[" + ", ".join(val(x) for x in v) + "]"
+        return repr(v)
+
+    lines: list = []
+
+    def table(prefix, t):
+        if prefix:
+            lines.append(f"[{prefix}]")
+        lines.extend(f"{k} = {val(v)}" for k, v in t.items() if not isinstance(v, dict))
+        for k, v in t.items():
+            if isinstance(v, dict):
+                table(f"{prefix}.{k}" if prefix else k, v)
+
+    table("", d)
+    return "\n".join(lines) + "\n"
+
+
 def _slug(text: str) -> str:
     s = re.sub(r"[^0-9A-Za-z]+", "_", text).strip("_")
     return (s or "scene")[:40]
