@@ -20,39 +20,11 @@ else:  # pragma: no cover
 
 import numpy as np
 
+from fmu_build.build import toml_text
 from millfmu.mill import MillModel
 from millfmu.scene import default_scene_text, load_scene
 
 ROOT = Path(__file__).resolve().parents[2]
-
-
-def toml_dumps(d: dict) -> str:
-    """Minimal TOML writer for scene dicts (tables, numbers, strings, lists of numbers)."""
-
-    def val(v):
-        if isinstance(v, bool):
-            return "true" if v else "false"
-        if isinstance(v, str):
-            return json.dumps(v)
-        if isinstance(v, float):
-            return repr(v) if v == v and abs(v) != float("inf") else ("inf" if v > 0 else "-inf")
-        if isinstance(v, list):
-            return "[" + ", ".join(val(x) for x in v) + "]"
-        return str(v)
-
-    lines = []
-
-    def table(prefix, t):
-        scal = {k: v for k, v in t.items() if not isinstance(v, dict)}
-        if prefix:
-            lines.append(f"[{prefix}]")
-        lines.extend(f"{k} = {val(v)}" for k, v in scal.items())
-        for k, v in t.items():
-            if isinstance(v, dict):
-                table(f"{prefix}.{k}" if prefix else k, v)
-
-    table("", d)
-    return "\n".join(lines) + "\n"
 
 
 def scene_text(**sections) -> str:
@@ -60,7 +32,7 @@ def scene_text(**sections) -> str:
     d = copy.deepcopy(tomllib.loads(default_scene_text()))
     for sec, vals in sections.items():
         d.setdefault(sec, {}).update(vals)
-    return toml_dumps(d)
+    return toml_text(d)
 
 
 CONTINUOUS = dict(scene={"name": "pm1-limestone-continuous"}, operation={"mode": "continuous", "n_tanks": 3, "feed_mass_flow_kg_per_s": 1e-3})
@@ -92,11 +64,13 @@ def isolated_python(where: Path) -> str:
 
 
 def run_py(python: str, code: str, cwd: Path, timeout=300) -> dict:
-    """Run PRELUDE + code in a fresh interpreter; the code prints one JSON object last."""
+    """Run PRELUDE + code in a fresh interpreter; the code ends with done(obj)."""
     env = {k: v for k, v in os.environ.items() if k not in ("PYTHONPATH", "PYTHONHOME")}
     r = subprocess.run([python, "-c", PRELUDE + code], capture_output=True, text=True, cwd=str(cwd), timeout=timeout, env=env)
     assert r.returncode == 0, f"subprocess failed ({r.returncode}):\n{r.stdout[-3000:]}\n{r.stderr[-3000:]}"
-    return json.loads(r.stdout.strip().splitlines()[-1])
+    lines = [ln for ln in r.stdout.splitlines() if ln.startswith("RESULT ")]  # masters log to stdout too
+    assert lines, r.stdout[-3000:]
+    return json.loads(lines[-1][len("RESULT "):])
 
 
 def reference(scene_path, steps, inputs_per_step=None):
@@ -173,5 +147,5 @@ def record(rec, fmu):
             rec.setdefault(n, []).append(v)
 
 def done(obj):
-    print(json.dumps(obj))
+    print("RESULT " + json.dumps(obj), flush=True)
 '''
