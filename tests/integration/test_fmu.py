@@ -317,3 +317,32 @@ done({{"rss_kib": rss, "b": outputs(b)["x50"], "c": outputs(c)["x50"], "d": outp
     assert len(res["mods"]) == 3
     for kind, key in (("batch", "b"), ("continuous", "c"), ("detailed", "d")):
         assert res[key] == reference(work["scenes"][kind], [1.0] * 3)["x50"][-1]
+
+
+def test_build_fmu_rejects_a_bad_scene_naming_the_key(tmp_path):
+    import subprocess
+    import sys
+
+    from .fmu_support import ROOT
+
+    bad = tmp_path / "bad.toml"
+    bad.write_text(scene_text(mill={"bead_filling": 1.5}))
+    r = subprocess.run([sys.executable, "-m", "millfmu.cli", "build-fmu", str(bad), "-o", str(tmp_path / "x.fmu")], capture_output=True, text=True, cwd=ROOT)
+    assert r.returncode == 2 and "mill.bead_filling = 1.5" in r.stderr, r.stderr
+    assert not (tmp_path / "x.fmu").exists()
+
+
+def test_bench_fmu_command_prints_ratios_against_the_floor(tmp_path):
+    """Runs the benchmark with a handful of steps: checks what it prints, not the timings."""
+    import subprocess
+    import sys
+
+    from .fmu_support import ROOT
+
+    r = subprocess.run([sys.executable, "-m", "millfmu.cli", "bench", "fmu", "--steps", "5", "--repeats", "1"], capture_output=True, text=True, cwd=ROOT, timeout=300)
+    assert r.returncode == 0, r.stderr
+    lines = r.stdout.splitlines()
+    assert any(ln.startswith("trivial pythonfmu FMU (floor)") for ln in lines)
+    rows = [ln for ln in lines if ln.startswith("mill, ")]
+    assert [ln.split()[1] for ln in rows] == ["batch", "continuous"]
+    assert all(ln.split()[2] == "113" for ln in rows)  # 100 classes + 13 scalar outputs
