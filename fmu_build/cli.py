@@ -1,0 +1,68 @@
+"""``millfmu build-fmu``, ``millfmu host-env`` and ``millfmu bench fmu``.
+
+pythonfmu and fmpy are imported inside the handlers only, so that ``millfmu`` starts fast
+and works without them.
+"""
+
+from __future__ import annotations
+
+import sys
+
+
+def _cmd_build_fmu(args) -> int:
+    import time
+    import zipfile
+
+    from .build import build_fmu
+
+    t0 = time.perf_counter()
+    try:
+        r = build_fmu(args.scene, args.output)
+    except (RuntimeError, ValueError) as e:
+        if type(e).__name__ in ("SceneError", "InputError"):
+            raise  # the main command reports these with exit status 2
+        print(f"millfmu build-fmu: error: {e}", file=sys.stderr)
+        return 1
+    with zipfile.ZipFile(r.fmu) as z:
+        n_files = len(z.namelist())
+    size = r.fmu.stat().st_size
+    print(f"wrote {r.fmu} ({size / 1024:.1f} KiB, {n_files} files) in {time.perf_counter() - t0:.2f} s")
+    print(f"model identifier {r.model_identifier}; {r.n_classes} size classes; code package {r.package}: {', '.join(r.modules)}")
+    return 0
+
+
+def _cmd_host_env(args) -> int:
+    from .hostenv import host_env, shell_lines
+
+    try:
+        env = host_env(args.fmu)
+    except (OSError, ValueError) as e:
+        print(f"millfmu host-env: error: {e}", file=sys.stderr)
+        return 2
+    print("\n".join(shell_lines(env)))
+    return 0
+
+
+def _cmd_bench_fmu(args) -> int:
+    from .bench import bench_fmu
+
+    return bench_fmu(classes=args.classes, steps=args.steps, repeats=args.repeats)
+
+
+def register(subparsers) -> None:
+    b = subparsers.add_parser("build-fmu", help="build an FMI 2.0 co-simulation FMU of a scene (pythonfmu)")
+    b.add_argument("scene", nargs="?", default=None, help="scene file (TOML); omitted: the embedded default scene")
+    b.add_argument("-o", "--output", required=True, help="FMU file to write (.fmu)")
+    b.set_defaults(func=_cmd_build_fmu)
+
+    h = subparsers.add_parser("host-env", help="environment a C/C++ host needs to load an FMU built by build-fmu")
+    h.add_argument("fmu", help="FMU file")
+    h.set_defaults(func=_cmd_host_env)
+
+
+def register_bench(bench_subparsers) -> None:
+    f = bench_subparsers.add_parser("fmu", help="FMU doStep + reading all outputs, against a trivial pythonfmu FMU in the same run")
+    f.add_argument("--classes", type=int, default=100, help="size classes of the mill FMU (default 100)")
+    f.add_argument("--steps", type=int, default=2000, help="steps per timing run")
+    f.add_argument("--repeats", type=int, default=5, help="timing runs; the best is reported")
+    f.set_defaults(func=_cmd_bench_fmu)

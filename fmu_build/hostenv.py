@@ -1,0 +1,69 @@
+"""Environment a non-Python (C, C++) host needs to load an FMU built by ``millfmu build-fmu``.
+
+pythonfmu's binary does not link libpython: the host must preload it (LD_PRELOAD), and the
+embedded interpreter must find its standard library (PYTHONHOME) and numpy and scipy
+(PYTHONPATH). The values describe the Python running this command, which must be the one
+the FMU is meant to run with (same version as its libpython).
+"""
+
+from __future__ import annotations
+
+import importlib.util
+import os
+import sys
+import sysconfig
+import zipfile
+from pathlib import Path
+from xml.etree import ElementTree as ET
+
+#: What the FMU imports from the host's Python (the rest it carries).
+REQUIRED = ("numpy", "scipy")
+
+
+def _libpython() -> Path:
+    libdir = sysconfig.get_config_var("LIBDIR") or ""
+    multiarch = sysconfig.get_config_var("MULTIARCH") or ""
+    names = [n for n in (sysconfig.get_config_var("INSTSONAME"), sysconfig.get_config_var("LDLIBRARY")) if n and not n.endswith(".a")]
+    for name in names:
+        for d in (Path(libdir), Path(libdir) / multiarch):
+            if (d / name).exists():
+                return d / name
+    raise ValueError(f"this Python ({sys.executable}) has no shared libpython (looked for {names} in {libdir}); "
+                     "a C host needs a Python built with --enable-shared")
+
+
+def host_env(fmu: str | Path) -> dict:
+    """{variable: value} for a C host loading ``fmu`` with this Python's environment."""
+    fmu = Path(fmu)
+    with zipfile.ZipFile(fmu) as z:  # OSError / BadZipFile for a missing or bad file
+        md = ET.fromstring(z.read("modelDescription.xml"))
+        names = z.namelist()
+    if not any(n.startswith("resources/pythonfmu/") for n in names):
+        raise ValueError(f"{fmu}: not a pythonfmu FMU (no resources/pythonfmu/)")
+    ident = md.find("CoSimulation").get("modelIdentifier")
+    missing = [m for m in REQUIRED if importlib.util.find_spec(m) is None]
+    if missing:
+        raise ValueError(f"this Python ({sys.executable}) lacks {', '.join(missing)}, which the FMU imports")
+    # Where numpy and scipy live (a virtual environment's site-packages, or the system's).
+    paths = []
+    for m in REQUIRED:
+        p = str(Path(importlib.util.find_spec(m).origin).parent.parent)
+        if p not in paths:
+            paths.append(p)
+    return {
+        "LD_PRELOAD": str(_libpython()),
+        "PYTHONHOME": sys.base_prefix,
+        "PYTHONPATH": os.pathsep.join(paths),
+        "FMU_BINARY": f"binaries/linux64/{ident}.so",
+    }
+
+
+def shell_lines(env: dict) -> list:
+    """``export`` lines for a POSIX shell (FMU_BINARY as a comment: where the library is)."""
+    out = [f"# binary inside the FMU: {env['FMU_BINARY']}"]
+    out += [f"export {k}={_quote(v)}" for k, v in env.items() if k != "FMU_BINARY"]
+    return out
+
+
+def _quote(s: str) -> str:
+    return "'" + s.replace("'", "'\\''") + "'"

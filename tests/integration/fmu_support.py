@@ -1,0 +1,151 @@
+"""Helpers for the FMU tests: scenes, builds, an interpreter without millfmu, and a driver
+prelude run in fresh subprocesses (one Python interpreter per process: FMUs are never loaded
+into the pytest process itself)."""
+
+from __future__ import annotations
+
+import copy
+import json
+import os
+import subprocess
+import sys
+import sysconfig
+import venv
+from pathlib import Path
+
+if sys.version_info >= (3, 11):
+    import tomllib
+else:  # pragma: no cover
+    import tomli as tomllib
+
+import numpy as np
+
+from fmu_build.build import toml_text
+from millfmu.mill import MillModel
+from millfmu.scene import default_scene_text, load_scene
+
+ROOT = Path(__file__).resolve().parents[2]
+
+
+def scene_text(**sections) -> str:
+    """The default scene with sections updated: scene_text(operation={"mode": "continuous"})."""
+    d = copy.deepcopy(tomllib.loads(default_scene_text()))
+    for sec, vals in sections.items():
+        d.setdefault(sec, {}).update(vals)
+    return toml_text(d)
+
+
+CONTINUOUS = dict(scene={"name": "pm1-limestone-continuous"}, operation={"mode": "continuous", "n_tanks": 3, "feed_mass_flow_kg_per_s": 1e-3})
+DETAILED = dict(scene={"name": "pm1-limestone-detailed"}, kinetics={"model": "detailed"})
+
+
+def build(scene_path, out: Path) -> Path:
+    cmd = [sys.executable, "-m", "millfmu.cli", "build-fmu"] + ([str(scene_path)] if scene_path else []) + ["-o", str(out)]
+    r = subprocess.run(cmd, capture_output=True, text=True, cwd=ROOT)
+    assert r.returncode == 0, r.stderr
+    return out
+
+
+def isolated_python(where: Path) -> str:
+    """A fresh virtual environment that sees this environment's third-party packages
+    (numpy, scipy, fmpy) but not millfmu: its editable-install hook lives in a .pth file that
+    is processed only in a site directory, and here the packages come in as a plain path."""
+    env_dir = where / "venv-no-millfmu"
+    if not env_dir.exists():
+        venv.EnvBuilder(with_pip=False, symlinks=True).create(env_dir)
+        purelib = sysconfig.get_paths()["purelib"]
+        site = next((env_dir / "lib").glob("python*/site-packages"))
+        (site / "host_packages.pth").write_text(purelib + "\n")
+    py = str(env_dir / "bin" / "python")
+    r = subprocess.run([py, "-c", "import importlib.util as u; print(u.find_spec('millfmu') is None, u.find_spec('fmpy') is not None)"],
+                       capture_output=True, text=True, cwd=str(where))
+    assert r.stdout.split() == ["True", "True"], (r.stdout, r.stderr)
+    return py
+
+
+def run_py(python: str, code: str, cwd: Path, timeout=300) -> dict:
+    """Run PRELUDE + code in a fresh interpreter; the code ends with done(obj)."""
+    env = {k: v for k, v in os.environ.items() if k not in ("PYTHONPATH", "PYTHONHOME")}
+    r = subprocess.run([python, "-c", PRELUDE + code], capture_output=True, text=True, cwd=str(cwd), timeout=timeout, env=env)
+    assert r.returncode == 0, f"subprocess failed ({r.returncode}):\n{r.stdout[-3000:]}\n{r.stderr[-3000:]}"
+    lines = [ln for ln in r.stdout.splitlines() if ln.startswith("RESULT ")]  # masters log to stdout too
+    assert lines, r.stdout[-3000:]
+    return json.loads(lines[-1][len("RESULT "):])
+
+
+def reference(scene_path, steps, inputs_per_step=None):
+    """MillModel run directly: outputs after each step, as FMI name -> list."""
+    from millfmu.fmu import DISRUPTED, OUTPUTS
+
+    model = MillModel(load_scene(scene_path))
+    keys = OUTPUTS + ((DISRUPTED,) if "disrupted_fraction" in model.outputs() else ())
+    rec = {"psd": []}
+    rec.update({name: [] for name, _, _, _ in keys})
+    for k, dt in enumerate(steps):
+        outs = model.step(dt, **((inputs_per_step or {}).get(k, {})))
+        rec["psd"].append(outs["psd"].tolist())
+        for name, key, _, _ in keys:
+            rec[name].append(float(outs[key]))
+    return {k: np.array(v) for k, v in rec.items()}
+
+
+#: Code run first in every FMU subprocess: open an FMU with fmpy, log capture, helpers.
+PRELUDE = r'''
+import json, math, sys
+import numpy as np
+from fmpy import extract, read_model_description
+from fmpy.fmi1 import FMICallException
+from fmpy.fmi2 import (FMU2Slave, fmi2CallbackAllocateMemoryTYPE, fmi2CallbackFreeMemoryTYPE,
+                       fmi2CallbackFunctions, fmi2CallbackLoggerTYPE, calloc, free)
+
+LOG = []
+
+def _logger(env, instance, status, category, message):
+    LOG.append([instance.decode(), int(status), (category or b"").decode(), (message or b"").decode().replace("%%", "%")])
+
+CB = fmi2CallbackFunctions()
+CB.logger = fmi2CallbackLoggerTYPE(_logger)
+CB.allocateMemory = fmi2CallbackAllocateMemoryTYPE(calloc)
+CB.freeMemory = fmi2CallbackFreeMemoryTYPE(free)
+_DIRS = {}
+
+def open_fmu(path, name="mill", logging=True, start=None, init=True):
+    md = read_model_description(path)
+    d = _DIRS.get(path) or _DIRS.setdefault(path, extract(path))
+    vr = {v.name: v.valueReference for v in md.modelVariables}
+    fmu = FMU2Slave(guid=md.guid, unzipDirectory=d, modelIdentifier=md.coSimulation.modelIdentifier, instanceName=name)
+    fmu.instantiate(callbacks=CB, loggingOn=logging)
+    if init:
+        fmu.setupExperiment(startTime=0.0)
+        fmu.enterInitializationMode()
+        for k, v in (start or {}).items():
+            fmu.setReal([vr[k]], [v])
+        fmu.exitInitializationMode()
+    fmu.md, fmu.vr = md, vr
+    fmu.out_names = [v.name for v in md.modelVariables if v.causality == "output"]
+    fmu.out_vrs = [vr[n] for n in fmu.out_names]
+    return fmu
+
+def outputs(fmu):
+    return dict(zip(fmu.out_names, fmu.getReal(fmu.out_vrs)))
+
+def step(fmu, t, dt, inputs=None):
+    """doStep with inputs; returns the status (0 ok, 2 discard, ...)."""
+    for k, v in (inputs or {}).items():
+        fmu.setReal([fmu.vr[k]], [v])
+    try:
+        fmu.doStep(t, dt)
+        return 0
+    except FMICallException as e:
+        return e.status
+
+def record(rec, fmu):
+    o = outputs(fmu)
+    rec.setdefault("psd", []).append([o[n] for n in fmu.out_names if n.startswith("psd[")])
+    for n, v in o.items():
+        if not n.startswith("psd["):
+            rec.setdefault(n, []).append(v)
+
+def done(obj):
+    print("RESULT " + json.dumps(obj), flush=True)
+'''
