@@ -260,6 +260,8 @@ class MillModel:
                 raise InputError(k, x, "must lie in (0, 0.8)")
             if k == "feed_mass_flow_kg_per_s" and not 0.0 <= x <= 1e3:
                 raise InputError(k, x, "must lie in [0, 1000] kg/s")
+            if k == "feed_mass_flow_kg_per_s" and x != 0.0 and not self.continuous:
+                raise InputError(k, x, "must be 0 for a batch mill (operation.mode = 'batch' has no feed)")
             new[k] = x
         return new
 

@@ -126,6 +126,9 @@ def test_bad_input_leaves_state_unchanged(scene_dict):
             m.step(1.0, **b)
         assert list(b)[0] in str(e.value) or "psd_in" in str(e.value)
         assert np.array_equal(m.y, st["y"]) and m.t_s == st["t_s"]
+    b = MillModel(make_scene(scene_dict))
+    with pytest.raises(InputError, match="batch"):
+        b.step(1.0, feed_mass_flow_kg_per_s=1e-3)
     for h in (0.0, -1.0, float("nan")):
         with pytest.raises(InputError, match="dt_s"):
             m.step(h)
