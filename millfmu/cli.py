@@ -7,8 +7,15 @@ from __future__ import annotations
 
 import argparse
 import importlib
+import os
 import sys
 import time
+
+# The population balance works on small matrices, where multithreaded BLAS only adds
+# overhead (and, on a busy machine, oversubscription slows expm a hundredfold). Set before
+# numpy loads; the user's own setting wins. The DEM's parallelism (numba) is unaffected.
+for _var in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
+    os.environ.setdefault(_var, "1")
 
 #: Commands contributed by sub-packages: a module with ``register(subparsers)`` and,
 #: optionally, ``register_bench(bench_subparsers)`` for ``millfmu bench ...``. They are

@@ -66,6 +66,8 @@ def simulate(scene: Scene, progress: bool = True):
         records.append({k: (float(v) if v is not None else None) for k, v in rec.items()})
         psds.append(np.cumsum(out["psd"]))
 
+    if r.tip_speed_profile:
+        model.set_inputs(tip_speed_m_per_s=tip_speed_at(scene, 0.0))
     record(model.outputs())
     bar = None
     if progress:
@@ -189,7 +191,7 @@ def summary_table(records, rows: int = 8) -> str:
     """A short fixed-width table of the run for the terminal."""
     idx = np.unique(np.linspace(0, len(records) - 1, min(rows, len(records))).round().astype(int))
     yeast = "disrupted_fraction" in records[0]
-    head = f"{'t [s]':>9} {'x10 [um]':>9} {'x50 [um]':>9} {'x90 [um]':>9} {'SF@x50 [1/s]':>13} {'E_m [kJ/kg]':>12} {'mass [kg]':>11}"
+    head = f"{'t [s]':>9} {'x10 [um]':>9} {'x50 [um]':>9} {'x90 [um]':>9} {'SF@x50 [1/s]':>13} {'E_m [kJ/kg]':>12} {'holdup [kg]':>11}"
     if yeast:
         head += f" {'disrupted':>9}"
     lines = [head, "-" * len(head)]
@@ -197,7 +199,7 @@ def summary_table(records, rows: int = 8) -> str:
         r = records[i]
         line = (
             f"{r['t_s']:9.1f} {r['x10_m'] * 1e6:9.3f} {r['x50_m'] * 1e6:9.3f} {r['x90_m'] * 1e6:9.3f} "
-            f"{r['sf_per_s']:13.4g} {r['specific_energy_J_per_kg'] / 1e3:12.4g} {r['total_mass_kg']:11.6g}"
+            f"{r['sf_per_s']:13.4g} {r['specific_energy_J_per_kg'] / 1e3:12.4g} {r['holdup_kg']:11.6g}"
         )
         if yeast:
             line += f" {r['disrupted_fraction']:9.4f}"

@@ -1,3 +1,11 @@
+import os
+
+# The model's matrices are small (tens to hundreds of rows): multithreaded BLAS only adds
+# overhead, and on a loaded 2-core machine oversubscription slows expm a hundredfold.
+# Set before numpy loads; subprocesses (FMU runs) inherit it.
+for _var in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
+    os.environ.setdefault(_var, "1")
+
 import copy
 import sys
 
