@@ -1,0 +1,280 @@
+"""DemSimulation: owns the bead arrays and advances them with the numba kernels.
+
+numba is imported here lazily (inside ``__init__``) so that importing this module stays
+cheap; the kernels compile (or load from the cache) on the first simulation.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from millfmu.dem.geometry import MillGeometry
+from millfmu.dem.params import BeadMaterial
+
+
+@dataclass(frozen=True)
+class FluidSettings:
+    """Fluid seen by the beads [SI]. Defaults: water, seed 001 Table 1."""
+
+    density_kg_m3: float = 998.2
+    viscosity_pa_s: float = 1.002e-3
+    drag: bool = True  # Koch-Hill drag from the prescribed swirl flow
+    lubrication: bool = True
+    lubrication_cutoff_m: float = 0.04e-3  # 0.05 d for 0.8 mm beads
+    lubrication_min_gap_m: float = 0.4e-6  # 5e-4 d
+    swirl_core_fraction: float = 0.25  # core rotation / stirrer rotation [-]
+    swirl_layer_m: float = 0.7e-3  # boundary-layer thickness [m]
+    void_fraction: float = 0.5  # used in the drag law [-]
+
+
+@dataclass
+class StepStats:
+    """What one call of DemSimulation.run returns."""
+
+    steps: int
+    events: np.ndarray  # (n, EV_NF) rows, layout kernels.EV_*; step column made global
+    torque_sum_nm_steps: float  # sum over steps of the torque beads exert on the stirrer
+    dropped_events: int
+    neighbour_builds: int
+    extra: dict = field(default_factory=dict)
+
+
+class DemSimulation:
+    """Soft-sphere DEM of monodisperse (or polydisperse) beads in a MillGeometry.
+
+    Parameters (SI): geometry; material; positions_m (n, 3); radii_m (n,); omega_rad_s
+    stirrer angular velocity about +z; dt_s; gravity_m_s2 (3,); fluid (None: no fluid
+    forces at all); skin_m neighbour-list skin; threads: numba threads (None: all).
+    """
+
+    def __init__(self, geometry: MillGeometry, material: BeadMaterial, positions_m,
+                 radii_m, omega_rad_s: float, dt_s: float, gravity_m_s2=(0.0, 0.0, 0.0),
+                 fluid: FluidSettings | None = None, skin_m: float | None = None,
+                 max_neighbours: int = 40, velocities_m_s=None, threads: int | None = None):
+        import numba
+
+        from millfmu.dem import kernels as K
+
+        self.K = K
+        self.geometry = geometry
+        self.material = material
+        self.fluid = fluid
+        self.omega_rad_s = float(omega_rad_s)
+        self.dt_s = float(dt_s)
+        x = np.ascontiguousarray(positions_m, dtype=np.float64).copy()
+        n = x.shape[0]
+        if threads is None:
+            # a few hundred beads gain nothing from threads, and parallel regions that
+            # wait for a busy core cost more than the work
+            threads = numba.config.NUMBA_NUM_THREADS if n >= 2000 else 1
+        self.threads = int(threads)
+        numba.set_num_threads(self.threads)
+        self.n = n
+        self.rad = np.ascontiguousarray(np.broadcast_to(radii_m, (n,)), dtype=np.float64).copy()
+        rho = material.density_kg_m3
+        self.mass = 4.0 / 3.0 * math.pi * self.rad ** 3 * rho
+        self.inertia = 0.4 * self.mass * self.rad ** 2
+        self.inv_m = 1.0 / self.mass
+        self.inv_i = 1.0 / self.inertia
+        self.x = x
+        self.v = np.zeros((n, 3)) if velocities_m_s is None else \
+            np.ascontiguousarray(velocities_m_s, dtype=np.float64).copy()
+        self.w = np.zeros((n, 3))
+        self.f = np.zeros((n, 3))
+        self.t = np.zeros((n, 3))
+        self.xref = x.copy()
+        rmax = float(self.rad.max())
+        hcut = fluid.lubrication_cutoff_m if (fluid and fluid.lubrication) else 0.0
+        self.skin_m = 0.25 * rmax * 2.0 if skin_m is None else float(skin_m)
+        self.cutoff_m = 2.0 * rmax + hcut + self.skin_m
+        if geometry.height_m / self.cutoff_m < 3.0:
+            raise ValueError(
+                f"height_m = {geometry.height_m!r}: the axial period must hold at least "
+                f"three neighbour cells of {self.cutoff_m:.3e} m (bead diameter + "
+                f"lubrication cutoff + skin)")
+        prm = np.zeros(K.N_PRM)
+        prm[K.P_DT] = self.dt_s
+        prm[K.P_YSTAR] = material.effective_youngs_pa
+        prm[K.P_GSTAR] = material.effective_shear_pa
+        prm[K.P_BETA] = material.damping_beta
+        prm[K.P_MU] = material.friction
+        prm[K.P_MUR] = material.rolling_friction
+        g = np.asarray(gravity_m_s2, dtype=float)
+        if fluid is not None:
+            # buoyancy: the fluid's pressure gradient carries rho_f / rho_p of the weight
+            g = g * (1.0 - fluid.density_kg_m3 / rho)
+            if fluid.lubrication:
+                prm[K.P_LUB_ETA] = fluid.viscosity_pa_s
+                prm[K.P_LUB_HCUT] = fluid.lubrication_cutoff_m
+                prm[K.P_LUB_HMIN] = fluid.lubrication_min_gap_m
+            prm[K.P_DRAG] = 1.0 if fluid.drag else 0.0
+            prm[K.P_MUF] = fluid.viscosity_pa_s
+            prm[K.P_EPSF] = fluid.void_fraction
+            prm[K.P_KCORE] = fluid.swirl_core_fraction
+            prm[K.P_DELTA] = fluid.swirl_layer_m
+            prm[K.P_RHOF] = fluid.density_kg_m3
+        prm[K.P_GX:K.P_GZ + 1] = g
+        prm[K.P_LZ] = geometry.height_m
+        prm[K.P_SECTOR] = geometry.sector_rad
+        prm[K.P_RSH] = geometry.shaft_radius_m
+        prm[K.P_RCH] = geometry.chamber_radius_m
+        prm[K.P_OMEGA] = self.omega_rad_s
+        prm[K.P_RDISC] = geometry.disc_radius_m
+        prm[K.P_BDISC] = geometry.disc_thickness_m
+        prm[K.P_ZDISC] = geometry.disc_z_m
+        prm[K.P_SKIN] = self.skin_m
+        self.prm = prm
+        nch = max(1, 4 * self.threads)
+        self.cb = np.linspace(0, n, nch + 1).astype(np.int64)
+        self.need = np.zeros(nch, np.int64)
+        self.dmax = np.zeros(nch)
+        self.wrapk = np.zeros(n, np.int8)
+        self._alloc_lists(max_neighbours)
+        self.shw = np.zeros((n, K.NWALL, 3))
+        self.flw = np.zeros((n, K.NWALL), np.uint8)
+        self.evc = np.zeros((nch, 2048, K.EV_NF))
+        self.evn = np.zeros(nch, np.int64)
+        self.evbuf = np.zeros((max(65536, 4 * 2048 * nch), K.EV_NF))
+        self.evcount = np.zeros(1, np.int64)
+        self.acc = np.zeros(4 + nch)
+        self.step_count = 0
+        self._build()
+        # forces of the initial state; contacts present now are not "new" later
+        K.compute_forces(self.x, self.v, self.w, self.f, self.t, self.rad, self.mass,
+                         self.inertia, self.nb, self.img, self.nnb, self.sh, self.fl,
+                         self.shw, self.flw, self.prm, self.cb, False, 0, self.evc,
+                         self.evn, self.acc[4:])
+
+    # ---- neighbour lists --------------------------------------------------------------
+    def _alloc_lists(self, m: int, keep: bool = False):
+        n = self.n
+        new = dict(nb=np.zeros((n, m), np.int64), img=np.zeros((n, m), np.int8),
+                   sh=np.zeros((n, m, 3)), fl=np.zeros((n, m), np.uint8))
+        if keep:
+            old_m = self.nb.shape[1]
+            for k in new:
+                new[k][:, :old_m] = getattr(self, k)
+        else:
+            self.nnb = np.zeros(n, np.int64)
+        for k, a in new.items():
+            setattr(self, k, a)
+        self.nb_o = np.zeros((n, m), np.int64)
+        self.img_o = np.zeros((n, m), np.int8)
+        self.nnb_o = np.zeros(n, np.int64)
+        self.sh_o = np.zeros((n, m, 3))
+        self.fl_o = np.zeros((n, m), np.uint8)
+
+    def _build(self, do_wrap: bool = True):
+        K = self.K
+        while True:
+            longest = K.rebuild(self.x, self.v, self.w, self.shw, self.xref, self.prm,
+                                self.wrapk, self.cutoff_m, do_wrap, self.nb, self.img,
+                                self.nnb, self.sh, self.fl, self.nb_o, self.img_o,
+                                self.nnb_o, self.sh_o, self.fl_o, self.cb, self.need)
+            if longest <= self.nb.shape[1]:
+                return
+            # a failed build cut rows short; rebuild from the saved old lists
+            self.nb[:], self.img[:], self.nnb[:] = self.nb_o, self.img_o, self.nnb_o
+            self.sh[:], self.fl[:] = self.sh_o, self.fl_o
+            self._alloc_lists(int(longest * 1.3) + 4, keep=True)
+            do_wrap = False
+
+    # ---- time stepping ----------------------------------------------------------------
+    def run(self, nsteps: int, record: bool = False) -> StepStats:
+        """Advance nsteps steps; with record, return every contact at its first overlap."""
+        import numba
+
+        K = self.K
+        numba.set_num_threads(self.threads)
+        done = 0
+        chunks = []
+        torque = 0.0
+        dropped = 0
+        builds = 0
+        while done < nsteps:
+            self.evcount[0] = 0
+            self.acc[:4] = 0.0
+            k, status = K.advance(nsteps - done, self.x, self.v, self.w, self.f, self.t,
+                                  self.rad, self.mass, self.inertia, self.inv_m, self.inv_i,
+                                  self.xref, self.prm, self.wrapk, self.cutoff_m, self.nb,
+                                  self.img, self.nnb, self.sh, self.fl, self.nb_o,
+                                  self.img_o, self.nnb_o, self.sh_o, self.fl_o, self.shw,
+                                  self.flw, self.cb, self.need, self.dmax, record, self.evc,
+                                  self.evn, self.evbuf, self.evcount, self.acc)
+            m = int(self.evcount[0])
+            if m:
+                ev = self.evbuf[:m].copy()
+                ev[:, K.EV_STEP] += self.step_count + done
+                chunks.append(ev)
+            torque += self.acc[0]
+            dropped += int(self.acc[3])
+            builds += int(self.acc[2])
+            if status == 1:
+                # the neighbour lists overflowed during step k: enlarge, rebuild, close it
+                self.nb[:], self.img[:], self.nnb[:] = self.nb_o, self.img_o, self.nnb_o
+                self.sh[:], self.fl[:] = self.sh_o, self.fl_o
+                self._alloc_lists(int(self.nb.shape[1] * 1.5) + 4, keep=True)
+                self._build(do_wrap=False)
+                K.finish_step(self.x, self.v, self.w, self.f, self.t, self.rad, self.mass,
+                              self.inertia, self.inv_m, self.inv_i, self.prm, self.nb,
+                              self.img, self.nnb, self.sh, self.fl, self.shw, self.flw,
+                              self.cb, record, self.evc, self.evn, self.acc[4:])
+                torque += float(self.acc[4:].sum())
+                for c in range(self.evn.size):
+                    kk = min(int(self.evn[c]), self.evc.shape[1])
+                    if kk:
+                        ev = self.evc[c, :kk].copy()
+                        ev[:, K.EV_STEP] = self.step_count + done + k
+                        chunks.append(ev)
+                k += 1
+            elif status == 2:
+                pass  # buffer drained above; continue
+            done += k
+        self.step_count += nsteps
+        events = np.concatenate(chunks) if chunks else np.zeros((0, K.EV_NF))
+        return StepStats(steps=nsteps, events=events, torque_sum_nm_steps=torque,
+                         dropped_events=dropped, neighbour_builds=builds)
+
+    # ---- observables ------------------------------------------------------------------
+    def kinetic_energy_j(self) -> tuple[float, float]:
+        """Translational and rotational kinetic energy of all beads [J]."""
+        et = 0.5 * float(np.sum(self.mass * np.einsum("ij,ij->i", self.v, self.v)))
+        er = 0.5 * float(np.sum(self.inertia * np.einsum("ij,ij->i", self.w, self.w)))
+        return et, er
+
+    def hertz_energy_j(self) -> float:
+        """Elastic energy stored in bead-bead and bead-wall overlaps [J]:
+        U = 8/15 Y* sqrt(R*) delta^(5/2) per contact (integral of the Hertz force)."""
+        K = self.K
+        ys = self.material.effective_youngs_pa
+        x = self.x
+        u = 0.0
+        lz = self.geometry.height_m
+        sec = self.geometry.sector_rad
+        for i in range(self.n):
+            for k in range(int(self.nnb[i])):
+                j = int(self.nb[i, k])
+                if j <= i:
+                    continue
+                s = int(self.img[i, k])
+                xj = x[j].copy()
+                if s:
+                    c, sn = math.cos(s * sec), math.sin(s * sec)
+                    xj[0], xj[1] = c * x[j, 0] - sn * x[j, 1], sn * x[j, 0] + c * x[j, 1]
+                d = x[i] - xj
+                d[2] -= lz * math.floor(d[2] / lz + 0.5)
+                delta = self.rad[i] + self.rad[j] - math.sqrt(d @ d)
+                if delta > 0:
+                    rs = self.rad[i] * self.rad[j] / (self.rad[i] + self.rad[j])
+                    u += 8.0 / 15.0 * ys * math.sqrt(rs) * delta ** 2.5
+        for i in range(self.n):
+            for q in range(K.NWALL):
+                dist, _, _, _, ok = K.wall_gap(x[i, 0], x[i, 1], x[i, 2], self.rad[i], q,
+                                               self.prm)
+                delta = self.rad[i] - dist
+                if ok and delta > 0:
+                    u += 8.0 / 15.0 * ys * math.sqrt(self.rad[i]) * delta ** 2.5
+        return u
