@@ -529,30 +529,35 @@ def compute_forces(x, v, w, f, t, rad, mass, inertia, nb, img, nnb, sh, fl, shw,
                 s = img[i, k]
                 xj = x[j, 0]
                 yj = x[j, 1]
-                vjx = v[j, 0]
-                vjy = v[j, 1]
-                wjx = w[j, 0]
-                wjy = w[j, 1]
                 if s != 0:
                     cr = cs1
                     sr = sn1 if s > 0 else -sn1
                     xj, yj = cr * xj - sr * yj, sr * xj + cr * yj
-                    vjx, vjy = cr * vjx - sr * vjy, sr * vjx + cr * vjy
-                    wjx, wjy = cr * wjx - sr * wjy, sr * wjx + cr * wjy
                 dx = xi - xj
                 dy = yi - yj
                 dz = zi - x[j, 2]
-                dz -= lz * math.floor(dz / lz + 0.5)
+                if dz > 0.5 * lz:
+                    dz -= lz
+                elif dz < -0.5 * lz:
+                    dz += lz
                 rj = rad[j]
                 rsum = ri + rj
                 r2 = dx * dx + dy * dy + dz * dz
                 lim = rsum + hcut
                 if r2 >= lim * lim:
-                    fl[i, k] = 0
-                    sh[i, k, 0] = 0.0
-                    sh[i, k, 1] = 0.0
-                    sh[i, k, 2] = 0.0
+                    if fl[i, k] != 0:
+                        fl[i, k] = 0
+                        sh[i, k, 0] = 0.0
+                        sh[i, k, 1] = 0.0
+                        sh[i, k, 2] = 0.0
                     continue
+                vjx = v[j, 0]
+                vjy = v[j, 1]
+                wjx = w[j, 0]
+                wjy = w[j, 1]
+                if s != 0:
+                    vjx, vjy = cr * vjx - sr * vjy, sr * vjx + cr * vjy
+                    wjx, wjy = cr * wjx - sr * wjy, sr * wjx + cr * wjy
                 r = math.sqrt(r2)
                 nx = dx / r
                 ny = dy / r
@@ -607,10 +612,11 @@ def compute_forces(x, v, w, f, t, rad, mass, inertia, nb, img, nnb, sh, fl, shw,
                     ty += -ri * (nz * ftx - nx * ftz) + mry
                     tz += -ri * (nx * fty - ny * ftx) + mrz
                 else:
-                    fl[i, k] = 0
-                    sh[i, k, 0] = 0.0
-                    sh[i, k, 1] = 0.0
-                    sh[i, k, 2] = 0.0
+                    if fl[i, k] != 0:
+                        fl[i, k] = 0
+                        sh[i, k, 0] = 0.0
+                        sh[i, k, 1] = 0.0
+                        sh[i, k, 2] = 0.0
                     if eta > 0.0:
                         vn = vrx * nx + vry * ny + vrz * nz
                         h = max(-delta, hmin)
@@ -623,10 +629,11 @@ def compute_forces(x, v, w, f, t, rad, mass, inertia, nb, img, nnb, sh, fl, shw,
                 dist, nx, ny, nz, ok = wall_gap(xi, yi, zi, ri, q, prm)
                 delta = ri - dist
                 if not ok or delta <= 0.0:
-                    flw[i, q] = 0
-                    shw[i, q, 0] = 0.0
-                    shw[i, q, 1] = 0.0
-                    shw[i, q, 2] = 0.0
+                    if flw[i, q] != 0:
+                        flw[i, q] = 0
+                        shw[i, q, 0] = 0.0
+                        shw[i, q, 1] = 0.0
+                        shw[i, q, 2] = 0.0
                     continue
                 px = xi - ri * nx
                 py = yi - ri * ny
@@ -697,18 +704,14 @@ def compute_forces(x, v, w, f, t, rad, mass, inertia, nb, img, nnb, sh, fl, shw,
 
 @serial
 def rebuild(x, v, w, shw, xref, prm, wrapk, cutoff, do_wrap, nb, img, nnb, sh, fl,
-            nb_o, img_o, nnb_o, sh_o, fl_o, cb, need):
-    """Wrap beads into the periodic cell, rebuild the full neighbour lists with the history
-    carried over, and reset the displacement reference. Returns the longest row found
-    (more than nb.shape[1] means the lists overflowed and must be enlarged). With do_wrap
-    false the beads are not moved and wrapk is kept (a retry after enlarging the lists)."""
+            nb_n, img_n, nnb_n, sh_n, fl_n, cb, need):
+    """Wrap beads into the periodic cell and build new full neighbour lists (nb_n ...)
+    from the current ones (nb ...), carrying the tangential history over; reset the
+    displacement reference. Returns the longest row found: more than nb_n.shape[1] means
+    the new lists overflowed (the current ones are untouched; enlarge and call again with
+    do_wrap false, which keeps the beads and wrapk as they are)."""
     if do_wrap:
         wrap_periodic(x, v, w, shw, prm, wrapk)
-    nb_o[:, :] = nb
-    img_o[:, :] = img
-    nnb_o[:] = nnb
-    sh_o[:, :, :] = sh
-    fl_o[:, :] = fl
     ej, es, ex = make_entries(x, prm, cutoff)
     lz = prm[P_LZ]
     lo = np.empty(2)
@@ -722,7 +725,7 @@ def rebuild(x, v, w, shw, xref, prm, wrapk, cutoff, do_wrap, nb, img, nnb, sh, f
     ncz = int(lz / cutoff)
     start, ent = bin_entries(ex, lo, cs, ncx, ncy, ncz, lz)
     build_nlist(x, ej, es, ex, start, ent, lo, cs, ncx, ncy, ncz, cutoff * cutoff, prm,
-                wrapk, nb_o, img_o, nnb_o, sh_o, fl_o, nb, img, nnb, sh, fl, cb, need)
+                wrapk, nb, img, nnb, sh, fl, nb_n, img_n, nnb_n, sh_n, fl_n, cb, need)
     xref[:, :] = x
     return need.max()
 
@@ -737,12 +740,16 @@ def advance(nsteps, x, v, w, f, t, rad, mass, inertia, inv_m, inv_i, xref, prm, 
     those of the entry state. Recorded contacts are appended to evbuf (evcount[0] rows
     used); acc accumulates [0] stirrer torque x steps [N m], [1] steps, [2] neighbour
     builds, [3] contacts dropped for lack of chunk buffer space.
-    Returns (steps done, status): status 0 done, 1 neighbour lists too short (enlarge and
-    rebuild), 2 event buffer full.
+    The two sets of neighbour lists are swapped at every build; parity (returned) says
+    whether the caller must swap its references. Returns (steps done, status, parity):
+    status 0 done, 1 new neighbour lists too short (enlarge, rebuild, finish_step),
+    2 event buffer nearly full.
     """
     dt = prm[P_DT]
     half_skin2 = (0.5 * prm[P_SKIN]) ** 2
     kick = 0.5 * dt
+    nch = cb.shape[0] - 1
+    parity = 0
     for step in range(nsteps):
         kick_drift(x, v, w, f, t, inv_m, inv_i, kick, dt, xref, cb, dmax)
         kick = dt
@@ -750,20 +757,27 @@ def advance(nsteps, x, v, w, f, t, rad, mass, inertia, inv_m, inv_i, xref, prm, 
             longest = rebuild(x, v, w, shw, xref, prm, wrapk, cutoff, True, nb, img, nnb,
                               sh, fl, nb_o, img_o, nnb_o, sh_o, fl_o, cb, need)
             acc[2] += 1.0
-            if longest > nb.shape[1]:
+            if longest > nb_o.shape[1]:
                 # positions are valid, velocities half a step ahead: the caller enlarges
                 # the lists, rebuilds, computes forces and closes the step (finish_step)
-                return step, 1
+                return step, 1, parity
+            # the new lists become the current ones (no copying)
+            nb, nb_o = nb_o, nb
+            img, img_o = img_o, img
+            nnb, nnb_o = nnb_o, nnb
+            sh, sh_o = sh_o, sh
+            fl, fl_o = fl_o, fl
+            parity ^= 1
         compute_forces(x, v, w, f, t, rad, mass, inertia, nb, img, nnb, sh, fl, shw, flw,
-                       prm, cb, record, step, evc, evn, acc[4:4 + cb.shape[0] - 1])
+                       prm, cb, record, step, evc, evn, acc[4:4 + nch])
         tq = 0.0
-        for c in range(cb.shape[0] - 1):
+        for c in range(nch):
             tq += acc[4 + c]
         acc[0] += tq
         acc[1] += 1.0
         if record:
             m = evcount[0]
-            for c in range(cb.shape[0] - 1):
+            for c in range(nch):
                 k = evn[c]
                 if k > evc.shape[1]:
                     acc[3] += k - evc.shape[1]
@@ -776,11 +790,11 @@ def advance(nsteps, x, v, w, f, t, rad, mass, inertia, inv_m, inv_i, xref, prm, 
                     else:
                         acc[3] += 1.0
             evcount[0] = m
-            if m > evbuf.shape[0] - evc.shape[1] * (cb.shape[0] - 1):
+            if m > evbuf.shape[0] - evc.shape[1] * nch:
                 half_kick(v, w, f, t, inv_m, inv_i, 0.5 * dt, cb)
-                return step + 1, 2
+                return step + 1, 2, parity
     half_kick(v, w, f, t, inv_m, inv_i, 0.5 * dt, cb)
-    return nsteps, 0
+    return nsteps, 0, parity
 
 
 @serial

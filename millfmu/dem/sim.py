@@ -53,7 +53,7 @@ class DemSimulation:
     def __init__(self, geometry: MillGeometry, material: BeadMaterial, positions_m,
                  radii_m, omega_rad_s: float, dt_s: float, gravity_m_s2=(0.0, 0.0, 0.0),
                  fluid: FluidSettings | None = None, skin_m: float | None = None,
-                 max_neighbours: int = 40, velocities_m_s=None, threads: int | None = None):
+                 max_neighbours: int = 24, velocities_m_s=None, threads: int | None = None):
         import numba
 
         from millfmu.dem import kernels as K
@@ -149,36 +149,43 @@ class DemSimulation:
                          self.evn, self.acc[4:])
 
     # ---- neighbour lists --------------------------------------------------------------
+    _LISTS = ("nb", "img", "nnb", "sh", "fl")
+
     def _alloc_lists(self, m: int, keep: bool = False):
+        """Allocate current and spare neighbour lists with m slots per bead; with keep the
+        current lists' contents are preserved."""
         n = self.n
-        new = dict(nb=np.zeros((n, m), np.int64), img=np.zeros((n, m), np.int8),
-                   sh=np.zeros((n, m, 3)), fl=np.zeros((n, m), np.uint8))
+        new = dict(nb=np.zeros((n, m), np.int32), img=np.zeros((n, m), np.int8),
+                   nnb=np.zeros(n, np.int64), sh=np.zeros((n, m, 3)),
+                   fl=np.zeros((n, m), np.uint8))
         if keep:
             old_m = self.nb.shape[1]
             for k in new:
-                new[k][:, :old_m] = getattr(self, k)
-        else:
-            self.nnb = np.zeros(n, np.int64)
+                if k == "nnb":
+                    new[k][:] = self.nnb
+                else:
+                    new[k][:, :old_m] = getattr(self, k)
         for k, a in new.items():
             setattr(self, k, a)
-        self.nb_o = np.zeros((n, m), np.int64)
-        self.img_o = np.zeros((n, m), np.int8)
-        self.nnb_o = np.zeros(n, np.int64)
-        self.sh_o = np.zeros((n, m, 3))
-        self.fl_o = np.zeros((n, m), np.uint8)
+            setattr(self, k + "_o", np.zeros_like(a))
+
+    def _swap_lists(self):
+        for k in self._LISTS:
+            a, b = getattr(self, k), getattr(self, k + "_o")
+            setattr(self, k, b)
+            setattr(self, k + "_o", a)
 
     def _build(self, do_wrap: bool = True):
+        """Build new neighbour lists from the current ones and make them current."""
         K = self.K
         while True:
             longest = K.rebuild(self.x, self.v, self.w, self.shw, self.xref, self.prm,
                                 self.wrapk, self.cutoff_m, do_wrap, self.nb, self.img,
                                 self.nnb, self.sh, self.fl, self.nb_o, self.img_o,
                                 self.nnb_o, self.sh_o, self.fl_o, self.cb, self.need)
-            if longest <= self.nb.shape[1]:
+            if longest <= self.nb_o.shape[1]:
+                self._swap_lists()
                 return
-            # a failed build cut rows short; rebuild from the saved old lists
-            self.nb[:], self.img[:], self.nnb[:] = self.nb_o, self.img_o, self.nnb_o
-            self.sh[:], self.fl[:] = self.sh_o, self.fl_o
             self._alloc_lists(int(longest * 1.3) + 4, keep=True)
             do_wrap = False
 
@@ -197,13 +204,15 @@ class DemSimulation:
         while done < nsteps:
             self.evcount[0] = 0
             self.acc[:4] = 0.0
-            k, status = K.advance(nsteps - done, self.x, self.v, self.w, self.f, self.t,
+            k, status, parity = K.advance(nsteps - done, self.x, self.v, self.w, self.f, self.t,
                                   self.rad, self.mass, self.inertia, self.inv_m, self.inv_i,
                                   self.xref, self.prm, self.wrapk, self.cutoff_m, self.nb,
                                   self.img, self.nnb, self.sh, self.fl, self.nb_o,
                                   self.img_o, self.nnb_o, self.sh_o, self.fl_o, self.shw,
                                   self.flw, self.cb, self.need, self.dmax, record, self.evc,
                                   self.evn, self.evbuf, self.evcount, self.acc)
+            if parity:
+                self._swap_lists()
             m = int(self.evcount[0])
             if m:
                 ev = self.evbuf[:m].copy()
@@ -213,9 +222,7 @@ class DemSimulation:
             dropped += int(self.acc[3])
             builds += int(self.acc[2])
             if status == 1:
-                # the neighbour lists overflowed during step k: enlarge, rebuild, close it
-                self.nb[:], self.img[:], self.nnb[:] = self.nb_o, self.img_o, self.nnb_o
-                self.sh[:], self.fl[:] = self.sh_o, self.fl_o
+                # the new lists overflowed during step k: enlarge, rebuild, close the step
                 self._alloc_lists(int(self.nb.shape[1] * 1.5) + 4, keep=True)
                 self._build(do_wrap=False)
                 K.finish_step(self.x, self.v, self.w, self.f, self.t, self.rad, self.mass,
