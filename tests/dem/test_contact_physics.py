@@ -201,3 +201,61 @@ def test_elastic_frictionless_energy_conserved():
     e1 = energy()
     assert st.events.shape[0] > 100  # the beads did collide, many times
     assert abs(e1 - e0) / e0 < 1e-4
+
+
+def test_collision_across_the_sector_boundary_matches_interior_collision():
+    """Rotational periodicity: a head-on collision through the boundary ray of a 45 degree
+    sector gives the rebound of the same collision inside the cell, and is recorded once."""
+    from millfmu.dem import kernels as K
+    from millfmu.dem.sim import DemSimulation
+
+    mat = BeadMaterial(restitution=0.9, friction=0.3, rolling_friction=0.0)
+    geom = MillGeometry(shaft_radius_m=0.015, chamber_radius_m=0.045, height_m=0.004,
+                        sector_deg=45.0)
+    rc = 0.030
+    # bead a just inside theta = 0, bead b just inside theta = 45 deg; b's image (rotated
+    # by -45 deg) sits across the ray theta = 0, so the two meet through the boundary
+    half = (R + 0.01e-3) / rc
+    a = np.array([rc * math.cos(half), rc * math.sin(half), 0.002])
+    th_b = math.radians(45.0) - half
+    b = np.array([rc * math.cos(th_b), rc * math.sin(th_b), 0.002])
+    t_a = np.array([-math.sin(half), math.cos(half), 0.0])  # azimuthal directions
+    t_b = np.array([-math.sin(th_b), math.cos(th_b), 0.0])
+    v0 = 0.5
+    sim = DemSimulation(geom, mat, np.array([a, b]), R, 0.0, 2e-7,
+                        velocities_m_s=np.array([-v0 * t_a, v0 * t_b]))
+    st = sim.run(3000, record=True)
+    bb = st.events[st.events[:, K.EV_TYPE] == 0]
+    assert bb.shape[0] == 1
+    m = bead_mass_kg(2 * R, mat.density_kg_m3)
+    assert bb[0, K.EV_SETN] == pytest.approx(0.5 * (m / 2) * (2 * v0) ** 2, rel=1e-3)
+    # after the rebound each bead moves back along its own azimuthal direction
+    th = np.arctan2(sim.x[:, 1], sim.x[:, 0])
+    speeds = [float(sim.v[k] @ np.array([-math.sin(th[k]), math.cos(th[k]), 0.0]))
+              for k in range(2)]
+    ref = _pair(mat, (2 * v0, 0, 0), 2e-7, gap=0.02e-3)
+    ref.run(3000)
+    e_ref = (ref.v[1, 0] - ref.v[0, 0]) / (2 * v0)
+    assert sorted(speeds) == pytest.approx([-e_ref * v0, e_ref * v0], rel=2e-3)
+    assert np.all((th >= 0) & (th < math.radians(45.0)))  # wrapped back into the sector
+
+
+def test_neighbour_list_overflow_is_handled_without_changing_results():
+    from millfmu.dem.geometry import place_beads
+    from millfmu.dem.sim import DemSimulation
+
+    mat = BeadMaterial()
+    geom = MillGeometry(shaft_radius_m=0.015, chamber_radius_m=0.019, height_m=0.004)
+    x = place_beads(geom, 700, R, seed=5)
+    rng = np.random.default_rng(7)
+    v = rng.normal(0.0, 0.3, size=x.shape)
+    out = []
+    for maxnb in (3, 40):
+        sim = DemSimulation(geom, mat, x, R, 300.0, 5e-6, velocities_m_s=v,
+                            max_neighbours=maxnb)
+        st = sim.run(400, record=True)
+        out.append((sim.x.copy(), sim.v.copy(), st.events.shape[0], sim.nb.shape[1]))
+    assert out[0][3] > 3  # the lists did grow
+    assert out[0][2] == out[1][2]
+    np.testing.assert_allclose(out[0][0], out[1][0], rtol=0, atol=1e-15)
+    np.testing.assert_allclose(out[0][1], out[1][1], rtol=0, atol=1e-12)
