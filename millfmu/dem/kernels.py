@@ -59,7 +59,9 @@ P_KCORE = 23  # swirl core rotation as a fraction of the stirrer's [-]
 P_DELTA = 24  # boundary-layer thickness of the prescribed swirl [m]
 P_RHOF = 25  # fluid density [kg/m3]
 P_SKIN = 26  # neighbour-list skin [m]
-N_PRM = 27
+P_KH_F0 = 27  # Koch-Hill F0 at the drag law's void fraction [-]
+P_KH_F3 = 28  # Koch-Hill F3 at the drag law's void fraction [-]
+N_PRM = 29
 
 NWALL = 3  # wall ids: 0 shaft (rotating), 1 chamber (fixed), 2 disc (rotating)
 
@@ -198,20 +200,14 @@ def swirl_velocity(x, y, z, prm):
 
 
 @device
-def koch_hill_beta(d, eps, mu_f, rho_f, urel):
+def koch_hill_beta(d, eps, mu_f, rho_f, urel, f0, f3):
     """Interphase momentum coefficient beta [kg/(m3 s)] after Koch & Hill (2001), CFDEM form.
 
     d: bead diameter [m]; eps: void fraction [-]; mu_f [Pa s]; rho_f [kg/m3];
-    urel: |U_f - U_p| [m/s]. Drag on a bead = V_p beta (U_f - U_p).
+    urel: |U_f - U_p| [m/s]; f0, f3: the void-fraction terms F0, F3 of
+    :func:`millfmu.dem.params.koch_hill_f0_f3`. Drag on a bead = V_p beta (U_f - U_p).
     """
-    phi = 1.0 - eps
     re = d * eps * urel * rho_f / mu_f
-    if phi < 0.4:
-        f0 = (1.0 + 3.0 * math.sqrt(phi / 2.0) + 135.0 / 64.0 * phi * math.log(max(phi, 1e-300))
-              + 16.14 * phi) / (1.0 + 0.681 * phi - 8.48 * phi * phi + 8.16 * phi ** 3)
-    else:
-        f0 = 10.0 * phi / eps ** 3
-    f3 = 0.0673 + 0.212 * phi + 0.0232 / eps ** 5
     ff = eps * (f0 + 0.5 * f3 * re)
     return 18.0 * mu_f * eps * ff / (d * d)
 
@@ -376,9 +372,10 @@ def make_entries(x, prm, cut):
 
 
 @serial
-def bin_entries(ex, lo, cs, ncx, ncy, ncz, lz):
+def bin_entries(ej, es, ex, lo, cs, ncx, ncy, ncz, lz):
     """Counting sort of entries into cells of size cs [m] (z periodic with ncz cells over
-    lz). Returns (cell_start, cell_entries)."""
+    lz). Returns (cell_start, bead index, image code, position) with the entries of each
+    cell contiguous, so that the neighbour search streams through memory."""
     ne = ex.shape[0]
     ncell = ncx * ncy * ncz
     cid = np.empty(ne, np.int64)
@@ -395,16 +392,23 @@ def bin_entries(ex, lo, cs, ncx, ncy, ncz, lz):
     for c in range(ncell):
         start[c + 1] += start[c]
     fill = start[:-1].copy()
-    ent = np.empty(ne, np.int64)
+    sj = np.empty(ne, np.int64)
+    ss = np.empty(ne, np.int8)
+    sx = np.empty((ne, 3))
     for e in range(ne):
         c = cid[e]
-        ent[fill[c]] = e
+        q = fill[c]
+        sj[q] = ej[e]
+        ss[q] = es[e]
+        sx[q, 0] = ex[e, 0]
+        sx[q, 1] = ex[e, 1]
+        sx[q, 2] = ex[e, 2]
         fill[c] += 1
-    return start, ent
+    return start, sj, ss, sx
 
 
 @kernel
-def build_nlist(x, ej, es, ex, start, ent, lo, cs, ncx, ncy, ncz, cut2, prm, wrapk,
+def build_nlist(x, ej, es, ex, start, lo, cs, ncx, ncy, ncz, cut2, prm, wrapk,
                 nb_o, img_o, nnb_o, sh_o, fl_o, nb, img, nnb, sh, fl, cb, need):
     """Full neighbour lists within sqrt(cut2) [m], carrying over the tangential history
     and contact flags of pairs that existed before (rotated if a bead was wrapped into
@@ -429,8 +433,7 @@ def build_nlist(x, ej, es, ex, start, ent, lo, cs, ncx, ncy, ncz, cut2, prm, wra
                     for dzc in range(-1, 2):
                         az = (iz + dzc) % ncz
                         cc = (ax * ncy + ay) * ncz + az
-                        for q in range(start[cc], start[cc + 1]):
-                            e = ent[q]
+                        for e in range(start[cc], start[cc + 1]):
                             j = ej[e]
                             s = es[e]
                             if j == i and s == 0:
@@ -438,7 +441,10 @@ def build_nlist(x, ej, es, ex, start, ent, lo, cs, ncx, ncy, ncz, cut2, prm, wra
                             dx = xi - ex[e, 0]
                             dy = yi - ex[e, 1]
                             dz = zi - ex[e, 2]
-                            dz -= lz * math.floor(dz / lz + 0.5)
+                            if dz > 0.5 * lz:
+                                dz -= lz
+                            elif dz < -0.5 * lz:
+                                dz += lz
                             if dx * dx + dy * dy + dz * dz < cut2:
                                 if n < maxnb:
                                     nb[i, n] = j
@@ -518,7 +524,8 @@ def compute_forces(x, v, w, f, t, rad, mass, inertia, nb, img, nnb, sh, fl, shw,
                 uy -= v[i, 1]
                 uz -= v[i, 2]
                 um = math.sqrt(ux * ux + uy * uy + uz * uz)
-                bt = koch_hill_beta(2.0 * ri, prm[P_EPSF], prm[P_MUF], prm[P_RHOF], um)
+                bt = koch_hill_beta(2.0 * ri, prm[P_EPSF], prm[P_MUF], prm[P_RHOF], um,
+                                    prm[P_KH_F0], prm[P_KH_F3])
                 vp = 4.0 / 3.0 * math.pi * ri ** 3
                 fx += vp * bt * ux
                 fy += vp * bt * uy
@@ -723,8 +730,8 @@ def rebuild(x, v, w, shw, xref, prm, wrapk, cutoff, do_wrap, nb, img, nnb, sh, f
     ncx = max(int((hx - lo[0]) / cs) + 1, 1)
     ncy = max(int((hy - lo[1]) / cs) + 1, 1)
     ncz = int(lz / cutoff)
-    start, ent = bin_entries(ex, lo, cs, ncx, ncy, ncz, lz)
-    build_nlist(x, ej, es, ex, start, ent, lo, cs, ncx, ncy, ncz, cutoff * cutoff, prm,
+    start, sj, ss, sx = bin_entries(ej, es, ex, lo, cs, ncx, ncy, ncz, lz)
+    build_nlist(x, sj, ss, sx, start, lo, cs, ncx, ncy, ncz, cutoff * cutoff, prm,
                 wrapk, nb, img, nnb, sh, fl, nb_n, img_n, nnb_n, sh_n, fl_n, cb, need)
     xref[:, :] = x
     return need.max()

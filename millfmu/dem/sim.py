@@ -12,7 +12,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from millfmu.dem.geometry import MillGeometry
-from millfmu.dem.params import BeadMaterial
+from millfmu.dem.params import BeadMaterial, koch_hill_f0_f3
 
 
 @dataclass(frozen=True)
@@ -47,13 +47,17 @@ class DemSimulation:
 
     Parameters (SI): geometry; material; positions_m (n, 3); radii_m (n,); omega_rad_s
     stirrer angular velocity about +z; dt_s; gravity_m_s2 (3,); fluid (None: no fluid
-    forces at all); skin_m neighbour-list skin; threads: numba threads (None: all).
+    forces at all); skin_m neighbour-list skin; threads: numba threads (None: all);
+    sort_every_steps: reorder the beads along the cell grid every so many steps (memory
+    locality; None: 200 for 2000 beads or more, else never). After a reorder, row k of
+    the bead arrays holds the bead ``ids[k]`` of the initial order.
     """
 
     def __init__(self, geometry: MillGeometry, material: BeadMaterial, positions_m,
                  radii_m, omega_rad_s: float, dt_s: float, gravity_m_s2=(0.0, 0.0, 0.0),
                  fluid: FluidSettings | None = None, skin_m: float | None = None,
-                 max_neighbours: int = 24, velocities_m_s=None, threads: int | None = None):
+                 max_neighbours: int = 24, velocities_m_s=None, threads: int | None = None,
+                 sort_every_steps: int | None = None):
         import numba
 
         from millfmu.dem import kernels as K
@@ -88,7 +92,7 @@ class DemSimulation:
         self.xref = x.copy()
         rmax = float(self.rad.max())
         hcut = fluid.lubrication_cutoff_m if (fluid and fluid.lubrication) else 0.0
-        self.skin_m = 0.25 * rmax * 2.0 if skin_m is None else float(skin_m)
+        self.skin_m = 0.5 * rmax * 2.0 if skin_m is None else float(skin_m)
         self.cutoff_m = 2.0 * rmax + hcut + self.skin_m
         if geometry.height_m / self.cutoff_m < 3.0:
             raise ValueError(
@@ -116,6 +120,7 @@ class DemSimulation:
             prm[K.P_KCORE] = fluid.swirl_core_fraction
             prm[K.P_DELTA] = fluid.swirl_layer_m
             prm[K.P_RHOF] = fluid.density_kg_m3
+            prm[K.P_KH_F0], prm[K.P_KH_F3] = koch_hill_f0_f3(fluid.void_fraction)
         prm[K.P_GX:K.P_GZ + 1] = g
         prm[K.P_LZ] = geometry.height_m
         prm[K.P_SECTOR] = geometry.sector_rad
@@ -141,7 +146,14 @@ class DemSimulation:
         self.evcount = np.zeros(1, np.int64)
         self.acc = np.zeros(4 + nch)
         self.step_count = 0
+        self.ids = np.arange(n)
+        if sort_every_steps is None:
+            sort_every_steps = 200 if n >= 2000 else 0
+        self.sort_every_steps = int(sort_every_steps)
+        self._last_sort = 0
         self._build()
+        if self.sort_every_steps:
+            self._sort()
         # forces of the initial state; contacts present now are not "new" later
         K.compute_forces(self.x, self.v, self.w, self.f, self.t, self.rad, self.mass,
                          self.inertia, self.nb, self.img, self.nnb, self.sh, self.fl,
@@ -189,6 +201,29 @@ class DemSimulation:
             self._alloc_lists(int(longest * 1.3) + 4, keep=True)
             do_wrap = False
 
+    _PER_BEAD = ("x", "v", "w", "f", "t", "xref", "rad", "mass", "inertia", "inv_m",
+                 "inv_i", "wrapk", "shw", "flw", "ids", "nnb")
+
+    def _sort(self):
+        """Reorder beads by neighbour cell (z fastest), remapping the neighbour lists, so
+        that beads close in space are close in memory."""
+        g = self.geometry
+        cs = self.cutoff_m
+        x = self.x
+        ix = np.floor((x[:, 0] + g.chamber_radius_m) / cs).astype(np.int64)
+        iy = np.floor((x[:, 1] + g.chamber_radius_m) / cs).astype(np.int64)
+        iz = np.floor(np.mod(x[:, 2], g.height_m) / cs).astype(np.int64)
+        key = (ix * (iy.max() + 1) + iy) * (iz.max() + 1) + iz
+        perm = np.argsort(key, kind="stable")
+        inv = np.empty_like(perm)
+        inv[perm] = np.arange(perm.size)
+        for k in self._PER_BEAD:
+            setattr(self, k, np.ascontiguousarray(getattr(self, k)[perm]))
+        self.nb = np.ascontiguousarray(inv[self.nb[perm]].astype(np.int32))
+        for k in ("img", "sh", "fl"):
+            setattr(self, k, np.ascontiguousarray(getattr(self, k)[perm]))
+        self._last_sort = self.step_count
+
     # ---- time stepping ----------------------------------------------------------------
     def run(self, nsteps: int, record: bool = False) -> StepStats:
         """Advance nsteps steps; with record, return every contact at its first overlap."""
@@ -196,6 +231,8 @@ class DemSimulation:
 
         K = self.K
         numba.set_num_threads(self.threads)
+        if self.sort_every_steps and self.step_count - self._last_sort >= self.sort_every_steps:
+            self._sort()
         done = 0
         chunks = []
         torque = 0.0
@@ -217,6 +254,10 @@ class DemSimulation:
             if m:
                 ev = self.evbuf[:m].copy()
                 ev[:, K.EV_STEP] += self.step_count + done
+                # bead slots -> initial bead ids
+                ev[:, K.EV_I] = self.ids[ev[:, K.EV_I].astype(np.int64)]
+                bb = ev[:, K.EV_J] >= 0
+                ev[bb, K.EV_J] = self.ids[ev[bb, K.EV_J].astype(np.int64)]
                 chunks.append(ev)
             torque += self.acc[0]
             dropped += int(self.acc[3])
@@ -235,6 +276,9 @@ class DemSimulation:
                     if kk:
                         ev = self.evc[c, :kk].copy()
                         ev[:, K.EV_STEP] = self.step_count + done + k
+                        ev[:, K.EV_I] = self.ids[ev[:, K.EV_I].astype(np.int64)]
+                        bb = ev[:, K.EV_J] >= 0
+                        ev[bb, K.EV_J] = self.ids[ev[bb, K.EV_J].astype(np.int64)]
                         chunks.append(ev)
                 k += 1
             elif status == 2:
