@@ -482,11 +482,17 @@ def build_nlist(x, ej, es, ex, start, lo, cs, ncx, ncy, ncz, cut2, prm, wrapk,
 
 @kernel
 def compute_forces(x, v, w, f, t, rad, mass, inertia, nb, img, nnb, sh, fl, shw, flw,
-                   prm, cb, record, step, evc, evn, torq):
+                   prm, cb, record, step, evc, evn, torq, fuse, inv_m, inv_i, x_out,
+                   v_out, w_out, xref, dmax):
     """Forces [N] and torques [N m] on every bead from bead contacts, lubrication, walls,
     drag and gravity. New contacts (first overlap) are written to the per-chunk buffers
     evc[c, k, :] (layout EV_*) when record is true. torq[c] receives the torque [N m]
-    about +z that the beads of chunk c exert on the stirrer (shaft and disc)."""
+    about +z that the beads of chunk c exert on the stirrer (shaft and disc).
+
+    With fuse, the same pass also advances each bead once its force is known (leapfrog
+    kick by dt and drift) into the second buffers x_out, v_out, w_out, which nobody reads
+    in this pass, and puts the chunk's largest squared displacement since the last
+    neighbour build [m2] into dmax[c]: one parallel region per step instead of two."""
     dt = prm[P_DT]
     ystar = prm[P_YSTAR]
     gstar = prm[P_GSTAR]
@@ -506,6 +512,7 @@ def compute_forces(x, v, w, f, t, rad, mass, inertia, nb, img, nnb, sh, fl, shw,
     for c in prange(cb.shape[0] - 1):
         ne = 0
         tq = 0.0
+        dmx = 0.0
         for i in range(cb[c], cb[c + 1]):
             xi = x[i, 0]
             yi = x[i, 1]
@@ -703,8 +710,34 @@ def compute_forces(x, v, w, f, t, rad, mass, inertia, nb, img, nnb, sh, fl, shw,
             t[i, 0] = tx
             t[i, 1] = ty
             t[i, 2] = tz
+            if fuse:
+                im = inv_m[i] * dt
+                ii = inv_i[i] * dt
+                v0 = v[i, 0] + fx * im
+                v1 = v[i, 1] + fy * im
+                v2 = v[i, 2] + fz * im
+                v_out[i, 0] = v0
+                v_out[i, 1] = v1
+                v_out[i, 2] = v2
+                w_out[i, 0] = w[i, 0] + tx * ii
+                w_out[i, 1] = w[i, 1] + ty * ii
+                w_out[i, 2] = w[i, 2] + tz * ii
+                a0 = xi + dt * v0
+                a1 = yi + dt * v1
+                a2 = zi + dt * v2
+                x_out[i, 0] = a0
+                x_out[i, 1] = a1
+                x_out[i, 2] = a2
+                a0 -= xref[i, 0]
+                a1 -= xref[i, 1]
+                a2 -= xref[i, 2]
+                dd = a0 * a0 + a1 * a1 + a2 * a2
+                if dd > dmx:
+                    dmx = dd
         evn[c] = ne
         torq[c] = tq
+        if fuse:
+            dmax[c] = dmx
 
 
 # ---- driver ----------------------------------------------------------------------------
@@ -740,34 +773,33 @@ def rebuild(x, v, w, shw, xref, prm, wrapk, cutoff, do_wrap, nb, img, nnb, sh, f
 @serial
 def advance(nsteps, x, v, w, f, t, rad, mass, inertia, inv_m, inv_i, xref, prm, wrapk,
             cutoff, nb, img, nnb, sh, fl, nb_o, img_o, nnb_o, sh_o, fl_o, shw, flw, cb,
-            need, dmax, record, evc, evn, evbuf, evcount, acc):
-    """Advance ``nsteps`` velocity-Verlet steps of dt = prm[P_DT] [s].
+            need, dmax, record, evc, evn, evbuf, evcount, acc, x2, v2, w2):
+    """Advance ``nsteps`` velocity-Verlet steps of dt = prm[P_DT] [s] (nsteps >= 1).
 
     Velocities are synchronous with positions on entry and exit; the forces f, t must be
     those of the entry state. Recorded contacts are appended to evbuf (evcount[0] rows
     used); acc accumulates [0] stirrer torque x steps [N m], [1] steps, [2] neighbour
     builds, [3] contacts dropped for lack of chunk buffer space.
-    The two sets of neighbour lists are swapped at every build; parity (returned) says
-    whether the caller must swap its references. Returns (steps done, status, parity):
-    status 0 done, 1 new neighbour lists too short (enlarge, rebuild, finish_step),
-    2 event buffer nearly full.
+    Inner steps use the fused force-and-advance pass, which alternates between the
+    bead buffers (x, v, w) and (x2, v2, w2); the neighbour lists alternate at every
+    build. Returns (steps done, status, list parity, buffer parity): a parity of 1 means
+    the caller must swap its references of that pair. Status 0 done; 1 new neighbour
+    lists too short (positions advanced, velocities half a step ahead: enlarge, rebuild,
+    finish_step); 2 event buffer nearly full (stopped early, synchronous state).
     """
     dt = prm[P_DT]
     half_skin2 = (0.5 * prm[P_SKIN]) ** 2
-    kick = 0.5 * dt
     nch = cb.shape[0] - 1
     parity = 0
+    bpar = 0
+    kick_drift(x, v, w, f, t, inv_m, inv_i, 0.5 * dt, dt, xref, cb, dmax)
     for step in range(nsteps):
-        kick_drift(x, v, w, f, t, inv_m, inv_i, kick, dt, xref, cb, dmax)
-        kick = dt
         if dmax.max() > half_skin2:
             longest = rebuild(x, v, w, shw, xref, prm, wrapk, cutoff, True, nb, img, nnb,
                               sh, fl, nb_o, img_o, nnb_o, sh_o, fl_o, cb, need)
             acc[2] += 1.0
             if longest > nb_o.shape[1]:
-                # positions are valid, velocities half a step ahead: the caller enlarges
-                # the lists, rebuilds, computes forces and closes the step (finish_step)
-                return step, 1, parity
+                return step, 1, parity, bpar
             # the new lists become the current ones (no copying)
             nb, nb_o = nb_o, nb
             img, img_o = img_o, img
@@ -775,8 +807,12 @@ def advance(nsteps, x, v, w, f, t, rad, mass, inertia, inv_m, inv_i, xref, prm, 
             sh, sh_o = sh_o, sh
             fl, fl_o = fl_o, fl
             parity ^= 1
+        last = step == nsteps - 1
+        if record and evcount[0] > evbuf.shape[0] - 2 * evc.shape[1] * nch:
+            last = True
         compute_forces(x, v, w, f, t, rad, mass, inertia, nb, img, nnb, sh, fl, shw, flw,
-                       prm, cb, record, step, evc, evn, acc[4:4 + nch])
+                       prm, cb, record, step, evc, evn, acc[4:4 + nch], not last, inv_m,
+                       inv_i, x2, v2, w2, xref, dmax)
         tq = 0.0
         for c in range(nch):
             tq += acc[4 + c]
@@ -797,19 +833,23 @@ def advance(nsteps, x, v, w, f, t, rad, mass, inertia, inv_m, inv_i, xref, prm, 
                     else:
                         acc[3] += 1.0
             evcount[0] = m
-            if m > evbuf.shape[0] - evc.shape[1] * nch:
-                half_kick(v, w, f, t, inv_m, inv_i, 0.5 * dt, cb)
-                return step + 1, 2, parity
-    half_kick(v, w, f, t, inv_m, inv_i, 0.5 * dt, cb)
-    return nsteps, 0, parity
+        if last:
+            half_kick(v, w, f, t, inv_m, inv_i, 0.5 * dt, cb)
+            return step + 1, (0 if step == nsteps - 1 else 2), parity, bpar
+        x, x2 = x2, x
+        v, v2 = v2, v
+        w, w2 = w2, w
+        bpar ^= 1
+    return nsteps, 0, parity, bpar
 
 
 @serial
 def finish_step(x, v, w, f, t, rad, mass, inertia, inv_m, inv_i, prm, nb, img, nnb, sh,
-                fl, shw, flw, cb, record, evc, evn, torq):
+                fl, shw, flw, cb, record, evc, evn, torq, xref, dmax):
     """Forces at the current positions and the closing half kick; used after the
     neighbour lists were enlarged in the middle of a step. New contacts are left in
     evc/evn for the caller to collect."""
     compute_forces(x, v, w, f, t, rad, mass, inertia, nb, img, nnb, sh, fl, shw, flw,
-                   prm, cb, record, 0, evc, evn, torq)
+                   prm, cb, record, 0, evc, evn, torq, False, inv_m, inv_i, x, v, w, xref,
+                   dmax)
     half_kick(v, w, f, t, inv_m, inv_i, 0.5 * prm[P_DT], cb)

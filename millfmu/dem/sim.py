@@ -90,6 +90,10 @@ class DemSimulation:
         self.f = np.zeros((n, 3))
         self.t = np.zeros((n, 3))
         self.xref = x.copy()
+        # second bead buffers for the fused force-and-advance pass (scratch)
+        self.x2 = np.zeros((n, 3))
+        self.v2 = np.zeros((n, 3))
+        self.w2 = np.zeros((n, 3))
         rmax = float(self.rad.max())
         hcut = fluid.lubrication_cutoff_m if (fluid and fluid.lubrication) else 0.0
         self.skin_m = 0.5 * rmax * 2.0 if skin_m is None else float(skin_m)
@@ -158,7 +162,8 @@ class DemSimulation:
         K.compute_forces(self.x, self.v, self.w, self.f, self.t, self.rad, self.mass,
                          self.inertia, self.nb, self.img, self.nnb, self.sh, self.fl,
                          self.shw, self.flw, self.prm, self.cb, False, 0, self.evc,
-                         self.evn, self.acc[4:])
+                         self.evn, self.acc[4:], False, self.inv_m, self.inv_i, self.x2,
+                         self.v2, self.w2, self.xref, self.dmax)
 
     # ---- neighbour lists --------------------------------------------------------------
     _LISTS = ("nb", "img", "nnb", "sh", "fl")
@@ -241,15 +246,20 @@ class DemSimulation:
         while done < nsteps:
             self.evcount[0] = 0
             self.acc[:4] = 0.0
-            k, status, parity = K.advance(nsteps - done, self.x, self.v, self.w, self.f, self.t,
+            k, status, parity, bpar = K.advance(nsteps - done, self.x, self.v, self.w, self.f, self.t,
                                   self.rad, self.mass, self.inertia, self.inv_m, self.inv_i,
                                   self.xref, self.prm, self.wrapk, self.cutoff_m, self.nb,
                                   self.img, self.nnb, self.sh, self.fl, self.nb_o,
                                   self.img_o, self.nnb_o, self.sh_o, self.fl_o, self.shw,
                                   self.flw, self.cb, self.need, self.dmax, record, self.evc,
-                                  self.evn, self.evbuf, self.evcount, self.acc)
+                                  self.evn, self.evbuf, self.evcount, self.acc, self.x2,
+                                  self.v2, self.w2)
             if parity:
                 self._swap_lists()
+            if bpar:
+                self.x, self.x2 = self.x2, self.x
+                self.v, self.v2 = self.v2, self.v
+                self.w, self.w2 = self.w2, self.w
             m = int(self.evcount[0])
             if m:
                 ev = self.evbuf[:m].copy()
@@ -269,7 +279,8 @@ class DemSimulation:
                 K.finish_step(self.x, self.v, self.w, self.f, self.t, self.rad, self.mass,
                               self.inertia, self.inv_m, self.inv_i, self.prm, self.nb,
                               self.img, self.nnb, self.sh, self.fl, self.shw, self.flw,
-                              self.cb, record, self.evc, self.evn, self.acc[4:])
+                              self.cb, record, self.evc, self.evn, self.acc[4:],
+                              self.xref, self.dmax)
                 torque += float(self.acc[4:].sum())
                 for c in range(self.evn.size):
                     kk = min(int(self.evn[c]), self.evc.shape[1])
