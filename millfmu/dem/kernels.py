@@ -409,16 +409,19 @@ def bin_entries(ej, es, ex, lo, cs, ncx, ncy, ncz, lz):
 
 @kernel
 def build_nlist(x, ej, es, ex, start, lo, cs, ncx, ncy, ncz, cut2, prm, wrapk,
-                nb_o, img_o, nnb_o, sh_o, fl_o, nb, img, nnb, sh, fl, cb, need):
-    """Full neighbour lists within sqrt(cut2) [m], carrying over the tangential history
-    and contact flags of pairs that existed before (rotated if a bead was wrapped into
-    the sector). need[c] receives the longest row found in chunk c (overflow check)."""
+                nb_o, img_o, nnb_o, sh_o, fl_o, nb, img, nnb, sh, fl, cb, need, maxj):
+    """Half neighbour lists within sqrt(cut2) [m]: row i holds the partners j > i (each
+    pair once, owned by its lower index, image pairs included), carrying over the
+    tangential history and contact flags of pairs that existed before (rotated if a bead
+    was wrapped into the sector). need[c] receives the longest row found in chunk c
+    (overflow check), maxj[c] the highest partner index of the chunk's rows."""
     lz = prm[P_LZ]
     sec = prm[P_SECTOR]
     maxnb = nb.shape[1]
     csz = lz / ncz
     for c in prange(cb.shape[0] - 1):
         longest = 0
+        hij = cb[c + 1] - 1
         for i in range(cb[c], cb[c + 1]):
             xi = x[i, 0]
             yi = x[i, 1]
@@ -435,9 +438,9 @@ def build_nlist(x, ej, es, ex, start, lo, cs, ncx, ncy, ncz, cut2, prm, wrapk,
                         cc = (ax * ncy + ay) * ncz + az
                         for e in range(start[cc], start[cc + 1]):
                             j = ej[e]
-                            s = es[e]
-                            if j == i and s == 0:
+                            if j <= i:
                                 continue
+                            s = es[e]
                             dx = xi - ex[e, 0]
                             dy = yi - ex[e, 1]
                             dz = zi - ex[e, 2]
@@ -446,6 +449,8 @@ def build_nlist(x, ej, es, ex, start, lo, cs, ncx, ncy, ncz, cut2, prm, wrapk,
                             elif dz < -0.5 * lz:
                                 dz += lz
                             if dx * dx + dy * dy + dz * dz < cut2:
+                                if j > hij:
+                                    hij = j
                                 if n < maxnb:
                                     nb[i, n] = j
                                     img[i, n] = s
@@ -476,23 +481,31 @@ def build_nlist(x, ej, es, ex, start, lo, cs, ncx, ncy, ncz, cut2, prm, wrapk,
             if n > longest:
                 longest = n
         need[c] = longest
+        maxj[c] = hij
 
 
 # ---- forces ----------------------------------------------------------------------------
 
-@kernel
-def compute_forces(x, v, w, f, t, rad, mass, inertia, nb, img, nnb, sh, fl, shw, flw,
-                   prm, cb, record, step, evc, evn, torq, fuse, inv_m, inv_i, x_out,
-                   v_out, w_out, xref, dmax):
-    """Forces [N] and torques [N m] on every bead from bead contacts, lubrication, walls,
-    drag and gravity. New contacts (first overlap) are written to the per-chunk buffers
-    evc[c, k, :] (layout EV_*) when record is true. torq[c] receives the torque [N m]
-    about +z that the beads of chunk c exert on the stirrer (shaft and disc).
+@device
+def _add3(buf, c, j, ax, ay, az, cr, sr):
+    """buf[c, j] += (ax, ay, az) rotated about z by the angle with cosine cr, sine sr."""
+    buf[c, j, 0] += cr * ax - sr * ay
+    buf[c, j, 1] += sr * ax + cr * ay
+    buf[c, j, 2] += az
 
-    With fuse, the same pass also advances each bead once its force is known (leapfrog
-    kick by dt and drift) into the second buffers x_out, v_out, w_out, which nobody reads
-    in this pass, and puts the chunk's largest squared displacement since the last
-    neighbour build [m2] into dmax[c]: one parallel region per step instead of two."""
+
+@kernel
+def compute_forces(x, v, w, fb, tb, rad, mass, inertia, nb, img, nnb, sh, fl, shw, flw,
+                   prm, cb, maxj, record, step, evc, evn, torq):
+    """Forces [N] and torques [N m] from bead contacts, lubrication, walls, drag and
+    gravity, accumulated per chunk: fb[c, i], tb[c, i] hold what chunk c's rows put on
+    bead i (its own beads cb[c] <= i < cb[c + 1] and partners up to maxj[c]); the rows of
+    chunk c are the half neighbour lists, so each pair is evaluated once (Newton's third
+    law) and no two chunks write the same buffer. :func:`reduce_kick` sums the chunks.
+
+    New contacts (first overlap) go to evc[c, k, :] (layout EV_*) when record is true;
+    torq[c] receives the torque [N m] about +z that chunk c's beads exert on the stirrer
+    (shaft and disc)."""
     dt = prm[P_DT]
     ystar = prm[P_YSTAR]
     gstar = prm[P_GSTAR]
@@ -509,10 +522,19 @@ def compute_forces(x, v, w, f, t, rad, mass, inertia, nb, img, nnb, sh, fl, shw,
     cap = evc.shape[1]
     cs1 = math.cos(sec)
     sn1 = math.sin(sec)
+    rsh = prm[P_RSH]
+    rch = prm[P_RCH]
+    rdisc = prm[P_RDISC]
+    has_disc = rdisc > 0.0
+    hdisc = 0.5 * prm[P_BDISC]
+    zdisc = prm[P_ZDISC]
     for c in prange(cb.shape[0] - 1):
         ne = 0
         tq = 0.0
-        dmx = 0.0
+        for i in range(cb[c], max(maxj[c], cb[c + 1] - 1) + 1):
+            for a in range(3):
+                fb[c, i, a] = 0.0
+                tb[c, i, a] = 0.0
         for i in range(cb[c], cb[c + 1]):
             xi = x[i, 0]
             yi = x[i, 1]
@@ -537,12 +559,14 @@ def compute_forces(x, v, w, f, t, rad, mass, inertia, nb, img, nnb, sh, fl, shw,
                 fx += vp * bt * ux
                 fy += vp * bt * uy
                 fz += vp * bt * uz
-            # ---- bead-bead ----
+            # ---- bead-bead (half list: j > i) ----
             for k in range(nnb[i]):
                 j = nb[i, k]
-                s = img[i, k]
+                s = img[i, k] if sec > 0.0 else 0
                 xj = x[j, 0]
                 yj = x[j, 1]
+                cr = 1.0
+                sr = 0.0
                 if s != 0:
                     cr = cs1
                     sr = sn1 if s > 0 else -sn1
@@ -584,7 +608,7 @@ def compute_forces(x, v, w, f, t, rad, mass, inertia, nb, img, nnb, sh, fl, shw,
                 rstar = ri * rj / rsum
                 if delta > 0.0:
                     vn = vrx * nx + vry * ny + vrz * nz
-                    if record and fl[i, k] == 0 and i < j:
+                    if record and fl[i, k] == 0:
                         if ne < cap:
                             vtx = vrx - vn * nx
                             vty = vry - vn * ny
@@ -618,13 +642,23 @@ def compute_forces(x, v, w, f, t, rad, mass, inertia, nb, img, nnb, sh, fl, shw,
                     sh[i, k, 0] = s0
                     sh[i, k, 1] = s1
                     sh[i, k, 2] = s2
-                    fx += fnx + ftx
-                    fy += fny + fty
-                    fz += fnz + ftz
-                    # torque of the tangential force at the contact point -r_i n
-                    tx += -ri * (ny * ftz - nz * fty) + mrx
-                    ty += -ri * (nz * ftx - nx * ftz) + mry
-                    tz += -ri * (nx * fty - ny * ftx) + mrz
+                    gx = fnx + ftx
+                    gy = fny + fty
+                    gz = fnz + ftz
+                    fx += gx
+                    fy += gy
+                    fz += gz
+                    # torque of the tangential force at the contact point -r_i n; on j the
+                    # force -F_t acts at +r_j n: -r_j n x F_t, the same sense scaled by r_j
+                    cx = ny * ftz - nz * fty
+                    cy = nz * ftx - nx * ftz
+                    cz = nx * fty - ny * ftx
+                    tx += -ri * cx + mrx
+                    ty += -ri * cy + mry
+                    tz += -ri * cz + mrz
+                    # reaction on j, rotated back into j's frame (image pairs)
+                    _add3(fb, c, j, -gx, -gy, -gz, cr, -sr)
+                    _add3(tb, c, j, -rj * cx - mrx, -rj * cy - mry, -rj * cz - mrz, cr, -sr)
                 else:
                     if fl[i, k] != 0:
                         fl[i, k] = 0
@@ -638,8 +672,23 @@ def compute_forces(x, v, w, f, t, rad, mass, inertia, nb, img, nnb, sh, fl, shw,
                         fx += fl_m * nx
                         fy += fl_m * ny
                         fz += fl_m * nz
+                        _add3(fb, c, j, -fl_m * nx, -fl_m * ny, -fl_m * nz, cr, -sr)
             # ---- walls ----
-            for q in range(NWALL):
+            # quick rejection: most beads touch no wall (one sqrt instead of three)
+            rxy = math.sqrt(xi * xi + yi * yi)
+            near = rxy - rsh <= ri or rch - rxy <= ri
+            if not near and has_disc:
+                zd = zi - zdisc
+                zd -= lz * math.floor(zd / lz + 0.5)
+                near = abs(zd) - hdisc <= ri and rxy - rdisc <= ri
+            if not near:
+                for q in range(NWALL):
+                    if flw[i, q] != 0:
+                        flw[i, q] = 0
+                        shw[i, q, 0] = 0.0
+                        shw[i, q, 1] = 0.0
+                        shw[i, q, 2] = 0.0
+            for q in range(NWALL if near else 0):
                 dist, nx, ny, nz, ok = wall_gap(xi, yi, zi, ri, q, prm)
                 delta = ri - dist
                 if not ok or delta <= 0.0:
@@ -704,47 +753,74 @@ def compute_forces(x, v, w, f, t, rad, mass, inertia, nb, img, nnb, sh, fl, shw,
                 if q != 1:
                     # reaction on the stirrer: -F at p, plus the rolling torque's reaction
                     tq += -(px * gy - py * gx) - mrz
-            f[i, 0] = fx
-            f[i, 1] = fy
-            f[i, 2] = fz
-            t[i, 0] = tx
-            t[i, 1] = ty
-            t[i, 2] = tz
-            if fuse:
-                im = inv_m[i] * dt
-                ii = inv_i[i] * dt
-                v0 = v[i, 0] + fx * im
-                v1 = v[i, 1] + fy * im
-                v2 = v[i, 2] + fz * im
-                v_out[i, 0] = v0
-                v_out[i, 1] = v1
-                v_out[i, 2] = v2
-                w_out[i, 0] = w[i, 0] + tx * ii
-                w_out[i, 1] = w[i, 1] + ty * ii
-                w_out[i, 2] = w[i, 2] + tz * ii
-                a0 = xi + dt * v0
-                a1 = yi + dt * v1
-                a2 = zi + dt * v2
-                x_out[i, 0] = a0
-                x_out[i, 1] = a1
-                x_out[i, 2] = a2
-                a0 -= xref[i, 0]
-                a1 -= xref[i, 1]
-                a2 -= xref[i, 2]
-                dd = a0 * a0 + a1 * a1 + a2 * a2
-                if dd > dmx:
-                    dmx = dd
+            fb[c, i, 0] += fx
+            fb[c, i, 1] += fy
+            fb[c, i, 2] += fz
+            tb[c, i, 0] += tx
+            tb[c, i, 1] += ty
+            tb[c, i, 2] += tz
         evn[c] = ne
         torq[c] = tq
-        if fuse:
-            dmax[c] = dmx
+
+
+@kernel
+def reduce_kick(fb, tb, cb, maxj, f, t, v, w, x, inv_m, inv_i, kick, dt, drift, xref,
+                dmax):
+    """f = sum of the chunks' force buffers (t likewise), then v += kick f/m,
+    w += kick t/I and, with drift, x += dt v; dmax[c] receives the largest squared
+    displacement [m2] since the last neighbour build of chunk c's beads."""
+    nch = cb.shape[0] - 1
+    for c in prange(nch):
+        dm = 0.0
+        for i in range(cb[c], cb[c + 1]):
+            f0 = 0.0
+            f1 = 0.0
+            f2 = 0.0
+            t0 = 0.0
+            t1 = 0.0
+            t2 = 0.0
+            # chunks c2 <= c write bead i (partners have higher indices than their rows)
+            for c2 in range(c + 1):
+                if c2 == c or maxj[c2] >= i:
+                    f0 += fb[c2, i, 0]
+                    f1 += fb[c2, i, 1]
+                    f2 += fb[c2, i, 2]
+                    t0 += tb[c2, i, 0]
+                    t1 += tb[c2, i, 1]
+                    t2 += tb[c2, i, 2]
+            f[i, 0] = f0
+            f[i, 1] = f1
+            f[i, 2] = f2
+            t[i, 0] = t0
+            t[i, 1] = t1
+            t[i, 2] = t2
+            im = kick * inv_m[i]
+            ii = kick * inv_i[i]
+            v[i, 0] += f0 * im
+            v[i, 1] += f1 * im
+            v[i, 2] += f2 * im
+            w[i, 0] += t0 * ii
+            w[i, 1] += t1 * ii
+            w[i, 2] += t2 * ii
+            if drift:
+                x[i, 0] += dt * v[i, 0]
+                x[i, 1] += dt * v[i, 1]
+                x[i, 2] += dt * v[i, 2]
+                a0 = x[i, 0] - xref[i, 0]
+                a1 = x[i, 1] - xref[i, 1]
+                a2 = x[i, 2] - xref[i, 2]
+                dd = a0 * a0 + a1 * a1 + a2 * a2
+                if dd > dm:
+                    dm = dd
+        if drift:
+            dmax[c] = dm
 
 
 # ---- driver ----------------------------------------------------------------------------
 
 @serial
 def rebuild(x, v, w, shw, xref, prm, wrapk, cutoff, do_wrap, nb, img, nnb, sh, fl,
-            nb_n, img_n, nnb_n, sh_n, fl_n, cb, need):
+            nb_n, img_n, nnb_n, sh_n, fl_n, cb, need, maxj):
     """Wrap beads into the periodic cell and build new full neighbour lists (nb_n ...)
     from the current ones (nb ...), carrying the tangential history over; reset the
     displacement reference. Returns the longest row found: more than nb_n.shape[1] means
@@ -765,7 +841,7 @@ def rebuild(x, v, w, shw, xref, prm, wrapk, cutoff, do_wrap, nb, img, nnb, sh, f
     ncz = int(lz / cutoff)
     start, sj, ss, sx = bin_entries(ej, es, ex, lo, cs, ncx, ncy, ncz, lz)
     build_nlist(x, sj, ss, sx, start, lo, cs, ncx, ncy, ncz, cutoff * cutoff, prm,
-                wrapk, nb, img, nnb, sh, fl, nb_n, img_n, nnb_n, sh_n, fl_n, cb, need)
+                wrapk, nb, img, nnb, sh, fl, nb_n, img_n, nnb_n, sh_n, fl_n, cb, need, maxj)
     xref[:, :] = x
     return need.max()
 
@@ -773,33 +849,32 @@ def rebuild(x, v, w, shw, xref, prm, wrapk, cutoff, do_wrap, nb, img, nnb, sh, f
 @serial
 def advance(nsteps, x, v, w, f, t, rad, mass, inertia, inv_m, inv_i, xref, prm, wrapk,
             cutoff, nb, img, nnb, sh, fl, nb_o, img_o, nnb_o, sh_o, fl_o, shw, flw, cb,
-            need, dmax, record, evc, evn, evbuf, evcount, acc, x2, v2, w2):
+            need, maxj, dmax, record, evc, evn, evbuf, evcount, acc, fb, tb):
     """Advance ``nsteps`` velocity-Verlet steps of dt = prm[P_DT] [s] (nsteps >= 1).
 
     Velocities are synchronous with positions on entry and exit; the forces f, t must be
-    those of the entry state. Recorded contacts are appended to evbuf (evcount[0] rows
-    used); acc accumulates [0] stirrer torque x steps [N m], [1] steps, [2] neighbour
-    builds, [3] contacts dropped for lack of chunk buffer space.
-    Inner steps use the fused force-and-advance pass, which alternates between the
-    bead buffers (x, v, w) and (x2, v2, w2); the neighbour lists alternate at every
-    build. Returns (steps done, status, list parity, buffer parity): a parity of 1 means
-    the caller must swap its references of that pair. Status 0 done; 1 new neighbour
-    lists too short (positions advanced, velocities half a step ahead: enlarge, rebuild,
+    those of the entry state. Each step is two parallel passes: forces on the half
+    neighbour lists into per-chunk buffers fb, tb, then their sum with the leapfrog kick
+    and drift. Recorded contacts are appended to evbuf (evcount[0] rows used); acc
+    accumulates [0] stirrer torque x steps [N m], [1] steps, [2] neighbour builds,
+    [3] contacts dropped for lack of chunk buffer space. The two sets of neighbour lists
+    alternate at every build. Returns (steps done, status, list parity): parity 1 means
+    the caller must swap its list references. Status 0 done; 1 new neighbour lists too
+    short (positions advanced, velocities half a step ahead: enlarge, rebuild,
     finish_step); 2 event buffer nearly full (stopped early, synchronous state).
     """
     dt = prm[P_DT]
     half_skin2 = (0.5 * prm[P_SKIN]) ** 2
     nch = cb.shape[0] - 1
     parity = 0
-    bpar = 0
     kick_drift(x, v, w, f, t, inv_m, inv_i, 0.5 * dt, dt, xref, cb, dmax)
     for step in range(nsteps):
         if dmax.max() > half_skin2:
             longest = rebuild(x, v, w, shw, xref, prm, wrapk, cutoff, True, nb, img, nnb,
-                              sh, fl, nb_o, img_o, nnb_o, sh_o, fl_o, cb, need)
+                              sh, fl, nb_o, img_o, nnb_o, sh_o, fl_o, cb, need, maxj)
             acc[2] += 1.0
             if longest > nb_o.shape[1]:
-                return step, 1, parity, bpar
+                return step, 1, parity
             # the new lists become the current ones (no copying)
             nb, nb_o = nb_o, nb
             img, img_o = img_o, img
@@ -810,9 +885,8 @@ def advance(nsteps, x, v, w, f, t, rad, mass, inertia, inv_m, inv_i, xref, prm, 
         last = step == nsteps - 1
         if record and evcount[0] > evbuf.shape[0] - 2 * evc.shape[1] * nch:
             last = True
-        compute_forces(x, v, w, f, t, rad, mass, inertia, nb, img, nnb, sh, fl, shw, flw,
-                       prm, cb, record, step, evc, evn, acc[4:4 + nch], not last, inv_m,
-                       inv_i, x2, v2, w2, xref, dmax)
+        compute_forces(x, v, w, fb, tb, rad, mass, inertia, nb, img, nnb, sh, fl, shw,
+                       flw, prm, cb, maxj, record, step, evc, evn, acc[4:4 + nch])
         tq = 0.0
         for c in range(nch):
             tq += acc[4 + c]
@@ -834,22 +908,20 @@ def advance(nsteps, x, v, w, f, t, rad, mass, inertia, inv_m, inv_i, xref, prm, 
                         acc[3] += 1.0
             evcount[0] = m
         if last:
-            half_kick(v, w, f, t, inv_m, inv_i, 0.5 * dt, cb)
-            return step + 1, (0 if step == nsteps - 1 else 2), parity, bpar
-        x, x2 = x2, x
-        v, v2 = v2, v
-        w, w2 = w2, w
-        bpar ^= 1
-    return nsteps, 0, parity, bpar
+            reduce_kick(fb, tb, cb, maxj, f, t, v, w, x, inv_m, inv_i, 0.5 * dt, dt, False,
+                        xref, dmax)
+            return step + 1, (0 if step == nsteps - 1 else 2), parity
+        reduce_kick(fb, tb, cb, maxj, f, t, v, w, x, inv_m, inv_i, dt, dt, True, xref, dmax)
+    return nsteps, 0, parity
 
 
 @serial
 def finish_step(x, v, w, f, t, rad, mass, inertia, inv_m, inv_i, prm, nb, img, nnb, sh,
-                fl, shw, flw, cb, record, evc, evn, torq, xref, dmax):
-    """Forces at the current positions and the closing half kick; used after the
-    neighbour lists were enlarged in the middle of a step. New contacts are left in
-    evc/evn for the caller to collect."""
-    compute_forces(x, v, w, f, t, rad, mass, inertia, nb, img, nnb, sh, fl, shw, flw,
-                   prm, cb, record, 0, evc, evn, torq, False, inv_m, inv_i, x, v, w, xref,
-                   dmax)
-    half_kick(v, w, f, t, inv_m, inv_i, 0.5 * prm[P_DT], cb)
+                fl, shw, flw, cb, maxj, record, evc, evn, torq, xref, dmax, fb, tb, kick):
+    """Forces at the current positions, then v += kick F/m: with kick = dt/2 this closes
+    a step after the neighbour lists were enlarged in the middle of it; with kick = 0 it
+    only fills f, t. New contacts are left in evc/evn for the caller to collect."""
+    compute_forces(x, v, w, fb, tb, rad, mass, inertia, nb, img, nnb, sh, fl, shw, flw,
+                   prm, cb, maxj, record, 0, evc, evn, torq)
+    reduce_kick(fb, tb, cb, maxj, f, t, v, w, x, inv_m, inv_i, kick, prm[P_DT], False,
+                xref, dmax)

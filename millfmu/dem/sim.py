@@ -90,10 +90,6 @@ class DemSimulation:
         self.f = np.zeros((n, 3))
         self.t = np.zeros((n, 3))
         self.xref = x.copy()
-        # second bead buffers for the fused force-and-advance pass (scratch)
-        self.x2 = np.zeros((n, 3))
-        self.v2 = np.zeros((n, 3))
-        self.w2 = np.zeros((n, 3))
         rmax = float(self.rad.max())
         hcut = fluid.lubrication_cutoff_m if (fluid and fluid.lubrication) else 0.0
         self.skin_m = 0.5 * rmax * 2.0 if skin_m is None else float(skin_m)
@@ -136,9 +132,13 @@ class DemSimulation:
         prm[K.P_ZDISC] = geometry.disc_z_m
         prm[K.P_SKIN] = self.skin_m
         self.prm = prm
-        nch = max(1, 4 * self.threads)
+        # one chunk of beads per thread: each chunk has its own force buffer
+        nch = max(1, self.threads)
         self.cb = np.linspace(0, n, nch + 1).astype(np.int64)
         self.need = np.zeros(nch, np.int64)
+        self.maxj = np.zeros(nch, np.int64)
+        self.fb = np.zeros((nch, n, 3))
+        self.tb = np.zeros((nch, n, 3))
         self.dmax = np.zeros(nch)
         self.wrapk = np.zeros(n, np.int8)
         self._alloc_lists(max_neighbours)
@@ -159,11 +159,7 @@ class DemSimulation:
         if self.sort_every_steps:
             self._sort()
         # forces of the initial state; contacts present now are not "new" later
-        K.compute_forces(self.x, self.v, self.w, self.f, self.t, self.rad, self.mass,
-                         self.inertia, self.nb, self.img, self.nnb, self.sh, self.fl,
-                         self.shw, self.flw, self.prm, self.cb, False, 0, self.evc,
-                         self.evn, self.acc[4:], False, self.inv_m, self.inv_i, self.x2,
-                         self.v2, self.w2, self.xref, self.dmax)
+        self._finish(record=False, kick=0.0)
 
     # ---- neighbour lists --------------------------------------------------------------
     _LISTS = ("nb", "img", "nnb", "sh", "fl")
@@ -199,15 +195,23 @@ class DemSimulation:
             longest = K.rebuild(self.x, self.v, self.w, self.shw, self.xref, self.prm,
                                 self.wrapk, self.cutoff_m, do_wrap, self.nb, self.img,
                                 self.nnb, self.sh, self.fl, self.nb_o, self.img_o,
-                                self.nnb_o, self.sh_o, self.fl_o, self.cb, self.need)
+                                self.nnb_o, self.sh_o, self.fl_o, self.cb, self.need,
+                                self.maxj)
             if longest <= self.nb_o.shape[1]:
                 self._swap_lists()
                 return
             self._alloc_lists(int(longest * 1.3) + 4, keep=True)
             do_wrap = False
 
+    def _finish(self, record: bool, kick: float):
+        self.K.finish_step(self.x, self.v, self.w, self.f, self.t, self.rad, self.mass,
+                           self.inertia, self.inv_m, self.inv_i, self.prm, self.nb,
+                           self.img, self.nnb, self.sh, self.fl, self.shw, self.flw,
+                           self.cb, self.maxj, record, self.evc, self.evn, self.acc[4:],
+                           self.xref, self.dmax, self.fb, self.tb, kick)
+
     _PER_BEAD = ("x", "v", "w", "f", "t", "xref", "rad", "mass", "inertia", "inv_m",
-                 "inv_i", "wrapk", "shw", "flw", "ids", "nnb")
+                 "inv_i", "wrapk", "shw", "flw", "ids")
 
     def _sort(self):
         """Reorder beads by neighbour cell (z fastest), remapping the neighbour lists, so
@@ -222,11 +226,55 @@ class DemSimulation:
         perm = np.argsort(key, kind="stable")
         inv = np.empty_like(perm)
         inv[perm] = np.arange(perm.size)
+        # the pairs, flattened; a pair stays with its lower (new) index
+        nnb = self.nnb
+        rows = np.repeat(np.arange(self.n), nnb)
+        cols = np.arange(rows.size) - np.repeat(np.cumsum(nnb) - nnb, nnb)
+        pj = self.nb[rows, cols].astype(np.int64)
+        ps = self.img[rows, cols].astype(np.int64)
+        psh = self.sh[rows, cols].copy()
+        pfl = self.fl[rows, cols]
+        a = inv[rows]
+        b = inv[pj]
+        swap = a > b
+        owner = np.where(swap, b, a)
+        partner = np.where(swap, a, b)
+        if swap.any():
+            # seen from the other bead: opposite spring, in that bead's frame (rotated by
+            # -s sector for image pairs), image code negated
+            th = -ps[swap] * self.geometry.sector_rad
+            c, sn = np.cos(th), np.sin(th)
+            s0, s1 = psh[swap, 0].copy(), psh[swap, 1].copy()
+            psh[swap, 0] = -(c * s0 - sn * s1)
+            psh[swap, 1] = -(sn * s0 + c * s1)
+            psh[swap, 2] = -psh[swap, 2]
+            ps = np.where(swap, -ps, ps)
         for k in self._PER_BEAD:
-            setattr(self, k, np.ascontiguousarray(getattr(self, k)[perm]))
-        self.nb = np.ascontiguousarray(inv[self.nb[perm]].astype(np.int32))
-        for k in ("img", "sh", "fl"):
-            setattr(self, k, np.ascontiguousarray(getattr(self, k)[perm]))
+            if k != "nnb":
+                setattr(self, k, np.ascontiguousarray(getattr(self, k)[perm]))
+        counts = np.bincount(owner, minlength=self.n)
+        m = self.nb.shape[1]
+        if counts.max() > m:
+            m = int(counts.max() * 1.3) + 4
+            self._alloc_lists(m)
+        order = np.argsort(owner, kind="stable")
+        owner, partner, ps, psh, pfl = (owner[order], partner[order], ps[order], psh[order],
+                                        pfl[order])
+        slot = np.arange(owner.size) - np.repeat(np.cumsum(counts) - counts, counts)
+        self.nb[:] = 0
+        self.img[:] = 0
+        self.sh[:] = 0.0
+        self.fl[:] = 0
+        self.nb[owner, slot] = partner
+        self.img[owner, slot] = ps
+        self.sh[owner, slot] = psh
+        self.fl[owner, slot] = pfl
+        self.nnb[:] = counts
+        # the chunks' partner ranges changed with the names: recompute them
+        for c in range(self.cb.size - 1):
+            lo, hi = self.cb[c], self.cb[c + 1]
+            rowmax = self.nb[lo:hi][np.arange(m)[None, :] < self.nnb[lo:hi, None]]
+            self.maxj[c] = max(int(rowmax.max()) if rowmax.size else 0, hi - 1)
         self._last_sort = self.step_count
 
     # ---- time stepping ----------------------------------------------------------------
@@ -246,20 +294,16 @@ class DemSimulation:
         while done < nsteps:
             self.evcount[0] = 0
             self.acc[:4] = 0.0
-            k, status, parity, bpar = K.advance(nsteps - done, self.x, self.v, self.w, self.f, self.t,
+            k, status, parity = K.advance(nsteps - done, self.x, self.v, self.w, self.f, self.t,
                                   self.rad, self.mass, self.inertia, self.inv_m, self.inv_i,
                                   self.xref, self.prm, self.wrapk, self.cutoff_m, self.nb,
                                   self.img, self.nnb, self.sh, self.fl, self.nb_o,
                                   self.img_o, self.nnb_o, self.sh_o, self.fl_o, self.shw,
-                                  self.flw, self.cb, self.need, self.dmax, record, self.evc,
-                                  self.evn, self.evbuf, self.evcount, self.acc, self.x2,
-                                  self.v2, self.w2)
+                                  self.flw, self.cb, self.need, self.maxj, self.dmax, record,
+                                  self.evc, self.evn, self.evbuf, self.evcount, self.acc,
+                                  self.fb, self.tb)
             if parity:
                 self._swap_lists()
-            if bpar:
-                self.x, self.x2 = self.x2, self.x
-                self.v, self.v2 = self.v2, self.v
-                self.w, self.w2 = self.w2, self.w
             m = int(self.evcount[0])
             if m:
                 ev = self.evbuf[:m].copy()
@@ -276,11 +320,7 @@ class DemSimulation:
                 # the new lists overflowed during step k: enlarge, rebuild, close the step
                 self._alloc_lists(int(self.nb.shape[1] * 1.5) + 4, keep=True)
                 self._build(do_wrap=False)
-                K.finish_step(self.x, self.v, self.w, self.f, self.t, self.rad, self.mass,
-                              self.inertia, self.inv_m, self.inv_i, self.prm, self.nb,
-                              self.img, self.nnb, self.sh, self.fl, self.shw, self.flw,
-                              self.cb, record, self.evc, self.evn, self.acc[4:],
-                              self.xref, self.dmax)
+                self._finish(record=record, kick=0.5 * self.dt_s)
                 torque += float(self.acc[4:].sum())
                 for c in range(self.evn.size):
                     kk = min(int(self.evn[c]), self.evc.shape[1])
