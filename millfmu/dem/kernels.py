@@ -10,10 +10,12 @@ Conventions
 - Optional angular sector ``[0, prm[P_SECTOR])`` [rad] with rotational periodicity:
   a partner bead may be an image of a real bead rotated by ``s * sector`` with
   ``s`` in {-1, 0, +1}; neighbour entries store ``s`` next to the partner index.
-- Neighbour lists are *full* (each pair appears in both rows) so that every thread writes
-  only its own beads: no atomics, no reduction pass. Each row keeps its own tangential
-  history; both copies obey the same update with opposite signs. A contact is recorded
-  once, from the row of the lower bead index.
+- Neighbour lists are *half* lists (Verlet lists with a skin, built from a cell grid):
+  a pair is stored once, in the row of its lower bead index, with its tangential history
+  and contact flag, and is evaluated once per step. Beads are split into one contiguous
+  chunk per thread; each chunk adds its forces into its own buffer (its beads and their
+  higher-indexed partners), and a second pass sums the buffers and integrates: no
+  atomics, no races. A contact is recorded once, at its first overlap.
 
 Contact model (as in LIGGGHTS, see the project REFERENCE "DEM contact model"):
 Hertz-Mindlin with k_n = 4/3 Y* sqrt(R* d_n), S_t = 8 G* sqrt(R* d_n), viscous damping
@@ -271,16 +273,6 @@ def kick_drift(x, v, w, f, t, inv_m, inv_i, kick, dt, xref, cb, dmax):
             if dd > dm:
                 dm = dd
         dmax[c] = dm
-
-
-@kernel
-def half_kick(v, w, f, t, inv_m, inv_i, kick, cb):
-    """v += kick F/m, w += kick T/I (closing half step of velocity Verlet)."""
-    for c in prange(cb.shape[0] - 1):
-        for i in range(cb[c], cb[c + 1]):
-            for k in range(3):
-                v[i, k] += kick * f[i, k] * inv_m[i]
-                w[i, k] += kick * t[i, k] * inv_i[i]
 
 
 # ---- neighbour lists -------------------------------------------------------------------
@@ -821,7 +813,7 @@ def reduce_kick(fb, tb, cb, maxj, f, t, v, w, x, inv_m, inv_i, kick, dt, drift, 
 @serial
 def rebuild(x, v, w, shw, xref, prm, wrapk, cutoff, do_wrap, nb, img, nnb, sh, fl,
             nb_n, img_n, nnb_n, sh_n, fl_n, cb, need, maxj):
-    """Wrap beads into the periodic cell and build new full neighbour lists (nb_n ...)
+    """Wrap beads into the periodic cell and build new half neighbour lists (nb_n ...)
     from the current ones (nb ...), carrying the tangential history over; reset the
     displacement reference. Returns the longest row found: more than nb_n.shape[1] means
     the new lists overflowed (the current ones are untouched; enlarge and call again with
