@@ -189,7 +189,7 @@ def compute_stats(*, scene: str, zones, events: np.ndarray, ev_cols: dict,
             collision_power_w=float(se_tot[bb].sum() / record_s),
             se={c: energy_distribution(v, edges) for c, v in comp.items()}))
     frac = g.sector_fraction
-    drive_torque = -torque_on_stirrer_nm / frac
+    drive_torque = -torque_on_stirrer_nm / frac + 0.0  # + 0.0: no "-0" without contacts
     return DemStats(
         scene=scene, fluid_model=fluid_model, tip_speed_m_s=tip_speed_m_s, filling=filling,
         beads=int(np.asarray(radii_m).size), sector_deg=g.sector_deg, dt_s=dt_s,
