@@ -1,0 +1,178 @@
+"""Mill geometries of the bead DEM and bead placement (pure Python/numpy, no numba).
+
+Coordinates: the mill axis is z; the stirrer rotates about +z. The simulated cell is
+axially periodic with period ``height_m`` and, optionally, an angular sector
+[0, sector_deg) with rotational periodicity (only for sectors of 360/k degrees, k >= 4,
+so that a sector is convex and no narrower than a right angle).
+
+- ``annulus``: beads between a rotating shaft and a fixed chamber wall, no discs.
+- ``disc_slice``: the PM-1 slice of seed 001 (section 2.1): shaft 15 mm, one full disc of
+  radius 36 mm and thickness 8 mm centred at z = 0, chamber 45 mm, axial period
+  D + b = 28 mm (disc spacing D = 20 mm between disc faces).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+
+class GeometryError(ValueError):
+    """A geometry or placement request that cannot be met."""
+
+
+@dataclass(frozen=True)
+class MillGeometry:
+    """Geometry of the simulated cell [m, degrees]."""
+
+    shaft_radius_m: float
+    chamber_radius_m: float
+    height_m: float  # axial period
+    disc_radius_m: float = 0.0  # 0: no disc
+    disc_thickness_m: float = 0.0
+    disc_z_m: float = 0.0  # axial position of the disc mid-plane
+    sector_deg: float = 360.0
+
+    def __post_init__(self):
+        if not 0.0 < self.shaft_radius_m < self.chamber_radius_m:
+            raise GeometryError(
+                f"shaft_radius_m = {self.shaft_radius_m!r} and chamber_radius_m = "
+                f"{self.chamber_radius_m!r}: need 0 < shaft radius < chamber radius")
+        if self.height_m <= 0.0:
+            raise GeometryError(f"height_m = {self.height_m!r}: must be > 0")
+        if self.disc_radius_m:
+            if not self.shaft_radius_m < self.disc_radius_m < self.chamber_radius_m:
+                raise GeometryError(
+                    f"disc_radius_m = {self.disc_radius_m!r}: must lie between the shaft "
+                    f"({self.shaft_radius_m}) and the chamber ({self.chamber_radius_m}) radius")
+            if not 0.0 < self.disc_thickness_m < self.height_m:
+                raise GeometryError(
+                    f"disc_thickness_m = {self.disc_thickness_m!r}: must be > 0 and below "
+                    f"the axial period {self.height_m}")
+        k = 360.0 / self.sector_deg if self.sector_deg > 0 else 0.0
+        if self.sector_deg != 360.0 and (k < 4.0 - 1e-9 or abs(k - round(k)) > 1e-9):
+            raise GeometryError(
+                f"sector_deg = {self.sector_deg!r}: allowed are 360 or 360/k for an integer "
+                f"k >= 4 (90, 72, 60, 45, 40, 36, 30, ...)")
+
+    @property
+    def has_disc(self) -> bool:
+        return self.disc_radius_m > 0.0
+
+    @property
+    def sector_fraction(self) -> float:
+        """Simulated part of the full circle [-]."""
+        return self.sector_deg / 360.0
+
+    @property
+    def sector_rad(self) -> float:
+        """Sector angle [rad], 0 for the full circle (the kernels' convention)."""
+        return 0.0 if self.sector_deg == 360.0 else math.radians(self.sector_deg)
+
+    def free_volume_m3(self) -> float:
+        """Volume open to beads and fluid in the simulated cell [m3]."""
+        v = math.pi * (self.chamber_radius_m ** 2 - self.shaft_radius_m ** 2) * self.height_m
+        if self.has_disc:
+            v -= math.pi * (self.disc_radius_m ** 2 - self.shaft_radius_m ** 2) * \
+                self.disc_thickness_m
+        return v * self.sector_fraction
+
+    def inside(self, p: np.ndarray, radius_m: float) -> np.ndarray:
+        """True where a bead of radius_m [m] centred at p [m] (n, 3) overlaps no wall and
+        lies in the sector."""
+        r = np.hypot(p[:, 0], p[:, 1])
+        ok = (r >= self.shaft_radius_m + radius_m) & (r <= self.chamber_radius_m - radius_m)
+        if self.has_disc:
+            zr = p[:, 2] - self.disc_z_m
+            zr -= self.height_m * np.floor(zr / self.height_m + 0.5)
+            rc = np.clip(r, self.shaft_radius_m, self.disc_radius_m)
+            zc = np.clip(zr, -0.5 * self.disc_thickness_m, 0.5 * self.disc_thickness_m)
+            ok &= np.hypot(r - rc, zr - zc) >= radius_m
+        if self.sector_deg != 360.0:
+            th = np.arctan2(p[:, 1], p[:, 0])
+            ok &= (th >= 0.0) & (th < self.sector_rad)
+        return ok
+
+
+def simple_cubic_annulus(spacing_m: float, r_min_m: float, r_max_m: float,
+                         height_m: float) -> np.ndarray:
+    """Sites [m] of a simple cubic lattice with origin 0 and the given spacing, with
+    r_min <= r <= r_max and 0 <= z < height: the benchmark placement of issue 3, built the
+    way LAMMPS' ``lattice sc`` + ``create_atoms`` builds it. Where the height is not a
+    multiple of the spacing, the top layer and the periodic image of the bottom layer are
+    closer than one spacing (for the bench, 4 mm / 0.84 mm: 0.64 mm, i.e. the beads of
+    those layers start with 0.16 mm overlap)."""
+    n = int(math.ceil(r_max_m / spacing_m)) + 1
+    a = np.arange(-n, n + 1) * spacing_m
+    nz = int(math.ceil(height_m / spacing_m - 1e-9))
+    zs = np.arange(nz) * spacing_m
+    gx, gy = np.meshgrid(a, a, indexing="ij")
+    gx = gx.ravel()
+    gy = gy.ravel()
+    r = np.hypot(gx, gy)
+    keep = (r >= r_min_m) & (r <= r_max_m)
+    gx = gx[keep]
+    gy = gy[keep]
+    pts = np.empty((gx.size * nz, 3))
+    for k, z in enumerate(zs):
+        pts[k * gx.size:(k + 1) * gx.size, 0] = gx
+        pts[k * gx.size:(k + 1) * gx.size, 1] = gy
+        pts[k * gx.size:(k + 1) * gx.size, 2] = z
+    return pts
+
+
+def fcc_sites(geom: MillGeometry, radius_m: float, gap_m: float) -> np.ndarray:
+    """Sites [m] of an fcc lattice (nearest-neighbour distance 2 radius + gap) inside the
+    cell, none overlapping a wall. The axial lattice period is adapted to the cell period
+    so that the periodic images do not overlap either."""
+    d = 2.0 * radius_m + gap_m
+    a = d * math.sqrt(2.0)  # cubic cell edge of fcc
+    nzc = int(math.floor(geom.height_m / a))
+    if nzc < 1:
+        raise GeometryError(f"height_m = {geom.height_m!r}: too small for beads of radius "
+                            f"{radius_m!r} m")
+    az = geom.height_m / nzc  # >= a: stretched slightly along z
+    basis = np.array([[0, 0, 0], [0.5, 0.5, 0], [0.5, 0, 0.5], [0, 0.5, 0.5]])
+    n = int(math.ceil(geom.chamber_radius_m / a)) + 1
+    i = np.arange(-n, n + 1)
+    gx, gy, gz = np.meshgrid(i, i, np.arange(nzc), indexing="ij")
+    cells = np.stack([gx.ravel(), gy.ravel(), gz.ravel()], axis=1).astype(float)
+    pts = (cells[:, None, :] + basis[None, :, :]).reshape(-1, 3)
+    pts[:, 0] *= a
+    pts[:, 1] *= a
+    pts[:, 2] *= az
+    pts[:, 2] += 0.25 * az
+    pts = pts[geom.inside(pts, radius_m + 0.5 * gap_m)]
+    if geom.sector_deg != 360.0:
+        # keep clear of both boundary rays so that rotated images cannot overlap
+        r = np.hypot(pts[:, 0], pts[:, 1])
+        th = np.arctan2(pts[:, 1], pts[:, 0])
+        clear = radius_m + 0.5 * gap_m
+        ok = (r * np.sin(th) >= clear) & (r * np.sin(geom.sector_rad - th) >= clear)
+        pts = pts[ok]
+    return pts
+
+
+def bead_count_for_filling(geom: MillGeometry, filling: float, diameter_m: float,
+                           bulk_porosity: float = 0.4) -> int:
+    """Number of beads for a grinding-media filling phi [-] (seed 001 eq. 2):
+    phi = V_gm / (V (1 - eps)), V the free volume of the cell, eps the bulk porosity."""
+    v_bead = math.pi / 6.0 * diameter_m ** 3
+    return int(round(filling * (1.0 - bulk_porosity) * geom.free_volume_m3() / v_bead))
+
+
+def place_beads(geom: MillGeometry, n_beads: int, radius_m: float, seed: int = 1,
+                gap_m: float | None = None) -> np.ndarray:
+    """n_beads positions [m] without overlap (with each other and with the walls): a random
+    subset of fcc sites. Raises GeometryError if the cell cannot hold them."""
+    gap = 0.02 * 2.0 * radius_m if gap_m is None else gap_m
+    sites = fcc_sites(geom, radius_m, gap)
+    if n_beads > sites.shape[0]:
+        raise GeometryError(
+            f"n_beads = {n_beads}: the cell holds at most {sites.shape[0]} beads placed "
+            f"without overlap; lower the filling")
+    rng = np.random.default_rng(seed)
+    pick = rng.choice(sites.shape[0], size=n_beads, replace=False)
+    return np.ascontiguousarray(sites[np.sort(pick)])

@@ -1,0 +1,919 @@
+"""Numba kernels of the bead DEM: neighbour lists, contact forces, walls, drag, integration.
+
+Everything here works on plain arrays in SI units (m, kg, s, N, rad). The Python side
+(:mod:`millfmu.dem.sim`) owns the arrays and calls :func:`advance`.
+
+Conventions
+- The mill axis is z. The stirrer (shaft and discs) rotates about +z with angular
+  velocity ``prm[P_OMEGA]`` [rad/s].
+- Axial periodicity with period ``prm[P_LZ]`` [m] (minimum image in z).
+- Optional angular sector ``[0, prm[P_SECTOR])`` [rad] with rotational periodicity:
+  a partner bead may be an image of a real bead rotated by ``s * sector`` with
+  ``s`` in {-1, 0, +1}; neighbour entries store ``s`` next to the partner index.
+- Neighbour lists are *half* lists (Verlet lists with a skin, built from a cell grid):
+  a pair is stored once, in the row of its lower bead index, with its tangential history
+  and contact flag, and is evaluated once per step. Beads are split into one contiguous
+  chunk per thread; each chunk adds its forces into its own buffer (its beads and their
+  higher-indexed partners), and a second pass sums the buffers and integrates: no
+  atomics, no races. A contact is recorded once, at its first overlap.
+
+Contact model (as in LIGGGHTS, see the project REFERENCE "DEM contact model"):
+Hertz-Mindlin with k_n = 4/3 Y* sqrt(R* d_n), S_t = 8 G* sqrt(R* d_n), viscous damping
+gamma = -2 sqrt(5/6) beta sqrt(S m*), beta = ln e / sqrt(ln^2 e + pi^2), Coulomb limit
+on the tangential history spring, constant directional torque rolling friction
+|M_r| = mu_r k_n d_n R*. Lubrication between beads not in contact,
+F = -6 pi eta R*^2 v_n / max(h, h_min) for h < h_cut. Drag after Koch & Hill (2001)
+in the CFDEM form ("model A", not divided by the void fraction).
+"""
+
+import math
+
+import numpy as np
+from numba import prange
+
+from millfmu.dem._jit import device, kernel, serial
+
+# ---- layout of the parameter vector prm (float64) -------------------------------------
+P_DT = 0  # time step [s]
+P_YSTAR = 1  # effective Young's modulus Y* [Pa]
+P_GSTAR = 2  # effective shear modulus G* [Pa]
+P_BETA = 3  # damping ratio from restitution, ln e / sqrt(ln^2 e + pi^2) [-]
+P_MU = 4  # Coulomb friction coefficient [-]
+P_MUR = 5  # rolling friction coefficient [-]
+P_LUB_ETA = 6  # lubrication viscosity [Pa s]; 0 switches lubrication off
+P_LUB_HCUT = 7  # lubrication cutoff gap [m]
+P_LUB_HMIN = 8  # lubrication minimum gap [m]
+P_GX = 9  # effective (buoyancy-reduced) gravity, x [m/s2]
+P_GY = 10
+P_GZ = 11
+P_LZ = 12  # axial period [m]
+P_SECTOR = 13  # sector angle [rad]; 0 means the full circle
+P_RSH = 14  # shaft radius [m]
+P_RCH = 15  # chamber radius [m]
+P_OMEGA = 16  # stirrer angular velocity about +z [rad/s]
+P_RDISC = 17  # disc radius [m]; 0 means no disc
+P_BDISC = 18  # disc thickness [m]
+P_ZDISC = 19  # axial position of the disc mid-plane [m]
+P_DRAG = 20  # 1 switches fluid drag on
+P_MUF = 21  # fluid dynamic viscosity [Pa s]
+P_EPSF = 22  # void fraction used in the drag law [-]
+P_KCORE = 23  # swirl core rotation as a fraction of the stirrer's [-]
+P_DELTA = 24  # boundary-layer thickness of the prescribed swirl [m]
+P_RHOF = 25  # fluid density [kg/m3]
+P_SKIN = 26  # neighbour-list skin [m]
+P_KH_F0 = 27  # Koch-Hill F0 at the drag law's void fraction [-]
+P_KH_F3 = 28  # Koch-Hill F3 at the drag law's void fraction [-]
+N_PRM = 29
+
+NWALL = 3  # wall ids: 0 shaft (rotating), 1 chamber (fixed), 2 disc (rotating)
+
+# ---- layout of a recorded contact (float64 row) -------------------------------------
+EV_TYPE = 0  # 0 bead-bead, 1 + wall id for bead-wall
+EV_I = 1
+EV_J = 2  # partner bead index, -1 for walls
+EV_X = 3  # contact point x, y, z [m]
+EV_Y = 4
+EV_Z = 5
+EV_SETN = 6  # translational normal stress energy 1/2 m* v_n^2 [J]
+EV_SETS = 7  # translational shear stress energy 1/2 m* |v_t,trans|^2 [J]
+EV_SEROT = 8  # rotational stress energy 1/2 I* |w_i - w_j|^2 [J]
+EV_VN = 9  # normal approach speed [m/s]
+EV_STEP = 10  # step index within the advance() call
+EV_NF = 11
+
+SQRT56 = math.sqrt(5.0 / 6.0)
+
+
+@device
+def hertz_mindlin(nx, ny, nz, delta, vrx, vry, vrz, wsx, wsy, wsz, wrx, wry, wrz,
+                  mstar, rstar, s0, s1, s2, ystar, gstar, beta, mu, mur, dt):
+    """Hertz-Mindlin contact force on bead i, LIGGGHTS form (REFERENCE, DEM contact model).
+
+    n: unit normal pointing from partner j to bead i; delta: overlap [m] (> 0);
+    vr: v_i - v_j of the centres [m/s] (for a wall: minus the wall velocity at the contact
+    point); ws = r_i w_i + r_j w_j [m/s] (lever-weighted angular velocities);
+    wr = w_i - w_j [rad/s] (rolling); mstar [kg], rstar [m]; s: tangential history [m].
+    Returns the normal and tangential force on i [N], the rolling torque on i [N m],
+    the updated history [m] and the elastic normal force k_n delta [N].
+    """
+    sq = math.sqrt(rstar * delta)
+    kn = 4.0 / 3.0 * ystar * sq
+    sn = 2.0 * ystar * sq
+    st = 8.0 * gstar * sq
+    gn = -2.0 * SQRT56 * beta * math.sqrt(sn * mstar)
+    gt = -2.0 * SQRT56 * beta * math.sqrt(st * mstar)
+    vn = vrx * nx + vry * ny + vrz * nz
+    fel = kn * delta
+    fnm = fel - gn * vn
+    fnx = fnm * nx
+    fny = fnm * ny
+    fnz = fnm * nz
+    # contact-point relative velocity: v_i - v_j - (r_i w_i + r_j w_j) x n, tangential part
+    cx = wsy * nz - wsz * ny
+    cy = wsz * nx - wsx * nz
+    cz = wsx * ny - wsy * nx
+    vtx = vrx - vn * nx - cx
+    vty = vry - vn * ny - cy
+    vtz = vrz - vn * nz - cz
+    # history: rotate the old spring into the current tangent plane, keep its length
+    smag0 = math.sqrt(s0 * s0 + s1 * s1 + s2 * s2)
+    sdn = s0 * nx + s1 * ny + s2 * nz
+    s0 -= sdn * nx
+    s1 -= sdn * ny
+    s2 -= sdn * nz
+    smag1 = math.sqrt(s0 * s0 + s1 * s1 + s2 * s2)
+    if smag1 > 0.0:
+        sc = smag0 / smag1
+        s0 *= sc
+        s1 *= sc
+        s2 *= sc
+    s0 += vtx * dt
+    s1 += vty * dt
+    s2 += vtz * dt
+    ftx = -st * s0 - gt * vtx
+    fty = -st * s1 - gt * vty
+    ftz = -st * s2 - gt * vtz
+    ftm = math.sqrt(ftx * ftx + fty * fty + ftz * ftz)
+    fcap = mu * abs(fnm)
+    if ftm > fcap:
+        if ftm > 0.0:
+            ratio = fcap / ftm
+            ftx *= ratio
+            fty *= ratio
+            ftz *= ratio
+            # spring reset to the Coulomb cap (LIGGGHTS tangential_history)
+            s0 = -(ftx + gt * vtx) / st
+            s1 = -(fty + gt * vty) / st
+            s2 = -(ftz + gt * vtz) / st
+    mrx = 0.0
+    mry = 0.0
+    mrz = 0.0
+    if mur > 0.0:
+        wrm = math.sqrt(wrx * wrx + wry * wry + wrz * wrz)
+        if wrm > 1e-12:
+            m = -mur * fel * rstar / wrm
+            mrx = m * wrx
+            mry = m * wry
+            mrz = m * wrz
+    return fnx, fny, fnz, ftx, fty, ftz, mrx, mry, mrz, s0, s1, s2, fel
+
+
+@device
+def swirl_velocity(x, y, z, prm):
+    """Prescribed swirl flow of the fluid [m/s] at (x, y, z) [m]; a stand-in until a coupled
+    fluid model exists.
+
+    Without a disc: circular Couette flow between the rotating shaft (speed omega r_sh)
+    and the fixed chamber wall, u = A r + B / r.
+    With a disc: between the discs (r <= R) the fluid rotates as a core at k_core times
+    the stirrer's angular velocity, rising to the wall speed within a boundary layer of
+    thickness delta at the disc faces and at the shaft, u = omega r [k + (1 - k)
+    max(exp(-s/delta), exp(-(r - r_sh)/delta))] (s: axial distance from the disc face);
+    outside the disc radius it falls linearly to zero at the chamber wall. Purely
+    azimuthal: no radial or axial circulation (no vortices).
+    """
+    om = prm[P_OMEGA]
+    rsh = prm[P_RSH]
+    rch = prm[P_RCH]
+    r = math.sqrt(x * x + y * y)
+    if r <= 0.0:
+        return 0.0, 0.0, 0.0
+    rd = prm[P_RDISC]
+    if rd <= 0.0:
+        den = rch * rch - rsh * rsh
+        a = -om * rsh * rsh / den
+        b = om * rsh * rsh * rch * rch / den
+        u = a * r + b / r
+    else:
+        lz = prm[P_LZ]
+        zr = z - prm[P_ZDISC]
+        zr -= lz * math.floor(zr / lz + 0.5)
+        s = abs(zr) - 0.5 * prm[P_BDISC]
+        if s < 0.0:
+            s = 0.0
+        k = prm[P_KCORE]
+        dl = prm[P_DELTA]
+        rr = min(r, rd)
+        f = max(math.exp(-s / dl), math.exp(-(rr - rsh) / dl))
+        u = om * rr * (k + (1.0 - k) * f)
+        if r > rd:
+            u *= max(rch - r, 0.0) / (rch - rd)
+    return -u * y / r, u * x / r, 0.0
+
+
+@device
+def koch_hill_beta(d, eps, mu_f, rho_f, urel, f0, f3):
+    """Interphase momentum coefficient beta [kg/(m3 s)] after Koch & Hill (2001), CFDEM form.
+
+    d: bead diameter [m]; eps: void fraction [-]; mu_f [Pa s]; rho_f [kg/m3];
+    urel: |U_f - U_p| [m/s]; f0, f3: the void-fraction terms F0, F3 of
+    :func:`millfmu.dem.params.koch_hill_f0_f3`. Drag on a bead = V_p beta (U_f - U_p).
+    """
+    re = d * eps * urel * rho_f / mu_f
+    ff = eps * (f0 + 0.5 * f3 * re)
+    return 18.0 * mu_f * eps * ff / (d * d)
+
+
+@device
+def wall_gap(x, y, z, rad, w, prm):
+    """Distance geometry of bead (x, y, z), radius rad [m], to wall w.
+
+    Returns (dist, nx, ny, nz, ok): dist from the bead centre to the wall surface [m],
+    unit normal from the wall towards the bead, ok = False if the wall does not exist
+    or the bead is far from it.
+    """
+    r = math.sqrt(x * x + y * y)
+    if r <= 1e-300:
+        return 1.0, 1.0, 0.0, 0.0, False
+    ex = x / r
+    ey = y / r
+    if w == 0:  # shaft, bead outside the cylinder
+        return r - prm[P_RSH], ex, ey, 0.0, True
+    if w == 1:  # chamber, bead inside the cylinder
+        return prm[P_RCH] - r, -ex, -ey, 0.0, True
+    rd = prm[P_RDISC]
+    if rd <= 0.0:
+        return 1.0, 1.0, 0.0, 0.0, False
+    lz = prm[P_LZ]
+    zr = z - prm[P_ZDISC]
+    zr -= lz * math.floor(zr / lz + 0.5)
+    hb = 0.5 * prm[P_BDISC]
+    # closest point of the disc (an annular slab r_sh..R, |z| <= b/2) in the (r, z) plane
+    rc = min(max(r, prm[P_RSH]), rd)
+    zc = min(max(zr, -hb), hb)
+    dr = r - rc
+    dz = zr - zc
+    d = math.sqrt(dr * dr + dz * dz)
+    if d > 1e-300:
+        return d, dr / d * ex, dr / d * ey, dz / d, True
+    # centre inside the disc (should not happen): push out through the nearest face
+    if rd - r < hb - abs(zr):
+        return -(rd - r), ex, ey, 0.0, True
+    sgn = 1.0 if zr >= 0.0 else -1.0
+    return -(hb - abs(zr)), 0.0, 0.0, sgn, True
+
+
+# ---- integration -----------------------------------------------------------------------
+
+@kernel
+def kick_drift(x, v, w, f, t, inv_m, inv_i, kick, dt, xref, cb, dmax):
+    """v += kick F/m, w += kick T/I, x += dt v for all beads; dmax[c] = largest squared
+    displacement [m2] since the last neighbour build within chunk c."""
+    for c in prange(cb.shape[0] - 1):
+        dm = 0.0
+        for i in range(cb[c], cb[c + 1]):
+            for k in range(3):
+                v[i, k] += kick * f[i, k] * inv_m[i]
+                w[i, k] += kick * t[i, k] * inv_i[i]
+                x[i, k] += dt * v[i, k]
+            d0 = x[i, 0] - xref[i, 0]
+            d1 = x[i, 1] - xref[i, 1]
+            d2 = x[i, 2] - xref[i, 2]
+            dd = d0 * d0 + d1 * d1 + d2 * d2
+            if dd > dm:
+                dm = dd
+        dmax[c] = dm
+
+
+# ---- neighbour lists -------------------------------------------------------------------
+
+@serial
+def wrap_periodic(x, v, w, shw, prm, wrapk):
+    """Bring beads back into [0, Lz) axially and into the sector [0, sector) angularly.
+
+    A bead leaving the sector is rotated by -+sector together with its velocity, spin and
+    wall-contact history; wrapk[i] receives the rotation applied in units of the sector
+    (-1, 0, +1) so that pair histories can be carried over in :func:`build_nlist`.
+    """
+    lz = prm[P_LZ]
+    sec = prm[P_SECTOR]
+    for i in range(x.shape[0]):
+        x[i, 2] -= lz * math.floor(x[i, 2] / lz)
+        wrapk[i] = 0
+        if sec > 0.0:
+            th = math.atan2(x[i, 1], x[i, 0])
+            k = 0
+            if th < 0.0:
+                k = 1
+            elif th >= sec:
+                k = -1
+            if k != 0:
+                wrapk[i] = k
+                c = math.cos(k * sec)
+                s = math.sin(k * sec)
+                for a in range(3):
+                    if a == 0:
+                        arr = x
+                    elif a == 1:
+                        arr = v
+                    else:
+                        arr = w
+                    x0 = arr[i, 0]
+                    y0 = arr[i, 1]
+                    arr[i, 0] = c * x0 - s * y0
+                    arr[i, 1] = s * x0 + c * y0
+                for q in range(NWALL):
+                    x0 = shw[i, q, 0]
+                    y0 = shw[i, q, 1]
+                    shw[i, q, 0] = c * x0 - s * y0
+                    shw[i, q, 1] = s * x0 + c * y0
+
+
+@serial
+def make_entries(x, prm, cut):
+    """Cell-list entries: every bead, plus rotated images of beads within ``cut`` [m] of a
+    sector boundary. Returns (bead index, image code s, position [m])."""
+    n = x.shape[0]
+    sec = prm[P_SECTOR]
+    cnt = n
+    flag = np.zeros(n, np.int8)
+    if sec > 0.0:
+        for i in range(n):
+            r = math.sqrt(x[i, 0] ** 2 + x[i, 1] ** 2)
+            th = math.atan2(x[i, 1], x[i, 0])
+            # distance to the two boundary rays (sector <= pi/2, so sin is monotone here)
+            if r * math.sin(max(th, 0.0)) < cut:
+                flag[i] |= 1
+                cnt += 1
+            if r * math.sin(max(sec - th, 0.0)) < cut:
+                flag[i] |= 2
+                cnt += 1
+    ej = np.empty(cnt, np.int64)
+    es = np.zeros(cnt, np.int8)
+    ex = np.empty((cnt, 3))
+    for i in range(n):
+        ej[i] = i
+        ex[i, 0] = x[i, 0]
+        ex[i, 1] = x[i, 1]
+        ex[i, 2] = x[i, 2]
+    m = n
+    if sec > 0.0:
+        for i in range(n):
+            for b in range(2):
+                if flag[i] & (1 << b):
+                    s = 1 if b == 0 else -1
+                    c = math.cos(s * sec)
+                    sn = math.sin(s * sec)
+                    ej[m] = i
+                    es[m] = s
+                    ex[m, 0] = c * x[i, 0] - sn * x[i, 1]
+                    ex[m, 1] = sn * x[i, 0] + c * x[i, 1]
+                    ex[m, 2] = x[i, 2]
+                    m += 1
+    return ej, es, ex
+
+
+@serial
+def bin_entries(ej, es, ex, lo, cs, ncx, ncy, ncz, lz):
+    """Counting sort of entries into cells of size cs [m] (z periodic with ncz cells over
+    lz). Returns (cell_start, bead index, image code, position) with the entries of each
+    cell contiguous, so that the neighbour search streams through memory."""
+    ne = ex.shape[0]
+    ncell = ncx * ncy * ncz
+    cid = np.empty(ne, np.int64)
+    start = np.zeros(ncell + 1, np.int64)
+    csz = lz / ncz
+    for e in range(ne):
+        ix = min(max(int((ex[e, 0] - lo[0]) / cs), 0), ncx - 1)
+        iy = min(max(int((ex[e, 1] - lo[1]) / cs), 0), ncy - 1)
+        zz = ex[e, 2] - lz * math.floor(ex[e, 2] / lz)
+        iz = min(int(zz / csz), ncz - 1)
+        c = (ix * ncy + iy) * ncz + iz
+        cid[e] = c
+        start[c + 1] += 1
+    for c in range(ncell):
+        start[c + 1] += start[c]
+    fill = start[:-1].copy()
+    sj = np.empty(ne, np.int64)
+    ss = np.empty(ne, np.int8)
+    sx = np.empty((ne, 3))
+    for e in range(ne):
+        c = cid[e]
+        q = fill[c]
+        sj[q] = ej[e]
+        ss[q] = es[e]
+        sx[q, 0] = ex[e, 0]
+        sx[q, 1] = ex[e, 1]
+        sx[q, 2] = ex[e, 2]
+        fill[c] += 1
+    return start, sj, ss, sx
+
+
+@kernel
+def build_nlist(x, ej, es, ex, start, lo, cs, ncx, ncy, ncz, cut2, prm, wrapk,
+                nb_o, img_o, nnb_o, sh_o, fl_o, nb, img, nnb, sh, fl, cb, need, maxj):
+    """Half neighbour lists within sqrt(cut2) [m]: row i holds the partners j > i (each
+    pair once, owned by its lower index, image pairs included), carrying over the
+    tangential history and contact flags of pairs that existed before (rotated if a bead
+    was wrapped into the sector). need[c] receives the longest row found in chunk c
+    (overflow check), maxj[c] the highest partner index of the chunk's rows."""
+    lz = prm[P_LZ]
+    sec = prm[P_SECTOR]
+    maxnb = nb.shape[1]
+    csz = lz / ncz
+    for c in prange(cb.shape[0] - 1):
+        longest = 0
+        hij = cb[c + 1] - 1
+        for i in range(cb[c], cb[c + 1]):
+            xi = x[i, 0]
+            yi = x[i, 1]
+            zi = x[i, 2]
+            ix = min(max(int((xi - lo[0]) / cs), 0), ncx - 1)
+            iy = min(max(int((yi - lo[1]) / cs), 0), ncy - 1)
+            zz = zi - lz * math.floor(zi / lz)
+            iz = min(int(zz / csz), ncz - 1)
+            n = 0
+            for ax in range(max(ix - 1, 0), min(ix + 2, ncx)):
+                for ay in range(max(iy - 1, 0), min(iy + 2, ncy)):
+                    for dzc in range(-1, 2):
+                        az = (iz + dzc) % ncz
+                        cc = (ax * ncy + ay) * ncz + az
+                        for e in range(start[cc], start[cc + 1]):
+                            j = ej[e]
+                            if j <= i:
+                                continue
+                            s = es[e]
+                            dx = xi - ex[e, 0]
+                            dy = yi - ex[e, 1]
+                            dz = zi - ex[e, 2]
+                            if dz > 0.5 * lz:
+                                dz -= lz
+                            elif dz < -0.5 * lz:
+                                dz += lz
+                            if dx * dx + dy * dy + dz * dz < cut2:
+                                if j > hij:
+                                    hij = j
+                                if n < maxnb:
+                                    nb[i, n] = j
+                                    img[i, n] = s
+                                    fl[i, n] = 0
+                                    sh[i, n, 0] = 0.0
+                                    sh[i, n, 1] = 0.0
+                                    sh[i, n, 2] = 0.0
+                                    # same physical pair before the wrap
+                                    so = s - wrapk[i] + wrapk[j]
+                                    for k in range(nnb_o[i]):
+                                        if nb_o[i, k] == j and img_o[i, k] == so:
+                                            if fl_o[i, k] != 0:
+                                                fl[i, n] = fl_o[i, k]
+                                                a0 = sh_o[i, k, 0]
+                                                a1 = sh_o[i, k, 1]
+                                                if wrapk[i] != 0:
+                                                    cr = math.cos(wrapk[i] * sec)
+                                                    sr = math.sin(wrapk[i] * sec)
+                                                    sh[i, n, 0] = cr * a0 - sr * a1
+                                                    sh[i, n, 1] = sr * a0 + cr * a1
+                                                else:
+                                                    sh[i, n, 0] = a0
+                                                    sh[i, n, 1] = a1
+                                                sh[i, n, 2] = sh_o[i, k, 2]
+                                            break
+                                n += 1
+            nnb[i] = min(n, maxnb)
+            if n > longest:
+                longest = n
+        need[c] = longest
+        maxj[c] = hij
+
+
+# ---- forces ----------------------------------------------------------------------------
+
+@device
+def _add3(buf, c, j, ax, ay, az, cr, sr):
+    """buf[c, j] += (ax, ay, az) rotated about z by the angle with cosine cr, sine sr."""
+    buf[c, j, 0] += cr * ax - sr * ay
+    buf[c, j, 1] += sr * ax + cr * ay
+    buf[c, j, 2] += az
+
+
+@kernel
+def compute_forces(x, v, w, fb, tb, rad, mass, inertia, nb, img, nnb, sh, fl, shw, flw,
+                   prm, cb, maxj, record, step, evc, evn, torq):
+    """Forces [N] and torques [N m] from bead contacts, lubrication, walls, drag and
+    gravity, accumulated per chunk: fb[c, i], tb[c, i] hold what chunk c's rows put on
+    bead i (its own beads cb[c] <= i < cb[c + 1] and partners up to maxj[c]); the rows of
+    chunk c are the half neighbour lists, so each pair is evaluated once (Newton's third
+    law) and no two chunks write the same buffer. :func:`reduce_kick` sums the chunks.
+
+    New contacts (first overlap) go to evc[c, k, :] (layout EV_*) when record is true;
+    torq[c] receives the torque [N m] about +z that chunk c's beads exert on the stirrer
+    (shaft and disc)."""
+    dt = prm[P_DT]
+    ystar = prm[P_YSTAR]
+    gstar = prm[P_GSTAR]
+    beta = prm[P_BETA]
+    mu = prm[P_MU]
+    mur = prm[P_MUR]
+    eta = prm[P_LUB_ETA]
+    hcut = prm[P_LUB_HCUT]
+    hmin = prm[P_LUB_HMIN]
+    lz = prm[P_LZ]
+    sec = prm[P_SECTOR]
+    om = prm[P_OMEGA]
+    drag = prm[P_DRAG] > 0.0
+    cap = evc.shape[1]
+    cs1 = math.cos(sec)
+    sn1 = math.sin(sec)
+    rsh = prm[P_RSH]
+    rch = prm[P_RCH]
+    rdisc = prm[P_RDISC]
+    has_disc = rdisc > 0.0
+    hdisc = 0.5 * prm[P_BDISC]
+    zdisc = prm[P_ZDISC]
+    for c in prange(cb.shape[0] - 1):
+        ne = 0
+        tq = 0.0
+        for i in range(cb[c], max(maxj[c], cb[c + 1] - 1) + 1):
+            for a in range(3):
+                fb[c, i, a] = 0.0
+                tb[c, i, a] = 0.0
+        for i in range(cb[c], cb[c + 1]):
+            xi = x[i, 0]
+            yi = x[i, 1]
+            zi = x[i, 2]
+            ri = rad[i]
+            mi = mass[i]
+            fx = mi * prm[P_GX]
+            fy = mi * prm[P_GY]
+            fz = mi * prm[P_GZ]
+            tx = 0.0
+            ty = 0.0
+            tz = 0.0
+            if drag:
+                ux, uy, uz = swirl_velocity(xi, yi, zi, prm)
+                ux -= v[i, 0]
+                uy -= v[i, 1]
+                uz -= v[i, 2]
+                um = math.sqrt(ux * ux + uy * uy + uz * uz)
+                bt = koch_hill_beta(2.0 * ri, prm[P_EPSF], prm[P_MUF], prm[P_RHOF], um,
+                                    prm[P_KH_F0], prm[P_KH_F3])
+                vp = 4.0 / 3.0 * math.pi * ri ** 3
+                fx += vp * bt * ux
+                fy += vp * bt * uy
+                fz += vp * bt * uz
+            # ---- bead-bead (half list: j > i) ----
+            for k in range(nnb[i]):
+                j = nb[i, k]
+                s = img[i, k] if sec > 0.0 else 0
+                xj = x[j, 0]
+                yj = x[j, 1]
+                cr = 1.0
+                sr = 0.0
+                if s != 0:
+                    cr = cs1
+                    sr = sn1 if s > 0 else -sn1
+                    xj, yj = cr * xj - sr * yj, sr * xj + cr * yj
+                dx = xi - xj
+                dy = yi - yj
+                dz = zi - x[j, 2]
+                if dz > 0.5 * lz:
+                    dz -= lz
+                elif dz < -0.5 * lz:
+                    dz += lz
+                rj = rad[j]
+                rsum = ri + rj
+                r2 = dx * dx + dy * dy + dz * dz
+                lim = rsum + hcut
+                if r2 >= lim * lim:
+                    if fl[i, k] != 0:
+                        fl[i, k] = 0
+                        sh[i, k, 0] = 0.0
+                        sh[i, k, 1] = 0.0
+                        sh[i, k, 2] = 0.0
+                    continue
+                vjx = v[j, 0]
+                vjy = v[j, 1]
+                wjx = w[j, 0]
+                wjy = w[j, 1]
+                if s != 0:
+                    vjx, vjy = cr * vjx - sr * vjy, sr * vjx + cr * vjy
+                    wjx, wjy = cr * wjx - sr * wjy, sr * wjx + cr * wjy
+                r = math.sqrt(r2)
+                nx = dx / r
+                ny = dy / r
+                nz = dz / r
+                delta = rsum - r
+                vrx = v[i, 0] - vjx
+                vry = v[i, 1] - vjy
+                vrz = v[i, 2] - v[j, 2]
+                mstar = mi * mass[j] / (mi + mass[j])
+                rstar = ri * rj / rsum
+                if delta > 0.0:
+                    vn = vrx * nx + vry * ny + vrz * nz
+                    if record and fl[i, k] == 0:
+                        if ne < cap:
+                            vtx = vrx - vn * nx
+                            vty = vry - vn * ny
+                            vtz = vrz - vn * nz
+                            wrx = w[i, 0] - wjx
+                            wry = w[i, 1] - wjy
+                            wrz = w[i, 2] - w[j, 2]
+                            istar = inertia[i] * inertia[j] / (inertia[i] + inertia[j])
+                            lev = ri - 0.5 * delta
+                            evc[c, ne, EV_TYPE] = 0.0
+                            evc[c, ne, EV_I] = i
+                            evc[c, ne, EV_J] = j
+                            evc[c, ne, EV_X] = xi - lev * nx
+                            evc[c, ne, EV_Y] = yi - lev * ny
+                            evc[c, ne, EV_Z] = zi - lev * nz
+                            evc[c, ne, EV_SETN] = 0.5 * mstar * vn * vn
+                            evc[c, ne, EV_SETS] = 0.5 * mstar * (vtx * vtx + vty * vty + vtz * vtz)
+                            evc[c, ne, EV_SEROT] = 0.5 * istar * (wrx * wrx + wry * wry + wrz * wrz)
+                            evc[c, ne, EV_VN] = -vn
+                            evc[c, ne, EV_STEP] = step
+                        ne += 1
+                    fl[i, k] = 1
+                    (fnx, fny, fnz, ftx, fty, ftz, mrx, mry, mrz, s0, s1, s2,
+                     fel) = hertz_mindlin(
+                        nx, ny, nz, delta, vrx, vry, vrz,
+                        ri * w[i, 0] + rj * wjx, ri * w[i, 1] + rj * wjy,
+                        ri * w[i, 2] + rj * w[j, 2],
+                        w[i, 0] - wjx, w[i, 1] - wjy, w[i, 2] - w[j, 2],
+                        mstar, rstar, sh[i, k, 0], sh[i, k, 1], sh[i, k, 2],
+                        ystar, gstar, beta, mu, mur, dt)
+                    sh[i, k, 0] = s0
+                    sh[i, k, 1] = s1
+                    sh[i, k, 2] = s2
+                    gx = fnx + ftx
+                    gy = fny + fty
+                    gz = fnz + ftz
+                    fx += gx
+                    fy += gy
+                    fz += gz
+                    # torque of the tangential force at the contact point -r_i n; on j the
+                    # force -F_t acts at +r_j n: -r_j n x F_t, the same sense scaled by r_j
+                    cx = ny * ftz - nz * fty
+                    cy = nz * ftx - nx * ftz
+                    cz = nx * fty - ny * ftx
+                    tx += -ri * cx + mrx
+                    ty += -ri * cy + mry
+                    tz += -ri * cz + mrz
+                    # reaction on j, rotated back into j's frame (image pairs)
+                    _add3(fb, c, j, -gx, -gy, -gz, cr, -sr)
+                    _add3(tb, c, j, -rj * cx - mrx, -rj * cy - mry, -rj * cz - mrz, cr, -sr)
+                else:
+                    if fl[i, k] != 0:
+                        fl[i, k] = 0
+                        sh[i, k, 0] = 0.0
+                        sh[i, k, 1] = 0.0
+                        sh[i, k, 2] = 0.0
+                    if eta > 0.0:
+                        vn = vrx * nx + vry * ny + vrz * nz
+                        h = max(-delta, hmin)
+                        fl_m = -6.0 * math.pi * eta * rstar * rstar * vn / h
+                        fx += fl_m * nx
+                        fy += fl_m * ny
+                        fz += fl_m * nz
+                        _add3(fb, c, j, -fl_m * nx, -fl_m * ny, -fl_m * nz, cr, -sr)
+            # ---- walls ----
+            # quick rejection: most beads touch no wall (one sqrt instead of three)
+            rxy = math.sqrt(xi * xi + yi * yi)
+            near = rxy - rsh <= ri or rch - rxy <= ri
+            if not near and has_disc:
+                zd = zi - zdisc
+                zd -= lz * math.floor(zd / lz + 0.5)
+                near = abs(zd) - hdisc <= ri and rxy - rdisc <= ri
+            if not near:
+                for q in range(NWALL):
+                    if flw[i, q] != 0:
+                        flw[i, q] = 0
+                        shw[i, q, 0] = 0.0
+                        shw[i, q, 1] = 0.0
+                        shw[i, q, 2] = 0.0
+            for q in range(NWALL if near else 0):
+                dist, nx, ny, nz, ok = wall_gap(xi, yi, zi, ri, q, prm)
+                delta = ri - dist
+                if not ok or delta <= 0.0:
+                    if flw[i, q] != 0:
+                        flw[i, q] = 0
+                        shw[i, q, 0] = 0.0
+                        shw[i, q, 1] = 0.0
+                        shw[i, q, 2] = 0.0
+                    continue
+                px = xi - ri * nx
+                py = yi - ri * ny
+                pz = zi - ri * nz
+                wvx = 0.0
+                wvy = 0.0
+                if q != 1:  # shaft and disc rotate with the stirrer
+                    wvx = -om * py
+                    wvy = om * px
+                vrx = v[i, 0] - wvx
+                vry = v[i, 1] - wvy
+                vrz = v[i, 2]
+                if record and flw[i, q] == 0:
+                    vn = vrx * nx + vry * ny + vrz * nz
+                    if ne < cap:
+                        vtx = vrx - vn * nx
+                        vty = vry - vn * ny
+                        vtz = vrz - vn * nz
+                        evc[c, ne, EV_TYPE] = 1.0 + q
+                        evc[c, ne, EV_I] = i
+                        evc[c, ne, EV_J] = -1.0
+                        evc[c, ne, EV_X] = px
+                        evc[c, ne, EV_Y] = py
+                        evc[c, ne, EV_Z] = pz
+                        evc[c, ne, EV_SETN] = 0.5 * mi * vn * vn
+                        evc[c, ne, EV_SETS] = 0.5 * mi * (vtx * vtx + vty * vty + vtz * vtz)
+                        wz_rel = w[i, 2] - (om if q != 1 else 0.0)
+                        evc[c, ne, EV_SEROT] = 0.5 * inertia[i] * (
+                            w[i, 0] * w[i, 0] + w[i, 1] * w[i, 1] + wz_rel * wz_rel)
+                        evc[c, ne, EV_VN] = -vn
+                        evc[c, ne, EV_STEP] = step
+                    ne += 1
+                flw[i, q] = 1
+                wz_w = om if q != 1 else 0.0
+                (fnx, fny, fnz, ftx, fty, ftz, mrx, mry, mrz, s0, s1, s2,
+                 fel) = hertz_mindlin(
+                    nx, ny, nz, delta, vrx, vry, vrz,
+                    ri * w[i, 0], ri * w[i, 1], ri * w[i, 2],
+                    w[i, 0], w[i, 1], w[i, 2] - wz_w,
+                    mi, ri, shw[i, q, 0], shw[i, q, 1], shw[i, q, 2],
+                    ystar, gstar, beta, mu, mur, dt)
+                shw[i, q, 0] = s0
+                shw[i, q, 1] = s1
+                shw[i, q, 2] = s2
+                gx = fnx + ftx
+                gy = fny + fty
+                gz = fnz + ftz
+                fx += gx
+                fy += gy
+                fz += gz
+                tx += -ri * (ny * ftz - nz * fty) + mrx
+                ty += -ri * (nz * ftx - nx * ftz) + mry
+                tz += -ri * (nx * fty - ny * ftx) + mrz
+                if q != 1:
+                    # reaction on the stirrer: -F at p, plus the rolling torque's reaction
+                    tq += -(px * gy - py * gx) - mrz
+            fb[c, i, 0] += fx
+            fb[c, i, 1] += fy
+            fb[c, i, 2] += fz
+            tb[c, i, 0] += tx
+            tb[c, i, 1] += ty
+            tb[c, i, 2] += tz
+        evn[c] = ne
+        torq[c] = tq
+
+
+@kernel
+def reduce_kick(fb, tb, cb, maxj, f, t, v, w, x, inv_m, inv_i, kick, dt, drift, xref,
+                dmax):
+    """f = sum of the chunks' force buffers (t likewise), then v += kick f/m,
+    w += kick t/I and, with drift, x += dt v; dmax[c] receives the largest squared
+    displacement [m2] since the last neighbour build of chunk c's beads."""
+    nch = cb.shape[0] - 1
+    for c in prange(nch):
+        dm = 0.0
+        for i in range(cb[c], cb[c + 1]):
+            f0 = 0.0
+            f1 = 0.0
+            f2 = 0.0
+            t0 = 0.0
+            t1 = 0.0
+            t2 = 0.0
+            # chunks c2 <= c write bead i (partners have higher indices than their rows)
+            for c2 in range(c + 1):
+                if c2 == c or maxj[c2] >= i:
+                    f0 += fb[c2, i, 0]
+                    f1 += fb[c2, i, 1]
+                    f2 += fb[c2, i, 2]
+                    t0 += tb[c2, i, 0]
+                    t1 += tb[c2, i, 1]
+                    t2 += tb[c2, i, 2]
+            f[i, 0] = f0
+            f[i, 1] = f1
+            f[i, 2] = f2
+            t[i, 0] = t0
+            t[i, 1] = t1
+            t[i, 2] = t2
+            im = kick * inv_m[i]
+            ii = kick * inv_i[i]
+            v[i, 0] += f0 * im
+            v[i, 1] += f1 * im
+            v[i, 2] += f2 * im
+            w[i, 0] += t0 * ii
+            w[i, 1] += t1 * ii
+            w[i, 2] += t2 * ii
+            if drift:
+                x[i, 0] += dt * v[i, 0]
+                x[i, 1] += dt * v[i, 1]
+                x[i, 2] += dt * v[i, 2]
+                a0 = x[i, 0] - xref[i, 0]
+                a1 = x[i, 1] - xref[i, 1]
+                a2 = x[i, 2] - xref[i, 2]
+                dd = a0 * a0 + a1 * a1 + a2 * a2
+                if dd > dm:
+                    dm = dd
+        if drift:
+            dmax[c] = dm
+
+
+# ---- driver ----------------------------------------------------------------------------
+
+@serial
+def rebuild(x, v, w, shw, xref, prm, wrapk, cutoff, do_wrap, nb, img, nnb, sh, fl,
+            nb_n, img_n, nnb_n, sh_n, fl_n, cb, need, maxj):
+    """Wrap beads into the periodic cell and build new half neighbour lists (nb_n ...)
+    from the current ones (nb ...), carrying the tangential history over; reset the
+    displacement reference. Returns the longest row found: more than nb_n.shape[1] means
+    the new lists overflowed (the current ones are untouched; enlarge and call again with
+    do_wrap false, which keeps the beads and wrapk as they are)."""
+    if do_wrap:
+        wrap_periodic(x, v, w, shw, prm, wrapk)
+    ej, es, ex = make_entries(x, prm, cutoff)
+    lz = prm[P_LZ]
+    lo = np.empty(2)
+    lo[0] = ex[:, 0].min() - 1e-9
+    lo[1] = ex[:, 1].min() - 1e-9
+    hx = ex[:, 0].max() + 1e-9
+    hy = ex[:, 1].max() + 1e-9
+    cs = cutoff
+    ncx = max(int((hx - lo[0]) / cs) + 1, 1)
+    ncy = max(int((hy - lo[1]) / cs) + 1, 1)
+    ncz = int(lz / cutoff)
+    start, sj, ss, sx = bin_entries(ej, es, ex, lo, cs, ncx, ncy, ncz, lz)
+    build_nlist(x, sj, ss, sx, start, lo, cs, ncx, ncy, ncz, cutoff * cutoff, prm,
+                wrapk, nb, img, nnb, sh, fl, nb_n, img_n, nnb_n, sh_n, fl_n, cb, need, maxj)
+    xref[:, :] = x
+    return need.max()
+
+
+@serial
+def advance(nsteps, x, v, w, f, t, rad, mass, inertia, inv_m, inv_i, xref, prm, wrapk,
+            cutoff, nb, img, nnb, sh, fl, nb_o, img_o, nnb_o, sh_o, fl_o, shw, flw, cb,
+            need, maxj, dmax, record, evc, evn, evbuf, evcount, acc, fb, tb):
+    """Advance ``nsteps`` velocity-Verlet steps of dt = prm[P_DT] [s] (nsteps >= 1).
+
+    Velocities are synchronous with positions on entry and exit; the forces f, t must be
+    those of the entry state. Each step is two parallel passes: forces on the half
+    neighbour lists into per-chunk buffers fb, tb, then their sum with the leapfrog kick
+    and drift. Recorded contacts are appended to evbuf (evcount[0] rows used); acc
+    accumulates [0] stirrer torque x steps [N m], [1] steps, [2] neighbour builds,
+    [3] contacts dropped for lack of chunk buffer space. The two sets of neighbour lists
+    alternate at every build. Returns (steps done, status, list parity): parity 1 means
+    the caller must swap its list references. Status 0 done; 1 new neighbour lists too
+    short (positions advanced, velocities half a step ahead: enlarge, rebuild,
+    finish_step); 2 event buffer nearly full (stopped early, synchronous state).
+    """
+    dt = prm[P_DT]
+    half_skin2 = (0.5 * prm[P_SKIN]) ** 2
+    nch = cb.shape[0] - 1
+    parity = 0
+    kick_drift(x, v, w, f, t, inv_m, inv_i, 0.5 * dt, dt, xref, cb, dmax)
+    for step in range(nsteps):
+        if dmax.max() > half_skin2:
+            longest = rebuild(x, v, w, shw, xref, prm, wrapk, cutoff, True, nb, img, nnb,
+                              sh, fl, nb_o, img_o, nnb_o, sh_o, fl_o, cb, need, maxj)
+            acc[2] += 1.0
+            if longest > nb_o.shape[1]:
+                return step, 1, parity
+            # the new lists become the current ones (no copying)
+            nb, nb_o = nb_o, nb
+            img, img_o = img_o, img
+            nnb, nnb_o = nnb_o, nnb
+            sh, sh_o = sh_o, sh
+            fl, fl_o = fl_o, fl
+            parity ^= 1
+        last = step == nsteps - 1
+        if record and evcount[0] > evbuf.shape[0] - 2 * evc.shape[1] * nch:
+            last = True
+        compute_forces(x, v, w, fb, tb, rad, mass, inertia, nb, img, nnb, sh, fl, shw,
+                       flw, prm, cb, maxj, record, step, evc, evn, acc[4:4 + nch])
+        tq = 0.0
+        for c in range(nch):
+            tq += acc[4 + c]
+        acc[0] += tq
+        acc[1] += 1.0
+        if record:
+            m = evcount[0]
+            for c in range(nch):
+                k = evn[c]
+                if k > evc.shape[1]:
+                    acc[3] += k - evc.shape[1]
+                    k = evc.shape[1]
+                for e in range(k):
+                    if m < evbuf.shape[0]:
+                        for a in range(EV_NF):
+                            evbuf[m, a] = evc[c, e, a]
+                        m += 1
+                    else:
+                        acc[3] += 1.0
+            evcount[0] = m
+        if last:
+            reduce_kick(fb, tb, cb, maxj, f, t, v, w, x, inv_m, inv_i, 0.5 * dt, dt, False,
+                        xref, dmax)
+            return step + 1, (0 if step == nsteps - 1 else 2), parity
+        reduce_kick(fb, tb, cb, maxj, f, t, v, w, x, inv_m, inv_i, dt, dt, True, xref, dmax)
+    return nsteps, 0, parity
+
+
+@serial
+def finish_step(x, v, w, f, t, rad, mass, inertia, inv_m, inv_i, prm, nb, img, nnb, sh,
+                fl, shw, flw, cb, maxj, record, evc, evn, torq, xref, dmax, fb, tb, kick):
+    """Forces at the current positions, then v += kick F/m: with kick = dt/2 this closes
+    a step after the neighbour lists were enlarged in the middle of it; with kick = 0 it
+    only fills f, t. New contacts are left in evc/evn for the caller to collect."""
+    compute_forces(x, v, w, fb, tb, rad, mass, inertia, nb, img, nnb, sh, fl, shw, flw,
+                   prm, cb, maxj, record, 0, evc, evn, torq)
+    reduce_kick(fb, tb, cb, maxj, f, t, v, w, x, inv_m, inv_i, kick, prm[P_DT], False,
+                xref, dmax)

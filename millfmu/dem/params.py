@@ -1,0 +1,75 @@
+"""Material and contact parameters of the bead DEM (pure Python, no numba).
+
+Effective moduli and damping as in LIGGGHTS (project REFERENCE, "DEM contact model"):
+1/Y* = (1 - nu_i^2)/Y_i + (1 - nu_j^2)/Y_j, 1/G* = 2(2 - nu_i)(1 + nu_i)/Y_i + (same for j),
+beta = ln e / sqrt(ln^2 e + pi^2). Walls are made of the bead material.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+
+@dataclass(frozen=True)
+class BeadMaterial:
+    """Grinding-bead material. Defaults: seed 001 Table 1 (glass, Y reduced by 1e4)."""
+
+    density_kg_m3: float = 2510.0
+    youngs_modulus_pa: float = 6.3e6
+    poisson_ratio: float = 0.25
+    restitution: float = 0.99
+    friction: float = 0.3
+    rolling_friction: float = 0.10
+
+    @property
+    def effective_youngs_pa(self) -> float:
+        """Y* [Pa] of two beads (or bead and wall) of this material."""
+        nu = self.poisson_ratio
+        return 1.0 / (2.0 * (1.0 - nu * nu) / self.youngs_modulus_pa)
+
+    @property
+    def effective_shear_pa(self) -> float:
+        """G* [Pa] of two beads (or bead and wall) of this material."""
+        nu = self.poisson_ratio
+        return 1.0 / (2.0 * 2.0 * (2.0 - nu) * (1.0 + nu) / self.youngs_modulus_pa)
+
+    @property
+    def damping_beta(self) -> float:
+        """beta = ln e / sqrt(ln^2 e + pi^2) [-] (0 for e = 1)."""
+        e = self.restitution
+        if e >= 1.0:
+            return 0.0
+        le = math.log(e)
+        return le / math.sqrt(le * le + math.pi ** 2)
+
+
+def hertz_contact_time_s(m_star_kg: float, r_star_m: float, y_star_pa: float,
+                         v_impact_m_s: float) -> float:
+    """Duration [s] of an elastic Hertz impact, 2.87 (m*^2 / (R* Y*^2 v))^(1/5)
+    (Johnson 1985, with the force law F = 4/3 Y* sqrt(R*) delta^(3/2))."""
+    return 2.87 * (m_star_kg ** 2 / (r_star_m * y_star_pa ** 2 * v_impact_m_s)) ** 0.2
+
+
+def bead_mass_kg(diameter_m: float, density_kg_m3: float) -> float:
+    """Mass [kg] of a sphere."""
+    return math.pi / 6.0 * diameter_m ** 3 * density_kg_m3
+
+
+def koch_hill_f0_f3(void_fraction: float) -> tuple[float, float]:
+    """Void-fraction terms of the Koch & Hill (2001) drag law as in CFDEM (project
+    REFERENCE, "Koch-Hill drag"): phi = 1 - eps;
+    F0 = (1 + 3 sqrt(phi/2) + 135/64 phi ln phi + 16.14 phi) /
+         (1 + 0.681 phi - 8.48 phi^2 + 8.16 phi^3) for phi < 0.4, else 10 phi / eps^3;
+    F3 = 0.0673 + 0.212 phi + 0.0232 / eps^5. The kernel completes
+    F = eps (F0 + 0.5 F3 Re_p), beta = 18 mu eps F / d^2."""
+    eps = void_fraction
+    phi = 1.0 - eps
+    if phi < 0.4:
+        lg = phi * math.log(phi) if phi > 0 else 0.0
+        f0 = (1.0 + 3.0 * math.sqrt(phi / 2.0) + 135.0 / 64.0 * lg + 16.14 * phi) / (
+            1.0 + 0.681 * phi - 8.48 * phi ** 2 + 8.16 * phi ** 3)
+    else:
+        f0 = 10.0 * phi / eps ** 3
+    f3 = 0.0673 + 0.212 * phi + 0.0232 / eps ** 5
+    return f0, f3

@@ -1,0 +1,104 @@
+"""PNG maps and distributions of a DEM run (matplotlib, headless Agg backend).
+
+Maps are in the axial section (axial position from the disc mid-plane, radius), averaged
+over the angle ("radially averaged" in seed 001's words), like seed 001 figures 12-15.
+"""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import numpy as np
+
+
+def section_maps(scene, events: np.ndarray, cols: dict):
+    """Binned maps over (axial position [m], radius [m]) of bead-bead collisions:
+    mean SE_total per collision [J], collision frequency [1/(m3 s)], collision power
+    density [W/m3]. Returns (z_edges, r_edges, mean_se, freq, power)."""
+    g = scene.geometry
+    zr_edges = np.linspace(-0.5 * g.height_m, 0.5 * g.height_m, scene.map_bins_z + 1)
+    r_edges = np.linspace(g.shaft_radius_m, g.chamber_radius_m, scene.map_bins_r + 1)
+    bb = events[events[:, cols["type"]] == 0] if events.size else events
+    x = bb[:, cols["x"]]
+    y = bb[:, cols["y"]]
+    z = bb[:, cols["z"]] - g.disc_z_m
+    z = z - g.height_m * np.floor(z / g.height_m + 0.5)
+    r = np.hypot(x, y)
+    se = bb[:, cols["setn"]] + bb[:, cols["sets"]] + bb[:, cols["serot"]]
+    n, _, _ = np.histogram2d(z, r, bins=[zr_edges, r_edges])
+    s, _, _ = np.histogram2d(z, r, bins=[zr_edges, r_edges], weights=se)
+    ring = math.pi * np.diff(r_edges ** 2) * g.sector_fraction
+    vol = np.outer(np.diff(zr_edges), ring)
+    t = scene.record_s
+    with np.errstate(invalid="ignore", divide="ignore"):
+        mean_se = np.where(n > 0, s / n, np.nan)
+    return zr_edges, r_edges, mean_se, n / (vol * t), s / (vol * t)
+
+
+def _zone_outline(ax, scene):
+    g = scene.geometry
+    if not g.has_disc:
+        return
+    mm = 1e3
+    R = g.disc_radius_m
+    hb = 0.5 * g.disc_thickness_m
+    w1 = scene.zones.v1_width_m
+    r1 = scene.zones.r_v1_over_disc_radius * R
+    r3 = scene.zones.r_v3_over_disc_radius * R
+    ax.fill_between([-hb * mm, hb * mm], g.shaft_radius_m * mm, R * mm, color="0.6")
+    for sgn in (-1, 1):
+        ax.plot([sgn * (hb + w1) * mm] * 2, [r1 * mm, g.chamber_radius_m * mm], "w:", lw=1)
+        ax.plot([sgn * hb * mm, sgn * (hb + w1) * mm], [r1 * mm] * 2, "w:", lw=1)
+    ax.plot([-0.5 * g.height_m * mm, -(hb + w1) * mm], [r3 * mm] * 2, "w--", lw=1)
+    ax.plot([(hb + w1) * mm, 0.5 * g.height_m * mm], [r3 * mm] * 2, "w--", lw=1)
+    ax.axhline(R * mm, color="w", lw=0.5, ls="-.")
+
+
+def write_maps(out: Path, scene, events: np.ndarray, cols: dict):
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    from matplotlib.colors import LogNorm
+
+    ze, re_, mean_se, freq, power = section_maps(scene, events, cols)
+    items = [("map_stress_energy.png", mean_se, "mean SE_total per collision [J]", True),
+             ("map_collision_frequency.png", freq, "collision frequency [1/(m3 s)]", False),
+             ("map_collision_power.png", power, "collision power density [W/m3]", True)]
+    for fname, data, label, log in items:
+        fig, ax = plt.subplots(figsize=(6, 4.5))
+        d = np.ma.masked_invalid(data.T)
+        norm = None
+        if log and np.isfinite(data).any() and (data > 0).any():
+            pos = data[np.isfinite(data) & (data > 0)]
+            norm = LogNorm(vmin=pos.min(), vmax=pos.max())
+        m = ax.pcolormesh(ze * 1e3, re_ * 1e3, d, shading="flat", norm=norm, cmap="viridis")
+        fig.colorbar(m, ax=ax, label=label)
+        _zone_outline(ax, scene)
+        ax.set_xlabel("axial position from the disc mid-plane [mm]")
+        ax.set_ylabel("radius [mm]")
+        ax.set_title(f"{scene.name}: v_tip {scene.tip_speed_m_s:g} m/s, filling "
+                     f"{scene.filling if scene.filling is not None else '-'}", fontsize=9)
+        fig.tight_layout()
+        fig.savefig(out / fname, dpi=110)
+        plt.close(fig)
+
+
+def write_distributions(path: Path, stats):
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    e = np.asarray(stats.se_bin_edges_j)
+    mid = np.sqrt(e[:-1] * e[1:])
+    fig, ax = plt.subplots(figsize=(6, 4))
+    for z in stats.zones:
+        ax.semilogx(mid, z.se["tn"].density_per_decade, label=f"{z.name} SE_tn")
+    ax.set_xlabel("stress energy SE_tn [J]")
+    ax.set_ylabel("number density [1/decade]")
+    ax.legend(fontsize=8)
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)

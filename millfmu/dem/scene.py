@@ -1,0 +1,248 @@
+"""DEM scene files (TOML) -> validated, typed DemScene in SI units.
+
+A scene names its geometry kind (``annulus`` or ``disc_slice``) and gives the mill,
+bead, fluid, run and zone parameters; every key carries its unit in its name. The shipped
+scenes live next to this module in ``scenes/``. Errors name the key, the value and what
+is allowed.
+"""
+
+from __future__ import annotations
+
+import math
+import sys
+from dataclasses import dataclass, replace
+from pathlib import Path
+
+if sys.version_info >= (3, 11):
+    import tomllib
+else:  # pragma: no cover
+    import tomli as tomllib
+
+from millfmu.dem.geometry import MillGeometry
+from millfmu.dem.params import BeadMaterial
+from millfmu.dem.sim import FluidSettings
+from millfmu.dem.zones import ZoneSpec
+
+SCENE_DIR = Path(__file__).parent / "scenes"
+KINDS = ("annulus", "disc_slice")
+
+
+class DemSceneError(ValueError):
+    """A DEM scene file or value that is not allowed."""
+
+
+@dataclass(frozen=True)
+class DemScene:
+    name: str
+    kind: str
+    geometry: MillGeometry
+    material: BeadMaterial
+    bead_diameter_m: float
+    tip_speed_m_s: float  # disc tip (disc_slice) or shaft surface (annulus) speed
+    placement: str  # "filling" or "lattice"
+    filling: float | None
+    bulk_porosity: float
+    lattice_spacing_m: float | None
+    lattice_r_range_m: tuple | None
+    fluid: FluidSettings | None
+    gravity_m_s2: tuple
+    dt_s: float
+    spin_up_s: float
+    record_s: float
+    sample_every_s: float
+    seed: int
+    zones: ZoneSpec
+    map_bins_r: int
+    map_bins_z: int
+
+    @property
+    def omega_rad_s(self) -> float:
+        """Stirrer angular velocity [rad/s]."""
+        r = self.geometry.disc_radius_m if self.kind == "disc_slice" else \
+            self.geometry.shaft_radius_m
+        return self.tip_speed_m_s / r
+
+    def with_overrides(self, **kw) -> "DemScene":
+        """Copy with run-time overrides (tip_speed_m_s, filling, sector_deg, spin_up_s,
+        record_s, dt_s); validated like file values."""
+        geo = self.geometry
+        if kw.get("sector_deg") is not None:
+            geo = _geometry_or_error(replace, geo, sector_deg=float(kw.pop("sector_deg")))
+        kw.pop("sector_deg", None)
+        new = replace(self, geometry=geo, **{k: v for k, v in kw.items() if v is not None})
+        _check_ranges(new)
+        return new
+
+
+def _geometry_or_error(fn, *a, **kw):
+    try:
+        return fn(*a, **kw)
+    except ValueError as e:
+        raise DemSceneError(str(e)) from None
+
+
+def _get(d: dict, key: str, path: str, kind, default=None, required=False):
+    if key not in d:
+        if required:
+            raise DemSceneError(f"{path}.{key}: missing (required)")
+        return default
+    v = d[key]
+    if kind is float and isinstance(v, int) and not isinstance(v, bool):
+        v = float(v)
+    if not isinstance(v, kind) or (kind is not bool and isinstance(v, bool)):
+        raise DemSceneError(f"{path}.{key} = {v!r}: must be a {kind.__name__}")
+    return v
+
+
+def _positive(name: str, v: float):
+    if not (v > 0 and math.isfinite(v)):
+        raise DemSceneError(f"{name} = {v!r}: must be a finite number > 0")
+
+
+def _check_ranges(s: DemScene):
+    if s.kind == "disc_slice":
+        if not 6.0 <= s.tip_speed_m_s <= 14.0:
+            raise DemSceneError(f"mill.tip_speed_m_s = {s.tip_speed_m_s!r}: allowed 6 to 14 "
+                                f"m/s for disc_slice (the range of seed 001)")
+        if s.filling is None or not 0.5 <= s.filling <= 0.9:
+            raise DemSceneError(f"beads.filling = {s.filling!r}: allowed 0.5 to 0.9 for "
+                                f"disc_slice (the range of seed 001)")
+    else:
+        _positive("mill.tip_speed_m_s", s.tip_speed_m_s)
+    for name, v in (("run.dt_s", s.dt_s), ("run.record_s", s.record_s),
+                    ("run.sample_every_s", s.sample_every_s)):
+        _positive(name, v)
+    if s.spin_up_s < 0:
+        raise DemSceneError(f"run.spin_up_s = {s.spin_up_s!r}: must be >= 0")
+    m = s.material
+    if not 0.0 < m.restitution <= 1.0:
+        raise DemSceneError(f"beads.restitution = {m.restitution!r}: allowed 0 < e <= 1")
+    if not -1.0 < m.poisson_ratio < 0.5:
+        raise DemSceneError(f"beads.poisson_ratio = {m.poisson_ratio!r}: allowed -1 < nu < 0.5")
+    for name, v in (("beads.friction", m.friction), ("beads.rolling_friction",
+                                                       m.rolling_friction)):
+        if v < 0:
+            raise DemSceneError(f"{name} = {v!r}: must be >= 0")
+    if s.geometry.sector_deg != 360.0 and any(s.gravity_m_s2):
+        raise DemSceneError(
+            f"run.gravity_m_s2 = {list(s.gravity_m_s2)!r}: an angular sector "
+            f"(mill.sector_deg = {s.geometry.sector_deg}) is rotationally periodic only "
+            f"without gravity; set gravity to [0, 0, 0] or use the full circle")
+
+
+def load_scene(name_or_path: str) -> DemScene:
+    """Load a shipped scene by name (``annulus``, ``disc_slice``) or a TOML file path."""
+    p = Path(name_or_path)
+    if not p.suffix:
+        cand = SCENE_DIR / f"{name_or_path}.toml"
+        if not cand.exists():
+            shipped = sorted(q.stem for q in SCENE_DIR.glob("*.toml"))
+            raise DemSceneError(f"scene {name_or_path!r}: no such shipped scene; "
+                                f"shipped: {shipped}, or give a .toml path")
+        p = cand
+    if not p.exists():
+        raise DemSceneError(f"scene file {str(p)!r}: not found")
+    with open(p, "rb") as fh:
+        try:
+            d = tomllib.load(fh)
+        except tomllib.TOMLDecodeError as e:
+            raise DemSceneError(f"scene file {str(p)!r}: not valid TOML ({e})") from None
+    return scene_from_dict(d, default_name=p.stem)
+
+
+def scene_from_dict(d: dict, default_name: str = "scene") -> DemScene:
+    known = {"name", "kind", "mill", "beads", "fluid", "run", "zones", "output"}
+    for k in d:
+        if k not in known:
+            raise DemSceneError(f"{k}: unknown top-level key; allowed: {sorted(known)}")
+    kind = _get(d, "kind", "scene", str, required=True)
+    if kind not in KINDS:
+        raise DemSceneError(f"scene.kind = {kind!r}: allowed {list(KINDS)}")
+    mill = d.get("mill", {})
+    beads = d.get("beads", {})
+    fluid = d.get("fluid", {})
+    run = d.get("run", {})
+    zones = d.get("zones", {})
+    output = d.get("output", {})
+    f = float
+    rsh = _get(mill, "shaft_radius_m", "mill", f, 0.015)
+    rch = _get(mill, "chamber_radius_m", "mill", f, 0.045)
+    sector = _get(mill, "sector_deg", "mill", f, 360.0)
+    if kind == "disc_slice":
+        rd = _get(mill, "disc_radius_m", "mill", f, 0.036)
+        bd = _get(mill, "disc_thickness_m", "mill", f, 0.008)
+        spacing = _get(mill, "disc_spacing_m", "mill", f, 0.020)
+        _positive("mill.disc_spacing_m", spacing)
+        geo = _geometry_or_error(MillGeometry, rsh, rch, spacing + bd, rd, bd, 0.0, sector)
+    else:
+        h = _get(mill, "height_m", "mill", f, 0.004)
+        geo = _geometry_or_error(MillGeometry, rsh, rch, h, 0.0, 0.0, 0.0, sector)
+    dia = _get(beads, "diameter_m", "beads", f, 0.8e-3)
+    _positive("beads.diameter_m", dia)
+    mat = BeadMaterial(
+        density_kg_m3=_get(beads, "density_kg_m3", "beads", f, 2510.0),
+        youngs_modulus_pa=_get(beads, "youngs_modulus_pa", "beads", f, 6.3e6),
+        poisson_ratio=_get(beads, "poisson_ratio", "beads", f, 0.25),
+        restitution=_get(beads, "restitution", "beads", f, 0.99),
+        friction=_get(beads, "friction", "beads", f, 0.3),
+        rolling_friction=_get(beads, "rolling_friction", "beads", f, 0.10))
+    _positive("beads.density_kg_m3", mat.density_kg_m3)
+    _positive("beads.youngs_modulus_pa", mat.youngs_modulus_pa)
+    placement = _get(beads, "placement", "beads", str, "filling")
+    if placement not in ("filling", "lattice"):
+        raise DemSceneError(f"beads.placement = {placement!r}: allowed 'filling', 'lattice'")
+    filling = _get(beads, "filling", "beads", f, None)
+    spacing_m = r_range = None
+    if placement == "filling":
+        if filling is None:
+            raise DemSceneError("beads.filling: missing (required with placement 'filling')")
+    else:
+        spacing_m = _get(beads, "lattice_spacing_m", "beads", f, required=True)
+        r_range = _get(beads, "lattice_r_range_m", "beads", list, required=True)
+        if len(r_range) != 2 or not rsh < float(r_range[0]) < float(r_range[1]) < rch:
+            raise DemSceneError(f"beads.lattice_r_range_m = {r_range!r}: need [r_min, r_max] "
+                                f"with shaft radius < r_min < r_max < chamber radius")
+        r_range = (float(r_range[0]), float(r_range[1]))
+        if spacing_m < dia:
+            raise DemSceneError(f"beads.lattice_spacing_m = {spacing_m!r}: must be >= the "
+                                f"bead diameter {dia}")
+    fl = None
+    if _get(fluid, "enabled", "fluid", bool, True):
+        fl = FluidSettings(
+            density_kg_m3=_get(fluid, "density_kg_m3", "fluid", f, 998.2),
+            viscosity_pa_s=_get(fluid, "viscosity_pa_s", "fluid", f, 1.002e-3),
+            drag=_get(fluid, "drag", "fluid", bool, True),
+            lubrication=_get(fluid, "lubrication", "fluid", bool, True),
+            lubrication_cutoff_m=_get(fluid, "lubrication_cutoff_m", "fluid", f, 0.05 * dia),
+            lubrication_min_gap_m=_get(fluid, "lubrication_min_gap_m", "fluid", f, 5e-4 * dia),
+            swirl_core_fraction=_get(fluid, "swirl_core_fraction", "fluid", f, 0.25),
+            swirl_layer_m=_get(fluid, "swirl_layer_m", "fluid", f, 0.7e-3),
+            void_fraction=_get(fluid, "void_fraction", "fluid", f, 0.5))
+        if not 0.0 < fl.void_fraction < 1.0:
+            raise DemSceneError(f"fluid.void_fraction = {fl.void_fraction!r}: allowed 0 < "
+                                f"eps < 1")
+        _positive("fluid.viscosity_pa_s", fl.viscosity_pa_s)
+        _positive("fluid.swirl_layer_m", fl.swirl_layer_m)
+    grav = _get(run, "gravity_m_s2", "run", list, [0.0, 0.0, 0.0])
+    if len(grav) != 3:
+        raise DemSceneError(f"run.gravity_m_s2 = {grav!r}: must be a list of 3 numbers")
+    zs = ZoneSpec(v1_width_m=_get(zones, "v1_width_m", "zones", f, 2.5e-3),
+                  r_v1_over_disc_radius=_get(zones, "r_v1_over_disc_radius", "zones", f, 0.55),
+                  r_v3_over_disc_radius=_get(zones, "r_v3_over_disc_radius", "zones", f, 0.80))
+    s = DemScene(
+        name=_get(d, "name", "scene", str, default_name), kind=kind, geometry=geo,
+        material=mat, bead_diameter_m=dia,
+        tip_speed_m_s=_get(mill, "tip_speed_m_s", "mill", f, required=True),
+        placement=placement, filling=filling,
+        bulk_porosity=_get(beads, "bulk_porosity", "beads", f, 0.4),
+        lattice_spacing_m=spacing_m, lattice_r_range_m=r_range, fluid=fl,
+        gravity_m_s2=tuple(float(g) for g in grav),
+        dt_s=_get(run, "dt_s", "run", f, 5e-6),
+        spin_up_s=_get(run, "spin_up_s", "run", f, 2.0),
+        record_s=_get(run, "record_s", "run", f, 1.0),
+        sample_every_s=_get(run, "sample_every_s", "run", f, 0.02),
+        seed=_get(run, "seed", "run", int, 1), zones=zs,
+        map_bins_r=_get(output, "map_bins_r", "output", int, 30),
+        map_bins_z=_get(output, "map_bins_z", "output", int, 28))
+    _check_ranges(s)
+    return s

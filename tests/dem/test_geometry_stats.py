@@ -1,0 +1,181 @@
+"""Geometry, zones, scenes, statistics and CLI of the bead DEM (mostly without numba)."""
+
+import argparse
+import json
+import math
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+
+from millfmu.dem.geometry import (GeometryError, MillGeometry, bead_count_for_filling,
+                                  place_beads, simple_cubic_annulus)
+from millfmu.dem.scene import DemSceneError, load_scene, scene_from_dict
+from millfmu.dem.stats import DemStats, energy_distribution, se_bin_edges_j
+from millfmu.dem.zones import Zones, ZoneSpec
+
+PM1 = MillGeometry(shaft_radius_m=0.015, chamber_radius_m=0.045, height_m=0.028,
+                   disc_radius_m=0.036, disc_thickness_m=0.008)
+
+
+def test_import_is_numba_free():
+    code = ("import sys, millfmu.dem, millfmu.dem.cli, millfmu.dem.scene, millfmu.dem.stats,"
+            " millfmu.dem.run, millfmu.dem.zones, millfmu.dem.bench;"
+            " print('numba' in sys.modules)")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                         check=True)
+    assert out.stdout.strip() == "False"
+
+
+def test_bench_lattice_has_the_issue_bead_count():
+    x = simple_cubic_annulus(0.84e-3, 15.5e-3, 44.5e-3, 4e-3)
+    # the count LAMMPS' lattice sc + create_atoms gives for the same region
+    assert x.shape[0] == 38560
+    r = np.hypot(x[:, 0], x[:, 1])
+    assert r.min() >= 15.5e-3 and r.max() <= 44.5e-3
+
+
+def test_zone_volumes_partition_the_pm1_cell_and_follow_seed_order():
+    z = Zones(PM1)
+    v = z.volumes_m3()
+    assert v.sum() == pytest.approx(PM1.free_volume_m3(), rel=1e-12)
+    v1, v2, v3, v4 = v
+    # seed 001, section 3.4: absolute collision numbers V3 > V4 > V2 > V1 "corresponding
+    # to the order of volume size"
+    assert v3 > v4 > v2 > v1
+    # Monte-Carlo check of classify() against the analytic volumes
+    rng = np.random.default_rng(0)
+    n = 400_000
+    r = np.sqrt(rng.uniform(0.015 ** 2, 0.045 ** 2, n))
+    th = rng.uniform(0, 2 * math.pi, n)
+    zz = rng.uniform(-0.014, 0.014, n)
+    p = np.column_stack([r * np.cos(th), r * np.sin(th), zz])
+    cls = z.classify(p)
+    box = math.pi * (0.045 ** 2 - 0.015 ** 2) * 0.028
+    for k in range(4):
+        assert (cls == k).mean() * box == pytest.approx(v[k], rel=0.02)
+    in_disc = (np.abs(zz) < 0.004) & (r < 0.036)
+    assert np.all(cls[in_disc] == -1) and np.all(cls[~in_disc] >= 0)
+
+
+def test_zone_spec_errors_name_key_and_value():
+    with pytest.raises(ValueError, match="r_v1_over_disc_radius = 0.9"):
+        Zones(PM1, ZoneSpec(r_v1_over_disc_radius=0.9))
+    with pytest.raises(ValueError, match="v1_width_m = 0.02"):
+        Zones(PM1, ZoneSpec(v1_width_m=0.02))
+
+
+def test_sector_rules_and_placement_without_overlap():
+    with pytest.raises(GeometryError, match="sector_deg = 100"):
+        MillGeometry(0.015, 0.045, 0.028, 0.036, 0.008, sector_deg=100.0)
+    g = MillGeometry(0.015, 0.045, 0.028, 0.036, 0.008, sector_deg=30.0)
+    n = bead_count_for_filling(g, 0.9, 0.8e-3)
+    x = place_beads(g, n, 0.4e-3)
+    assert x.shape[0] == n
+    assert np.all(g.inside(x, 0.4e-3))
+    from scipy.spatial import cKDTree
+
+    # periodic in z and across the sector boundary: add images and check all distances
+    sec = math.radians(30.0)
+    c, s = math.cos(sec), math.sin(sec)
+    rot = np.column_stack([c * x[:, 0] - s * x[:, 1], s * x[:, 0] + c * x[:, 1], x[:, 2]])
+    allp = np.vstack([x, x + [0, 0, 0.028], rot])
+    pairs = cKDTree(allp).query_pairs(0.8e-3 * 0.999)
+    assert len(pairs) == 0
+    with pytest.raises(GeometryError, match="n_beads"):
+        place_beads(g, 10 * n, 0.4e-3)
+
+
+def test_scene_files_load_and_validate():
+    ds = load_scene("disc_slice")
+    assert ds.tip_speed_m_s == 10.0 and ds.filling == 0.8
+    assert ds.material.youngs_modulus_pa == 6.3e6 and ds.material.restitution == 0.99
+    assert ds.geometry.height_m == pytest.approx(0.028)
+    assert ds.omega_rad_s == pytest.approx(10.0 / 0.036)
+    an = load_scene("annulus")
+    assert an.placement == "lattice" and an.fluid is None
+    with pytest.raises(DemSceneError, match=r"mill.tip_speed_m_s = 20.0: allowed 6 to 14"):
+        ds.with_overrides(tip_speed_m_s=20.0)
+    with pytest.raises(DemSceneError, match=r"beads.filling = 0.3"):
+        ds.with_overrides(filling=0.3)
+    with pytest.raises(DemSceneError, match="gravity"):
+        ds.with_overrides(sector_deg=30.0)
+    with pytest.raises(DemSceneError, match="scene.kind = 'cube'"):
+        scene_from_dict({"kind": "cube"})
+    with pytest.raises(DemSceneError, match="beads.restitution = 1.5"):
+        scene_from_dict({"kind": "annulus", "mill": {"tip_speed_m_s": 8.0},
+                         "beads": {"restitution": 1.5, "filling": 0.5}})
+    with pytest.raises(DemSceneError, match="no such shipped scene"):
+        load_scene("nonexistent")
+
+
+def test_energy_distribution_density_and_quantiles():
+    edges = se_bin_edges_j()
+    rng = np.random.default_rng(1)
+    se = 10 ** rng.normal(-9, 1, 20000)
+    d = energy_distribution(se, edges)
+    dens = np.asarray(d.density_per_decade)
+    assert np.sum(dens * np.diff(np.log10(edges))) == pytest.approx(1.0)
+    assert math.log10(d.quantiles_j["q50"]) == pytest.approx(-9, abs=0.03)
+    assert math.log10(d.quantiles_j["q90"]) == pytest.approx(-9 + 1.2816, abs=0.05)
+    empty = energy_distribution(np.zeros(0), edges)
+    assert empty.quantiles_j["q50"] is None
+
+
+def _parser():
+    from millfmu.dem import cli
+
+    p = argparse.ArgumentParser(prog="millfmu")
+    sub = p.add_subparsers(dest="command")
+    cli.register(sub)
+    return p
+
+
+def test_cli_registers_run_and_bench_and_rejects_bad_values(capsys, tmp_path):
+    p = _parser()
+    a = p.parse_args(["dem", "run", "disc_slice", "--out", str(tmp_path), "--tip-speed",
+                      "30"])
+    assert a.func(a) == 2
+    assert "tip_speed_m_s = 30.0" in capsys.readouterr().err
+    a = p.parse_args(["dem", "bench", "--steps", "10"])
+    assert callable(a.func)
+    with pytest.raises(SystemExit):
+        p.parse_args(["dem", "run", "disc_slice"])  # --out is required
+
+
+def test_disc_slice_short_run_gives_zone_statistics(tmp_path):
+    """A short, small disc_slice run through the CLI: structure and units of stats.json."""
+    pytest.importorskip("numba")
+    p = _parser()
+    out = tmp_path / "ds"
+    a = p.parse_args(["dem", "run", "disc_slice", "--out", str(out), "--sector-deg", "30",
+                      "--no-gravity", "--spin-up", "1e-4", "--record", "2e-4",
+                      "--sample-every", "5e-5", "--no-progress"])
+    assert a.func(a) == 0
+    stats = DemStats.from_json((out / "stats.json").read_text())
+    assert [z.name for z in stats.zones] == ["V1", "V2", "V3", "V4"]
+    assert stats.record_s == pytest.approx(2e-4) and stats.spin_up_s == pytest.approx(1e-4)
+    assert "prescribed swirl" in stats.fluid_model
+    geo = load_scene("disc_slice").with_overrides(sector_deg=30.0,
+                                                  gravity_m_s2=(0, 0, 0)).geometry
+    assert sum(z.volume_m3 for z in stats.zones) == pytest.approx(geo.free_volume_m3())
+    # all bead volume sits in some zone: sum of filling x V x (1 - eps) = bead volume
+    vb = stats.beads * math.pi / 6 * 0.8e-3 ** 3
+    assert sum(z.filling * z.volume_m3 * 0.6 for z in stats.zones) == pytest.approx(vb,
+                                                                                  rel=1e-6)
+    for z in stats.zones:
+        assert 0.3 < z.filling < 1.3
+        assert z.collision_frequency_per_m3_s >= 0 and z.collision_power_w >= 0
+        assert set(z.se) == {"tn", "ts", "total"}
+        assert len(z.se["tn"].density_per_decade) == len(stats.se_bin_edges_j) - 1
+    total = sum(z.collision_count for z in stats.zones)
+    assert total > 0 and total == stats.counts["bead_bead"]
+    assert stats.stirrer_torque_nm > 0 and stats.stirrer_power_w == pytest.approx(
+        stats.stirrer_torque_nm * 10.0 / 0.036)
+    assert {"mean_j", "rel_std", "rel_trend_over_record"} <= set(stats.kinetic_energy)
+    json.loads((out / "stats.json").read_text())  # plain JSON
+    for f in ("se_histograms.csv", "kinetic_energy.csv", "map_stress_energy.png",
+              "map_collision_frequency.png", "map_collision_power.png",
+              "se_distributions.png"):
+        assert (out / f).stat().st_size > 0
