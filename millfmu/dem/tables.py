@@ -301,7 +301,7 @@ class Table:
         Error estimate per field: for each axis with at least 3 points, the linear
         interpolation error t (1 - t) h^2 / 2 |f''| with f'' from the second divided
         difference at the interval's end nodes (the larger), summed over axes and multiplied
-        by ERROR_SAFETY; zero at grid points; NaN when an axis with 2 points has t in (0, 1).
+        by ERROR_SAFETY, plus 16 ulps of the value for rounding; zero at grid points; NaN when an axis with 2 points has t in (0, 1).
         """
         similar = set(similar_axes)
         idx, ts, notes = [], [], []
@@ -335,9 +335,13 @@ class Table:
                 i, t = i - 1, 1.0
             idx.append(i), ts.append(float(t))
         values, errors = {}, {}
+        at_node = all(t in (0.0, 1.0) for t in ts)
         for k, arr in self.data.items():
             values[k] = _multilinear(arr, idx, ts)
             errors[k] = self._error(arr, idx, ts)
+            if not at_node:
+                # rounding of the weighted sum: a few ulps of the value
+                errors[k] = errors[k] + 16.0 * np.finfo(float).eps * np.abs(values[k])
         return Lookup(point=dict(point), values=values, error=errors, notes=notes)
 
     def _error(self, arr, idx, ts) -> np.ndarray:

@@ -1,0 +1,126 @@
+"""Interpolation: exact at grid points, within its stated error at held-back points,
+clear refusal outside the grid; the kinetics interface over a table."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from millfmu.dem import tables as T
+from millfmu.kinetics.rates import OperatingPoint
+from millfmu.kinetics.stress_distribution import StressEnergySource
+from tests.tables._builders import D_GB_M, POROSITY, R_DISC_M, RHO_KG_M3, analytic_builder, spec
+
+GRID = {"tip_speed_m_s": [6.0, 8.0, 10.0, 12.0, 14.0], "filling": [0.5, 0.6, 0.7, 0.8, 0.9]}
+SCALARS = ("filling_local", "speed_over_tip_speed", "collision_frequency_norm",
+           "collision_power_norm", "se_quantiles_norm")
+
+
+@pytest.fixture(scope="module")
+def table():
+    s = spec(grid=GRID)
+    return T.build_table(s, analytic_builder, executor="serial", progress=False)
+
+
+def test_grid_points_exact(table):
+    for v in GRID["tip_speed_m_s"]:
+        for phi in GRID["filling"]:
+            lk = table.lookup({"tip_speed_m_s": v, "filling": phi})
+            want = analytic_builder({}, {"tip_speed_m_s": v, "filling": phi})
+            for k in T.FIELDS:
+                np.testing.assert_array_equal(lk.values[k], np.asarray(want[k], float))
+                assert np.all(lk.error[k] == 0.0)
+
+
+@pytest.mark.parametrize("point", [(9.0, 0.65), (7.0, 0.55), (13.3, 0.87), (11.0, 0.8)])
+def test_held_back_point_within_stated_error(table, point):
+    p = {"tip_speed_m_s": point[0], "filling": point[1]}
+    lk = table.lookup(p)
+    truth = analytic_builder({}, p)
+    for k in SCALARS:
+        actual = np.abs(lk.values[k] - truth[k])
+        assert np.all(actual <= lk.error[k]), (k, actual, lk.error[k])
+        # and the estimate is not vacuous: of the order of the real error
+        assert np.all(lk.error[k] <= 10.0 * actual + 1e-12 * np.abs(truth[k])), k
+
+
+def test_held_back_grid_node(tmp_path):
+    """Build on every other node; the left-out node is predicted within the error."""
+    coarse = {"tip_speed_m_s": [6.0, 10.0, 14.0], "filling": [0.5, 0.7, 0.9]}
+    t = T.build_table(spec(grid=coarse), analytic_builder, executor="serial", progress=False)
+    p = {"tip_speed_m_s": 8.0, "filling": 0.6}
+    lk, truth = t.lookup(p), analytic_builder({}, p)
+    rel = {}
+    for k in SCALARS:
+        actual = np.abs(lk.values[k] - truth[k])
+        assert np.all(actual <= lk.error[k]), k
+        rel[k] = float(np.max(actual / np.abs(truth[k])))
+    assert rel["se_quantiles_norm"] < 0.05
+
+
+def test_two_point_axis_has_no_error_estimate():
+    t = T.build_table(spec(grid={"tip_speed_m_s": [6.0, 14.0], "filling": [0.5, 0.7, 0.9]}),
+                      analytic_builder, executor="serial", progress=False)
+    lk = t.lookup({"tip_speed_m_s": 10.0, "filling": 0.7})
+    assert np.all(np.isnan(lk.error["collision_frequency_norm"]))
+
+
+def test_outside_grid_refused_with_bounds(table):
+    with pytest.raises(T.OutsideGridError) as e:
+        table.lookup({"tip_speed_m_s": 15.5, "filling": 0.7})
+    msg = str(e.value)
+    assert "tip_speed_m_s = 15.5 m/s" in msg and "allowed 6.0 to 14.0 m/s" in msg
+    with pytest.raises(T.OutsideGridError, match=r"filling = 0.45 - .*allowed 0.5 to 0.9"):
+        table.lookup({"tip_speed_m_s": 10.0, "filling": 0.45})
+    with pytest.raises(T.TableError, match="axis filling missing"):
+        table.lookup({"tip_speed_m_s": 10.0})
+
+
+def _op(v, phi, d=D_GB_M, rho=RHO_KG_M3):
+    return OperatingPoint(tip_speed_m_per_s=v, filling=phi, porosity=POROSITY,
+                          r_stirrer_m=R_DISC_M, d_gb_m=d, rho_gb_kg_per_m3=rho,
+                          y_gb_Pa=63e9, y_p_Pa=70e9, rho_p_kg_per_m3=2710.0,
+                          rho_l_kg_per_m3=998.0, eta_susp_Pa_s=1e-3, solids_mass_fraction=0.2)
+
+
+def test_table_stress_source(table):
+    src: StressEnergySource = T.TableStressSource(table)
+    op = _op(10.0, 0.7)
+    zones = src.zones(op)
+    want = analytic_builder({}, {"tip_speed_m_s": 10.0, "filling": 0.7})
+    assert [z.name for z in zones] == ["A", "B"]
+    assert math.isclose(sum(z.volume_fraction for z in zones), 1.0)
+    for k, z in enumerate(zones):
+        assert math.isclose(z.collision_rate_per_m3_s, want["collision_frequency_norm"][k]
+                            * op.omega_rad_per_s * op.n_gb_per_m3, rel_tol=1e-12)
+        # at the grid point the table's own reference energy is the op's SE
+        assert math.isclose(op.se_beads_J, want["e_ref_J"], rel_tol=1e-12)
+        np.testing.assert_allclose(z.energy_edges_J, op.se_beads_J * 10 ** T.norm_log10_edges())
+        assert math.isclose(z.energy_weights.sum(), 1.0, rel_tol=1e-12)
+        # the median of the weights sits where the builder put it
+        cdf = np.cumsum(z.energy_weights)
+        med = z.energy_J[np.searchsorted(cdf, 0.5)]
+        q50 = want["se_quantiles_norm"][0, k, 1] * op.se_beads_J
+        assert abs(math.log10(med / q50)) < 0.2  # within one bin (0.2 decade)
+    # energies scale with the op's own E_ref: twice the bead density, twice the energies
+    z2 = src.zones(_op(10.0, 0.7, rho=2 * RHO_KG_M3))
+    np.testing.assert_allclose(z2[0].energy_edges_J, 2 * zones[0].energy_edges_J)
+    with pytest.raises(T.OutsideGridError, match="tip_speed_m_s = 5.0"):
+        src.zones(_op(5.0, 0.7))
+    rest = src.zones(_op(0.0, 0.7))
+    assert all(z.collision_rate_per_m3_s == 0.0 for z in rest)
+
+
+def test_fixed_axis_needs_match_or_similarity():
+    t = T.build_table(spec(grid={"tip_speed_m_s": [6.0, 10.0, 14.0], "filling": [0.7],
+                                 "bead_diameter_m": [0.8e-3]}),
+                      analytic_builder, executor="serial", progress=False)
+    p = {"tip_speed_m_s": 10.0, "filling": 0.7, "bead_diameter_m": 1.0e-3}
+    with pytest.raises(T.OutsideGridError, match="bead_diameter_m = 0.001 m.*holds only 0.0008"):
+        t.lookup(p)
+    lk = t.lookup(p, similar_axes=("bead_diameter_m",))
+    assert "similarity assumed" in lk.notes[0]
+    with pytest.raises(T.OutsideGridError, match="filling = 0.8"):
+        t.lookup({**p, "filling": 0.8}, similar_axes=("bead_diameter_m",))
