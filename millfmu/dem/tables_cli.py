@@ -1,0 +1,246 @@
+"""``millfmu tables build|status|verify|clear``: the stress-energy lookup tables' cache.
+
+The main CLI calls :func:`register` with its subparsers object. Nothing here imports numba;
+the DEM loads only in the processes that build grid points.
+
+Examples::
+
+    millfmu tables build --scene disc_slice --tip-speed 6,10,14 --filling 0.6,0.8
+    millfmu tables build ... --scheduler tcp://10.0.0.5:8786     # an existing Dask cluster
+    millfmu tables status
+    millfmu tables verify --default
+    millfmu tables clear --stale
+"""
+
+from __future__ import annotations
+
+import argparse
+import importlib
+import json
+import shutil
+import sys
+from pathlib import Path
+
+#: CLI option -> (grid axis, help)
+GRID_OPTIONS = {
+    "--tip-speed": ("tip_speed_m_s", "stirrer tip speeds [m/s]"),
+    "--filling": ("filling", "grinding-media fillings [-]"),
+    "--bead-diameter": ("bead_diameter_m", "bead diameters [m]"),
+    "--bead-density": ("bead_density_kg_m3", "bead densities [kg/m3]"),
+    "--viscosity": ("viscosity_pa_s", "fluid viscosities [Pa s]"),
+}
+#: CLI option -> (scene section, key, help) for run settings written into the scene content
+RUN_OPTIONS = {
+    "--sector-deg": ("mill", "sector_deg", "simulated sector, 360/k degrees (k >= 4); "
+                     "needs --no-gravity"),
+    "--spin-up": ("run", "spin_up_s", "spin-up time excluded from the statistics [s]"),
+    "--record": ("run", "record_s", "recording time [s]"),
+    "--sample-every": ("run", "sample_every_s", "sampling interval [s]"),
+    "--dt": ("run", "dt_s", "DEM time step [s]"),
+}
+REBUILD_DEFAULT = (
+    "millfmu tables build --scene disc_slice --tip-speed 8,12 --filling 0.6,0.8 "
+    "--sector-deg 10 --no-gravity --spin-up 0.03 --record 0.03 --sample-every 0.01 "
+    "--export millfmu/data/default_table")
+
+
+def _floats(text: str) -> list:
+    try:
+        vals = [float(x) for x in text.split(",") if x.strip()]
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r}: expected comma-separated numbers, "
+                                         f"e.g. 6,10,14") from None
+    if not vals:
+        raise argparse.ArgumentTypeError(f"{text!r}: no values")
+    return vals
+
+
+def register(subparsers) -> argparse.ArgumentParser:
+    """Add the ``tables`` command group to an argparse subparsers object."""
+    p = subparsers.add_parser("tables", help="stress-energy lookup tables: build, status, "
+                              "verify, clear", description=__doc__.split("\n\n")[0])
+    sub = p.add_subparsers(dest="tables_command", metavar="{build,status,verify,clear}")
+    sub.required = True
+
+    def cache_opt(q):
+        q.add_argument("--cache-dir", metavar="DIR", help="tables cache folder (default: "
+                       "$MILLFMU_CACHE_DIR, else $XDG_CACHE_HOME/millfmu/tables, else "
+                       "~/.cache/millfmu/tables)")
+
+    b = sub.add_parser("build", help="build (or find) the table of a DEM scene and grid")
+    b.add_argument("--scene", default="disc_slice",
+                   help="shipped DEM scene name or a .toml path (default disc_slice)")
+    for opt, (axis, h) in GRID_OPTIONS.items():
+        b.add_argument(opt, type=_floats, dest=f"grid_{axis}", metavar="V1,V2,..",
+                       help=f"grid of {h} (default: the scene's value only)")
+    for opt, (sec, key, h) in RUN_OPTIONS.items():
+        b.add_argument(opt, type=float, dest=f"run_{sec}_{key}", metavar="X", help=h)
+    b.add_argument("--no-gravity", action="store_true", help="switch gravity off")
+    cache_opt(b)
+    b.add_argument("--executor", choices=("processes", "dask", "serial"), default="processes",
+                   help="where grid points run: a local process pool (default), a Dask "
+                        "LocalCluster on 127.0.0.1, or one after the other")
+    b.add_argument("--workers", type=int, help="parallel grid points (default: all cores)")
+    b.add_argument("--scheduler", metavar="ADDRESS",
+                   help="submit grid points to an existing Dask distributed scheduler, "
+                        "e.g. tcp://host:8786 (needs dask and distributed)")
+    b.add_argument("--threads", type=int, help="numba threads per DEM run (default: 1 when "
+                   "grid points run in parallel, all cores when serial)")
+    b.add_argument("--force", action="store_true", help="rebuild even a good cache entry")
+    b.add_argument("--export", metavar="PREFIX", help="also write PREFIX.npz and "
+                   "PREFIX.json (e.g. millfmu/data/default_table)")
+    b.add_argument("--builder", metavar="MODULE:NAME", help="builder callable instead of "
+                   "the DEM: NAME(scene_dict, point) -> fields (alternative simulators)")
+    b.add_argument("--no-progress", action="store_true", help="no progress bar")
+    b.set_defaults(func=_build)
+
+    s = sub.add_parser("status", help="list cache entries: ok, stale or bad")
+    cache_opt(s)
+    s.add_argument("--json", action="store_true", help="print JSON")
+    s.set_defaults(func=_status)
+
+    v = sub.add_parser("verify", help="verify cache entries, table files, the default table")
+    cache_opt(v)
+    v.add_argument("paths", nargs="*", help="cache entry folders or PREFIX of PREFIX.npz/.json "
+                   "(default: every cache entry)")
+    v.add_argument("--default", action="store_true", help="verify the shipped default table")
+    v.set_defaults(func=_verify)
+
+    c = sub.add_parser("clear", help="remove cache entries")
+    cache_opt(c)
+    c.add_argument("--stale", action="store_true", help="remove only stale and bad entries")
+    c.set_defaults(func=_clear)
+    return p
+
+
+def _load_builder(text: str | None, threads):
+    from millfmu.dem.tables import DemBuilder, TableError
+
+    if not text:
+        return DemBuilder(threads=threads)
+    mod, _, name = text.partition(":")
+    try:
+        return getattr(importlib.import_module(mod), name)
+    except (ImportError, AttributeError, ValueError) as e:
+        raise TableError(f"--builder {text!r}: cannot be loaded ({e}); give MODULE:NAME") \
+            from None
+
+
+def _build(args) -> int:
+    from millfmu.dem import tables as T
+    from millfmu.dem.scene import DemSceneError
+
+    grid = {axis: getattr(args, f"grid_{axis}") for _, (axis, _) in GRID_OPTIONS.items()
+            if getattr(args, f"grid_{axis}") is not None}
+    over: dict = {}
+    for _, (sec, key, _) in RUN_OPTIONS.items():
+        v = getattr(args, f"run_{sec}_{key}")
+        if v is not None:
+            over.setdefault(sec, {})[key] = v
+    if args.no_gravity:
+        over.setdefault("run", {})["gravity_m_s2"] = [0.0, 0.0, 0.0]
+    try:
+        if not grid:
+            raise T.TableError("no grid given: name at least one of " +
+                               ", ".join(GRID_OPTIONS))
+        parallel = args.executor != "serial" or args.scheduler
+        threads = args.threads if args.threads is not None else (1 if parallel else None)
+        builder = _load_builder(args.builder, threads)
+        spec = T.dem_spec(args.scene, grid, over)
+        if args.builder:
+            spec = T.TableSpec(scene=spec.scene, grid=spec.grid,
+                               kernel_version=spec.kernel_version,
+                               builder_id=T._builder_id(builder))
+        log = (lambda msg: print(msg, file=sys.stderr))
+        table = T.get_table(spec, builder, cache_dir=args.cache_dir, force=args.force,
+                            log=log, executor=args.executor, workers=args.workers,
+                            scheduler=args.scheduler, progress=not args.no_progress)
+    except (T.TableError, DemSceneError) as e:
+        print(f"millfmu tables build: {e}", file=sys.stderr)
+        return 2
+    entry = T.entry_dir(spec, args.cache_dir)
+    m = table.manifest
+    print(f"table {spec.key()} ({' x '.join(map(str, spec.shape))} points, "
+          f"{(entry / T.TABLE_FILE).stat().st_size} bytes): {entry}")
+    if m.get("build_wall_time_s"):
+        print(f"build wall time {m['build_wall_time_s']:.1f} s")
+    if args.export:
+        prefix = Path(args.export)
+        prefix.parent.mkdir(parents=True, exist_ok=True)
+        shutil.copyfile(entry / T.TABLE_FILE, str(prefix) + ".npz")
+        shutil.copyfile(entry / T.MANIFEST_FILE, str(prefix) + ".json")
+        T.read_table(npz=str(prefix) + ".npz", manifest_path=str(prefix) + ".json")
+        print(f"exported {prefix}.npz, {prefix}.json")
+    return 0
+
+
+def _status(args) -> int:
+    from millfmu.dem import tables as T
+
+    entries = T.cache_entries(args.cache_dir)
+    if args.json:
+        print(json.dumps(entries, indent=1))
+        return 0
+    root = T.resolve_cache_dir(args.cache_dir)
+    print(f"cache {root}: {len(entries)} entries")
+    for e in entries:
+        shape = "x".join(map(str, e.get("shape", []))) or "?"
+        print(f"  {e['key'][:16]}  {e['state']:5s}  {e.get('scene', '?'):12s} "
+              f"{shape:>8s}  {e['bytes']:>9d} B  {e['reason']}")
+    return 0
+
+
+def _verify(args) -> int:
+    from millfmu.dem import tables as T
+
+    bad = 0
+    checked = 0
+    targets = list(args.paths)
+    if args.default:
+        try:
+            t = T.read_default_table()
+            print(f"default table: ok ({' x '.join(map(str, t.shape))} points, scene "
+                  f"{t.manifest['scene'].get('name')}, kernel {t.manifest['kernel_version'][:19]}"
+                  f"{'' if t.manifest['kernel_version'] == T.dem_kernel_version() else ' (older than the installed DEM)'})")
+        except T.TableError as e:
+            print(f"default table: BAD: {e}")
+            bad += 1
+        checked += 1
+    if not targets and not args.default:
+        for e in T.cache_entries(args.cache_dir):
+            print(f"{e['key'][:16]}: {e['state']} {e['reason']}")
+            bad += e["state"] == "bad"
+            checked += 1
+    for p in targets:
+        try:
+            if Path(p).is_dir():
+                T.read_table(p)
+            else:
+                T.read_table(npz=p + ".npz", manifest_path=p + ".json")
+            print(f"{p}: ok")
+        except T.TableError as e:
+            print(f"{p}: BAD: {e}")
+            bad += 1
+        checked += 1
+    print(f"{checked} checked, {bad} bad")
+    return 1 if bad else 0
+
+
+def _clear(args) -> int:
+    from millfmu.dem import tables as T
+
+    removed = T.clear_cache(args.cache_dir, only_not_ok=args.stale)
+    print(f"removed {len(removed)} entries from {T.resolve_cache_dir(args.cache_dir)}")
+    return 0
+
+
+def main(argv=None) -> int:
+    """Run ``tables`` subcommands on their own (``python -m millfmu.dem.tables_cli``)."""
+    ap = argparse.ArgumentParser(prog="millfmu")
+    register(ap.add_subparsers(dest="command"))
+    args = ap.parse_args(argv)
+    return args.func(args)
+
+
+if __name__ == "__main__":
+    sys.exit(main())
