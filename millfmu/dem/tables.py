@@ -370,6 +370,26 @@ class Table:
             err = err + ERROR_SAFETY * t * (1.0 - t) * h * h / 2.0 * curv
         return err
 
+    def fixed_axis_values(self) -> dict:
+        """Values of the axes of :data:`AXES` that the grid does not vary, as the table's
+        DEM scene (manifest) gives them; axes the scene does not name are left out."""
+        scene = self.manifest.get("scene", {})
+        out = {}
+        for ax, (sec, key, _, _) in AXES.items():
+            if ax not in self.axes and isinstance(scene.get(sec), dict) and key in scene[sec]:
+                out[ax] = float(scene[sec][key])
+        return out
+
+    def spec(self) -> "TableSpec":
+        """The specification this table was built from (from its manifest)."""
+        m = self.manifest
+        try:
+            return TableSpec(scene=m["scene"], grid=m["grid"],
+                             kernel_version=m["kernel_version"], builder_id=m["builder"])
+        except KeyError as e:
+            raise TableError(f"table: manifest lacks {e}; not a cached or exported table") \
+                from None
+
     # -- files
     def arrays(self) -> dict:
         out = {f"axis_{k}": np.asarray(v, float) for k, v in self.axes.items()}
@@ -878,6 +898,27 @@ def _validate_scene_dict(d: dict):
     scene_from_dict(d)
 
 
+def rebuild_including(table: Table, point: dict, builder: Callable | None = None,
+                      cache_dir=None, progress: bool = True, **run_kw) -> Table:
+    """Build (or find in the cache) a table like ``table`` whose grid also covers ``point``:
+    each axis whose value lies outside gets that value as a new end node. Every grid point
+    of the new table is built (the cache holds whole tables). ``builder``: default the DEM
+    (:class:`DemBuilder`, with the installed kernel version)."""
+    old = table.spec()
+    grid = {}
+    for ax, vals in old.grid.items():
+        x = float(point[ax])
+        grid[ax] = sorted(set(vals) | ({x} if not vals[0] <= x <= vals[-1] else set()))
+    if builder is None:
+        builder = DemBuilder()
+        kv = dem_kernel_version()
+    else:
+        kv = old.kernel_version
+    spec = TableSpec(scene=old.scene, grid=grid, kernel_version=kv,
+                     builder_id=_builder_id(builder))
+    return get_table(spec, builder, cache_dir=cache_dir, progress=progress, **run_kw)
+
+
 # ---- the kinetics' interface ---------------------------------------------------------------
 @dataclass
 class TableStressSource:
@@ -888,19 +929,26 @@ class TableStressSource:
     density, viscosity where the table has them as axes) and scales back with the operating
     point's own E_ref (= op.se_beads_J) and omega n_gb: energies [J] = table bins x E_ref,
     collision rate [1/(m3 s)] = collision_frequency_norm x omega n_gb. ``component``: 'tn'
-    (default, see the module docstring) or 'total'. ``similar_axes``: single-valued axes
-    for which other values are accepted on the similarity assumption. A point outside the
-    grid raises :class:`OutsideGridError` unless ``on_outside='build'``: then a table over
-    the requested point is built (DEM, progress shown) and cached, via ``rebuild``.
+    (default, see the module docstring) or 'total'.
+
+    Axes the table does not vary (e.g. bead diameter, bead density, viscosity of the
+    default table) must match the table's DEM scene (relative tolerance 1e-9), unless
+    named in ``similar_axes``: then the dimensionless fields are used unchanged, i.e.
+    similarity in that axis is assumed (recorded in ``last_notes``); millfmu's tests show
+    the scaling only along the tip speed, so this is an explicit choice of the scene.
+    A point outside the grid raises :class:`OutsideGridError` unless
+    ``on_outside='build'``: then ``rebuild(table, point)`` (default :func:`rebuild_including`
+    with the DEM) builds and caches a table whose grid covers the point, progress shown.
     At tip speed 0 (stirrer at rest) there are no collisions: zones with zero rate.
     """
 
     table: Table
     component: str = "tn"
-    similar_axes: tuple = ("bead_diameter_m", "bead_density_kg_m3", "viscosity_pa_s")
+    similar_axes: tuple = ()
     on_outside: str = "refuse"
     rebuild: Callable | None = None  # (table, point) -> Table covering the point
     last_lookup: Lookup | None = None
+    last_notes: list = field(default_factory=list)
 
     def __post_init__(self):
         if self.component not in COMPONENTS:
@@ -921,15 +969,27 @@ class TableStressSource:
             edges = np.array([1e-300, 2e-300])
             vf = self._volume_fractions()
             return [Zone(n, float(v), 0.0, edges, np.array([1.0])) for n, v in zip(names, vf)]
+        notes = []
+        for ax, v in self.table.fixed_axis_values().items():
+            x = float(getattr(op, AXES[ax][3]))
+            if abs(x - v) <= FIXED_AXIS_RTOL * abs(v):
+                continue
+            if ax not in self.similar_axes:
+                raise OutsideGridError(ax, x, v, v, note=" (its DEM scene's value; the "
+                                       "table does not vary it; name it in similar_axes "
+                                       "to assume similarity)")
+            notes.append(f"{ax} = {x!r}: table scene has {v!r}; similarity assumed")
         point = self.point_of(op)
         try:
             lk = self.table.lookup(point, self.similar_axes)
         except OutsideGridError:
-            if self.on_outside != "build" or self.rebuild is None:
+            if self.on_outside != "build":
                 raise
-            self.table = self.rebuild(self.table, point)
+            rebuild = self.rebuild or rebuild_including
+            self.table = rebuild(self.table, point)
             lk = self.table.lookup(point, self.similar_axes)
         self.last_lookup = lk
+        self.last_notes = notes + lk.notes
         eref = float(op.se_beads_J)
         scale = float(op.omega_rad_per_s * op.n_gb_per_m3)
         edges = eref * 10.0 ** U

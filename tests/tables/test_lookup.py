@@ -124,3 +124,38 @@ def test_fixed_axis_needs_match_or_similarity():
     assert "similarity assumed" in lk.notes[0]
     with pytest.raises(T.OutsideGridError, match="filling = 0.8"):
         t.lookup({**p, "filling": 0.8}, similar_axes=("bead_diameter_m",))
+
+
+def test_source_checks_axes_the_table_does_not_vary(tmp_path):
+    s = T.TableSpec(scene={"name": "analytic", "beads": {"diameter_m": D_GB_M,
+                                                         "density_kg_m3": RHO_KG_M3}},
+                    grid={"tip_speed_m_s": [6.0, 10.0, 14.0], "filling": [0.5, 0.7, 0.9]},
+                    kernel_version="k", builder_id=T._builder_id(analytic_builder))
+    t = T.get_table(s, analytic_builder, cache_dir=tmp_path, executor="serial", progress=False)
+    assert t.fixed_axis_values() == {"bead_diameter_m": D_GB_M,
+                                     "bead_density_kg_m3": RHO_KG_M3}
+    with pytest.raises(T.OutsideGridError, match="bead_density_kg_m3 = 5020.0 kg/m3.*"
+                       "holds only 2510.0"):
+        T.TableStressSource(t).zones(_op(10.0, 0.7, rho=2 * RHO_KG_M3))
+    src = T.TableStressSource(t, similar_axes=("bead_density_kg_m3",))
+    src.zones(_op(10.0, 0.7, rho=2 * RHO_KG_M3))
+    assert "similarity assumed" in src.last_notes[0]
+
+
+def test_source_builds_on_demand_outside_the_grid(tmp_path):
+    from functools import partial
+
+    cf = str(tmp_path / "builds")
+    s = spec(grid={"tip_speed_m_s": [6.0, 10.0], "filling": [0.5, 0.7]}, count_file=cf)
+    t = T.get_table(s, analytic_builder, cache_dir=tmp_path, executor="serial", progress=False)
+    rebuild = partial(T.rebuild_including, builder=analytic_builder, cache_dir=tmp_path,
+                      executor="serial", progress=False)
+    src = T.TableStressSource(t, on_outside="build", rebuild=rebuild)
+    zones = src.zones(_op(12.0, 0.75))
+    assert list(src.table.axes["tip_speed_m_s"]) == [6.0, 10.0, 12.0]
+    assert list(src.table.axes["filling"]) == [0.5, 0.7, 0.75]
+    want = analytic_builder({}, {"tip_speed_m_s": 12.0, "filling": 0.75})
+    op = _op(12.0, 0.75)
+    assert math.isclose(zones[1].collision_rate_per_m3_s, want["collision_frequency_norm"][1]
+                        * op.omega_rad_per_s * op.n_gb_per_m3, rel_tol=1e-12)
+    assert (tmp_path / src.table.spec().key()).is_dir()  # cached
