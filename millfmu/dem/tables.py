@@ -390,6 +390,54 @@ class Table:
             raise TableError(f"table: manifest lacks {e}; not a cached or exported table") \
                 from None
 
+    def subset(self, bounds: dict) -> "Table":
+        """The slice of the grid that a scene needs: for each axis named in ``bounds``
+        (axis -> (lo, hi)), the nodes from the last one <= lo to the first one >= hi.
+        Lookups inside the bounds give the same values as on the full table (their error
+        estimates can be NaN when fewer than 3 nodes remain). The slice's manifest is that
+        of a table built on the sliced grid, with ``slice_of`` naming the full table."""
+        idx = []
+        for name, ax in self.axes.items():
+            if name not in bounds:
+                idx.append(np.arange(ax.size))
+                continue
+            lo, hi = (float(x) for x in bounds[name])
+            if lo > hi:
+                raise TableError(f"subset: {name} bounds ({lo!r}, {hi!r}): lo > hi")
+            for x in (lo, hi):
+                if not ax[0] <= x <= ax[-1]:
+                    raise OutsideGridError(name, x, float(ax[0]), float(ax[-1]))
+            i0 = int(np.searchsorted(ax, lo, side="right") - 1)
+            i1 = int(np.searchsorted(ax, hi, side="left"))
+            idx.append(np.arange(i0, i1 + 1))
+        sel = np.ix_(*idx)
+        axes = {k: ax[i] for (k, ax), i in zip(self.axes.items(), idx)}
+        data = {k: v[sel] for k, v in self.data.items()}
+        refs = {k: v[sel] for k, v in self.refs.items()}
+        sub = Table(axes=axes, zone_names=self.zone_names, data=data, refs=refs)
+        if "scene" in self.manifest:
+            old = self.spec()
+            spec = TableSpec(scene=old.scene, grid={k: list(v) for k, v in axes.items()},
+                             kernel_version=old.kernel_version, builder_id=old.builder_id)
+            sub.manifest = manifest_for(spec, sub, {"slice_of": self.manifest.get("key")})
+        return sub
+
+    def export(self, prefix) -> tuple[Path, Path]:
+        """Write ``PREFIX.npz`` and ``PREFIX.json`` (the manifest, with the .npz checksum),
+        e.g. for the package data or an FMU's resources; returns the two paths."""
+        if "key" not in self.manifest:
+            raise TableError("export: the table has no manifest (build it with get_table)")
+        prefix = Path(prefix)
+        prefix.parent.mkdir(parents=True, exist_ok=True)
+        with tempfile.TemporaryDirectory(dir=prefix.parent) as tmp:
+            m = {k: v for k, v in self.manifest.items() if k != "files"}
+            self.save(tmp, m)
+            npz, man = Path(str(prefix) + ".npz"), Path(str(prefix) + ".json")
+            os.replace(Path(tmp) / TABLE_FILE, npz)
+            os.replace(Path(tmp) / MANIFEST_FILE, man)
+        read_table(npz=npz, manifest_path=man)
+        return npz, man
+
     # -- files
     def arrays(self) -> dict:
         out = {f"axis_{k}": np.asarray(v, float) for k, v in self.axes.items()}

@@ -159,3 +159,21 @@ def test_source_builds_on_demand_outside_the_grid(tmp_path):
     assert math.isclose(zones[1].collision_rate_per_m3_s, want["collision_frequency_norm"][1]
                         * op.omega_rad_per_s * op.n_gb_per_m3, rel_tol=1e-12)
     assert (tmp_path / src.table.spec().key()).is_dir()  # cached
+
+
+def test_slice_for_a_scene_gives_the_same_values(tmp_path):
+    s = spec(grid=GRID)
+    full = T.get_table(s, analytic_builder, cache_dir=tmp_path, executor="serial",
+                       progress=False)
+    sub = full.subset({"tip_speed_m_s": (8.5, 9.5), "filling": (0.8, 0.8)})
+    assert list(sub.axes["tip_speed_m_s"]) == [8.0, 10.0]
+    assert list(sub.axes["filling"]) == [0.8]
+    npz, man = sub.export(tmp_path / "fmu" / "table")
+    back = T.read_table(npz=npz, manifest_path=man)
+    assert back.manifest["slice_of"] == s.key()
+    assert npz.stat().st_size < (full.data["se_density"].nbytes // 4)
+    p = {"tip_speed_m_s": 9.2, "filling": 0.8}
+    for k in T.FIELDS:
+        np.testing.assert_array_equal(back.lookup(p).values[k], full.lookup(p).values[k])
+    with pytest.raises(T.OutsideGridError, match="tip_speed_m_s = 15.0"):
+        full.subset({"tip_speed_m_s": (8.0, 15.0)})
