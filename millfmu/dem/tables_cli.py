@@ -17,7 +17,7 @@ from __future__ import annotations
 import argparse
 import importlib
 import json
-import shutil
+import shlex
 import sys
 from pathlib import Path
 
@@ -38,9 +38,11 @@ RUN_OPTIONS = {
     "--sample-every": ("run", "sample_every_s", "sampling interval [s]"),
     "--dt": ("run", "dt_s", "DEM time step [s]"),
 }
+#: The command that rebuilds the shipped default table (from the repository root); the
+#: table's manifest records it as ``rebuild_command``.
 REBUILD_DEFAULT = (
-    "millfmu tables build --scene disc_slice --tip-speed 8,12 --filling 0.6,0.8 "
-    "--sector-deg 10 --no-gravity --spin-up 0.03 --record 0.03 --sample-every 0.01 "
+    "millfmu tables build --scene disc_slice --tip-speed 6,10,14 --filling 0.6,0.8 "
+    "--sector-deg 10 --spin-up 0.03 --record 0.03 --sample-every 0.01 --no-gravity "
     "--export millfmu/data/default_table")
 
 
@@ -165,13 +167,31 @@ def _build(args) -> int:
     if m.get("build_wall_time_s"):
         print(f"build wall time {m['build_wall_time_s']:.1f} s")
     if args.export:
-        prefix = Path(args.export)
-        prefix.parent.mkdir(parents=True, exist_ok=True)
-        shutil.copyfile(entry / T.TABLE_FILE, str(prefix) + ".npz")
-        shutil.copyfile(entry / T.MANIFEST_FILE, str(prefix) + ".json")
-        T.read_table(npz=str(prefix) + ".npz", manifest_path=str(prefix) + ".json")
-        print(f"exported {prefix}.npz, {prefix}.json")
+        table.manifest = dict(table.manifest, rebuild_command=_command(args))
+        npz, man = table.export(args.export)
+        print(f"exported {npz} ({npz.stat().st_size} bytes), {man}")
     return 0
+
+
+def _command(args) -> str:
+    """The ``millfmu tables build`` command that rebuilds this table (grid, scene and run
+    settings; not the executor, which does not change the result)."""
+    cmd = ["millfmu", "tables", "build", "--scene", args.scene]
+    for opt, (axis, _) in GRID_OPTIONS.items():
+        v = getattr(args, f"grid_{axis}")
+        if v is not None:
+            cmd += [opt, ",".join(f"{x:g}" for x in v)]
+    for opt, (sec, key, _) in RUN_OPTIONS.items():
+        v = getattr(args, f"run_{sec}_{key}")
+        if v is not None:
+            cmd += [opt, f"{v:g}"]
+    if args.no_gravity:
+        cmd.append("--no-gravity")
+    if args.builder:
+        cmd += ["--builder", args.builder]
+    if args.export:
+        cmd += ["--export", str(args.export)]
+    return shlex.join(cmd)
 
 
 def _status(args) -> int:

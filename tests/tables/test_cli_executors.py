@@ -62,6 +62,8 @@ def test_cli_build_status_verify_clear(tmp_path, capsys):
     assert _cli(argv) == 0
     out = capsys.readouterr().out
     assert "2 x 2 points" in out and "exported" in out
+    m = json.loads((tmp_path / "exp" / "t.json").read_text())
+    assert m["rebuild_command"].startswith("millfmu tables build --scene disc_slice --tip-speed 8,12 --filling 0.6,0.8")
     assert _cli(["tables", "status", "--cache-dir", cache, "--json"]) == 0
     entries = json.loads(capsys.readouterr().out)
     assert len(entries) == 1 and entries[0]["state"] == "ok"
