@@ -685,13 +685,35 @@ def manifest_for(spec: TableSpec, table: Table, extra: dict | None = None) -> di
     m = dict(spec.key_content())
     m["key"] = spec.key()
     m["created_utc"] = time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime())
-    m["resolution"] = {"grid_points": int(np.prod(spec.shape)), "shape": list(spec.shape),
-                       "norm_log10_edges": [NORM_LOG10_MIN, NORM_LOG10_MAX,
-                                            NORM_BINS_PER_DECADE]}
+    m["resolution"] = resolution_of(spec)
     m["build_wall_time_s"] = table.manifest.get("build_wall_time_s")
     if extra:
         m.update(extra)
     return m
+
+
+#: Spin-up below which a table's manifest warns that the beads were not at steady state
+#: (seed 001 starts its analysis after 2 s).
+STEADY_SPIN_UP_S = 1.0
+
+
+def resolution_of(spec: TableSpec) -> dict:
+    """What the manifest states as the table's resolution: grid, energy bins and, for DEM
+    tables, the simulated sector, run times and time step of every grid point."""
+    res = {"grid_points": int(np.prod(spec.shape)), "shape": list(spec.shape),
+           "norm_log10_edges": [NORM_LOG10_MIN, NORM_LOG10_MAX, NORM_BINS_PER_DECADE]}
+    if spec.builder_id == DemBuilder.builder_id:
+        mill, run = spec.scene.get("mill", {}), spec.scene.get("run", {})
+        res["dem"] = {"sector_deg": mill.get("sector_deg", 360.0),
+                      "spin_up_s": run.get("spin_up_s", 2.0),
+                      "record_s": run.get("record_s", 1.0),
+                      "sample_every_s": run.get("sample_every_s", 0.02),
+                      "dt_s": run.get("dt_s", 5e-6)}
+        if res["dem"]["spin_up_s"] < STEADY_SPIN_UP_S:
+            res["note"] = (f"spin-up {res['dem']['spin_up_s']} s < {STEADY_SPIN_UP_S} s: "
+                           f"bead motion not at steady state (seed 001 analyses after 2 s); "
+                           f"a coarse table, rebuild with longer runs for quantitative use")
+    return res
 
 
 @contextlib.contextmanager

@@ -167,7 +167,8 @@ def _build(args) -> int:
     if m.get("build_wall_time_s"):
         print(f"build wall time {m['build_wall_time_s']:.1f} s")
     if args.export:
-        table.manifest = dict(table.manifest, rebuild_command=_command(args))
+        table.manifest = dict(table.manifest, resolution=T.resolution_of(spec),
+                              rebuild_command=_command(args))
         npz, man = table.export(args.export)
         print(f"exported {npz} ({npz.stat().st_size} bytes), {man}")
     return 0
