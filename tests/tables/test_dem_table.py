@@ -46,3 +46,32 @@ def test_small_dem_table_builds_caches_and_reads(tmp_path):
     norm = np.log(f[1, v1_v2] / f[0, v1_v2])
     raw = norm + math.log(1.5)  # same filling: omega n_gb scales with the tip speed
     assert np.all(np.abs(norm) < 0.5 * np.abs(raw)), (norm, raw)
+
+
+@pytest.mark.slow
+def test_dem_interpolation_within_stated_error_on_held_back_point(tmp_path):
+    """Tip speeds 6, 10, 14 m/s; the DEM run at 8 m/s is held back and compared with the
+    interpolation: |interpolated - held back| <= interpolation error + 2 sqrt(sigma_interp^2
+    + sigma_held^2), sigma the sampling deviations from the collision counts. Checked: the
+    median SE_tn / E_ref in every zone, and the collision frequency over omega n_gb in the
+    zones with at least 10^4 collisions at the held-back point. (The Poisson sigma is a
+    lower bound: in the sparse zone V4 the frequency, and the collision power everywhere,
+    scatter more than it says on these 0.01 s runs; see the report of issue 4.)"""
+    grid = {"tip_speed_m_s": [6.0, 10.0, 14.0], "filling": [0.7]}
+    t = T.get_table(T.dem_spec("disc_slice", grid, OVER), T.DemBuilder(threads=1),
+                    cache_dir=tmp_path, executor="processes", workers=2, progress=False)
+    held = T.get_table(T.dem_spec("disc_slice", {"tip_speed_m_s": [8.0], "filling": [0.7]},
+                                  OVER), T.DemBuilder(threads=1), cache_dir=tmp_path,
+                       executor="serial", progress=False)
+    p = {"tip_speed_m_s": 8.0, "filling": 0.7}
+    lk, hs = t.lookup(p), held.lookup(p).sigma
+    many = held.data["collision_count"][0, 0] >= 1e4
+    assert many.sum() >= 2
+    for k, sel, zones in (("se_quantiles_norm", (0, slice(None), 1), np.ones(4, bool)),
+                          ("collision_frequency_norm", (slice(None),), many)):
+        actual = np.abs(lk.values[k][sel] - held.data[k][0, 0][sel])[zones]
+        bound = (lk.error[k][sel] + 2.0 * np.hypot(lk.sigma[k][sel], hs[k][sel]))[zones]
+        assert np.all(np.isfinite(bound)) and np.all(bound > 0)
+        assert np.all(actual <= bound), (k, actual, bound)
+        # the bound is informative: under 30 % of the value
+        assert np.all(bound < 0.3 * np.abs(lk.values[k][sel][zones])), (k, bound)

@@ -177,3 +177,18 @@ def test_slice_for_a_scene_gives_the_same_values(tmp_path):
         np.testing.assert_array_equal(back.lookup(p).values[k], full.lookup(p).values[k])
     with pytest.raises(T.OutsideGridError, match="tip_speed_m_s = 15.0"):
         full.subset({"tip_speed_m_s": (8.0, 15.0)})
+
+
+def test_sampling_sigma_from_collision_counts(table):
+    p = {"tip_speed_m_s": 10.0, "filling": 0.7}
+    lk = table.lookup(p)
+    want = analytic_builder({}, p)
+    np.testing.assert_allclose(lk.sigma["collision_frequency_norm"],
+                               want["collision_frequency_norm"]
+                               / np.sqrt(want["collision_count"]), rtol=1e-12)
+    # the median of a log-normal in log10 with sd s: sigma = q ln10 sqrt(pi/2) s / sqrt(N)
+    q50 = want["se_quantiles_norm"][0, :, 1]
+    approx = q50 * math.log(10) * math.sqrt(math.pi / 2) * 0.6 / np.sqrt(want["collision_count"])
+    np.testing.assert_allclose(lk.sigma["se_quantiles_norm"][0, :, 1], approx, rtol=0.15)
+    mid = table.lookup({"tip_speed_m_s": 9.0, "filling": 0.7})
+    assert np.all(mid.bound("se_quantiles_norm") > mid.error["se_quantiles_norm"])
