@@ -52,6 +52,31 @@ def test_dask_local_cluster_equals_serial():
     _assert_same(ser, dsk)
 
 
+def test_dask_scheduler_address_equals_serial(tmp_path, capsys):
+    """--scheduler ADDRESS: grid points go to an existing cluster (here one on loopback)."""
+    pytest.importorskip("distributed")
+    import cloudpickle
+    from dask.distributed import LocalCluster
+
+    cloudpickle.register_pickle_by_value(_builders)
+    try:
+        with LocalCluster(n_workers=2, threads_per_worker=1, processes=True,
+                          host="127.0.0.1", dashboard_address=None) as cluster:
+            addr = cluster.scheduler_address
+            assert addr.startswith("tcp://127.0.0.1:")
+            s = spec(grid=TINY)
+            via = T.build_table(s, analytic_builder, scheduler=addr, progress=False)
+            cache = str(tmp_path / "cache")
+            assert _cli(["tables", "build", "--tip-speed", "8,12", "--filling", "0.6,0.8",
+                         "--sector-deg", "10", "--no-gravity", "--cache-dir", cache,
+                         "--scheduler", addr, "--no-progress",
+                         "--builder", "tests.tables._builders:analytic_builder"]) == 0
+    finally:
+        cloudpickle.unregister_pickle_by_value(_builders)
+    _assert_same(T.build_table(s, analytic_builder, executor="serial", progress=False), via)
+    assert "2 x 2 points" in capsys.readouterr().out
+
+
 def test_cli_build_status_verify_clear(tmp_path, capsys):
     cache = str(tmp_path / "cache")
     argv = ["tables", "build", "--scene", "disc_slice", "--tip-speed", "8,12",
