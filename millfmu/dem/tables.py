@@ -597,6 +597,8 @@ def read_table(folder=None, *, npz=None, manifest_path=None, expect_key: str | N
         m = json.loads(text)
     except (json.JSONDecodeError, UnicodeDecodeError) as e:
         raise TableError(f"{manifest_path}: not valid JSON ({e})") from None
+    if not isinstance(m, dict):
+        raise TableError(f"{manifest_path}: not a JSON object: corrupted")
     if m.get("format") != FORMAT_VERSION:
         raise TableError(f"{manifest_path}: format = {m.get('format')!r}, this millfmu "
                          f"reads format {FORMAT_VERSION}: stale")
@@ -605,6 +607,10 @@ def read_table(folder=None, *, npz=None, manifest_path=None, expect_key: str | N
                          builder_id=m["builder"])
     except KeyError as e:
         raise TableError(f"{manifest_path}: key {e} missing") from None
+    except (TypeError, ValueError) as e:
+        raise TableError(f"{manifest_path}: {e}") from None
+    if not isinstance(m.get("zone_names"), list):
+        raise TableError(f"{manifest_path}: zone_names missing")
     key = spec.key()
     if m.get("key") != key:
         raise TableError(f"{manifest_path}: key {m.get('key')!r} does not match its content "
@@ -614,8 +620,8 @@ def read_table(folder=None, *, npz=None, manifest_path=None, expect_key: str | N
     if expect_kernel is not None and m["kernel_version"] != expect_kernel:
         raise TableError(f"{manifest_path}: built with DEM kernel version "
                          f"{m['kernel_version']}, current is {expect_kernel}: stale")
-    info = m.get("files", {}).get(TABLE_FILE)
-    if info is None:
+    info = (m.get("files") or {}).get(TABLE_FILE)
+    if not isinstance(info, dict) or not {"bytes", "sha256"} <= set(info):
         raise TableError(f"{manifest_path}: no checksum for {TABLE_FILE}")
     if not npz.exists():
         raise TableError(f"{npz}: missing")
