@@ -1088,6 +1088,11 @@ class TableStressSource:
             raise TableError(f"component = {self.component!r}: allowed {list(COMPONENTS)}")
         if self.on_outside not in ("refuse", "build"):
             raise TableError(f"on_outside = {self.on_outside!r}: allowed 'refuse', 'build'")
+        self.similar_axes = tuple(self.similar_axes)
+        for ax in self.similar_axes:
+            if ax not in AXES or ax in ("tip_speed_m_s", "filling"):
+                raise TableError(f"similar_axes: {ax!r} not allowed; allowed: "
+                                 f"bead_diameter_m, bead_density_kg_m3, viscosity_pa_s")
 
     def point_of(self, op) -> dict:
         return {ax: float(getattr(op, AXES[ax][3])) for ax in self.table.axes}

@@ -137,7 +137,9 @@ def test_source_checks_axes_the_table_does_not_vary(tmp_path):
     with pytest.raises(T.OutsideGridError, match="bead_density_kg_m3 = 5020.0 kg/m3.*"
                        "holds only 2510.0"):
         T.TableStressSource(t).zones(_op(10.0, 0.7, rho=2 * RHO_KG_M3))
-    src = T.TableStressSource(t, similar_axes=("bead_density_kg_m3",))
+    with pytest.raises(T.TableError, match="similar_axes: 'bead_size' not allowed"):
+        T.TableStressSource(t, similar_axes=["bead_size"])
+    src = T.TableStressSource(t, similar_axes=["bead_density_kg_m3"])
     src.zones(_op(10.0, 0.7, rho=2 * RHO_KG_M3))
     assert "similarity assumed" in src.last_notes[0]
 
