@@ -95,7 +95,7 @@ class MillModel:
         self.kinetics_model = scene.kinetics.model
         self.capture_from_psd = scene.kinetics.capture == "psd"
         sd = scene.kinetics.stress_distribution
-        self.source = LogNormalStressSource(sd.median_fraction, sd.sigma_ln, sd.collision_factor) if self.kinetics_model == "detailed" else None
+        self.source = self._stress_source(sd)
         self._m = self.operator.state_size
         self._feed_map = pbm.feed_matrix(self._m, self.n_tanks, self.grid.n)
         self._cache = pbm.PropagatorCache()
@@ -103,6 +103,18 @@ class MillModel:
         self._num_cache: dict = {}
         self._log_nodes = np.log(self.operator.nodes_m.ravel())
         self.reset()
+
+    def _stress_source(self, sd):
+        """The detailed model's stress-energy source (None for the other models)."""
+        if self.kinetics_model != "detailed":
+            return None
+        if sd.source == "table":
+            # Imported only here: scenes without a table never load the table code.
+            from .dem.tables import TableStressSource, read_default_table, read_table
+
+            tab = read_default_table() if sd.table == "default" else read_table(npz=sd.table + ".npz", manifest_path=sd.table + ".json")
+            return TableStressSource(tab, component=sd.component, similar_axes=tuple(sd.similar_axes), on_outside=sd.on_outside)
+        return LogNormalStressSource(sd.median_fraction, sd.sigma_ln, sd.collision_factor)
 
     # ---- state ---------------------------------------------------------------------------
     def reset(self):
