@@ -169,3 +169,19 @@ def register(subparsers):
     w.add_argument("--out", default="out_wp", help="output folder: wp.csv, wp.png")
     w.add_argument("--fmu-dir", default=None, help="where the unit FMUs are built and reused (default: OUT/fmus)")
     w.set_defaults(func=cmd_wp)
+
+
+def main(argv=None) -> int:
+    """``python -m flowsheets.cli run FILE ...``: the same commands without the millfmu CLI."""
+    import argparse
+
+    p = argparse.ArgumentParser(prog="python -m flowsheets.cli")
+    sub = p.add_subparsers(dest="command", metavar="COMMAND")
+    sub.required = True
+    register(sub)
+    args = p.parse_args(["flowsheet"] + list(sys.argv[1:] if argv is None else argv))
+    return int(args.func(args) or 0)
+
+
+if __name__ == "__main__":  # pragma: no cover
+    sys.exit(main())
