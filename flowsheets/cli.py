@@ -69,6 +69,11 @@ def cmd_run(args) -> int:
             fs = fs.with_(step_s=args.step, output_interval_s=max(fs.output_interval_s, args.step))
         if args.algorithm:
             fs = fs.with_(algorithm=args.algorithm)
+        if args.output_interval is not None:
+            n = args.output_interval / fs.step_s
+            if not args.output_interval > 0 or abs(n - round(n)) > 1e-9 * n:
+                raise FlowsheetError("--output-interval", args.output_interval, f"must be a whole multiple of the step {fs.step_s!r} s", "command line")
+            fs = fs.with_(output_interval_s=args.output_interval)
         _check_out(out)
         with tempfile.TemporaryDirectory(prefix="flowsheet_") as tmp:
             # FMUs are built into the results (OUT/fmus), reusing those of earlier runs.
@@ -151,6 +156,7 @@ def register(subparsers):
     r.add_argument("--fmu-dir", default=None, help="where the unit FMUs are built and reused (default: OUT/fmus, written with the results)")
     r.add_argument("--step", type=float, default=None, help="communication step [s] instead of the file's")
     r.add_argument("--algorithm", choices=("jacobi", "gauss-seidel"), default=None, help="instead of the file's")
+    r.add_argument("--output-interval", type=float, default=None, help="output interval [s] instead of the file's (a multiple of the step)")
     r.add_argument("--no-plots", action="store_true", help="skip the PNG")
     r.set_defaults(func=cmd_run)
 

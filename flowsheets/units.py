@@ -231,11 +231,13 @@ class Tank:
             M1 = M0 + u * h
         elif S0 <= 0.0:  # fills from empty while pumping (k > 0): S = k t, M = u S / a
             M1 = (u / a) * S1
-        elif abs(k) <= 1e-12 * p:
+        elif abs(k) <= 1e-15 * p:
             e = math.exp(-p * h / S0)
             M1 = M0 * e + u * (S0 / p) * (-math.expm1(-p * h / S0))
         else:
-            r = (S0 / S1) ** (p / k)
+            # r = (S0/S1)^(p/k), as exp(-(p/k) log1p(k h/S0)): the plain power loses digits
+            # when inflow and pump nearly balance (p/k large, S0/S1 near 1), as in a circuit.
+            r = math.exp(-(p / k) * math.log1p(k * h / S0))
             M1 = M0 * r + (u / a) * (S1 - S0 * r) if a > 0.0 else M0 * r
         M1 = np.maximum(M1, 0.0)
         out = M0 + u * h - M1
