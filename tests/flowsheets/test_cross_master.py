@@ -65,6 +65,7 @@ def _compare(name, setup, got, first=0):
     assert got.shape == want.shape
     scale = np.abs(want).max(axis=0)
     rel = np.abs(got - want).max(axis=0) / scale
+    print(f"{name}: largest relative difference to the fmpy master {rel.max():.2e}")
     assert np.all(rel < 1e-9), dict(zip(names, rel))
     return rel
 
