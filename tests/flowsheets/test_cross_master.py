@@ -18,6 +18,7 @@ from __future__ import annotations
 
 import ctypes.util
 import importlib.util
+import os
 
 import numpy as np
 import pytest
@@ -38,6 +39,9 @@ def _variables(data):
 
 @pytest.fixture(scope="module")
 def setup(tmp_path_factory, fmu_dir):
+    # The masters' subprocesses inherit this: one BLAS thread (small matrices; threads on a
+    # loaded machine made runs many times slower).
+    os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
     d = tmp_path_factory.mktemp("cross")
     out = {"dir": d, "python": isolated_python(d), "runs": {}}
     for n in NAMES:
