@@ -168,3 +168,30 @@ def test_bad_input_exits_2_and_writes_nothing(tmp_path):
     r = cli("run", FLOWSHEETS / "circuit.toml", "--step", "7", "--out", tmp_path / "out")
     assert r.returncode == 2 and "--step = 7.0" in r.stderr
     assert not (tmp_path / "out").exists()
+
+
+def test_unit_fmus_validate_with_units_and_descriptions(results, fmu_dir):
+    from fmpy import read_model_description
+    from fmpy.validation import validate_fmu
+
+    fmus = sorted(fmu_dir.glob("*.fmu"))
+    kinds = {f.name.split("_")[0] for f in fmus}
+    assert {"mill", "feed", "tank", "classifier", "pi"} <= kinds
+    for f in fmus:
+        assert validate_fmu(str(f)) == [], f.name
+        md = read_model_description(str(f))
+        defined = {u.name for u in md.unitDefinitions}
+        for v in md.modelVariables:
+            assert v.unit in defined and v.description, (f.name, v.name)
+
+
+@pytest.mark.slow
+def test_communication_step_error_is_first_order_on_the_full_run(tmp_path, fmu_dir):
+    """The study of the README (about 10 minutes on a loaded 2-core machine)."""
+    import json
+
+    r = cli("wp", FLOWSHEETS / "circuit.toml", "--steps", "0.625", "1.25", "2.5", "5", "--reference", "0.078125",
+            "--out", tmp_path / "wp", "--fmu-dir", fmu_dir, timeout=3600)
+    assert r.returncode == 0, r.stderr[-3000:]
+    wp = json.loads((tmp_path / "wp" / "wp.json").read_text())
+    assert 0.9 < wp["order"] < 1.3 and 0.9 < wp["order_at_end"] < 1.3, wp
