@@ -79,14 +79,13 @@ def cmd_run(args) -> int:
             # FMUs are built into the results (OUT/fmus), reusing those of earlier runs.
             fmu_dir = Path(args.fmu_dir) if args.fmu_dir else Path(tmp) / "fmus"
             res = run_flowsheet(fs, fmu_dir, log=lambda m: print(m, flush=True), reuse=[out / "fmus"])
-            files = write_results(res, fs, Path(tmp), plots=not args.no_plots)
+            write_results(res, fs, Path(tmp), plots=not args.no_plots)
             moved = _publish(Path(tmp), out)
     except FlowsheetError as e:
         return _bad(e)
     except MasterError as e:
         print(f"millfmu flowsheet: failed: {e}", file=sys.stderr)
         return 1
-    del files
     mb = res.mass
     print(f"flowsheet {fs.name}: {fs.algorithm}, step {fs.step_s:g} s, {res.steps} steps, {len(res.retries)} retried; {res.wall_s:.3g} s wall")
     print(f"mass balance: fed {mb['fed_kg']:.6g} kg, products {mb['products_kg']:.6g} kg, holdup {mb['holdup0_kg']:.6g} -> {mb['holdup_kg']:.6g} kg, "

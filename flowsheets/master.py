@@ -451,11 +451,9 @@ def plot(res: Result, fs: Flowsheet, path: Path) -> Path:
     ax[0, 0].set(xlabel="t [min]", ylabel="x50 [um]", title="median sizes")
     ax[0, 1].set(xlabel="t [min]", ylabel="solids [kg]", title="holdups")
     ax[1, 0].set(xlabel="t [min]", title="solids mass flows")
-    x = np.sqrt(res.edges_m[:-1] * res.edges_m[1:]) * 1e6
     for u, a in res.psd.items():
         ax[1, 1].semilogx(res.edges_m[1:] * 1e6, np.cumsum(a[-1]), label=f"{u} at end")
         ax[1, 1].semilogx(res.edges_m[1:] * 1e6, np.cumsum(a[0]), ":", color=ax[1, 1].lines[-1].get_color())
-    del x
     ax[1, 1].set(xlabel="x [um]", ylabel="Q3 [-]", title="size distributions (dotted: start)")
     for a in ax.flat:
         if a.lines:
