@@ -30,6 +30,11 @@ import millfmu
 #: Modules the FMU must never carry or import for a scene (heavy, and not needed by the
 #: kinetics; the DEM would be imported only by scenes that run it).
 FORBIDDEN = ("numba", "millfmu.dem", "matplotlib", "tqdm")
+#: Exceptions to FORBIDDEN: the table reader of the detailed model (numpy only; reading a
+#: table never touches the DEM kernels).
+ALLOWED = ("millfmu.dem", "millfmu.dem.tables")
+#: Prefix of the table files in the FMU's resources (TABLE_PREFIX.npz, TABLE_PREFIX.json).
+TABLE_PREFIX = "table"
 
 _PROBE = r"""
 import json, sys
@@ -84,7 +89,7 @@ def _needed_modules(scene_path: Path) -> dict:
     if r.returncode != 0:
         raise RuntimeError("cannot run the scene's model to find the modules it needs:\n" + r.stderr)
     info = json.loads(r.stdout.strip().splitlines()[-1])
-    bad = [m for m in info["loaded"] if any(m == f or m.startswith(f + ".") for f in FORBIDDEN)]
+    bad = [m for m in info["loaded"] if m not in ALLOWED and any(m == f or m.startswith(f + ".") for f in FORBIDDEN)]
     if bad:
         raise RuntimeError(f"the scene's model imports {', '.join(bad)}, which an FMU must not carry")
     return info["modules"]
@@ -123,6 +128,24 @@ def _slug(text: str) -> str:
     return (s or "scene")[:40]
 
 
+def _export_table_slice(scene, prefix: Path) -> list:
+    """For a scene whose detailed model reads a DEM table: write the slice it needs.
+
+    Tip speed and filling are FMU variables (input, tunable parameter), so their whole range
+    is kept; the axes the scene fixes (bead diameter and density, viscosity) are cut to the
+    scene's values. Returns the files written ([] when the scene reads no table).
+    """
+    sd = scene.kinetics.stress_distribution
+    if scene.kinetics.model != "detailed" or sd.source != "table":
+        return []
+    from millfmu.dem.tables import read_default_table, read_table
+
+    tab = read_default_table() if sd.table == "default" else read_table(npz=sd.table + ".npz", manifest_path=sd.table + ".json")
+    fixed = {"bead_diameter_m": scene.beads.diameter_m, "bead_density_kg_m3": scene.beads.density_kg_per_m3, "viscosity_pa_s": scene.suspension.viscosity_Pa_s}
+    bounds = {k: (v, v) for k, v in fixed.items() if k in tab.axes}
+    return list((tab.subset(bounds) if bounds else tab).export(prefix))
+
+
 def build_fmu(scene_path: str | Path | None, out: str | Path) -> BuildResult:
     """Build the FMU for a scene file (None: the embedded default scene) into ``out`` (.fmu)."""
     from pythonfmu import FmuBuilder
@@ -158,6 +181,7 @@ def build_fmu(scene_path: str | Path | None, out: str | Path) -> BuildResult:
             dst.parent.mkdir(parents=True, exist_ok=True)
             shutil.copy2(pkg_root / r, dst)
         shutil.copy2(scene_file, stage / "scene.toml")
+        table_files = _export_table_slice(scene, stage / TABLE_PREFIX)
         full_hash = hashlib.sha256((code_hash + "\0" + scene_text).encode()).hexdigest()[:8]
         ident = f"Mill_{_slug(scene.scene.name)}_{full_hash}"
         script = stage / f"{ident}.py"
@@ -165,7 +189,7 @@ def build_fmu(scene_path: str | Path | None, out: str | Path) -> BuildResult:
         dest = tmp / "fmu"
         dest.mkdir()
         built = FmuBuilder.build_FMU(
-            script, dest=dest / f"{ident}.fmu", project_files=[stage / package, stage / "scene.toml"],
+            script, dest=dest / f"{ident}.fmu", project_files=[stage / package, stage / "scene.toml", *table_files],
             canGetAndSetFMUstate=True, canSerializeFMUstate=True,
         )
         with zipfile.ZipFile(built) as z:

@@ -46,6 +46,8 @@ from .scene import SceneError, scene_from_dict
 
 #: Name of the scene file in the FMU's resources folder.
 SCENE_FILE = "scene.toml"
+#: Prefix of the DEM table slice in the resources folder (detailed model with a table).
+TABLE_PREFIX = "table"
 
 #: Units used by the variables: name -> SI base-unit exponents (FMI 2.0 BaseUnit).
 UNITS = {
@@ -119,6 +121,10 @@ class MillSlave(Fmi2Slave):
         super().__init__(**kwargs)
         with open(os.path.join(self.resources, SCENE_FILE), "rb") as f:
             self._scene_dict = tomllib.load(f)
+        sd = self._scene_dict.get("kinetics", {}).get("stress_distribution", {})
+        if sd.get("source") == "table":
+            # The build put the table slice this scene needs into the resources.
+            sd["table"] = os.path.join(self.resources, TABLE_PREFIX)
         scene = scene_from_dict(self._scene_dict, SCENE_FILE)
         self.model = MillModel(scene)
         self._overrides: dict = {}

@@ -975,8 +975,8 @@ class DemBuilder:
     builder_id = "millfmu.dem.tables.DemBuilder"
 
     def __call__(self, scene: dict, point: dict) -> dict:
-        from millfmu.dem.run import run_scene
-        from millfmu.dem.scene import scene_from_dict
+        from .run import run_scene
+        from .scene import scene_from_dict
 
         s = scene_from_dict(scene_at_point(scene, point))
         if s.placement != "filling":
@@ -1009,7 +1009,7 @@ def load_scene_dict(name_or_path: str) -> dict:
     except ImportError:  # Python 3.10
         import tomli as tomllib
 
-    from millfmu.dem.scene import SCENE_DIR, DemSceneError
+    from .scene import SCENE_DIR, DemSceneError
 
     p = Path(name_or_path)
     if not p.suffix:
@@ -1026,7 +1026,7 @@ def load_scene_dict(name_or_path: str) -> dict:
 
 
 def _validate_scene_dict(d: dict):
-    from millfmu.dem.scene import scene_from_dict
+    from .scene import scene_from_dict
 
     scene_from_dict(d)
 
@@ -1098,7 +1098,7 @@ class TableStressSource:
         return {ax: float(getattr(op, AXES[ax][3])) for ax in self.table.axes}
 
     def zones(self, op):
-        from millfmu.kinetics.stress_distribution import Zone
+        from ..kinetics.stress_distribution import Zone
 
         names = self.table.zone_names
         U = norm_log10_edges()

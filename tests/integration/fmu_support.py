@@ -91,7 +91,7 @@ def reference(scene_path, steps, inputs_per_step=None):
 
 #: Code run first in every FMU subprocess: open an FMU with fmpy, log capture, helpers.
 PRELUDE = r'''
-import json, math, sys
+import json, math, os, sys
 import numpy as np
 from fmpy import extract, read_model_description
 from fmpy.fmi1 import FMICallException
@@ -148,4 +148,10 @@ def record(rec, fmu):
 
 def done(obj):
     print("RESULT " + json.dumps(obj), flush=True)
+    # Leave without interpreter teardown: with several pythonfmu 0.7 FMUs loaded, the
+    # process sometimes aborts in glibc ("corrupted double-linked list") while Python
+    # finalizes, after every instance was freed and everything checked here had passed.
+    # That is a pythonfmu/host teardown issue (see README, FMU), not one of the steps tested.
+    sys.stderr.flush()
+    os._exit(0)
 '''
