@@ -27,6 +27,7 @@ CODE = {
     "unit_fmu.py": HERE / "unit_fmu.py",
     "units.py": HERE / "units.py",
     "grid.py": Path(millfmu.__file__).resolve().parent / "kinetics" / "grid.py",
+    "fmi_xml.py": Path(millfmu.__file__).resolve().parent / "fmi_xml.py",
 }
 
 CLASS_NAMES = {"feed": "FeedSlave", "tank": "TankSlave", "classifier": "ClassifierSlave", "pi": "PIControllerSlave"}

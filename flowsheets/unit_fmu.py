@@ -19,12 +19,16 @@ import json
 import math
 import os
 import traceback
-from xml.etree.ElementTree import Element, SubElement
+from xml.etree.ElementTree import Element
 
 import numpy as np
 from pythonfmu import Fmi2Causality, Fmi2Initial, Fmi2Slave, Fmi2Variability, Real
 from pythonfmu.enums import Fmi2Status
 
+try:  # carried into a unit FMU, the module sits next to this one
+    from .fmi_xml import complete_model_description
+except ImportError:
+    from millfmu.fmi_xml import complete_model_description
 from .units import Classifier, Feed, PIController, StepDiscarded, Tank, UnitInputError
 
 #: Name of the configuration file in the FMU's resources folder.
@@ -199,33 +203,7 @@ class UnitSlave(Fmi2Slave):
     def to_xml(self, model_options=dict()) -> Element:
         """pythonfmu's description plus units, exact start values, output dependencies (none:
         no direct feedthrough) and InitialUnknowns."""
-        root = super().to_xml(model_options)
-        root.set("description", f"{self.description}; {self.n} size classes")
-        used = []
-        by_name = {v.name: v for v in self.vars.values()}
-        for sv in root.iter("ScalarVariable"):
-            name = sv.get("name")
-            real = sv.find("Real")
-            u = self._units[name]
-            real.set("unit", u)
-            if u not in used:
-                used.append(u)
-            if real.get("start") is not None:
-                real.set("start", repr(float(self._v[by_name[name].value_reference])))
-        units = Element("UnitDefinitions")
-        for u in used:
-            unit = SubElement(units, "Unit", {"name": u})
-            SubElement(unit, "BaseUnit", {k: str(e) for k, e in unit_exponents(u).items()})
-        root.insert(list(root).index(root.find("CoSimulation")) + 1, units)
-        root.remove(root.find("ModelStructure"))
-        ms = SubElement(root, "ModelStructure")
-        outs = SubElement(ms, "Outputs")
-        init = SubElement(ms, "InitialUnknowns")
-        for i, v in enumerate(self.vars.values(), 1):
-            if v.causality == Fmi2Causality.output:
-                SubElement(outs, "Unknown", {"index": str(i), "dependencies": ""})
-                SubElement(init, "Unknown", {"index": str(i)})
-        return root
+        return complete_model_description(super().to_xml(model_options), self, self._units, unit_exponents, f"{self.description}; {self.n} size classes")
 
 
 # ---------------------------------------------------------------------------------------

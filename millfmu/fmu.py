@@ -30,7 +30,7 @@ import math
 import os
 import sys
 import traceback
-from xml.etree.ElementTree import Element, SubElement
+from xml.etree.ElementTree import Element
 
 if sys.version_info >= (3, 11):
     import tomllib
@@ -40,6 +40,8 @@ else:  # pragma: no cover
 import numpy as np
 from pythonfmu import DefaultExperiment, Fmi2Causality, Fmi2Initial, Fmi2Slave, Fmi2Variability, Real
 from pythonfmu.enums import Fmi2Status
+
+from .fmi_xml import complete_model_description
 
 from .mill import PSD_SUM_TOL, InputError, MillModel, StepError
 from .scene import SceneError, scene_from_dict
@@ -323,35 +325,6 @@ class MillSlave(Fmi2Slave):
 
     # ---- model description -----------------------------------------------------------------
     def to_xml(self, model_options=dict()) -> Element:
-        """pythonfmu's description plus units, exact start values, output dependencies and
-        InitialUnknowns (outputs depend on no input within a step: no direct feedthrough)."""
-        root = super().to_xml(model_options)
-        root.set("description", self._model_description)
-        used = []
-        by_name = {v.name: v for v in self.vars.values()}
-        for sv in root.iter("ScalarVariable"):
-            name = sv.get("name")
-            real = sv.find("Real")
-            u = self._units[name]
-            real.set("unit", u)
-            if u not in used:
-                used.append(u)
-            if real.get("start") is not None:
-                real.set("start", repr(float(self._v[by_name[name].value_reference])))
-        units = Element("UnitDefinitions")
-        for u in used:
-            unit = SubElement(units, "Unit", {"name": u})
-            SubElement(unit, "BaseUnit", {k: str(e) for k, e in UNITS[u].items()})
-        pos = list(root).index(root.find("CoSimulation")) + 1
-        root.insert(pos, units)
-        root.remove(root.find("ModelStructure"))
-        ms = SubElement(root, "ModelStructure")
-        outs = SubElement(ms, "Outputs")
-        init = SubElement(ms, "InitialUnknowns")
-        for i, v in enumerate(self.vars.values(), 1):
-            if v.causality == Fmi2Causality.output:
-                SubElement(outs, "Unknown", {"index": str(i), "dependencies": ""})
-                # Initial outputs follow from the parameters and input start values (the
-                # scene's operating point), so no dependency list: "depends on all".
-                SubElement(init, "Unknown", {"index": str(i)})
-        return root
+        """pythonfmu's description completed with units, exact start values, output
+        dependencies and InitialUnknowns (see :mod:`millfmu.fmi_xml`)."""
+        return complete_model_description(super().to_xml(model_options), self, self._units, UNITS.__getitem__, self._model_description)
