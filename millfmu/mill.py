@@ -331,7 +331,9 @@ class MillModel:
         if not np.all(np.isfinite(y_new)) or np.any(y_new < 0.0):
             raise StepError(f"step of {h} s at t = {self.t_s} s gave non-finite or negative masses")
         out_kg = float(y_new[0] - self.y[0])
-        fed = float(new_inputs["feed_mass_flow_kg_per_s"]) * h
+        # Fed mass: the feed rate is linear over the step when ramped (as integrated above).
+        mdot_end = (end_inputs or new_inputs)["feed_mass_flow_kg_per_s"]
+        fed = 0.5 * (float(new_inputs["feed_mass_flow_kg_per_s"]) + float(mdot_end)) * h
         # Power and stress number with the operating point held over the step (trapezoid
         # between start and end for ramps).
         p_mean = 0.5 * (self._op_numbers(op)["power_W"] + self._op_numbers(op_end)["power_W"])

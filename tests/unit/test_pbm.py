@@ -85,6 +85,14 @@ def test_continuous_mass_balance_in_out_accumulation(scene_dict):
     assert abs(fed - out - acc) <= 1e-12 * (holdup0 + fed)
 
 
+def test_feed_ramp_within_a_step_books_the_mass_fed(scene_dict):
+    """A feed rate ramped within one step (adaptive path): the mass balance still closes."""
+    m = MillModel(make_scene(scene_dict, operation={"mode": "continuous", "n_tanks": 2, "feed_mass_flow_kg_per_s": 1e-3}))
+    m.step(10.0, inputs_end={"feed_mass_flow_kg_per_s": 3e-3}, feed_mass_flow_kg_per_s=1e-3)
+    assert m.fed_kg == pytest.approx(0.02, rel=1e-15)
+    assert abs(m.total_mass_kg() - (m.m0_kg + m.fed_kg)) <= 1e-12 * m.total_mass_kg()
+
+
 def test_continuous_steady_state_residence_time(scene_dict):
     """With zero rates the outlet follows the N-tanks-in-series washout: holdup -> V c for any initial content."""
     s = make_scene(scene_dict, operation={"mode": "continuous", "n_tanks": 2, "feed_mass_flow_kg_per_s": 1e-3}, mill={"tip_speed_m_per_s": 0.0})
