@@ -138,9 +138,9 @@ def _export_table_slice(scene, prefix: Path) -> list:
     sd = scene.kinetics.stress_distribution
     if scene.kinetics.model != "detailed" or sd.source != "table":
         return []
-    from millfmu.dem.tables import read_default_table, read_table
+    from millfmu.dem.tables import read_table_ref
 
-    tab = read_default_table() if sd.table == "default" else read_table(npz=sd.table + ".npz", manifest_path=sd.table + ".json")
+    tab = read_table_ref(sd.table)
     fixed = {"bead_diameter_m": scene.beads.diameter_m, "bead_density_kg_m3": scene.beads.density_kg_per_m3, "viscosity_pa_s": scene.suspension.viscosity_Pa_s}
     bounds = {k: (v, v) for k, v in fixed.items() if k in tab.axes}
     return list((tab.subset(bounds) if bounds else tab).export(prefix))

@@ -110,10 +110,9 @@ class MillModel:
             return None
         if sd.source == "table":
             # Imported only here: scenes without a table never load the table code.
-            from .dem.tables import TableStressSource, read_default_table, read_table
+            from .dem.tables import TableStressSource, read_table_ref
 
-            tab = read_default_table() if sd.table == "default" else read_table(npz=sd.table + ".npz", manifest_path=sd.table + ".json")
-            return TableStressSource(tab, component=sd.component, similar_axes=tuple(sd.similar_axes), on_outside=sd.on_outside)
+            return TableStressSource(read_table_ref(sd.table), component=sd.component, similar_axes=tuple(sd.similar_axes), on_outside=sd.on_outside)
         return LogNormalStressSource(sd.median_fraction, sd.sigma_ln, sd.collision_factor)
 
     # ---- state ---------------------------------------------------------------------------
@@ -266,8 +265,8 @@ class MillModel:
                 raise InputError(k, x, "must lie in [0, 40] m/s")
             if k == "bead_filling":
                 c_v = x * (1.0 - self.scene.mill.bead_porosity)
-                if not (0.0 < x < 1.0) or c_v >= 0.64:
-                    raise InputError(k, x, "must lie in (0, 1) with bead volume fraction below 0.64")
+                if not (0.0 < x < 1.0) or c_v >= stress.PHI_MAX_RCP:
+                    raise InputError(k, x, f"must lie in (0, 1) with bead volume fraction below {stress.PHI_MAX_RCP}")
             if k == "solids_mass_fraction" and not 0.0 < x < 0.8:
                 raise InputError(k, x, "must lie in (0, 0.8)")
             if k == "feed_mass_flow_kg_per_s" and not 0.0 <= x <= 1e3:
@@ -389,9 +388,9 @@ class MillModel:
             "se_beads_J": num["se_beads_J"],
             "se_product_J": num["se_product_J"],
             "sf_per_s": sf,
-            "stress_number": getattr(self, "stress_number", 0.0),
+            "stress_number": self.stress_number,
             "power_W": num["power_W"],
-            "specific_energy_J_per_kg": self._specific_energy() if hasattr(self, "energy_J") else 0.0,
+            "specific_energy_J_per_kg": self._specific_energy(),
             "eta_eff_Pa_s": num["eta_eff_Pa_s"],
             "reynolds": num["reynolds"],
             "tip_speed_m_per_s": op.tip_speed_m_per_s,

@@ -20,6 +20,8 @@ if sys.version_info >= (3, 11):
 else:  # pragma: no cover
     import tomli as tomllib
 
+from .kinetics.stress import PHI_MAX_RCP
+
 INF = math.inf
 
 
@@ -294,8 +296,8 @@ def _cross_check(s: Scene, source: str):
     if s.material.model == "yeast" and s.kinetics.capture == "psd":
         pass  # allowed: cells' number concentration from the intact cells
     c_v = s.mill.bead_filling * (1.0 - s.mill.bead_porosity)
-    if c_v >= 0.64:
-        raise SceneError("mill.bead_filling", s.mill.bead_filling, f"with bead_porosity {s.mill.bead_porosity:g} gives a bead volume fraction {c_v:.3f}; must stay below 0.64 (random close packing)", source)
+    if c_v >= PHI_MAX_RCP:
+        raise SceneError("mill.bead_filling", s.mill.bead_filling, f"with bead_porosity {s.mill.bead_porosity:g} gives a bead volume fraction {c_v:.3f}; must stay below {PHI_MAX_RCP} (random close packing)", source)
     _check_psd(s.feed, "feed", source)
     if s.initial is not None:
         _check_psd(s.initial, "initial", source)

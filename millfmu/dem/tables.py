@@ -1163,6 +1163,13 @@ def default_table_paths() -> tuple[Path, Path]:
     return base / DEFAULT_TABLE_NPZ, base / DEFAULT_TABLE_MANIFEST
 
 
+def read_table_ref(ref: str) -> Table:
+    """The table a scene names: "default" (the shipped one) or PREFIX of PREFIX.npz/PREFIX.json."""
+    if ref == "default":
+        return read_default_table()
+    return read_table(npz=ref + ".npz", manifest_path=ref + ".json")
+
+
 def read_default_table() -> Table:
     """The shipped default table, verified (checksums, key, shapes; its kernel version is
     recorded in its manifest and not required to match the installed DEM)."""
