@@ -98,9 +98,9 @@ class MillModel:
         self.source = self._stress_source(sd)
         self._m = self.operator.state_size
         self._feed_map = pbm.feed_matrix(self._m, self.n_tanks, self.grid.n)
-        self._cache = pbm.PropagatorCache()
-        self._rate_cache: dict = {}
-        self._num_cache: dict = {}
+        self._cache = pbm.LRUCache(32)  # exact propagators by (inputs, h)
+        self._rate_cache = pbm.LRUCache(64)  # breakage operators by operating point
+        self._num_cache = pbm.LRUCache(256)  # scalars by operating point
         self._log_nodes = np.log(self.operator.nodes_m.ravel())
         self.reset()
 
@@ -209,14 +209,7 @@ class MillModel:
     def _breakage_matrix(self, op, n_p=None):
         if n_p is not None:
             return self.operator.matrix(self.selection_nodes(op, n_p))
-        key = op
-        a = self._rate_cache.get(key)
-        if a is None:
-            a = self.operator.matrix(self.selection_nodes(op))
-            if len(self._rate_cache) > 64:
-                self._rate_cache.clear()
-            self._rate_cache[key] = a
-        return a
+        return self._rate_cache.get(op, lambda: self.operator.matrix(self.selection_nodes(op)))
 
     def _system(self, inputs, y=None):
         """(G, F, u, op) for frozen inputs (and, capture = 'psd', the state y)."""
@@ -402,21 +395,15 @@ class MillModel:
 
     def _op_numbers(self, op) -> dict:
         """Scalars of an operating point (cached: the hot path recomputes nothing)."""
-        num = self._num_cache.get(op)
-        if num is None:
-            num = {
-                "se_beads_J": op.se_beads_J,
-                "se_product_J": op.se_product_J,
-                "power_W": self.power_W(op),
-                "eta_eff_Pa_s": op.eta_eff_Pa_s,
-                "reynolds": op.reynolds,
-                # SF per node is state-independent unless capture = 'psd'.
-                "sf_nodes": None if self.capture_from_psd else self._sf_nodes(op, None).ravel(),
-            }
-            if len(self._num_cache) > 256:
-                self._num_cache.clear()
-            self._num_cache[op] = num
-        return num
+        return self._num_cache.get(op, lambda: {
+            "se_beads_J": op.se_beads_J,
+            "se_product_J": op.se_product_J,
+            "power_W": self.power_W(op),
+            "eta_eff_Pa_s": op.eta_eff_Pa_s,
+            "reynolds": op.reynolds,
+            # SF per node is state-independent unless capture = 'psd'.
+            "sf_nodes": None if self.capture_from_psd else self._sf_nodes(op, None).ravel(),
+        })
 
     def _sf_nodes(self, op, y):
         if self.kinetics_model == "none":

@@ -162,29 +162,28 @@ def propagators(g: np.ndarray, f: np.ndarray | None, h_s: float):
     return _clean(e[:size, :size], 1.0), _clean(e[:size, size:], h_s)
 
 
-class PropagatorCache:
-    """Least-recently-used cache of exact propagators keyed by (rate-set key, step size)."""
+class LRUCache:
+    """Least-recently-used cache: ``get(key, build)`` returns the cached value or builds it.
+
+    Used for the exact propagators (keyed by rate set and step size) and the per-operating-
+    point operators and numbers, so that repeated steps rebuild nothing.
+    """
 
     def __init__(self, maxsize: int = 32):
         self.maxsize = maxsize
         self._d: OrderedDict = OrderedDict()
-        self.hits = 0
-        self.misses = 0
 
     def get(self, key, build):
+        d = self._d
         try:
-            v = self._d.pop(key)
-            self.hits += 1
+            v = d[key]
         except KeyError:
-            v = build()
-            self.misses += 1
-        self._d[key] = v
-        if len(self._d) > self.maxsize:
-            self._d.popitem(last=False)
+            v = d[key] = build()
+            if len(d) > self.maxsize:
+                d.popitem(last=False)
+            return v
+        d.move_to_end(key)
         return v
-
-    def clear(self):
-        self._d.clear()
 
 
 def adaptive_exponential_step(y0, t0_s, h_s, system, rtol=1e-6, atol=1e-12, h_min_s=None, max_substeps=100000):
