@@ -59,14 +59,12 @@ def simulate(scene: Scene, progress: bool = True):
     records, psds = [], []
 
     def record(out):
-        rec = {k: out.get(k) for k in RESULT_KEYS if k in out or k == "total_mass_kg"}
-        rec["total_mass_kg"] = model.total_mass_kg()
-        if "disrupted_fraction" not in out:
-            rec.pop("disrupted_fraction", None)
-        records.append({k: (float(v) if v is not None else None) for k, v in rec.items()})
+        values = {**out, "total_mass_kg": model.total_mass_kg()}
+        records.append({k: float(values[k]) for k in RESULT_KEYS if k in values})
         psds.append(np.cumsum(out["psd"]))
 
-    if r.tip_speed_profile:
+    profile = bool(r.tip_speed_profile)
+    if profile:
         model.set_inputs(tip_speed_m_per_s=tip_speed_at(scene, 0.0))
     record(model.outputs())
     bar = None
@@ -75,7 +73,6 @@ def simulate(scene: Scene, progress: bool = True):
 
         # Shown only for runs that take longer than a couple of seconds.
         bar = tqdm(total=n_steps, unit="step", delay=2.0, desc=scene.scene.name, leave=False)
-    profile = bool(r.tip_speed_profile)
     try:
         for i in range(n_steps):
             t0 = model.t_s
