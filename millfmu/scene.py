@@ -34,9 +34,10 @@ class SceneError(ValueError):
         super().__init__(f"{source}: {key} = {shown}: {allowed}")
 
 
-def _f(default=MISSING, *, unit="", lo=None, hi=None, lo_open=False, hi_open=False, choices=None, doc=""):
-    """Field with unit, bounds and choices kept as metadata for validation and listing."""
-    md = dict(unit=unit, lo=lo, hi=hi, lo_open=lo_open, hi_open=hi_open, choices=choices, doc=doc)
+def _f(default=MISSING, *, unit="", lo=None, hi=None, lo_open=False, hi_open=False, choices=None, allow_inf=False, doc=""):
+    """Field with unit, bounds and choices kept as metadata for validation and listing;
+    allow_inf: the number may be infinite (e.g. "no maximum")."""
+    md = dict(unit=unit, lo=lo, hi=hi, lo_open=lo_open, hi_open=hi_open, choices=choices, allow_inf=allow_inf, doc=doc)
     if isinstance(default, list):
         return field(default_factory=lambda d=default: list(d), metadata=md)
     if is_dataclass(default):
@@ -92,7 +93,7 @@ class Selection:
     a_per_s: float = _f(1e-3, unit="1/s", lo=0.0, doc="Austin S = a (x/x0)^alpha / (1 + (x/mu)^Lambda)")
     x0_m: float = _f(1e-3, unit="m", lo=0.0, lo_open=True, doc="reference size x0")
     alpha: float = _f(1.0, lo=-10.0, hi=20.0, doc="exponent alpha")
-    mu_m: float = _f(INF, unit="m", lo=0.0, lo_open=True, doc="size of the maximum term mu (inf: none)")
+    mu_m: float = _f(INF, unit="m", lo=0.0, lo_open=True, allow_inf=True, doc="size of the maximum term mu (inf: none)")
     Lambda: float = _f(0.0, lo=0.0, hi=20.0, doc="steepness Lambda of the maximum term")
 
 
@@ -184,16 +185,22 @@ class Scene:
 # ---------------------------------------------------------------------------------------
 # Loading and validation
 # ---------------------------------------------------------------------------------------
-def _describe(md) -> str:
-    if md["choices"]:
-        return "one of " + ", ".join(repr(c) for c in md["choices"])
+def _bounds(md) -> str:
+    """The bounds of a number with its unit, e.g. ">= 0 and <= 40 m/s" ("" if none)."""
     parts = []
     if md["lo"] is not None:
         parts.append((">" if md["lo_open"] else ">=") + f" {md['lo']:g}")
     if md["hi"] is not None:
         parts.append(("<" if md["hi_open"] else "<=") + f" {md['hi']:g}")
     unit = f" {md['unit']}" if md["unit"] else ""
-    return ("a number " + " and ".join(parts) + unit) if parts else "a number" + unit
+    return " and ".join(parts) + unit if parts else unit.strip()
+
+
+def _describe(md) -> str:
+    if md["choices"]:
+        return "one of " + ", ".join(repr(c) for c in md["choices"])
+    b = _bounds(md)
+    return "a number " + b if b else "a number"
 
 
 def _check_value(key, v, ftype, md, source):
@@ -207,7 +214,7 @@ def _check_value(key, v, ftype, md, source):
             raise SceneError(key, v, "must be " + _describe(md), source)
     elif ftype in ("int", int):
         if isinstance(v, bool) or not isinstance(v, int):
-            raise SceneError(key, v, "must be an integer" + (" " + _describe(md)[9:] if md["lo"] is not None else ""), source)
+            raise SceneError(key, v, ("must be an integer " + _bounds(md)).rstrip(), source)
     elif ftype in ("str", str):
         if not isinstance(v, str):
             raise SceneError(key, v, "must be " + (_describe(md) if md["choices"] else "a string"), source)
@@ -223,7 +230,7 @@ def _check_value(key, v, ftype, md, source):
         raise SceneError(key, v, "must be " + _describe(md), source)
     if hi is not None and (v > hi or (md["hi_open"] and v == hi)):
         raise SceneError(key, v, "must be " + _describe(md), source)
-    if ftype in ("float", float) and math.isinf(v) and "mu_m" not in key:
+    if ftype in ("float", float) and math.isinf(v) and not md["allow_inf"]:
         raise SceneError(key, v, "must be finite", source)
     return v
 
