@@ -84,10 +84,9 @@ class BreakageOperator:
         s = np.asarray(s_nodes_per_s, dtype=float)
         off = np.einsum("ijq,jq->ij", self._w_frag, s)
         if not self.inert_fragments:
-            a = off
-            a[np.diag_indices(n)] = 0.0
-            a[np.diag_indices(n)] = -off.sum(axis=0)
-            return a
+            # off has a zero diagonal (fragments inside class j stay), so this is the column sum.
+            off[np.diag_indices(n)] = -off.sum(axis=0)
+            return off
         a = np.zeros((2 * n, 2 * n))
         a[n:, :n] = off
         a[np.arange(n), np.arange(n)] = -off.sum(axis=0)
