@@ -300,8 +300,6 @@ def _cross_check(s: Scene, source: str):
         raise SceneError("kinetics.model", s.kinetics.model, "must be 'none' for material.model = 'austin' (rates straight from the scene)", source)
     if s.material.model != "austin" and s.kinetics.model == "none":
         raise SceneError("kinetics.model", s.kinetics.model, f"must be 'simple' or 'detailed' for material.model = {s.material.model!r}; 'none' needs material.model = 'austin'", source)
-    if s.material.model == "yeast" and s.kinetics.capture == "psd":
-        pass  # allowed: cells' number concentration from the intact cells
     c_v = s.mill.bead_filling * (1.0 - s.mill.bead_porosity)
     if c_v >= PHI_MAX_RCP:
         raise SceneError("mill.bead_filling", s.mill.bead_filling, f"with bead_porosity {s.mill.bead_porosity:g} gives a bead volume fraction {c_v:.3f}; must stay below {PHI_MAX_RCP} (random close packing)", source)
