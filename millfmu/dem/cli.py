@@ -36,6 +36,9 @@ def register(subparsers) -> argparse.ArgumentParser:
                    help="sampling interval of positions and velocities [s]")
     r.add_argument("--dt", type=float, dest="dt_s", metavar="S", help="time step [s]")
     r.add_argument("--threads", type=int, help="numba threads (default: all cores)")
+    r.add_argument("--windows", type=float, dest="window_s", metavar="S",
+                   help="also write windows.csv: zone statistics of consecutive recording "
+                        "windows of S seconds (stationarity check)")
     r.add_argument("--no-progress", action="store_true", help="no progress bar")
     r.set_defaults(func=_run)
 
@@ -63,7 +66,11 @@ def _run(args) -> int:
         return 2
     from millfmu.dem.run import run_scene, summary_table
 
-    stats = run_scene(scene, args.out, progress=not args.no_progress, threads=args.threads)
+    if args.window_s is not None and not args.window_s > 0.0:
+        print(f"millfmu dem run: --windows = {args.window_s!r}: must be > 0 s", file=sys.stderr)
+        return 2
+    stats = run_scene(scene, args.out, progress=not args.no_progress, threads=args.threads,
+                      window_s=args.window_s)
     print(summary_table(stats))
     print(f"fluid: {stats.fluid_model}")
     print(f"wrote {args.out}/stats.json, se_histograms.csv, kinetic_energy.csv, map_*.png")

@@ -40,11 +40,19 @@ def initial_positions(scene: DemScene) -> np.ndarray:
     return place_beads(scene.geometry, n, r, seed=scene.seed)
 
 
-def run_scene(scene: DemScene, out_dir, progress: bool = True, threads: int | None = None
-              ) -> DemStats:
-    """Run ``scene`` and write its outputs to ``out_dir``; returns the statistics."""
+def run_scene(scene: DemScene, out_dir, progress: bool = True, threads: int | None = None,
+              window_s: float | None = None) -> DemStats:
+    """Run ``scene`` and write its outputs to ``out_dir``; returns the statistics.
+
+    ``window_s`` [s]: also cut the recording into consecutive windows of this length (a
+    whole number of sampling intervals) and write each window's zone statistics to
+    ``windows.csv``, to see whether the recorded state is stationary.
+    """
     from millfmu.dem import kernels as K
     from millfmu.dem.sim import DemSimulation
+
+    EV_COLS = dict(type=K.EV_TYPE, x=K.EV_X, y=K.EV_Y, z=K.EV_Z, setn=K.EV_SETN,
+                   sets=K.EV_SETS, serot=K.EV_SEROT)
 
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
@@ -67,7 +75,7 @@ def run_scene(scene: DemScene, out_dir, progress: bool = True, threads: int | No
     ke_t, ke = [], []
     sx, sv = [], []
     events = []
-    torque_sum = 0.0
+    torques = []
     dropped = builds = 0
     t_wall = time.perf_counter()
 
@@ -85,7 +93,7 @@ def run_scene(scene: DemScene, out_dir, progress: bool = True, threads: int | No
         builds += st.neighbour_builds
         if recording:
             events.append(st.events)
-            torque_sum += st.torque_sum_nm_steps
+            torques.append((k, st.torque_sum_nm_steps))
             dropped += st.dropped_events
             sx.append(sim.x.copy())
             sv.append(sim.v.copy())
@@ -97,8 +105,6 @@ def run_scene(scene: DemScene, out_dir, progress: bool = True, threads: int | No
         bar.close()
     wall = time.perf_counter() - t_wall
     ev = np.concatenate(events) if events else np.zeros((0, K.EV_NF))
-    cols = dict(type=K.EV_TYPE, x=K.EV_X, y=K.EV_Y, z=K.EV_Z, setn=K.EV_SETN,
-                sets=K.EV_SETS, serot=K.EV_SEROT)
     notes = [
         "fluid: " + (FLUID_NOTE if scene.fluid is not None and scene.fluid.drag
                      else "no fluid drag"),
@@ -108,28 +114,61 @@ def run_scene(scene: DemScene, out_dir, progress: bool = True, threads: int | No
         "stirrer torque and power scaled from the simulated sector to the full circle; "
         "per axial period of the cell",
     ]
-    stats = compute_stats(
-        scene=scene.name, zones=zones, events=ev, ev_cols=cols, sample_x=sx, sample_v=sv,
-        radii_m=sim.rad, record_s=n_rec * dt, tip_speed_m_s=scene.tip_speed_m_s,
-        omega_rad_s=scene.omega_rad_s, torque_on_stirrer_nm=torque_sum / n_rec,
-        ke_t_s=np.array(ke_t), ke_j=np.array(ke), spin_up_s=n_spin * dt, dt_s=dt,
-        filling=scene.filling, bulk_porosity=scene.bulk_porosity,
-        fluid_model=FLUID_NOTE if scene.fluid is not None else "none", notes=notes,
-        counts=dict(contacts_recorded=int(ev.shape[0]),
-                    bead_bead=int((ev[:, K.EV_TYPE] == 0).sum()) if ev.size else 0,
-                    bead_wall=int((ev[:, K.EV_TYPE] > 0).sum()) if ev.size else 0,
-                    dropped_contacts=int(dropped), neighbour_builds=int(builds),
-                    steps=int(total), wall_time_s=wall, threads=int(sim.threads),
-                    particle_steps_per_s=sim.n * total / wall))
+
+    def stats_of(chunks, t0_s, counts=None):
+        # Statistics of the recording chunks ``chunks`` (indices), which start at t0_s.
+        e = np.concatenate([events[i] for i in chunks]) if chunks else np.zeros((0, K.EV_NF))
+        n = sum(torques[i][0] for i in chunks)
+        return compute_stats(
+            scene=scene.name, zones=zones, events=e, ev_cols=EV_COLS,
+            sample_x=[sx[i] for i in chunks], sample_v=[sv[i] for i in chunks],
+            radii_m=sim.rad, record_s=n * dt, tip_speed_m_s=scene.tip_speed_m_s,
+            omega_rad_s=scene.omega_rad_s,
+            torque_on_stirrer_nm=sum(torques[i][1] for i in chunks) / max(n, 1),
+            ke_t_s=np.array(ke_t), ke_j=np.array(ke), spin_up_s=t0_s, dt_s=dt,
+            filling=scene.filling, bulk_porosity=scene.bulk_porosity,
+            fluid_model=FLUID_NOTE if scene.fluid is not None else "none", notes=notes,
+            counts=counts or {})
+
+    stats = stats_of(list(range(len(events))), n_spin * dt, counts=dict(
+        contacts_recorded=int(ev.shape[0]),
+        bead_bead=int((ev[:, K.EV_TYPE] == 0).sum()) if ev.size else 0,
+        bead_wall=int((ev[:, K.EV_TYPE] > 0).sum()) if ev.size else 0,
+        dropped_contacts=int(dropped), neighbour_builds=int(builds),
+        steps=int(total), wall_time_s=wall, threads=int(sim.threads),
+        particle_steps_per_s=sim.n * total / wall))
+    if window_s is not None:
+        per = max(1, int(round(window_s / (every * dt))))
+        rows = []
+        for w0 in range(0, len(events), per):
+            chunks = list(range(w0, min(w0 + per, len(events))))
+            t0 = (n_spin + w0 * every) * dt
+            rows.append((t0, t0 + sum(torques[i][0] for i in chunks) * dt,
+                         stats_of(chunks, t0)))
+        _write_windows(out / "windows.csv", rows)
     (out / "stats.json").write_text(stats.to_json())
     _write_histograms(out / "se_histograms.csv", stats)
     np.savetxt(out / "kinetic_energy.csv", np.column_stack([ke_t, ke]), delimiter=",",
                header="t_s,kinetic_energy_j", comments="")
     from millfmu.dem import plots
 
-    plots.write_maps(out, scene, ev, cols)
+    plots.write_maps(out, scene, ev, EV_COLS)
     plots.write_distributions(out / "se_distributions.png", stats)
     return stats
+
+
+def _write_windows(path: Path, rows):
+    """Per-window zone statistics: one line per window and zone."""
+    lines = ["t_start_s,t_end_s,zone,filling,speed_over_tip_speed,collision_frequency_per_m3_s,"
+             "se_tn_q50_j,se_tn_q90_j,collision_power_w"]
+    for t0, t1, st in rows:
+        for z in st.zones:
+            q = z.se["tn"].quantiles_j
+            lines.append(",".join([f"{t0:.9g}", f"{t1:.9g}", z.name] + [
+                f"{v:.12g}" if v is not None else "nan" for v in (
+                    z.filling, z.speed_over_tip_speed, z.collision_frequency_per_m3_s,
+                    q["q50"], q["q90"], z.collision_power_w)]))
+    path.write_text("\n".join(lines) + "\n")
 
 
 def _write_histograms(path: Path, stats: DemStats):

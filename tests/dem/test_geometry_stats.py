@@ -1,6 +1,7 @@
 """Geometry, zones, scenes, statistics and CLI of the bead DEM (mostly without numba)."""
 
 import argparse
+import csv
 import json
 import math
 import subprocess
@@ -151,7 +152,7 @@ def test_disc_slice_short_run_gives_zone_statistics(tmp_path):
     out = tmp_path / "ds"
     a = p.parse_args(["dem", "run", "disc_slice", "--out", str(out), "--sector-deg", "30",
                       "--no-gravity", "--spin-up", "1e-4", "--record", "2e-4",
-                      "--sample-every", "5e-5", "--no-progress"])
+                      "--sample-every", "5e-5", "--windows", "1e-4", "--no-progress"])
     assert a.func(a) == 0
     stats = DemStats.from_json((out / "stats.json").read_text())
     assert [z.name for z in stats.zones] == ["V1", "V2", "V3", "V4"]
@@ -177,5 +178,29 @@ def test_disc_slice_short_run_gives_zone_statistics(tmp_path):
     json.loads((out / "stats.json").read_text())  # plain JSON
     for f in ("se_histograms.csv", "kinetic_energy.csv", "map_stress_energy.png",
               "map_collision_frequency.png", "map_collision_power.png",
-              "se_distributions.png"):
+              "se_distributions.png", "windows.csv"):
         assert (out / f).stat().st_size > 0
+    # Two windows of equal length: their mean collision frequency is the whole recording's,
+    # and the drift between them is what a table's manifest reports.
+    with open(out / "windows.csv", newline="") as fh:
+        rows = list(csv.DictReader(fh))
+    assert [(float(r["t_start_s"]), float(r["t_end_s"]), r["zone"]) for r in rows[::4]] == [
+        (pytest.approx(1e-4), pytest.approx(2e-4), "V1"),
+        (pytest.approx(2e-4), pytest.approx(3e-4), "V1")]
+    for k, z in enumerate(stats.zones):
+        f = [float(r["collision_frequency_per_m3_s"]) for r in rows if r["zone"] == z.name]
+        assert np.mean(f) == pytest.approx(z.collision_frequency_per_m3_s, rel=1e-10)
+    from millfmu.dem.tables import DRIFT_FIELDS, recording_drift
+
+    drift = recording_drift(out / "windows.csv", [z.name for z in stats.zones])
+    f = [float(r["collision_frequency_per_m3_s"]) for r in rows if r["zone"] == "V2"]
+    assert drift["collision_frequency_per_m3_s"][1] == pytest.approx(
+        (f[1] - f[0]) / (0.5 * (f[0] + f[1])))
+    assert set(drift) == set(DRIFT_FIELDS)
+
+
+def test_cli_refuses_a_nonpositive_window(capsys, tmp_path):
+    p = _parser()
+    a = p.parse_args(["dem", "run", "disc_slice", "--out", str(tmp_path), "--windows", "0"])
+    assert a.func(a) == 2
+    assert "--windows = 0.0" in capsys.readouterr().err
