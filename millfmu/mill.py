@@ -14,7 +14,7 @@ import numpy as np
 from .kinetics import grid as kgrid
 from .kinetics import materials, pbm, rates, stress
 from .kinetics.stress_distribution import LogNormalStressSource
-from .scene import PSD, Scene
+from .scene import PSD, Scene, SceneError
 
 #: Tolerance on the sum of an input size distribution's mass fractions [-].
 PSD_SUM_TOL = 1e-6
@@ -26,6 +26,17 @@ class InputError(ValueError):
     def __init__(self, name: str, value, allowed: str):
         self.name, self.value, self.allowed = name, value, allowed
         super().__init__(f"input {name} = {value!r}: {allowed}")
+
+
+#: Axes of a stress-energy table that are model inputs: axis -> input name. A table that
+#: refuses an input value (outside its grid) gives an InputError naming the input.
+TABLE_INPUTS = {"tip_speed_m_s": "tip_speed_m_per_s", "filling": "bead_filling"}
+TABLE_INPUTS_CHECKED = frozenset(TABLE_INPUTS.values())
+#: Table axis -> the scene key that sets it (for a SceneError when the scene lies outside).
+TABLE_SCENE_KEYS = {"tip_speed_m_s": "mill.tip_speed_m_per_s", "filling": "mill.bead_filling",
+                    "bead_diameter_m": "beads.diameter_m",
+                    "bead_density_kg_m3": "beads.density_kg_per_m3",
+                    "viscosity_pa_s": "suspension.viscosity_Pa_s"}
 
 
 class StepError(RuntimeError):
@@ -96,6 +107,7 @@ class MillModel:
         self.capture_from_psd = scene.kinetics.capture == "psd"
         sd = scene.kinetics.stress_distribution
         self.source = self._stress_source(sd)
+        self._check_source_scene()
         self._m = self.operator.state_size
         self._feed_map = pbm.feed_matrix(self._m, self.n_tanks, self.grid.n)
         self._cache = pbm.LRUCache(32)  # exact propagators by (inputs, h)
@@ -114,6 +126,31 @@ class MillModel:
 
             return TableStressSource(read_table_ref(sd.table), component=sd.component, similar_axes=tuple(sd.similar_axes), on_outside=sd.on_outside)
         return LogNormalStressSource(sd.median_fraction, sd.sigma_ln, sd.collision_factor)
+
+    def _check_source_scene(self):
+        """A table source refuses the scene's own operating point: a SceneError naming the
+        scene key, before anything runs."""
+        if not hasattr(self.source, "check"):
+            return
+        s = self.scene
+        try:
+            self.source.check(self.operating_point({
+                "tip_speed_m_per_s": s.mill.tip_speed_m_per_s, "bead_filling": s.mill.bead_filling,
+                "solids_mass_fraction": s.suspension.solids_mass_fraction}))
+        except ValueError as e:
+            if getattr(e, "axis", None) not in TABLE_SCENE_KEYS:
+                raise
+            raise SceneError(TABLE_SCENE_KEYS[e.axis], e.value, e.allowed, s.scene.name) from None
+
+    def _check_source_inputs(self, inputs: dict):
+        """InputError for inputs the stress-energy table refuses (see :meth:`check_inputs`)."""
+        try:
+            self.source.check(self.operating_point(inputs))
+        except ValueError as e:
+            name = TABLE_INPUTS.get(getattr(e, "axis", None))
+            if name is None:
+                raise
+            raise InputError(name, inputs[name], e.allowed) from None
 
     # ---- state ---------------------------------------------------------------------------
     def reset(self):
@@ -267,6 +304,9 @@ class MillModel:
             if k == "feed_mass_flow_kg_per_s" and x != 0.0 and not self.continuous:
                 raise InputError(k, x, "must be 0 for a batch mill (operation.mode = 'batch' has no feed)")
             new[k] = x
+        if given and self.source is not None and hasattr(self.source, "check") and (
+                given.keys() & TABLE_INPUTS_CHECKED):
+            self._check_source_inputs(new)
         return new
 
     def set_inputs(self, **inputs):

@@ -115,7 +115,7 @@ class StressDistribution:
     source: str = _f("lognormal", choices=("lognormal", "table"), doc="stress-energy source of the detailed model: log-normal, or a DEM table")
     table: str = _f("default", doc="table: 'default' (shipped millfmu/data/default_table) or PREFIX of PREFIX.npz/PREFIX.json")
     component: str = _f("tn", choices=("tn", "total"), doc="table: stress-energy component (tn: normal impact energy)")
-    similar_axes: list = _f([], doc="table: axes the table does not vary (bead_diameter_m, bead_density_kg_m3, viscosity_pa_s) whose scene values may differ (similarity assumed)")
+    similar_axes: list = _f([], doc="table: axes along which similarity is assumed: an axis the table does not vary (bead_diameter_m, bead_density_kg_m3, viscosity_pa_s) may differ from the table's value, and a value outside the grid (also tip_speed_m_s) uses the nearest edge's dimensionless fields")
     on_outside: str = _f("refuse", choices=("refuse", "build"), doc="table: operating point outside the grid: refuse, or build a covering table with the DEM")
     median_fraction: float = _f(0.01, lo=0.0, hi=1.0, lo_open=True, doc="lognormal: median collision energy over SE")
     sigma_ln: float = _f(1.5, lo=0.0, hi=10.0, lo_open=True, doc="lognormal: std. deviation of ln(energy)")

@@ -84,9 +84,24 @@ NORM_BINS_PER_DECADE = 5
 ZONE_FIELDS = ("volume_fraction", "filling_local", "speed_over_tip_speed",
                "collision_frequency_norm", "collision_power_norm", "collision_count")
 FIELDS = ZONE_FIELDS + ("se_density", "se_quantiles_norm")
+#: Per-zone columns of a DEM run's windows.csv whose drift between the halves of the
+#: recording a table keeps (and its manifest summarizes as "stationarity").
+DRIFT_FIELDS = ("filling", "speed_over_tip_speed", "collision_frequency_per_m3_s",
+                "se_tn_q50_j")
+#: Optional per-point field: relative drift of :data:`DRIFT_FIELDS` per zone between the
+#: halves of the point's DEM recording, trailing shape (len(DRIFT_FIELDS), Z); NaN where a
+#: zone had nothing to compare. Tables without it (analytic builders) read as before.
+OPTIONAL_FIELDS = ("recording_drift",)
 #: Error estimates multiply the second-difference estimate of the linear-interpolation error
 #: by this factor, because the curvature is taken at neighbouring nodes, not at the point.
 ERROR_SAFETY = 2.0
+#: Gridded axes along which ``similar_axes`` may extend a lookup beyond the grid by holding
+#: the dimensionless fields at the nearest edge: energies over E_ref ~ v_t^2 and frequencies
+#: over omega n_gb ~ v_t take out the leading tip-speed dependence (seed 000's stress model);
+#: tests/tables and the default table's manifest show how far that holds. Not filling: the
+#: bead fillings and collision densities change with it in ways no normalization removes.
+EXTRAPOLABLE_AXES = ("tip_speed_m_s", "bead_diameter_m", "bead_density_kg_m3",
+                     "viscosity_pa_s")
 #: Relative tolerance for matching a single-valued axis (an axis the grid does not vary).
 FIXED_AXIS_RTOL = 1e-9
 
@@ -100,10 +115,12 @@ class OutsideGridError(TableError):
 
     def __init__(self, axis: str, value: float, lo: float, hi: float, note: str = ""):
         self.axis, self.value, self.lo, self.hi = axis, value, lo, hi
-        unit = AXES[axis][2] if axis in AXES else ""
-        bounds = (f"the table holds only {lo!r} {unit}" if lo == hi
-                  else f"allowed {lo!r} to {hi!r} {unit}")
-        super().__init__(f"table lookup: {axis} = {value!r} {unit} is outside the grid; "
+        unit = f" {AXES[axis][2]}" if axis in AXES and AXES[axis][2] != "-" else ""
+        bounds = (f"the table holds only {lo!r}{unit}" if lo == hi
+                  else f"allowed {lo!r} to {hi!r}{unit}")
+        #: What is allowed, in words (for errors that name the input or scene key instead).
+        self.allowed = f"outside the stress-energy table's grid; {bounds}{note}"
+        super().__init__(f"table lookup: {axis} = {value!r}{unit} is outside the grid; "
                          f"{bounds}{note}")
 
 
@@ -284,6 +301,8 @@ class Table:
             len(QUANTILE_NAMES)
         want = {k: (z,) for k in ZONE_FIELDS}
         want.update(se_density=(c, z, b), se_quantiles_norm=(c, z, q))
+        if "recording_drift" in self.data:
+            want["recording_drift"] = (len(DRIFT_FIELDS), z)
         for k, tail in want.items():
             if k not in self.data:
                 raise TableError(f"table: field {k!r} missing")
@@ -302,7 +321,10 @@ class Table:
         tolerance 1e-9) unless named in ``similar_axes``: then the value is accepted and the
         table's dimensionless fields are used as they are, which assumes similarity in that
         axis (a stated assumption, recorded in the notes). A value outside an axis's range
-        raises :class:`OutsideGridError` naming the axis, the value and the bounds.
+        raises :class:`OutsideGridError` naming the axis, the value and the bounds, unless
+        the axis is in :data:`EXTRAPOLABLE_AXES` and named in ``similar_axes``: then the
+        fields of the nearest grid edge are used (noted), the similarity the table's
+        normalization rests on.
 
         Error estimate per field: for each axis with at least 3 points, the linear
         interpolation error t (1 - t) h^2 / 2 |f''| with f'' from the second divided
@@ -333,8 +355,19 @@ class Table:
                 raise OutsideGridError(name, x, lo, hi, note="; the axis is not varied in "
                                        "this table (allow it with similar_axes to assume "
                                        "similarity)")
-            if not (lo <= x <= hi) or not math.isfinite(x):
+            if not math.isfinite(x):
                 raise OutsideGridError(name, x, lo, hi)
+            # Round-off at an edge (a filling computed as 0.8000000000000002) is on the edge.
+            tol = FIXED_AXIS_RTOL * max(abs(lo), abs(hi))
+            if lo - tol <= x < lo or hi < x <= hi + tol:
+                x = lo if x < lo else hi
+            if not lo <= x <= hi:
+                if name not in similar or name not in EXTRAPOLABLE_AXES:
+                    raise OutsideGridError(name, x, lo, hi)
+                edge = lo if x < lo else hi
+                notes.append(f"{name} = {x!r} outside the grid [{lo!r}, {hi!r}]: "
+                             f"dimensionless fields held at {edge!r} (similarity assumed)")
+                x = edge
             i = int(np.searchsorted(ax, x, side="right") - 1)
             i = min(max(i, 0), ax.size - 2)
             t = (x - ax[i]) / (ax[i + 1] - ax[i])
@@ -369,10 +402,13 @@ class Table:
         moments of the SE_total bins; bin density sqrt(w (1 - w) / N) / dlog10; quantile
         q_p: q ln10 sqrt(p (1 - p) / N) / g, g the density per decade at q_p. Fields
         without a count model (volume fraction, local filling, speed) get 0.
-        Against a held-back DEM run (tests/tables/test_dem_table.py, 5 degree sector,
-        0.01 s runs) the quantiles and the frequencies of well-sampled zones stay within
-        error + 2 sigma; the frequency of the sparse zone V4 and the collision power
-        scatter up to about 1.5 times more: treat these sigmas as lower bounds."""
+        Tables that keep ``recording_drift`` (DEM tables) add half the relative change
+        between the halves of each point's recording times the value, in quadrature, to
+        the local filling, speed, collision frequency and power and to the SE quantiles:
+        the slow drift of the bead motion that the counts cannot see.
+        Against held-back DEM points (tests/tables) the quantiles and the frequencies of
+        well-sampled zones stay within error + 2 sigma; zones that (almost) empty during a
+        run (V4 below 70 % filling) do not: treat these sigmas as lower bounds there."""
         if getattr(self, "_node_sigma", None) is not None:
             return self._node_sigma
         U = norm_log10_edges()
@@ -398,6 +434,20 @@ class Table:
             g = np.take_along_axis(dens, b, axis=-1)
             sq = q * math.log(10.0) * np.sqrt(p * (1 - p))[None] * inv[..., None, :, None] / g
             out["se_quantiles_norm"] = np.where(np.isfinite(sq), sq, np.abs(q))
+        if "recording_drift" in self.data:
+            # The collision counts miss the slow changes of the bead motion over a run:
+            # the change between the halves of the recording, |drift| / 2 of the value,
+            # is added in quadrature (the energy scale's drift to every quantile).
+            d = 0.5 * np.abs(np.nan_to_num(self.data["recording_drift"], nan=0.0))
+            fi = {f: i for i, f in enumerate(DRIFT_FIELDS)}
+            for k, f in (("filling_local", "filling"),
+                         ("speed_over_tip_speed", "speed_over_tip_speed"),
+                         ("collision_frequency_norm", "collision_frequency_per_m3_s"),
+                         ("collision_power_norm", "collision_frequency_per_m3_s")):
+                out[k] = np.hypot(out[k], np.abs(self.data[k]) * d[..., fi[f], :])
+            dq = d[..., fi["se_tn_q50_j"], :][..., None, :, None]
+            out["se_quantiles_norm"] = np.hypot(out["se_quantiles_norm"],
+                                                np.abs(self.data["se_quantiles_norm"]) * dq)
         self._node_sigma = out
         return out
 
@@ -645,7 +695,7 @@ def read_table(folder=None, *, npz=None, manifest_path=None, expect_key: str | N
             raise TableError(f"{npz}: axis {name} missing or differs from the manifest grid")
         axes[name] = a
     t = Table(axes=axes, zone_names=tuple(m["zone_names"]),
-              data={k: arrs[k] for k in FIELDS if k in arrs},
+              data={k: arrs[k] for k in FIELDS + OPTIONAL_FIELDS if k in arrs},
               refs={k[4:]: v for k, v in arrs.items() if k.startswith("ref_")}, manifest=m)
     t.check_shapes()
     return t
@@ -664,6 +714,10 @@ def assemble(spec: TableSpec, results: list[dict]) -> Table:
     shape = spec.shape
     data = {k: np.stack([np.asarray(r[k], float) for r in results]).reshape(
         shape + np.asarray(results[0][k]).shape) for k in FIELDS}
+    if all("drift" in r for r in results):
+        data["recording_drift"] = np.array(
+            [[r["drift"][f] for f in DRIFT_FIELDS] for r in results], float).reshape(
+            shape + (len(DRIFT_FIELDS), len(zn)))
     refs = {k: np.array([float(r[k]) for r in results]).reshape(shape)
             for k in ("e_ref_J", "omega_rad_s", "n_gb_per_m3")}
     t = Table(axes={k: np.asarray(v, float) for k, v in spec.grid.items()}, zone_names=zn,
@@ -739,8 +793,12 @@ def _run_dask(spec, builder, points, results, workers, scheduler, bar):
 def build_table(spec: TableSpec, builder: Callable, **run_kw) -> Table:
     """Run the builder over the grid and assemble the table (not cached)."""
     t0 = time.perf_counter()
-    table = assemble(spec, run_points(spec, builder, **run_kw))
+    results = run_points(spec, builder, **run_kw)
+    table = assemble(spec, results)
     table.manifest = {"build_wall_time_s": time.perf_counter() - t0}
+    st = stationarity_summary(results, table.zone_names)
+    if st is not None:
+        table.manifest["stationarity"] = st
     return table
 
 
@@ -750,13 +808,17 @@ def manifest_for(spec: TableSpec, table: Table, extra: dict | None = None) -> di
     m["created_utc"] = time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime())
     m["resolution"] = resolution_of(spec)
     m["build_wall_time_s"] = table.manifest.get("build_wall_time_s")
+    if "stationarity" in table.manifest:
+        m["stationarity"] = table.manifest["stationarity"]
     if extra:
         m.update(extra)
     return m
 
 
-#: Spin-up below which a table's manifest warns that the beads were not at steady state
-#: (seed 001 starts its analysis after 2 s).
+#: Spin-up below which a table's manifest notes that the bead fillings still drift. With the
+#: prescribed swirl flow, bead speeds and collision energies settle within 0.04 s, but the
+#: beads keep moving outwards for longer than 0.4 s (disc_slice, 10 m/s, 80 %:
+#: ``millfmu dem run disc_slice --windows``); seed 001 (coupled CFD) analyses after 2 s.
 STEADY_SPIN_UP_S = 1.0
 
 
@@ -774,8 +836,10 @@ def resolution_of(spec: TableSpec) -> dict:
                       "dt_s": run.get("dt_s", 5e-6)}
         if res["dem"]["spin_up_s"] < STEADY_SPIN_UP_S:
             res["note"] = (f"spin-up {res['dem']['spin_up_s']} s < {STEADY_SPIN_UP_S} s: "
-                           f"bead motion not at steady state (seed 001 analyses after 2 s); "
-                           f"a coarse table, rebuild with longer runs for quantitative use")
+                           f"bead speeds and collision energies settle within about 0.04 s, "
+                           f"the bead fillings keep drifting outwards (no secondary flow in "
+                           f"the prescribed swirl); see 'stationarity' for the measured "
+                           f"drift; seed 001 analyses after 2 s")
     return res
 
 
@@ -984,10 +1048,49 @@ class DemBuilder:
                              f"need placement 'filling'")
         with tempfile.TemporaryDirectory(prefix="millfmu-table-point-") as tmp:
             t0 = time.perf_counter()
-            stats = run_scene(s, tmp, progress=False, threads=self.threads)
+            # Two windows, the halves of the recording: their difference shows whether the
+            # recorded state is stationary (manifest "stationarity").
+            stats = run_scene(s, tmp, progress=False, threads=self.threads,
+                              window_s=0.5 * s.record_s)
             out = normalize_stats(stats, s)
+            out["drift"] = recording_drift(Path(tmp) / "windows.csv", out["zone_names"])
         out["wall_time_s"] = time.perf_counter() - t0
         return out
+
+
+
+
+def recording_drift(windows_csv, zone_names) -> dict:
+    """Relative change [-] of each of :data:`DRIFT_FIELDS` per zone from the first to the
+    last window of a DEM run's ``windows.csv``: (last - first) / mean of the two."""
+    import csv
+
+    with open(windows_csv, newline="") as fh:
+        rows = list(csv.DictReader(fh))
+    starts = sorted({float(r["t_start_s"]) for r in rows})
+    first = {r["zone"]: r for r in rows if float(r["t_start_s"]) == starts[0]}
+    last = {r["zone"]: r for r in rows if float(r["t_start_s"]) == starts[-1]}
+    out = {}
+    for f in DRIFT_FIELDS:
+        vals = []
+        for z in zone_names:
+            a, b = float(first[z][f]), float(last[z][f])
+            m = 0.5 * (a + b)
+            vals.append((b - a) / m if math.isfinite(m) and m > 0.0 else float("nan"))
+        out[f] = vals
+    return out
+
+
+def stationarity_summary(results: list[dict], zone_names) -> dict | None:
+    """Largest |drift| over the grid points per field and zone (None without drift data)."""
+    if not all("drift" in r for r in results):
+        return None
+    out = {"measure": "relative change from the first to the second half of each grid "
+                      "point's recording, largest magnitude over the grid points"}
+    for f in DRIFT_FIELDS:
+        arr = np.abs(np.array([r["drift"][f] for r in results], float))
+        out[f] = {z: round(float(np.nanmax(arr[:, k])), 4) for k, z in enumerate(zone_names)}
+    return out
 
 
 def dem_spec(scene_name_or_path: str, grid: dict, overrides: dict | None = None) -> TableSpec:
@@ -1069,6 +1172,8 @@ class TableStressSource:
     named in ``similar_axes``: then the dimensionless fields are used unchanged, i.e.
     similarity in that axis is assumed (recorded in ``last_notes``); millfmu's tests show
     the scaling only along the tip speed, so this is an explicit choice of the scene.
+    ``tip_speed_m_s`` in ``similar_axes`` lets tip speeds outside the grid (a ramp from
+    standstill, a controller's excursion) use the nearest edge's dimensionless fields.
     A point outside the grid raises :class:`OutsideGridError` unless
     ``on_outside='build'``: then ``rebuild(table, point)`` (default :func:`rebuild_including`
     with the DEM) builds and caches a table whose grid covers the point, progress shown.
@@ -1090,12 +1195,26 @@ class TableStressSource:
             raise TableError(f"on_outside = {self.on_outside!r}: allowed 'refuse', 'build'")
         self.similar_axes = tuple(self.similar_axes)
         for ax in self.similar_axes:
-            if ax not in AXES or ax in ("tip_speed_m_s", "filling"):
+            if ax not in EXTRAPOLABLE_AXES:
                 raise TableError(f"similar_axes: {ax!r} not allowed; allowed: "
-                                 f"bead_diameter_m, bead_density_kg_m3, viscosity_pa_s")
+                                 f"{', '.join(EXTRAPOLABLE_AXES)}")
 
     def point_of(self, op) -> dict:
         return {ax: float(getattr(op, AXES[ax][3])) for ax in self.table.axes}
+
+    def check(self, op):
+        """Raise :class:`OutsideGridError` if :meth:`zones` would refuse ``op`` (a point
+        outside the grid with ``on_outside='refuse'``); cheap: bounds only, no lookup."""
+        if self.on_outside == "build":
+            return
+        for ax, vals in self.table.axes.items():
+            if ax in self.similar_axes or (ax == "tip_speed_m_s"
+                                           and not op.tip_speed_m_per_s > 0.0):
+                continue
+            x, lo, hi = float(getattr(op, AXES[ax][3])), float(vals[0]), float(vals[-1])
+            tol = FIXED_AXIS_RTOL * max(abs(lo), abs(hi))
+            if not lo - tol <= x <= hi + tol:
+                raise OutsideGridError(ax, x, lo, hi)
 
     def zones(self, op):
         from ..kinetics.stress_distribution import Zone

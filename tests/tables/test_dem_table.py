@@ -28,6 +28,8 @@ def test_small_dem_table_builds_caches_and_reads(tmp_path):
     # densities integrate to one per zone and component
     mass = (t.data["se_density"] * np.diff(T.norm_log10_edges())).sum(axis=-1)
     np.testing.assert_allclose(mass, 1.0, rtol=1e-12)
+    st = t.manifest["stationarity"]
+    assert set(T.DRIFT_FIELDS) <= set(st) and set(st["filling"]) == set(t.zone_names)
     again = T.get_table(spec, T.DemBuilder(threads=1), cache_dir=tmp_path, progress=False)
     np.testing.assert_array_equal(again.data["se_density"], t.data["se_density"])
     # Dimensionless groups: at 8 and 12 m/s the raw median SE_tn differs by about
@@ -75,3 +77,13 @@ def test_dem_interpolation_within_stated_error_on_held_back_point(tmp_path):
         assert np.all(actual <= bound), (k, actual, bound)
         # the bound is informative: under 30 % of the value
         assert np.all(bound < 0.3 * np.abs(lk.values[k][sel][zones])), (k, bound)
+
+
+def test_stationarity_summary_takes_the_largest_drift_per_zone():
+    zones = ("V1", "V2")
+    res = [{"drift": {f: [0.01 * (k + 1), -0.2 * (k + 1)] for f in T.DRIFT_FIELDS}}
+           for k in range(3)]
+    st = T.stationarity_summary(res, zones)
+    for f in T.DRIFT_FIELDS:
+        assert st[f] == {"V1": 0.03, "V2": 0.6}
+    assert T.stationarity_summary(res + [{}], zones) is None  # a builder without drift data

@@ -72,7 +72,7 @@ def test_outside_grid_refused_with_bounds(table):
         table.lookup({"tip_speed_m_s": 15.5, "filling": 0.7})
     msg = str(e.value)
     assert "tip_speed_m_s = 15.5 m/s" in msg and "allowed 6.0 to 14.0 m/s" in msg
-    with pytest.raises(T.OutsideGridError, match=r"filling = 0.45 - .*allowed 0.5 to 0.9"):
+    with pytest.raises(T.OutsideGridError, match=r"filling = 0.45 is outside.*allowed 0.5 to 0.9"):
         table.lookup({"tip_speed_m_s": 10.0, "filling": 0.45})
     with pytest.raises(T.TableError, match="axis filling missing"):
         table.lookup({"tip_speed_m_s": 10.0})
@@ -124,6 +124,35 @@ def test_fixed_axis_needs_match_or_similarity():
     assert "similarity assumed" in lk.notes[0]
     with pytest.raises(T.OutsideGridError, match="filling = 0.8"):
         t.lookup({**p, "filling": 0.8}, similar_axes=("bead_diameter_m",))
+
+
+def test_tip_speed_similarity_holds_the_edge_outside_the_grid():
+    t = T.build_table(spec(grid={"tip_speed_m_s": [6.0, 10.0, 14.0], "filling": [0.5, 0.7]}),
+                      analytic_builder, executor="serial", progress=False)
+    for v, edge in ((2.0, 6.0), (20.0, 14.0)):
+        lk = t.lookup({"tip_speed_m_s": v, "filling": 0.6}, similar_axes=("tip_speed_m_s",))
+        at = t.lookup({"tip_speed_m_s": edge, "filling": 0.6})
+        for k in T.FIELDS:
+            np.testing.assert_array_equal(lk.values[k], at.values[k])
+        assert f"tip_speed_m_s = {v!r} outside the grid [6.0, 14.0]" in lk.notes[0]
+    # round-off beyond an edge is the edge
+    lk = t.lookup({"tip_speed_m_s": 14.0 * (1 + 4e-16), "filling": 0.7 * (1 + 4e-16)})
+    np.testing.assert_array_equal(lk.values["se_density"], t.data["se_density"][2, 1])
+    with pytest.raises(T.OutsideGridError, match="tip_speed_m_s = 14.001"):
+        t.lookup({"tip_speed_m_s": 14.001, "filling": 0.7})
+    # filling never extrapolates, and without the option tip speed does not either
+    with pytest.raises(T.OutsideGridError, match="filling = 0.9"):
+        t.lookup({"tip_speed_m_s": 8.0, "filling": 0.9}, similar_axes=("tip_speed_m_s",))
+    with pytest.raises(T.TableError, match="similar_axes: 'filling' not allowed"):
+        T.TableStressSource(t, similar_axes=["filling"])
+    src = T.TableStressSource(t, similar_axes=["tip_speed_m_s"])
+    z3, z6 = src.zones(_op(3.0, 0.6)), src.zones(_op(6.0, 0.6))
+    # same dimensionless fields, scaled with the op's own E_ref and omega n_gb
+    for a, b in zip(z3, z6):
+        np.testing.assert_allclose(a.energy_edges_J, b.energy_edges_J * (3.0 / 6.0) ** 2)
+        assert math.isclose(a.collision_rate_per_m3_s, 0.5 * b.collision_rate_per_m3_s,
+                            rel_tol=1e-12)
+        np.testing.assert_array_equal(a.energy_weights, b.energy_weights)
 
 
 def test_source_checks_axes_the_table_does_not_vary(tmp_path):
