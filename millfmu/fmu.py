@@ -250,12 +250,12 @@ class MillSlave(Fmi2Slave):
             d.setdefault(sec, {})[key] = x
         try:
             scene = scene_from_dict(d, SCENE_FILE)
+            model = MillModel(scene)  # a DEM table may refuse the scene's operating point
         except SceneError as e:
             name = next((self.vars[vr].name for vr, sk in self._scene_key.items() if f"{sk[0]}.{sk[1]}" == e.key), e.key)
             self._config_error = f"{name} = {e.value!r}: {e.allowed}"
             self.log(f"initialization: {self._config_error}; every step will be refused", Fmi2Status.error)
             return
-        model = MillModel(scene)
         if model.grid.n != self.n_classes:  # pragma: no cover - no parameter changes the grid
             raise RuntimeError("size grid changed")
         self.model = model

@@ -1202,9 +1202,25 @@ class TableStressSource:
     def point_of(self, op) -> dict:
         return {ax: float(getattr(op, AXES[ax][3])) for ax in self.table.axes}
 
+    def _check_fixed_axes(self, op) -> list:
+        """Notes for the axes the table does not vary whose op value differs (similarity
+        assumed); OutsideGridError for such an axis not named in ``similar_axes``."""
+        notes = []
+        for ax, v in self.table.fixed_axis_values().items():
+            x = float(getattr(op, AXES[ax][3]))
+            if abs(x - v) <= FIXED_AXIS_RTOL * abs(v):
+                continue
+            if ax not in self.similar_axes:
+                raise OutsideGridError(ax, x, v, v, note=" (its DEM scene's value; the "
+                                       "table does not vary it; name it in similar_axes "
+                                       "to assume similarity)")
+            notes.append(f"{ax} = {x!r}: table scene has {v!r}; similarity assumed")
+        return notes
+
     def check(self, op):
         """Raise :class:`OutsideGridError` if :meth:`zones` would refuse ``op`` (a point
         outside the grid with ``on_outside='refuse'``); cheap: bounds only, no lookup."""
+        self._check_fixed_axes(op)
         if self.on_outside == "build":
             return
         for ax, vals in self.table.axes.items():
@@ -1226,16 +1242,7 @@ class TableStressSource:
             edges = np.array([1e-300, 2e-300])
             vf = self._volume_fractions()
             return [Zone(n, float(v), 0.0, edges, np.array([1.0])) for n, v in zip(names, vf)]
-        notes = []
-        for ax, v in self.table.fixed_axis_values().items():
-            x = float(getattr(op, AXES[ax][3]))
-            if abs(x - v) <= FIXED_AXIS_RTOL * abs(v):
-                continue
-            if ax not in self.similar_axes:
-                raise OutsideGridError(ax, x, v, v, note=" (its DEM scene's value; the "
-                                       "table does not vary it; name it in similar_axes "
-                                       "to assume similarity)")
-            notes.append(f"{ax} = {x!r}: table scene has {v!r}; similarity assumed")
+        notes = self._check_fixed_axes(op)
         point = self.point_of(op)
         try:
             lk = self.table.lookup(point, self.similar_axes)
