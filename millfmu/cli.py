@@ -25,6 +25,8 @@ PLUGINS = ("millfmu.dem.cli", "millfmu.dem.tables_cli", "fmu_build.cli", "flowsh
 
 
 def _cmd_run(args) -> int:
+    import numpy as np
+
     from .runner import simulate, summary_table, write_results
     from .scene import load_scene
 
@@ -36,6 +38,16 @@ def _cmd_run(args) -> int:
     op = model.operating_point(model.inputs)
     print(f"scene: {scene.scene.name}  ({scene.operation.mode}, {scene.material.model}, {scene.kinetics.model} model, {model.grid.n} classes)")
     print(f"eta_eff = {op.eta_eff_Pa_s:.4g} Pa s, Re = {op.reynolds:.4g}, SE = {op.se_beads_J:.4g} J, SE_P = {op.se_product_J:.4g} J")
+    if model.source is not None:
+        # The detailed model's stress conditions at the final operating point, per zone.
+        sd = scene.kinetics.stress_distribution
+        print(f"stress-energy source: {sd.source}" + (f" {sd.table!r}, component {sd.component}" if sd.source == "table" else ""))
+        for z in model.source.zones(op):
+            cdf = np.cumsum(z.energy_weights)
+            med = z.energy_J[min(int(np.searchsorted(cdf, 0.5)), cdf.size - 1)]
+            print(f"  {z.name:4s} volume share {z.volume_fraction:.3f}, collisions {z.collision_rate_per_m3_s:.3g} 1/(m3 s), median energy {med:.3g} J")
+        for note in getattr(model.source, "last_notes", []):
+            print(f"  note: {note}")
     print(summary_table(records))
     m_err = abs(records[-1]["total_mass_kg"] - (model.m0_kg + model.fed_kg)) / max(model.m0_kg + model.fed_kg, 1e-300)
     print(f"mass balance: relative residual {m_err:.2e}; simulated {scene.run.t_end_s:g} s in {wall:.3g} s wall")

@@ -41,9 +41,9 @@ RUN_OPTIONS = {
 #: The command that rebuilds the shipped default table (from the repository root); the
 #: table's manifest records it as ``rebuild_command``.
 REBUILD_DEFAULT = (
-    "millfmu tables build --scene disc_slice --tip-speed 6,10,14 --filling 0.6,0.8 "
-    "--sector-deg 10 --spin-up 0.03 --record 0.03 --sample-every 0.01 --no-gravity "
-    "--export millfmu/data/default_table")
+    "millfmu tables build --scene disc_slice --tip-speed 6,8,10,12,14 "
+    "--filling 0.5,0.6,0.7,0.8,0.9 --sector-deg 10 --spin-up 0.05 --record 0.1 "
+    "--sample-every 0.005 --no-gravity --export millfmu/data/default_table")
 
 
 def _floats(text: str) -> list:

@@ -35,8 +35,11 @@ def scene_text(**sections) -> str:
     return toml_text(d)
 
 
-CONTINUOUS = dict(scene={"name": "pm1-limestone-continuous"}, operation={"mode": "continuous", "n_tanks": 3, "feed_mass_flow_kg_per_s": 1e-3})
-DETAILED = dict(scene={"name": "pm1-limestone-detailed"}, kinetics={"model": "detailed"})
+# The default scene reads the shipped DEM table; these two use no DEM data at all: Kwade's
+# simple model, and the detailed model with a log-normal stress-energy distribution.
+CONTINUOUS = dict(scene={"name": "pm1-limestone-continuous"}, operation={"mode": "continuous", "n_tanks": 3, "feed_mass_flow_kg_per_s": 1e-3},
+                  kinetics={"model": "simple"})
+DETAILED = dict(scene={"name": "pm1-limestone-detailed"}, kinetics={"model": "detailed", "stress_distribution": {"source": "lognormal"}})
 
 
 def build(scene_path, out: Path) -> Path:

@@ -91,8 +91,10 @@ def test_model_structure_has_outputs_without_feedthrough_and_initial_unknowns(wo
     assert cs["canHandleVariableCommunicationStepSize"] == "true"
 
 
-@pytest.mark.parametrize("kind", ["batch", "detailed"])
+@pytest.mark.parametrize("kind", ["continuous", "detailed"])
 def test_fmu_carries_its_scene_and_only_the_code_it_needs(work, kind):
+    """Scenes that use no DEM data carry nothing of the DEM (the default scene's FMU, which
+    reads the DEM table, carries the table reader and its slice: test_fmu_table)."""
     z = zipfile.ZipFile(work["fmus"][kind])
     names = z.namelist()
     scene_path = work["scenes"][kind]
@@ -272,25 +274,31 @@ done({{"s1": s1, "s2": s2, "x50": x50}})
 
 
 def test_parameters_set_before_initialization_define_the_operating_point(work):
+    """On the default scene's FMU (detailed model on the DEM table at 0.8 mm beads): tip
+    speed and filling inside the table define the operating point; a bead diameter the
+    table does not hold, or a negative one, refuses every step with the reason logged."""
     res = run_py(work["python"], f"""
-f = open_fmu({str(work["fmus"]["batch"])!r}, start={{"bead_diameter": 0.5e-3, "tip_speed": 8.0, "bead_filling": 0.7}})
+f = open_fmu({str(work["fmus"]["batch"])!r}, start={{"tip_speed": 8.0, "bead_filling": 0.7}})
 o0 = outputs(f)
 assert step(f, 0.0, 2.0) == 0
 o1 = outputs(f)
 g = open_fmu({str(work["fmus"]["batch"])!r}, "g", start={{"bead_diameter": -1.0}})
 st = step(g, 0.0, 1.0)
-done({{"o0": o0, "o1": o1, "st": st, "log": [e for e in LOG if e[0] == "g"]}})
+h = open_fmu({str(work["fmus"]["batch"])!r}, "h", start={{"bead_diameter": 0.5e-3}})
+st_h = step(h, 0.0, 1.0)
+done({{"o0": o0, "o1": o1, "st": st, "st_h": st_h, "log": [e for e in LOG if e[0] in ("g", "h")]}})
 """, work["dir"])
     from millfmu.scene import scene_from_dict
     from .fmu_support import scene_text as st
     import tomllib
 
-    scene = scene_from_dict(tomllib.loads(st(beads={"diameter_m": 0.5e-3}, mill={"tip_speed_m_per_s": 8.0, "bead_filling": 0.7})))
+    scene = scene_from_dict(tomllib.loads(st(mill={"tip_speed_m_per_s": 8.0, "bead_filling": 0.7})))
     m = MillModel(scene)
     assert res["o0"]["holdup"] == m.outputs()["holdup_kg"] and res["o0"]["se_beads"] == m.outputs()["se_beads_J"]
     o = m.step(2.0)
     assert res["o1"]["x50"] == o["x50_m"] and res["o1"]["power"] == o["power_W"]
-    assert res["st"] == 2 and any("bead_diameter = -1.0" in e[3] for e in res["log"])
+    assert res["st"] == 2 and any(e[0] == "g" and "bead_diameter = -1.0" in e[3] for e in res["log"])
+    assert res["st_h"] == 2 and any(e[0] == "h" and "bead_diameter = 0.0005: outside the stress-energy table's grid; the table holds only 0.0008 m" in e[3] for e in res["log"]), res["log"]
 
 
 def test_fifty_instantiate_free_cycles_and_two_different_fmus_in_one_process(work):

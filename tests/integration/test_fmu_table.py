@@ -1,14 +1,14 @@
-"""A detailed-model FMU reading a DEM table carries the table slice its scene needs and runs without millfmu."""
+"""A detailed-model FMU reading a DEM table (the embedded default scene's) carries the table
+slice its scene needs and runs without millfmu."""
 
 import zipfile
-from importlib import resources
 
 import numpy as np
 import pytest
 
 from tests.integration.fmu_support import build, isolated_python, reference, run_py
 
-SCENE = resources.files("millfmu.data").joinpath("examples", "limestone_detailed.toml")
+SCENE = None  # the embedded default scene: detailed model on the shipped table
 OUTS = ["x10", "x50", "x90", "sf", "holdup"]
 
 

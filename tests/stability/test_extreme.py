@@ -4,6 +4,7 @@ import numpy as np
 import pytest
 
 from millfmu.mill import MillModel
+from millfmu.scene import SceneError
 from tests.conftest import make_scene
 
 
@@ -90,6 +91,17 @@ def test_only_finest_class_occupied(scene_dict):
 
 def test_extreme_operating_points(scene_dict):
     for mill in ({"tip_speed_m_per_s": 40.0}, {"bead_filling": 1e-6}, {"tip_speed_m_per_s": 1e-9}):
-        m = MillModel(make_scene(scene_dict, mill=mill))
+        m = MillModel(make_scene(scene_dict, mill=mill, kinetics={"model": "simple"}))
         m.step(1e4)
         _check(m, m.m0_kg)
+
+
+def test_extreme_tip_speeds_on_the_default_table(scene_dict):
+    """The default scene reads the DEM table: tip speeds beyond its grid use the edge's
+    dimensionless fields (similarity); a filling beyond it is refused, naming the bounds."""
+    for v in (40.0, 1e-9):
+        m = MillModel(make_scene(scene_dict, mill={"tip_speed_m_per_s": v}))
+        m.step(1e4)
+        _check(m, m.m0_kg)
+    with pytest.raises(SceneError, match="mill.bead_filling = 1e-06: outside the stress-energy table's grid; allowed 0.5 to 0.9"):
+        MillModel(make_scene(scene_dict, mill={"bead_filling": 1e-6}))

@@ -14,7 +14,7 @@ EXAMPLES = sorted(p.name for p in resources.files("millfmu.data").joinpath("exam
 
 
 def test_examples_present():
-    assert {"yeast_disruption.toml", "limestone_continuous.toml", "limestone_detailed.toml", "limestone_rampup.toml", "austin_generic.toml"} <= set(EXAMPLES)
+    assert {"yeast_disruption.toml", "limestone_continuous.toml", "limestone_simple.toml", "limestone_rampup.toml", "austin_generic.toml"} <= set(EXAMPLES)
 
 
 @pytest.mark.parametrize("name", EXAMPLES)
@@ -40,13 +40,21 @@ def test_rampup_follows_profile():
 
 
 def test_model_and_cli_never_import_numba():
+    """The default scene reads the DEM table (the table reader, no numba, no DEM kernels);
+    a simple-model scene does not even load the table reader."""
+    simple = resources.files("millfmu.data").joinpath("examples", "limestone_simple.toml")
     code = (
         "import sys, millfmu.cli, millfmu.mill, millfmu.runner;"
         "millfmu.cli.build_parser();"
         "from millfmu.mill import MillModel; from millfmu.scene import load_scene;"
+        f"MillModel(load_scene({str(simple)!r})).step(1.0);"
+        "dem = ('millfmu.dem.kernels', 'millfmu.dem.sim', 'millfmu.dem.run');"
+        "bad = [m for m in sys.modules if m.split('.')[0] == 'numba' or m in dem + ('millfmu.dem.tables',)];"
+        "assert not bad, bad;"
         "MillModel(load_scene()).step(1.0);"
-        "bad = [m for m in sys.modules if m.split('.')[0] == 'numba' or m in ('millfmu.dem.kernels', 'millfmu.dem.sim', 'millfmu.dem.tables')];"
-        "assert not bad, bad"
+        "bad = [m for m in sys.modules if m.split('.')[0] == 'numba' or m in dem];"
+        "assert not bad, bad;"
+        "assert 'millfmu.dem.tables' in sys.modules"
     )
     r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
     assert r.returncode == 0, r.stderr

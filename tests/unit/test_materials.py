@@ -22,7 +22,7 @@ def test_vogel_peukert_hand_calculation():
 
 
 def test_yeast_simple_rate_is_sf_times_burst_probability(scene_dict):
-    m = MillModel(make_scene(scene_dict, material=YEAST, feed=CELLS))
+    m = MillModel(make_scene(scene_dict, material=YEAST, feed=CELLS, kinetics={"model": "simple"}))
     op = m.operating_point(m.inputs)
     x = m.operator.nodes_m
     s = m.selection_nodes(op)
@@ -53,8 +53,8 @@ def test_detailed_with_narrow_distribution_equals_simple(scene_dict):
 
 
 def test_detailed_distribution_lowers_rates_of_coarse_particles(scene_dict):
-    s_det = make_scene(scene_dict, kinetics={"model": "detailed"})
-    a, b = MillModel(make_scene(scene_dict)), MillModel(s_det)
+    s_det = make_scene(scene_dict, kinetics={"model": "detailed", "stress_distribution": {"source": "lognormal"}})
+    a, b = MillModel(make_scene(scene_dict, kinetics={"model": "simple"})), MillModel(s_det)
     ra, rb = a.class_rates_per_s(), b.class_rates_per_s()
     assert np.all(rb <= ra * (1 + 1e-12))
     assert rb[-10] < 0.5 * ra[-10]
