@@ -130,8 +130,9 @@ def _check_ranges(s: DemScene):
             f"without gravity; set gravity to [0, 0, 0] or use the full circle")
 
 
-def load_scene(name_or_path: str) -> DemScene:
-    """Load a shipped scene by name (``annulus``, ``disc_slice``) or a TOML file path."""
+def load_scene_dict(name_or_path: str) -> dict:
+    """A DEM scene's TOML content as a dict (``name`` defaulting to the file's stem): a
+    shipped scene name (``annulus``, ``disc_slice``) or a .toml path. Not validated."""
     p = Path(name_or_path)
     if not p.suffix:
         cand = SCENE_DIR / f"{name_or_path}.toml"
@@ -147,7 +148,13 @@ def load_scene(name_or_path: str) -> DemScene:
             d = tomllib.load(fh)
         except tomllib.TOMLDecodeError as e:
             raise DemSceneError(f"scene file {str(p)!r}: not valid TOML ({e})") from None
-    return scene_from_dict(d, default_name=p.stem)
+    d.setdefault("name", p.stem)
+    return d
+
+
+def load_scene(name_or_path: str) -> DemScene:
+    """Load a shipped scene by name (``annulus``, ``disc_slice``) or a TOML file path."""
+    return scene_from_dict(load_scene_dict(name_or_path))
 
 
 def scene_from_dict(d: dict, default_name: str = "scene") -> DemScene:

@@ -1096,6 +1096,8 @@ def stationarity_summary(results: list[dict], zone_names) -> dict | None:
 def dem_spec(scene_name_or_path: str, grid: dict, overrides: dict | None = None) -> TableSpec:
     """Spec for a DEM table: the scene file's content (TOML -> dict) with ``overrides``
     (section -> {key: value}, e.g. {"run": {"spin_up_s": 0.05}}) merged in, validated."""
+    from .scene import load_scene_dict
+
     d = load_scene_dict(scene_name_or_path)
     for sec, kv in (overrides or {}).items():
         d.setdefault(sec, {}).update(kv)
@@ -1103,29 +1105,6 @@ def dem_spec(scene_name_or_path: str, grid: dict, overrides: dict | None = None)
     for p in (spec.points()[0], spec.points()[-1]):  # validate the corners early
         _validate_scene_dict(scene_at_point(d, p))
     return spec
-
-
-def load_scene_dict(name_or_path: str) -> dict:
-    """A DEM scene's TOML content as a dict: a shipped scene name or a .toml path."""
-    try:
-        import tomllib
-    except ImportError:  # Python 3.10
-        import tomli as tomllib
-
-    from .scene import SCENE_DIR, DemSceneError
-
-    p = Path(name_or_path)
-    if not p.suffix:
-        p = SCENE_DIR / f"{name_or_path}.toml"
-        if not p.exists():
-            shipped = sorted(q.stem for q in SCENE_DIR.glob("*.toml"))
-            raise DemSceneError(f"scene {name_or_path!r}: no such shipped scene; shipped: "
-                                f"{shipped}, or give a .toml path")
-    if not p.exists():
-        raise DemSceneError(f"scene file {str(p)!r}: not found")
-    d = tomllib.loads(p.read_text())
-    d.setdefault("name", p.stem)
-    return d
 
 
 def _validate_scene_dict(d: dict):
