@@ -19,9 +19,9 @@ import math
 import numpy as np
 
 try:  # carried into a unit FMU, the grid module sits next to this one
-    from .grid import characteristic_sizes_m
+    from .grid import characteristic_sizes_m, checked_fractions
 except ImportError:  # in the repository it is millfmu's
-    from millfmu.kinetics.grid import characteristic_sizes_m
+    from millfmu.kinetics.grid import characteristic_sizes_m, checked_fractions
 
 
 class UnitInputError(ValueError):
@@ -53,19 +53,6 @@ def _check_flow(name, x):
 def _check_fraction(name, x, lo_open=True):
     if not (math.isfinite(x) and (0.0 < x if lo_open else 0.0 <= x) and x < 1.0):
         raise UnitInputError(name, x, "must lie in (0, 1)" if lo_open else "must lie in [0, 1)")
-
-
-def _check_psd(name, a, n, tol=1e-6):
-    a = np.asarray(a, dtype=float)
-    if a.shape != (n,):
-        raise UnitInputError(name, f"array of {a.size}", f"must have {n} entries (one per size class)")
-    bad = np.flatnonzero(~np.isfinite(a) | (a < 0.0))
-    if bad.size:
-        raise UnitInputError(f"{name}[{bad[0] + 1}]", float(a[bad[0]]), "must be finite and >= 0")
-    tot = float(a.sum())
-    if abs(tot - 1.0) > tol:
-        raise UnitInputError(name, f"sum {tot!r}", f"mass fractions must sum to 1 within {tol:g}")
-    return a / tot
 
 
 def _split_psd(masses: np.ndarray, fallback: np.ndarray) -> np.ndarray:
@@ -214,7 +201,7 @@ class Tank:
             _check_flow(f"inlet{k}_mass_flow", m)
             _check_fraction(f"inlet{k}_solids_mass_fraction", c)
             if m > 0.0:
-                u += m * _check_psd(f"inlet{k}_psd", w, self.n)
+                u += m * checked_fractions(f"inlet{k}_psd", w, self.n, UnitInputError)
                 a += m / c
         S0, M0 = self.S, self.M
         if self.t_s < self.pump_start_s:
@@ -309,7 +296,7 @@ class Classifier:
     def step(self, h, mass_flow, solids_mass_fraction, psd):
         _check_flow("feed_mass_flow", mass_flow)
         _check_fraction("feed_solids_mass_fraction", solids_mass_fraction)
-        w = _check_psd("feed_psd", psd, self.n)
+        w = checked_fractions("feed_psd", psd, self.n, UnitInputError)
         m_in = mass_flow * w
         coarse = self.T * m_in
         fine = m_in - coarse  # exact complement: the split conserves mass class by class

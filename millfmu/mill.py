@@ -17,7 +17,7 @@ from .kinetics.stress_distribution import LogNormalStressSource
 from .scene import PSD, Scene, SceneError
 
 #: Tolerance on the sum of an input size distribution's mass fractions [-].
-PSD_SUM_TOL = 1e-6
+PSD_SUM_TOL = kgrid.PSD_SUM_TOL
 
 
 class InputError(ValueError):
@@ -274,16 +274,7 @@ class MillModel:
             if k not in new:
                 raise InputError(k, v, "unknown input; allowed: " + ", ".join(sorted(new)))
             if k == "psd_in":
-                a = np.asarray(v, dtype=float)
-                if a.shape != (self.grid.n,):
-                    raise InputError(k, f"array of {a.size}", f"must have {self.grid.n} entries (one per size class)")
-                bad = np.flatnonzero(~np.isfinite(a) | (a < 0.0))
-                if bad.size:
-                    raise InputError(f"psd_in[{bad[0] + 1}]", float(a[bad[0]]), "must be finite and >= 0")
-                tot = float(a.sum())
-                if abs(tot - 1.0) > PSD_SUM_TOL:
-                    raise InputError(k, f"sum {tot!r}", f"mass fractions must sum to 1 within {PSD_SUM_TOL:g}")
-                new[k] = a / tot
+                new[k] = kgrid.checked_fractions(k, v, self.grid.n, InputError, PSD_SUM_TOL)
                 continue
             try:
                 x = float(v)

@@ -13,6 +13,28 @@ from dataclasses import dataclass
 
 import numpy as np
 
+#: Tolerance on the sum of the mass fractions of a size distribution given as input [-].
+PSD_SUM_TOL = 1e-6
+
+
+def checked_fractions(name: str, a, n: int, error, tol: float = PSD_SUM_TOL) -> np.ndarray:
+    """Mass fractions [-] of ``n`` size classes given as input, scaled to sum to one.
+
+    Raises ``error(name, value, allowed)`` (the caller's input-error class) for a wrong
+    length, the first non-finite or negative entry (named ``name[i]``, 1-based) or a sum
+    off one by more than ``tol``.
+    """
+    a = np.asarray(a, dtype=float)
+    if a.shape != (n,):
+        raise error(name, f"array of {a.size}", f"must have {n} entries (one per size class)")
+    bad = np.flatnonzero(~np.isfinite(a) | (a < 0.0))
+    if bad.size:
+        raise error(f"{name}[{bad[0] + 1}]", float(a[bad[0]]), "must be finite and >= 0")
+    tot = float(a.sum())
+    if abs(tot - 1.0) > tol:
+        raise error(name, f"sum {tot!r}", f"mass fractions must sum to 1 within {tol:g}")
+    return a / tot
+
 
 @dataclass(frozen=True)
 class SizeGrid:
