@@ -26,9 +26,9 @@ from pythonfmu import Fmi2Causality, Fmi2Initial, Fmi2Slave, Fmi2Variability, Re
 from pythonfmu.enums import Fmi2Status
 
 try:  # carried into a unit FMU, the module sits next to this one
-    from .fmi_xml import complete_model_description
+    from .fmi_xml import complete_model_description, get_reals
 except ImportError:
-    from millfmu.fmi_xml import complete_model_description
+    from millfmu.fmi_xml import complete_model_description, get_reals
 from .units import Classifier, Feed, PIController, StepDiscarded, Tank, UnitInputError
 
 #: Name of the configuration file in the FMU's resources folder.
@@ -135,12 +135,7 @@ class UnitSlave(Fmi2Slave):
             self._v[vr] = float(x)
 
     def get_real(self, vrs):
-        v = self._v
-        try:
-            return [v[vr] for vr in vrs]
-        except (IndexError, TypeError):
-            self.log(f"fmi2GetReal: value references {list(vrs)!r} include one that is no Real variable; got NaN", Fmi2Status.error)
-            return [v[vr] if isinstance(vr, int) and 0 <= vr < self._n_vars else math.nan for vr in vrs]
+        return get_reals(self._v, vrs, lambda msg: self.log(msg, Fmi2Status.error))
 
     def _publish(self):
         for name, val in self.core.outputs().items():

@@ -8,7 +8,20 @@ numpy-free so it can be carried into any FMU.
 
 from __future__ import annotations
 
+import math
 from xml.etree.ElementTree import Element, SubElement
+
+
+def get_reals(values: list, vrs, log_error) -> list:
+    """fmi2GetReal over ``values`` (indexed by value reference): a reference that names no
+    Real variable reads NaN, and one error is logged with ``log_error(message)``."""
+    try:
+        return [values[vr] for vr in vrs]
+    except (IndexError, TypeError):
+        n = len(values)
+        bad = [vr for vr in vrs if not (isinstance(vr, int) and 0 <= vr < n)]
+        log_error(f"fmi2GetReal: no Real variable with value reference {bad[0]}; got NaN")
+        return [values[vr] if isinstance(vr, int) and 0 <= vr < n else math.nan for vr in vrs]
 
 
 def complete_model_description(root: Element, slave, units: dict, exponents, description: str) -> Element:

@@ -26,7 +26,6 @@ the variable and the value, and leaves the state as it was. No Python exception 
 from __future__ import annotations
 
 import copy
-import math
 import os
 import sys
 import traceback
@@ -41,7 +40,7 @@ import numpy as np
 from pythonfmu import DefaultExperiment, Fmi2Causality, Fmi2Initial, Fmi2Slave, Fmi2Variability, Real
 from pythonfmu.enums import Fmi2Status
 
-from .fmi_xml import complete_model_description
+from .fmi_xml import complete_model_description, get_reals
 
 from .mill import PSD_SUM_TOL, InputError, MillModel, StepError
 from .scene import SceneError, scene_from_dict
@@ -206,13 +205,7 @@ class MillSlave(Fmi2Slave):
         self._v[vr] = float(x)
 
     def get_real(self, vrs):
-        v = self._v
-        try:
-            return [v[vr] for vr in vrs]
-        except (IndexError, TypeError):
-            bad = [vr for vr in vrs if not (isinstance(vr, int) and 0 <= vr < self._n_vars)]
-            self.log(f"fmi2GetReal: no Real variable with value reference {bad[0]}; got NaN", Fmi2Status.error)
-            return [v[vr] if isinstance(vr, int) and 0 <= vr < self._n_vars else math.nan for vr in vrs]
+        return get_reals(self._v, vrs, lambda msg: self.log(msg, Fmi2Status.error))
 
     def set_real(self, vrs, values):
         for vr, x in zip(vrs, values):
