@@ -66,6 +66,21 @@ _MISSING = object()
 #: text or None.
 
 
+def _take(given: dict, spec: dict, prefix: str, source: str) -> dict:
+    """Each key of ``spec`` (key -> (default, check, ...)) from ``given``, else its default:
+    a required key (default _MISSING) that is missing, or a value its check refuses (the
+    check returns the reason), is a FlowsheetError naming ``prefix.key``."""
+    out = {}
+    for k, (default, check, *_doc) in spec.items():
+        v = given.get(k, default)
+        if v is _MISSING:
+            raise FlowsheetError(f"{prefix}.{k}", _MISSING, "required", source)
+        if v is not None and (err := check(v)):
+            raise FlowsheetError(f"{prefix}.{k}", v, err, source)
+        out[k] = v
+    return out
+
+
 def _num(lo=None, hi=None, lo_open=False, hi_open=False):
     def check(v):
         if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v):
@@ -226,17 +241,10 @@ def flowsheet_from_dict(d: dict, source: str = "flowsheet", base_dir: Path | Non
                "order": (None, lambda v: None if isinstance(v, list) and all(isinstance(x, str) for x in v) else "must be a list of unit names"),
                "max_halvings": (0, lambda v: None if isinstance(v, int) and not isinstance(v, bool) and 0 <= v <= 30 else "must be an integer in [0, 30]"),
                "output_interval_s": (None, _num(0.0, None, True))}
-    vals = {}
     for k in fs:
         if k not in fs_keys:
             raise FlowsheetError(f"flowsheet.{k}", fs[k], "unknown key; allowed: " + ", ".join(fs_keys), source)
-    for k, (default, check) in fs_keys.items():
-        v = fs.get(k, default)
-        if v is _MISSING:
-            raise FlowsheetError(f"flowsheet.{k}", _MISSING, "required", source)
-        if v is not None and (err := check(v)):
-            raise FlowsheetError(f"flowsheet.{k}", v, err, source)
-        vals[k] = v
+    vals = _take(fs, fs_keys, "flowsheet", source)
     n_steps = vals["t_end_s"] / vals["step_s"]
     if abs(n_steps - round(n_steps)) > 1e-9 * n_steps:
         raise FlowsheetError("flowsheet.step_s", vals["step_s"], f"must divide t_end_s = {vals['t_end_s']!r} s into whole steps", source)
@@ -261,14 +269,7 @@ def flowsheet_from_dict(d: dict, source: str = "flowsheet", base_dir: Path | Non
         for k in u:
             if k not in spec and k not in COMMON_KEYS:
                 raise FlowsheetError(f"{key}.{k}", u[k], f"unknown key for a {t}; allowed: " + ", ".join(list(spec) + sorted(COMMON_KEYS)), source)
-        params = {}
-        for k, (default, check, _doc) in spec.items():
-            v = u.get(k, default)
-            if v is _MISSING:
-                raise FlowsheetError(f"{key}.{k}", _MISSING, "required", source)
-            if v is not None and (err := check(v)):
-                raise FlowsheetError(f"{key}.{k}", v, err, source)
-            params[k] = v
+        params = _take(u, spec, key, source)
         start = u.get("start", {})
         if not isinstance(start, dict) or not all(isinstance(x, (int, float)) and not isinstance(x, bool) for x in start.values()):
             raise FlowsheetError(f"{key}.start", start, "must be a table of variable = number", source)
