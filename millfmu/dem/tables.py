@@ -41,7 +41,6 @@ This module imports no numba: the DEM is loaded only inside :class:`DemBuilder` 
 from __future__ import annotations
 
 import contextlib
-import dataclasses
 import fcntl
 import hashlib
 import importlib.util
@@ -314,6 +313,36 @@ class Table:
                 raise TableError(f"table: reference {k!r} missing or of wrong shape")
 
     # -- lookup
+    def axis_value(self, name: str, x: float, similar=()) -> tuple:
+        """The value a lookup uses on axis ``name`` for ``x``, and a note (or None); raises
+        :class:`OutsideGridError` where :meth:`lookup` refuses (see there): round-off at an
+        edge is the edge; a similar axis keeps a single node's value, and an extrapolable
+        one holds the nearest edge outside the grid."""
+        ax = self.axes[name]
+        lo, hi = float(ax[0]), float(ax[-1])
+        if ax.size == 1:
+            if abs(x - lo) <= FIXED_AXIS_RTOL * abs(lo):
+                return lo, None
+            if name in similar:
+                return lo, (f"{name} = {x!r}: table holds {lo!r} only; dimensionless "
+                            f"fields used unchanged (similarity assumed)")
+            raise OutsideGridError(name, x, lo, hi, note="; the axis is not varied in "
+                                   "this table (allow it with similar_axes to assume "
+                                   "similarity)")
+        if not math.isfinite(x):
+            raise OutsideGridError(name, x, lo, hi)
+        # Round-off at an edge (a filling computed as 0.8000000000000002) is on the edge.
+        tol = FIXED_AXIS_RTOL * max(abs(lo), abs(hi))
+        if lo - tol <= x < lo or hi < x <= hi + tol:
+            return (lo if x < lo else hi), None
+        if lo <= x <= hi:
+            return x, None
+        if name not in similar or name not in EXTRAPOLABLE_AXES:
+            raise OutsideGridError(name, x, lo, hi)
+        edge = lo if x < lo else hi
+        return edge, (f"{name} = {x!r} outside the grid [{lo!r}, {hi!r}]: "
+                      f"dimensionless fields held at {edge!r} (similarity assumed)")
+
     def lookup(self, point: dict, similar_axes: Iterable[str] = ()) -> Lookup:
         """Multilinear interpolation of all fields at ``point`` (axis -> value).
 
@@ -341,33 +370,12 @@ class Table:
             if name not in point:
                 raise TableError(f"table lookup: axis {name} missing from the point "
                                  f"{point!r}; the table's axes: {list(self.axes)}")
-            x = float(point[name])
-            lo, hi = float(ax[0]), float(ax[-1])
+            x, note = self.axis_value(name, float(point[name]), similar)
+            if note:
+                notes.append(note)
             if ax.size == 1:
-                if abs(x - lo) <= FIXED_AXIS_RTOL * abs(lo):
-                    idx.append(0), ts.append(0.0)
-                    continue
-                if name in similar:
-                    notes.append(f"{name} = {x!r}: table holds {lo!r} only; dimensionless "
-                                 f"fields used unchanged (similarity assumed)")
-                    idx.append(0), ts.append(0.0)
-                    continue
-                raise OutsideGridError(name, x, lo, hi, note="; the axis is not varied in "
-                                       "this table (allow it with similar_axes to assume "
-                                       "similarity)")
-            if not math.isfinite(x):
-                raise OutsideGridError(name, x, lo, hi)
-            # Round-off at an edge (a filling computed as 0.8000000000000002) is on the edge.
-            tol = FIXED_AXIS_RTOL * max(abs(lo), abs(hi))
-            if lo - tol <= x < lo or hi < x <= hi + tol:
-                x = lo if x < lo else hi
-            if not lo <= x <= hi:
-                if name not in similar or name not in EXTRAPOLABLE_AXES:
-                    raise OutsideGridError(name, x, lo, hi)
-                edge = lo if x < lo else hi
-                notes.append(f"{name} = {x!r} outside the grid [{lo!r}, {hi!r}]: "
-                             f"dimensionless fields held at {edge!r} (similarity assumed)")
-                x = edge
+                idx.append(0), ts.append(0.0)
+                continue
             i = int(np.searchsorted(ax, x, side="right") - 1)
             i = min(max(i, 0), ax.size - 2)
             t = (x - ax[i]) / (ax[i + 1] - ax[i])
@@ -1198,18 +1206,15 @@ class TableStressSource:
 
     def check(self, op):
         """Raise :class:`OutsideGridError` if :meth:`zones` would refuse ``op`` (a point
-        outside the grid with ``on_outside='refuse'``); cheap: bounds only, no lookup."""
+        outside the grid with ``on_outside='refuse'``); cheap: the axes' bounds only, by
+        the same rules as the lookup (:meth:`Table.axis_value`), no interpolation."""
         self._check_fixed_axes(op)
         if self.on_outside == "build":
             return
-        for ax, vals in self.table.axes.items():
-            if ax in self.similar_axes or (ax == "tip_speed_m_s"
-                                           and not op.tip_speed_m_per_s > 0.0):
-                continue
-            x, lo, hi = float(getattr(op, AXES[ax][3])), float(vals[0]), float(vals[-1])
-            tol = FIXED_AXIS_RTOL * max(abs(lo), abs(hi))
-            if not lo - tol <= x <= hi + tol:
-                raise OutsideGridError(ax, x, lo, hi)
+        for ax, x in self.point_of(op).items():
+            if ax == "tip_speed_m_s" and not x > 0.0:
+                continue  # the stirrer at rest: no collisions, nothing to look up
+            self.table.axis_value(ax, x, self.similar_axes)
 
     def zones(self, op):
         from ..kinetics.stress_distribution import Zone
