@@ -31,7 +31,7 @@ class InputError(ValueError):
 #: Axes of a stress-energy table that are model inputs: axis -> input name. A table that
 #: refuses an input value (outside its grid) gives an InputError naming the input.
 TABLE_INPUTS = {"tip_speed_m_s": "tip_speed_m_per_s", "filling": "bead_filling"}
-TABLE_INPUTS_CHECKED = frozenset(TABLE_INPUTS.values())
+TABLE_INPUTS_CHECKED = tuple(TABLE_INPUTS.values())
 #: Table axis -> the scene key that sets it (for a SceneError when the scene lies outside).
 TABLE_SCENE_KEYS = {"tip_speed_m_s": "mill.tip_speed_m_per_s", "filling": "mill.bead_filling",
                     "bead_diameter_m": "beads.diameter_m",
@@ -295,8 +295,9 @@ class MillModel:
             if k == "feed_mass_flow_kg_per_s" and x != 0.0 and not self.continuous:
                 raise InputError(k, x, "must be 0 for a batch mill (operation.mode = 'batch' has no feed)")
             new[k] = x
-        if given and self.source is not None and hasattr(self.source, "check") and (
-                given.keys() & TABLE_INPUTS_CHECKED):
+        # The current inputs passed this check when they were set (or the scene's at
+        # construction): check again only when a table input changes, not every step.
+        if hasattr(self.source, "check") and any(new[k] != self.inputs[k] for k in TABLE_INPUTS_CHECKED):
             self._check_source_inputs(new)
         return new
 
