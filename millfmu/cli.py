@@ -25,8 +25,6 @@ PLUGINS = ("millfmu.dem.cli", "millfmu.dem.tables_cli", "fmu_build.cli", "flowsh
 
 
 def _cmd_run(args) -> int:
-    import numpy as np
-
     from .runner import simulate, summary_table, write_results
     from .scene import load_scene
 
@@ -43,9 +41,7 @@ def _cmd_run(args) -> int:
         sd = scene.kinetics.stress_distribution
         print(f"stress-energy source: {sd.source}" + (f" {sd.table!r}, component {sd.component}" if sd.source == "table" else ""))
         for z in model.source.zones(op):
-            cdf = np.cumsum(z.energy_weights)
-            med = z.energy_J[min(int(np.searchsorted(cdf, 0.5)), cdf.size - 1)]
-            print(f"  {z.name:4s} volume share {z.volume_fraction:.3f}, collisions {z.collision_rate_per_m3_s:.3g} 1/(m3 s), median energy {med:.3g} J")
+            print(f"  {z.name:4s} volume share {z.volume_fraction:.3f}, collisions {z.collision_rate_per_m3_s:.3g} 1/(m3 s), median energy {z.median_energy_J:.3g} J")
         for note in getattr(model.source, "last_notes", []):
             print(f"  note: {note}")
     print(summary_table(records))

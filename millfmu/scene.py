@@ -327,7 +327,7 @@ def scene_from_dict(d: dict, source: str = "scene") -> Scene:
 def load_scene(path: str | Path | None = None) -> Scene:
     """Read and validate a scene file; ``None`` gives the embedded default scene."""
     if path is None:
-        text = resources.files("millfmu.data").joinpath("default_scene.toml").read_text()
+        text = default_scene_text()
         source = "default scene"
     else:
         p = Path(path)

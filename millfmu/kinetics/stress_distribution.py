@@ -37,6 +37,12 @@ class Zone:
         e = self.energy_edges_J
         return np.sqrt(e[:-1] * e[1:])
 
+    @property
+    def median_energy_J(self) -> float:
+        """Representative energy [J] of the bin that holds the median collision."""
+        i = int(np.searchsorted(np.cumsum(self.energy_weights), 0.5))
+        return float(self.energy_J[min(i, self.energy_weights.size - 1)])
+
 
 class StressEnergySource(Protocol):
     """What the detailed breakage model needs from a stress-energy source."""
