@@ -1,0 +1,58 @@
+"""Koch & Hill (2001) drag in the CFDEM form (project REFERENCE, "Koch-Hill drag"): the
+interphase momentum coefficient beta of a bead in a suspension of local void fraction eps.
+
+phi = 1 - eps; Re_p = d eps |u - v| rho / mu;
+F0 = (1 + 3 sqrt(phi/2) + 135/64 phi ln phi + 16.14 phi) /
+     (1 + 0.681 phi - 8.48 phi^2 + 8.16 phi^3)  for phi < 0.4, else 10 phi / eps^3;
+F3 = 0.0673 + 0.212 phi + 0.0232 / eps^5;  F = eps (F0 + 0.5 F3 Re_p);
+beta = 18 mu eps F / d^2 [kg/(m3 s)]; drag on the bead V_p beta (u - v) ("model A").
+Koch, D. L. & Hill, R. J. (2001), Annu. Rev. Fluid Mech. 33, 619-647.
+
+The same law with a constant void fraction drives the prescribed swirl
+(:func:`millfmu.dem.kernels.koch_hill_beta` with F0, F3 from
+:func:`millfmu.dem.params.koch_hill_f0_f3`); here eps varies per bead.
+"""
+
+import math
+
+from millfmu.dem._jit import device, serial
+
+
+@device
+def f0_f3(eps):
+    """The void-fraction terms F0, F3 [-] at void fraction eps."""
+    phi = 1.0 - eps
+    if phi < 0.4:
+        lg = phi * math.log(phi) if phi > 0.0 else 0.0
+        f0 = (1.0 + 3.0 * math.sqrt(phi / 2.0) + 135.0 / 64.0 * lg + 16.14 * phi) / (
+            1.0 + 0.681 * phi - 8.48 * phi * phi + 8.16 * phi * phi * phi)
+    else:
+        f0 = 10.0 * phi / (eps * eps * eps)
+    f3 = 0.0673 + 0.212 * phi + 0.0232 / eps ** 5
+    return f0, f3
+
+
+@device
+def beta(d, eps, mu, rho, urel):
+    """beta [kg/(m3 s)] of a bead of diameter d [m] at void fraction eps [-] and relative
+    speed urel [m/s] in a liquid of viscosity mu [Pa s] and density rho [kg/m3]."""
+    f0, f3 = f0_f3(eps)
+    re = d * eps * urel * rho / mu
+    return 18.0 * mu * eps * eps * (f0 + 0.5 * f3 * re) / (d * d)
+
+
+@serial
+def bead_coefficients(rad, mass, eps_b, urel, mu, rho, interval, model_b, out):
+    """Drag coefficient c_i = V_i beta_i [kg/s] per bead for a coupling interval of
+    ``interval`` [s]: beta at the bead's local void fraction eps_b and relative speed urel
+    [m/s], divided by eps in model B, and made implicit over the interval on the bead's
+    side, c / (1 + interval c / m_i) (backward Euler of the bead's relaxation, which keeps
+    the exchange stable when the relaxation time m/c is short against the interval)."""
+    for i in range(rad.size):
+        d = 2.0 * rad[i]
+        vol = math.pi / 6.0 * d * d * d
+        b = beta(d, eps_b[i], mu, rho, urel[i])
+        if model_b:
+            b /= eps_b[i]
+        c = vol * b
+        out[i] = c / (1.0 + interval * c / mass[i])
