@@ -230,6 +230,7 @@ def test_c_host_runs_the_fmi3_fmu(tmp_path):
     got = np.array([[float(x) for x in ln.split()[1:]] for ln in lines if ln.startswith("OUT")])
     ref = reference(None, [1.0] * steps)
     want = np.column_stack([ref["x50"], ref["psd"], ref["holdup"], ref["power"]])
+    print(f"C host, FMI 3.0: largest relative difference to MillModel {np.max(np.abs(got - want) / np.abs(want)):.1e}")
     np.testing.assert_allclose(got, want, rtol=1e-12, atol=1e-300)
     assert "BAD 2" in lines and "QUIET 2" in lines  # fmi3Discard; no callback, no crash
     assert any(ln.startswith("LOG 2") and "tip_speed = -5.0" in ln for ln in lines), lines
