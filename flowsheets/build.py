@@ -102,6 +102,8 @@ def build_unit_fmu(kind: str, instance: str, cfg: dict, out: str | Path, fmi_ver
     fmi_version = check_fmi_version(fmi_version)
     if fmi_version == 3:
         from pythonfmu3 import FmuBuilder
+
+        fmi3_wrapper.wrapper_library(log)  # first: what it needs may be missing here (WrapperError)
     else:
         from pythonfmu import FmuBuilder
 

@@ -57,6 +57,8 @@ def _check_out(out: Path):
 
 def cmd_run(args) -> int:
     _limit_blas_threads()
+    from fmu_build.fmi3_wrapper import WrapperError
+
     from .master import MasterError, run_flowsheet, write_results
     from .spec import FlowsheetError
 
@@ -83,7 +85,7 @@ def cmd_run(args) -> int:
             moved = _publish(Path(tmp), out)
     except FlowsheetError as e:
         return _bad(e)
-    except MasterError as e:
+    except (MasterError, WrapperError) as e:
         print(f"millfmu flowsheet: failed: {e}", file=sys.stderr)
         return 1
     mb = res.mass
@@ -117,6 +119,8 @@ def cmd_export_ssp(args) -> int:
 
 def cmd_wp(args) -> int:
     _limit_blas_threads()
+    from fmu_build.fmi3_wrapper import WrapperError
+
     from .spec import FlowsheetError
     from .wp import work_precision
 
@@ -140,6 +144,9 @@ def cmd_wp(args) -> int:
             moved = _publish(Path(tmp), Path(args.out))
     except FlowsheetError as e:
         return _bad(e)
+    except WrapperError as e:
+        print(f"millfmu flowsheet: failed: {e}", file=sys.stderr)
+        return 1
     print(table)
     print("wrote " + ", ".join(str(f) for f in moved))
     return 0

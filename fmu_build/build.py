@@ -203,6 +203,8 @@ def build_fmu(scene_path: str | Path | None, out: str | Path, fmi_version: int =
     fmi_version = check_fmi_version(fmi_version)
     if fmi_version == 3:
         from pythonfmu3 import FmuBuilder
+
+        fmi3_wrapper.wrapper_library(log)  # first: what it needs may be missing here (WrapperError)
     else:
         from pythonfmu import FmuBuilder
 

@@ -51,7 +51,14 @@ def _cmd_host_env(args) -> int:
 def _cmd_bench_fmu(args) -> int:
     from .bench import bench_fmu
 
-    return bench_fmu(classes=args.classes, steps=args.steps, repeats=args.repeats, fmi_versions=args.fmi_version or (2, 3))
+    from .fmi3_wrapper import WrapperError
+
+    try:
+        return bench_fmu(classes=args.classes, steps=args.steps, repeats=args.repeats, fmi_versions=args.fmi_version or (2, 3),
+                         required=bool(args.fmi_version))
+    except WrapperError as e:
+        print(f"millfmu bench fmu: error: {e}", file=sys.stderr)
+        return 1
 
 
 def register(subparsers) -> None:

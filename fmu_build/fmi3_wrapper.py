@@ -175,7 +175,12 @@ def _cache_root() -> Path:
 
 
 def _compiler() -> str:
-    cxx = os.environ.get("CXX") or shutil.which("g++") or shutil.which("c++") or shutil.which("clang++")
+    if os.environ.get("CXX"):
+        cxx = shutil.which(os.environ["CXX"])
+        if not cxx:
+            raise WrapperError(f"CXX = {os.environ['CXX']!r}: not an executable C++ compiler (needed to compile pythonfmu3's wrapper)")
+        return cxx
+    cxx = shutil.which("g++") or shutil.which("c++") or shutil.which("clang++")
     if not cxx:
         raise WrapperError("building an FMI 3.0 FMU compiles pythonfmu3's wrapper with millfmu's fixes: no C++17 compiler "
                            "found (install g++, Debian: apt-get install g++, or set CXX)")

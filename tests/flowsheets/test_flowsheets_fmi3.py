@@ -8,15 +8,15 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from ..integration.fmu_support import need_fmi3
 from .support import FLOWSHEETS, cli, run
 from .test_flowsheets import NAMES, RETRY
-
-pytest.importorskip("pythonfmu3")
 
 
 @pytest.fixture(scope="module")
 def fmu3_dir(tmp_path_factory):
     """FMI 3.0 unit FMUs for this module (the session's fmu_dir holds the FMI 2.0 ones)."""
+    need_fmi3()
     return tmp_path_factory.mktemp("flowsheet_fmus3")
 
 

@@ -50,6 +50,31 @@ def build(scene_path, out: Path, fmi_version: int = 2) -> Path:
     return out
 
 
+def fmi3_missing():
+    """Why FMI 3.0 FMUs cannot be built here (pythonfmu3, and a C++ compiler and this
+    Python's headers for its fixed wrapper), or None when they can."""
+    import importlib.util
+
+    if importlib.util.find_spec("pythonfmu3") is None:
+        return "pythonfmu3 not installed (fmu or test extras)"
+    from fmu_build.fmi3_wrapper import WrapperError, wrapper_library
+
+    try:
+        wrapper_library()
+    except WrapperError as e:
+        return str(e)
+    return None
+
+
+def need_fmi3():
+    """Skip the calling test (or fixture) when FMI 3.0 FMUs cannot be built here."""
+    import pytest
+
+    missing = fmi3_missing()
+    if missing:
+        pytest.skip(f"FMI 3.0 FMUs cannot be built here: {missing}")
+
+
 def isolated_python(where: Path) -> str:
     """A fresh virtual environment that sees this environment's third-party packages
     (numpy, scipy, fmpy) but not millfmu: its editable-install hook lives in a .pth file that

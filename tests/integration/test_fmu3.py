@@ -16,9 +16,10 @@ from millfmu.fmu_variables import UNITS
 from millfmu.mill import MillModel
 from millfmu.scene import load_scene
 
-from .fmu_support import CONTINUOUS, DETAILED, ROOT, build, isolated_python, reference, run_py, scene_text
+from millfmu.scene import default_scene_text
 
-pytest.importorskip("pythonfmu3")
+from .fmu_support import CONTINUOUS, DETAILED, ROOT, build, isolated_python, need_fmi3, reference, run_py, scene_text
+
 pytest.importorskip("fmpy")
 
 SCALAR_OUTPUTS = ["x10", "x50", "x90", "holdup", "product_mass_flow", "se_beads", "se_product", "sf", "stress_number",
@@ -29,6 +30,7 @@ KINDS = ["batch", "continuous", "detailed"]
 
 @pytest.fixture(scope="module")
 def work(tmp_path_factory):
+    need_fmi3()
     d = tmp_path_factory.mktemp("fmu3")
     scenes = {"batch": None, "continuous": d / "continuous.toml", "detailed": d / "detailed.toml"}
     scenes["continuous"].write_text(scene_text(**CONTINUOUS))
@@ -130,7 +132,7 @@ def test_fmu_carries_its_scene_and_only_the_code_it_needs(work, kind):
     # The wrapper with millfmu's fixes, for x86_64 Linux only, with the sources it was built from.
     assert sorted(n for n in names if n.startswith("binaries/")) == [f"binaries/x86_64-linux/{_md(work['fmus'][kind]).find('CoSimulation').get('modelIdentifier')}.so"]
     assert b"millfmu:" in z.read("sources/src/pythonfmu/PySlaveInstance.cpp")
-    assert z.read("resources/scene.toml").decode() == (work["scenes"][kind].read_text() if work["scenes"][kind] else __import__("millfmu.scene").scene.default_scene_text())
+    assert z.read("resources/scene.toml").decode() == (work["scenes"][kind].read_text() if work["scenes"][kind] else default_scene_text())
 
 
 # ---- runs ---------------------------------------------------------------------------------
@@ -432,6 +434,7 @@ done({{"rss_kib": rss, "b": outputs(b)["x50"], "c": outputs(c)["x50"], "d": outp
 
 
 def test_build_fmu_3_rejects_a_bad_scene_naming_the_key(tmp_path):
+    need_fmi3()
     bad = tmp_path / "bad.toml"
     bad.write_text(scene_text(mill={"bead_filling": 1.5}))
     r = subprocess.run([sys.executable, "-m", "millfmu.cli", "build-fmu", str(bad), "--fmi-version", "3", "-o", str(tmp_path / "x.fmu")],

@@ -14,7 +14,7 @@ import importlib.util
 import numpy as np
 import pytest
 
-from .fmu_support import build, isolated_python, reference, run_py
+from .fmu_support import build, isolated_python, need_fmi3, reference, run_py
 
 NAMES = ["x50", "holdup", "power", "specific_energy", "psd[5]", "psd[20]"]
 STEPS = 5
@@ -79,7 +79,7 @@ done({{"rec": rec}})
 def test_ecospy_runs_the_fmi3_mill(setup):
     """The FMI 3.0 FMU of the default scene in ecos: scalar outputs read through ecos's
     buffered reads, the tip speed set between steps; equal to MillModel to 1e-12."""
-    pytest.importorskip("pythonfmu3")
+    need_fmi3()
     fmu3 = build(None, setup["dir"] / "mill3.fmu", fmi_version=3)
     names = ["x50", "holdup", "power", "specific_energy", "sf"]
     res = run_py(setup["python"], f"""
