@@ -3,8 +3,8 @@ and ecospy, each in a fresh interpreter without millfmu, compared with MillModel
 
 Both masters step with a fixed step; libcosim counts time in nanoseconds. FMI 3.0: ecos runs
 the FMI 3.0 FMU's scalar variables (it reads every FMI 3.0 variable as one value, so arrays
-are not for ecos: see README, FMI 3.0); libcosimpy 0.0.6 crashes loading any FMI 3.0 FMU
-(pythonfmu3's own examples too), so it is not tried here."""
+are not for ecos: see README, FMI 3.0); libcosim refuses FMI 3.0 FMUs ("Unsupported FMI
+version") and libcosimpy 0.0.6 then crashes, so it is not tried here."""
 
 from __future__ import annotations
 
