@@ -91,10 +91,6 @@ class Fmi3Base(Fmi3Slave):
         self._unit_of[name] = unit
         return vr
 
-    def index(self, vr: int) -> int:
-        """Position of a scalar's value (or an array's first value) in the value list."""
-        return self._slices[vr].start
-
     # ---- values ------------------------------------------------------------------------
     def get_float64(self, vrs):
         v, slices = self._v, self._slices

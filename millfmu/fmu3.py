@@ -67,7 +67,7 @@ class MillSlave3(Fmi3Base):
             if var.output_key == "psd":
                 self._out = slice(s.start, None)  # psd, then the scalar outputs to the end of the list
         self._names = {var.settable[1]: var.name for var in described if var.settable}  # MillModel name -> FMI name
-        self._scene_names = {f"{sec}.{key}": var.name for var in described if var.scene_key for sec, key in [var.scene_key]}
+        self._scene_names = {".".join(var.scene_key): var.name for var in described if var.scene_key}  # "section.key" -> FMI name
         self._out_keys = [var.output_key for var in described if var.causality == "output" and not var.size]
         self.register_used_units(UNITS.__getitem__)
         self._publish(self.model.outputs())
