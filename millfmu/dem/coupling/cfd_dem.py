@@ -5,7 +5,9 @@ and coupling 5e-5 s):
 
 1. beads -> grid (:mod:`millfmu.dem.coupling.projection`): bead volumes give the void
    fraction; each bead's drag coefficient c_i = V_i beta_i (Koch & Hill 2001 at its local
-   void fraction and relative speed, :mod:`millfmu.dem.coupling.koch_hill2001`) and
+   void fraction and relative speed, :mod:`millfmu.dem.coupling.koch_hill2001`; held
+   explicitly over the interval, or relaxed exactly where a bead's relaxation time is
+   shorter than the interval) and
    c_i v_i give the implicit drag coefficient K and the explicit source per velocity node;
    in model A the reaction of the beads' pressure-gradient force V_i grad p joins the source.
 2. the fluid advances over the interval (:class:`millfmu.dem.fluid.solver.FluidSolver`),
@@ -29,26 +31,10 @@ nodes, whose equation is in angular-momentum form).
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
-
 import numpy as np
 
+from millfmu.dem.coupling.settings import CouplingSettings
 from millfmu.dem.fluid.solver import FluidProperties, FluidSolver
-
-
-@dataclass(frozen=True)
-class CouplingSettings:
-    """Choices of the coupled fluid [SI]. Defaults: seed 001 (coupling every 10 DEM steps,
-    k-epsilon, Koch-Hill drag, model A)."""
-
-    model: str = "A"  # "A" (Anderson & Jackson set I as in CFDEM) or "B"
-    turbulence: str = "k_epsilon"  # or "laminar"
-    steps: int = 10  # DEM steps per coupling interval
-    cell_m: float = 0.75e-3  # target fluid cell size
-    n_theta: int = 1  # theta cells over the sector (1: axisymmetric with swirl)
-    smoothing_diameters: float = 1.0  # Helmholtz smoothing length in bead diameters
-    eps_min: float = 0.35  # lower clip of the void fraction
-    cfl: float = 0.4
 
 
 class CfdDem:
@@ -86,6 +72,7 @@ class CfdDem:
         sim.register_per_bead("fluid_at_bead", np.zeros((n, 6)))
         self.vol = 4.0 / 3.0 * math.pi * sim.rad ** 3
         self.clipped_cells = 0
+        self.stiffness = 0.0  # largest interval / bead relaxation time of the last interval
         self.intervals = 0
         self.angular_impulse_to_beads_nms = 0.0
         self.axial_impulse_to_beads_ns = 0.0
@@ -118,9 +105,9 @@ class CfdDem:
         # ---- drag coefficients at the beads ----
         fab = sim.per_bead["fluid_at_bead"]
         urel = np.sqrt((fab[:, 0] - vr) ** 2 + (fab[:, 1] - vt) ** 2 + (fab[:, 2] - vz) ** 2)
-        self.KH.bead_coefficients(sim.rad, sim.mass, self._eps_b[:, 0], urel,
-                                  s.fluid.viscosity_pa_s, s.rho, self.interval_s,
-                                  self.model_b, self._c)
+        self.stiffness = self.KH.bead_coefficients(
+            sim.rad, sim.mass, self._eps_b[:, 0], urel, s.fluid.viscosity_pa_s, s.rho,
+            self.interval_s, self.model_b, self._c)
         c = self._c
         pf = 0.0 if self.model_b else 1.0  # beads feel grad p in model A only
         gpr, gpt, gpz = fab[:, 3], fab[:, 4], fab[:, 5] - s.body_z
@@ -189,3 +176,30 @@ class CfdDem:
             self.exchange()
             out.append(self.sim.run(k, record=record))
         return out
+
+    # ---- observation --------------------------------------------------------------------
+    def section_fields(self) -> dict:
+        """Fluid fields at the cell centres of the axial section, averaged over theta:
+        void fraction eps [-], velocities u_r, u_theta, u_z [m/s], axial volume flux
+        density eps u_z [m/s], turbulent viscosity nu_t [m2/s], turbulent kinetic energy
+        k [m2/s2]; (n_r, n_z) arrays, NaN in solid cells."""
+        s = self.solver
+        solid = self.grid.solid != 0
+        ur = 0.5 * (s.ur[:-1] + s.ur[1:])
+        ut = 0.5 * (s.ut + np.roll(s.ut, 1, axis=1))
+        uz = 0.5 * (s.uz + np.roll(s.uz, 1, axis=2))
+        fz = 0.5 * (s.eps_z * s.uz + np.roll(s.eps_z * s.uz, 1, axis=2))
+        out = {}
+        for name, a in (("eps", s.eps_c), ("u_r", ur), ("u_theta", ut), ("u_z", uz),
+                        ("flux_z", fz), ("nu_t", s.nu_t), ("k", s.k)):
+            b = np.where(solid, np.nan, a)
+            with np.errstate(invalid="ignore"):
+                out[name] = np.nanmean(b, axis=1) if b.shape[1] > 1 else b[:, 0, :]
+        return out
+
+    def angular_impulses_nms(self) -> dict:
+        """Running time integrals [N m s] of the torques the fluid exerted on shaft, rotor
+        cells (disc) and the walls at rest, in the simulated sector."""
+        s = self.solver
+        return dict(shaft=s.angular_impulse_shaft_nms, rotor_cells=s.angular_impulse_rotor_nms,
+                    stator=s.angular_impulse_stator_nms)
