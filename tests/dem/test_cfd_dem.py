@@ -9,11 +9,12 @@ import pytest
 
 pytest.importorskip("numba")
 
+from millfmu.dem.coupling import exchange_kernels as EK  # noqa: E402
 from millfmu.dem.coupling import projection as PJ  # noqa: E402
 from millfmu.dem.coupling.cfd_dem import CfdDem  # noqa: E402
 from millfmu.dem.coupling.settings import CouplingSettings  # noqa: E402
 from millfmu.dem.fluid.grid import mill_grid  # noqa: E402
-from millfmu.dem.fluid.solver import FluidProperties  # noqa: E402
+from millfmu.dem.fluid.solver import FluidProperties, FluidSolver  # noqa: E402
 from millfmu.dem.geometry import MillGeometry, fcc_sites  # noqa: E402
 from millfmu.dem.params import BeadMaterial, koch_hill_f0_f3  # noqa: E402
 from millfmu.dem.sim import DemSimulation, FluidSettings  # noqa: E402
@@ -36,37 +37,46 @@ def test_deposit_and_gather_are_transposes_and_conserve():
     idx = np.zeros((n, 8), np.int64)
     w = np.zeros((n, 8))
     nr, nt, nz = grid.shape
-    PJ.bead_stencils(x, proj.rc, grid.r_faces_m[0], grid.r_faces_m[-1], grid.dtheta_rad, nt,
-                     grid.dz_m, nz, grid.height_m, grid.solid, idx, w)
-    q = rng.normal(size=(n, 2))
-    tot = np.zeros((grid.solid.size, 2))
+    PJ.bead_stencils(x, proj.rc, proj.rtab, proj.rh, grid.dtheta_rad, nt, grid.dz_m, nz,
+                     grid.height_m,
+                     grid.solid, idx, w, np.zeros(n))
+    q = rng.normal(size=(n, 6))
+    tot = np.zeros((6, grid.solid.size))
     PJ.deposit(idx, w, q, tot)
     proj.smooth_totals(tot)
-    assert np.allclose(tot.sum(axis=0), q.sum(axis=0), rtol=1e-12, atol=1e-12)
-    assert np.all(tot.reshape(grid.shape + (2,))[grid.solid != 0] == 0.0)
-    field = rng.normal(size=(grid.solid.size, 2))
-    field[grid.solid.ravel() != 0] = 0.0
+    assert proj.sweeps > 1
+    assert np.allclose(tot.sum(axis=1), q.sum(axis=0), rtol=1e-12, atol=1e-12)
+    assert np.all(tot.reshape((6,) + grid.shape)[:, grid.solid != 0] == 0.0)
+    field = rng.normal(size=(6, grid.solid.size))
+    field[:, grid.solid.ravel() != 0] = 0.0
     sm = field.copy()
     proj.smooth_values(sm)
-    back = np.zeros((n, 2))
+    back = np.zeros((n, 6))
     PJ.gather(idx, w, sm, back)
     lhs = float((back * q).sum())
     rhs = float((field * tot).sum())
     assert abs(lhs - rhs) <= 1e-11 * (abs(lhs) + abs(rhs))
-    # cells -> nodes and back, per component
-    kinds = [np.zeros((nr + 1, nt, nz), np.int8), np.zeros(grid.shape, np.int8),
-             np.zeros(grid.shape, np.int8)]
-    kinds[0][0] = kinds[0][-1] = 1
-    t3 = rng.normal(size=grid.shape)
-    t3[grid.solid != 0] = 0.0
-    for axis, kind in enumerate(kinds):
-        nodes = np.zeros(kind.shape)
-        PJ.cells_to_nodes(t3, kind, axis, nodes)
-        assert abs(nodes.sum() - t3.sum()) < 1e-12 * np.abs(t3).sum()
-        val = rng.normal(size=kind.shape)
-        cells = np.zeros(grid.shape)
-        PJ.nodes_to_cells(val, kind, axis, grid.solid, cells)
-        assert abs((val * nodes).sum() - (cells * t3).sum()) < 1e-11 * np.abs(t3).sum()
+    # cells -> velocity nodes and back (the solver's node kinds: walls and the disc)
+    s = FluidSolver(grid, FluidProperties(RHO_F, MU_F), 100.0, turbulence="laminar")
+    t6 = np.abs(tot).reshape((6,) + grid.shape) * 1e-12  # small volumes: no clipping
+    eps = [np.ones(grid.shape), np.ones(s.ur.shape), np.ones(grid.shape), np.ones(grid.shape)]
+    kd = [np.zeros(s.ur.shape), np.zeros(grid.shape), np.zeros(grid.shape)]
+    sd = [np.zeros(s.ur.shape), np.zeros(grid.shape), np.zeros(grid.shape)]
+    EK.cells_to_exchange(t6, grid.cell_volume_m3, 0.35, grid.solid, s.kr, s.kt, s.kz,
+                         np.ascontiguousarray(s.vol_r[:, 0, 0]), grid.r_centres_m, *eps, *kd,
+                         *sd)
+    node_tot = [kd[0] * s.vol_r, kd[1] * s.vol_c * grid.r_centres_m[:, None, None],
+                kd[2] * s.vol_c, sd[0] * s.vol_r,
+                sd[1] * s.vol_c * grid.r_centres_m[:, None, None], sd[2] * s.vol_c]
+    for m, col in enumerate((1, 2, 1, 3, 4, 5)):
+        assert abs(node_tot[m].sum() - t6[col].sum()) < 1e-12 * np.abs(t6).sum()
+    vals = [rng.normal(size=a.shape) for a in (s.ur, s.ut, s.uz, s.ur, s.ut, s.uz)]
+    cells = np.zeros((6, grid.solid.size))
+    EK.nodes_to_cell_values(*vals, s.kr, s.kt, s.kz, grid.solid, cells)
+    for m, col in enumerate((1, 2, 1, 3, 4, 5)):
+        lhs = float((vals[m] * node_tot[m]).sum())
+        rhs = float((cells[m] * t6[col].ravel()).sum())
+        assert abs(lhs - rhs) <= 1e-11 * (abs(lhs) + abs(rhs))
 
 
 def settling(model):
@@ -90,7 +100,7 @@ def settling(model):
 def test_settling_bead_terminal_velocity_and_exchange(model):
     v, cpl, sim, weight = settling(model)
     # the drag law at the bead's local void fraction: (rho_p - rho_f) V g = V beta u
-    eps = float(cpl._eps_b[0, 0])
+    eps = float(cpl.void_fraction_at_beads()[0])
     f0, f3 = koch_hill_f0_f3(eps)
     uf = float(sim.per_bead["fluid_at_bead"][0, 2])
 

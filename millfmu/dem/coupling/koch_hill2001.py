@@ -28,7 +28,8 @@ def f0_f3(eps):
             1.0 + 0.681 * phi - 8.48 * phi * phi + 8.16 * phi * phi * phi)
     else:
         f0 = 10.0 * phi / (eps * eps * eps)
-    f3 = 0.0673 + 0.212 * phi + 0.0232 / eps ** 5
+    e2 = eps * eps
+    f3 = 0.0673 + 0.212 * phi + 0.0232 / (e2 * e2 * eps)
     return f0, f3
 
 
