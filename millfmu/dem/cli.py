@@ -49,8 +49,36 @@ def register(subparsers) -> argparse.ArgumentParser:
     b.add_argument("--steps", type=int, default=None, help="steps (default 2000)")
     b.add_argument("--threads", type=int, help="numba threads (default: all cores)")
     b.add_argument("--json", action="store_true", help="print the result as JSON only")
+    b.add_argument("--coupled", action="store_true",
+                   help="also the coupled row: disc_slice with the coupled fluid against the "
+                        "DEM alone on the same beads, alternating, best of 3")
     b.set_defaults(func=_bench)
+
+    s = sub.add_parser("seed001", help="seed 001 side by side: run its cases, print the "
+                                       "deviation table")
+    s.add_argument("action", choices=("run", "table"), help="run the cases (skipping those "
+                   "done) or print the table from their results")
+    s.add_argument("--out", required=True, help="folder of the case runs")
+    s.add_argument("--fluid", default="coupled,prescribed",
+                   help="fluid models to run (comma-separated; default both)")
+    s.add_argument("--threads", type=int, help="numba threads (default: all cores)")
+    s.set_defaults(func=_seed001)
     return p
+
+
+def _seed001(args) -> int:
+    from millfmu.dem import seed001
+
+    if args.action == "run":
+        fluids = [f.strip() for f in args.fluid.split(",") if f.strip()]
+        bad = [f for f in fluids if f not in seed001.FLUIDS]
+        if bad:
+            print(f"millfmu dem seed001: --fluid {args.fluid!r}: allowed "
+                  f"{sorted(seed001.FLUIDS)}", file=sys.stderr)
+            return 2
+        seed001.run_campaign(args.out, fluids=fluids, threads=args.threads)
+    print(seed001.markdown(seed001.deviation_rows(args.out)))
+    return 0
 
 
 def _run(args) -> int:
@@ -84,10 +112,24 @@ def _bench(args) -> int:
     from millfmu.dem.bench import BENCH_STEPS, run_bench
 
     res = run_bench(steps=args.steps or BENCH_STEPS, threads=args.threads)
+    out = {"annulus": res.__dict__}
+    if args.coupled:
+        from millfmu.dem.coupling.bench import run_coupled_bench
+
+        out["coupled"] = run_coupled_bench(steps=args.steps or BENCH_STEPS,
+                                           threads=args.threads).as_dict()
     if args.json:
-        print(json.dumps(res.__dict__))
-    else:
-        print(f"annulus bench: {res.beads} beads, {res.steps} steps, {res.threads} threads: "
-              f"loop {res.loop_time_s:.3f} s, {res.particle_steps_per_s:.4g} particle-steps/s "
-              f"({res.neighbour_builds} neighbour builds)")
+        print(json.dumps(out))
+        return 0
+    print(f"annulus bench: {res.beads} beads, {res.steps} steps, {res.threads} threads: "
+          f"loop {res.loop_time_s:.3f} s, {res.particle_steps_per_s:.4g} particle-steps/s "
+          f"({res.neighbour_builds} neighbour builds)")
+    if args.coupled:
+        c = out["coupled"]
+        print(f"coupled row (disc_slice 10 m/s, 80 %, 10 deg, {c['beads']} beads, "
+              f"{c['fluid_cells']} fluid cells, coupling every {c['coupling_steps']} steps, "
+              f"{c['threads']} threads, best of 3): DEM alone "
+              f"{c['dem_particle_steps_per_s']:.4g}, coupled "
+              f"{c['coupled_particle_steps_per_s']:.4g} particle-steps/s; the fluid and the "
+              f"coupling add {c['added_cost']:.0%}")
     return 0

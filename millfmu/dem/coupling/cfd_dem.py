@@ -30,7 +30,6 @@ nodes, whose equation is in angular-momentum form).
 
 from __future__ import annotations
 
-import math
 import numpy as np
 
 from millfmu.dem.coupling.settings import CouplingSettings
@@ -93,13 +92,12 @@ class CfdDem:
         coefficients on the nodes (in self._eps, self._kd, self._sd)."""
         sim, g, s = self.sim, self.grid, self.solver
         nr, nt, nz = g.shape
-        xm = self.EK.beads_in(sim.x, sim.v, sim.rad, sim.mass, sim.per_bead["fluid_at_bead"],
-                              eps_cells, s.body_z, 0.0 if self.model_b else 1.0,
-                              self.model_b, s.fluid.viscosity_pa_s, s.rho, self.interval_s,
-                              self.projector.rc, self.projector.rtab, self.projector.rh,
-                              g.dtheta_rad, nt, g.dz_m, nz, g.height_m,
-                              g.solid, self._idx, self._w, self._cyl, self._c, self._q,
-                              self._x)
+        self.EK.beads_in(sim.x, sim.v, sim.rad, sim.mass, sim.per_bead["fluid_at_bead"],
+                         eps_cells, s.body_z, 0.0 if self.model_b else 1.0, self.model_b,
+                         s.fluid.viscosity_pa_s, s.rho, self.interval_s, self.projector.rc,
+                         self.projector.rtab, self.projector.rh, g.dtheta_rad, nt, g.dz_m,
+                         nz, g.height_m, g.solid, self._idx, self._w, self._cyl, self._c,
+                         self._q, self._x)
         self.PJ.deposit(self._idx, self._w, self._q, self._tot)
         self.projector.smooth_totals(self._tot)
         e = self._eps
