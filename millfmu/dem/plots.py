@@ -79,7 +79,8 @@ def write_maps(out: Path, scene, events: np.ndarray, cols: dict):
         ax.set_xlabel("axial position from the disc mid-plane [mm]")
         ax.set_ylabel("radius [mm]")
         ax.set_title(f"{scene.name}: v_tip {scene.tip_speed_m_s:g} m/s, filling "
-                     f"{scene.filling if scene.filling is not None else '-'}", fontsize=9)
+                     f"{scene.filling if scene.filling is not None else '-'}, fluid "
+                     f"{scene.fluid_mode}", fontsize=9)
         fig.tight_layout()
         fig.savefig(out / fname, dpi=110)
         plt.close(fig)

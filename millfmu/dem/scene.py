@@ -100,7 +100,8 @@ class DemScene:
         return (f"coupled CFD-DEM: volume-averaged Navier-Stokes model {c.model}, "
                 f"turbulence {c.turbulence}, Koch-Hill drag, cylindrical grid of "
                 f"~{c.cell_m * 1e3:g} mm cells, {c.n_theta} theta cell(s), coupling every "
-                f"{c.steps} DEM steps ({c.steps * self.dt_s:.3g} s)")
+                f"{c.steps} DEM steps ({c.steps * self.dt_s:.3g} s), CFD step the coupling "
+                f"interval or the part of it that CFL {c.cfl:g} allows")
 
 
 def _geometry_or_error(fn, *a, **kw):
