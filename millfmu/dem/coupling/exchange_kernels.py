@@ -13,11 +13,22 @@ import math
 
 from numba import prange
 
-from millfmu.dem._jit import kernel, serial
+from millfmu.dem._jit import device, kernel, serial
 from millfmu.dem.coupling.koch_hill2001 import STIFF_RATIO, beta
 from millfmu.dem.coupling.projection import stencil_one
 
 NQ = 6
+
+
+@device
+def split(kind_a, kind_b):
+    """Shares of a cell's total for its two faces of a component, by their node kinds:
+    half each when both are solved, all to the solved one next to a wall or solid."""
+    fa = kind_a == 0
+    fb = kind_b == 0
+    if fa and fb:
+        return 0.5, 0.5
+    return (1.0 if fa else 0.0), (1.0 if fb else 0.0)
 
 
 @kernel
@@ -100,28 +111,19 @@ def cells_to_exchange(tot, vc, eps_min, solid, kr, kt, kz, vol_r, rc, eps_c, eps
                     continue
                 km = (k - 1) % nz
                 # r: faces i (low) and i + 1
-                fa = kr[i, j, k] == 0
-                fb = kr[i + 1, j, k] == 0
-                wa = 0.5 if fa and fb else (1.0 if fa else 0.0)
-                wb = 0.5 if fa and fb else (1.0 if fb else 0.0)
+                wa, wb = split(kr[i, j, k], kr[i + 1, j, k])
                 kd_r[i, j, k] += wa * tot[1, i, j, k]
                 kd_r[i + 1, j, k] += wb * tot[1, i, j, k]
                 sd_r[i, j, k] += wa * tot[3, i, j, k]
                 sd_r[i + 1, j, k] += wb * tot[3, i, j, k]
                 # theta: faces jm and j
-                fa = kt[i, jm, k] == 0
-                fb = kt[i, j, k] == 0
-                wa = 0.5 if fa and fb else (1.0 if fa else 0.0)
-                wb = 0.5 if fa and fb else (1.0 if fb else 0.0)
+                wa, wb = split(kt[i, jm, k], kt[i, j, k])
                 kd_t[i, jm, k] += wa * tot[2, i, j, k]
                 kd_t[i, j, k] += wb * tot[2, i, j, k]
                 sd_t[i, jm, k] += wa * tot[4, i, j, k]
                 sd_t[i, j, k] += wb * tot[4, i, j, k]
                 # z: faces km and k
-                fa = kz[i, j, km] == 0
-                fb = kz[i, j, k] == 0
-                wa = 0.5 if fa and fb else (1.0 if fa else 0.0)
-                wb = 0.5 if fa and fb else (1.0 if fb else 0.0)
+                wa, wb = split(kz[i, j, km], kz[i, j, k])
                 kd_z[i, j, km] += wa * tot[1, i, j, k]
                 kd_z[i, j, k] += wb * tot[1, i, j, k]
                 sd_z[i, j, km] += wa * tot[5, i, j, k]
@@ -169,22 +171,13 @@ def nodes_to_cell_values(ur, ut, uz, gr, gt, gz, kr, kt, kz, solid, out):
                         out[m, c] = 0.0
                     continue
                 km = (k - 1) % nz
-                fa = kr[i, j, k] == 0
-                fb = kr[i + 1, j, k] == 0
-                wa = 0.5 if fa and fb else (1.0 if fa else 0.0)
-                wb = 0.5 if fa and fb else (1.0 if fb else 0.0)
+                wa, wb = split(kr[i, j, k], kr[i + 1, j, k])
                 out[0, c] = wa * ur[i, j, k] + wb * ur[i + 1, j, k]
                 out[3, c] = wa * gr[i, j, k] + wb * gr[i + 1, j, k]
-                fa = kt[i, jm, k] == 0
-                fb = kt[i, j, k] == 0
-                wa = 0.5 if fa and fb else (1.0 if fa else 0.0)
-                wb = 0.5 if fa and fb else (1.0 if fb else 0.0)
+                wa, wb = split(kt[i, jm, k], kt[i, j, k])
                 out[1, c] = wa * ut[i, jm, k] + wb * ut[i, j, k]
                 out[4, c] = wa * gt[i, jm, k] + wb * gt[i, j, k]
-                fa = kz[i, j, km] == 0
-                fb = kz[i, j, k] == 0
-                wa = 0.5 if fa and fb else (1.0 if fa else 0.0)
-                wb = 0.5 if fa and fb else (1.0 if fb else 0.0)
+                wa, wb = split(kz[i, j, km], kz[i, j, k])
                 out[2, c] = wa * uz[i, j, km] + wb * uz[i, j, k]
                 out[5, c] = wa * gz[i, j, km] + wb * gz[i, j, k]
 
