@@ -65,7 +65,7 @@ def _cmd_scene_keys(args) -> int:
 def _cmd_bench_pbm(args) -> int:
     from .bench import bench_pbm
 
-    bench_pbm(classes=args.classes, hours=args.hours, repeats=args.repeats)
+    bench_pbm(classes=args.classes, hours=args.hours, repeats=args.repeats, tanks=args.tanks, dense=not args.no_dense)
     return 0
 
 
@@ -92,6 +92,8 @@ def build_parser() -> argparse.ArgumentParser:
     bp.add_argument("--classes", type=int, nargs="+", default=[50, 100, 200])
     bp.add_argument("--hours", type=float, default=1.0, help="simulated batch time [h] at 1 s steps")
     bp.add_argument("--repeats", type=int, default=3)
+    bp.add_argument("--tanks", type=int, default=50, help="tanks in series of the continuous row (0: leave it out)")
+    bp.add_argument("--no-dense", action="store_true", help="continuous row without the dense matrix exponential (the method before; tens of seconds at 50 tanks)")
     bp.set_defaults(func=_cmd_bench_pbm)
 
     for mod in PLUGINS:

@@ -75,8 +75,7 @@ class _Frozen:
     """What an exact step needs for one set of frozen inputs and step size."""
 
     op: rates.OperatingPoint
-    phi: np.ndarray
-    gam: np.ndarray | None
+    propagator: pbm.SeriesPropagator
 
 
 class MillModel:
@@ -109,7 +108,6 @@ class MillModel:
         self.source = self._stress_source(sd)
         self._check_source_scene()
         self._m = self.operator.state_size
-        self._feed_map = pbm.feed_matrix(self._m, self.n_tanks, self.grid.n)
         self._cache = pbm.LRUCache(32)  # exact propagators by (inputs, h)
         self._rate_cache = pbm.LRUCache(64)  # breakage operators by operating point
         self._num_cache = pbm.LRUCache(256)  # scalars by operating point
@@ -249,22 +247,22 @@ class MillModel:
         return self._rate_cache.get(op, lambda: self.operator.matrix(self.selection_nodes(op)))
 
     def _system(self, inputs, y=None):
-        """(G, F, u, op) for frozen inputs (and, capture = 'psd', the state y)."""
+        """(tanks in series, feed u [kg/s per class] or None, op) for frozen inputs (and,
+        capture = 'psd', the state y)."""
         op = self.operating_point(inputs)
         n_p = self._number_concentration(y, op) if (self.capture_from_psd and y is not None) else None
         a = self._breakage_matrix(op, n_p)
         if not self.continuous:
-            return pbm.system_matrix(a, 1, 0.0), None, None, op
+            return pbm.TanksInSeries(a, 1, 0.0), None, op
         mdot = float(inputs["feed_mass_flow_kg_per_s"])
         q = mdot / op.solids_concentration_kg_per_m3 if mdot > 0.0 else 0.0
         d = q / (self.suspension_volume_m3(op) / self.n_tanks)
         u = mdot * np.asarray(inputs["psd_in"], dtype=float)
-        return pbm.system_matrix(a, self.n_tanks, d), self._feed_map, u, op
+        return pbm.TanksInSeries(a, self.n_tanks, d, n_in=self.grid.n), u, op
 
     def _frozen_step(self, inputs, h):
-        g, f, _, op = self._system(inputs)
-        phi, gam = pbm.propagators(g, f, h)
-        return _Frozen(op, phi, gam)
+        series, _, op = self._system(inputs)
+        return _Frozen(op, series.propagator(h))
 
     # ---- inputs ---------------------------------------------------------------------------
     def check_inputs(self, given: dict) -> dict:
@@ -335,8 +333,8 @@ class MillModel:
                 else:
                     w = min(max((t - self.t_s) / h, 0.0), 1.0)
                     inp = {k: (1 - w) * np.asarray(new_inputs[k]) + w * np.asarray(end_inputs[k]) for k in new_inputs}
-                gg, ff, uu, _ = self._system(inp, y)
-                return gg, ff, uu
+                series, uu, _ = self._system(inp, y)
+                return series, uu
 
             # Absolute tolerance scaled with the mass in the state: classes below a
             # millionth of the total are controlled absolutely, the rest relatively.
@@ -347,10 +345,9 @@ class MillModel:
             # Everything that depends only on the frozen inputs and h is built once.
             key = (new_inputs["tip_speed_m_per_s"], new_inputs["solids_mass_fraction"], new_inputs["bead_filling"], new_inputs["feed_mass_flow_kg_per_s"], h)
             frozen = self._cache.get(key, lambda: self._frozen_step(new_inputs, h))
-            op, phi, gam = frozen.op, frozen.phi, frozen.gam
-            y_new = phi @ self.y
-            if gam is not None:
-                y_new += gam @ (new_inputs["feed_mass_flow_kg_per_s"] * new_inputs["psd_in"])
+            op = frozen.op
+            u = new_inputs["feed_mass_flow_kg_per_s"] * new_inputs["psd_in"] if self.continuous else None
+            y_new = frozen.propagator.apply(self.y, u)
             op_end = op
         if not np.all(np.isfinite(y_new)) or np.any(y_new < 0.0):
             raise StepError(f"step of {h} s at t = {self.t_s} s gave non-finite or negative masses")

@@ -151,7 +151,7 @@ class PSD:
 @dataclass(frozen=True)
 class Operation:
     mode: str = _f("batch", choices=("batch", "continuous"), doc="batch, or continuous through N equal tanks in series")
-    n_tanks: int = _f(1, lo=1, hi=50, doc="continuous: tanks in series for the residence time distribution")
+    n_tanks: int = _f(1, lo=1, hi=100, doc="continuous: tanks in series for the residence time distribution")
     feed_mass_flow_kg_per_s: float = _f(0.0, unit="kg/s", lo=0.0, hi=1e3, doc="continuous: solids feed mass flow")
 
 

@@ -155,12 +155,11 @@ def test_characteristic_sizes_lognormal():
 def test_adaptive_exponential_midpoint_second_order():
     """Fixed-step convergence of the exponential midpoint with a time-varying rate: order ~2."""
     _, a = _operator(n=30)
-    g0 = pbm.system_matrix(a, 1, 0.0)
-    y0 = np.zeros(g0.shape[0])
+    y0 = np.zeros(a.shape[0] + 1)
     y0[25] = 1.0
 
     def system(t, y):
-        return g0 * (1.0 + 0.9 * np.sin(t)), None, None
+        return pbm.TanksInSeries(a * (1.0 + 0.9 * np.sin(t)), 1, 0.0), None
 
     def run(n):
         y, t, h = y0.copy(), 0.0, 4.0 / n
