@@ -160,7 +160,12 @@ def build_fmu(scene_path: str | Path | None, out: str | Path) -> BuildResult:
     out = Path(out)
     if out.suffix != ".fmu":
         raise ValueError(f"output {out}: must end in .fmu")
+    from millfmu.mill import MillModel
+
     scene = load_scene(scene_path)  # SceneError -> the caller reports it
+    # The model itself refuses what the file alone does not show (a damaged DEM table, a
+    # feed outside the grid): refused here with the same message, before anything is built.
+    MillModel(scene)
     scene_text = Path(scene_path).read_text() if scene_path is not None else default_scene_text()
     pkg_root = Path(millfmu.__file__).parent
 
@@ -170,12 +175,14 @@ def build_fmu(scene_path: str | Path | None, out: str | Path) -> BuildResult:
         scene_file.write_text(scene_text)
         modules = _needed_modules(scene_file)
         rel = sorted(Path(f).resolve().relative_to(pkg_root.resolve()) for f in modules.values())
+        # Scenes resolve left-out keys from the embedded default scene, in the FMU too.
+        rel.append(Path("data") / "default_scene.toml")
         h = hashlib.sha256()
         for r in rel:
             src = (pkg_root / r).read_bytes()
             # The carried code is imported under another package name: it must import
             # itself relatively only.
-            if re.search(rb"^\s*(from|import)\s+millfmu\b", src, re.M):
+            if r.suffix == ".py" and re.search(rb"^\s*(from|import)\s+millfmu\b", src, re.M):
                 raise RuntimeError(f"millfmu/{r} imports millfmu absolutely; carried code must use relative imports")
             h.update(str(r).encode() + b"\0" + src + b"\0")
         code_hash = h.hexdigest()[:12]

@@ -48,8 +48,10 @@ class BreakageOperator:
 
     grid: the size grid; breakage_cdf: callable B(ratio) [-]; n_quad: Gauss-Legendre
     nodes per class; inert_fragments: if True (cells), broken mass goes to a second set of
-    classes (debris) that is never stressed again, and the state has 2n entries
-    [intact..., debris...].
+    classes (debris) that is never stressed again. Fragments smaller than the grid's lower
+    edge go to one more state, the below-grid mass, which is never stressed again either:
+    a tank's state is [class 1..n, below grid] or, with inert fragments,
+    [intact 1..n, debris 1..n, below grid] (:attr:`state_size` entries, below grid last).
     """
 
     def __init__(self, grid: SizeGrid, breakage_cdf, n_quad: int = 5, inert_fragments: bool = False):
@@ -67,37 +69,44 @@ class BreakageOperator:
         # C[k, j, q] = B(e_k / y_jq) for the edges k = 0..n.
         c = np.asarray(breakage_cdf(e[:, None, None] / self.nodes_m[None, :, :]), dtype=float)
         c[e[:, None, None] >= self.nodes_m[None, :, :]] = 1.0
-        beta = np.empty((n, n, n_quad))
-        beta[0] = c[1]  # the finest class takes everything below its upper edge
-        beta[1:] = c[2:] - c[1:-1]
+        # beta[i] for the classes i = 0..n-1, beta[n] below the grid's lower edge.
+        beta = np.empty((n + 1, n, n_quad))
+        beta[:n] = c[1:] - c[:-1]
+        beta[n] = c[0]
         beta = np.maximum(beta, 0.0)
         # Normalise each parent's fragment distribution to exactly one.
         beta /= beta.sum(axis=0, keepdims=True)
         weighted = beta * self.weights[None, None, :]
-        if inert_fragments:
-            # Every broken cell leaves the intact class, into any debris class i <= j.
-            self._w_frag = np.ascontiguousarray(weighted)
-        else:
-            # Only fragments in finer classes leave class j; those inside j stay.
-            self._w_frag = np.ascontiguousarray(np.triu(np.moveaxis(weighted, 2, 0), k=1).transpose(1, 2, 0))
+        if not inert_fragments:
+            # Only fragments in finer classes (or below the grid) leave class j; those inside j stay.
+            keep = np.triu(np.ones((n + 1, n), bool), k=1)
+            keep[n] = True
+            weighted = weighted * keep[:, :, None]
+        # Every broken cell leaves the intact class, into any debris class i <= j.
+        self._w_frag = np.ascontiguousarray(weighted)
+        m = self.state_size
+        #: A permutation of a tank's states that makes :meth:`matrix` upper triangular (all
+        #: transfers go to a lower index), for matrix exponentials that treat the diagonal
+        #: exactly: below grid first, then the classes (debris, intact) from the top.
+        self.upper_order = np.r_[m - 1, np.arange(m - 1)] if not inert_fragments else np.arange(m)[::-1].copy()
 
     @property
     def state_size(self) -> int:
-        """Length of one tank's state vector."""
-        return 2 * self.grid.n if self.inert_fragments else self.grid.n
+        """Length of one tank's state vector (see the class docstring)."""
+        return (2 * self.grid.n if self.inert_fragments else self.grid.n) + 1
 
     def matrix(self, s_nodes_per_s: np.ndarray) -> np.ndarray:
-        """Breakage operator A [1/s] for selection rates at the quadrature nodes, shape (n, n_quad)."""
+        """Breakage operator A [1/s] for selection rates at the quadrature nodes, shape (n, n_quad);
+        every column sums to zero."""
         n = self.grid.n
+        m = self.state_size
         s = np.asarray(s_nodes_per_s, dtype=float)
-        off = np.einsum("ijq,jq->ij", self._w_frag, s)
-        if not self.inert_fragments:
-            # off has a zero diagonal (fragments inside class j stay), so this is the column sum.
-            off[np.diag_indices(n)] = -off.sum(axis=0)
-            return off
-        a = np.zeros((2 * n, 2 * n))
-        a[n:, :n] = off
-        a[np.arange(n), np.arange(n)] = -off.sum(axis=0)
+        flow = np.einsum("ijq,jq->ij", self._w_frag, s)  # (n + 1, n): into class i / below grid
+        a = np.zeros((m, m))
+        rows = np.r_[np.arange(n), m - 1] if not self.inert_fragments else np.r_[np.arange(n, 2 * n), m - 1]
+        a[rows, :n] = flow
+        # flow has a zero diagonal (fragments inside class j stay), so this is the column sum.
+        a[np.arange(n), np.arange(n)] -= flow.sum(axis=0)
         return a
 
     def class_rates(self, s_nodes_per_s: np.ndarray) -> np.ndarray:
@@ -109,11 +118,8 @@ def system_matrix(a: np.ndarray, n_tanks: int, dilution_per_s: float) -> np.ndar
     """Matrix G of N tanks in series with breakage operator a, plus the outflow accumulator.
 
     State layout: [outflow, tank N (m entries), ..., tank 1]; dilution_per_s = Q / V_tank.
-    In this order every transfer (breakage to finer classes, flow to the next tank, outflow)
-    goes from a higher to a lower index, so G is upper triangular, and so is the augmented
-    matrix of :func:`propagators`; scipy's expm then treats the diagonal exactly, which
-    keeps steps of stiff systems (rates x step ~ 1e11) accurate to round-off.
-    For a batch mill use n_tanks = 1, dilution_per_s = 0.
+    Block lower-bidiagonal in tank order, with identical blocks (see :class:`TanksInSeries`,
+    which steps it without forming G). For a batch mill use n_tanks = 1, dilution_per_s = 0.
     """
     m = a.shape[0]
     size = n_tanks * m + 1
@@ -152,12 +158,16 @@ def _clean(p: np.ndarray, column_sum: float) -> np.ndarray:
     return p
 
 
-def _expm_triangular(a: np.ndarray) -> np.ndarray:
-    """expm of a triangular matrix; a lower one through its transpose, so that scipy's
-    exact treatment of an upper triangular matrix's diagonal (stiff rates) applies."""
-    if not np.any(np.triu(a, 1)) and np.any(np.tril(a, -1)):
-        return expm(a.T).T
-    return expm(a)
+def _expm_ordered(a: np.ndarray, order: np.ndarray | None) -> np.ndarray:
+    """expm(a), computed on a[order][:, order] (upper triangular for the breakage operator's
+    ``upper_order``) so that scipy's exact treatment of an upper triangular matrix's diagonal
+    keeps stiff steps (rates x step ~ 1e12) accurate."""
+    if order is None:
+        return expm(a)
+    ix = np.ix_(order, order)
+    out = np.empty_like(a)
+    out[ix] = expm(a[ix])
+    return out
 
 
 class TanksInSeries:
@@ -168,8 +178,9 @@ class TanksInSeries:
     N = 1, D = 0. Exact propagators over a step: :meth:`propagator` (see the module
     docstring for the method)."""
 
-    def __init__(self, a: np.ndarray, n_tanks: int, dilution_per_s: float, n_in: int | None = None):
+    def __init__(self, a: np.ndarray, n_tanks: int, dilution_per_s: float, n_in: int | None = None, order=None):
         self.a = np.asarray(a, dtype=float)
+        self.order = order  # see _expm_ordered
         self.n_tanks = int(n_tanks)
         self.dilution_per_s = float(dilution_per_s)
         self.n_in = n_in
@@ -201,7 +212,7 @@ class SeriesPropagator:
         a, n, d = series.a, series.n_tanks, series.dilution_per_s
         m = a.shape[0]
         self.n_tanks, self.m = n, m
-        self.e = _clean(_expm_triangular(a * h_s), 1.0)
+        self.e = _clean(_expm_ordered(a * h_s, series.order), 1.0)
         lam = d * h_s
         k = np.arange(n)
         # Poisson weights in logs: exp(-lam) underflows long before lam^k / k! overflows.
@@ -215,9 +226,9 @@ class SeriesPropagator:
             self.toeplitz[np.arange(n - j), np.arange(j, n)] = self.p[j]
         self.gamma = self.gamma_out = None
         if series.n_in:
-            self.gamma, self.gamma_out = self._feed(a, n, d, h_s, series.n_in)
+            self.gamma, self.gamma_out = self._feed(a, n, d, h_s, series.n_in, series.order)
 
-    def _feed(self, a, n, d, h_s, n_in):
+    def _feed(self, a, n, d, h_s, n_in, order):
         m = a.shape[0]
         # Gamma_0 = int_0^h expm((A - D I) s) ds from the exponential of [[A - D I, I], [0, 0]] h
         # (Van Loan); triangular when A is, so stiff diagonals stay exact.
@@ -225,7 +236,7 @@ class SeriesPropagator:
         aug[:m, :m] = a - d * np.eye(m)
         aug[:m, m:] = np.eye(m)
         g = np.empty((n, m, m))
-        g[0] = _expm_triangular(aug * h_s)[:m, m:]
+        g[0] = _expm_ordered(aug * h_s, None if order is None else np.r_[order, m + order])[:m, m:]
         if n > 1 and d > 0.0:
             # Gamma_k (D I - A) = D Gamma_{k-1} - p_k E: transposed, one LU of (D I - A)^T.
             lu = lu_factor(d * np.eye(m) - a)

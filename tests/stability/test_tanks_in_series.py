@@ -18,7 +18,7 @@ SPANS = {"mild": (1.0, 1.0), "16 decades": (1e8, 4.85)}
 def _scene(scene_dict, n_tanks, span):
     a, alpha = SPANS[span]
     return make_scene(scene_dict, material={"model": "austin", "selection": {"a_per_s": a, "x0_m": 200e-6, "alpha": alpha, "Lambda": 0.0}},
-                      kinetics={"model": "none"}, feed={"kind": "lognormal", "x50_m": 50e-6, "sigma_ln": 1.5},
+                      kinetics={"model": "none"}, feed={"kind": "lognormal", "x50_m": 30e-6, "sigma_ln": 0.8},
                       operation={"mode": "continuous", "n_tanks": n_tanks, "feed_mass_flow_kg_per_s": 1e-3})
 
 
