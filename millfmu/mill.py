@@ -43,6 +43,10 @@ class StepError(RuntimeError):
     """A step would give non-finite or negative masses. The state is unchanged."""
 
 
+#: Longest step [s] (about 30,000 years): longer ones only overflow the exponentials.
+MAX_STEP_S = 1e12
+
+
 #: Largest mass fraction of a scene's feed or initial distribution that may lie outside the
 #: size grid [-], and the below-grid fraction of the product above which a run warns.
 OUTSIDE_GRID_MAX = 0.01
@@ -401,11 +405,42 @@ class MillModel:
             h = float(dt_s)
         except (TypeError, ValueError):
             raise InputError("dt_s", dt_s, "must be a number > 0 s") from None
-        if not (math.isfinite(h) and h > 0.0):
-            raise InputError("dt_s", dt_s, "must be finite and > 0 s")
+        if not (math.isfinite(h) and 0.0 < h <= MAX_STEP_S):
+            raise InputError("dt_s", dt_s, f"must be finite, > 0 s and <= {MAX_STEP_S:g} s")
         new_inputs = self.check_inputs(inputs)
         end_inputs = self.check_inputs({**inputs, **(inputs_end or {})}) if inputs_end else None
         adaptive = self.capture_from_psd or end_inputs is not None or self.scene.run.integrator == "adaptive"
+        try:
+            with np.errstate(all="ignore"):  # a non-finite result is refused below, by name
+                y_new, op, op_end = self._advance(h, new_inputs, end_inputs, adaptive)
+        except (ValueError, ArithmeticError, RuntimeError, np.linalg.LinAlgError) as e:
+            raise StepError(f"step of {h} s at t = {self.t_s} s failed ({type(e).__name__}: {e})") from None
+        if not np.all(np.isfinite(y_new)) or np.any(y_new < 0.0):
+            raise StepError(f"step of {h} s at t = {self.t_s} s gave non-finite or negative masses")
+        out_kg = float(y_new[0] - self.y[0])
+        # Fed mass: the feed rate is linear over the step when ramped (as integrated above).
+        mdot_end = (end_inputs or new_inputs)["feed_mass_flow_kg_per_s"]
+        fed = 0.5 * (float(new_inputs["feed_mass_flow_kg_per_s"]) + float(mdot_end)) * h
+        # Power and stress number with the operating point held over the step (trapezoid
+        # between start and end for ramps).
+        p_mean = 0.5 * (self._op_numbers(op)["power_W"] + self._op_numbers(op_end)["power_W"])
+        outs = self._outputs(y_new, op_end, end_inputs or new_inputs, dt_s=h, out_kg=out_kg)
+        sf_mean = 0.5 * (self._last["sf_per_s"] + outs["sf_per_s"]) if adaptive else outs["sf_per_s"]
+        # Commit.
+        self.y = y_new
+        self.t_s += h
+        self.inputs = end_inputs or new_inputs
+        self.energy_J += p_mean * h
+        self.fed_kg += fed
+        self.stress_number += sf_mean * h
+        outs["t_s"] = self.t_s
+        outs["stress_number"] = self.stress_number
+        outs["specific_energy_J_per_kg"] = self._specific_energy()
+        self._last = outs
+        return outs
+
+    def _advance(self, h, new_inputs, end_inputs, adaptive):
+        """(state after a step of h seconds, operating point at its start, at its end); commits nothing."""
         if adaptive:
             op = self.operating_point(new_inputs)
 
@@ -431,29 +466,7 @@ class MillModel:
             u = new_inputs["feed_mass_flow_kg_per_s"] * new_inputs["psd_in"] if self.continuous else None
             y_new = frozen.propagator.apply(self.y, u)
             op_end = op
-        if not np.all(np.isfinite(y_new)) or np.any(y_new < 0.0):
-            raise StepError(f"step of {h} s at t = {self.t_s} s gave non-finite or negative masses")
-        out_kg = float(y_new[0] - self.y[0])
-        # Fed mass: the feed rate is linear over the step when ramped (as integrated above).
-        mdot_end = (end_inputs or new_inputs)["feed_mass_flow_kg_per_s"]
-        fed = 0.5 * (float(new_inputs["feed_mass_flow_kg_per_s"]) + float(mdot_end)) * h
-        # Power and stress number with the operating point held over the step (trapezoid
-        # between start and end for ramps).
-        p_mean = 0.5 * (self._op_numbers(op)["power_W"] + self._op_numbers(op_end)["power_W"])
-        outs = self._outputs(y_new, op_end, end_inputs or new_inputs, dt_s=h, out_kg=out_kg)
-        sf_mean = 0.5 * (self._last["sf_per_s"] + outs["sf_per_s"]) if adaptive else outs["sf_per_s"]
-        # Commit.
-        self.y = y_new
-        self.t_s += h
-        self.inputs = end_inputs or new_inputs
-        self.energy_J += p_mean * h
-        self.fed_kg += fed
-        self.stress_number += sf_mean * h
-        outs["t_s"] = self.t_s
-        outs["stress_number"] = self.stress_number
-        outs["specific_energy_J_per_kg"] = self._specific_energy()
-        self._last = outs
-        return outs
+        return y_new, op, op_end
 
     def _specific_energy(self) -> float:
         """Stirrer energy per mass of solids treated [J/kg]: E / (initial holdup + solids fed)."""

@@ -79,7 +79,7 @@ class Beads:
 class Suspension:
     liquid_density_kg_per_m3: float = _f(998.2, unit="kg/m3", lo=500.0, hi=3000.0, doc="liquid density")
     viscosity_Pa_s: float = _f(1.002e-3, unit="Pa s", lo=0.0, hi=100.0, lo_open=True, doc="suspension viscosity eta_susp (Krieger-Dougherty base)")
-    solids_mass_fraction: float = _f(0.2, lo=0.0, hi=0.8, hi_open=True, doc="product solids mass fraction of the suspension")
+    solids_mass_fraction: float = _f(0.2, lo=0.0, lo_open=True, hi=0.8, hi_open=True, doc="product solids mass fraction of the suspension (> 0: a suspension without solids has no product to grind, and its feed flow no volume)")
 
 
 @dataclass(frozen=True)
