@@ -13,6 +13,12 @@ The wrapper that pythonfmu 0.7.0 ships has these faults, each seen with the mill
 3. ``Fmi2Component`` destroys its logger before the slave, whose destructor still flushes
    log messages through it.
 4. A compile error of the slave script calls ``Py_Finalize`` on the host's interpreter.
+5. At process exit, the library's ELF destructor resets the static ``pyState``
+   shared_ptr after that object's own C++ destructor has run (exit handlers run before the
+   libraries' fini functions, and hosts' dlclose does not unload it): the control block is
+   freed twice, and glibc aborts ("corrupted double-linked list") in a later free. Found
+   with valgrind (invalid read in finalizePythonInterpreter of a block freed by the exit
+   handlers); this is the abort hosts saw at exit.
 
 Measured (``python -m fmu_build.exit_study``, 200 processes each loading three mill FMUs
 in fmpy, stepping, freeing them and exiting normally): see the README, "FMU".
@@ -92,13 +98,18 @@ EDITS = (
      'handle_py_exception("[_set_fmu_state] PyObject_CallMethod", gilState);\n            }\n',
      'handle_py_exception("[_set_fmu_state] PyObject_CallMethod", gilState);\n            }\n'
      "            Py_DECREF(f);\n"),
+    # 5. pyState's static destructor releases it; the fini function must not touch it again.
+    ("src/pythonfmu/PySlaveInstance.cpp",
+     "__attribute__((destructor)) void onLibraryUnload()\n{\n    finalizePythonInterpreter();\n}",
+     "__attribute__((destructor)) void onLibraryUnload()\n{\n"
+     "    // Nothing: pyState's own static destructor has released it by now.\n}"),
     # 3. The slave (whose destructor logs) goes before the logger.
     ("src/pythonfmu/fmi2.cpp",
      "    double lastSuccessfulTime{0};\n",
      "    ~Fmi2Component() { slave.reset(); }\n\n    double lastSuccessfulTime{0};\n"),
 )
 #: Changes with the edits or the build recipe: part of the cache key.
-RECIPE_VERSION = "1"
+RECIPE_VERSION = "2"
 
 
 def wrapper_dir() -> Path:
@@ -156,20 +167,27 @@ def _fetch_sources(tmp: Path) -> Path:
     return export
 
 
+def _cmake() -> str | None:
+    """CMake on PATH, else the one a Python environment brings (fmpy depends on the cmake package)."""
+    return shutil.which("cmake") or shutil.which("cmake", path=str(Path(sys.executable).parent))
+
+
 def build_wrapper(dest: Path) -> Path:
     """Fetch, fix and build the wrapper into ``dest`` (a file); RuntimeError saying what failed."""
-    for tool in ("cmake", "c++"):
-        if shutil.which(tool) is None and not (tool == "c++" and (shutil.which("g++") or shutil.which("clang++"))):
-            raise RuntimeError(f"no {tool} on PATH")
+    cmake = _cmake()
+    if cmake is None:
+        raise RuntimeError("no cmake found")
+    if not any(shutil.which(c) for c in ("c++", "g++", "clang++")):
+        raise RuntimeError("no C++ compiler (c++, g++, clang++) on PATH")
     with tempfile.TemporaryDirectory(prefix="millfmu-wrapper-") as tmp:
         tmp = Path(tmp)
         export = _fetch_sources(tmp)
         apply_edits(export)
         build = tmp / "build"
         include = sysconfig.get_paths()["include"]
-        _run(["cmake", "-S", str(export), "-B", str(build), "-DCMAKE_BUILD_TYPE=Release",
+        _run([cmake, "-S", str(export), "-B", str(build), "-DCMAKE_BUILD_TYPE=Release",
               f"-DPython3_EXECUTABLE={sys.executable}", f"-DPython3_INCLUDE_DIR={include}"])
-        _run(["cmake", "--build", str(build), "-j", "2"])
+        _run([cmake, "--build", str(build), "-j", "2"])
         (lib,) = export.parent.glob("resources/binaries/*/libpythonfmu-export.so")
         dest.parent.mkdir(parents=True, exist_ok=True)
         part = dest.with_name(dest.name + ".part")
