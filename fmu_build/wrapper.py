@@ -37,6 +37,7 @@ reason and ``build-fmu`` keeps pythonfmu's own wrapper, with a warning.
 
 from __future__ import annotations
 
+import functools
 import hashlib
 import os
 import platform
@@ -155,7 +156,9 @@ def _run(cmd, cwd=None):
 
 def _fetch_sources(tmp: Path) -> Path:
     """pythonfmu's sdist with the C++ sources, via pip; checked against SOURCE_SHA256."""
-    _run([sys.executable, "-m", "pip", "download", "--quiet", "--no-binary", ":all:", "--no-deps", "--dest", str(tmp), SOURCE_SDIST])
+    # No retries and a short timeout: without a network the build falls back at once.
+    _run([sys.executable, "-m", "pip", "download", "--quiet", "--retries", "0", "--timeout", "20", "--no-binary", ":all:",
+          "--no-deps", "--dest", str(tmp), SOURCE_SDIST])
     (sdist,) = tmp.glob("pythonfmu-*.tar.gz")
     digest = hashlib.sha256(sdist.read_bytes()).hexdigest()
     if digest != SOURCE_SHA256:
@@ -196,8 +199,12 @@ def build_wrapper(dest: Path) -> Path:
     return dest
 
 
+@functools.lru_cache(maxsize=None)
 def fixed_wrapper() -> tuple[Path | None, str]:
-    """(path of the fixed wrapper for this machine, "") or (None, why it is not available)."""
+    """(path of the fixed wrapper for this machine, "") or (None, why it is not available);
+    tried once per process. MILLFMU_STOCK_WRAPPER=1 keeps pythonfmu's own on purpose."""
+    if os.environ.get("MILLFMU_STOCK_WRAPPER") == "1":
+        return None, "MILLFMU_STOCK_WRAPPER=1"
     try:
         import pythonfmu
     except ImportError:
@@ -216,11 +223,15 @@ def fixed_wrapper() -> tuple[Path | None, str]:
         return None, str(e)
 
 
+_WARNED: set = set()
+
+
 def choose_wrapper(log=None) -> Path | None:
     """The fixed wrapper, or None (pythonfmu's own kept) with a warning through ``log``
-    (default: stderr) saying why and what the FMU then cannot do."""
+    (default: stderr, once per process) saying why and what the FMU then cannot do."""
     path, why = fixed_wrapper()
-    if path is None:
+    if path is None and (log is not None or why not in _WARNED):
+        _WARNED.add(why)
         msg = (f"warning: pythonfmu's own C++ wrapper kept ({why}): a Python exception in the FMU "
                f"would be fmi2Fatal, so refusals are logged errors with fmi2OK/fmi2Discard instead of fmi2Error, "
                f"and hosts may abort at exit; install a C++ compiler and CMake to get the fixed wrapper")

@@ -73,3 +73,34 @@ def test_two_hundred_host_processes_exit_normally(fmus):
     d, paths = fmus
     r = study(paths, processes=200, python=isolated_python(d))
     assert r["failed"] == 0, r
+
+
+def test_stock_wrapper_build_warns_and_refusals_are_logged_errors(tmp_path):
+    """Without the fixed wrapper (MILLFMU_STOCK_WRAPPER=1 here) build-fmu warns, and the FMU
+    never raises into pythonfmu's wrapper (which would make it fmi2Fatal): a damaged state is
+    a logged error and is not applied, the instance goes on."""
+    import os
+    import subprocess
+    import sys
+
+    from .fmu_support import ROOT, run_py
+
+    out = tmp_path / "stock.fmu"
+    r = subprocess.run([sys.executable, "-m", "millfmu.cli", "build-fmu", "-o", str(out)], capture_output=True, text=True, cwd=ROOT,
+                       env={**os.environ, "MILLFMU_STOCK_WRAPPER": "1"})
+    assert r.returncode == 0 and "pythonfmu's own C++ wrapper kept (MILLFMU_STOCK_WRAPPER=1)" in r.stderr
+    assert zipfile.ZipFile(out).read("resources/wrapper.txt").decode().strip() == "stock"
+    res = run_py(isolated_python(tmp_path), f"""
+f = open_fmu({str(out)!r})
+assert step(f, 0.0, 1.0) == 0
+before = outputs(f)
+s = f.deSerializeFMUstate(b"not a state")
+f.setFMUstate(s)
+errors = [m[3] for m in LOG if m[1] >= 3]
+same = outputs(f) == before
+off = step(f, 7.0, 1.0)
+ok = step(f, 1.0, 1.0)
+done({{"errors": errors, "same": same, "off": off, "ok": ok}})
+""", tmp_path)
+    assert any("state refused, nothing applied" in m for m in res["errors"]), res["errors"]
+    assert res["same"] and res["off"] == 2 and res["ok"] == 0
