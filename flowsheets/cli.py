@@ -57,6 +57,8 @@ def _check_out(out: Path):
 
 def cmd_run(args) -> int:
     _limit_blas_threads()
+    from fmu_build.fmi3_wrapper import WrapperError
+
     from .master import MasterError, run_flowsheet, write_results
     from .spec import FlowsheetError
 
@@ -78,16 +80,17 @@ def cmd_run(args) -> int:
         with tempfile.TemporaryDirectory(prefix="flowsheet_") as tmp:
             # FMUs are built into the results (OUT/fmus), reusing those of earlier runs.
             fmu_dir = Path(args.fmu_dir) if args.fmu_dir else Path(tmp) / "fmus"
-            res = run_flowsheet(fs, fmu_dir, log=lambda m: print(m, flush=True), reuse=[out / "fmus"])
+            res = run_flowsheet(fs, fmu_dir, log=lambda m: print(m, flush=True), reuse=[out / "fmus"], fmi_version=args.fmi_version)
             write_results(res, fs, Path(tmp), plots=not args.no_plots)
             moved = _publish(Path(tmp), out)
     except FlowsheetError as e:
         return _bad(e)
-    except MasterError as e:
+    except (MasterError, WrapperError) as e:
         print(f"millfmu flowsheet: failed: {e}", file=sys.stderr)
         return 1
     mb = res.mass
-    print(f"flowsheet {fs.name}: {fs.algorithm}, step {fs.step_s:g} s, {res.steps} steps, {len(res.retries)} retried; {res.wall_s:.3g} s wall")
+    print(f"flowsheet {fs.name}: FMI {args.fmi_version}.0 units, {fs.algorithm}, step {fs.step_s:g} s, {res.steps} steps, "
+          f"{len(res.retries)} retried; {res.wall_s:.3g} s wall")
     print(f"mass balance: fed {mb['fed_kg']:.6g} kg, products {mb['products_kg']:.6g} kg, holdup {mb['holdup0_kg']:.6g} -> {mb['holdup_kg']:.6g} kg, "
           f"in flow buffers {mb['buffered_kg']:.3g} kg; relative residual {mb['relative_residual']:.2e}")
     for c in res.columns:
@@ -116,6 +119,8 @@ def cmd_export_ssp(args) -> int:
 
 def cmd_wp(args) -> int:
     _limit_blas_threads()
+    from fmu_build.fmi3_wrapper import WrapperError
+
     from .spec import FlowsheetError
     from .wp import work_precision
 
@@ -135,10 +140,13 @@ def cmd_wp(args) -> int:
         _check_out(Path(args.out))
         with tempfile.TemporaryDirectory(prefix="flowsheet_wp_") as tmp:
             table = work_precision(fs, steps, args.reference, Path(tmp), fmu_dir=Path(args.fmu_dir) if args.fmu_dir else Path(args.out) / "fmus",
-                                   variable=args.variable, log=lambda m: print(m, flush=True))
+                                   variable=args.variable, log=lambda m: print(m, flush=True), fmi_version=args.fmi_version)
             moved = _publish(Path(tmp), Path(args.out))
     except FlowsheetError as e:
         return _bad(e)
+    except WrapperError as e:
+        print(f"millfmu flowsheet: failed: {e}", file=sys.stderr)
+        return 1
     print(table)
     print("wrote " + ", ".join(str(f) for f in moved))
     return 0
@@ -157,6 +165,7 @@ def register(subparsers):
     r.add_argument("--algorithm", choices=("jacobi", "gauss-seidel"), default=None, help="instead of the file's")
     r.add_argument("--output-interval", type=float, default=None, help="output interval [s] instead of the file's (a multiple of the step)")
     r.add_argument("--no-plots", action="store_true", help="skip the PNG")
+    r.add_argument("--fmi-version", type=int, choices=(2, 3), default=2, help="FMI version of all the unit FMUs (default 2)")
     r.set_defaults(func=cmd_run)
 
     e = sub.add_parser("export-ssp", help="write the flowsheet as an SSP archive (SSD + the units' FMUs)")
@@ -173,6 +182,7 @@ def register(subparsers):
     w.add_argument("--variable", default="mill.x50", help="output compared (unit.variable; default mill.x50)")
     w.add_argument("--out", default="out_wp", help="output folder: wp.csv, wp.png")
     w.add_argument("--fmu-dir", default=None, help="where the unit FMUs are built and reused (default: OUT/fmus)")
+    w.add_argument("--fmi-version", type=int, choices=(2, 3), default=2, help="FMI version of all the unit FMUs (default 2)")
     w.set_defaults(func=cmd_wp)
 
 

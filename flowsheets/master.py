@@ -1,5 +1,6 @@
-"""Fixed-step co-simulation master on fmpy's FMU2Slave: Jacobi or Gauss-Seidel, optional
-rejection and retry of discarded steps with FMU state get/set, mass balance, CSV and PNG.
+"""Fixed-step co-simulation master on fmpy (FMI 2.0 or 3.0 unit FMUs): Jacobi or
+Gauss-Seidel, optional rejection and retry of discarded steps with FMU state get/set, mass
+balance, CSV and PNG.
 
 Mass flows between units ([kg/s] output -> [kg/s] input) go through a buffer per connection:
 a sender's flow output is its mean over its last step (see flowsheets.units), so after each
@@ -10,9 +11,13 @@ fed = products + accumulation (holdups and buffers), closes to round-off. With f
 this is plain value copying (what libcosim and ecos do): in Jacobi every flow arrives one
 step late; in Gauss-Seidel only flows against the order do.
 
-A unit that answers a step with fmi2Discard makes the master restore every unit's FMU state
-(fmi2GetFMUstate taken before the step) and the buffers, and redo the step as two halves,
+A unit that answers a step with fmi2Discard (fmi3Discard) makes the master restore every
+unit's FMU state (taken before the step) and the buffers, and redo the step as two halves,
 up to ``max_halvings`` times (then the run stops with an error naming the unit).
+
+The master addresses values by name; an FMI 3.0 unit's array (``psd``) is addressed element
+by element as ``psd[1]`` ... ``psd[n]``, the FMI 2.0 FMUs' names, so flowsheet files, links,
+results and mass balance are the same for both versions (:class:`Instance`).
 
 This module loads FMUs into the calling process; run each flowsheet in a fresh process if
 FMUs are rebuilt (pythonfmu keeps one interpreter per process).
@@ -47,10 +52,9 @@ def _mill_code_hash() -> str:
     import millfmu
 
     h = hashlib.sha256()
-    root = Path(millfmu.__file__).resolve().parent
-    for f in sorted(root.rglob("*.py")):
-        h.update(str(f.relative_to(root)).encode() + b"\0" + f.read_bytes())
-    h.update(Path(fb.__file__).read_bytes())
+    for root in (Path(millfmu.__file__).resolve().parent, Path(fb.__file__).resolve().parent):
+        for f in sorted(root.rglob("*.py")):
+            h.update(str(f.relative_to(root)).encode() + b"\0" + f.read_bytes())
     return h.hexdigest()[:12]
 
 
@@ -63,33 +67,35 @@ def _reuse(path: Path, folders) -> bool:
     return False
 
 
-def build_fmus(fs: Flowsheet, fmu_dir: Path, log=print, reuse=()) -> dict:
+def build_fmus(fs: Flowsheet, fmu_dir: Path, log=print, reuse=(), fmi_version: int = 2) -> dict:
     """Build (or reuse, by content hash, from ``fmu_dir`` or one of the ``reuse`` folders,
-    copying it into ``fmu_dir``) the FMU of every unit: name -> path."""
-    from fmu_build.build import build_fmu, toml_text
+    copying it into ``fmu_dir``) the FMU of every unit, all of one FMI version: name -> path."""
+    from fmu_build.build import build_fmu, check_fmi_version, toml_text
 
     from .build import build_unit_fmu, code_hash
 
+    fmi_version = check_fmi_version(fmi_version)
+    tag = "" if fmi_version == 2 else f"fmi{fmi_version}_"
     fmu_dir = Path(fmu_dir)
     fmu_dir.mkdir(parents=True, exist_ok=True)
     paths = {}
     for name, (kind, cfg) in unit_configs(fs).items():
         if kind == "mill":
             text = toml_text(cfg)
-            key = hashlib.sha256((_mill_code_hash() + "\0" + text).encode()).hexdigest()[:10]
-            path = fmu_dir / f"mill_{key}.fmu"
+            key = hashlib.sha256((_mill_code_hash() + f"\0{fmi_version}\0" + text).encode()).hexdigest()[:10]
+            path = fmu_dir / f"mill_{tag}{key}.fmu"
             if not path.exists() and not _reuse(path, reuse):
                 log(f"building {path.name} (mill {name})")
-                scene = fmu_dir / f"mill_{key}.toml"
+                scene = fmu_dir / f"mill_{tag}{key}.toml"
                 scene.write_text(text)
-                build_fmu(scene, path)
+                build_fmu(scene, path, fmi_version=fmi_version, log=log)
                 scene.unlink()
         else:
-            key = hashlib.sha256((code_hash() + "\0" + json.dumps(cfg, sort_keys=True)).encode()).hexdigest()[:10]
-            path = fmu_dir / f"{kind}_{key}.fmu"
+            key = hashlib.sha256((code_hash(fmi_version) + "\0" + json.dumps(cfg, sort_keys=True)).encode()).hexdigest()[:10]
+            path = fmu_dir / f"{kind}_{tag}{key}.fmu"
             if not path.exists() and not _reuse(path, reuse):
                 log(f"building {path.name} ({kind} {name})")
-                build_unit_fmu(kind, name, cfg, path)
+                build_unit_fmu(kind, name, cfg, path, fmi_version=fmi_version, log=log)
         paths[name] = path
     return paths
 
@@ -108,10 +114,26 @@ class Link:
     flow: bool  # kg/s -> kg/s: buffered
 
 
+def flat_variables(md) -> dict:
+    """A model description's variables by name, an FMI 3.0 array's elements as name[1] ...
+    name[n] (the names FMI 2.0 FMUs give them): name -> ModelVariable (the array's for an element)."""
+    out = {}
+    for v in md.modelVariables:
+        dims = getattr(v, "dimensions", None) or []
+        if not dims:
+            out[v.name] = v
+            continue
+        n = 1
+        for d in dims:
+            n *= int(d.start if d.start is not None else d.variable.start)
+        out.update({f"{v.name}[{k}]": v for k in range(1, n + 1)})
+    return out
+
+
 def expand_connections(fs: Flowsheet, mds: dict) -> tuple:
     """Links (class-by-class lines expanded) and product outputs, checked against the FMUs'
     model descriptions: (links, products [(unit, var, vr)])."""
-    by = {u: {v.name: v for v in md.modelVariables} for u, md in mds.items()}
+    by = {u: flat_variables(md) for u, md in mds.items()}
     links, seen = [], {}
     for i, (line, (su, sv, si, du, dv, di)) in enumerate(fs.connections):
         key = f"connections[{i}]"
@@ -161,6 +183,110 @@ def expand_connections(fs: Flowsheet, mds: dict) -> tuple:
 # ---------------------------------------------------------------------------------------
 # the master
 # ---------------------------------------------------------------------------------------
+class Instance:
+    """One unit FMU instance (fmpy), FMI 2.0 or 3.0 behind one interface: values by name, an
+    FMI 3.0 array's elements as name[k]; messages appended to ``messages`` as (instance,
+    status, text); :meth:`do_step` gives None when accepted, else the status."""
+
+    def __init__(self, md, unzip_dir: str, name: str, messages: list):
+        self.name, self.md = name, md
+        self.fmi3 = md.fmiVersion.startswith("3")
+        self.variables = flat_variables(md)
+        args = dict(guid=md.guid, unzipDirectory=unzip_dir, modelIdentifier=md.coSimulation.modelIdentifier, instanceName=name)
+        if self.fmi3:
+            from fmpy.fmi3 import FMU3Slave
+
+            def log(env, status, category, message):
+                messages.append((name, int(status), (message or b"").decode()))
+
+            self.fmu = FMU3Slave(**args)
+            self.fmu.instantiate(loggingOn=True, logMessage=log)
+        else:
+            from fmpy.fmi2 import (FMU2Slave, fmi2CallbackAllocateMemoryTYPE, fmi2CallbackFreeMemoryTYPE, fmi2CallbackFunctions,
+                                   fmi2CallbackLoggerTYPE, calloc, free)
+
+            def log(env, instance, status, category, message):
+                messages.append((instance.decode(), int(status), (message or b"").decode().replace("%%", "%")))
+
+            self._cb = cb = fmi2CallbackFunctions()  # kept alive as long as the instance
+            cb.logger = fmi2CallbackLoggerTYPE(log)
+            cb.allocateMemory = fmi2CallbackAllocateMemoryTYPE(calloc)
+            cb.freeMemory = fmi2CallbackFreeMemoryTYPE(free)
+            self.fmu = FMU2Slave(**args)
+            self.fmu.instantiate(callbacks=cb, loggingOn=True)
+        outs = [v for v in md.modelVariables if v.causality == "output"]
+        self.out_vrs = [v.valueReference for v in outs]
+        self.out_names = [k for k, v in self.variables.items() if v.causality == "output"]
+        self._plans: dict = {}
+
+    def enter_initialization_mode(self, stop_time: float):
+        if self.fmi3:
+            self.fmu.enterInitializationMode(startTime=0.0, stopTime=stop_time)
+        else:
+            self.fmu.setupExperiment(startTime=0.0, stopTime=stop_time)
+            self.fmu.enterInitializationMode()
+
+    def exit_initialization_mode(self):
+        self.fmu.exitInitializationMode()
+
+    def outputs(self) -> dict:
+        if self.fmi3:
+            return dict(zip(self.out_names, self.fmu.getFloat64(self.out_vrs, len(self.out_names))))
+        return dict(zip(self.out_names, self.fmu.getReal(self.out_vrs)))
+
+    def set(self, names: list, values: list):
+        """Set variables by name; an FMI 3.0 array is set whole, from the values of the named
+        elements and its current values for the others."""
+        if not self.fmi3:
+            self.fmu.setReal([self.variables[k].valueReference for k in names], values)
+            return
+        plan = self._plans.get(tuple(names))
+        if plan is None:
+            plan = self._plans[tuple(names)] = self._plan(names)
+        arrays, where = plan
+        for (buf, k), x in zip(where, values):
+            buf[k] = x
+        self.fmu.setFloat64([vr for vr, _ in arrays], [x for _, buf in arrays for x in buf])
+
+    def _plan(self, names):
+        """For set(names): the variables as [(vr, values)], and per name (values, index)."""
+        arrays, at = [], {}
+        where = []
+        for k in names:
+            v = self.variables[k]
+            if v.valueReference not in at:
+                n = sum(1 for x in self.variables.values() if x is v)
+                values = self.fmu.getFloat64([v.valueReference], n) if n > 1 or v.dimensions else [0.0]
+                at[v.valueReference] = values
+                arrays.append((v.valueReference, values))
+            where.append((at[v.valueReference], int(k[k.index("[") + 1 : -1]) - 1 if v.dimensions else 0))
+        return arrays, where
+
+    def do_step(self, t: float, h: float):
+        from fmpy.fmi1 import FMICallException
+
+        try:
+            self.fmu.doStep(t, h)
+            return None
+        except FMICallException as e:
+            return e.status
+
+    def get_state(self):
+        return self.fmu.getFMUState() if self.fmi3 else self.fmu.getFMUstate()
+
+    def set_state(self, state):
+        return self.fmu.setFMUState(state) if self.fmi3 else self.fmu.setFMUstate(state)
+
+    def free_state(self, state):
+        return self.fmu.freeFMUState(state) if self.fmi3 else self.fmu.freeFMUstate(state)
+
+    def close(self):
+        try:
+            self.fmu.terminate()
+        finally:
+            self.fmu.freeInstance()
+
+
 @dataclass
 class Result:
     t: np.ndarray
@@ -172,6 +298,7 @@ class Result:
     wall_s: float
     steps: int
     edges_m: np.ndarray = field(default=None)
+    fmi_version: str = "2.0"  # the units' FMI version(s)
 
     def column(self, name):
         return self.data[:, self.columns.index(name)]
@@ -196,91 +323,74 @@ class Master:
         self.grid = shared_grid(fs)
 
     # ---- set-up --------------------------------------------------------------------------
-    def _logger(self):
-        from fmpy.fmi2 import (fmi2CallbackAllocateMemoryTYPE, fmi2CallbackFreeMemoryTYPE, fmi2CallbackFunctions,
-                               fmi2CallbackLoggerTYPE, calloc, free)
+    def _init_call(self, u, f, *args):
+        """An FMI call while initializing; a unit that refuses it (an FMI 3.0 FMU answers a
+        parameter it refuses with fmi3Error) stops the run with its message."""
+        from fmpy.fmi1 import FMICallException
 
-        def logger(env, instance, status, category, message):
-            self.messages.append((instance.decode(), int(status), (message or b"").decode().replace("%%", "%")))
-
-        cb = fmi2CallbackFunctions()
-        cb.logger = fmi2CallbackLoggerTYPE(logger)
-        cb.allocateMemory = fmi2CallbackAllocateMemoryTYPE(calloc)
-        cb.freeMemory = fmi2CallbackFreeMemoryTYPE(free)
-        self._cb = cb  # keep the callbacks alive as long as the FMUs
-        return cb
+        n0 = len(self.messages)
+        try:
+            return f(*args)
+        except FMICallException as e:
+            msg = "; ".join(m[2] for m in self.messages[n0:] if m[0] == u) or "(no message)"
+            raise MasterError(f"unit {u} refused its initialization (status {e.status}): {msg}") from None
 
     def _instantiate(self):
-        from fmpy.fmi2 import FMU2Slave
-
-        cb = self._logger()
-        self.fmus, self.out_names, self.out_vrs, self.vals = {}, {}, {}, {}
+        self.fmus, self.out_names, self.vals = {}, {}, {}
         for u in self.fs.units:
-            md = self.mds[u]
-            fmu = FMU2Slave(guid=md.guid, unzipDirectory=self._dirs[str(self.fmu_paths[u])],
-                            modelIdentifier=md.coSimulation.modelIdentifier, instanceName=u)
-            fmu.instantiate(callbacks=cb, loggingOn=True)
-            fmu.setupExperiment(startTime=0.0, stopTime=self.fs.t_end_s)
-            self.fmus[u] = fmu
-            outs = [v for v in md.modelVariables if v.causality == "output"]
-            self.out_names[u] = [v.name for v in outs]
-            self.out_vrs[u] = [v.valueReference for v in outs]
-        vrs = {u: {v.name: v.valueReference for v in self.mds[u].modelVariables} for u in self.fs.units}
+            fmu = self.fmus[u] = Instance(self.mds[u], self._dirs[str(self.fmu_paths[u])], u, self.messages)
+            self._init_call(u, fmu.enter_initialization_mode, self.fs.t_end_s)
+            self.out_names[u] = fmu.out_names
         for u, fmu in self.fmus.items():
-            fmu.enterInitializationMode()
             for k, x in self.fs.units[u].start.items():
-                if k not in vrs[u]:
+                if k not in fmu.variables:
                     raise FlowsheetError(f"units.{u}.start.{k}", x, f"{u} has no variable {k}", self.fs.source)
-                fmu.setReal([vrs[u][k]], [float(x)])
+                self._init_call(u, fmu.set, [k], [float(x)])
         # Connected non-flow inputs start from their senders' start outputs (the operating
         # point each unit initialises with); flows start empty: nothing has flowed yet.
         for u, fmu in self.fmus.items():
-            self.vals[u] = dict(zip(self.out_names[u], fmu.getReal(self.out_vrs[u])))
-        for lk in self.links:
-            if not lk.flow:
-                self.fmus[lk.dst].setReal([lk.dst_vr], [self.vals[lk.src][lk.src_var]])
-            else:
-                self.fmus[lk.dst].setReal([lk.dst_vr], [0.0])
+            self.vals[u] = fmu.outputs()
         for u, fmu in self.fmus.items():
-            fmu.exitInitializationMode()
-            self.vals[u] = dict(zip(self.out_names[u], fmu.getReal(self.out_vrs[u])))
+            into = [lk for lk in self.links if lk.dst == u]
+            if into:
+                self._init_call(u, fmu.set, [lk.dst_var for lk in into], [0.0 if lk.flow else self.vals[lk.src][lk.src_var] for lk in into])
+        for u, fmu in self.fmus.items():
+            self._init_call(u, fmu.exit_initialization_mode)
+            self.vals[u] = fmu.outputs()
         self.buffer = [0.0] * len(self.links)
         self.into = {u: [i for i, lk in enumerate(self.links) if lk.dst == u] for u in self.fs.units}
         self.outof = {u: [i for i, lk in enumerate(self.links) if lk.src == u and lk.flow] for u in self.fs.units}
+        self._into_names = {u: [self.links[i].dst_var for i in self.into[u]] for u in self.fs.units}
         self.sources = [(u, "mass_flow") for u, s in self.fs.units.items() if s.type == "feed"]
         self.fed_kg = 0.0
         self.products_kg = 0.0
 
     # ---- stepping ------------------------------------------------------------------------
     def _set_inputs(self, u, h):
-        vrs, xs = [], []
+        xs = []
         for i in self.into[u]:
             lk = self.links[i]
-            vrs.append(lk.dst_vr)
             if lk.flow:
                 xs.append(self.buffer[i] / h)
                 self.buffer[i] = 0.0
             else:
                 xs.append(self.vals[lk.src][lk.src_var])
-        if vrs:
-            self.fmus[u].setReal(vrs, xs)
+        if xs:
+            self.fmus[u].set(self._into_names[u], xs)
 
     def _do_step(self, u, t, h):
         """doStep; None when accepted, else the unit's message (discard)."""
-        from fmpy.fmi1 import FMICallException
-
         n0 = len(self.messages)
-        try:
-            self.fmus[u].doStep(currentCommunicationPoint=t, communicationStepSize=h)
+        status = self.fmus[u].do_step(t, h)
+        if status is None:
             return None
-        except FMICallException as e:
-            msg = "; ".join(m[2] for m in self.messages[n0:] if m[0] == u) or "(no message)"
-            if e.status == 2:
-                return msg
-            raise MasterError(f"unit {u} failed the step at t = {t!r} s (status {e.status}): {msg}") from None
+        msg = "; ".join(m[2] for m in self.messages[n0:] if m[0] == u) or "(no message)"
+        if status == 2:
+            return msg
+        raise MasterError(f"unit {u} failed the step at t = {t!r} s (status {status}): {msg}")
 
     def _publish(self, u, h):
-        self.vals[u] = dict(zip(self.out_names[u], self.fmus[u].getReal(self.out_vrs[u])))
+        self.vals[u] = self.fmus[u].outputs()
         for i in self.outof[u]:
             lk = self.links[i]
             self.buffer[i] += self.vals[u][lk.src_var] * h
@@ -312,18 +422,18 @@ class Master:
         return None
 
     def _snapshot(self):
-        return ({u: f.getFMUstate() for u, f in self.fmus.items()}, list(self.buffer),
+        return ({u: f.get_state() for u, f in self.fmus.items()}, list(self.buffer),
                 {u: dict(v) for u, v in self.vals.items()}, self.fed_kg, self.products_kg)
 
     def _restore(self, snap):
         states, buf, vals, fed, prod = snap
         for u, f in self.fmus.items():
-            f.setFMUstate(states[u])
+            f.set_state(states[u])
         self.buffer, self.vals, self.fed_kg, self.products_kg = list(buf), {u: dict(v) for u, v in vals.items()}, fed, prod
 
     def _free(self, snap):
         for u, f in self.fmus.items():
-            f.freeFMUstate(snap[0][u])
+            f.free_state(snap[0][u])
 
     def _macro_step(self, t, h, depth):
         if self.fs.max_halvings == 0:
@@ -365,18 +475,19 @@ class Master:
     def run(self) -> Result:
         fs = self.fs
         t0 = time.perf_counter()
-        self._instantiate()
+        self.fmus = {}
         self.retries, self.n_steps = [], 0
-        self._scalar = {u: [n for n in self.out_names[u] if "[" not in n] for u in fs.units}
         main_psd = {"mill": "psd", "tank": "psd", "feed": "psd", "classifier": "fine_psd"}
         self._psd_out = {u: main_psd[s.type] for u, s in fs.units.items() if s.type in main_psd}
-        columns = ["t"] + [f"{u}.{n}" for u in fs.units for n in self._scalar[u]] + ["total.holdup", "total.buffered", "total.fed", "total.products"]
         rows, psds = [], {u: [] for u in self._psd_out}
-        m0 = self.holdup_kg()
-        self._record(0.0, rows, psds)
         n = int(round(fs.t_end_s / fs.step_s))
         every = max(1, int(round(fs.output_interval_s / fs.step_s)))
         try:
+            self._instantiate()
+            self._scalar = {u: [n for n in self.out_names[u] if "[" not in n] for u in fs.units}
+            columns = ["t"] + [f"{u}.{n}" for u in fs.units for n in self._scalar[u]] + ["total.holdup", "total.buffered", "total.fed", "total.products"]
+            m0 = self.holdup_kg()
+            self._record(0.0, rows, psds)
             for k in range(n):
                 # Time as k h (not a running sum), so no drift over many steps.
                 self._macro_step(k * fs.step_s, fs.step_s, 0)
@@ -384,10 +495,7 @@ class Master:
                     self._record((k + 1) * fs.step_s, rows, psds)
         finally:
             for f in self.fmus.values():
-                try:
-                    f.terminate()
-                finally:
-                    f.freeInstance()
+                f.close()
         wall = time.perf_counter() - t0
         m1 = self.holdup_kg()
         buffered = sum(b for b, lk in zip(self.buffer, self.links) if lk.flow)
@@ -397,12 +505,12 @@ class Master:
                 "buffered_kg": buffered, "residual_kg": res, "relative_residual": abs(res) / scale}
         data = np.array(rows)
         return Result(data[:, 0], columns, data, {u: np.array(v) for u, v in psds.items()}, mass, self.retries, wall,
-                      self.n_steps, self.grid.edges_m)
+                      self.n_steps, self.grid.edges_m, ", ".join(sorted({md.fmiVersion for md in self.mds.values()})))
 
 
-def run_flowsheet(fs: Flowsheet, fmu_dir: Path, log=print, reuse=()) -> Result:
-    """Build what is missing and run the flowsheet with the fmpy master."""
-    paths = build_fmus(fs, fmu_dir, log=log, reuse=reuse)
+def run_flowsheet(fs: Flowsheet, fmu_dir: Path, log=print, reuse=(), fmi_version: int = 2) -> Result:
+    """Build what is missing (unit FMUs of one FMI version) and run the flowsheet with the fmpy master."""
+    paths = build_fmus(fs, fmu_dir, log=log, reuse=reuse, fmi_version=fmi_version)
     return Master(fs, paths, log=log).run()
 
 
@@ -422,7 +530,7 @@ def write_results(res: Result, fs: Flowsheet, out: Path, plots=True) -> list:
         hdr = "t," + ",".join(f"class{k + 1}_{res.edges_m[k]:.6g}_{res.edges_m[k + 1]:.6g}_m" for k in range(a.shape[1]))
         np.savetxt(p, np.column_stack([res.t, a]), delimiter=",", header=hdr, comments="", fmt="%.17g")
         files.append(p)
-    summary = {"flowsheet": fs.name, "algorithm": fs.algorithm, "step_s": fs.step_s, "t_end_s": fs.t_end_s,
+    summary = {"flowsheet": fs.name, "fmi_version": res.fmi_version, "algorithm": fs.algorithm, "step_s": fs.step_s, "t_end_s": fs.t_end_s,
                "steps": res.steps, "wall_s": res.wall_s, "mass_balance": res.mass,
                "retries": [{"t_s": t, "step_s": h, "unit": u, "message": m} for t, h, u, m in res.retries],
                "final": {c: float(res.data[-1, i]) for i, c in enumerate(res.columns)}}

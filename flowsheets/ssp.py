@@ -68,7 +68,7 @@ def ssd_xml(fs: Flowsheet, mds: dict, sources: dict, links) -> bytes:
                                                            "endElement": lk.dst, "endConnector": lk.dst_var})
     # Units: SSP wants the unit definitions of the connectors' units at the top level.
     units = SubElement(root, _q("ssd", "Units"))
-    from .unit_fmu import unit_exponents
+    from .unit_vars import unit_exponents
 
     mill_units = {"kg/m3": {"kg": 1, "m": -3}, "J": {"kg": 1, "m": 2, "s": -2}, "1/s": {"s": -1}, "W": {"kg": 1, "m": 2, "s": -3},
                   "J/kg": {"m": 2, "s": -2}, "Pa.s": {"kg": 1, "m": -1, "s": -1}}

@@ -15,9 +15,14 @@ def _cmd_build_fmu(args) -> int:
 
     from .build import build_fmu
 
+    from .fmi3_wrapper import WrapperError
+
     t0 = time.perf_counter()
     try:
-        r = build_fmu(args.scene, args.output)
+        r = build_fmu(args.scene, args.output, fmi_version=args.fmi_version, log=print)
+    except WrapperError as e:
+        print(f"millfmu build-fmu: error: {e}", file=sys.stderr)
+        return 1
     except (RuntimeError, ValueError) as e:
         if type(e).__name__ in ("SceneError", "InputError"):
             raise  # the main command reports these with exit status 2
@@ -26,7 +31,7 @@ def _cmd_build_fmu(args) -> int:
     with zipfile.ZipFile(r.fmu) as z:
         n_files = len(z.namelist())
     size = r.fmu.stat().st_size
-    print(f"wrote {r.fmu} ({size / 1024:.1f} KiB, {n_files} files) in {time.perf_counter() - t0:.2f} s")
+    print(f"wrote {r.fmu} (FMI {r.fmi_version}.0, {size / 1024:.1f} KiB, {n_files} files) in {time.perf_counter() - t0:.2f} s")
     print(f"model identifier {r.model_identifier}; {r.n_classes} size classes; code package {r.package}: {', '.join(r.modules)}")
     return 0
 
@@ -46,13 +51,21 @@ def _cmd_host_env(args) -> int:
 def _cmd_bench_fmu(args) -> int:
     from .bench import bench_fmu
 
-    return bench_fmu(classes=args.classes, steps=args.steps, repeats=args.repeats)
+    from .fmi3_wrapper import WrapperError
+
+    try:
+        return bench_fmu(classes=args.classes, steps=args.steps, repeats=args.repeats, fmi_versions=args.fmi_version or (2, 3),
+                         required=bool(args.fmi_version))
+    except WrapperError as e:
+        print(f"millfmu bench fmu: error: {e}", file=sys.stderr)
+        return 1
 
 
 def register(subparsers) -> None:
-    b = subparsers.add_parser("build-fmu", help="build an FMI 2.0 co-simulation FMU of a scene (pythonfmu)")
+    b = subparsers.add_parser("build-fmu", help="build an FMI 2.0 (pythonfmu) or 3.0 (pythonfmu3) co-simulation FMU of a scene")
     b.add_argument("scene", nargs="?", default=None, help="scene file (TOML); omitted: the embedded default scene")
     b.add_argument("-o", "--output", required=True, help="FMU file to write (.fmu)")
+    b.add_argument("--fmi-version", type=int, choices=(2, 3), default=2, help="FMI version of the FMU (default 2)")
     b.set_defaults(func=_cmd_build_fmu)
 
     h = subparsers.add_parser("host-env", help="environment a C/C++ host needs to load an FMU built by build-fmu")
@@ -61,8 +74,9 @@ def register(subparsers) -> None:
 
 
 def register_bench(bench_subparsers) -> None:
-    f = bench_subparsers.add_parser("fmu", help="FMU doStep + reading all outputs, against a trivial pythonfmu FMU in the same run")
+    f = bench_subparsers.add_parser("fmu", help="FMU doStep + reading all outputs, against a trivial FMU of the same FMI version in the same run")
     f.add_argument("--classes", type=int, default=100, help="size classes of the mill FMU (default 100)")
     f.add_argument("--steps", type=int, default=2000, help="steps per timing run")
     f.add_argument("--repeats", type=int, default=5, help="timing runs; the best is reported")
+    f.add_argument("--fmi-version", type=int, choices=(2, 3), action="append", help="FMI version to measure (repeatable; default: 2 and 3)")
     f.set_defaults(func=_cmd_bench_fmu)

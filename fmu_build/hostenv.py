@@ -1,8 +1,9 @@
-"""Environment a non-Python (C, C++) host needs to load an FMU built by ``millfmu build-fmu``.
+"""Environment a non-Python (C, C++) host needs to load an FMU built by ``millfmu build-fmu``
+(FMI 2.0 or 3.0).
 
-pythonfmu's binary does not link libpython: the host must preload it (LD_PRELOAD), and the
-embedded interpreter must find its standard library (PYTHONHOME) and numpy and scipy
-(PYTHONPATH). The values describe the Python running this command, which must be the one
+pythonfmu's (and pythonfmu3's) binary does not link libpython: the host must preload it
+(LD_PRELOAD), and the embedded interpreter must find its standard library (PYTHONHOME) and
+numpy and scipy (PYTHONPATH). The values describe the Python running this command, which must be the one
 the FMU is meant to run with (same version as its libpython).
 """
 
@@ -38,8 +39,10 @@ def host_env(fmu: str | Path) -> dict:
     with zipfile.ZipFile(fmu) as z:  # OSError / BadZipFile for a missing or bad file
         md = ET.fromstring(z.read("modelDescription.xml"))
         names = z.namelist()
-    if not any(n.startswith("resources/pythonfmu/") for n in names):
-        raise ValueError(f"{fmu}: not a pythonfmu FMU (no resources/pythonfmu/)")
+    fmi3 = md.get("fmiVersion", "").startswith("3")
+    runtime = "pythonfmu3" if fmi3 else "pythonfmu"
+    if not any(n.startswith(f"resources/{runtime}/") for n in names):
+        raise ValueError(f"{fmu}: not a {runtime} FMU (no resources/{runtime}/)")
     ident = md.find("CoSimulation").get("modelIdentifier")
     missing = [m for m in REQUIRED if importlib.util.find_spec(m) is None]
     if missing:
@@ -54,7 +57,7 @@ def host_env(fmu: str | Path) -> dict:
         "LD_PRELOAD": str(_libpython()),
         "PYTHONHOME": sys.base_prefix,
         "PYTHONPATH": os.pathsep.join(paths),
-        "FMU_BINARY": f"binaries/linux64/{ident}.so",
+        "FMU_BINARY": f"binaries/{'x86_64-linux' if fmi3 else 'linux64'}/{ident}.so",
     }
 
 

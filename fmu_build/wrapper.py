@@ -239,26 +239,11 @@ def choose_wrapper(log=None) -> Path | None:
     return path
 
 
-def finish_fmu(built: Path, out: Path, wrapper: Path | None) -> Path:
-    """Write ``built`` (pythonfmu's FMU) to ``out`` deflated (FMI allows it; pythonfmu stores),
-    without compiled Python files, with the linux64 binary replaced by ``wrapper`` when given
-    and the resources naming the wrapper (:data:`MARKER_FILE`); atomically."""
-    import zipfile
-
-    out = Path(out)
-    out.parent.mkdir(parents=True, exist_ok=True)
-    plat = _platform_dir() or "linux64"
-    part = out.with_name(out.name + ".part")
-    with zipfile.ZipFile(built) as zin, zipfile.ZipFile(part, "w", zipfile.ZIP_DEFLATED) as zout:
-        for info in zin.infolist():
-            name = info.filename
-            if "__pycache__" in name or name.endswith(".pyc"):
-                continue
-            data = zin.read(info)
-            if wrapper is not None and name.startswith(f"binaries/{plat}/") and name.endswith(".so"):
-                data = Path(wrapper).read_bytes()
-            zout.writestr(name, data, compress_type=zipfile.ZIP_DEFLATED)
-        zout.writestr(f"resources/{MARKER_FILE}", "fixed\n" if wrapper is not None else "stock\n", compress_type=zipfile.ZIP_DEFLATED)
-    part.replace(out)
+def fmi2_replacements(ident: str, wrapper: Path | None) -> dict:
+    """Entries to replace in a pythonfmu FMU of model identifier ``ident`` (for
+    ``fmu_build.build.write_fmu``): the linux64 binary by ``wrapper`` when given, and the
+    resources' :data:`MARKER_FILE` naming the wrapper the FMU carries."""
+    out = {f"resources/{MARKER_FILE}": b"fixed\n" if wrapper is not None else b"stock\n"}
+    if wrapper is not None:
+        out[f"binaries/{_platform_dir()}/{ident}.so"] = Path(wrapper).read_bytes()
     return out
-

@@ -11,7 +11,7 @@ its scene (``resources/scene.toml``). Variables (all Real, SI units):
 - outputs: ``psd[1..n]`` [1], ``x10``/``x50``/``x90`` [m], ``holdup`` [kg],
   ``product_mass_flow`` [kg/s], ``se_beads``/``se_product`` [J], ``sf`` [1/s],
   ``stress_number`` [1], ``power`` [W], ``specific_energy`` [J/kg], ``eta_eff`` [Pa.s],
-  ``reynolds`` [1] and, for yeast, ``disrupted_fraction`` [1].
+  ``reynolds`` [1], ``below_grid`` [1] and, for yeast, ``disrupted_fraction`` [1].
 
 Values set before ``fmi2ExitInitializationMode`` are the scene's operating point (the initial
 holdup depends on filling and solids fraction); values set later are inputs held over the
@@ -40,28 +40,20 @@ import hashlib
 import json
 import math
 import os
-import sys
 import traceback
 from xml.etree.ElementTree import Element
-
-if sys.version_info >= (3, 11):
-    import tomllib
-else:  # pragma: no cover
-    import tomli as tomllib
 
 import numpy as np
 from pythonfmu import DefaultExperiment, Fmi2Causality, Fmi2Initial, Fmi2Slave, Fmi2Variability, Real
 from pythonfmu.enums import Fmi2Status
 
 from .fmi_xml import complete_model_description, get_reals
-
-from .mill import PSD_SUM_TOL, InputError, MillModel, StepError
+# The variable tables live in fmu_variables (shared with the FMI 3.0 adapter); re-exported here.
+from .fmu_variables import (DISRUPTED, INPUTS, OUTPUTS, PARAMETERS, SCENE_FILE, TABLE_PREFIX, UNITS,  # noqa: F401
+                            model_with, plain as _plain, read_scene_dict, variables)
+from .mill import InputError, MillModel, StepError
 from .scene import SceneError, scene_from_dict
 
-#: Name of the scene file in the FMU's resources folder.
-SCENE_FILE = "scene.toml"
-#: Prefix of the DEM table slice in the resources folder (detailed model with a table).
-TABLE_PREFIX = "table"
 #: Written by the build into the resources: "fixed" when the FMU carries millfmu's rebuilt
 #: pythonfmu wrapper (exceptions -> fmi2Error), "stock" for pythonfmu's own.
 WRAPPER_FILE = "wrapper.txt"
@@ -74,68 +66,6 @@ TIME_RTOL = 1e-9
 
 class FMUCallError(RuntimeError):
     """An FMI call refused with fmi2Error (under the fixed wrapper); the instance is intact."""
-
-#: Units used by the variables: name -> SI base-unit exponents (FMI 2.0 BaseUnit).
-UNITS = {
-    "1": {},
-    "m": {"m": 1},
-    "kg": {"kg": 1},
-    "kg/s": {"kg": 1, "s": -1},
-    "m/s": {"m": 1, "s": -1},
-    "kg/m3": {"kg": 1, "m": -3},
-    "J": {"kg": 1, "m": 2, "s": -2},
-    "1/s": {"s": -1},
-    "W": {"kg": 1, "m": 2, "s": -3},
-    "J/kg": {"m": 2, "s": -2},
-    "Pa.s": {"kg": 1, "m": -1, "s": -1},
-}
-
-#: Parameters: FMI name, scene (section, key), unit, variability, description.
-PARAMETERS = (
-    ("bead_filling", ("mill", "bead_filling"), "1", "tunable", "bead filling: bulk bead volume at rest over chamber volume, in (0, 1)"),
-    ("bead_diameter", ("beads", "diameter_m"), "m", "fixed", "grinding bead diameter"),
-    ("bead_density", ("beads", "density_kg_per_m3"), "kg/m3", "fixed", "grinding bead density"),
-    ("stress_frequency_factor", ("mill", "stress_frequency_factor"), "1", "fixed", "Kwade's stress-frequency constant k_c (calibration)"),
-)
-
-#: Scalar inputs: FMI name, scene (section, key), MillModel input name, unit, description, continuous only.
-INPUTS = (
-    ("tip_speed", ("mill", "tip_speed_m_per_s"), "tip_speed_m_per_s", "m/s", "stirrer tip speed, in [0, 40] m/s", False),
-    ("solids_mass_fraction", ("suspension", "solids_mass_fraction"), "solids_mass_fraction", "1", "solids mass concentration of the suspension (mass fraction), in (0, 0.8)", False),
-    ("feed_mass_flow", ("operation", "feed_mass_flow_kg_per_s"), "feed_mass_flow_kg_per_s", "kg/s", "solids feed mass flow, >= 0", True),
-)
-
-#: Scalar outputs: FMI name, MillModel output key, unit, description.
-OUTPUTS = (
-    ("x10", "x10_m", "m", "size with 10 % of the product mass below it"),
-    ("x50", "x50_m", "m", "median size of the product (by mass)"),
-    ("x90", "x90_m", "m", "size with 90 % of the product mass below it"),
-    ("holdup", "holdup_kg", "kg", "solids mass in the mill"),
-    ("product_mass_flow", "product_mass_flow_kg_per_s", "kg/s", "solids product mass flow, mean over the last step (0 in batch)"),
-    ("se_beads", "se_beads_J", "J", "stress energy of the beads SE = pi/12 d^3 rho v_t^2"),
-    ("se_product", "se_product_J", "J", "stress energy reaching the product SE_P"),
-    ("sf", "sf_per_s", "1/s", "stress frequency at x50"),
-    ("stress_number", "stress_number", "1", "stress number: SF integrated over time"),
-    ("power", "power_W", "W", "stirrer power"),
-    ("specific_energy", "specific_energy_J_per_kg", "J/kg", "stirrer energy per mass of solids treated"),
-    ("eta_eff", "eta_eff_Pa_s", "Pa.s", "effective viscosity of the bead-suspension bulk (Krieger-Dougherty)"),
-    ("reynolds", "reynolds", "1", "mill Reynolds number"),
-    ("below_grid", "below_grid_fraction", "1", "product mass fraction below the size grid's lowest edge (part of psd[1])"),
-)
-DISRUPTED = ("disrupted_fraction", "disrupted_fraction", "1", "mass fraction of disrupted cells (debris) in the mill")
-
-
-def _plain(x):
-    """JSON-able deep copy: arrays to lists of Python floats (repr round-trips exactly)."""
-    if isinstance(x, np.ndarray):
-        return x.tolist()
-    if isinstance(x, dict):
-        return {k: _plain(v) for k, v in x.items()}
-    if isinstance(x, (list, tuple)):
-        return [_plain(v) for v in x]
-    if isinstance(x, np.generic):
-        return x.item()
-    return x
 
 
 class MillSlave(Fmi2Slave):
@@ -157,12 +87,7 @@ class MillSlave(Fmi2Slave):
             type(self)._raise_errors = False
         self._start_time = 0.0
         self._warned_below_grid = False
-        with open(os.path.join(self.resources, SCENE_FILE), "rb") as f:
-            self._scene_dict = tomllib.load(f)
-        sd = self._scene_dict.get("kinetics", {}).get("stress_distribution", {})
-        if sd.get("source") == "table":
-            # The build put the table slice this scene needs into the resources.
-            sd["table"] = os.path.join(self.resources, TABLE_PREFIX)
+        self._scene_dict = read_scene_dict(self.resources)
         scene = scene_from_dict(self._scene_dict, SCENE_FILE)
         self.model = MillModel(scene)
         self._overrides: dict = {}
@@ -171,7 +96,8 @@ class MillSlave(Fmi2Slave):
         n = self.model.grid.n
         self.n_classes = n
         self._base_scene = scene
-        self._model_description = f"{self.description}; scene {scene.scene.name!r}, {scene.operation.mode}, {scene.kinetics.model} model, {n} size classes"
+        # type(self): pythonfmu's __init__ set the instance's description to None.
+        self._model_description = f"{type(self).description}; scene {scene.scene.name!r}, {scene.operation.mode}, {scene.kinetics.model} model, {n} size classes"
         run = scene.run
         self.default_experiment = DefaultExperiment(start_time=0.0, stop_time=run.t_end_s, step_size=run.dt_s)
 
@@ -181,7 +107,6 @@ class MillSlave(Fmi2Slave):
         self._units: dict = {}
         self._settable: dict = {}  # vr -> (kind, key)
         self._scene_key: dict = {}  # vr -> (section, key) for values that are scene values
-        cont = self.model.continuous
 
         def add(name, unit, desc, start, causality, variability, initial=None, settable=None, scene_key=None):
             vr = len(self._v)
@@ -195,35 +120,29 @@ class MillSlave(Fmi2Slave):
                 self._scene_key[vr] = scene_key
             return vr
 
-        self._vr_param = {}
-        for name, (sec, key), unit, var, desc in PARAMETERS:
-            start = getattr(getattr(scene, sec), key)
-            self._vr_param[name] = add(name, unit, desc, start, Fmi2Causality.parameter, getattr(Fmi2Variability, var), Fmi2Initial.exact,
-                                       settable=("param", key), scene_key=(sec, key))
-        self._vr_in = {}
-        inputs = self.model.inputs
-        for name, (sec, key), mkey, unit, desc, cont_only in INPUTS:
-            if cont_only and not cont:
+        # One description of the variables (millfmu.fmu_variables) serves FMI 2.0 and 3.0;
+        # here an array is n Reals name[1] ... name[n].
+        self._vr_param, self._vr_in, self._psd_in_vr0 = {}, {}, None
+        described = variables(self.model)
+        for var in described:
+            causality, variability = getattr(Fmi2Causality, var.causality), getattr(Fmi2Variability, var.variability)
+            initial = Fmi2Initial.exact if var.causality == "parameter" else None
+            if var.size:
+                if var.name == "psd_in":
+                    self._psd_in_vr0 = len(self._v)
+                else:
+                    self._out_vr0 = len(self._v)
+                for i, x in enumerate(var.start, 1):
+                    add(f"{var.name}[{i}]", var.unit, var.description.format(i=i), x, causality, variability, initial, settable=var.settable)
                 continue
-            self._vr_in[mkey] = add(name, unit, desc, inputs[mkey], Fmi2Causality.input, Fmi2Variability.continuous,
-                                    settable=("input", mkey), scene_key=(sec, key))
-        self._psd_in_vr0 = None
-        if cont:
-            self._psd_in_vr0 = len(self._v)
-            for i, w in enumerate(inputs["psd_in"], 1):
-                add(f"psd_in[{i}]", "1", f"feed mass fraction in size class {i} (all sum to 1 within {PSD_SUM_TOL:g})", w,
-                    Fmi2Causality.input, Fmi2Variability.continuous, settable=("input", "psd_in"))
-        self._out_vr0 = len(self._v)
-        last = self.model.outputs()
-        for i in range(1, n + 1):
-            add(f"psd[{i}]", "1", f"product mass fraction in size class {i} (batch: mill content; continuous: outlet)", 0.0,
-                Fmi2Causality.output, Fmi2Variability.continuous)
-        outs = OUTPUTS + ((DISRUPTED,) if "disrupted_fraction" in last else ())
-        self._out_keys = [key for _, key, _, _ in outs]
-        for name, _key, unit, desc in outs:
-            add(name, unit, desc, 0.0, Fmi2Causality.output, Fmi2Variability.continuous)
+            vr = add(var.name, var.unit, var.description, var.start, causality, variability, initial, settable=var.settable, scene_key=var.scene_key)
+            if var.causality == "parameter":
+                self._vr_param[var.name] = vr
+            elif var.causality == "input":
+                self._vr_in[var.settable[1]] = vr
+        self._out_keys = [var.output_key for var in described if var.causality == "output" and not var.size]
         self._n_vars = len(self._v)
-        self._publish(last)
+        self._publish(self.model.outputs())
         for w in self.model.warnings:
             self.log(f"scene {scene.scene.name!r}: {w}", Fmi2Status.warning)
 
@@ -297,12 +216,8 @@ class MillSlave(Fmi2Slave):
         (None, message naming the FMI variable) when the model refuses it."""
         if over == self._overrides:
             return self.model, None
-        d = copy.deepcopy(self._scene_dict)
-        for (sec, key), x in over.items():
-            d.setdefault(sec, {})[key] = x
         try:
-            scene = scene_from_dict(d, SCENE_FILE)
-            model = MillModel(scene)  # a DEM table may refuse the scene's operating point
+            model = model_with(self._scene_dict, over)  # a DEM table may refuse the scene's operating point
         except SceneError as e:
             name = next((self.vars[vr].name for vr, sk in self._scene_key.items() if f"{sk[0]}.{sk[1]}" == e.key), e.key)
             return None, f"{name} = {e.value!r}: {e.allowed}"

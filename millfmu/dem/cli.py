@@ -28,6 +28,9 @@ def register(subparsers) -> argparse.ArgumentParser:
                    help="simulate a rotationally periodic sector of 360/k degrees (k >= 4); "
                         "needs zero gravity (use --no-gravity)")
     r.add_argument("--no-gravity", action="store_true", help="switch gravity off")
+    r.add_argument("--fluid", dest="fluid_mode", choices=("coupled", "prescribed", "none"),
+                   help="fluid model (overrides the scene's [fluid] mode): coupled CFD-DEM, "
+                        "prescribed swirl, or none")
     r.add_argument("--spin-up", type=float, dest="spin_up_s", metavar="S",
                    help="spin-up time excluded from the statistics [s]")
     r.add_argument("--record", type=float, dest="record_s", metavar="S",
@@ -57,7 +60,7 @@ def _run(args) -> int:
         scene = load_scene(args.scene)
         over = {k: getattr(args, k) for k in ("tip_speed_m_s", "filling", "sector_deg",
                                               "spin_up_s", "record_s", "sample_every_s",
-                                              "dt_s")}
+                                              "dt_s", "fluid_mode")}
         if args.no_gravity:
             over["gravity_m_s2"] = (0.0, 0.0, 0.0)
         scene = scene.with_overrides(**over)

@@ -488,7 +488,7 @@ def _add3(buf, c, j, ax, ay, az, cr, sr):
 
 @kernel
 def compute_forces(x, v, w, fb, tb, rad, mass, inertia, nb, img, nnb, sh, fl, shw, flw,
-                   prm, cb, maxj, record, step, evc, evn, torq):
+                   prm, cb, maxj, record, step, evc, evn, torq, fext):
     """Forces [N] and torques [N m] from bead contacts, lubrication, walls, drag and
     gravity, accumulated per chunk: fb[c, i], tb[c, i] hold what chunk c's rows put on
     bead i (its own beads cb[c] <= i < cb[c + 1] and partners up to maxj[c]); the rows of
@@ -496,8 +496,13 @@ def compute_forces(x, v, w, fb, tb, rad, mass, inertia, nb, img, nnb, sh, fl, sh
     law) and no two chunks write the same buffer. :func:`reduce_kick` sums the chunks.
 
     New contacts (first overlap) go to evc[c, k, :] (layout EV_*) when record is true;
-    torq[c] receives the torque [N m] about +z that chunk c's beads exert on the stirrer
-    (shaft and disc)."""
+    torq[c, 0] receives the torque [N m] about +z that chunk c's beads exert on the stirrer
+    (shaft and disc), torq[c, 1] the torque on the fixed chamber wall.
+
+    fext[i] = (F_r [N], T_z [N m], F_z [N]) is a force held over the call (the coupled
+    fluid's drag and pressure force, in cylindrical components at the bead's current
+    position: F_r e_r + T_z / r e_theta + F_z e_z, so that its torque about z is exactly
+    T_z); zeros without a coupled fluid."""
     dt = prm[P_DT]
     ystar = prm[P_YSTAR]
     gstar = prm[P_GSTAR]
@@ -523,6 +528,7 @@ def compute_forces(x, v, w, fb, tb, rad, mass, inertia, nb, img, nnb, sh, fl, sh
     for c in prange(cb.shape[0] - 1):
         ne = 0
         tq = 0.0
+        tqc = 0.0
         for i in range(cb[c], max(maxj[c], cb[c + 1] - 1) + 1):
             for a in range(3):
                 fb[c, i, a] = 0.0
@@ -539,6 +545,12 @@ def compute_forces(x, v, w, fb, tb, rad, mass, inertia, nb, img, nnb, sh, fl, sh
             tx = 0.0
             ty = 0.0
             tz = 0.0
+            r2xy = xi * xi + yi * yi
+            if r2xy > 0.0:
+                rxy_ = math.sqrt(r2xy)
+                fx += (fext[i, 0] * xi - fext[i, 1] * yi / rxy_) / rxy_
+                fy += (fext[i, 0] * yi + fext[i, 1] * xi / rxy_) / rxy_
+            fz += fext[i, 2]
             if drag:
                 ux, uy, uz = swirl_velocity(xi, yi, zi, prm)
                 ux -= v[i, 0]
@@ -742,9 +754,11 @@ def compute_forces(x, v, w, fb, tb, rad, mass, inertia, nb, img, nnb, sh, fl, sh
                 tx += -ri * (ny * ftz - nz * fty) + mrx
                 ty += -ri * (nz * ftx - nx * ftz) + mry
                 tz += -ri * (nx * fty - ny * ftx) + mrz
+                # reaction on the wall: -F at p, plus the rolling torque's reaction
                 if q != 1:
-                    # reaction on the stirrer: -F at p, plus the rolling torque's reaction
                     tq += -(px * gy - py * gx) - mrz
+                else:
+                    tqc += -(px * gy - py * gx) - mrz
             fb[c, i, 0] += fx
             fb[c, i, 1] += fy
             fb[c, i, 2] += fz
@@ -752,7 +766,8 @@ def compute_forces(x, v, w, fb, tb, rad, mass, inertia, nb, img, nnb, sh, fl, sh
             tb[c, i, 1] += ty
             tb[c, i, 2] += tz
         evn[c] = ne
-        torq[c] = tq
+        torq[c, 0] = tq
+        torq[c, 1] = tqc
 
 
 @kernel
@@ -841,7 +856,7 @@ def rebuild(x, v, w, shw, xref, prm, wrapk, cutoff, do_wrap, nb, img, nnb, sh, f
 @serial
 def advance(nsteps, x, v, w, f, t, rad, mass, inertia, inv_m, inv_i, xref, prm, wrapk,
             cutoff, nb, img, nnb, sh, fl, nb_o, img_o, nnb_o, sh_o, fl_o, shw, flw, cb,
-            need, maxj, dmax, record, evc, evn, evbuf, evcount, acc, fb, tb):
+            need, maxj, dmax, record, evc, evn, evbuf, evcount, acc, fb, tb, torq, fext):
     """Advance ``nsteps`` velocity-Verlet steps of dt = prm[P_DT] [s] (nsteps >= 1).
 
     Velocities are synchronous with positions on entry and exit; the forces f, t must be
@@ -849,7 +864,9 @@ def advance(nsteps, x, v, w, f, t, rad, mass, inertia, inv_m, inv_i, xref, prm, 
     neighbour lists into per-chunk buffers fb, tb, then their sum with the leapfrog kick
     and drift. Recorded contacts are appended to evbuf (evcount[0] rows used); acc
     accumulates [0] stirrer torque x steps [N m], [1] steps, [2] neighbour builds,
-    [3] contacts dropped for lack of chunk buffer space. The two sets of neighbour lists
+    [3] contacts dropped for lack of chunk buffer space, [4] chamber-wall torque x steps
+    [N m]; torq (chunks, 2) is the per-chunk scratch of compute_forces, fext the held
+    external force (see compute_forces). The two sets of neighbour lists
     alternate at every build. Returns (steps done, status, list parity): parity 1 means
     the caller must swap its list references. Status 0 done; 1 new neighbour lists too
     short (positions advanced, velocities half a step ahead: enlarge, rebuild,
@@ -878,11 +895,14 @@ def advance(nsteps, x, v, w, f, t, rad, mass, inertia, inv_m, inv_i, xref, prm, 
         if record and evcount[0] > evbuf.shape[0] - 2 * evc.shape[1] * nch:
             last = True
         compute_forces(x, v, w, fb, tb, rad, mass, inertia, nb, img, nnb, sh, fl, shw,
-                       flw, prm, cb, maxj, record, step, evc, evn, acc[4:4 + nch])
+                       flw, prm, cb, maxj, record, step, evc, evn, torq, fext)
         tq = 0.0
+        tqc = 0.0
         for c in range(nch):
-            tq += acc[4 + c]
+            tq += torq[c, 0]
+            tqc += torq[c, 1]
         acc[0] += tq
+        acc[4] += tqc
         acc[1] += 1.0
         if record:
             m = evcount[0]
@@ -909,11 +929,12 @@ def advance(nsteps, x, v, w, f, t, rad, mass, inertia, inv_m, inv_i, xref, prm, 
 
 @serial
 def finish_step(x, v, w, f, t, rad, mass, inertia, inv_m, inv_i, prm, nb, img, nnb, sh,
-                fl, shw, flw, cb, maxj, record, evc, evn, torq, xref, dmax, fb, tb, kick):
+                fl, shw, flw, cb, maxj, record, evc, evn, torq, xref, dmax, fb, tb, kick,
+                fext):
     """Forces at the current positions, then v += kick F/m: with kick = dt/2 this closes
     a step after the neighbour lists were enlarged in the middle of it; with kick = 0 it
     only fills f, t. New contacts are left in evc/evn for the caller to collect."""
     compute_forces(x, v, w, fb, tb, rad, mass, inertia, nb, img, nnb, sh, fl, shw, flw,
-                   prm, cb, maxj, record, 0, evc, evn, torq)
+                   prm, cb, maxj, record, 0, evc, evn, torq, fext)
     reduce_kick(fb, tb, cb, maxj, f, t, v, w, x, inv_m, inv_i, kick, prm[P_DT], False,
                 xref, dmax)

@@ -37,6 +37,7 @@ class StepStats:
     steps: int
     events: np.ndarray  # (n, EV_NF) rows, layout kernels.EV_*; step column made global
     torque_sum_nm_steps: float  # sum over steps of the torque beads exert on the stirrer
+    chamber_torque_sum_nm_steps: float  # the same for the fixed chamber wall
     dropped_events: int
     neighbour_builds: int
     extra: dict = field(default_factory=dict)
@@ -150,7 +151,13 @@ class DemSimulation:
         self.evn = np.zeros(nch, np.int64)
         self.evbuf = np.zeros((max(65536, 4 * 2048 * nch), K.EV_NF))
         self.evcount = np.zeros(1, np.int64)
-        self.acc = np.zeros(4 + nch)
+        self.acc = np.zeros(5)
+        self.torq = np.zeros((nch, 2))
+        # force held over a run() call: (F_r [N], T_z [N m], F_z [N]) per bead, set by a
+        # coupled fluid (millfmu.dem.coupling); zeros otherwise
+        self.fext = np.zeros((n, 3))
+        # further per-bead arrays of a coupling, permuted with the beads (register_per_bead)
+        self.per_bead = {}
         self.step_count = 0
         self.ids = np.arange(n)
         if sort_every_steps is None:
@@ -162,6 +169,13 @@ class DemSimulation:
             self._sort()
         # forces of the initial state; contacts present now are not "new" later
         self._finish(record=False, kick=0.0)
+
+    def register_per_bead(self, name: str, array: np.ndarray):
+        """Keep ``array`` (first axis: beads, current row order) in ``per_bead[name]`` and
+        reorder it with the beads whenever they are sorted."""
+        if array.shape[0] != self.n:
+            raise ValueError(f"{name}: first axis {array.shape[0]}, expected {self.n} beads")
+        self.per_bead[name] = array
 
     # ---- neighbour lists --------------------------------------------------------------
     _LISTS = ("nb", "img", "nnb", "sh", "fl")
@@ -209,11 +223,11 @@ class DemSimulation:
         self.K.finish_step(self.x, self.v, self.w, self.f, self.t, self.rad, self.mass,
                            self.inertia, self.inv_m, self.inv_i, self.prm, self.nb,
                            self.img, self.nnb, self.sh, self.fl, self.shw, self.flw,
-                           self.cb, self.maxj, record, self.evc, self.evn, self.acc[4:],
-                           self.xref, self.dmax, self.fb, self.tb, kick)
+                           self.cb, self.maxj, record, self.evc, self.evn, self.torq,
+                           self.xref, self.dmax, self.fb, self.tb, kick, self.fext)
 
     _PER_BEAD = ("x", "v", "w", "f", "t", "xref", "rad", "mass", "inertia", "inv_m",
-                 "inv_i", "wrapk", "shw", "flw", "ids")
+                 "inv_i", "wrapk", "shw", "flw", "ids", "fext")
 
     def _sort(self):
         """Reorder beads by neighbour cell (z fastest), remapping the neighbour lists, so
@@ -254,6 +268,8 @@ class DemSimulation:
         for k in self._PER_BEAD:
             if k != "nnb":
                 setattr(self, k, np.ascontiguousarray(getattr(self, k)[perm]))
+        for k, a in self.per_bead.items():
+            a[:] = a[perm]
         counts = np.bincount(owner, minlength=self.n)
         m = self.nb.shape[1]
         if counts.max() > m:
@@ -291,11 +307,12 @@ class DemSimulation:
         done = 0
         chunks = []
         torque = 0.0
+        chamber = 0.0
         dropped = 0
         builds = 0
         while done < nsteps:
             self.evcount[0] = 0
-            self.acc[:4] = 0.0
+            self.acc[:] = 0.0
             k, status, parity = K.advance(nsteps - done, self.x, self.v, self.w, self.f, self.t,
                                   self.rad, self.mass, self.inertia, self.inv_m, self.inv_i,
                                   self.xref, self.prm, self.wrapk, self.cutoff_m, self.nb,
@@ -303,7 +320,7 @@ class DemSimulation:
                                   self.img_o, self.nnb_o, self.sh_o, self.fl_o, self.shw,
                                   self.flw, self.cb, self.need, self.maxj, self.dmax, record,
                                   self.evc, self.evn, self.evbuf, self.evcount, self.acc,
-                                  self.fb, self.tb)
+                                  self.fb, self.tb, self.torq, self.fext)
             if parity:
                 self._swap_lists()
             m = int(self.evcount[0])
@@ -316,6 +333,7 @@ class DemSimulation:
                 ev[bb, K.EV_J] = self.ids[ev[bb, K.EV_J].astype(np.int64)]
                 chunks.append(ev)
             torque += self.acc[0]
+            chamber += self.acc[4]
             dropped += int(self.acc[3])
             builds += int(self.acc[2])
             if status == 1:
@@ -323,7 +341,8 @@ class DemSimulation:
                 self._alloc_lists(int(self.nb.shape[1] * 1.5) + 4, keep=True)
                 self._build(do_wrap=False)
                 self._finish(record=record, kick=0.5 * self.dt_s)
-                torque += float(self.acc[4:].sum())
+                torque += float(self.torq[:, 0].sum())
+                chamber += float(self.torq[:, 1].sum())
                 for c in range(self.evn.size):
                     kk = min(int(self.evn[c]), self.evc.shape[1])
                     if kk:
@@ -340,6 +359,7 @@ class DemSimulation:
         self.step_count += nsteps
         events = np.concatenate(chunks) if chunks else np.zeros((0, K.EV_NF))
         return StepStats(steps=nsteps, events=events, torque_sum_nm_steps=torque,
+                         chamber_torque_sum_nm_steps=chamber,
                          dropped_events=dropped, neighbour_builds=builds)
 
     # ---- observables ------------------------------------------------------------------

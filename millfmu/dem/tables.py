@@ -167,9 +167,14 @@ def sha256_file(path) -> str:
 
 
 #: Modules whose source decides the DEM's numbers: contact laws and integration (kernels,
-#: sim) and what is measured (stats, zones). Their source hash is the kernel version.
+#: sim), the coupled fluid (fluid, coupling), the run loop (run) and what is measured
+#: (stats, zones). Their source hash is the kernel version.
 KERNEL_MODULES = ("millfmu.dem.kernels", "millfmu.dem.sim", "millfmu.dem.stats",
-                  "millfmu.dem.zones")
+                  "millfmu.dem.zones", "millfmu.dem.run", "millfmu.dem.fluid.grid",
+                  "millfmu.dem.fluid.vans_kernels", "millfmu.dem.fluid.k_epsilon",
+                  "millfmu.dem.fluid.pressure", "millfmu.dem.fluid.solver",
+                  "millfmu.dem.coupling.projection", "millfmu.dem.coupling.koch_hill2001",
+                  "millfmu.dem.coupling.cfd_dem", "millfmu.dem.coupling.settings")
 
 
 def dem_kernel_version() -> str:

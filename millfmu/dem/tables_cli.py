@@ -78,6 +78,9 @@ def register(subparsers) -> argparse.ArgumentParser:
     for opt, (sec, key, h) in RUN_OPTIONS.items():
         b.add_argument(opt, type=float, dest=f"run_{sec}_{key}", metavar="X", help=h)
     b.add_argument("--no-gravity", action="store_true", help="switch gravity off")
+    b.add_argument("--fluid", choices=("coupled", "prescribed", "none"),
+                   help="fluid model of the DEM runs (default: the scene's [fluid] mode; "
+                        "disc_slice: coupled)")
     cache_opt(b)
     b.add_argument("--executor", choices=("processes", "dask", "serial"), default="processes",
                    help="where grid points run: a local process pool (default), a Dask "
@@ -141,6 +144,8 @@ def _build(args) -> int:
             over.setdefault(sec, {})[key] = v
     if args.no_gravity:
         over.setdefault("run", {})["gravity_m_s2"] = [0.0, 0.0, 0.0]
+    if args.fluid:
+        over.setdefault("fluid", {})["mode"] = args.fluid
     try:
         if not grid:
             raise T.TableError("no grid given: name at least one of " +
@@ -188,6 +193,8 @@ def _command(args) -> str:
             cmd += [opt, f"{v:g}"]
     if args.no_gravity:
         cmd.append("--no-gravity")
+    if args.fluid:
+        cmd += ["--fluid", args.fluid]
     if args.builder:
         cmd += ["--builder", args.builder]
     if args.export:

@@ -42,11 +42,37 @@ CONTINUOUS = dict(scene={"name": "pm1-limestone-continuous"}, operation={"mode":
 DETAILED = dict(scene={"name": "pm1-limestone-detailed"}, kinetics={"model": "detailed", "stress_distribution": {"source": "lognormal"}})
 
 
-def build(scene_path, out: Path) -> Path:
+def build(scene_path, out: Path, fmi_version: int = 2) -> Path:
     cmd = [sys.executable, "-m", "millfmu.cli", "build-fmu"] + ([str(scene_path)] if scene_path else []) + ["-o", str(out)]
+    cmd += ["--fmi-version", str(fmi_version)]
     r = subprocess.run(cmd, capture_output=True, text=True, cwd=ROOT)
     assert r.returncode == 0, r.stderr
     return out
+
+
+def fmi3_missing():
+    """Why FMI 3.0 FMUs cannot be built here (pythonfmu3, and a C++ compiler and this
+    Python's headers for its fixed wrapper), or None when they can."""
+    import importlib.util
+
+    if importlib.util.find_spec("pythonfmu3") is None:
+        return "pythonfmu3 not installed (fmu or test extras)"
+    from fmu_build.fmi3_wrapper import WrapperError, wrapper_library
+
+    try:
+        wrapper_library()
+    except WrapperError as e:
+        return str(e)
+    return None
+
+
+def need_fmi3():
+    """Skip the calling test (or fixture) when FMI 3.0 FMUs cannot be built here."""
+    import pytest
+
+    missing = fmi3_missing()
+    if missing:
+        pytest.skip(f"FMI 3.0 FMUs cannot be built here: {missing}")
 
 
 def isolated_python(where: Path) -> str:
@@ -66,10 +92,12 @@ def isolated_python(where: Path) -> str:
     return py
 
 
-def run_py(python: str, code: str, cwd: Path, timeout=300) -> dict:
-    """Run PRELUDE + code in a fresh interpreter; the code ends with done(obj)."""
+def run_py(python: str, code: str, cwd: Path, timeout=300, fmi_version: int = 2) -> dict:
+    """Run the prelude of the FMI version (PRELUDE, PRELUDE3) + code in a fresh interpreter;
+    the code ends with done(obj)."""
     env = {k: v for k, v in os.environ.items() if k not in ("PYTHONPATH", "PYTHONHOME")}
-    r = subprocess.run([python, "-c", PRELUDE + code], capture_output=True, text=True, cwd=str(cwd), timeout=timeout, env=env)
+    prelude = {2: PRELUDE, 3: PRELUDE3}[fmi_version]
+    r = subprocess.run([python, "-c", prelude + code], capture_output=True, text=True, cwd=str(cwd), timeout=timeout, env=env)
     assert r.returncode == 0, f"subprocess failed ({r.returncode}):\n{r.stdout[-3000:]}\n{r.stderr[-3000:]}"
     lines = [ln for ln in r.stdout.splitlines() if ln.startswith("RESULT ")]  # masters log to stdout too
     assert lines, r.stdout[-3000:]
@@ -78,7 +106,7 @@ def run_py(python: str, code: str, cwd: Path, timeout=300) -> dict:
 
 def reference(scene_path, steps, inputs_per_step=None):
     """MillModel run directly: outputs after each step, as FMI name -> list."""
-    from millfmu.fmu import DISRUPTED, OUTPUTS
+    from millfmu.fmu_variables import DISRUPTED, OUTPUTS
 
     model = MillModel(load_scene(scene_path))
     keys = OUTPUTS + ((DISRUPTED,) if "disrupted_fraction" in model.outputs() else ())
@@ -142,9 +170,12 @@ def outputs(fmu):
     return dict(zip(fmu.out_names, fmu.getReal(fmu.out_vrs)))
 
 def step(fmu, t, dt, inputs=None):
-    """doStep with inputs; returns the status (0 ok, 2 discard, ...)."""
+    """doStep with inputs (a list sets name[1..n]); returns the status (0 ok, 2 discard, ...)."""
     for k, v in (inputs or {}).items():
-        fmu.setReal([fmu.vr[k]], [v])
+        if isinstance(v, list):
+            fmu.setReal([fmu.vr[f"{k}[{i}]"] for i in range(1, len(v) + 1)], v)
+        else:
+            fmu.setReal([fmu.vr[k]], [v])
     try:
         fmu.doStep(t, dt)
         return 0
@@ -158,6 +189,14 @@ def record(rec, fmu):
         if not n.startswith("psd["):
             rec.setdefault(n, []).append(v)
 
+# FMU state and reset under one name for both FMI versions (see PRELUDE3).
+get_state, set_state, free_state = FMU2Slave.getFMUstate, FMU2Slave.setFMUstate, FMU2Slave.freeFMUstate
+serialize_state, deserialize_state = FMU2Slave.serializeFMUstate, FMU2Slave.deSerializeFMUstate
+
+def reset(fmu):
+    fmu.reset()
+    fmu.setupExperiment(startTime=0.0); fmu.enterInitializationMode(); fmu.exitInitializationMode()
+
 def done(obj):
     print("RESULT " + json.dumps(obj), flush=True)
     # Leave without interpreter teardown: with several pythonfmu 0.7 FMUs loaded, the
@@ -166,4 +205,82 @@ def done(obj):
     # That is a pythonfmu/host teardown issue (see README, FMU), not one of the steps tested.
     sys.stderr.flush()
     os._exit(0)
+'''
+
+
+#: The same helpers for FMI 3.0 FMUs (fmpy's FMU3Slave): outputs() names an array's values
+#: name[1] ... name[n] as the FMI 2.0 FMU does, so records of both versions compare as they
+#: are; step() sets a list as a whole array; call() returns the status of any FMI call.
+PRELUDE3 = r'''
+import json, math, os, sys
+import numpy as np
+from fmpy import extract, read_model_description
+from fmpy.fmi1 import FMICallException
+from fmpy.fmi3 import FMU3Slave
+
+LOG = []
+_DIRS = {}
+
+def call(f, *args):
+    """Status of an FMI call (0 ok, 2 discard, 3 error, ...) and its result."""
+    try:
+        return 0, f(*args)
+    except FMICallException as e:
+        return e.status, None
+
+def open_fmu(path, name="mill", logging=True, start=None, init=True):
+    md = read_model_description(path)
+    d = _DIRS.get(path) or _DIRS.setdefault(path, extract(path))
+    vr = {v.name: v.valueReference for v in md.modelVariables}
+    fmu = FMU3Slave(guid=md.guid, unzipDirectory=d, modelIdentifier=md.coSimulation.modelIdentifier, instanceName=name)
+    def logger(env, status, category, message, name=name):
+        LOG.append([name, int(status), (category or b"").decode(), (message or b"").decode()])
+    fmu.instantiate(loggingOn=logging, logMessage=logger)
+    n = int(next(v.start for v in md.modelVariables if v.name == "n_classes"))
+    fmu.md, fmu.vr, fmu.n = md, vr, n
+    fmu.size = {v.name: (n if v.dimensions else 1) for v in md.modelVariables if v.type == "Float64"}
+    fmu.out_names = [v.name for v in md.modelVariables if v.causality == "output"]
+    fmu.out_vrs = [vr[k] for k in fmu.out_names]
+    if init:
+        fmu.enterInitializationMode(startTime=0.0)
+        for k, v in (start or {}).items():
+            fmu.setFloat64([vr[k]], v if isinstance(v, list) else [v])
+        fmu.exitInitializationMode()
+    return fmu
+
+def outputs(fmu):
+    vals = fmu.getFloat64(fmu.out_vrs, sum(fmu.size[k] for k in fmu.out_names))
+    out, pos = {}, 0
+    for k in fmu.out_names:
+        if fmu.size[k] > 1 or k == "psd":
+            out.update({"%s[%d]" % (k, i + 1): vals[pos + i] for i in range(fmu.size[k])})
+        else:
+            out[k] = vals[pos]
+        pos += fmu.size[k]
+    return out
+
+def step(fmu, t, dt, inputs=None):
+    """doStep with inputs (a list sets a whole array); returns the status (0 ok, 2 discard, ...)."""
+    for k, v in (inputs or {}).items():
+        fmu.setFloat64([fmu.vr[k]], v if isinstance(v, list) else [v])
+    return call(fmu.doStep, t, dt)[0]
+
+def record(rec, fmu):
+    o = outputs(fmu)
+    rec.setdefault("psd", []).append([o[k] for k in o if k.startswith("psd[")])
+    for k, v in o.items():
+        if not k.startswith("psd["):
+            rec.setdefault(k, []).append(v)
+
+get_state, set_state, free_state = FMU3Slave.getFMUState, FMU3Slave.setFMUState, FMU3Slave.freeFMUState
+serialize_state, deserialize_state = FMU3Slave.serializeFMUState, FMU3Slave.deserializeFMUState
+
+def reset(fmu):
+    fmu.reset()
+    fmu.enterInitializationMode(startTime=0.0); fmu.exitInitializationMode()
+
+def done(obj):
+    print("RESULT " + json.dumps(obj), flush=True)
+    sys.stderr.flush()
+    os._exit(0)  # as in PRELUDE: no interpreter teardown with FMUs loaded
 '''

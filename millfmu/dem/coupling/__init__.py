@@ -1,0 +1,7 @@
+"""Two-way coupling of the bead DEM and the fluid (unresolved CFD-DEM).
+
+- :mod:`~millfmu.dem.coupling.projection`: beads <-> grid (deposit, smoothing, node splits)
+  with exact transposes, so that exchanged momentum is conserved to round-off;
+- :mod:`~millfmu.dem.coupling.koch_hill2001`: the drag law (Koch & Hill 2001);
+- :mod:`~millfmu.dem.coupling.cfd_dem`: :class:`CfdDem`, the loop that alternates them.
+"""

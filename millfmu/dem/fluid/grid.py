@@ -1,0 +1,214 @@
+"""Structured cylindrical grid of the fluid solver (pure numpy, no numba).
+
+Cells are annular sectors: radius r in [r_f[i], r_f[i+1]] (i < n_r, piecewise uniform
+spacing), angle theta in [j dtheta, (j + 1) dtheta) (j < n_theta, periodic over the
+simulated sector, which is the full circle or the DEM's sector), axial position z in
+[k dz, (k + 1) dz) (k < n_z, periodic with the axial period). One theta cell is the
+axisymmetric mode with swirl: every theta derivative vanishes, u_r, u_theta and u_z are
+all kept.
+
+Velocities sit on a staggered (MAC) grid: u_r[i, j, k] on the r-face at r_f[i]
+(i = 0 ... n_r; the shaft and chamber faces are walls), u_theta[i, j, k] on the theta-face
+between cells j and j + 1, u_z[i, j, k] on the z-face between cells k and k + 1; pressure,
+void fraction and the turbulence quantities at cell centres.
+
+Solids are whole cells (``solid``: 0 fluid, 1 rotor: turns with the stirrer, 2 stationary
+housing). The PM-1 disc is an annular slab r_sh ... R, |z - z_disc| <= b/2 whose faces lie
+on cell faces: :func:`mill_grid` chooses the spacings so that they do. The shaft
+(r = r_sh, rotating or not) and the chamber wall (r = r_ch, fixed) are the grid's radial
+boundaries. A closed housing (walls in z) is a row of stationary solid cells at k = 0.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+FLUID = 0
+ROTOR = 1
+STATOR = 2
+
+
+class GridError(ValueError):
+    """A grid request that cannot be met."""
+
+
+@dataclass(frozen=True, eq=False)
+class CylGrid:
+    """Cylindrical MAC grid [m, rad]. Build with :func:`mill_grid` or :func:`annulus_grid`.
+
+    r_faces_m: (n_r + 1,) increasing radii of the r-faces, r_faces_m[0] the shaft radius,
+    r_faces_m[-1] the chamber radius; sector_rad: the simulated angle (2 pi or the DEM
+    sector); n_theta: theta cells; height_m: axial period; n_z: axial cells;
+    solid: (n_r, n_theta, n_z) int8 cell kinds (FLUID, ROTOR, STATOR);
+    shaft_rotates: whether the r = r_sh wall turns with the stirrer.
+    """
+
+    r_faces_m: np.ndarray
+    sector_rad: float
+    n_theta: int
+    height_m: float
+    n_z: int
+    solid: np.ndarray
+    shaft_rotates: bool = True
+
+    def __post_init__(self):
+        rf = np.asarray(self.r_faces_m, float)
+        if rf.ndim != 1 or rf.size < 3 or not np.all(np.diff(rf) > 0) or rf[0] <= 0:
+            raise GridError("r_faces_m: need at least 3 increasing positive radii")
+        if self.n_theta < 1 or self.n_z < 3:
+            raise GridError(f"n_theta = {self.n_theta}, n_z = {self.n_z}: need n_theta >= 1 "
+                            f"and n_z >= 3")
+        if self.n_theta > 1 and self.sector_rad / self.n_theta > 0.5:
+            raise GridError(f"n_theta = {self.n_theta}: theta cells wider than 0.5 rad")
+        if self.solid.shape != (rf.size - 1, self.n_theta, self.n_z):
+            raise GridError(f"solid: shape {self.solid.shape}, expected "
+                            f"{(rf.size - 1, self.n_theta, self.n_z)}")
+
+    # ---- sizes ---------------------------------------------------------------------------
+    @property
+    def n_r(self) -> int:
+        return self.r_faces_m.size - 1
+
+    @property
+    def shape(self) -> tuple:
+        return (self.n_r, self.n_theta, self.n_z)
+
+    @property
+    def r_centres_m(self) -> np.ndarray:
+        """Cell-centre radii [m]: the mid-points of the r-faces."""
+        return 0.5 * (self.r_faces_m[1:] + self.r_faces_m[:-1])
+
+    @property
+    def dr_m(self) -> np.ndarray:
+        """Radial cell widths [m]."""
+        return np.diff(self.r_faces_m)
+
+    @property
+    def dtheta_rad(self) -> float:
+        return self.sector_rad / self.n_theta
+
+    @property
+    def dz_m(self) -> float:
+        return self.height_m / self.n_z
+
+    @property
+    def z_centres_m(self) -> np.ndarray:
+        return (np.arange(self.n_z) + 0.5) * self.dz_m
+
+    @property
+    def cell_volume_m3(self) -> np.ndarray:
+        """Volume of a cell in radial row i [m3] (n_r,)."""
+        rf = self.r_faces_m
+        return 0.5 * (rf[1:] ** 2 - rf[:-1] ** 2) * self.dtheta_rad * self.dz_m
+
+    @property
+    def fluid_volume_m3(self) -> float:
+        """Volume of all fluid cells [m3] (beads included)."""
+        return float((self.cell_volume_m3[:, None, None] * (self.solid == FLUID)).sum())
+
+    def describe(self) -> dict:
+        """Plain description for outputs: sizes [m], counts."""
+        dr = self.dr_m
+        return dict(n_r=self.n_r, n_theta=self.n_theta, n_z=self.n_z,
+                    dr_m=[float(dr.min()), float(dr.max())], dz_m=self.dz_m,
+                    sector_deg=math.degrees(self.sector_rad),
+                    fluid_cells=int((self.solid == FLUID).sum()),
+                    mode="axisymmetric with swirl" if self.n_theta == 1 else "3-D")
+
+
+def _piecewise_faces(points, cell_m):
+    """Faces from r0 to rN through every breakpoint in ``points``, each segment cut into
+    equal cells no wider than ``cell_m``."""
+    out = [points[0]]
+    for a, b in zip(points[:-1], points[1:]):
+        n = max(1, int(math.ceil((b - a) / cell_m - 1e-9)))
+        out.extend(a + (b - a) * np.arange(1, n + 1) / n)
+    return np.array(out)
+
+
+def _axial_cells(lengths, cell_m):
+    """n_z and dz for an axial period made of segments ``lengths`` [m] that must each be a
+    whole number of equal cells no larger than cell_m (the pressure solver and the disc
+    faces want one uniform axial spacing)."""
+    total = sum(lengths)
+    n = max(3, int(math.ceil(total / cell_m - 1e-9)))
+    for m in range(n, n + 4000):
+        dz = total / m
+        if all(abs(L / dz - round(L / dz)) < 1e-6 for L in lengths):
+            return m
+    raise GridError(f"axial segments {lengths} m: no common cell size <= {cell_m} m found")
+
+
+def mill_grid(geometry, cell_m: float = 0.75e-3, n_theta: int = 1,
+              walls_z: bool = False, shaft_rotates: bool = True) -> CylGrid:
+    """Grid of a :class:`millfmu.dem.geometry.MillGeometry` (annulus or disc slice) with
+    cells of about ``cell_m`` [m]: the disc's tip radius and faces lie on cell faces, the
+    radial spacing is uniform between shaft and disc tip and between tip and chamber; the
+    theta range is the geometry's sector. ``walls_z`` closes the axial period with a
+    stationary wall (a row of housing cells at z = 0)."""
+    g = geometry
+    if not cell_m > 0:
+        raise GridError(f"cell_m = {cell_m!r}: must be > 0")
+    pts = [g.shaft_radius_m, g.chamber_radius_m]
+    if g.has_disc:
+        pts = [g.shaft_radius_m, g.disc_radius_m, g.chamber_radius_m]
+    rf = _piecewise_faces(pts, cell_m)
+    lengths = [g.height_m]
+    if g.has_disc:
+        # the disc faces at z_disc -+ b/2 must be z-faces: cut the period there (and at 0)
+        cuts = sorted({0.0, (g.disc_z_m - 0.5 * g.disc_thickness_m) % g.height_m,
+                       (g.disc_z_m + 0.5 * g.disc_thickness_m) % g.height_m})
+        cuts.append(g.height_m)
+        lengths = [b - a for a, b in zip(cuts[:-1], cuts[1:]) if b - a > 1e-12]
+    nz = _axial_cells(lengths, cell_m)
+    sector = 2.0 * math.pi if g.sector_deg == 360.0 else math.radians(g.sector_deg)
+    nr = rf.size - 1
+    solid = np.zeros((nr, n_theta, nz), np.int8)
+    dz = g.height_m / nz
+    if g.has_disc:
+        rc = 0.5 * (rf[1:] + rf[:-1])
+        zc = (np.arange(nz) + 0.5) * dz
+        zr = zc - g.disc_z_m
+        zr -= g.height_m * np.floor(zr / g.height_m + 0.5)
+        in_z = np.abs(zr) < 0.5 * g.disc_thickness_m
+        in_r = rc < g.disc_radius_m
+        solid[np.ix_(in_r, np.arange(n_theta), in_z)] = ROTOR
+    if walls_z:
+        solid[:, :, 0] = STATOR
+    return CylGrid(rf, sector, int(n_theta), g.height_m, nz, solid, shaft_rotates)
+
+
+def annulus_grid(r_inner_m: float, r_outer_m: float, height_m: float, n_r: int, n_z: int,
+                 n_theta: int = 1, sector_rad: float = 2.0 * math.pi,
+                 shaft_rotates: bool = True) -> CylGrid:
+    """Plain annulus with uniform spacing and no solids (tests, Couette flow)."""
+    rf = np.linspace(r_inner_m, r_outer_m, n_r + 1)
+    return CylGrid(rf, sector_rad, n_theta, height_m, n_z,
+                   np.zeros((n_r, n_theta, n_z), np.int8), shaft_rotates)
+
+
+def housing_grid(disc_radius_m: float, gap_m: float, disc_thickness_m: float,
+                 shaft_radius_m: float, rim_clearance_m: float, cell_r_m: float,
+                 cell_z_m: float, n_theta: int = 1) -> CylGrid:
+    """A disc rotating in a closed cylindrical housing (Daily & Nece 1960): disc of radius
+    a and thickness b on a shaft, axial gap s between each disc face and the housing's end
+    wall, radial clearance between disc tip and housing wall. Axially: housing wall row,
+    gap, disc, gap (periodic with the wall row closing it)."""
+    rf = _piecewise_faces([shaft_radius_m, disc_radius_m, disc_radius_m + rim_clearance_m],
+                          cell_r_m)
+    lengths = [gap_m, disc_thickness_m, gap_m]
+    n_in = _axial_cells(lengths, cell_z_m)
+    dz = sum(lengths) / n_in
+    nz = n_in + 1  # plus the wall row
+    nr = rf.size - 1
+    solid = np.zeros((nr, n_theta, nz), np.int8)
+    solid[:, :, 0] = STATOR
+    rc = 0.5 * (rf[1:] + rf[:-1])
+    zc = (np.arange(nz) + 0.5) * dz
+    z0 = dz + gap_m
+    in_z = (zc > z0) & (zc < z0 + disc_thickness_m)
+    solid[np.ix_(rc < disc_radius_m, np.arange(n_theta), in_z)] = ROTOR
+    return CylGrid(rf, 2.0 * math.pi, n_theta, nz * dz, nz, solid, True)

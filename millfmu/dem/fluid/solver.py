@@ -1,0 +1,415 @@
+"""FluidSolver: the volume-averaged liquid of the bead mill on a :class:`CylGrid`.
+
+State: u_r, u_theta, u_z [m/s] on the staggered nodes, pressure p [Pa] (dynamic: the
+hydrostatic part rho g.x is taken out, the beads' gravity is reduced by rho_f/rho_p
+instead), and for k-epsilon the turbulent kinetic energy k [m2/s2] and its dissipation
+epsilon [m2/s3] at cell centres. What the beads give it (void fraction per cell and per
+velocity node, drag coefficients K [kg/(m3 s)] and drag sources S [N/m3] per node) is set
+by the coupling (:mod:`millfmu.dem.coupling`) once per coupling interval; without beads the
+void fraction is 1 and the solver is a plain single-phase solver (the closed-form checks
+use that).
+
+One call of :meth:`FluidSolver.advance` covers a coupling interval in as many equal
+substeps as the advective CFL number (default 0.4) and the explicit diffusion limit need,
+and returns nothing; the node velocities and pressure gradients averaged over the
+substeps (what the beads feel over that interval) are in ``mean_u`` and ``mean_gp``.
+Torques the fluid exerts on rotor and stator are accumulated as angular impulse [N m s]
+over time so that any window's mean torque follows from two readings.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from millfmu.dem.fluid.grid import FLUID, ROTOR, CylGrid
+from millfmu.dem.fluid.pressure import PressureSolver
+
+MODELS = ("A", "B")
+TURBULENCE = ("k_epsilon", "laminar")
+
+
+class FluidError(ValueError):
+    """A fluid setting that is not allowed, or a fluid state that went bad."""
+
+
+@dataclass(frozen=True)
+class FluidProperties:
+    """Liquid [SI]. Defaults: water, seed 001 Table 1."""
+
+    density_kg_m3: float = 998.2
+    viscosity_pa_s: float = 1.002e-3
+
+    @property
+    def nu_m2_s(self) -> float:
+        return self.viscosity_pa_s / self.density_kg_m3
+
+
+class FluidSolver:
+    """VANS solver (model "A" or "B", turbulence "k_epsilon" or "laminar") on ``grid``,
+    with the rotor (shaft if ``grid.shaft_rotates``, and ROTOR cells) turning at
+    ``omega_rad_s`` [rad/s] about +z."""
+
+    def __init__(self, grid: CylGrid, fluid: FluidProperties = FluidProperties(),
+                 omega_rad_s: float = 0.0, turbulence: str = "k_epsilon", model: str = "A",
+                 cfl: float = 0.4):
+        from millfmu.dem.fluid import k_epsilon as KE
+        from millfmu.dem.fluid import vans_kernels as VK
+
+        if model not in MODELS:
+            raise FluidError(f"fluid model = {model!r}: allowed {list(MODELS)}")
+        if turbulence not in TURBULENCE:
+            raise FluidError(f"turbulence = {turbulence!r}: allowed {list(TURBULENCE)}")
+        if not 0.0 < cfl <= 0.5:
+            raise FluidError(f"cfl = {cfl!r}: allowed 0 < cfl <= 0.5")
+        self.VK = VK
+        self.KE = KE
+        self.grid = grid
+        self.fluid = fluid
+        self.rho = float(fluid.density_kg_m3)
+        self.nu = float(fluid.nu_m2_s)
+        self.model = model
+        self.turbulence = turbulence
+        self.cfl = float(cfl)
+        g = grid
+        nr, nt, nz = g.shape
+        self.rf = np.ascontiguousarray(g.r_faces_m, float)
+        self.rc = np.ascontiguousarray(g.r_centres_m, float)
+        self.dr = np.ascontiguousarray(g.dr_m, float)
+        self.vc = np.ascontiguousarray(g.cell_volume_m3, float)
+        self.dth = float(g.dtheta_rad)
+        self.dz = float(g.dz_m)
+        self.solid = np.ascontiguousarray(g.solid)
+        s = self.solid != FLUID
+        # ---- node kinds: 0 solved, 1 on a wall surface, 2 inside a solid ----
+        kr = np.zeros((nr + 1, nt, nz), np.int8)
+        kr[0] = np.where(s[0], 2, 1)
+        kr[nr] = np.where(s[nr - 1], 2, 1)
+        kr[1:nr] = s[:-1].astype(np.int8) + s[1:]
+        kt = (s.astype(np.int8) + np.roll(s, -1, axis=1)).astype(np.int8)
+        kz = (s.astype(np.int8) + np.roll(s, -1, axis=2)).astype(np.int8)
+        self.kr, self.kt, self.kz = kr, kt, kz
+        rot = (self.solid == ROTOR)
+        # theta nodes fixed by a rotor (inside it or on its theta-normal face)
+        self._rot_t = (rot | np.roll(rot, -1, axis=1)) & (kt > 0)
+        # ---- control volumes, areas and distances per node (flattened use) ----
+        shp_r = (nr + 1, nt, nz)
+        vr = np.zeros(nr + 1)
+        vr[1:nr] = 0.5 * (self.vc[:-1] + self.vc[1:])
+        vr[0], vr[nr] = 0.5 * self.vc[0], 0.5 * self.vc[-1]
+        self.vol_r = np.broadcast_to(vr[:, None, None], shp_r).copy()
+        self.vol_c = np.broadcast_to(self.vc[:, None, None], g.shape).copy()
+        hr = np.ones(nr + 1)
+        hr[1:nr] = self.rc[1:] - self.rc[:-1]
+        self.area_r = np.broadcast_to((self.rf * self.dth * self.dz)[:, None, None], shp_r).copy()
+        self.h_r = np.broadcast_to(hr[:, None, None], shp_r).copy()
+        self.area_t = np.broadcast_to((self.dr * self.dz)[:, None, None], g.shape).copy()
+        self.h_t = np.broadcast_to((self.rc * self.dth)[:, None, None], g.shape).copy()
+        self.area_z = np.broadcast_to((self.vc / self.dz)[:, None, None], g.shape).copy()
+        self.h_z = np.full(g.shape, self.dz)
+        # ---- walls for the turbulence model: face d of a fluid cell on a wall ----
+        wall = np.zeros(g.shape + (6,), np.bool_)
+        wom = np.zeros(g.shape + (6,))
+        f = ~s
+        wall[0, :, :, 0] = f[0]
+        wall[1:, :, :, 0] = f[1:] & s[:-1]
+        wall[nr - 1, :, :, 1] = f[nr - 1]
+        wall[:-1, :, :, 1] |= f[:-1] & s[1:]
+        if nt > 1:
+            wall[..., 2] = f & np.roll(s, 1, axis=1)
+            wall[..., 3] = f & np.roll(s, -1, axis=1)
+        wall[..., 4] = f & np.roll(s, 1, axis=2)
+        wall[..., 5] = f & np.roll(s, -1, axis=2)
+        self.wall = wall
+        # angular velocity of each wall per unit omega (1 rotor, 0 at rest)
+        wom = np.zeros(g.shape + (6,))
+        wom[0, :, :, 0] = 1.0 if grid.shaft_rotates else 0.0
+        wom[1:, :, :, 0] = rot[:-1]
+        wom[:-1, :, :, 1] = rot[1:]
+        wom[nr - 1, :, :, 1] = 0.0  # the chamber wall is at rest
+        if nt > 1:
+            wom[..., 2] = np.roll(rot, 1, axis=1)
+            wom[..., 3] = np.roll(rot, -1, axis=1)
+        wom[..., 4] = np.roll(rot, 1, axis=2)
+        wom[..., 5] = np.roll(rot, -1, axis=2)
+        self._wom_rot = wom * wall
+        # ---- state ----
+        self.ur = np.zeros(shp_r)
+        self.ut = np.zeros(g.shape)
+        self.uz = np.zeros(g.shape)
+        self.p = np.zeros(g.shape)
+        self.k = np.zeros(g.shape)
+        self.e = np.zeros(g.shape)
+        self.nu_t = np.zeros(g.shape)
+        # ---- what the beads impose (defaults: no beads) ----
+        self.eps_c = np.ones(g.shape)
+        self.eps_c_old = np.ones(g.shape)
+        self.eps_r = np.ones(shp_r)
+        self.eps_t = np.ones(g.shape)
+        self.eps_z = np.ones(g.shape)
+        self.kd_r = np.zeros(shp_r)
+        self.kd_t = np.zeros(g.shape)
+        self.kd_z = np.zeros(g.shape)
+        self.sd_r = np.zeros(shp_r)
+        self.sd_t = np.zeros(g.shape)
+        self.sd_z = np.zeros(g.shape)
+        self.body_z = 0.0  # axial body force per unit volume [N/m3] (e.g. -dP/dz)
+        self.interval_s = None  # last coupling interval (continuity's d(eps)/dt)
+        # ---- work arrays ----
+        self._fr = np.zeros(shp_r)
+        self._ft = np.zeros(g.shape)
+        self._fz = np.zeros(g.shape)
+        self._div = np.zeros(g.shape)
+        self._trr = np.zeros(g.shape)
+        self._ttt = np.zeros(g.shape)
+        self._tzz = np.zeros(g.shape)
+        self._s2 = np.zeros(g.shape)
+        self._ert = np.zeros(shp_r)
+        self._erz = np.zeros(shp_r)
+        self._etz = np.zeros(g.shape)
+        self._grt = np.zeros(shp_r)
+        self._grz = np.zeros(shp_r)
+        self._gtz = np.zeros(g.shape)
+        self._rr = np.zeros(shp_r)
+        self._rt = np.zeros(g.shape)
+        self._rz = np.zeros(g.shape)
+        self._gpr = np.zeros(shp_r)
+        self._gpt = np.zeros(g.shape)
+        self._gpz = np.zeros(g.shape)
+        self._em = np.zeros(g.shape)
+        self._prod = np.zeros(g.shape)
+        self._ewall = np.zeros(g.shape)
+        self._knew = np.zeros(g.shape)
+        self._enew = np.zeros(g.shape)
+        self.mean_u = (np.zeros(shp_r), np.zeros(g.shape), np.zeros(g.shape))
+        self.mean_gp = (np.zeros(shp_r), np.zeros(g.shape), np.zeros(g.shape))
+        self._zero_r = np.zeros(shp_r)
+        self._zero_c = np.zeros(g.shape)
+        self._gphi = (np.zeros(shp_r), np.zeros(g.shape), np.zeros(g.shape))
+        self.pressure = PressureSolver(grid)
+        # ---- accounting ----
+        self.time_s = 0.0
+        self.substeps = 0
+        # time integrals of the fluid's torque on the turning shaft, on the rotor's solid
+        # cells (disc) and on the walls at rest [N m s]
+        self.angular_impulse_shaft_nms = 0.0
+        self.angular_impulse_rotor_nms = 0.0
+        self.angular_impulse_stator_nms = 0.0
+        self.exchange_angular_nms = 0.0  # angular impulse the beads gave the fluid
+        self.exchange_axial_ns = 0.0
+        self.last_substeps = 0
+        self.set_omega(omega_rad_s)
+
+    # ---- settings ---------------------------------------------------------------------
+    def set_omega(self, omega_rad_s: float):
+        """Rotor angular velocity [rad/s]: sets the fixed velocities of the solid nodes."""
+        self.omega = float(omega_rad_s)
+        self.om_shaft = self.omega if self.grid.shaft_rotates else 0.0
+        self.fixed_t = np.where(self._rot_t, self.omega * self.rc[:, None, None], 0.0)
+        self.wall_om = self._wom_rot * self.omega
+        self._apply_fixed()
+
+    def _apply_fixed(self):
+        self.ur[self.kr != 0] = 0.0
+        self.uz[self.kz != 0] = 0.0
+        m = self.kt != 0
+        self.ut[m] = self.fixed_t[m]
+
+    def init_turbulence(self, k_m2_s2: float, length_m: float):
+        """Uniform initial k [m2/s2] and epsilon = C_mu^(3/4) k^(3/2) / length [m2/s3]."""
+        f = self.solid == FLUID
+        self.k[:] = np.where(f, k_m2_s2, 0.0)
+        self.e[:] = np.where(f, 0.09 ** 0.75 * k_m2_s2 ** 1.5 / length_m, 0.0)
+
+    def init_solid_body(self, fraction: float):
+        """u_theta = fraction * omega * r in the fluid (a start closer to the stirred state)."""
+        m = self.kt == 0
+        self.ut[m] = (fraction * self.omega * np.broadcast_to(self.rc[:, None, None],
+                                                              self.ut.shape))[m]
+
+    def set_beads(self, eps_c, eps_r, eps_t, eps_z, kd, sd, interval_s: float):
+        """What the beads impose over the next coupling interval of ``interval_s`` [s]:
+        void fractions per cell and per velocity node, drag coefficients per unit volume
+        kd = (kd_r, kd_t, kd_z) [kg/(m3 s)] and sources sd [N/m3]. The node momenta
+        eps u are kept (u rescaled by eps_old / eps_new): a change of the void fraction moves
+        no momentum; the change per cell enters continuity as d(eps)/dt over the interval."""
+        for name, new in (("eps_r", eps_r), ("eps_t", eps_t), ("eps_z", eps_z)):
+            old = getattr(self, name)
+            u = {"eps_r": self.ur, "eps_t": self.ut, "eps_z": self.uz}[name]
+            u *= old / new
+            old[:] = new
+        self.eps_c_old[:] = self.eps_c
+        self.eps_c[:] = eps_c
+        self.kd_r[:], self.kd_t[:], self.kd_z[:] = kd
+        self.sd_r[:], self.sd_t[:], self.sd_z[:] = sd
+        self.interval_s = float(interval_s)
+        self._apply_fixed()
+
+    # ---- stepping ---------------------------------------------------------------------
+    def stable_dt(self) -> float:
+        """Largest substep [s] for the advective CFL number and explicit diffusion."""
+        nr, nt, nz = self.grid.shape
+        small = 1e-300
+        a = np.abs(self.ur[1:nr]) / self.h_r[1:nr]
+        m = float(a.max()) if a.size else 0.0
+        m = max(m, float((np.abs(self.uz) / self.dz).max()))
+        if nt > 1:
+            m = max(m, float((np.abs(self.ut) / self.h_t).max()))
+        dt_adv = self.cfl / max(m, small)
+        inv_h2 = 1.0 / self.dr.min() ** 2 + 1.0 / self.dz ** 2
+        if nt > 1:
+            inv_h2 += 1.0 / (self.rc.min() * self.dth) ** 2
+        nu_max = self.nu + float(self.nu_t.max())
+        dt_dif = 0.25 / (nu_max * inv_h2)
+        return min(dt_adv, dt_dif)
+
+    def advance(self, interval_s: float):
+        """Advance the fluid by ``interval_s`` [s] (one coupling interval), in substeps of
+        equal length within what :meth:`stable_dt` allows (re-evaluated after each)."""
+        for a in self.mean_u + self.mean_gp:
+            a[:] = 0.0
+        done = 0.0
+        n = 0
+        while interval_s - done > 1e-12 * interval_s:
+            rest = interval_s - done
+            dt = rest / max(1, int(math.ceil(rest / self.stable_dt() - 1e-9)))
+            self._substep(dt, interval_s)
+            for acc, gp in zip(self.mean_gp, (self._gpr, self._gpt, self._gpz)):
+                acc += dt * gp
+            done += dt
+            n += 1
+        for a in self.mean_u + self.mean_gp:
+            a /= interval_s
+        self.last_substeps = n
+        if not (np.isfinite(self.ut).all() and np.isfinite(self.ur).all()):
+            raise FluidError(f"fluid velocity not finite at t = {self.time_s:.6g} s")
+
+    def _substep(self, dt: float, interval_s: float):
+        VK, KE = self.VK, self.KE
+        rho, nu = self.rho, self.nu
+        model_a = self.model == "A"
+        kturb = self.turbulence == "k_epsilon"
+        VK.face_fluxes(self.ur, self.ut, self.uz, self.eps_r, self.eps_t, self.eps_z,
+                       self.rf, self.dr, self.vc, self.dth, self.dz, self._fr, self._ft,
+                       self._fz)
+        if kturb:
+            KE.eddy_viscosity(self.k, self.e, self.solid, self.nu_t)
+        fl = self.solid == FLUID
+        np.multiply((self.eps_c if model_a else 1.0) * rho, nu + self.nu_t, out=self._em)
+        self._em[~fl] = 0.0
+        VK.normal_stresses(self.ur, self.ut, self.uz, self._em, self.solid, self.rf, self.rc,
+                           self.dr, self.dth, self.dz, self._trr, self._ttt, self._tzz,
+                           self._s2)
+        VK.edge_stresses(self.ur, self.ut, self.uz, self.kr, self.kt, self.kz, self._em,
+                         self.eps_c, self.k, self.solid, self.rf, self.rc, self.dr, self.dth,
+                         self.dz, self.om_shaft, rho, nu, kturb, model_a, self._ert,
+                         self._erz, self._etz, self._grt, self._grz, self._gtz)
+        VK.rhs_r(self.ur, self.ut, self._fr, self._ft, self._fz, self.kr, self._trr,
+                 self._ttt, self._ert, self._erz, self.eps_r, self.rf, self.rc, self.dr,
+                 self.vc, self.dth, self.dz, rho, self._rr)
+        VK.rhs_t(self.ut, self._fr, self._ft, self._fz, self.kt, self._ttt, self._ert,
+                 self._etz, self.rf, self.rc, self.dr, self.vc, self.dth, self.dz, rho,
+                 self._rt)
+        VK.rhs_z(self.uz, self._fr, self._ft, self._fz, self.kz, self._tzz, self._erz,
+                 self._etz, self.rf, self.dr, self.vc, self.dth, self.dz, rho, self._rz)
+        sh, rot, sta = VK.wall_torques(self._ert, self._etz, self.kt, self.solid, self.rf,
+                                       self.rc, self.vc, self.dth, self.dz)
+        if self.grid.shaft_rotates:
+            self.angular_impulse_shaft_nms += sh * dt
+        else:
+            sta += sh
+        self.angular_impulse_rotor_nms += rot * dt
+        self.angular_impulse_stator_nms += sta * dt
+        VK.pressure_gradients(self.p, self.solid, self.rc, self.dr, self.dth, self.dz,
+                              self._gpr, self._gpt, self._gpz)
+        VK.predict(self.ur.ravel(), self.kr.ravel(), self.eps_r.ravel(), self._rr.ravel(),
+                   self.kd_r.ravel(), self.sd_r.ravel(), self._gpr.ravel(), 0.0, rho, dt,
+                   self._zero_r.ravel())
+        VK.predict(self.ut.ravel(), self.kt.ravel(), self.eps_t.ravel(), self._rt.ravel(),
+                   self.kd_t.ravel(), self.sd_t.ravel(), self._gpt.ravel(), 0.0, rho, dt,
+                   self.fixed_t.ravel())
+        VK.predict(self.uz.ravel(), self.kz.ravel(), self.eps_z.ravel(), self._rz.ravel(),
+                   self.kd_z.ravel(), self.sd_z.ravel(), self._gpz.ravel(), self.body_z,
+                   rho, dt, self._zero_c.ravel())
+        # the beads' drag acted on u* (implicit in the predictor): what they exchange
+        for acc, u in zip(self.mean_u, (self.ur, self.ut, self.uz)):
+            acc += dt * u
+        tq = self.rc[:, None, None] * self.vol_c * (self.kd_t * self.ut - self.sd_t)
+        self.exchange_angular_nms -= float(tq[self.kt == 0].sum()) * dt
+        fz = self.vol_c * (self.kd_z * self.uz - self.sd_z)
+        self.exchange_axial_ns -= float(fz[self.kz == 0].sum()) * dt
+        # ---- projection ----
+        VK.face_fluxes(self.ur, self.ut, self.uz, self.eps_r, self.eps_t, self.eps_z,
+                       self.rf, self.dr, self.vc, self.dth, self.dz, self._fr, self._ft,
+                       self._fz)
+        VK.divergence(self._fr, self._ft, self._fz, self._div)
+        b = self._div
+        if self.interval_s:
+            b = b + self.vol_c * (self.eps_c - self.eps_c_old) / self.interval_s
+        phi = self.pressure.solve(b * (rho / dt))
+        gphi = self._gphi
+        VK.pressure_gradients(phi, self.solid, self.rc, self.dr, self.dth, self.dz, *gphi)
+        for u, kind, eps, g in zip((self.ur, self.ut, self.uz), (self.kr, self.kt, self.kz),
+                                   (self.eps_r, self.eps_t, self.eps_z), gphi):
+            VK.correct(u.ravel(), kind.ravel(), eps.ravel(), g.ravel(), rho, dt)
+        self.p += phi
+        VK.pressure_gradients(self.p, self.solid, self.rc, self.dr, self.dth, self.dz,
+                              self._gpr, self._gpt, self._gpz)
+        # ---- turbulence ----
+        if kturb:
+            VK.face_fluxes(self.ur, self.ut, self.uz, self.eps_r, self.eps_t, self.eps_z,
+                           self.rf, self.dr, self.vc, self.dth, self.dz, self._fr, self._ft,
+                           self._fz)
+            KE.production(self.ur, self.ut, self.uz, self.nu_t, self._s2, self._grt,
+                          self._grz, self._gtz, self.solid, self.wall, self.wall_om, self.k,
+                          self.rc, self.dr, self.dth, self.dz, nu, self._prod, self._ewall)
+            KE.transport(self.k, self.k, self.e, False, self._fr, self._ft, self._fz,
+                         self.eps_c, self.nu_t, self.solid, self._prod, self._ewall, self.rf,
+                         self.rc, self.dr, self.vc, self.dth, self.dz, nu, dt, KE.K_MIN,
+                         self._knew)
+            KE.transport(self.e, self.k, self.e, True, self._fr, self._ft, self._fz,
+                         self.eps_c, self.nu_t, self.solid, self._prod, self._ewall, self.rf,
+                         self.rc, self.dr, self.vc, self.dth, self.dz, nu, dt, KE.EPS_MIN,
+                         self._enew)
+            self.k, self._knew = self._knew, self.k
+            self.e, self._enew = self._enew, self.e
+        self.time_s += dt
+        self.substeps += 1
+
+    # ---- observables ------------------------------------------------------------------
+    def angular_momentum_kgm2_s(self) -> float:
+        """Angular momentum about +z of the liquid in the solved cells [kg m2/s]."""
+        m = self.kt == 0
+        lz = self.rho * self.eps_t * self.vol_c * self.rc[:, None, None] * self.ut
+        return float(lz[m].sum())
+
+    def axial_momentum_kgm_s(self) -> float:
+        m = self.kz == 0
+        return float((self.rho * self.eps_z * self.vol_c * self.uz)[m].sum())
+
+    def wall_torques_nm(self) -> dict:
+        """Torques [N m] the fluid exerted on shaft, rotor cells (disc) and stator in the
+        last substep (simulated sector)."""
+        sh, rot, sta = self.VK.wall_torques(self._ert, self._etz, self.kt, self.solid,
+                                            self.rf, self.rc, self.vc, self.dth, self.dz)
+        return dict(shaft=sh, rotor_cells=rot, stator=sta)
+
+    def max_divergence_s(self) -> float:
+        """Largest |div(eps u) + d eps/dt| over cells, per cell volume [1/s]."""
+        VK = self.VK
+        VK.face_fluxes(self.ur, self.ut, self.uz, self.eps_r, self.eps_t, self.eps_z,
+                       self.rf, self.dr, self.vc, self.dth, self.dz, self._fr, self._ft,
+                       self._fz)
+        VK.divergence(self._fr, self._ft, self._fz, self._div)
+        b = self._div / self.vol_c
+        if self.interval_s:
+            b = b + (self.eps_c - self.eps_c_old) / self.interval_s
+        return float(np.abs(b[self.solid == FLUID]).max())
+
+    def describe(self) -> dict:
+        return dict(model=self.model, turbulence=self.turbulence, grid=self.grid.describe(),
+                    density_kg_m3=self.rho, viscosity_pa_s=self.fluid.viscosity_pa_s,
+                    pressure="direct sparse LU of the constant projection operator",
+                    cfl=self.cfl)

@@ -1,0 +1,128 @@
+"""FMI 3.0 co-simulation adapter (pythonfmu3): FMI variables <-> :class:`MillModel`. No physics.
+
+The FMU built by ``millfmu build-fmu --fmi-version 3`` carries this package (renamed, see
+``fmu_build``), its scene (``resources/scene.toml``) and pythonfmu3's wrapper with millfmu's
+fixes. The variables are those of the FMI 2.0 FMU (one description:
+:mod:`millfmu.fmu_variables`), all Float64 with SI units, plus FMI 3.0's independent
+variable ``time`` [s] and the structural parameter ``n_classes``: the size distributions
+``psd_in`` (continuous scenes) and ``psd`` are arrays of ``n_classes`` values.
+
+Values set before ``fmi3ExitInitializationMode`` are the scene's operating point; later ones
+are inputs held over the next step; outputs are the model's at the end of the last step (no
+direct feedthrough). Statuses, as FMI 3.0 intends them:
+
+- fmi3Discard from ``fmi3DoStep``: an input value the model refuses (named with its value and
+  what is allowed) or a step it cannot take; the state is unchanged and the master may retry;
+- fmi3Error: an illegal call (see :mod:`millfmu.fmi3_slave`); a parameter value the scene
+  refuses, from ``fmi3ExitInitializationMode`` (and from every step after it); a state from
+  another FMU given to ``fmi3SetFMUState``; the instance stays usable.
+"""
+
+from __future__ import annotations
+
+import copy
+from xml.etree.ElementTree import Element
+
+import numpy as np
+from pythonfmu3 import DefaultExperiment
+
+from .fmi3_slave import Fmi3Base
+from .fmu_variables import CLASS_COUNT, SCENE_FILE, UNITS, model_with, plain, read_scene_dict, variables
+from .mill import InputError, MillModel, StepError
+from .scene import SceneError, scene_from_dict
+
+
+class MillSlave3(Fmi3Base):
+    """The mill as a pythonfmu3 slave; the scene is ``<resources>/scene.toml``."""
+
+    description = "Wet stirred media mill (bead mill): population balance with Kwade's stress model"
+    REFUSED = (InputError, StepError)
+
+    def __init__(self, **kwargs):
+        super().__init__(**kwargs)
+        self._scene_dict = read_scene_dict(self.resources)
+        scene = scene_from_dict(self._scene_dict, SCENE_FILE)
+        self.model = MillModel(scene)
+        self._base_scene = scene
+        self._overrides: dict = {}
+        n = self.model.grid.n
+        self._model_description = f"{self.description}; scene {scene.scene.name!r}, {scene.operation.mode}, {scene.kinetics.model} model, {n} size classes"
+        self.default_experiment = DefaultExperiment(start_time=0.0, stop_time=scene.run.t_end_s, step_size=scene.run.dt_s)
+
+        # One description of the variables (millfmu.fmu_variables) serves FMI 2.0 and 3.0;
+        # here an array is one Float64 of n_classes values.
+        self.declare_class_count(n, CLASS_COUNT[1], CLASS_COUNT[0])
+        described = variables(self.model)
+        self._scene_key = {}  # position in the value list -> (section, key)
+        self._in = {}  # MillModel input name -> position (a slice for psd_in) in the value list
+        for var in described:
+            desc = var.description.format(i=f"i = 1..{n}") if var.size else var.description
+            s = self._slices[self.declare(var.name, var.unit, var.causality, var.variability, desc, var.start, array=bool(var.size))]
+            if var.scene_key:
+                self._scene_key[s.start] = var.scene_key
+            if var.settable and var.settable[0] == "input":
+                self._in[var.settable[1]] = s if var.size else s.start
+            if var.name == "bead_filling":  # a tunable parameter, held over each step like an input
+                self._in["bead_filling"] = s.start
+            if var.output_key == "psd":
+                self._out = slice(s.start, None)  # psd, then the scalar outputs to the end of the list
+        self._names = {var.settable[1]: var.name for var in described if var.settable}  # MillModel name -> FMI name
+        self._scene_names = {".".join(var.scene_key): var.name for var in described if var.scene_key}  # "section.key" -> FMI name
+        self._out_keys = [var.output_key for var in described if var.causality == "output" and not var.size]
+        self.register_used_units(UNITS.__getitem__)
+        self._publish(self.model.outputs())
+
+    # ---- values ------------------------------------------------------------------------
+    def _publish(self, outs: dict):
+        """Copy the model's outputs into the value list."""
+        self._v[self._out] = outs["psd"].tolist() + [float(outs[k]) for k in self._out_keys]
+
+    def _inputs(self) -> dict:
+        v = self._v
+        return {k: (np.array(v[at]) if isinstance(at, slice) else v[at]) for k, at in self._in.items()}
+
+    # ---- life cycle --------------------------------------------------------------------
+    def _configure(self):
+        """Values set before fmi3ExitInitializationMode are the scene's operating point:
+        rebuild the model if they differ from the scene's."""
+        over = {}
+        for at, (sec, key) in self._scene_key.items():
+            if self._v[at] != getattr(getattr(self._base_scene, sec), key):
+                over[(sec, key)] = self._v[at]
+        self._configure_with(over)
+
+    def _configure_with(self, over: dict):
+        """The model for the scene with ``over`` {(section, key): value} applied."""
+        if over == self._overrides:
+            return
+        try:
+            model = model_with(self._scene_dict, over)  # a DEM table may refuse the scene's operating point
+        except SceneError as e:
+            self.refuse_configuration(f"{self._scene_names.get(e.key, e.key)} = {e.value!r}: {e.allowed}")
+        if model.grid.n != self.n_classes:  # pragma: no cover - no parameter changes the grid
+            raise RuntimeError("size grid changed")
+        self.model = model
+        self._overrides = dict(over)
+        self._config_error = None
+        self._publish(model.outputs())
+
+    def _take_step(self, h: float):
+        self._publish(self.model.step(h, **self._inputs()))
+
+    def _refusal(self, e: Exception) -> str:
+        if isinstance(e, InputError):
+            name = "communicationStepSize" if e.name == "dt_s" else self._names.get(e.name, e.name)
+            return f"input {name} = {e.value!r}: {e.allowed}"
+        return str(e)
+
+    # ---- FMU state ---------------------------------------------------------------------
+    def _state(self) -> dict:
+        return {"overrides": [[sec, key, x] for (sec, key), x in self._overrides.items()], "model": plain(self.model.get_state())}
+
+    def _restore(self, state: dict):
+        self._configure_with({(sec, key): x for sec, key, x in state["overrides"]})
+        self.model.set_state(copy.deepcopy(state["model"]))
+
+    # ---- model description -------------------------------------------------------------
+    def to_xml(self, model_options=dict()) -> Element:
+        return self.complete_xml(super().to_xml(model_options), self._model_description)
