@@ -149,6 +149,15 @@ def sha256_bytes(b: bytes) -> str:
     return hashlib.sha256(b).hexdigest()
 
 
+#: A manifest's checksum of itself: sha256 of the canonical JSON of every other key. It
+#: travels inside the file, so an exported table (PREFIX.npz, PREFIX.json) is covered too.
+MANIFEST_SUM_KEY = "manifest_sha256"
+
+
+def manifest_digest(m: dict) -> str:
+    return sha256_bytes(canonical_json({k: v for k, v in m.items() if k != MANIFEST_SUM_KEY}).encode())
+
+
 def sha256_file(path) -> str:
     h = hashlib.sha256()
     with open(path, "rb") as fh:
@@ -582,6 +591,7 @@ class Table:
         m["components"] = list(COMPONENTS)
         m["quantiles"] = list(QUANTILE_NAMES)
         m["axes"] = {k: [float(x) for x in v] for k, v in self.axes.items()}
+        m[MANIFEST_SUM_KEY] = manifest_digest(m)
         text = json.dumps(m, indent=1, sort_keys=True, allow_nan=False).encode()
         _write_synced(folder / MANIFEST_FILE, text)
         _write_synced(folder / MANIFEST_SUM_FILE, (sha256_bytes(text) + "\n").encode())
@@ -662,6 +672,12 @@ def read_table(folder=None, *, npz=None, manifest_path=None, expect_key: str | N
         raise TableError(f"{manifest_path}: not valid JSON ({e})") from None
     if not isinstance(m, dict):
         raise TableError(f"{manifest_path}: not a JSON object: corrupted")
+    if MANIFEST_SUM_KEY in m:
+        if m[MANIFEST_SUM_KEY] != manifest_digest(m):
+            raise TableError(f"{manifest_path}: content does not match its {MANIFEST_SUM_KEY}: edited or corrupted")
+    elif not sum_path.exists():
+        raise TableError(f"{manifest_path}: no checksum ({MANIFEST_SUM_KEY} or {sum_path.name}): "
+                         f"written by an older millfmu; export the table again")
     if m.get("format") != FORMAT_VERSION:
         raise TableError(f"{manifest_path}: format = {m.get('format')!r}, this millfmu "
                          f"reads format {FORMAT_VERSION}: stale")
