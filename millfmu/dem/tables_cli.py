@@ -43,7 +43,8 @@ RUN_OPTIONS = {
 REBUILD_DEFAULT = (
     "millfmu tables build --scene disc_slice --tip-speed 6,8,10,12,14 "
     "--filling 0.5,0.6,0.7,0.8,0.9 --sector-deg 10 --spin-up 0.05 --record 0.1 "
-    "--sample-every 0.005 --no-gravity --export millfmu/data/default_table")
+    "--sample-every 0.005 --no-gravity --fluid prescribed --export "
+    "millfmu/data/default_table")
 
 
 def _floats(text: str) -> list:
