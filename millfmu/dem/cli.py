@@ -38,6 +38,9 @@ def register(subparsers) -> argparse.ArgumentParser:
     r.add_argument("--sample-every", type=float, dest="sample_every_s", metavar="S",
                    help="sampling interval of positions and velocities [s]")
     r.add_argument("--dt", type=float, dest="dt_s", metavar="S", help="time step [s]")
+    r.add_argument("--initial-rotation", type=float, dest="initial_rotation", metavar="F",
+                   help="beads and coupled fluid start turning at this fraction of the "
+                        "stirrer's angular velocity (default 0: from rest)")
     r.add_argument("--threads", type=int, help="numba threads (default: all cores)")
     r.add_argument("--windows", type=float, dest="window_s", metavar="S",
                    help="also write windows.csv: zone statistics of consecutive recording "
@@ -88,7 +91,7 @@ def _run(args) -> int:
         scene = load_scene(args.scene)
         over = {k: getattr(args, k) for k in ("tip_speed_m_s", "filling", "sector_deg",
                                               "spin_up_s", "record_s", "sample_every_s",
-                                              "dt_s", "fluid_mode")}
+                                              "dt_s", "fluid_mode", "initial_rotation")}
         if args.no_gravity:
             over["gravity_m_s2"] = (0.0, 0.0, 0.0)
         scene = scene.with_overrides(**over)

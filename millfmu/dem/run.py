@@ -57,9 +57,13 @@ def make_simulation(scene: DemScene, threads: int | None = None):
     from millfmu.dem.sim import DemSimulation
 
     x0 = initial_positions(scene)
+    v0 = None
+    if scene.initial_rotation:
+        w = scene.initial_rotation * scene.omega_rad_s
+        v0 = np.column_stack([-w * x0[:, 1], w * x0[:, 0], np.zeros(len(x0))])
     sim = DemSimulation(scene.geometry, scene.material, x0, 0.5 * scene.bead_diameter_m,
                         scene.omega_rad_s, scene.dt_s, gravity_m_s2=scene.gravity_m_s2,
-                        fluid=scene.fluid, threads=threads)
+                        fluid=scene.fluid, threads=threads, velocities_m_s=v0)
     cpl = None
     if scene.fluid_mode == "coupled":
         from millfmu.dem.coupling.cfd_dem import CfdDem
@@ -74,6 +78,8 @@ def make_simulation(scene: DemScene, threads: int | None = None):
         if c.turbulence == "k_epsilon":
             cpl.solver.init_turbulence((INITIAL_TURBULENCE_INTENSITY * scene.tip_speed_m_s) ** 2,
                                        INITIAL_MIXING_LENGTH_M)
+        if scene.initial_rotation:
+            cpl.solver.init_solid_body(scene.initial_rotation)
     return sim, cpl
 
 

@@ -65,6 +65,9 @@ class DemScene:
     zones: ZoneSpec
     map_bins_r: int
     map_bins_z: int
+    # beads and coupled fluid start turning at this fraction of the stirrer's angular
+    # velocity [-] (0: from rest); shortens the spin-up, the windows check decides
+    initial_rotation: float = 0.0
 
     @property
     def omega_rad_s(self) -> float:
@@ -75,7 +78,7 @@ class DemScene:
 
     def with_overrides(self, **kw) -> "DemScene":
         """Copy with run-time overrides (tip_speed_m_s, filling, sector_deg, spin_up_s,
-        record_s, dt_s, fluid_mode); validated like file values."""
+        record_s, dt_s, fluid_mode, initial_rotation); validated like file values."""
         geo = self.geometry
         if kw.get("sector_deg") is not None:
             geo = _geometry_or_error(replace, geo, sector_deg=float(kw.pop("sector_deg")))
@@ -144,6 +147,9 @@ def _check_ranges(s: DemScene):
         _positive(name, v)
     if s.spin_up_s < 0:
         raise DemSceneError(f"run.spin_up_s = {s.spin_up_s!r}: must be >= 0")
+    if not 0.0 <= s.initial_rotation <= 1.0:
+        raise DemSceneError(f"run.initial_rotation = {s.initial_rotation!r}: allowed 0 to 1 "
+                            f"(a fraction of the stirrer's angular velocity)")
     m = s.material
     if not 0.0 < m.restitution <= 1.0:
         raise DemSceneError(f"beads.restitution = {m.restitution!r}: allowed 0 < e <= 1")
@@ -263,6 +269,7 @@ def scene_from_dict(d: dict, default_name: str = "scene") -> DemScene:
         record_s=_get(run, "record_s", "run", f, 1.0),
         sample_every_s=_get(run, "sample_every_s", "run", f, 0.02),
         seed=_get(run, "seed", "run", int, 1), zones=zs,
+        initial_rotation=_get(run, "initial_rotation", "run", f, 0.0),
         map_bins_r=_get(output, "map_bins_r", "output", int, 30),
         map_bins_z=_get(output, "map_bins_z", "output", int, 28))
     _check_ranges(s)

@@ -37,6 +37,8 @@ RUN_OPTIONS = {
     "--record": ("run", "record_s", "recording time [s]"),
     "--sample-every": ("run", "sample_every_s", "sampling interval [s]"),
     "--dt": ("run", "dt_s", "DEM time step [s]"),
+    "--initial-rotation": ("run", "initial_rotation", "beads and coupled fluid start turning "
+                           "at this fraction of the stirrer's angular velocity [-]"),
 }
 #: The command that rebuilds the shipped default table (from the repository root); the
 #: table's manifest records it as ``rebuild_command``.
