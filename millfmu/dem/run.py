@@ -413,8 +413,26 @@ def summary_table(stats: DemStats) -> str:
                      f"{z.speed_over_tip_speed:8.4f} {z.collision_frequency_per_m3_s:13.3e} "
                      f"{(q if q is not None else float('nan')):12.3e} "
                      f"{z.collision_power_w:10.3e}")
-    lines.append(f"stirrer torque {stats.stirrer_torque_nm:.4g} N m, power "
+    lines.append(f"stirrer torque from bead contacts {stats.stirrer_torque_nm:.4g} N m, power "
                  f"{stats.stirrer_power_w:.4g} W; kinetic energy "
                  f"{json.dumps(stats.kinetic_energy)}")
+    fl = stats.flow or {}
+    t = fl.get("torque", {})
+    if "stirrer_fluid_shear_nm" in t:
+        lines.append(f"coupled fluid: stirrer torque {t['stirrer_total_nm']:.4g} N m (fluid "
+                     f"shear {t['stirrer_fluid_shear_nm']:.4g}, bead contacts "
+                     f"{t['stirrer_bead_contacts_nm']:.4g}), power number "
+                     f"{fl['power_number']['value']:.4g}; angular momentum budget closes to "
+                     f"{fl['angular_momentum_budget']['closure_rel']:.1e}; CFD step "
+                     f"{fl['fluid']['cfd_dt_s']:.3g} s, grid {fl['fluid']['grid']['n_r']} x "
+                     f"{fl['fluid']['grid']['n_theta']} x {fl['fluid']['grid']['n_z']}")
+    if fl.get("first_bead_layer_angular_velocity_ratio") is not None:
+        vf = fl.get("vortices_fluid")
+        lines.append("first bead layer at the disc: angular velocity "
+                     f"{fl['first_bead_layer_angular_velocity_ratio']:.3f} of the disc's; "
+                     "vortices of the mean flow (between discs / disc tip to wall): beads "
+                     f"{fl['vortices_beads']['between_discs']} / "
+                     f"{fl['vortices_beads']['disc_tip_to_wall']}" +
+                     (f", fluid {vf['between_discs']} / {vf['disc_tip_to_wall']}" if vf else ""))
     return "\n".join(lines)
 
