@@ -3,8 +3,11 @@ one process, alternating, best of ``repeats``.
 
 Scene: disc_slice (seed 001's PM-1 slice), 10 m/s, 80 % filling, 10 degree sector without
 gravity, coupled fluid as the scene file sets it (axisymmetric grid of 0.75 mm cells,
-k-epsilon, coupling every 10 DEM steps). The beads first move for ``warm_s`` [s] coupled
-(compilation and a stirred, colliding bed, not beads at rest); then each repeat times
+k-epsilon, coupling every 10 DEM steps). Beads and fluid start turning at 0.1 of the
+stirrer's angular velocity (about the mean bead speed of the stirred slice) and move for
+``warm_s`` [s] coupled (compilation, and a stirred, colliding bed rather than beads at
+rest, whose contact loop would cost the DEM less than in a running mill); then each repeat
+times
 ``steps`` DEM steps alone (one ``run`` call, as the DEM runs uncoupled) and the same number
 coupled (one exchange and one 10-step ``run`` per coupling interval). The ratio is what
 the fluid and the coupling add to the DEM's cost.
@@ -34,13 +37,13 @@ class CoupledBenchResult:
 
 
 def run_coupled_bench(steps: int = 2000, repeats: int = 3, threads: int | None = None,
-                      warm_s: float = 0.005) -> CoupledBenchResult:
+                      warm_s: float = 0.01) -> CoupledBenchResult:
     from millfmu.dem.run import make_simulation
     from millfmu.dem.scene import load_scene
 
     sc = load_scene("disc_slice").with_overrides(sector_deg=10.0, gravity_m_s2=(0.0, 0.0, 0.0),
                                                  fluid_mode="coupled", tip_speed_m_s=10.0,
-                                                 filling=0.8)
+                                                 filling=0.8, initial_rotation=0.1)
     sim, cpl = make_simulation(sc, threads)
     k = cpl.settings.steps
     steps = max(k, k * (steps // k))
