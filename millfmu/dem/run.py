@@ -13,6 +13,8 @@ Outputs in the output folder:
 - ``map_stress_energy.png``, ``map_collision_frequency.png``, ``map_collision_power.png``:
   radially averaged (i.e. averaged over the angle) maps in the axial section, like seed 001
   figures 12-15; ``se_distributions.png``: SE_tn distributions per zone (seed 001 Fig. A1);
+- disc slices: ``bead_fields.npz`` (time-mean bead fields of the axial section: solids
+  fraction, velocities, axial solids flux, on the fluid grid's bins);
 - coupled fluid only: ``fluid_fields.npz`` (time-mean fields of the axial section),
   ``map_fluid_swirl.png``, ``map_fluid_radial.png`` (with its zero contour, seed 001
   figure 7), ``map_fluid_axial.png``, ``map_turbulent_viscosity.png``,
@@ -212,8 +214,9 @@ def run_scene(scene: DemScene, out_dir, progress: bool = True, threads: int | No
         fields = {k: v / fluid_samples for k, v in fluid_acc.items()}
         fields["r_m"] = cpl.grid.r_centres_m
         fields["zeta_m"] = _zeta_of_grid(cpl.grid, scene.geometry)
-    stats.flow = _finite(flow_summary(scene, sim, cpl, sx, sv, torques, budget0, fields,
-                                      substeps))
+    flow = flow_summary(scene, sim, cpl, sx, sv, torques, budget0, fields, substeps)
+    bead_fields = flow.pop("_bead_fields", None)
+    stats.flow = _finite(flow)
     if window_s is not None:
         per = max(1, int(round(window_s / (every * dt))))
         rows = []
@@ -231,6 +234,8 @@ def run_scene(scene: DemScene, out_dir, progress: bool = True, threads: int | No
 
     plots.write_maps(out, scene, ev, EV_COLS)
     plots.write_distributions(out / "se_distributions.png", stats)
+    if bead_fields is not None:
+        np.savez(out / "bead_fields.npz", **bead_fields)
     if fields is not None:
         np.savez(out / "fluid_fields.npz", **fields)
         plots.write_fluid_maps(out, scene, fields)
@@ -346,12 +351,15 @@ def flow_summary(scene, sim, cpl, sx, sv, torques, budget0, fields, substeps) ->
     dz = float(np.diff(zs).mean())
     z_edges = np.concatenate([zs - 0.5 * dz, [zs[-1] + 0.5 * dz]])
     beads = FS.bead_section_fields(sx, sv, sim.rad, g, r_edges, z_edges)
+    out["_bead_fields"] = dict(beads, r_edges_m=r_edges, zeta_edges_m=z_edges)
     r_c = 0.5 * (r_edges[1:] + r_edges[:-1])
     dr = np.diff(r_edges)
     hb = 0.5 * g.disc_thickness_m
     psi_b = FS.stream_function(r_c, beads["flux_z"], dr)
-    out["vortices_beads"] = FS.vortex_summary(FS.vortices(psi_b, r_c, zs, g.disc_radius_m, hb,
-                                                          valid=beads["samples"] > 0))
+    top = hb + scene.zones.v1_width_m
+    out["vortices_beads"] = FS.vortex_summary(FS.vortices(
+        psi_b, r_c, zs, g.disc_radius_m, hb, valid=beads["samples"] > 0, threshold=0.05,
+        tip_zone_top_m=top))
     # profiles at the disc radius across the gap, x/D from one disc face to the next
     i_r = int(np.argmin(np.abs(r_c - g.disc_radius_m)))
     gap = g.height_m - g.disc_thickness_m
@@ -363,8 +371,9 @@ def flow_summary(scene, sim, cpl, sx, sv, torques, budget0, fields, substeps) ->
     if fields is not None:
         f = {k: v[:, order] for k, v in fields.items() if np.ndim(v) == 2}
         psi_f = FS.stream_function(r_c, np.nan_to_num(f["flux_z"]), dr)
-        out["vortices_fluid"] = FS.vortex_summary(FS.vortices(psi_f, r_c, zs, g.disc_radius_m,
-                                                              hb, valid=np.isfinite(f["eps"])))
+        out["vortices_fluid"] = FS.vortex_summary(FS.vortices(
+            psi_f, r_c, zs, g.disc_radius_m, hb, valid=np.isfinite(f["eps"]),
+            tip_zone_top_m=top))
         prof["fluid_speed_over_v_tip"] = _speed(f, i_r, in_gap, o, scene.tip_speed_m_s)
         prof["fluid_u_theta_over_v_tip"] = list(np.round(
             f["u_theta"][i_r, in_gap][o] / scene.tip_speed_m_s, 6))

@@ -20,9 +20,12 @@ def fake_stats(vt, fill, speeds=(0.13, 0.095, 0.085, 0.10), layer=0.22, secondar
                           collision_power_w=power[z] * vols[z],
                           se={"tn": {"quantiles_j": {"q50": med[z]}}}))
     sec = (0 if vt < 7 else 1) if secondary is None else secondary
-    flow = dict(first_bead_layer_angular_velocity_ratio=layer,
-                vortices_fluid={"between_discs": 1, "disc_tip_to_wall": sec},
-                vortices_beads={"between_discs": 1, "disc_tip_to_wall": sec})
+    vort = [dict(r_m=0.03, zeta_m=0.006, sign=-1, strength=1.0, region="between discs")]
+    vort += [dict(r_m=0.042, zeta_m=0.005, sign=1, strength=0.05,
+                  region="disc tip to wall")] * sec
+    census = {"large": 1, "between_discs": 1, "disc_tip_to_wall": sec, "vortices": vort}
+    flow = dict(first_bead_layer_angular_velocity_ratio=layer, vortices_fluid=census,
+                vortices_beads=census)
     return dict(zones=zones, flow=flow)
 
 
