@@ -96,12 +96,14 @@ def fold_zeta(z, disc_z_m, period_m):
     return zr - period_m * np.floor(zr / period_m + 0.5)
 
 
-def first_layer_angular_velocity(sample_x, sample_v, geometry, omega_rad_s, diameter_m):
+def first_layer_angular_velocity(sample_x, sample_v, geometry, omega_rad_s,
+                                 max_distance_m):
     """Mean angular velocity about the axis, over the stirrer's, of the beads whose centre
-    lies within one bead diameter of a disc face (between the shaft and the disc rim) -
-    seed 001's "first layer" at the disc (section 3.2: 20-26 % of the stirrer's angular
-    velocity). omega_i = v_perp / r with v_perp the bead velocity across the radius in the
-    plane normal to the axis. Returns (ratio, bead samples used)."""
+    lies within ``max_distance_m`` [m] of a disc face (between the shaft and the disc rim):
+    seed 001's "first layer" at the disc (section 3.2: within 0.6 mm of the disc the
+    angular velocity is 20-26 % of the stirrer's). omega_i = v_perp / r with v_perp the bead
+    velocity across the radius in the plane normal to the axis. Returns (ratio, bead samples
+    used)."""
     g = geometry
     acc = 0.0
     n = 0
@@ -109,8 +111,7 @@ def first_layer_angular_velocity(sample_x, sample_v, geometry, omega_rad_s, diam
         r = np.hypot(x[:, 0], x[:, 1])
         zeta = fold_zeta(x[:, 2], g.disc_z_m, g.height_m)
         gap = np.abs(zeta) - 0.5 * g.disc_thickness_m
-        m = (gap >= 0) & (gap < diameter_m) & (r > g.shaft_radius_m + diameter_m) & \
-            (r < g.disc_radius_m)
+        m = (gap >= 0) & (gap < max_distance_m) & (r < g.disc_radius_m)
         vperp = (x[m, 0] * v[m, 1] - x[m, 1] * v[m, 0]) / r[m]
         acc += float((vperp / r[m]).sum())
         n += int(m.sum())

@@ -236,6 +236,9 @@ def run_scene(scene: DemScene, out_dir, progress: bool = True, threads: int | No
     plots.write_distributions(out / "se_distributions.png", stats)
     if bead_fields is not None:
         np.savez(out / "bead_fields.npz", **bead_fields)
+        # the recorded bead samples, for measures of the bead motion made later
+        np.savez_compressed(out / "bead_samples.npz", x_m=np.array(sx, np.float32),
+                            v_m_s=np.array(sv, np.float32), radii_m=sim.rad)
     if fields is not None:
         np.savez(out / "fluid_fields.npz", **fields)
         plots.write_fluid_maps(out, scene, fields)
@@ -333,9 +336,13 @@ def flow_summary(scene, sim, cpl, sx, sv, torques, budget0, fields, substeps) ->
     if not g.has_disc:
         return out
     d = scene.bead_diameter_m
-    ratio, n = FS.first_layer_angular_velocity(sx, sv, g, om, d)
+    # seed 001's first layer: bead centres within 0.6 mm of the disc face (its stated
+    # distance, 0.75 d for its 0.8 mm beads); also the layer one bead diameter thick
+    ratio, n = FS.first_layer_angular_velocity(sx, sv, g, om, 0.75 * d)
     out["first_bead_layer_angular_velocity_ratio"] = ratio
     out["first_bead_layer_samples"] = n
+    out["bead_layer_1d_angular_velocity_ratio"] = FS.first_layer_angular_velocity(
+        sx, sv, g, om, d)[0]
     # bead fields on the fluid's section grid (or a 0.75 mm grid without fluid)
     if fields is not None:
         r_edges = cpl.grid.r_faces_m
