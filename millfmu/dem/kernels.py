@@ -826,6 +826,27 @@ def reduce_kick(fb, tb, cb, maxj, f, t, v, w, x, inv_m, inv_i, kick, dt, drift, 
 # ---- driver ----------------------------------------------------------------------------
 
 @serial
+def gather_events(evc, evn, evbuf, evcount, acc):
+    """Append the chunks' new contacts (evc[c, :evn[c]]) to evbuf after its evcount[0] rows;
+    what does not fit is counted in acc[3] (dropped)."""
+    m = evcount[0]
+    for c in range(evn.shape[0]):
+        k = evn[c]
+        if k > evc.shape[1]:
+            acc[3] += k - evc.shape[1]
+            k = evc.shape[1]
+        for e in range(k):
+            if m < evbuf.shape[0]:
+                for a in range(EV_NF):
+                    evbuf[m, a] = evc[c, e, a]
+                m += 1
+            else:
+                acc[3] += 1.0
+    evcount[0] = m
+
+
+
+@serial
 def rebuild(x, v, w, shw, xref, prm, wrapk, cutoff, do_wrap, nb, img, nnb, sh, fl,
             nb_n, img_n, nnb_n, sh_n, fl_n, cb, need, maxj):
     """Wrap beads into the periodic cell and build new half neighbour lists (nb_n ...)
@@ -905,20 +926,7 @@ def advance(nsteps, x, v, w, f, t, rad, mass, inertia, inv_m, inv_i, xref, prm, 
         acc[4] += tqc
         acc[1] += 1.0
         if record:
-            m = evcount[0]
-            for c in range(nch):
-                k = evn[c]
-                if k > evc.shape[1]:
-                    acc[3] += k - evc.shape[1]
-                    k = evc.shape[1]
-                for e in range(k):
-                    if m < evbuf.shape[0]:
-                        for a in range(EV_NF):
-                            evbuf[m, a] = evc[c, e, a]
-                        m += 1
-                    else:
-                        acc[3] += 1.0
-            evcount[0] = m
+            gather_events(evc, evn, evbuf, evcount, acc)
         if last:
             reduce_kick(fb, tb, cb, maxj, f, t, v, w, x, inv_m, inv_i, 0.5 * dt, dt, False,
                         xref, dmax)
