@@ -50,15 +50,16 @@ class DemSimulation:
     stirrer angular velocity about +z; dt_s; gravity_m_s2 (3,); fluid (None: no fluid
     forces at all); skin_m neighbour-list skin; threads: numba threads (None: all);
     sort_every_steps: reorder the beads along the cell grid every so many steps (memory
-    locality; None: 200 for 2000 beads or more, else never). After a reorder, row k of
-    the bead arrays holds the bead ``ids[k]`` of the initial order.
+    locality; None: 200 for 2000 beads or more, else never); spins_rad_s (n, 3) initial
+    angular velocities [rad/s] (None: at rest). After a reorder, row k of the bead arrays
+    holds the bead ``ids[k]`` of the initial order.
     """
 
     def __init__(self, geometry: MillGeometry, material: BeadMaterial, positions_m,
                  radii_m, omega_rad_s: float, dt_s: float, gravity_m_s2=(0.0, 0.0, 0.0),
                  fluid: FluidSettings | None = None, skin_m: float | None = None,
                  max_neighbours: int = 24, velocities_m_s=None, threads: int | None = None,
-                 sort_every_steps: int | None = None):
+                 sort_every_steps: int | None = None, spins_rad_s=None):
         import numba
 
         from millfmu.dem import kernels as K
@@ -87,7 +88,8 @@ class DemSimulation:
         self.x = x
         self.v = np.zeros((n, 3)) if velocities_m_s is None else \
             np.ascontiguousarray(velocities_m_s, dtype=np.float64).copy()
-        self.w = np.zeros((n, 3))
+        self.w = np.zeros((n, 3)) if spins_rad_s is None else \
+            np.ascontiguousarray(spins_rad_s, dtype=np.float64).copy()
         self.f = np.zeros((n, 3))
         self.t = np.zeros((n, 3))
         self.xref = x.copy()
