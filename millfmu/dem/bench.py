@@ -498,10 +498,10 @@ def profile(path, threads: int, steps: int = BENCH_STEPS, out=print) -> dict:
             start, sj, ss, sx = K.bin_entries(ej, es, ex, lo, cs, ncx, ncy, ncz, lz)
             t1 = clock()
             K.build_nlist(s.x, sj, ss, sx, start, lo, cs, ncx, ncy, ncz, cs * cs, s.prm,
-                          s.wrapk, s.nb, s.img, s.nnb, s.sh, s.fl, s.nb_o, s.img_o,
-                          s.nnb_o, s.sh_o, s.fl_o, s.cb, s.need, s.maxj)
+                          s.wrapk, s.pst, s.nnb, s.pj, s.pim, s.psh, s.pfl, s.pst_o, s.nnb_o,
+                          s.pj_o, s.pim_o, s.psh_o, s.pfl_o, s.cb, s.need, s.maxj)
             s.xref[:, :] = s.x
-            if s.need.max() > s.nb_o.shape[1]:
+            if s.need.max() > s.pj_o.shape[0] // (s.cb.size - 1):
                 raise RuntimeError("profile: neighbour lists overflowed; run the bench once")
             s._swap_lists()
             builds += 1
@@ -509,9 +509,9 @@ def profile(path, threads: int, steps: int = BENCH_STEPS, out=print) -> dict:
             tm[PHASES[0]] += t1 - t0
             tm[PHASES[1]] += t2 - t1
         t0 = clock()
-        K.compute_forces(s.x, s.v, s.w, s.fb, s.tb, s.rad, s.mass, s.inertia, s.nb, s.img,
-                         s.nnb, s.sh, s.fl, s.shw, s.flw, s.prm, s.cb, s.maxj, True, step,
-                         s.evc, s.evn, s.torq, s.fext)
+        K.compute_forces(s.x, s.v, s.w, s.fb, s.tb, s.rad, s.mass, s.inertia, s.pst, s.nnb,
+                         s.pj, s.pim, s.psh, s.pfl, s.shw, s.flw, s.prm, s.cb, s.maxj, True,
+                         step, s.evc, s.evn, s.torq, s.fext)
         t1 = clock()
         s.evcount[0] = 0
         K.gather_events(s.evc, s.evn, s.evbuf, s.evcount, s.acc)

@@ -12,10 +12,15 @@ Conventions
   ``s`` in {-1, 0, +1}; neighbour entries store ``s`` next to the partner index.
 - Neighbour lists are *half* lists (Verlet lists with a skin, built from a cell grid):
   a pair is stored once, in the row of its lower bead index, with its tangential history
-  and contact flag, and is evaluated once per step. Beads are split into one contiguous
-  chunk per thread; each chunk adds its forces into its own buffer (its beads and their
-  higher-indexed partners), and a second pass sums the buffers and integrates: no
-  atomics, no races. A contact is recorded once, at its first overlap.
+  and contact flag, and is evaluated once per step. The pairs of a chunk of beads are
+  stored row after row in one region of flat pair arrays (no empty slots between rows:
+  the force loop is bound by the memory traffic of the pair data). Beads are split into
+  contiguous chunks, a fixed number for a given bead count (more than threads, so that
+  a thread held up on a shared machine leaves its chunks to the others, and so that the
+  results do not depend on the thread count); each chunk adds its forces into its own
+  buffer (its beads and their higher-indexed partners), and a second pass sums the
+  buffers and integrates: no atomics, no races. A contact is recorded once, at its first
+  overlap.
 
 Contact model (as in LIGGGHTS, see the project REFERENCE "DEM contact model"):
 Hertz-Mindlin with k_n = 4/3 Y* sqrt(R* d_n), S_t = 8 G* sqrt(R* d_n), viscous damping
@@ -98,10 +103,12 @@ def hertz_mindlin(nx, ny, nz, delta, vrx, vry, vrz, wsx, wsy, wsz, wrx, wry, wrz
     """
     sq = math.sqrt(rstar * delta)
     kn = 4.0 / 3.0 * ystar * sq
-    sn = 2.0 * ystar * sq
     st = 8.0 * gstar * sq
-    gn = -2.0 * SQRT56 * beta * math.sqrt(sn * mstar)
-    gt = -2.0 * SQRT56 * beta * math.sqrt(st * mstar)
+    # gamma_n = -2 sqrt(5/6) beta sqrt(S_n m*) with S_n = 2 Y* sq, gamma_t the same with
+    # S_t = 8 G* sq: one root of sq m* serves both
+    rm = math.sqrt(sq * mstar)
+    gn = -2.0 * SQRT56 * beta * math.sqrt(2.0 * ystar) * rm
+    gt = -2.0 * SQRT56 * beta * math.sqrt(8.0 * gstar) * rm
     vn = vrx * nx + vry * ny + vrz * nz
     fel = kn * delta
     fnm = fel - gn * vn
@@ -116,14 +123,15 @@ def hertz_mindlin(nx, ny, nz, delta, vrx, vry, vrz, wsx, wsy, wsz, wrx, wry, wrz
     vty = vry - vn * ny - cy
     vtz = vrz - vn * nz - cz
     # history: rotate the old spring into the current tangent plane, keep its length
-    smag0 = math.sqrt(s0 * s0 + s1 * s1 + s2 * s2)
+    # (the length ratio from the squared lengths: one root instead of two)
+    sm0 = s0 * s0 + s1 * s1 + s2 * s2
     sdn = s0 * nx + s1 * ny + s2 * nz
     s0 -= sdn * nx
     s1 -= sdn * ny
     s2 -= sdn * nz
-    smag1 = math.sqrt(s0 * s0 + s1 * s1 + s2 * s2)
-    if smag1 > 0.0:
-        sc = smag0 / smag1
+    sm1 = s0 * s0 + s1 * s1 + s2 * s2
+    if sm1 > 0.0:
+        sc = math.sqrt(sm0 / sm1)
         s0 *= sc
         s1 *= sc
         s2 *= sc
@@ -133,18 +141,18 @@ def hertz_mindlin(nx, ny, nz, delta, vrx, vry, vrz, wsx, wsy, wsz, wrx, wry, wrz
     ftx = -st * s0 - gt * vtx
     fty = -st * s1 - gt * vty
     ftz = -st * s2 - gt * vtz
-    ftm = math.sqrt(ftx * ftx + fty * fty + ftz * ftz)
+    ft2 = ftx * ftx + fty * fty + ftz * ftz
     fcap = mu * abs(fnm)
-    if ftm > fcap:
-        if ftm > 0.0:
-            ratio = fcap / ftm
-            ftx *= ratio
-            fty *= ratio
-            ftz *= ratio
-            # spring reset to the Coulomb cap (LIGGGHTS tangential_history)
-            s0 = -(ftx + gt * vtx) / st
-            s1 = -(fty + gt * vty) / st
-            s2 = -(ftz + gt * vtz) / st
+    if ft2 > fcap * fcap:
+        ratio = fcap / math.sqrt(ft2)
+        ftx *= ratio
+        fty *= ratio
+        ftz *= ratio
+        # spring reset to the Coulomb cap (LIGGGHTS tangential_history)
+        ist = 1.0 / st
+        s0 = -(ftx + gt * vtx) * ist
+        s1 = -(fty + gt * vty) * ist
+        s2 = -(ftz + gt * vtz) * ist
     mrx = 0.0
     mry = 0.0
     mrz = 0.0
@@ -401,18 +409,26 @@ def bin_entries(ej, es, ex, lo, cs, ncx, ncy, ncz, lz):
 
 @kernel
 def build_nlist(x, ej, es, ex, start, lo, cs, ncx, ncy, ncz, cut2, prm, wrapk,
-                nb_o, img_o, nnb_o, sh_o, fl_o, nb, img, nnb, sh, fl, cb, need, maxj):
-    """Half neighbour lists within sqrt(cut2) [m]: row i holds the partners j > i (each
-    pair once, owned by its lower index, image pairs included), carrying over the
-    tangential history and contact flags of pairs that existed before (rotated if a bead
-    was wrapped into the sector). need[c] receives the longest row found in chunk c
-    (overflow check), maxj[c] the highest partner index of the chunk's rows."""
+                pst_o, nnb_o, pj_o, pim_o, psh_o, pfl_o, pst, nnb, pj, pim, psh, pfl, cb,
+                need, maxj):
+    """Half neighbour lists within sqrt(cut2) [m]: bead i's partners j > i (each pair once,
+    owned by its lower index, image pairs included) are pj[pst[i]:pst[i] + nnb[i]], with
+    image code pim, tangential history psh and contact flag pfl. Chunk c stores its rows
+    one after the other in its region [c cap, (c + 1) cap) of the pair arrays (cap = their
+    length / chunks), so that the force loop streams through them without gaps.
+    Histories and flags of pairs that existed before (lists pst_o ...) are carried over
+    (rotated if a bead was wrapped into the sector). need[c] receives the pairs chunk c
+    needs (more than cap: overflow, these lists are unusable), maxj[c] the highest partner
+    index of the chunk's rows."""
     lz = prm[P_LZ]
     sec = prm[P_SECTOR]
-    maxnb = nb.shape[1]
+    nch = cb.shape[0] - 1
+    cap = pj.shape[0] // nch
     csz = lz / ncz
-    for c in prange(cb.shape[0] - 1):
-        longest = 0
+    for c in prange(nch):
+        base = c * cap
+        end = base + cap
+        q = base
         hij = cb[c + 1] - 1
         for i in range(cb[c], cb[c + 1]):
             xi = x[i, 0]
@@ -422,7 +438,9 @@ def build_nlist(x, ej, es, ex, start, lo, cs, ncx, ncy, ncz, cut2, prm, wrapk,
             iy = min(max(int((yi - lo[1]) / cs), 0), ncy - 1)
             zz = zi - lz * math.floor(zi / lz)
             iz = min(int(zz / csz), ncz - 1)
-            n = 0
+            pst[i] = q
+            ko = pst_o[i]
+            ke = ko + nnb_o[i]
             for ax in range(max(ix - 1, 0), min(ix + 2, ncx)):
                 for ay in range(max(iy - 1, 0), min(iy + 2, ncy)):
                     for dzc in range(-1, 2):
@@ -443,36 +461,34 @@ def build_nlist(x, ej, es, ex, start, lo, cs, ncx, ncy, ncz, cut2, prm, wrapk,
                             if dx * dx + dy * dy + dz * dz < cut2:
                                 if j > hij:
                                     hij = j
-                                if n < maxnb:
-                                    nb[i, n] = j
-                                    img[i, n] = s
-                                    fl[i, n] = 0
-                                    sh[i, n, 0] = 0.0
-                                    sh[i, n, 1] = 0.0
-                                    sh[i, n, 2] = 0.0
+                                if q < end:
+                                    pj[q] = j
+                                    pim[q] = s
+                                    pfl[q] = 0
+                                    psh[q, 0] = 0.0
+                                    psh[q, 1] = 0.0
+                                    psh[q, 2] = 0.0
                                     # same physical pair before the wrap
                                     so = s - wrapk[i] + wrapk[j]
-                                    for k in range(nnb_o[i]):
-                                        if nb_o[i, k] == j and img_o[i, k] == so:
-                                            if fl_o[i, k] != 0:
-                                                fl[i, n] = fl_o[i, k]
-                                                a0 = sh_o[i, k, 0]
-                                                a1 = sh_o[i, k, 1]
+                                    for k in range(ko, ke):
+                                        if pj_o[k] == j and pim_o[k] == so:
+                                            if pfl_o[k] != 0:
+                                                pfl[q] = pfl_o[k]
+                                                a0 = psh_o[k, 0]
+                                                a1 = psh_o[k, 1]
                                                 if wrapk[i] != 0:
                                                     cr = math.cos(wrapk[i] * sec)
                                                     sr = math.sin(wrapk[i] * sec)
-                                                    sh[i, n, 0] = cr * a0 - sr * a1
-                                                    sh[i, n, 1] = sr * a0 + cr * a1
+                                                    psh[q, 0] = cr * a0 - sr * a1
+                                                    psh[q, 1] = sr * a0 + cr * a1
                                                 else:
-                                                    sh[i, n, 0] = a0
-                                                    sh[i, n, 1] = a1
-                                                sh[i, n, 2] = sh_o[i, k, 2]
+                                                    psh[q, 0] = a0
+                                                    psh[q, 1] = a1
+                                                psh[q, 2] = psh_o[k, 2]
                                             break
-                                n += 1
-            nnb[i] = min(n, maxnb)
-            if n > longest:
-                longest = n
-        need[c] = longest
+                                q += 1
+            nnb[i] = min(q, end) - pst[i]
+        need[c] = q - base
         maxj[c] = hij
 
 
@@ -487,13 +503,13 @@ def _add3(buf, c, j, ax, ay, az, cr, sr):
 
 
 @kernel
-def compute_forces(x, v, w, fb, tb, rad, mass, inertia, nb, img, nnb, sh, fl, shw, flw,
-                   prm, cb, maxj, record, step, evc, evn, torq, fext):
+def compute_forces(x, v, w, fb, tb, rad, mass, inertia, pst, nnb, pj, pim, psh, pfl, shw,
+                   flw, prm, cb, maxj, record, step, evc, evn, torq, fext):
     """Forces [N] and torques [N m] from bead contacts, lubrication, walls, drag and
     gravity, accumulated per chunk: fb[c, i], tb[c, i] hold what chunk c's rows put on
     bead i (its own beads cb[c] <= i < cb[c + 1] and partners up to maxj[c]); the rows of
-    chunk c are the half neighbour lists, so each pair is evaluated once (Newton's third
-    law) and no two chunks write the same buffer. :func:`reduce_kick` sums the chunks.
+    chunk c are the half neighbour lists (:func:`build_nlist`), so each pair is evaluated
+    once (Newton's third law) and no two chunks write the same buffer. :func:`reduce_kick` sums the chunks.
 
     New contacts (first overlap) go to evc[c, k, :] (layout EV_*) when record is true;
     torq[c, 0] receives the torque [N m] about +z that chunk c's beads exert on the stirrer
@@ -545,11 +561,10 @@ def compute_forces(x, v, w, fb, tb, rad, mass, inertia, nb, img, nnb, sh, fl, sh
             tx = 0.0
             ty = 0.0
             tz = 0.0
-            r2xy = xi * xi + yi * yi
-            if r2xy > 0.0:
-                rxy_ = math.sqrt(r2xy)
-                fx += (fext[i, 0] * xi - fext[i, 1] * yi / rxy_) / rxy_
-                fy += (fext[i, 0] * yi + fext[i, 1] * xi / rxy_) / rxy_
+            rxy = math.sqrt(xi * xi + yi * yi)
+            if rxy > 0.0:
+                fx += (fext[i, 0] * xi - fext[i, 1] * yi / rxy) / rxy
+                fy += (fext[i, 0] * yi + fext[i, 1] * xi / rxy) / rxy
             fz += fext[i, 2]
             if drag:
                 ux, uy, uz = swirl_velocity(xi, yi, zi, prm)
@@ -564,9 +579,9 @@ def compute_forces(x, v, w, fb, tb, rad, mass, inertia, nb, img, nnb, sh, fl, sh
                 fy += vp * bt * uy
                 fz += vp * bt * uz
             # ---- bead-bead (half list: j > i) ----
-            for k in range(nnb[i]):
-                j = nb[i, k]
-                s = img[i, k] if sec > 0.0 else 0
+            for k in range(pst[i], pst[i] + nnb[i]):
+                j = pj[k]
+                s = pim[k] if sec > 0.0 else 0
                 xj = x[j, 0]
                 yj = x[j, 1]
                 cr = 1.0
@@ -587,11 +602,11 @@ def compute_forces(x, v, w, fb, tb, rad, mass, inertia, nb, img, nnb, sh, fl, sh
                 r2 = dx * dx + dy * dy + dz * dz
                 lim = rsum + hcut
                 if r2 >= lim * lim:
-                    if fl[i, k] != 0:
-                        fl[i, k] = 0
-                        sh[i, k, 0] = 0.0
-                        sh[i, k, 1] = 0.0
-                        sh[i, k, 2] = 0.0
+                    if pfl[k] != 0:
+                        pfl[k] = 0
+                        psh[k, 0] = 0.0
+                        psh[k, 1] = 0.0
+                        psh[k, 2] = 0.0
                     continue
                 vjx = v[j, 0]
                 vjy = v[j, 1]
@@ -601,9 +616,10 @@ def compute_forces(x, v, w, fb, tb, rad, mass, inertia, nb, img, nnb, sh, fl, sh
                     vjx, vjy = cr * vjx - sr * vjy, sr * vjx + cr * vjy
                     wjx, wjy = cr * wjx - sr * wjy, sr * wjx + cr * wjy
                 r = math.sqrt(r2)
-                nx = dx / r
-                ny = dy / r
-                nz = dz / r
+                ir = 1.0 / r
+                nx = dx * ir
+                ny = dy * ir
+                nz = dz * ir
                 delta = rsum - r
                 vrx = v[i, 0] - vjx
                 vry = v[i, 1] - vjy
@@ -612,7 +628,7 @@ def compute_forces(x, v, w, fb, tb, rad, mass, inertia, nb, img, nnb, sh, fl, sh
                 rstar = ri * rj / rsum
                 if delta > 0.0:
                     vn = vrx * nx + vry * ny + vrz * nz
-                    if record and fl[i, k] == 0:
+                    if record and pfl[k] == 0:
                         if ne < cap:
                             vtx = vrx - vn * nx
                             vty = vry - vn * ny
@@ -634,18 +650,18 @@ def compute_forces(x, v, w, fb, tb, rad, mass, inertia, nb, img, nnb, sh, fl, sh
                             evc[c, ne, EV_VN] = -vn
                             evc[c, ne, EV_STEP] = step
                         ne += 1
-                    fl[i, k] = 1
+                    pfl[k] = 1
                     (fnx, fny, fnz, ftx, fty, ftz, mrx, mry, mrz, s0, s1, s2,
                      fel) = hertz_mindlin(
                         nx, ny, nz, delta, vrx, vry, vrz,
                         ri * w[i, 0] + rj * wjx, ri * w[i, 1] + rj * wjy,
                         ri * w[i, 2] + rj * w[j, 2],
                         w[i, 0] - wjx, w[i, 1] - wjy, w[i, 2] - w[j, 2],
-                        mstar, rstar, sh[i, k, 0], sh[i, k, 1], sh[i, k, 2],
+                        mstar, rstar, psh[k, 0], psh[k, 1], psh[k, 2],
                         ystar, gstar, beta, mu, mur, dt)
-                    sh[i, k, 0] = s0
-                    sh[i, k, 1] = s1
-                    sh[i, k, 2] = s2
+                    psh[k, 0] = s0
+                    psh[k, 1] = s1
+                    psh[k, 2] = s2
                     gx = fnx + ftx
                     gy = fny + fty
                     gz = fnz + ftz
@@ -664,11 +680,11 @@ def compute_forces(x, v, w, fb, tb, rad, mass, inertia, nb, img, nnb, sh, fl, sh
                     _add3(fb, c, j, -gx, -gy, -gz, cr, -sr)
                     _add3(tb, c, j, -rj * cx - mrx, -rj * cy - mry, -rj * cz - mrz, cr, -sr)
                 else:
-                    if fl[i, k] != 0:
-                        fl[i, k] = 0
-                        sh[i, k, 0] = 0.0
-                        sh[i, k, 1] = 0.0
-                        sh[i, k, 2] = 0.0
+                    if pfl[k] != 0:
+                        pfl[k] = 0
+                        psh[k, 0] = 0.0
+                        psh[k, 1] = 0.0
+                        psh[k, 2] = 0.0
                     if eta > 0.0:
                         vn = vrx * nx + vry * ny + vrz * nz
                         h = max(-delta, hmin)
@@ -678,8 +694,7 @@ def compute_forces(x, v, w, fb, tb, rad, mass, inertia, nb, img, nnb, sh, fl, sh
                         fz += fl_m * nz
                         _add3(fb, c, j, -fl_m * nx, -fl_m * ny, -fl_m * nz, cr, -sr)
             # ---- walls ----
-            # quick rejection: most beads touch no wall (one sqrt instead of three)
-            rxy = math.sqrt(xi * xi + yi * yi)
+            # quick rejection: most beads touch no wall
             near = rxy - rsh <= ri or rch - rxy <= ri
             if not near and has_disc:
                 zd = zi - zdisc
@@ -847,13 +862,14 @@ def gather_events(evc, evn, evbuf, evcount, acc):
 
 
 @serial
-def rebuild(x, v, w, shw, xref, prm, wrapk, cutoff, do_wrap, nb, img, nnb, sh, fl,
-            nb_n, img_n, nnb_n, sh_n, fl_n, cb, need, maxj):
-    """Wrap beads into the periodic cell and build new half neighbour lists (nb_n ...)
-    from the current ones (nb ...), carrying the tangential history over; reset the
-    displacement reference. Returns the longest row found: more than nb_n.shape[1] means
-    the new lists overflowed (the current ones are untouched; enlarge and call again with
-    do_wrap false, which keeps the beads and wrapk as they are)."""
+def rebuild(x, v, w, shw, xref, prm, wrapk, cutoff, do_wrap, pst, nnb, pj, pim, psh, pfl,
+            pst_n, nnb_n, pj_n, pim_n, psh_n, pfl_n, cb, need, maxj):
+    """Wrap beads into the periodic cell and build new half neighbour lists (pst_n ...)
+    from the current ones (pst ...), carrying the tangential history over; reset the
+    displacement reference. Returns the pairs the fullest chunk needs: more than the
+    new lists' capacity per chunk (pj_n.shape[0] // chunks) means they overflowed (the
+    current ones are untouched; enlarge and call again with do_wrap false, which keeps
+    the beads and wrapk as they are)."""
     if do_wrap:
         wrap_periodic(x, v, w, shw, prm, wrapk)
     ej, es, ex = make_entries(x, prm, cutoff)
@@ -869,15 +885,17 @@ def rebuild(x, v, w, shw, xref, prm, wrapk, cutoff, do_wrap, nb, img, nnb, sh, f
     ncz = int(lz / cutoff)
     start, sj, ss, sx = bin_entries(ej, es, ex, lo, cs, ncx, ncy, ncz, lz)
     build_nlist(x, sj, ss, sx, start, lo, cs, ncx, ncy, ncz, cutoff * cutoff, prm,
-                wrapk, nb, img, nnb, sh, fl, nb_n, img_n, nnb_n, sh_n, fl_n, cb, need, maxj)
+                wrapk, pst, nnb, pj, pim, psh, pfl, pst_n, nnb_n, pj_n, pim_n, psh_n, pfl_n,
+                cb, need, maxj)
     xref[:, :] = x
     return need.max()
 
 
 @serial
 def advance(nsteps, x, v, w, f, t, rad, mass, inertia, inv_m, inv_i, xref, prm, wrapk,
-            cutoff, nb, img, nnb, sh, fl, nb_o, img_o, nnb_o, sh_o, fl_o, shw, flw, cb,
-            need, maxj, dmax, record, evc, evn, evbuf, evcount, acc, fb, tb, torq, fext):
+            cutoff, pst, nnb, pj, pim, psh, pfl, pst_o, nnb_o, pj_o, pim_o, psh_o, pfl_o,
+            shw, flw, cb, need, maxj, dmax, record, evc, evn, evbuf, evcount, acc, fb, tb,
+            torq, fext):
     """Advance ``nsteps`` velocity-Verlet steps of dt = prm[P_DT] [s] (nsteps >= 1).
 
     Velocities are synchronous with positions on entry and exit; the forces f, t must be
@@ -887,11 +905,11 @@ def advance(nsteps, x, v, w, f, t, rad, mass, inertia, inv_m, inv_i, xref, prm, 
     accumulates [0] stirrer torque x steps [N m], [1] steps, [2] neighbour builds,
     [3] contacts dropped for lack of chunk buffer space, [4] chamber-wall torque x steps
     [N m]; torq (chunks, 2) is the per-chunk scratch of compute_forces, fext the held
-    external force (see compute_forces). The two sets of neighbour lists
-    alternate at every build. Returns (steps done, status, list parity): parity 1 means
-    the caller must swap its list references. Status 0 done; 1 new neighbour lists too
-    short (positions advanced, velocities half a step ahead: enlarge, rebuild,
-    finish_step); 2 event buffer nearly full (stopped early, synchronous state).
+    external force (see compute_forces). The two sets of neighbour lists (pst ... and
+    pst_o ...) alternate at every build. Returns (steps done, status, list parity):
+    parity 1 means the caller must swap its list references. Status 0 done; 1 new
+    neighbour lists too short (positions advanced, velocities half a step ahead: enlarge,
+    rebuild, finish_step); 2 event buffer nearly full (stopped early, synchronous state).
     """
     dt = prm[P_DT]
     half_skin2 = (0.5 * prm[P_SKIN]) ** 2
@@ -900,23 +918,25 @@ def advance(nsteps, x, v, w, f, t, rad, mass, inertia, inv_m, inv_i, xref, prm, 
     kick_drift(x, v, w, f, t, inv_m, inv_i, 0.5 * dt, dt, xref, cb, dmax)
     for step in range(nsteps):
         if dmax.max() > half_skin2:
-            longest = rebuild(x, v, w, shw, xref, prm, wrapk, cutoff, True, nb, img, nnb,
-                              sh, fl, nb_o, img_o, nnb_o, sh_o, fl_o, cb, need, maxj)
+            needed = rebuild(x, v, w, shw, xref, prm, wrapk, cutoff, True, pst, nnb, pj, pim,
+                             psh, pfl, pst_o, nnb_o, pj_o, pim_o, psh_o, pfl_o, cb, need,
+                             maxj)
             acc[2] += 1.0
-            if longest > nb_o.shape[1]:
+            if needed > pj_o.shape[0] // nch:
                 return step, 1, parity
             # the new lists become the current ones (no copying)
-            nb, nb_o = nb_o, nb
-            img, img_o = img_o, img
+            pst, pst_o = pst_o, pst
             nnb, nnb_o = nnb_o, nnb
-            sh, sh_o = sh_o, sh
-            fl, fl_o = fl_o, fl
+            pj, pj_o = pj_o, pj
+            pim, pim_o = pim_o, pim
+            psh, psh_o = psh_o, psh
+            pfl, pfl_o = pfl_o, pfl
             parity ^= 1
         last = step == nsteps - 1
         if record and evcount[0] > evbuf.shape[0] - 2 * evc.shape[1] * nch:
             last = True
-        compute_forces(x, v, w, fb, tb, rad, mass, inertia, nb, img, nnb, sh, fl, shw,
-                       flw, prm, cb, maxj, record, step, evc, evn, torq, fext)
+        compute_forces(x, v, w, fb, tb, rad, mass, inertia, pst, nnb, pj, pim, psh, pfl,
+                       shw, flw, prm, cb, maxj, record, step, evc, evn, torq, fext)
         tq = 0.0
         tqc = 0.0
         for c in range(nch):
@@ -936,13 +956,13 @@ def advance(nsteps, x, v, w, f, t, rad, mass, inertia, inv_m, inv_i, xref, prm, 
 
 
 @serial
-def finish_step(x, v, w, f, t, rad, mass, inertia, inv_m, inv_i, prm, nb, img, nnb, sh,
-                fl, shw, flw, cb, maxj, record, evc, evn, torq, xref, dmax, fb, tb, kick,
-                fext):
+def finish_step(x, v, w, f, t, rad, mass, inertia, inv_m, inv_i, prm, pst, nnb, pj, pim,
+                psh, pfl, shw, flw, cb, maxj, record, evc, evn, torq, xref, dmax, fb, tb,
+                kick, fext):
     """Forces at the current positions, then v += kick F/m: with kick = dt/2 this closes
     a step after the neighbour lists were enlarged in the middle of it; with kick = 0 it
     only fills f, t. New contacts are left in evc/evn for the caller to collect."""
-    compute_forces(x, v, w, fb, tb, rad, mass, inertia, nb, img, nnb, sh, fl, shw, flw,
-                   prm, cb, maxj, record, 0, evc, evn, torq, fext)
+    compute_forces(x, v, w, fb, tb, rad, mass, inertia, pst, nnb, pj, pim, psh, pfl, shw,
+                   flw, prm, cb, maxj, record, 0, evc, evn, torq, fext)
     reduce_kick(fb, tb, cb, maxj, f, t, v, w, x, inv_m, inv_i, kick, prm[P_DT], False,
                 xref, dmax)

@@ -250,15 +250,43 @@ def test_neighbour_list_overflow_is_handled_without_changing_results():
     rng = np.random.default_rng(7)
     v = rng.normal(0.0, 0.3, size=x.shape)
     out = []
-    for maxnb in (3, 40):
+    for maxnb in (1, 40):
         sim = DemSimulation(geom, mat, x, R, 300.0, 5e-6, velocities_m_s=v,
                             max_neighbours=maxnb)
         st = sim.run(400, record=True)
-        out.append((sim.x.copy(), sim.v.copy(), st.events.shape[0], sim.nb.shape[1]))
-    assert out[0][3] > 3  # the lists did grow
+        out.append((sim.x.copy(), sim.v.copy(), st.events.shape[0], sim.pair_capacity))
+    assert out[0][3] > 700  # the lists did grow past their initial room (1 pair per bead)
     assert out[0][2] == out[1][2]
     np.testing.assert_allclose(out[0][0], out[1][0], rtol=0, atol=1e-15)
     np.testing.assert_allclose(out[0][1], out[1][1], rtol=0, atol=1e-12)
+
+
+def test_lists_overflowing_within_a_run_change_no_result():
+    """A neighbour build inside run() that finds the spare lists too small stops the
+    stepping loop, enlarges them and closes the step: same trajectory and contacts as a run
+    with room to spare."""
+    from millfmu.dem.geometry import place_beads
+    from millfmu.dem.sim import DemSimulation
+
+    mat = BeadMaterial()
+    geom = MillGeometry(shaft_radius_m=0.015, chamber_radius_m=0.019, height_m=0.004)
+    x = place_beads(geom, 700, R, seed=5)
+    v = np.random.default_rng(7).normal(0.0, 0.3, size=x.shape)
+    out = []
+    for tight in (True, False):
+        sim = DemSimulation(geom, mat, x, R, 300.0, 5e-6, velocities_m_s=v)
+        rebuilt = []
+        build = sim._build
+        sim._build = lambda **kw: (rebuilt.append(kw), build(**kw))
+        if tight:
+            sim._alloc_spare(8)  # the first build within the run overflows
+        st = sim.run(400, record=True)
+        out.append((sim.x.copy(), sim.v.copy(), st.events.shape[0], len(rebuilt)))
+    assert (out[0][3], out[1][3]) == (1, 0)  # the overflowing build was done again, once
+    assert out[0][2] == out[1][2]
+    # that step is closed with two half kicks instead of one fused kick: round-off apart
+    np.testing.assert_allclose(out[0][0], out[1][0], rtol=0, atol=1e-15)
+    np.testing.assert_allclose(out[0][1], out[1][1], rtol=1e-9, atol=1e-10)
 
 
 def test_bead_reordering_keeps_the_dynamics():
