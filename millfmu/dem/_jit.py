@@ -1,4 +1,4 @@
-"""The one set of numba flags shared by every DEM kernel.
+"""The one set of numba flags shared by every DEM kernel, and the threading layer.
 
 Only the kernel modules import this file, and only when a DEM run is requested, so that
 ``import millfmu.dem`` stays free of numba.
@@ -10,9 +10,23 @@ Only the kernel modules import this file, and only when a DEM run is requested, 
 - ``device``: decorator for the small scalar helpers that kernels call inside a chunk
   (the same flags without ``parallel``, because a parallel region must not nest).
 - ``serial``: the same flags for serial drivers and bookkeeping (binning, wrapping).
+
+Threading layer: ``workqueue`` unless NUMBA_THREADING_LAYER is set. numba picks TBB by
+default where libtbb is installed, and its TBB layer (numba 0.68, libtbb 2021/2022) keeps
+about 7 kB per parallel launch and makes every launch slower than the one before: a DEM
+run launches two or three per step, so its cost grew with the square of its length (a
+0.4 s disc_slice run had not finished after 29 minutes, 0.2 s took 65 s). OpenMP's
+layer busy-waits, which halves the throughput on a shared machine. workqueue has neither
+problem; it cannot launch from several Python threads at once (run one DEM per process,
+as the tables' process pool and Dask workers with one thread do).
 """
 
+import os
+
 import numba
+
+if "NUMBA_THREADING_LAYER" not in os.environ:
+    numba.config.THREADING_LAYER = "workqueue"
 
 FLAGS = dict(cache=True, nogil=True, fastmath=False, error_model="numpy",
              boundscheck=False)
