@@ -36,7 +36,7 @@ import math
 import numpy as np
 from numba import prange
 
-from millfmu.dem._jit import device, kernel, serial
+from millfmu.dem._jit import contact, device, kernel, serial
 
 # ---- layout of the parameter vector prm (float64) -------------------------------------
 P_DT = 0  # time step [s]
@@ -89,7 +89,7 @@ EV_NF = 11
 SQRT56 = math.sqrt(5.0 / 6.0)
 
 
-@device
+@contact
 def hertz_mindlin(nx, ny, nz, delta, vrx, vry, vrz, wsx, wsy, wsz, wrx, wry, wrz,
                   mstar, rstar, s0, s1, s2, ystar, gstar, beta, mu, mur, dt):
     """Hertz-Mindlin contact force on bead i, LIGGGHTS form (REFERENCE, DEM contact model).
@@ -261,6 +261,130 @@ def wall_gap(x, y, z, rad, w, prm):
     return -(hb - abs(zr)), 0.0, 0.0, sgn, True
 
 
+@contact
+def axial_image(dz, lz):
+    """Axial separation dz [m] reduced to the nearest periodic image (|dz| <= lz / 2 for
+    separations below 1.5 lz)."""
+    if dz > 0.5 * lz:
+        return dz - lz
+    if dz < -0.5 * lz:
+        return dz + lz
+    return dz
+
+
+@contact
+def pair_response(nx, ny, nz, delta, vrx, vry, vrz, wix, wiy, wiz, wjx, wjy, wjz, ri, rj,
+                  mstar, s0, s1, s2, ystar, gstar, beta, mu, mur, dt):
+    """Force [N] on bead i and torques [N m] on i and j of a bead-bead contact (partner j in
+    i's frame, n from j to i): :func:`hertz_mindlin` with R* = ri rj / (ri + rj), the
+    tangential force acting at -ri n on i and at +rj n on j. Returns
+    (F, T_i, T_j, new history [m])."""
+    (fnx, fny, fnz, ftx, fty, ftz, mrx, mry, mrz, s0, s1, s2,
+     fel) = hertz_mindlin(nx, ny, nz, delta, vrx, vry, vrz,
+                          ri * wix + rj * wjx, ri * wiy + rj * wjy, ri * wiz + rj * wjz,
+                          wix - wjx, wiy - wjy, wiz - wjz, mstar, ri * rj / (ri + rj),
+                          s0, s1, s2, ystar, gstar, beta, mu, mur, dt)
+    # torque of F_t at -r_i n on i; on j, -F_t at +r_j n: -r_j n x F_t, the same sense
+    cx = ny * ftz - nz * fty
+    cy = nz * ftx - nx * ftz
+    cz = nx * fty - ny * ftx
+    return (fnx + ftx, fny + fty, fnz + ftz, -ri * cx + mrx, -ri * cy + mry, -ri * cz + mrz,
+            -rj * cx - mrx, -rj * cy - mry, -rj * cz - mrz, s0, s1, s2)
+
+
+@contact
+def wall_response(xi, yi, zi, vix, viy, viz, wix, wiy, wiz, ri, mi, q, s0, s1, s2, prm,
+                  ystar, gstar, beta, mu, mur, dt):
+    """Contact of a bead (centre x [m], velocity v [m/s], spin w [rad/s]) with wall q
+    (:func:`wall_gap`; the shaft and the disc turn at prm[P_OMEGA], the chamber stands):
+    Hertz-Mindlin with R* = ri, m* = mi against the wall's surface velocity at the
+    contact point p. Returns (touching, p, v - v_wall, n, wall spin about z [rad/s],
+    force [N] and torque [N m] on the bead, new history [m], torque about +z on the
+    wall [N m])."""
+    dist, nx, ny, nz, ok = wall_gap(xi, yi, zi, ri, q, prm)
+    delta = ri - dist
+    if not ok or delta <= 0.0:
+        return (False, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, nx, ny, nz, 0.0, 0.0, 0.0, 0.0, 0.0,
+                0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
+    px = xi - ri * nx
+    py = yi - ri * ny
+    pz = zi - ri * nz
+    om = prm[P_OMEGA] if q != 1 else 0.0  # shaft and disc turn with the stirrer
+    vrx = vix + om * py
+    vry = viy - om * px
+    (fnx, fny, fnz, ftx, fty, ftz, mrx, mry, mrz, s0, s1, s2,
+     fel) = hertz_mindlin(nx, ny, nz, delta, vrx, vry, viz, ri * wix, ri * wiy, ri * wiz,
+                          wix, wiy, wiz - om, mi, ri, s0, s1, s2, ystar, gstar, beta, mu,
+                          mur, dt)
+    gx = fnx + ftx
+    gy = fny + fty
+    # reaction on the wall: -F at p, plus the rolling torque's reaction
+    return (True, px, py, pz, vrx, vry, viz, nx, ny, nz, om, gx, gy, fnz + ftz,
+            -ri * (ny * ftz - nz * fty) + mrx, -ri * (nz * ftx - nx * ftz) + mry,
+            -ri * (nx * fty - ny * ftx) + mrz, s0, s1, s2, -(px * gy - py * gx) - mrz)
+
+
+@device
+def body_force(xi, yi, zi, vix, viy, viz, ri, mi, fr, tzh, fzh, prm):
+    """Force [N] on a bead from everything but contacts: gravity (buoyancy-reduced, prm
+    P_GX..P_GZ), the held force of a coupled fluid (F_r [N], T_z [N m], F_z [N], in
+    cylindrical components at the bead: F_r e_r + T_z / r e_theta + F_z e_z) and, with
+    prm[P_DRAG], Koch-Hill drag from the prescribed swirl. Also returns the bead's
+    distance from the axis [m]."""
+    fx = mi * prm[P_GX]
+    fy = mi * prm[P_GY]
+    fz = mi * prm[P_GZ]
+    rxy = math.sqrt(xi * xi + yi * yi)
+    if rxy > 0.0:
+        fx += (fr * xi - tzh * yi / rxy) / rxy
+        fy += (fr * yi + tzh * xi / rxy) / rxy
+    fz += fzh
+    if prm[P_DRAG] > 0.0:
+        ux, uy, uz = swirl_velocity(xi, yi, zi, prm)
+        ux -= vix
+        uy -= viy
+        uz -= viz
+        um = math.sqrt(ux * ux + uy * uy + uz * uz)
+        bt = koch_hill_beta(2.0 * ri, prm[P_EPSF], prm[P_MUF], prm[P_RHOF], um,
+                            prm[P_KH_F0], prm[P_KH_F3])
+        vp = 4.0 / 3.0 * math.pi * ri ** 3
+        fx += vp * bt * ux
+        fy += vp * bt * uy
+        fz += vp * bt * uz
+    return fx, fy, fz, rxy
+
+
+@device
+def lubrication_force(eta, rstar, vn, gap, hmin):
+    """Normal lubrication force [N] on bead i, -6 pi eta R*^2 v_n / max(h, h_min)
+    (REFERENCE, "Lubrication between beads"); vn: normal relative velocity [m/s]."""
+    return -6.0 * math.pi * eta * rstar * rstar * vn / max(gap, hmin)
+
+
+@device
+def write_event(row, typ, i, j, px, py, pz, vrx, vry, vrz, nx, ny, nz, wrx, wry, wrz,
+                mstar, istar, step):
+    """Record a contact at its first overlap into ``row`` (layout EV_*): contact point p
+    [m], stress energies from the relative velocity vr [m/s] split along the normal n,
+    and the relative spin wr [rad/s]: SE_tn = 1/2 m* v_n^2, SE_ts = 1/2 m* |v_t|^2,
+    SE_rot = 1/2 I* |wr|^2 [J]."""
+    vn = vrx * nx + vry * ny + vrz * nz
+    vtx = vrx - vn * nx
+    vty = vry - vn * ny
+    vtz = vrz - vn * nz
+    row[EV_TYPE] = typ
+    row[EV_I] = i
+    row[EV_J] = j
+    row[EV_X] = px
+    row[EV_Y] = py
+    row[EV_Z] = pz
+    row[EV_SETN] = 0.5 * mstar * vn * vn
+    row[EV_SETS] = 0.5 * mstar * (vtx * vtx + vty * vty + vtz * vtz)
+    row[EV_SEROT] = 0.5 * istar * (wrx * wrx + wry * wry + wrz * wrz)
+    row[EV_VN] = -vn
+    row[EV_STEP] = step
+
+
 # ---- integration -----------------------------------------------------------------------
 
 @kernel
@@ -285,9 +409,9 @@ def kick_drift(x, v, w, f, t, inv_m, inv_i, kick, dt, xref, cb, dmax):
 
 # ---- neighbour lists -------------------------------------------------------------------
 
-@serial
-def wrap_periodic(x, v, w, shw, prm, wrapk):
-    """Bring beads back into [0, Lz) axially and into the sector [0, sector) angularly.
+@device
+def wrap_one(i, x, v, w, shw, prm, wrapk):
+    """Bring bead i back into [0, Lz) axially and into the sector [0, sector) angularly.
 
     A bead leaving the sector is rotated by -+sector together with its velocity, spin and
     wall-contact history; wrapk[i] receives the rotation applied in units of the sector
@@ -295,36 +419,42 @@ def wrap_periodic(x, v, w, shw, prm, wrapk):
     """
     lz = prm[P_LZ]
     sec = prm[P_SECTOR]
+    x[i, 2] -= lz * math.floor(x[i, 2] / lz)
+    wrapk[i] = 0
+    if sec > 0.0:
+        th = math.atan2(x[i, 1], x[i, 0])
+        k = 0
+        if th < 0.0:
+            k = 1
+        elif th >= sec:
+            k = -1
+        if k != 0:
+            wrapk[i] = k
+            c = math.cos(k * sec)
+            s = math.sin(k * sec)
+            for a in range(3):
+                if a == 0:
+                    arr = x
+                elif a == 1:
+                    arr = v
+                else:
+                    arr = w
+                x0 = arr[i, 0]
+                y0 = arr[i, 1]
+                arr[i, 0] = c * x0 - s * y0
+                arr[i, 1] = s * x0 + c * y0
+            for q in range(NWALL):
+                x0 = shw[i, q, 0]
+                y0 = shw[i, q, 1]
+                shw[i, q, 0] = c * x0 - s * y0
+                shw[i, q, 1] = s * x0 + c * y0
+
+
+@serial
+def wrap_periodic(x, v, w, shw, prm, wrapk):
+    """:func:`wrap_one` for every bead."""
     for i in range(x.shape[0]):
-        x[i, 2] -= lz * math.floor(x[i, 2] / lz)
-        wrapk[i] = 0
-        if sec > 0.0:
-            th = math.atan2(x[i, 1], x[i, 0])
-            k = 0
-            if th < 0.0:
-                k = 1
-            elif th >= sec:
-                k = -1
-            if k != 0:
-                wrapk[i] = k
-                c = math.cos(k * sec)
-                s = math.sin(k * sec)
-                for a in range(3):
-                    if a == 0:
-                        arr = x
-                    elif a == 1:
-                        arr = v
-                    else:
-                        arr = w
-                    x0 = arr[i, 0]
-                    y0 = arr[i, 1]
-                    arr[i, 0] = c * x0 - s * y0
-                    arr[i, 1] = s * x0 + c * y0
-                for q in range(NWALL):
-                    x0 = shw[i, q, 0]
-                    y0 = shw[i, q, 1]
-                    shw[i, q, 0] = c * x0 - s * y0
-                    shw[i, q, 1] = s * x0 + c * y0
+        wrap_one(i, x, v, w, shw, prm, wrapk)
 
 
 @serial
@@ -453,11 +583,7 @@ def build_nlist(x, ej, es, ex, start, lo, cs, ncx, ncy, ncz, cut2, prm, wrapk,
                             s = es[e]
                             dx = xi - ex[e, 0]
                             dy = yi - ex[e, 1]
-                            dz = zi - ex[e, 2]
-                            if dz > 0.5 * lz:
-                                dz -= lz
-                            elif dz < -0.5 * lz:
-                                dz += lz
+                            dz = axial_image(zi - ex[e, 2], lz)
                             if dx * dx + dy * dy + dz * dz < cut2:
                                 if j > hij:
                                     hij = j
@@ -530,8 +656,6 @@ def compute_forces(x, v, w, fb, tb, rad, mass, inertia, pst, nnb, pj, pim, psh, 
     hmin = prm[P_LUB_HMIN]
     lz = prm[P_LZ]
     sec = prm[P_SECTOR]
-    om = prm[P_OMEGA]
-    drag = prm[P_DRAG] > 0.0
     cap = evc.shape[1]
     cs1 = math.cos(sec)
     sn1 = math.sin(sec)
@@ -555,29 +679,11 @@ def compute_forces(x, v, w, fb, tb, rad, mass, inertia, pst, nnb, pj, pim, psh, 
             zi = x[i, 2]
             ri = rad[i]
             mi = mass[i]
-            fx = mi * prm[P_GX]
-            fy = mi * prm[P_GY]
-            fz = mi * prm[P_GZ]
+            fx, fy, fz, rxy = body_force(xi, yi, zi, v[i, 0], v[i, 1], v[i, 2], ri, mi,
+                                         fext[i, 0], fext[i, 1], fext[i, 2], prm)
             tx = 0.0
             ty = 0.0
             tz = 0.0
-            rxy = math.sqrt(xi * xi + yi * yi)
-            if rxy > 0.0:
-                fx += (fext[i, 0] * xi - fext[i, 1] * yi / rxy) / rxy
-                fy += (fext[i, 0] * yi + fext[i, 1] * xi / rxy) / rxy
-            fz += fext[i, 2]
-            if drag:
-                ux, uy, uz = swirl_velocity(xi, yi, zi, prm)
-                ux -= v[i, 0]
-                uy -= v[i, 1]
-                uz -= v[i, 2]
-                um = math.sqrt(ux * ux + uy * uy + uz * uz)
-                bt = koch_hill_beta(2.0 * ri, prm[P_EPSF], prm[P_MUF], prm[P_RHOF], um,
-                                    prm[P_KH_F0], prm[P_KH_F3])
-                vp = 4.0 / 3.0 * math.pi * ri ** 3
-                fx += vp * bt * ux
-                fy += vp * bt * uy
-                fz += vp * bt * uz
             # ---- bead-bead (half list: j > i) ----
             for k in range(pst[i], pst[i] + nnb[i]):
                 j = pj[k]
@@ -592,11 +698,7 @@ def compute_forces(x, v, w, fb, tb, rad, mass, inertia, pst, nnb, pj, pim, psh, 
                     xj, yj = cr * xj - sr * yj, sr * xj + cr * yj
                 dx = xi - xj
                 dy = yi - yj
-                dz = zi - x[j, 2]
-                if dz > 0.5 * lz:
-                    dz -= lz
-                elif dz < -0.5 * lz:
-                    dz += lz
+                dz = axial_image(zi - x[j, 2], lz)
                 rj = rad[j]
                 rsum = ri + rj
                 r2 = dx * dx + dy * dy + dz * dz
@@ -625,60 +727,35 @@ def compute_forces(x, v, w, fb, tb, rad, mass, inertia, pst, nnb, pj, pim, psh, 
                 vry = v[i, 1] - vjy
                 vrz = v[i, 2] - v[j, 2]
                 mstar = mi * mass[j] / (mi + mass[j])
-                rstar = ri * rj / rsum
                 if delta > 0.0:
-                    vn = vrx * nx + vry * ny + vrz * nz
                     if record and pfl[k] == 0:
                         if ne < cap:
-                            vtx = vrx - vn * nx
-                            vty = vry - vn * ny
-                            vtz = vrz - vn * nz
-                            wrx = w[i, 0] - wjx
-                            wry = w[i, 1] - wjy
-                            wrz = w[i, 2] - w[j, 2]
-                            istar = inertia[i] * inertia[j] / (inertia[i] + inertia[j])
                             lev = ri - 0.5 * delta
-                            evc[c, ne, EV_TYPE] = 0.0
-                            evc[c, ne, EV_I] = i
-                            evc[c, ne, EV_J] = j
-                            evc[c, ne, EV_X] = xi - lev * nx
-                            evc[c, ne, EV_Y] = yi - lev * ny
-                            evc[c, ne, EV_Z] = zi - lev * nz
-                            evc[c, ne, EV_SETN] = 0.5 * mstar * vn * vn
-                            evc[c, ne, EV_SETS] = 0.5 * mstar * (vtx * vtx + vty * vty + vtz * vtz)
-                            evc[c, ne, EV_SEROT] = 0.5 * istar * (wrx * wrx + wry * wry + wrz * wrz)
-                            evc[c, ne, EV_VN] = -vn
-                            evc[c, ne, EV_STEP] = step
+                            write_event(evc[c, ne], 0.0, i, j, xi - lev * nx, yi - lev * ny,
+                                        zi - lev * nz, vrx, vry, vrz, nx, ny, nz,
+                                        w[i, 0] - wjx, w[i, 1] - wjy, w[i, 2] - w[j, 2],
+                                        mstar, inertia[i] * inertia[j] / (inertia[i] +
+                                                                          inertia[j]),
+                                        step)
                         ne += 1
                     pfl[k] = 1
-                    (fnx, fny, fnz, ftx, fty, ftz, mrx, mry, mrz, s0, s1, s2,
-                     fel) = hertz_mindlin(
-                        nx, ny, nz, delta, vrx, vry, vrz,
-                        ri * w[i, 0] + rj * wjx, ri * w[i, 1] + rj * wjy,
-                        ri * w[i, 2] + rj * w[j, 2],
-                        w[i, 0] - wjx, w[i, 1] - wjy, w[i, 2] - w[j, 2],
-                        mstar, rstar, psh[k, 0], psh[k, 1], psh[k, 2],
-                        ystar, gstar, beta, mu, mur, dt)
+                    (gx, gy, gz, tix, tiy, tiz, tjx, tjy, tjz, s0, s1,
+                     s2) = pair_response(nx, ny, nz, delta, vrx, vry, vrz, w[i, 0], w[i, 1],
+                                         w[i, 2], wjx, wjy, w[j, 2], ri, rj, mstar, psh[k, 0],
+                                         psh[k, 1], psh[k, 2], ystar, gstar, beta, mu, mur,
+                                         dt)
                     psh[k, 0] = s0
                     psh[k, 1] = s1
                     psh[k, 2] = s2
-                    gx = fnx + ftx
-                    gy = fny + fty
-                    gz = fnz + ftz
                     fx += gx
                     fy += gy
                     fz += gz
-                    # torque of the tangential force at the contact point -r_i n; on j the
-                    # force -F_t acts at +r_j n: -r_j n x F_t, the same sense scaled by r_j
-                    cx = ny * ftz - nz * fty
-                    cy = nz * ftx - nx * ftz
-                    cz = nx * fty - ny * ftx
-                    tx += -ri * cx + mrx
-                    ty += -ri * cy + mry
-                    tz += -ri * cz + mrz
+                    tx += tix
+                    ty += tiy
+                    tz += tiz
                     # reaction on j, rotated back into j's frame (image pairs)
                     _add3(fb, c, j, -gx, -gy, -gz, cr, -sr)
-                    _add3(tb, c, j, -rj * cx - mrx, -rj * cy - mry, -rj * cz - mrz, cr, -sr)
+                    _add3(tb, c, j, tjx, tjy, tjz, cr, -sr)
                 else:
                     if pfl[k] != 0:
                         pfl[k] = 0
@@ -686,9 +763,8 @@ def compute_forces(x, v, w, fb, tb, rad, mass, inertia, pst, nnb, pj, pim, psh, 
                         psh[k, 1] = 0.0
                         psh[k, 2] = 0.0
                     if eta > 0.0:
-                        vn = vrx * nx + vry * ny + vrz * nz
-                        h = max(-delta, hmin)
-                        fl_m = -6.0 * math.pi * eta * rstar * rstar * vn / h
+                        fl_m = lubrication_force(eta, ri * rj / rsum,
+                                                 vrx * nx + vry * ny + vrz * nz, -delta, hmin)
                         fx += fl_m * nx
                         fy += fl_m * ny
                         fz += fl_m * nz
@@ -708,72 +784,38 @@ def compute_forces(x, v, w, fb, tb, rad, mass, inertia, pst, nnb, pj, pim, psh, 
                         shw[i, q, 1] = 0.0
                         shw[i, q, 2] = 0.0
             for q in range(NWALL if near else 0):
-                dist, nx, ny, nz, ok = wall_gap(xi, yi, zi, ri, q, prm)
-                delta = ri - dist
-                if not ok or delta <= 0.0:
+                (touch, px, py, pz, vrx, vry, vrz, nx, ny, nz, wz_w, gx, gy, gz, tix, tiy,
+                 tiz, s0, s1, s2, twall) = wall_response(
+                    xi, yi, zi, v[i, 0], v[i, 1], v[i, 2], w[i, 0], w[i, 1], w[i, 2], ri, mi,
+                    q, shw[i, q, 0], shw[i, q, 1], shw[i, q, 2], prm, ystar, gstar, beta, mu,
+                    mur, dt)
+                if not touch:
                     if flw[i, q] != 0:
                         flw[i, q] = 0
                         shw[i, q, 0] = 0.0
                         shw[i, q, 1] = 0.0
                         shw[i, q, 2] = 0.0
                     continue
-                px = xi - ri * nx
-                py = yi - ri * ny
-                pz = zi - ri * nz
-                wvx = 0.0
-                wvy = 0.0
-                if q != 1:  # shaft and disc rotate with the stirrer
-                    wvx = -om * py
-                    wvy = om * px
-                vrx = v[i, 0] - wvx
-                vry = v[i, 1] - wvy
-                vrz = v[i, 2]
                 if record and flw[i, q] == 0:
-                    vn = vrx * nx + vry * ny + vrz * nz
                     if ne < cap:
-                        vtx = vrx - vn * nx
-                        vty = vry - vn * ny
-                        vtz = vrz - vn * nz
-                        evc[c, ne, EV_TYPE] = 1.0 + q
-                        evc[c, ne, EV_I] = i
-                        evc[c, ne, EV_J] = -1.0
-                        evc[c, ne, EV_X] = px
-                        evc[c, ne, EV_Y] = py
-                        evc[c, ne, EV_Z] = pz
-                        evc[c, ne, EV_SETN] = 0.5 * mi * vn * vn
-                        evc[c, ne, EV_SETS] = 0.5 * mi * (vtx * vtx + vty * vty + vtz * vtz)
-                        wz_rel = w[i, 2] - (om if q != 1 else 0.0)
-                        evc[c, ne, EV_SEROT] = 0.5 * inertia[i] * (
-                            w[i, 0] * w[i, 0] + w[i, 1] * w[i, 1] + wz_rel * wz_rel)
-                        evc[c, ne, EV_VN] = -vn
-                        evc[c, ne, EV_STEP] = step
+                        write_event(evc[c, ne], 1.0 + q, i, -1.0, px, py, pz, vrx, vry, vrz,
+                                    nx, ny, nz, w[i, 0], w[i, 1], w[i, 2] - wz_w, mi,
+                                    inertia[i], step)
                     ne += 1
                 flw[i, q] = 1
-                wz_w = om if q != 1 else 0.0
-                (fnx, fny, fnz, ftx, fty, ftz, mrx, mry, mrz, s0, s1, s2,
-                 fel) = hertz_mindlin(
-                    nx, ny, nz, delta, vrx, vry, vrz,
-                    ri * w[i, 0], ri * w[i, 1], ri * w[i, 2],
-                    w[i, 0], w[i, 1], w[i, 2] - wz_w,
-                    mi, ri, shw[i, q, 0], shw[i, q, 1], shw[i, q, 2],
-                    ystar, gstar, beta, mu, mur, dt)
                 shw[i, q, 0] = s0
                 shw[i, q, 1] = s1
                 shw[i, q, 2] = s2
-                gx = fnx + ftx
-                gy = fny + fty
-                gz = fnz + ftz
                 fx += gx
                 fy += gy
                 fz += gz
-                tx += -ri * (ny * ftz - nz * fty) + mrx
-                ty += -ri * (nz * ftx - nx * ftz) + mry
-                tz += -ri * (nx * fty - ny * ftx) + mrz
-                # reaction on the wall: -F at p, plus the rolling torque's reaction
+                tx += tix
+                ty += tiy
+                tz += tiz
                 if q != 1:
-                    tq += -(px * gy - py * gx) - mrz
+                    tq += twall
                 else:
-                    tqc += -(px * gy - py * gx) - mrz
+                    tqc += twall
             fb[c, i, 0] += fx
             fb[c, i, 1] += fy
             fb[c, i, 2] += fz
