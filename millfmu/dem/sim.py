@@ -53,15 +53,18 @@ class DemSimulation:
     numba threads (None: all);
     sort_every_steps: reorder the beads along the cell grid every so many steps (memory
     locality; None: 200 for 2000 beads or more, else never); spins_rad_s (n, 3) initial
-    angular velocities [rad/s] (None: at rest). After a reorder, row k of the bead arrays
-    holds the bead ``ids[k]`` of the initial order.
+    angular velocities [rad/s] (None: at rest); device: "cpu" (numba threads) or "gpu"
+    (numba.cuda, :mod:`millfmu.dem.gpu`: same model; beads are not reordered; the host
+    arrays x, v, w, f, t are refreshed after each run() call and fext is read before it;
+    rad and mass are read once, here). After a reorder, row k of the bead arrays holds
+    the bead ``ids[k]`` of the initial order.
     """
 
     def __init__(self, geometry: MillGeometry, material: BeadMaterial, positions_m,
                  radii_m, omega_rad_s: float, dt_s: float, gravity_m_s2=(0.0, 0.0, 0.0),
                  fluid: FluidSettings | None = None, skin_m: float | None = None,
                  max_neighbours: int = 24, velocities_m_s=None, threads: int | None = None,
-                 sort_every_steps: int | None = None, spins_rad_s=None):
+                 sort_every_steps: int | None = None, spins_rad_s=None, device: str = "cpu"):
         import numba
 
         from millfmu.dem import kernels as K
@@ -171,6 +174,16 @@ class DemSimulation:
             sort_every_steps = 200 if n >= 2000 else 0
         self.sort_every_steps = int(sort_every_steps)
         self._last_sort = 0
+        if device not in ("cpu", "gpu"):
+            raise ValueError(f"device = {device!r}: 'cpu' or 'gpu'")
+        self.device = device
+        self._gpu = None
+        if device == "gpu":
+            from millfmu.dem.gpu import GpuStepper
+
+            self.sort_every_steps = 0
+            self._gpu = GpuStepper(self, max_neighbours)  # builds and computes f, t
+            return
         self._build()
         if self.pair_capacity > 1.5 * self.need.max() + 64:
             # max_neighbours was generous: lists that fit (nothing to carry over yet)
@@ -331,6 +344,13 @@ class DemSimulation:
     # ---- time stepping ----------------------------------------------------------------
     def run(self, nsteps: int, record: bool = False) -> StepStats:
         """Advance nsteps steps; with record, return every contact at its first overlap."""
+        if self._gpu is not None:
+            ev, torque, chamber, dropped, builds = self._gpu.run(nsteps, record)
+            ev[:, self.K.EV_STEP] += self.step_count
+            self.step_count += nsteps
+            return StepStats(steps=nsteps, events=ev, torque_sum_nm_steps=torque,
+                             chamber_torque_sum_nm_steps=chamber, dropped_events=dropped,
+                             neighbour_builds=builds)
         import numba
 
         K = self.K
@@ -394,6 +414,16 @@ class DemSimulation:
                          chamber_torque_sum_nm_steps=chamber,
                          dropped_events=dropped, neighbour_builds=builds)
 
+    def _pairs(self):
+        """(i, j, s) of every pair in the current neighbour lists (partner j > i, image
+        code s), as arrays."""
+        if self._gpu is not None:
+            return self._gpu.pairs()
+        i = np.repeat(np.arange(self.n), self.nnb)
+        first = np.cumsum(self.nnb) - self.nnb
+        pos = np.repeat(self.pst, self.nnb) + (np.arange(i.size) - np.repeat(first, self.nnb))
+        return i, self.pj[pos].astype(np.int64), self.pim[pos].astype(np.int64)
+
     # ---- observables ------------------------------------------------------------------
     def kinetic_energy_j(self) -> tuple[float, float]:
         """Translational and rotational kinetic energy of all beads [J]."""
@@ -410,22 +440,17 @@ class DemSimulation:
         u = 0.0
         lz = self.geometry.height_m
         sec = self.geometry.sector_rad
-        for i in range(self.n):
-            for k in range(int(self.pst[i]), int(self.pst[i] + self.nnb[i])):
-                j = int(self.pj[k])
-                if j <= i:
-                    continue
-                s = int(self.pim[k])
-                xj = x[j].copy()
-                if s:
-                    c, sn = math.cos(s * sec), math.sin(s * sec)
-                    xj[0], xj[1] = c * x[j, 0] - sn * x[j, 1], sn * x[j, 0] + c * x[j, 1]
-                d = x[i] - xj
-                d[2] -= lz * math.floor(d[2] / lz + 0.5)
-                delta = self.rad[i] + self.rad[j] - math.sqrt(d @ d)
-                if delta > 0:
-                    rs = self.rad[i] * self.rad[j] / (self.rad[i] + self.rad[j])
-                    u += 8.0 / 15.0 * ys * math.sqrt(rs) * delta ** 2.5
+        for i, j, s in zip(*self._pairs()):
+            xj = x[j].copy()
+            if s:
+                c, sn = math.cos(s * sec), math.sin(s * sec)
+                xj[0], xj[1] = c * x[j, 0] - sn * x[j, 1], sn * x[j, 0] + c * x[j, 1]
+            d = x[i] - xj
+            d[2] -= lz * math.floor(d[2] / lz + 0.5)
+            delta = self.rad[i] + self.rad[j] - math.sqrt(d @ d)
+            if delta > 0:
+                rs = self.rad[i] * self.rad[j] / (self.rad[i] + self.rad[j])
+                u += 8.0 / 15.0 * ys * math.sqrt(rs) * delta ** 2.5
         for i in range(self.n):
             for q in range(K.NWALL):
                 dist, _, _, _, ok = K.wall_gap(x[i, 0], x[i, 1], x[i, 2], self.rad[i], q,
