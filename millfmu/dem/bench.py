@@ -300,6 +300,38 @@ def run_ours(path, threads: int, steps: int = BENCH_STEPS, device: str = "cpu",
                                 contacts_recorded=int(st.events.shape[0])))
 
 
+#: the GPU's large scene (issue 14): a million beads in the bench annulus on a simple cubic
+#: lattice of 0.84 mm (7712 sites per layer between r = 15.5 and 44.5 mm), 130 layers
+MILLION_LAYERS = 130
+MILLION_SPACING_M = 0.84e-3
+
+
+def run_gpu_million(steps: int = BENCH_STEPS) -> RunResult:
+    """About a million beads (1,002,560) of the bench material in the bench annulus made 109 mm high, on a
+    lattice with random velocities of 0.5 m/s (seed 1), shaft at 8 m/s, on the GPU: the
+    throughput at a size where a GPU is full. A loose start (the CPU bed is too costly
+    to make at this size); its contacts form during the run."""
+    from millfmu.dem.geometry import simple_cubic_annulus
+    from millfmu.dem.sim import DemSimulation
+
+    h = MILLION_LAYERS * MILLION_SPACING_M
+    geom = MillGeometry(shaft_radius_m=15e-3, chamber_radius_m=45e-3, height_m=h)
+    x = simple_cubic_annulus(MILLION_SPACING_M, 15.5e-3, 44.5e-3, h)
+    v = np.random.default_rng(1).normal(0.0, 0.5 / math.sqrt(3.0), size=x.shape)
+    sim = DemSimulation(geom, BENCH_MATERIAL, x, 0.5 * BENCH_DIAMETER_M, BENCH_OMEGA_RAD_S,
+                        BENCH_DT_S, velocities_m_s=v, skin_m=BENCH_SKIN_M, device="gpu")
+    sim.run(2, record=True)  # compiled and warm
+    t0 = time.perf_counter()
+    st = sim.run(steps, record=True)
+    loop = time.perf_counter() - t0
+    et, er = sim.kinetic_energy_j()
+    return RunResult(code="millfmu.dem million", cores=1, device="gpu", beads=sim.n,
+                     steps=steps, loop_s=loop, ke_trans_j=et, ke_rot_j=er,
+                     coordination=contact_stats(sim.x, 0.5 * BENCH_DIAMETER_M,
+                                                geom)["coordination"],
+                     extra=dict(neighbour_builds=st.neighbour_builds))
+
+
 def _mpirun(nproc: int) -> list[str]:
     # OpenMPI refuses root unless told; --bind-to none: the machine is shared, let the
     # kernel place the ranks; yield when idle: a rank waiting for the other gives up
@@ -411,20 +443,28 @@ def _load() -> str:
 
 
 def bench(steps: int = BENCH_STEPS, repeats: int = BENCH_REPEATS, cores=(1, 2),
-          others: bool = True, out=print, regenerate: bool = False) -> list[RunResult]:
+          others: bool = True, out=print, regenerate: bool = False,
+          devices=("cpu", "gpu")) -> list[RunResult]:
     """Run every code on the bed, alternating (one run of each per round), ``repeats``
-    rounds; print each code's fastest run and the ratios. Returns all runs."""
+    rounds; print each code's fastest run and the ratios. ``devices``: millfmu.dem's CPU
+    rows (with LAMMPS and LIGGGHTS) and its GPU rows (the bed and a million beads), the
+    latter only where a GPU is present. Returns all runs."""
     path = bed_file(regenerate=regenerate, out=out)
     info = bed_info(path)
     runners = []
-    for nc in sorted(cores, reverse=True):
+    for nc in sorted(cores, reverse=True) if "cpu" in devices else ():
         runners.append((f"millfmu.dem {nc} thr", lambda nc=nc: run_ours(path, nc, steps)))
         if others and shutil.which("lmp") and shutil.which("mpirun"):
             runners.append((f"LAMMPS {nc} MPI", lambda nc=nc: run_lammps(path, nc, steps)))
         if others and shutil.which("liggghts") and shutil.which("mpirun"):
             runners.append((f"LIGGGHTS {nc} MPI", lambda nc=nc: run_liggghts(path, nc, steps)))
-    if gpu_available():
+    if "gpu" in devices and gpu_available():
         runners.append(("millfmu.dem GPU", lambda: run_ours(path, 1, steps, device="gpu")))
+        runners.append(("millfmu.dem GPU 1e6", lambda: run_gpu_million(steps)))
+    elif "gpu" in devices:
+        out("no CUDA GPU (numba.cuda.is_available() is False): no GPU rows")
+    if not runners:
+        return []
     out(f"DEM bench: dense sheared bed, {info['beads']} beads (coordination "
         f"{info['coordination']:.2f}, median overlap {info['overlap_median_m']:.3g} m), "
         f"{steps} steps of {BENCH_DT_S:g} s, skin {BENCH_SKIN_M:g} m; {repeats} rounds, "

@@ -50,6 +50,10 @@ def register(subparsers) -> argparse.ArgumentParser:
     b.add_argument("--cores", type=int, nargs="+", default=None, metavar="N",
                    help="numba threads and MPI ranks to run (default: 1 2)")
     b.add_argument("--ours-only", action="store_true", help="do not run LAMMPS and LIGGGHTS")
+    b.add_argument("--device", choices=("cpu", "gpu"), default=None,
+                   help="only the CPU rows (with LAMMPS and LIGGGHTS) or only the GPU rows "
+                        "(the bed and a million beads; numba.cuda); default: both, the "
+                        "GPU rows where a GPU is present")
     b.add_argument("--profile", action="store_true",
                    help="instead: where millfmu.dem's time goes, per kernel (1 and 2 threads)")
     b.add_argument("--regenerate-bed", action="store_true",
@@ -97,7 +101,8 @@ def _bench(args) -> int:
             B.profile(path, nc, steps)
         return 0
     runs = B.bench(steps=steps, repeats=args.repeats or B.BENCH_REPEATS, cores=cores,
-                   others=not args.ours_only, regenerate=args.regenerate_bed)
+                   others=not args.ours_only, regenerate=args.regenerate_bed,
+                   devices=(args.device,) if args.device else ("cpu", "gpu"))
     if args.json:
         print(json.dumps([dict(r.__dict__, rate=r.rate) for r in runs]))
     return 0
