@@ -32,8 +32,55 @@ def _best(f, repeats):
     return best, r
 
 
-def bench_pbm(classes=(50, 100, 200), hours=1.0, repeats=3, dt_s=1.0, out=print):
-    """Print the cost of one step and of ``hours`` of batch grinding at 1 s steps, vs BDF."""
+#: Austin selection S = 1e8 (x / 200 um)^4.85 1/s on the default grid: rates spanning
+#: 1e-8 ... 1e8 1/s, the stiff case of tests/stability.
+STIFF = {"model": "austin", "selection": {"a_per_s": 1e8, "x0_m": 200e-6, "alpha": 4.85, "Lambda": 0.0}}
+
+
+def bench_tanks(n_tanks=50, dt_s=1.0, repeats=3, dense=True, stiff=False, out=print):
+    """Continuous mill of the default scene (``stiff``: with rates spanning 1e-8 ... 1e8 1/s)
+    as ``n_tanks`` tanks in series: cost of building the exact propagator and of one step
+    with the block structure (pbm.TanksInSeries), against one dense matrix exponential of
+    the whole system (the method before) in the same run, and their largest difference
+    over 10 steps relative to the total mass."""
+    import tomllib
+
+    from .scene import default_scene_text, scene_from_dict
+
+    d = tomllib.loads(default_scene_text())
+    d["operation"] = {"mode": "continuous", "n_tanks": n_tanks, "feed_mass_flow_kg_per_s": 1e-3}
+    if stiff:
+        d["material"], d["kinetics"] = dict(STIFF), {"model": "none"}
+    model = MillModel(scene_from_dict(d))
+    series, u, _ = model._system(model.inputs)
+    y0 = model.y.copy()
+    t_setup, prop = _best(lambda: series.propagator(dt_s), repeats)
+    t_step, _ = _best(lambda: [prop.apply(y0, u) for _ in range(100)], repeats)
+    t_step /= 100
+    row = dict(tanks=n_tanks, states=series.size, setup_ms=t_setup * 1e3, step_us=t_step * 1e6)
+    if dense:
+        g, f = series.matrices()
+        t_dense, (phi, gam) = _best(lambda: pbm.propagators(g, f, dt_s), 1)
+        t_dstep, _ = _best(lambda: [phi @ y0 + gam @ u for _ in range(100)], repeats)
+        t_dstep /= 100
+        a, b = y0.copy(), y0.copy()
+        diff = 0.0
+        for _ in range(10):
+            a, b = prop.apply(a, u), phi @ b + gam @ u
+            diff = max(diff, float(np.max(np.abs(a - b)) / b.sum()))
+        row.update(dense_setup_s=t_dense, dense_step_us=t_dstep * 1e6, setup_ratio=t_dense / t_setup, max_diff=diff)
+    what = "rates 1e-8 ... 1e8 1/s" if stiff else "default scene"
+    out(f"continuous, {what}, {n_tanks} tanks in series ({series.size} states), {dt_s:g} s step:")
+    out(f"  block-structured: propagator {row['setup_ms']:.2f} ms, step {row['step_us']:.1f} us")
+    if dense:
+        out(f"  dense expm (before): propagator {row['dense_setup_s']:.2f} s, step {row['dense_step_us']:.1f} us; "
+            f"propagator {row['setup_ratio']:.0f} times slower; largest difference over 10 steps {row['max_diff']:.1e} of the total mass")
+    return row
+
+
+def bench_pbm(classes=(50, 100, 200), hours=1.0, repeats=3, dt_s=1.0, out=print, tanks=50, dense=True):
+    """Print the cost of one step and of ``hours`` of batch grinding at 1 s steps, vs BDF;
+    then the ``tanks``-tank row (:func:`bench_tanks`; 0 leaves it out)."""
     scene = load_scene()
     n_steps = int(round(hours * 3600.0 / dt_s))
     t_eval = np.arange(n_steps + 1) * dt_s
@@ -49,7 +96,7 @@ def bench_pbm(classes=(50, 100, 200), hours=1.0, repeats=3, dt_s=1.0, out=print)
         grid = SizeGrid.with_classes(scene.grid.x_min_m, scene.grid.x_max_m, n)
         model = MillModel(scene, grid=grid)
         a = model.operator.matrix(model.selection_nodes(model.operating_point(model.inputs)))
-        g = pbm.system_matrix(a, 1, 0.0)
+        g = pbm.system_matrix(a, 1, 0.0)  # dense on purpose: the closed-form reference below
         y0 = model.y.copy()
         total = y0.sum()
 
@@ -119,4 +166,7 @@ def bench_pbm(classes=(50, 100, 200), hours=1.0, repeats=3, dt_s=1.0, out=print)
             f"{c_span[0]:9.0e} {c_span[1]:9.1e} {t_span:9.4f} {t_span / t_ours:9.1f}")
     out("ours total = expm setup + all steps; step = one exact step (matrix-vector product); ratios = BDF time / ours total;")
     out("model step = MillModel.step with all outputs (x10/x50/x90, SF, power, ...).")
+    if tanks:
+        for stiff in (False, True):
+            rows.append(bench_tanks(tanks, dt_s, repeats, dense, stiff, out))
     return rows

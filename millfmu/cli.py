@@ -25,14 +25,20 @@ PLUGINS = ("millfmu.dem.cli", "millfmu.dem.tables_cli", "fmu_build.cli", "flowsh
 
 
 def _cmd_run(args) -> int:
-    from .runner import simulate, summary_table, write_results
+    from .mill import MillModel
+    from .runner import check_out_dir, run_warnings, simulate, summary_table, write_results
     from .scene import load_scene
 
     scene = load_scene(args.scene)  # SceneError -> exit 2 before anything is written
+    check_out_dir(args.out)  # OutputError -> exit 2 before running
+    for w in MillModel(scene).warnings:  # the data's warnings before a long run, not after
+        print(f"millfmu: warning: {w}", file=sys.stderr)
     t0 = time.perf_counter()
     model, records, psds = simulate(scene, progress=not args.quiet)
     wall = time.perf_counter() - t0
-    files = write_results(args.out, scene, model, records, psds, plots=not args.no_plots)
+    for w in run_warnings(model, records)[len(model.warnings):]:
+        print(f"millfmu: warning: {w}", file=sys.stderr)
+    files = write_results(args.out, scene, model, records, psds, plots=not args.no_plots, wall_s=wall)
     op = model.operating_point(model.inputs)
     print(f"scene: {scene.scene.name}  ({scene.operation.mode}, {scene.material.model}, {scene.kinetics.model} model, {model.grid.n} classes)")
     print(f"eta_eff = {op.eta_eff_Pa_s:.4g} Pa s, Re = {op.reynolds:.4g}, SE = {op.se_beads_J:.4g} J, SE_P = {op.se_product_J:.4g} J")
@@ -65,7 +71,7 @@ def _cmd_scene_keys(args) -> int:
 def _cmd_bench_pbm(args) -> int:
     from .bench import bench_pbm
 
-    bench_pbm(classes=args.classes, hours=args.hours, repeats=args.repeats)
+    bench_pbm(classes=args.classes, hours=args.hours, repeats=args.repeats, tanks=args.tanks, dense=not args.no_dense)
     return 0
 
 
@@ -92,6 +98,8 @@ def build_parser() -> argparse.ArgumentParser:
     bp.add_argument("--classes", type=int, nargs="+", default=[50, 100, 200])
     bp.add_argument("--hours", type=float, default=1.0, help="simulated batch time [h] at 1 s steps")
     bp.add_argument("--repeats", type=int, default=3)
+    bp.add_argument("--tanks", type=int, default=50, help="tanks in series of the continuous row (0: leave it out)")
+    bp.add_argument("--no-dense", action="store_true", help="continuous row without the dense matrix exponential (the method before; tens of seconds at 50 tanks)")
     bp.set_defaults(func=_cmd_bench_pbm)
 
     for mod in PLUGINS:
@@ -109,18 +117,22 @@ def build_parser() -> argparse.ArgumentParser:
 
 def main(argv=None) -> int:
     from .mill import InputError
+    from .runner import OutputError
     from .scene import SceneError
 
     parser = build_parser()
     args = parser.parse_args(argv)
     try:
         return int(args.func(args) or 0)
-    except (SceneError, InputError) as e:
+    except (SceneError, InputError, OutputError) as e:
         print(f"millfmu: error: {e}", file=sys.stderr)
         return 2
     except KeyboardInterrupt:
         print("millfmu: interrupted; no results written", file=sys.stderr)
         return 130
+    except BrokenPipeError:  # output piped into e.g. head, which stopped reading
+        sys.stderr.close()
+        return 0
 
 
 if __name__ == "__main__":  # pragma: no cover

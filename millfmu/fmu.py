@@ -11,7 +11,7 @@ its scene (``resources/scene.toml``). Variables (all Real, SI units):
 - outputs: ``psd[1..n]`` [1], ``x10``/``x50``/``x90`` [m], ``holdup`` [kg],
   ``product_mass_flow`` [kg/s], ``se_beads``/``se_product`` [J], ``sf`` [1/s],
   ``stress_number`` [1], ``power`` [W], ``specific_energy`` [J/kg], ``eta_eff`` [Pa.s],
-  ``reynolds`` [1] and, for yeast, ``disrupted_fraction`` [1].
+  ``reynolds`` [1], ``below_grid`` [1] and, for yeast, ``disrupted_fraction`` [1].
 
 Values set before ``fmi2ExitInitializationMode`` are the scene's operating point (the initial
 holdup depends on filling and solids fraction); values set later are inputs held over the
@@ -19,13 +19,27 @@ next step. Outputs are the model's values at the end of the last step; an input 
 through the next step (no direct feedthrough).
 
 Bad input or a failed step refuses ``fmi2DoStep`` with fmi2Discard, logs a message naming
-the variable and the value, and leaves the state as it was. No Python exception leaves
-``do_step``/``get_real``/``set_real`` (pythonfmu turns one into fmi2Fatal).
+the variable and the value, and leaves the state as it was. Where FMI 2.0 wants fmi2Error
+(a call the instance cannot honour but survives: parameters the model refuses at
+fmi2ExitInitializationMode, a currentCommunicationPoint that is not the FMU's time, a
+serialized state that is damaged or from another FMU), the reason is logged and an
+:class:`FMUCallError` raised, which millfmu's rebuilt pythonfmu wrapper returns as
+fmi2Error with the instance intact (see ``fmu_build.wrapper``). Under pythonfmu's own
+wrapper an exception would be fmi2Fatal and wreck the instance, so there the same cases
+are logged errors only (steps then refused with fmi2Discard, a state not applied).
+
+Serialized states (fmi2SerializeFMUstate) carry a format version, the FMU's identity (its
+model identifier, which hashes the code and the scene) and a sha256 of the state; a state
+whose any of the three does not match is refused.
 """
 
 from __future__ import annotations
 
 import copy
+import hashlib
+import json
+import math
+import os
 import traceback
 from xml.etree.ElementTree import Element
 
@@ -40,6 +54,19 @@ from .fmu_variables import (DISRUPTED, INPUTS, OUTPUTS, PARAMETERS, SCENE_FILE, 
 from .mill import InputError, MillModel, StepError
 from .scene import SceneError, scene_from_dict
 
+#: Written by the build into the resources: "fixed" when the FMU carries millfmu's rebuilt
+#: pythonfmu wrapper (exceptions -> fmi2Error), "stock" for pythonfmu's own.
+WRAPPER_FILE = "wrapper.txt"
+#: Format of serialized FMU states; a state of another format is refused.
+STATE_FORMAT = "millfmu-fmu-state/1"
+#: Largest difference between currentCommunicationPoint and the FMU's time that is taken
+#: as the masters' round-off of accumulated time [s]: relative to the time and the step.
+TIME_RTOL = 1e-9
+
+
+class FMUCallError(RuntimeError):
+    """An FMI call refused with fmi2Error (under the fixed wrapper); the instance is intact."""
+
 
 class MillSlave(Fmi2Slave):
     """The mill as a pythonfmu slave; the scene is ``<resources>/scene.toml``."""
@@ -47,8 +74,19 @@ class MillSlave(Fmi2Slave):
     author = "millfmu"
     description = "Wet stirred media mill (bead mill): population balance with Kwade's stress model"
 
+    #: Raise FMUCallError where FMI wants fmi2Error: only under the fixed wrapper (set per
+    #: FMU class from its resources; the class serves the static state (de)serialization).
+    _raise_errors = False
+
     def __init__(self, **kwargs):
         super().__init__(**kwargs)
+        try:
+            with open(os.path.join(self.resources, WRAPPER_FILE)) as f:
+                type(self)._raise_errors = f.read().strip() == "fixed"
+        except OSError:
+            type(self)._raise_errors = False
+        self._start_time = 0.0
+        self._warned_below_grid = False
         self._scene_dict = read_scene_dict(self.resources)
         scene = scene_from_dict(self._scene_dict, SCENE_FILE)
         self.model = MillModel(scene)
@@ -105,6 +143,16 @@ class MillSlave(Fmi2Slave):
         self._out_keys = [var.output_key for var in described if var.causality == "output" and not var.size]
         self._n_vars = len(self._v)
         self._publish(self.model.outputs())
+        for w in self.model.warnings:
+            self.log(f"scene {scene.scene.name!r}: {w}", Fmi2Status.warning)
+
+    def _refuse(self, msg: str, fallback=Fmi2Status.error):
+        """Log ``msg``; raise FMUCallError (-> fmi2Error) under the fixed wrapper, else log
+        only, with ``fallback`` as the logged status."""
+        if self._raise_errors:
+            self.log(msg, Fmi2Status.error)
+            raise FMUCallError(msg)
+        self.log(msg, fallback)
 
     def log(self, msg: str, status=Fmi2Status.ok, category=None, debug=None):
         # The host's logger takes the message as a printf format: a bare '%' (in a
@@ -138,36 +186,48 @@ class MillSlave(Fmi2Slave):
             self._v[vr] = float(x)
 
     # ---- life cycle ------------------------------------------------------------------------
+    def setup_experiment(self, start_time: float, stop_time=None, tolerance=None):
+        """The FMU's time starts at ``start_time`` [s]."""
+        self._start_time = float(start_time)
+
     def exit_initialization_mode(self):
-        """Values set so far are the scene's operating point: rebuild the model if they differ."""
+        """Values set so far are the scene's operating point: rebuild the model if they differ.
+        Values the model refuses: fmi2Error (logged), and every step is refused."""
         try:
             over = {}
             for vr, (sec, key) in self._scene_key.items():
                 x = self._v[vr]
                 if x != getattr(getattr(self._base_scene, sec), key):
                     over[(sec, key)] = x
-            self._configure(over)
-        except Exception:  # never let an exception reach the host: it would be fmi2Fatal
+            self._config_error = None
+            model, error = self._model_for(over)
+            if error is None:
+                self._use(model, over)
+            else:
+                self._config_error = error
+        except Exception:  # any other exception would be fmi2Fatal under the stock wrapper
             self._config_error = "internal error while initializing: " + traceback.format_exc(limit=3)
-            self.log(self._config_error, Fmi2Status.error)
         self._initialized = True
+        if self._config_error is not None:
+            self._refuse(f"fmi2ExitInitializationMode: {self._config_error}; every step will be refused")
 
-    def _configure(self, over: dict):
-        """Build the model for the scene with ``over`` {(section, key): value} applied."""
+    def _model_for(self, over: dict):
+        """(model, None) for the scene with ``over`` {(section, key): value} applied, or
+        (None, message naming the FMI variable) when the model refuses it."""
         if over == self._overrides:
-            return
+            return self.model, None
         try:
             model = model_with(self._scene_dict, over)  # a DEM table may refuse the scene's operating point
         except SceneError as e:
             name = next((self.vars[vr].name for vr, sk in self._scene_key.items() if f"{sk[0]}.{sk[1]}" == e.key), e.key)
-            self._config_error = f"{name} = {e.value!r}: {e.allowed}"
-            self.log(f"initialization: {self._config_error}; every step will be refused", Fmi2Status.error)
-            return
+            return None, f"{name} = {e.value!r}: {e.allowed}"
         if model.grid.n != self.n_classes:  # pragma: no cover - no parameter changes the grid
             raise RuntimeError("size grid changed")
+        return model, None
+
+    def _use(self, model, over: dict):
         self.model = model
         self._overrides = dict(over)
-        self._config_error = None
         self._publish(model.outputs())
 
     def _inputs(self) -> dict:
@@ -191,6 +251,12 @@ class MillSlave(Fmi2Slave):
         return model_name
 
     def do_step(self, current_time: float, step_size: float) -> bool:
+        t = self._start_time + self.model.t_s
+        if not (math.isfinite(current_time) and abs(current_time - t) <= TIME_RTOL * max(abs(t), abs(step_size), 1.0)):
+            self._refuse(f"doStep refused, state unchanged: currentCommunicationPoint = {current_time!r} s is not the FMU's time "
+                         f"{t!r} s (the previous communication point plus its step, or the time of the state set last)",
+                         Fmi2Status.discard)
+            return False
         try:
             if self._config_error is not None:
                 self.log(f"doStep at t = {current_time!r} s refused: {self._config_error}", Fmi2Status.discard)
@@ -207,28 +273,95 @@ class MillSlave(Fmi2Slave):
             self.log(f"doStep at t = {current_time!r} s failed, state unchanged: " + traceback.format_exc(limit=4), Fmi2Status.error)
             return False
         self._publish(outs)
+        if not self._warned_below_grid:
+            for w in self.model.output_warnings(outs):
+                self._warned_below_grid = True
+                self.log(w, Fmi2Status.warning)
         return True
 
     # ---- FMU state -------------------------------------------------------------------------
     def _get_fmu_state(self):
-        """The whole state as plain JSON-able data (copies; pythonfmu keeps the object)."""
+        """The whole state as plain JSON-able data (copies; pythonfmu keeps the object),
+        with the format and this FMU's identity."""
         return {
+            "format": STATE_FORMAT,
+            "fmu": type(self).__name__,
             "overrides": [[sec, key, x] for (sec, key), x in self._overrides.items()],
             "config_error": self._config_error,
             "initialized": self._initialized,
+            "start_time": self._start_time,
             "values": list(self._v),
             "model": _plain(self.model.get_state()),
         }
 
+    @classmethod
+    def _state_problem(cls, state) -> str | None:
+        """Why ``state`` is not a state of this FMU (None if it is)."""
+        if not isinstance(state, dict):
+            return f"not a state of this FMU (a {type(state).__name__})"
+        if "invalid" in state:
+            return state["invalid"]
+        if state.get("format") != STATE_FORMAT:
+            return f"format {state.get('format')!r}, this FMU reads {STATE_FORMAT!r}"
+        if state.get("fmu") != cls.__name__:
+            return f"a state of FMU {state.get('fmu')!r}, this is {cls.__name__!r}"
+        return None
+
     def _set_fmu_state(self, state):
+        """Restore a state from :meth:`_get_fmu_state`: all or nothing."""
+        why = self._state_problem(state)
+        if why is None:
+            model = backup = None
+            try:
+                over = {(sec, key): x for sec, key, x in state["overrides"]}
+                values = [float(x) for x in state["values"]]
+                if len(values) != self._n_vars:
+                    raise ValueError(f"{len(values)} values, this FMU has {self._n_vars}")
+                model, error = self._model_for(over)
+                if error is not None:
+                    raise ValueError(error)
+                backup = model.get_state()
+                model.set_state(copy.deepcopy(state["model"]))
+                start = float(state["start_time"])
+            except Exception as e:  # a malformed state: refused, nothing applied
+                if backup is not None:
+                    model.set_state(backup)
+                why = f"malformed ({type(e).__name__}: {e})"
+        if why is not None:
+            self._refuse(f"fmi2SetFMUstate: state refused, nothing applied: {why}")
+            return
+        self.model, self._overrides = model, over
+        self._v = values
+        self._config_error = state["config_error"]
+        self._initialized = bool(state["initialized"])
+        self._start_time = start
+
+    @staticmethod
+    def _digest(state) -> str:
+        return hashlib.sha256(json.dumps(state, sort_keys=True, separators=(",", ":")).encode()).hexdigest()
+
+    @classmethod
+    def _fmu_state_to_bytes(cls, state) -> bytes:
+        """JSON of the state with its sha256 (see :meth:`_fmu_state_from_bytes`)."""
+        return json.dumps({"sha256": cls._digest(state), "state": state}, separators=(",", ":")).encode()
+
+    @classmethod
+    def _fmu_state_from_bytes(cls, data: bytes):
+        """The state in ``data``; refused (FMUCallError -> fmi2Error) when it is not JSON,
+        its checksum does not match, or its format or FMU differ. Under the stock wrapper a
+        marker that fmi2SetFMUstate refuses instead (an exception would be fmi2Fatal)."""
         try:
-            self._configure({(sec, key): x for sec, key, x in state["overrides"]})
-            self.model.set_state(copy.deepcopy(state["model"]))
-            self._v = list(state["values"])
-            self._config_error = state["config_error"]
-            self._initialized = state["initialized"]
-        except Exception:
-            self.log("fmi2SetFMUstate: state not applied: " + traceback.format_exc(limit=3), Fmi2Status.error)
+            blob = json.loads(bytes(data).decode())
+            state = blob["state"]
+            why = None if blob.get("sha256") == cls._digest(state) else "its sha256 does not match its content: damaged or edited"
+        except (ValueError, KeyError, TypeError, UnicodeDecodeError) as e:
+            why, state = f"not a serialized state of this FMU ({type(e).__name__})", None
+        why = why or cls._state_problem(state)
+        if why is None:
+            return state
+        if cls._raise_errors:
+            raise FMUCallError(f"fmi2DeSerializeFMUstate: {why}")
+        return {"invalid": f"fmi2DeSerializeFMUstate gave no state: {why}"}
 
     # ---- model description -----------------------------------------------------------------
     def to_xml(self, model_options=dict()) -> Element:

@@ -72,6 +72,7 @@ OUTPUTS = (
     ("specific_energy", "specific_energy_J_per_kg", "J/kg", "stirrer energy per mass of solids treated"),
     ("eta_eff", "eta_eff_Pa_s", "Pa.s", "effective viscosity of the bead-suspension bulk (Krieger-Dougherty)"),
     ("reynolds", "reynolds", "1", "mill Reynolds number"),
+    ("below_grid", "below_grid_fraction", "1", "product mass fraction below the size grid's lowest edge (part of the finest class's)"),
 )
 DISRUPTED = ("disrupted_fraction", "disrupted_fraction", "1", "mass fraction of disrupted cells (debris) in the mill")
 

@@ -43,8 +43,19 @@ class StepError(RuntimeError):
     """A step would give non-finite or negative masses. The state is unchanged."""
 
 
-def psd_fractions(grid: kgrid.SizeGrid, p: PSD) -> np.ndarray:
-    """Class mass fractions [-] on ``grid`` for a scene size distribution."""
+#: Longest step [s] (about 30,000 years): longer ones only overflow the exponentials.
+MAX_STEP_S = 1e12
+
+
+#: Largest mass fraction of a scene's feed or initial distribution that may lie outside the
+#: size grid [-], and the below-grid fraction of the product above which a run warns.
+OUTSIDE_GRID_MAX = 0.01
+#: The scene key that sets a size distribution's position, per kind.
+PSD_SIZE_KEY = {"lognormal": "x50_m", "rrsb": "x63_m", "monodisperse": "x_m", "table": "sizes_m"}
+
+
+def psd_q3(grid: kgrid.SizeGrid, p: PSD) -> np.ndarray:
+    """Q3 [-] of a scene size distribution at the grid's edges."""
     e = grid.edges_m
     if p.kind == "lognormal":
         q = kgrid.q3_lognormal(e, p.x50_m, p.sigma_ln)
@@ -56,7 +67,27 @@ def psd_fractions(grid: kgrid.SizeGrid, p: PSD) -> np.ndarray:
         q = kgrid.q3_table(e, np.asarray(p.sizes_m, float), np.asarray(p.Q3, float))
     else:  # pragma: no cover - the scene validates kinds
         raise ValueError(p.kind)
-    return kgrid.fractions_from_q3(grid, q)
+    return q
+
+
+def psd_fractions(grid: kgrid.SizeGrid, p: PSD) -> np.ndarray:
+    """Class mass fractions [-] on ``grid`` for a scene size distribution (the finest class
+    holds what lies below the grid, the coarsest what lies above)."""
+    return kgrid.fractions_from_q3(grid, psd_q3(grid, p))
+
+
+def check_psd_on_grid(grid: kgrid.SizeGrid, p: PSD, key: str, source: str) -> float:
+    """SceneError if more than OUTSIDE_GRID_MAX of the distribution's mass lies outside the
+    grid; returns the fraction below the lowest edge [-]."""
+    below, above = kgrid.outside_fractions(psd_q3(grid, p))
+    if below > OUTSIDE_GRID_MAX or above > OUTSIDE_GRID_MAX:
+        sk = PSD_SIZE_KEY[p.kind]
+        e = grid.edges_m
+        raise SceneError(f"{key}.{sk}", getattr(p, sk),
+                         f"puts {above:.1%} of the mass above the size grid's top edge {e[-1]:.4g} m and {below:.1%} below its "
+                         f"lowest edge {e[0]:.4g} m; at most {OUTSIDE_GRID_MAX:.0%} may lie outside: widen [grid] "
+                         f"(x_min_m, x_max_m) or move the distribution", source)
+    return below
 
 
 def build_material(s: Scene):
@@ -70,13 +101,47 @@ def build_material(s: Scene):
     return materials.Austin(m.density_kg_per_m3, m.youngs_modulus_Pa, sel.a_per_s, sel.x0_m, sel.alpha, sel.mu_m, sel.Lambda, brk)
 
 
+def _rebuild_hint(ref: str) -> str:
+    if ref == "default":
+        try:
+            from .dem.tables_cli import REBUILD_DEFAULT
+        except ImportError:  # inside an FMU, which carries no command line
+            return "reinstall millfmu or rebuild the default table with `millfmu tables build ... --export millfmu/data/default_table`"
+        return f"reinstall millfmu, or rebuild it (from the repository root) with `{REBUILD_DEFAULT}`"
+    return (f"rebuild it with `millfmu tables build ... --export {ref}` (the command is the rebuild_command "
+            f"of an intact copy of {ref}.json), or name another table")
+
+
+def recording_warnings(manifest: dict) -> list:
+    """Warnings for a DEM table whose recordings are too short to average the bead motion:
+    shorter than one stirrer revolution at the grid's lowest tip speed (2 pi R / v_t), or
+    with fewer than 4 sampling windows (then the drift between the recording's halves, part
+    of the stated error, is not measured). Tables from other builders have no DEM resolution."""
+    dem = (manifest.get("resolution") or {}).get("dem")
+    if not dem:
+        return []
+    rec, every = float(dem.get("record_s", 0.0)), float(dem.get("sample_every_s", 0.0))
+    radius = float((manifest.get("scene") or {}).get("mill", {}).get("disc_radius_m", 0.0))
+    speeds = (manifest.get("grid") or {}).get("tip_speed_m_s") or [(manifest.get("scene") or {}).get("mill", {}).get("tip_speed_m_s", 0.0)]
+    v_min = min(float(v) for v in speeds)
+    turn = 2.0 * math.pi * radius / v_min if radius > 0.0 and v_min > 0.0 else 0.0
+    out = []
+    if rec < turn:
+        out.append(f"stress-energy table {manifest.get('key', '?')[:12]}: built from DEM recordings of {rec:g} s, shorter than one "
+                   f"stirrer revolution at its lowest tip speed ({turn:.3g} s at {v_min:g} m/s); its zone statistics may not be "
+                   f"representative: rebuild it with a longer --record")
+    if every > 0.0 and rec < 4.0 * every:
+        out.append(f"stress-energy table {manifest.get('key', '?')[:12]}: {rec:g} s recordings sampled every {every:g} s give fewer "
+                   f"than 4 windows: the drift within the recordings, part of the stated error, is not measured")
+    return out
+
+
 @dataclass(frozen=True)
 class _Frozen:
     """What an exact step needs for one set of frozen inputs and step size."""
 
     op: rates.OperatingPoint
-    phi: np.ndarray
-    gam: np.ndarray | None
+    propagator: pbm.SeriesPropagator
 
 
 class MillModel:
@@ -106,10 +171,16 @@ class MillModel:
         self.kinetics_model = scene.kinetics.model
         self.capture_from_psd = scene.kinetics.capture == "psd"
         sd = scene.kinetics.stress_distribution
+        #: Warnings about the scene's data (e.g. a table from a short DEM recording), for the
+        #: CLI, the FMU's log and a run's result.
+        self.warnings: list[str] = []
         self.source = self._stress_source(sd)
         self._check_source_scene()
         self._m = self.operator.state_size
-        self._feed_map = pbm.feed_matrix(self._m, self.n_tanks, self.grid.n)
+        src = scene.scene.name
+        self.feed_below_grid = check_psd_on_grid(self.grid, scene.feed, "feed", src)
+        if scene.initial is not None:
+            check_psd_on_grid(self.grid, scene.initial, "initial", src)
         self._cache = pbm.LRUCache(32)  # exact propagators by (inputs, h)
         self._rate_cache = pbm.LRUCache(64)  # breakage operators by operating point
         self._num_cache = pbm.LRUCache(256)  # scalars by operating point
@@ -122,9 +193,15 @@ class MillModel:
             return None
         if sd.source == "table":
             # Imported only here: scenes without a table never load the table code.
-            from .dem.tables import TableStressSource, read_table_ref
+            from .dem.tables import TableError, TableStressSource, read_table_ref
 
-            return TableStressSource(read_table_ref(sd.table), component=sd.component, similar_axes=tuple(sd.similar_axes), on_outside=sd.on_outside)
+            try:
+                table = read_table_ref(sd.table)
+            except TableError as e:
+                raise SceneError("kinetics.stress_distribution.table", sd.table, f"cannot be used: {e}; {_rebuild_hint(sd.table)}",
+                                 self.scene.scene.name) from None
+            self.warnings.extend(recording_warnings(table.manifest))
+            return TableStressSource(table, component=sd.component, similar_axes=tuple(sd.similar_axes), on_outside=sd.on_outside)
         return LogNormalStressSource(sd.median_fraction, sd.sigma_ln, sd.collision_factor)
 
     def _check_source_scene(self):
@@ -163,13 +240,20 @@ class MillModel:
             "feed_mass_flow_kg_per_s": s.operation.feed_mass_flow_kg_per_s if self.continuous else 0.0,
             "psd_in": psd_fractions(self.grid, s.feed),
         }
-        init = s.initial if (self.continuous and s.initial is not None) else s.feed
-        w0 = psd_fractions(self.grid, init)
+        init = s.initial if s.initial is not None else s.feed
+        q0 = psd_q3(self.grid, init)
+        w0 = kgrid.fractions_from_q3(self.grid, q0)
+        # The initial content's mass below the grid starts in the below-grid state (the feed
+        # flow's enters the finest class, as psd_in describes it).
+        below0 = min(kgrid.outside_fractions(q0)[0], w0[0])
+        w0[0] -= below0
         op = self.operating_point(self.inputs)
         mass_per_tank = op.solids_concentration_kg_per_m3 * self.suspension_volume_m3(op) / self.n_tanks
         y = np.zeros(self.n_tanks * self._m + 1)
         for k in range(self.n_tanks):
-            y[pbm.tank_slice(k, self._m, self.n_tanks)][: self.grid.n] = mass_per_tank * w0
+            tank = y[pbm.tank_slice(k, self._m, self.n_tanks)]
+            tank[: self.grid.n] = mass_per_tank * w0
+            tank[-1] = mass_per_tank * below0
         self.t_s = 0.0
         self.y = y
         self.energy_J = 0.0
@@ -249,22 +333,22 @@ class MillModel:
         return self._rate_cache.get(op, lambda: self.operator.matrix(self.selection_nodes(op)))
 
     def _system(self, inputs, y=None):
-        """(G, F, u, op) for frozen inputs (and, capture = 'psd', the state y)."""
+        """(tanks in series, feed u [kg/s per class] or None, op) for frozen inputs (and,
+        capture = 'psd', the state y)."""
         op = self.operating_point(inputs)
         n_p = self._number_concentration(y, op) if (self.capture_from_psd and y is not None) else None
         a = self._breakage_matrix(op, n_p)
         if not self.continuous:
-            return pbm.system_matrix(a, 1, 0.0), None, None, op
+            return pbm.TanksInSeries(a, 1, 0.0, order=self.operator.upper_order), None, op
         mdot = float(inputs["feed_mass_flow_kg_per_s"])
         q = mdot / op.solids_concentration_kg_per_m3 if mdot > 0.0 else 0.0
         d = q / (self.suspension_volume_m3(op) / self.n_tanks)
         u = mdot * np.asarray(inputs["psd_in"], dtype=float)
-        return pbm.system_matrix(a, self.n_tanks, d), self._feed_map, u, op
+        return pbm.TanksInSeries(a, self.n_tanks, d, n_in=self.grid.n, order=self.operator.upper_order), u, op
 
     def _frozen_step(self, inputs, h):
-        g, f, _, op = self._system(inputs)
-        phi, gam = pbm.propagators(g, f, h)
-        return _Frozen(op, phi, gam)
+        series, _, op = self._system(inputs)
+        return _Frozen(op, series.propagator(h))
 
     # ---- inputs ---------------------------------------------------------------------------
     def check_inputs(self, given: dict) -> dict:
@@ -321,37 +405,16 @@ class MillModel:
             h = float(dt_s)
         except (TypeError, ValueError):
             raise InputError("dt_s", dt_s, "must be a number > 0 s") from None
-        if not (math.isfinite(h) and h > 0.0):
-            raise InputError("dt_s", dt_s, "must be finite and > 0 s")
+        if not (math.isfinite(h) and 0.0 < h <= MAX_STEP_S):
+            raise InputError("dt_s", dt_s, f"must be finite, > 0 s and <= {MAX_STEP_S:g} s")
         new_inputs = self.check_inputs(inputs)
         end_inputs = self.check_inputs({**inputs, **(inputs_end or {})}) if inputs_end else None
         adaptive = self.capture_from_psd or end_inputs is not None or self.scene.run.integrator == "adaptive"
-        if adaptive:
-            op = self.operating_point(new_inputs)
-
-            def system(t, y):
-                if end_inputs is None:
-                    inp = new_inputs
-                else:
-                    w = min(max((t - self.t_s) / h, 0.0), 1.0)
-                    inp = {k: (1 - w) * np.asarray(new_inputs[k]) + w * np.asarray(end_inputs[k]) for k in new_inputs}
-                gg, ff, uu, _ = self._system(inp, y)
-                return gg, ff, uu
-
-            # Absolute tolerance scaled with the mass in the state: classes below a
-            # millionth of the total are controlled absolutely, the rest relatively.
-            rtol = self.scene.run.rtol
-            y_new, _ = pbm.adaptive_exponential_step(self.y, self.t_s, h, system, rtol=rtol, atol=rtol * 1e-6 * max(self.y.sum(), 1e-300))
-            op_end = self.operating_point(end_inputs or new_inputs)
-        else:
-            # Everything that depends only on the frozen inputs and h is built once.
-            key = (new_inputs["tip_speed_m_per_s"], new_inputs["solids_mass_fraction"], new_inputs["bead_filling"], new_inputs["feed_mass_flow_kg_per_s"], h)
-            frozen = self._cache.get(key, lambda: self._frozen_step(new_inputs, h))
-            op, phi, gam = frozen.op, frozen.phi, frozen.gam
-            y_new = phi @ self.y
-            if gam is not None:
-                y_new += gam @ (new_inputs["feed_mass_flow_kg_per_s"] * new_inputs["psd_in"])
-            op_end = op
+        try:
+            with np.errstate(all="ignore"):  # a non-finite result is refused below, by name
+                y_new, op, op_end = self._advance(h, new_inputs, end_inputs, adaptive)
+        except (ValueError, ArithmeticError, RuntimeError, np.linalg.LinAlgError) as e:
+            raise StepError(f"step of {h} s at t = {self.t_s} s failed ({type(e).__name__}: {e})") from None
         if not np.all(np.isfinite(y_new)) or np.any(y_new < 0.0):
             raise StepError(f"step of {h} s at t = {self.t_s} s gave non-finite or negative masses")
         out_kg = float(y_new[0] - self.y[0])
@@ -376,6 +439,35 @@ class MillModel:
         self._last = outs
         return outs
 
+    def _advance(self, h, new_inputs, end_inputs, adaptive):
+        """(state after a step of h seconds, operating point at its start, at its end); commits nothing."""
+        if adaptive:
+            op = self.operating_point(new_inputs)
+
+            def system(t, y):
+                if end_inputs is None:
+                    inp = new_inputs
+                else:
+                    w = min(max((t - self.t_s) / h, 0.0), 1.0)
+                    inp = {k: (1 - w) * np.asarray(new_inputs[k]) + w * np.asarray(end_inputs[k]) for k in new_inputs}
+                series, uu, _ = self._system(inp, y)
+                return series, uu
+
+            # Absolute tolerance scaled with the mass in the state: classes below a
+            # millionth of the total are controlled absolutely, the rest relatively.
+            rtol = self.scene.run.rtol
+            y_new, _ = pbm.adaptive_exponential_step(self.y, self.t_s, h, system, rtol=rtol, atol=rtol * 1e-6 * max(self.y.sum(), 1e-300))
+            op_end = self.operating_point(end_inputs or new_inputs)
+        else:
+            # Everything that depends only on the frozen inputs and h is built once.
+            key = (new_inputs["tip_speed_m_per_s"], new_inputs["solids_mass_fraction"], new_inputs["bead_filling"], new_inputs["feed_mass_flow_kg_per_s"], h)
+            frozen = self._cache.get(key, lambda: self._frozen_step(new_inputs, h))
+            op = frozen.op
+            u = new_inputs["feed_mass_flow_kg_per_s"] * new_inputs["psd_in"] if self.continuous else None
+            y_new = frozen.propagator.apply(self.y, u)
+            op_end = op
+        return y_new, op, op_end
+
     def _specific_energy(self) -> float:
         """Stirrer energy per mass of solids treated [J/kg]: E / (initial holdup + solids fed)."""
         m = self.m0_kg + self.fed_kg
@@ -389,11 +481,15 @@ class MillModel:
         last = tanks[0]
         # Size distribution of the product (continuous: last tank = outlet) or mill content.
         dist = last if self.continuous else content
-        per_class = dist[:n] + (dist[n:] if self.material.inert_fragments else 0.0)
+        # The finest class of the psd output holds what lies below the grid (as psd_in does);
+        # below_grid_fraction names that part.
+        per_class = dist[:n] + (dist[n : 2 * n] if self.material.inert_fragments else 0.0)
+        per_class[0] += dist[-1]
         tot = float(per_class.sum())
         psd = per_class / tot if tot > 0.0 else np.zeros(n)
+        below = float(dist[-1]) / tot if tot > 0.0 else 0.0
         holdup = float(content.sum())
-        x10, x50, x90 = kgrid.characteristic_sizes_m(self.grid, psd, (0.1, 0.5, 0.9)) if tot > 0 else (math.nan,) * 3
+        x10, x50, x90 = kgrid.characteristic_sizes_m(self.grid, psd, (0.1, 0.5, 0.9), below) if tot > 0 else (math.nan,) * 3
         num = self._op_numbers(op)
         if math.isfinite(x50):
             sf_nodes = num["sf_nodes"] if num["sf_nodes"] is not None else self._sf_nodes(op, y).ravel()
@@ -406,6 +502,7 @@ class MillModel:
             "x10_m": x10,
             "x50_m": x50,
             "x90_m": x90,
+            "below_grid_fraction": below,
             "holdup_kg": holdup,
             "product_mass_flow_kg_per_s": out_kg / dt_s if dt_s > 0 else 0.0,
             "feed_mass_flow_kg_per_s": float(inputs["feed_mass_flow_kg_per_s"]),
@@ -444,12 +541,24 @@ class MillModel:
         return op.stress_frequency_per_s(self.operator.nodes_m, n_p)
 
     def outputs(self) -> dict:
-        """Outputs at the current time: psd (class mass fractions [-]), x10_m/x50_m/x90_m [m],
+        """Outputs at the current time: psd (class mass fractions [-], the finest class with
+        what lies below the grid), below_grid_fraction (the product's mass fraction below
+        the grid's lowest edge [-]), x10_m/x50_m/x90_m [m],
         holdup_kg, product_mass_flow_kg_per_s (mean over the last step), feed_mass_flow_kg_per_s,
         se_beads_J/se_product_J [J], sf_per_s (SF at x50 [1/s]), stress_number [-],
         power_W, specific_energy_J_per_kg, eta_eff_Pa_s, reynolds [-], disrupted_fraction
         (yeast) [-]."""
         return self._last
+
+    def output_warnings(self, out: dict | None = None) -> list:
+        """Warnings about outputs (default: the current ones): more than OUTSIDE_GRID_MAX of
+        the product below the size grid, where its sizes are not resolved."""
+        out = out if out is not None else self._last
+        b = float(out.get("below_grid_fraction", 0.0))
+        if b <= OUTSIDE_GRID_MAX:
+            return []
+        return [f"{b:.1%} of the product mass lies below the size grid (x < {self.grid.edges_m[0]:.3g} m) at t = {out['t_s']:g} s; "
+                f"its sizes are not resolved (x10 is reported as the lowest edge when inside it): lower grid.x_min_m to resolve it"]
 
     def tank_masses_kg(self) -> np.ndarray:
         """Copy of the masses per tank (first tank first) and state entry [kg], shape (N, m)."""

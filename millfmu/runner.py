@@ -2,7 +2,10 @@
 
 Files are first written to a temporary folder next to the target and moved into place
 only when all of them are complete, so an interrupted or failed run leaves no
-half-written results.
+half-written results; result files of an earlier run in the folder that this run does not
+write (e.g. its plots, with --no-plots) are removed then, so a folder never mixes runs.
+result.json carries the run's provenance: the resolved scene (every key), millfmu, Python
+and numpy versions, the stress-energy table's identity and stated error, the wall time.
 """
 
 from __future__ import annotations
@@ -18,7 +21,37 @@ from pathlib import Path
 import numpy as np
 
 from .mill import MillModel
-from .scene import Scene
+from .scene import Scene, scene_to_dict
+
+#: Every file a run writes into its output folder (the plots only with plots on).
+RESULT_FILES = ("result.json", "psd.csv", "psd.png", "sizes.png")
+
+
+class OutputError(ValueError):
+    """The output folder cannot take the results: names the option, the path and why."""
+
+    def __init__(self, path, why: str):
+        self.path = str(path)
+        super().__init__(f"--out {self.path}: {why}")
+
+
+def check_out_dir(out_dir) -> Path:
+    """OutputError unless ``out_dir`` is (or can become) a folder this process can write
+    into: checked by making and removing a temporary folder beside it before a run."""
+    out = Path(out_dir)
+    if out.exists() and not out.is_dir():
+        raise OutputError(out, "exists and is not a folder; give a folder (new or from an earlier run)")
+    parent = out.parent
+    try:
+        parent.mkdir(parents=True, exist_ok=True)
+        probe = Path(tempfile.mkdtemp(prefix=".millfmu-probe-", dir=parent))
+        probe.rmdir()
+        if out.is_dir():
+            probe = Path(tempfile.mkdtemp(prefix=".millfmu-probe-", dir=out))
+            probe.rmdir()
+    except OSError as e:
+        raise OutputError(out, f"cannot write there ({e.strerror or e}); give a writable folder") from None
+    return out
 
 #: Scalars written per output time to result.json, with their units.
 RESULT_KEYS = {
@@ -26,6 +59,7 @@ RESULT_KEYS = {
     "x10_m": "m",
     "x50_m": "m",
     "x90_m": "m",
+    "below_grid_fraction": "1",
     "total_mass_kg": "kg",
     "holdup_kg": "kg",
     "product_mass_flow_kg_per_s": "kg/s",
@@ -61,7 +95,8 @@ def simulate(scene: Scene, progress: bool = True):
     def record(out):
         values = {**out, "total_mass_kg": model.total_mass_kg()}
         records.append({k: float(values[k]) for k in RESULT_KEYS if k in values})
-        psds.append(np.cumsum(out["psd"]))
+        # Q3 at every edge, the lowest one included (the mass below the grid).
+        psds.append(np.concatenate(([out["below_grid_fraction"]], np.cumsum(out["psd"]))))
 
     profile = bool(r.tip_speed_profile)
     if profile:
@@ -95,10 +130,61 @@ def simulate(scene: Scene, progress: bool = True):
     return model, records, psds
 
 
-def write_results(out_dir: str | Path, scene: Scene, model: MillModel, records, psds, plots: bool = True) -> list[Path]:
-    """Write result.json, psd.csv and PNG plots into out_dir atomically; returns the paths."""
-    out = Path(out_dir)
-    out.parent.mkdir(parents=True, exist_ok=True)
+def run_warnings(model: MillModel, records) -> list:
+    """The model's warnings about its data, and those about the outputs (below-grid mass) at
+    the output time where that mass is largest."""
+    out = list(model.warnings)
+    if records:
+        out.extend(model.output_warnings(max(records, key=lambda r: r.get("below_grid_fraction", 0.0))))
+    return out
+
+
+def provenance(scene: Scene, model: MillModel, wall_s: float | None = None) -> dict:
+    """What reproduces a run: the resolved scene (every key with its value), versions, the
+    stress-energy table's identity and stated error at the final operating point, wall time."""
+    import platform
+
+    from . import __version__
+
+    prov = {
+        "scene": scene_to_dict(scene),
+        "millfmu_version": __version__,
+        "python_version": platform.python_version(),
+        "numpy_version": np.__version__,
+        "inputs_final": {k: (v.tolist() if isinstance(v, np.ndarray) else v) for k, v in model.inputs.items()},
+        "wall_time_s": wall_s,
+    }
+    src = model.source
+    table = getattr(src, "table", None)
+    if table is not None:
+        m = table.manifest
+        ident = {"ref": scene.kinetics.stress_distribution.table, "key": m.get("key"), "manifest_sha256": m.get("manifest_sha256"),
+                 "files": m.get("files"), "kernel_version": m.get("kernel_version"), "builder": m.get("builder"),
+                 "grid": m.get("grid"), "resolution": m.get("resolution"), "rebuild_command": m.get("rebuild_command")}
+        lk = getattr(src, "last_lookup", None)
+        if lk is not None:
+            # Stated error (interpolation + 2 sigma of the DEM sampling) relative to the value, per zone.
+            def rel(name, sel=lambda a: a):
+                v, b = sel(lk.values[name]), sel(lk.bound(name))
+                return [float(x) if np.isfinite(x) else None for x in np.where(np.abs(v) > 0, b / np.where(np.abs(v) > 0, np.abs(v), 1.0), np.nan)]
+
+            from .dem.tables import COMPONENTS
+
+            ci = COMPONENTS.index(src.component)
+            ident["stated_error"] = {"point": lk.point, "zones": list(table.zone_names),
+                                     "collision_frequency_relative": rel("collision_frequency_norm"),
+                                     "se_median_relative": rel("se_quantiles_norm", lambda a: a[ci, :, 1]),
+                                     "notes": list(getattr(src, "last_notes", []))}
+        prov["table"] = ident
+    return prov
+
+
+def write_results(out_dir: str | Path, scene: Scene, model: MillModel, records, psds, plots: bool = True,
+                  wall_s: float | None = None) -> list[Path]:
+    """Write result.json, psd.csv and PNG plots into out_dir atomically; returns the paths.
+
+    Result files of an earlier run there that this run does not write are removed."""
+    out = check_out_dir(out_dir)
     tmp = Path(tempfile.mkdtemp(prefix=".millfmu-", dir=out.parent))
     try:
         op = model.operating_point(model.inputs)
@@ -117,11 +203,14 @@ def write_results(out_dir: str | Path, scene: Scene, model: MillModel, records, 
             },
             "units": {k: v for k, v in RESULT_KEYS.items()},
             "outputs": records,
+            "warnings": run_warnings(model, records),
+            "provenance": provenance(scene, model, wall_s),
         }
         (tmp / "result.json").write_text(json.dumps(result, indent=1, allow_nan=True))
         with open(tmp / "psd.csv", "w", newline="") as fh:
             w = csv.writer(fh)
-            w.writerow(["t_s"] + [f"Q3_x_le_{e:.6g}_m" for e in model.grid.edges_m[1:]])
+            # The first Q3 column, at the grid's lowest edge, is the mass below the grid.
+            w.writerow(["t_s"] + [f"Q3_x_le_{e:.6g}_m" for e in model.grid.edges_m])
             for rec, q in zip(records, psds):
                 w.writerow([repr(rec["t_s"])] + [f"{v:.12g}" for v in q])
         if plots:
@@ -131,6 +220,9 @@ def write_results(out_dir: str | Path, scene: Scene, model: MillModel, records, 
         for f in sorted(tmp.iterdir()):
             os.replace(f, out / f.name)
             written.append(out / f.name)
+        for name in RESULT_FILES:
+            if not (tmp / name).exists() and (out / name) not in written:
+                (out / name).unlink(missing_ok=True)
         return written
     finally:
         shutil.rmtree(tmp, ignore_errors=True)
@@ -149,10 +241,16 @@ def _plots(folder: Path, model: MillModel, records, psds):
     fig, (a1, a2) = plt.subplots(1, 2, figsize=(11, 4.2))
     for k, i in enumerate(idx):
         c = cmap(k / max(1, len(idx) - 1))
-        q3 = psds[i]
-        a1.semilogx(e[1:] * 1e6, q3, color=c, label=f"t = {t[i]:g} s")
-        dens = np.diff(np.concatenate(([0.0], q3))) / np.diff(np.log10(e))
+        q3 = psds[i]  # at every edge: q3[0] is the mass below the grid
+        a1.semilogx(e * 1e6, q3, color=c, label=f"t = {t[i]:g} s")
+        dens = np.diff(q3) / np.diff(np.log10(e))
         a2.semilogx(model.grid.x_m * 1e6, dens, color=c)
+        if q3[0] > 0.0:
+            a2.plot([e[0] * 1e6], [q3[0]], "v", color=c, ms=5)
+    b = psds[idx[-1]][0]
+    a1.axvline(e[0] * 1e6, color="0.6", lw=0.8)
+    a1.text(e[0] * 1e6, 0.98, f" below grid at t = {t[idx[-1]]:g} s: {b:.2%}", fontsize=8, va="top")
+    a2.set_title("v: mass fraction below the grid (not per decade)", fontsize=8)
     a1.set_xlabel("particle size x [µm]")
     a1.set_ylabel("Q3 [-]")
     a1.grid(True, which="both", alpha=0.3)
@@ -172,6 +270,11 @@ def _plots(folder: Path, model: MillModel, records, psds):
     ax.set_xlabel("time [min]")
     ax.set_ylabel("characteristic size [µm]")
     ax.grid(True, which="both", alpha=0.3)
+    if any(r.get("below_grid_fraction", 0.0) > 0.0 for r in records):
+        ax.plot([], [], "k:", label="below grid (right axis)")
+        axb = ax.twinx()
+        axb.plot(t / 60.0, [r["below_grid_fraction"] for r in records], "k:")
+        axb.set_ylabel("mass fraction below the grid [-]")
     ax.legend()
     if "disrupted_fraction" in records[0]:
         ax2 = ax.twinx()

@@ -8,6 +8,7 @@ and what is allowed. ``millfmu scene-keys`` lists every key with unit, default a
 
 from __future__ import annotations
 
+import copy
 import math
 import sys
 from dataclasses import MISSING, dataclass, field, fields, is_dataclass
@@ -78,7 +79,7 @@ class Beads:
 class Suspension:
     liquid_density_kg_per_m3: float = _f(998.2, unit="kg/m3", lo=500.0, hi=3000.0, doc="liquid density")
     viscosity_Pa_s: float = _f(1.002e-3, unit="Pa s", lo=0.0, hi=100.0, lo_open=True, doc="suspension viscosity eta_susp (Krieger-Dougherty base)")
-    solids_mass_fraction: float = _f(0.2, lo=0.0, hi=0.8, hi_open=True, doc="product solids mass fraction of the suspension")
+    solids_mass_fraction: float = _f(0.2, lo=0.0, lo_open=True, hi=0.8, hi_open=True, doc="product solids mass fraction of the suspension (> 0: a suspension without solids has no product to grind, and its feed flow no volume)")
 
 
 @dataclass(frozen=True)
@@ -151,7 +152,7 @@ class PSD:
 @dataclass(frozen=True)
 class Operation:
     mode: str = _f("batch", choices=("batch", "continuous"), doc="batch, or continuous through N equal tanks in series")
-    n_tanks: int = _f(1, lo=1, hi=50, doc="continuous: tanks in series for the residence time distribution")
+    n_tanks: int = _f(1, lo=1, hi=100, doc="continuous: tanks in series for the residence time distribution")
     feed_mass_flow_kg_per_s: float = _f(0.0, unit="kg/s", lo=0.0, hi=1e3, doc="continuous: solids feed mass flow")
 
 
@@ -305,6 +306,9 @@ def _cross_check(s: Scene, source: str):
         raise SceneError("mill.bead_filling", s.mill.bead_filling, f"with bead_porosity {s.mill.bead_porosity:g} gives a bead volume fraction {c_v:.3f}; must stay below {PHI_MAX_RCP} (random close packing)", source)
     _check_psd(s.feed, "feed", source)
     if s.initial is not None:
+        if s.operation.mode != "continuous":
+            raise SceneError("initial", "[initial] section", f"only for operation.mode = 'continuous' (this scene is {s.operation.mode!r}): "
+                             "a batch mill starts with its feed distribution; give it as [feed]", source)
         _check_psd(s.initial, "initial", source)
     if s.run.dt_s > s.run.t_end_s:
         raise SceneError("run.dt_s", s.run.dt_s, f"must not exceed run.t_end_s = {s.run.t_end_s:g} s", source)
@@ -317,11 +321,61 @@ def _cross_check(s: Scene, source: str):
             raise SceneError("run.tip_speed_profile", prof, "must be [[t_s, v_t_m_per_s], ...] with ascending times and 0 <= v_t <= 40 m/s", source)
 
 
+#: Sections taken whole, not key by key, when a scene gives them with another ``kind`` than
+#: the default scene's (a log-normal's x50_m means nothing to an RRSB distribution).
+_KIND_SECTIONS = ("feed", "initial")
+
+
+def _merged(base: dict, over: dict, path: str = "") -> dict:
+    out = copy.deepcopy(base)
+    for k, v in over.items():
+        key = f"{path}.{k}" if path else k
+        b = out.get(k)
+        if isinstance(v, dict) and isinstance(b, dict) and not (key in _KIND_SECTIONS and v.get("kind", b.get("kind")) != b.get("kind")):
+            out[k] = _merged(b, v, key)
+        else:
+            out[k] = copy.deepcopy(v)
+    return out
+
+
+def _default_dict() -> dict:
+    global _DEFAULT_DICT
+    if _DEFAULT_DICT is None:
+        _DEFAULT_DICT = tomllib.loads(default_scene_text())
+    return _DEFAULT_DICT
+
+
+_DEFAULT_DICT = None
+
+
+def resolve_dict(d: dict) -> dict:
+    """The scene dict with every key left out taken from the embedded default scene (one set
+    of defaults: a key missing from both has its listed default, ``millfmu scene-keys``)."""
+    if not isinstance(d, dict):
+        raise SceneError("(scene)", d, "must be a table of sections")
+    return _merged(_default_dict(), d)
+
+
 def scene_from_dict(d: dict, source: str = "scene") -> Scene:
-    """Validate a scene given as a dict (as read from TOML)."""
-    s = _load_section(Scene, d, "", source)
+    """Validate a scene given as a dict (as read from TOML); keys left out take the embedded
+    default scene's values (:func:`resolve_dict`)."""
+    s = _load_section(Scene, resolve_dict(d), "", source)
     _cross_check(s, source)
     return s
+
+
+def scene_to_dict(s: Scene) -> dict:
+    """Every key of a scene with its value (sections as dicts; unset values left out): the
+    resolved scene, e.g. for a result's provenance or to write it back as TOML."""
+
+    def plain(obj):
+        if is_dataclass(obj):
+            return {f.name: plain(getattr(obj, f.name)) for f in fields(obj) if getattr(obj, f.name) is not None}
+        if isinstance(obj, (list, tuple)):
+            return [plain(v) for v in obj]
+        return obj
+
+    return plain(s)
 
 
 def load_scene(path: str | Path | None = None) -> Scene:
@@ -344,18 +398,24 @@ def load_scene(path: str | Path | None = None) -> Scene:
 
 
 def default_scene_text() -> str:
-    return resources.files("millfmu.data").joinpath("default_scene.toml").read_text()
+    """The embedded default scene (TOML). Read relative to this package, so that a copy of
+    the package under another name (inside an FMU) reads its own."""
+    return resources.files(__name__.rpartition(".")[0] + ".data").joinpath("default_scene.toml").read_text()
 
 
-def iter_keys(cls=Scene, prefix=""):
-    """Yield (dotted key, unit, default, allowed, doc) for every scene key."""
+def iter_keys(cls=Scene, prefix="", default_obj=MISSING):
+    """Yield (dotted key, unit, default, allowed, doc) for every scene key; the default is the
+    embedded default scene's value where it sets the key."""
+    if default_obj is MISSING:
+        default_obj = scene_from_dict({}, "default scene")
     for f in fields(cls):
         key = f"{prefix}.{f.name}" if prefix else f.name
         sub = _section_type(f)
+        value = getattr(default_obj, f.name, None) if default_obj is not None else None
         if sub is not None:
-            yield from iter_keys(sub, key)
+            yield from iter_keys(sub, key, value if value is not None else f.default if f.default is not MISSING else None)
             continue
         md = f.metadata
-        default = f.default if f.default is not MISSING else (f.default_factory() if f.default_factory is not MISSING else None)
+        default = value
         allowed = _describe(md) if f.type in ("float", "int", float, int) or md["choices"] else str(f.type)
         yield key, md.get("unit", ""), default, allowed, md.get("doc", "")

@@ -28,6 +28,9 @@ def register(subparsers) -> argparse.ArgumentParser:
                    help="simulate a rotationally periodic sector of 360/k degrees (k >= 4); "
                         "needs zero gravity (use --no-gravity)")
     r.add_argument("--no-gravity", action="store_true", help="switch gravity off")
+    r.add_argument("--fluid", dest="fluid_mode", choices=("coupled", "prescribed", "none"),
+                   help="fluid model (overrides the scene's [fluid] mode): coupled CFD-DEM, "
+                        "prescribed swirl, or none")
     r.add_argument("--spin-up", type=float, dest="spin_up_s", metavar="S",
                    help="spin-up time excluded from the statistics [s]")
     r.add_argument("--record", type=float, dest="record_s", metavar="S",
@@ -35,6 +38,9 @@ def register(subparsers) -> argparse.ArgumentParser:
     r.add_argument("--sample-every", type=float, dest="sample_every_s", metavar="S",
                    help="sampling interval of positions and velocities [s]")
     r.add_argument("--dt", type=float, dest="dt_s", metavar="S", help="time step [s]")
+    r.add_argument("--initial-rotation", type=float, dest="initial_rotation", metavar="F",
+                   help="beads and coupled fluid start turning at this fraction of the "
+                        "stirrer's angular velocity (default 0: from rest)")
     r.add_argument("--threads", type=int, help="numba threads (default: all cores)")
     r.add_argument("--windows", type=float, dest="window_s", metavar="S",
                    help="also write windows.csv: zone statistics of consecutive recording "
@@ -59,8 +65,37 @@ def register(subparsers) -> argparse.ArgumentParser:
     b.add_argument("--regenerate-bed", action="store_true",
                    help="make the bed again (it is made once and cached)")
     b.add_argument("--json", action="store_true", help="also print every run as JSON")
+    b.add_argument("--coupled", action="store_true",
+                   help="also the coupled row: disc_slice with the coupled fluid against the "
+                        "DEM alone on the same beads, alternating, best of 3 (on the largest "
+                        "of --cores threads)")
     b.set_defaults(func=_bench)
+
+    s = sub.add_parser("seed001", help="seed 001 side by side: run its cases, print the "
+                                       "deviation table")
+    s.add_argument("action", choices=("run", "table"), help="run the cases (skipping those "
+                   "done) or print the table from their results")
+    s.add_argument("--out", required=True, help="folder of the case runs")
+    s.add_argument("--fluid", default="coupled,prescribed",
+                   help="fluid models to run (comma-separated; default both)")
+    s.add_argument("--threads", type=int, help="numba threads (default: all cores)")
+    s.set_defaults(func=_seed001)
     return p
+
+
+def _seed001(args) -> int:
+    from millfmu.dem import seed001
+
+    if args.action == "run":
+        fluids = [f.strip() for f in args.fluid.split(",") if f.strip()]
+        bad = [f for f in fluids if f not in seed001.FLUIDS]
+        if bad:
+            print(f"millfmu dem seed001: --fluid {args.fluid!r}: allowed "
+                  f"{sorted(seed001.FLUIDS)}", file=sys.stderr)
+            return 2
+        seed001.run_campaign(args.out, fluids=fluids, threads=args.threads)
+    print(seed001.markdown(seed001.deviation_rows(args.out)))
+    return 0
 
 
 def _run(args) -> int:
@@ -70,7 +105,7 @@ def _run(args) -> int:
         scene = load_scene(args.scene)
         over = {k: getattr(args, k) for k in ("tip_speed_m_s", "filling", "sector_deg",
                                               "spin_up_s", "record_s", "sample_every_s",
-                                              "dt_s")}
+                                              "dt_s", "fluid_mode", "initial_rotation")}
         if args.no_gravity:
             over["gravity_m_s2"] = (0.0, 0.0, 0.0)
         scene = scene.with_overrides(**over)
@@ -103,6 +138,17 @@ def _bench(args) -> int:
     runs = B.bench(steps=steps, repeats=args.repeats or B.BENCH_REPEATS, cores=cores,
                    others=not args.ours_only, regenerate=args.regenerate_bed,
                    devices=(args.device,) if args.device else ("cpu", "gpu"))
+    out = {"runs": [dict(r.__dict__, rate=r.rate) for r in runs]}
+    if args.coupled:
+        from millfmu.dem.coupling.bench import run_coupled_bench
+
+        c = out["coupled"] = run_coupled_bench(steps=steps, threads=max(cores)).as_dict()
+        print(f"coupled row (disc_slice 10 m/s, 80 %, 10 deg, {c['beads']} beads, "
+              f"{c['fluid_cells']} fluid cells, coupling every {c['coupling_steps']} steps, "
+              f"{c['threads']} threads, best of 3): DEM alone "
+              f"{c['dem_particle_steps_per_s']:.4g}, coupled "
+              f"{c['coupled_particle_steps_per_s']:.4g} particle-steps/s; the fluid and the "
+              f"coupling add {c['added_cost']:.0%}")
     if args.json:
-        print(json.dumps([dict(r.__dict__, rate=r.rate) for r in runs]))
+        print(json.dumps(out))
     return 0

@@ -79,7 +79,8 @@ def write_maps(out: Path, scene, events: np.ndarray, cols: dict):
         ax.set_xlabel("axial position from the disc mid-plane [mm]")
         ax.set_ylabel("radius [mm]")
         ax.set_title(f"{scene.name}: v_tip {scene.tip_speed_m_s:g} m/s, filling "
-                     f"{scene.filling if scene.filling is not None else '-'}", fontsize=9)
+                     f"{scene.filling if scene.filling is not None else '-'}, fluid "
+                     f"{scene.fluid_mode}", fontsize=9)
         fig.tight_layout()
         fig.savefig(out / fname, dpi=110)
         plt.close(fig)
@@ -98,6 +99,77 @@ def write_distributions(path: Path, stats):
         ax.semilogx(mid, z.se["tn"].density_per_decade, label=f"{z.name} SE_tn")
     ax.set_xlabel("stress energy SE_tn [J]")
     ax.set_ylabel("number density [1/decade]")
+    ax.legend(fontsize=8)
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+
+
+def write_fluid_maps(out: Path, scene, fields: dict):
+    """Maps of the coupled fluid's time-mean fields in the axial section: swirl, radial
+    velocity with its zero contour (seed 001 figure 7), axial velocity (all over the tip
+    speed), turbulent viscosity and void fraction."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    zeta = np.asarray(fields["zeta_m"])
+    order = np.argsort(zeta)
+    zs = zeta[order] * 1e3
+    r = np.asarray(fields["r_m"]) * 1e3
+    vt = scene.tip_speed_m_s
+    items = [("map_fluid_swirl.png", fields["u_theta"] / vt, "u_theta / v_tip", "viridis", False),
+             ("map_fluid_radial.png", fields["u_r"] / vt, "u_r / v_tip (black: u_r = 0)",
+              "RdBu_r", True),
+             ("map_fluid_axial.png", fields["u_z"] / vt, "u_z / v_tip", "RdBu_r", False),
+             ("map_turbulent_viscosity.png", fields["nu_t"], "nu_t [m2/s]", "magma", False),
+             ("map_void_fraction.png", fields["eps"], "void fraction [-]", "cividis", False)]
+    for fname, data, label, cmap, zero in items:
+        d = np.ma.masked_invalid(np.asarray(data)[:, order])
+        fig, ax = plt.subplots(figsize=(6, 4.5))
+        kw = {}
+        if cmap == "RdBu_r":
+            lim = float(np.nanmax(np.abs(d))) if d.count() else 1.0
+            kw = dict(vmin=-lim, vmax=lim)
+        m = ax.pcolormesh(zs, r, d, shading="nearest", cmap=cmap, **kw)
+        fig.colorbar(m, ax=ax, label=label)
+        if zero and d.count():
+            ax.contour(zs, r, d.filled(np.nan), levels=[0.0], colors="k", linewidths=1.0)
+        _zone_outline(ax, scene)
+        ax.set_xlabel("axial position from the disc mid-plane [mm]")
+        ax.set_ylabel("radius [mm]")
+        ax.set_title(f"{scene.name}: coupled fluid, v_tip {scene.tip_speed_m_s:g} m/s, "
+                     f"filling {scene.filling if scene.filling is not None else '-'}",
+                     fontsize=9)
+        fig.tight_layout()
+        fig.savefig(out / fname, dpi=110)
+        plt.close(fig)
+
+
+def write_swirl_profile(path: Path, scene, prof: dict):
+    """Fluid and bead speed over the tip speed between the discs at the disc radius
+    (seed 001 figures 9 and 10), over x/D from one disc face to the next."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    x = np.asarray(prof["x_over_gap"], float)
+    fig, ax = plt.subplots(figsize=(6, 4))
+    b = np.array([np.nan if v is None else v for v in prof["beads_speed_over_v_tip"]], float)
+    ax.plot(x, b, "o-", ms=3, label="beads, mean speed")
+    if "fluid_speed_over_v_tip" in prof:
+        f = np.array([np.nan if v is None else v for v in prof["fluid_speed_over_v_tip"]],
+                     float)
+        ax.plot(x, f, "-", label="fluid, speed")
+    w1 = scene.zones.v1_width_m / (scene.geometry.height_m - scene.geometry.disc_thickness_m)
+    for xv in (w1, 1.0 - w1):
+        ax.axvline(xv, color="r", lw=0.8)
+    ax.set_xlabel("x / D between the disc faces at r = R [-]")
+    ax.set_ylabel("speed / tip speed [-]")
+    ax.set_title(f"{scene.name}: v_tip {scene.tip_speed_m_s:g} m/s, filling "
+                 f"{scene.filling}; red: V1 borders", fontsize=9)
     ax.legend(fontsize=8)
     fig.tight_layout()
     fig.savefig(path, dpi=110)

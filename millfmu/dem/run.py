@@ -1,18 +1,31 @@
 """Run a DEM scene: spin-up, recording, zone statistics and output files.
 
 Outputs in the output folder:
-- ``stats.json``: :class:`millfmu.dem.stats.DemStats` (plain JSON);
+- ``stats.json``: :class:`millfmu.dem.stats.DemStats` (plain JSON), with the fluid model
+  named in ``fluid_model`` and, in ``flow``, the mean-flow structure (see
+  :func:`flow_summary`): torque and power split into fluid shear and bead contacts and the
+  power number (coupled fluid), the angular-momentum budget, vortices of the mean flow,
+  swirl profiles between the discs at the disc radius and the first bead layer's angular
+  velocity;
 - ``se_histograms.csv``: stress-energy number densities [1/decade] per zone and component
   on the log bins of ``stats.json``;
 - ``kinetic_energy.csv``: bead kinetic energy over time (spin-up and recording);
 - ``map_stress_energy.png``, ``map_collision_frequency.png``, ``map_collision_power.png``:
   radially averaged (i.e. averaged over the angle) maps in the axial section, like seed 001
-  figures 12-15; ``se_distributions.png``: SE_tn distributions per zone (seed 001 Fig. A1).
+  figures 12-15; ``se_distributions.png``: SE_tn distributions per zone (seed 001 Fig. A1);
+- disc slices: ``bead_fields.npz`` (time-mean bead fields of the axial section: solids
+  fraction, velocities, axial solids flux, on the fluid grid's bins);
+- coupled fluid only: ``fluid_fields.npz`` (time-mean fields of the axial section),
+  ``map_fluid_swirl.png``, ``map_fluid_radial.png`` (with its zero contour, seed 001
+  figure 7), ``map_fluid_axial.png``, ``map_turbulent_viscosity.png``,
+  ``map_void_fraction.png``, and for disc slices ``swirl_profile.png`` (fluid and beads
+  between the discs at the disc radius, seed 001 figures 9 and 10).
 """
 
 from __future__ import annotations
 
 import json
+import math
 import time
 from pathlib import Path
 
@@ -24,9 +37,10 @@ from millfmu.dem.scene import DemScene
 from millfmu.dem.stats import DemStats, compute_stats
 from millfmu.dem.zones import Zones
 
-FLUID_NOTE = ("prescribed swirl flow (no CFD coupling): azimuthal fluid velocity between "
-              "the rotating stirrer and the fixed chamber wall as documented in "
-              "millfmu.dem.kernels.swirl_velocity; no radial/axial circulation")
+#: Initial turbulence of the coupled fluid (the stirrer starts from rest): k = (0.02 v_t)^2,
+#: epsilon from a 1 mm mixing length; k-epsilon forgets it within a few stirrer turns.
+INITIAL_TURBULENCE_INTENSITY = 0.02
+INITIAL_MIXING_LENGTH_M = 1e-3
 
 
 def initial_positions(scene: DemScene) -> np.ndarray:
@@ -40,31 +54,72 @@ def initial_positions(scene: DemScene) -> np.ndarray:
     return place_beads(scene.geometry, n, r, seed=scene.seed)
 
 
+def make_simulation(scene: DemScene, threads: int | None = None):
+    """The DEM of ``scene`` and, for the coupled fluid, its :class:`CfdDem` (else None)."""
+    from millfmu.dem.sim import DemSimulation
+
+    x0 = initial_positions(scene)
+    v0 = None
+    if scene.initial_rotation:
+        w = scene.initial_rotation * scene.omega_rad_s
+        v0 = np.column_stack([-w * x0[:, 1], w * x0[:, 0], np.zeros(len(x0))])
+    sim = DemSimulation(scene.geometry, scene.material, x0, 0.5 * scene.bead_diameter_m,
+                        scene.omega_rad_s, scene.dt_s, gravity_m_s2=scene.gravity_m_s2,
+                        fluid=scene.fluid, threads=threads, velocities_m_s=v0)
+    cpl = None
+    if scene.fluid_mode == "coupled":
+        from millfmu.dem.coupling.cfd_dem import CfdDem
+        from millfmu.dem.fluid.grid import mill_grid
+        from millfmu.dem.fluid.solver import FluidProperties
+
+        c = scene.coupling
+        grid = mill_grid(scene.geometry, c.cell_m, n_theta=c.n_theta)
+        cpl = CfdDem(sim, grid, FluidProperties(scene.fluid.density_kg_m3,
+                                                scene.fluid.viscosity_pa_s), c,
+                     scene.omega_rad_s)
+        if c.turbulence == "k_epsilon":
+            cpl.solver.init_turbulence((INITIAL_TURBULENCE_INTENSITY * scene.tip_speed_m_s) ** 2,
+                                       INITIAL_MIXING_LENGTH_M)
+        if scene.initial_rotation:
+            cpl.solver.init_solid_body(scene.initial_rotation)
+    return sim, cpl
+
+
+def bead_angular_momentum_kgm2_s(sim) -> float:
+    """Angular momentum of the beads about the axis [kg m2/s]: orbit and spin."""
+    x, v = sim.x, sim.v
+    return float((sim.mass * (x[:, 0] * v[:, 1] - x[:, 1] * v[:, 0])).sum() +
+                 (sim.inertia * sim.w[:, 2]).sum())
+
+
 def run_scene(scene: DemScene, out_dir, progress: bool = True, threads: int | None = None,
               window_s: float | None = None) -> DemStats:
     """Run ``scene`` and write its outputs to ``out_dir``; returns the statistics.
 
     ``window_s`` [s]: also cut the recording into consecutive windows of this length (a
     whole number of sampling intervals) and write each window's zone statistics to
-    ``windows.csv``, to see whether the recorded state is stationary.
+    ``windows.csv``, to see whether the recorded state is stationary. With the coupled
+    fluid, spin-up, recording and sampling interval are rounded up to whole coupling
+    intervals.
     """
     from millfmu.dem import kernels as K
-    from millfmu.dem.sim import DemSimulation
 
     EV_COLS = dict(type=K.EV_TYPE, x=K.EV_X, y=K.EV_Y, z=K.EV_Z, setn=K.EV_SETN,
                    sets=K.EV_SETS, serot=K.EV_SEROT)
 
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
-    x0 = initial_positions(scene)
-    sim = DemSimulation(scene.geometry, scene.material, x0, 0.5 * scene.bead_diameter_m,
-                        scene.omega_rad_s, scene.dt_s, gravity_m_s2=scene.gravity_m_s2,
-                        fluid=scene.fluid, threads=threads)
+    sim, cpl = make_simulation(scene, threads)
     zones = Zones(scene.geometry, scene.zones)
     dt = scene.dt_s
-    n_spin = int(round(scene.spin_up_s / dt))
-    n_rec = max(1, int(round(scene.record_s / dt)))
-    every = max(1, int(round(scene.sample_every_s / dt)))
+    unit = cpl.settings.steps if cpl is not None else 1
+
+    def whole(t_s, at_least=0):
+        return max(at_least, unit * int(math.ceil(round(t_s / dt, 6) / unit)))
+
+    n_spin = whole(scene.spin_up_s)
+    n_rec = whole(scene.record_s, unit)
+    every = whole(scene.sample_every_s, unit)
     total = n_spin + n_rec
     bar = None
     if progress:
@@ -77,6 +132,10 @@ def run_scene(scene: DemScene, out_dir, progress: bool = True, threads: int | No
     events = []
     torques = []
     dropped = builds = 0
+    fluid_acc = {}
+    fluid_samples = 0
+    substeps = []
+    budget0 = None
     t_wall = time.perf_counter()
 
     def sample():
@@ -84,19 +143,33 @@ def run_scene(scene: DemScene, out_dir, progress: bool = True, threads: int | No
         ke_t.append(sim.step_count * dt)
         ke.append(et + er)
 
+    def advance(k, record):
+        if cpl is None:
+            return [sim.run(k, record=record)]
+        return cpl.run(k, record=record)
+
     sample()
     done = 0
     while done < total:
         recording = done >= n_spin
+        if recording and budget0 is None:
+            budget0 = _budget_reading(sim, cpl)
         k = min(every, (n_spin - done) if not recording else total - done)
-        st = sim.run(k, record=recording)
-        builds += st.neighbour_builds
+        sts = advance(k, recording)
+        for st in sts:
+            builds += st.neighbour_builds
         if recording:
-            events.append(st.events)
-            torques.append((k, st.torque_sum_nm_steps))
-            dropped += st.dropped_events
+            events.append(np.concatenate([st.events for st in sts]))
+            torques.append((k, sum(st.torque_sum_nm_steps for st in sts),
+                            sum(st.chamber_torque_sum_nm_steps for st in sts)))
+            dropped += sum(st.dropped_events for st in sts)
             sx.append(sim.x.copy())
             sv.append(sim.v.copy())
+            if cpl is not None:
+                for name, a in cpl.section_fields().items():
+                    fluid_acc[name] = fluid_acc.get(name, 0.0) + a
+                fluid_samples += 1
+                substeps.append(cpl.solver.last_substeps)
         done += k
         sample()
         if bar is not None:
@@ -106,8 +179,7 @@ def run_scene(scene: DemScene, out_dir, progress: bool = True, threads: int | No
     wall = time.perf_counter() - t_wall
     ev = np.concatenate(events) if events else np.zeros((0, K.EV_NF))
     notes = [
-        "fluid: " + (FLUID_NOTE if scene.fluid is not None and scene.fluid.drag
-                     else "no fluid drag"),
+        "fluid: " + scene.fluid_description,
         "spin-up excluded from all statistics; samples and contacts from the recording "
         "window only",
         "zones V1-V4 as read from seed 001 Figure 2 (see millfmu.dem.zones)",
@@ -127,7 +199,7 @@ def run_scene(scene: DemScene, out_dir, progress: bool = True, threads: int | No
             torque_on_stirrer_nm=sum(torques[i][1] for i in chunks) / max(n, 1),
             ke_t_s=np.array(ke_t), ke_j=np.array(ke), spin_up_s=t0_s, dt_s=dt,
             filling=scene.filling, bulk_porosity=scene.bulk_porosity,
-            fluid_model=FLUID_NOTE if scene.fluid is not None else "none", notes=notes,
+            fluid_model=scene.fluid_description, notes=notes,
             counts=counts or {})
 
     stats = stats_of(list(range(len(events))), n_spin * dt, counts=dict(
@@ -137,6 +209,14 @@ def run_scene(scene: DemScene, out_dir, progress: bool = True, threads: int | No
         dropped_contacts=int(dropped), neighbour_builds=int(builds),
         steps=int(total), wall_time_s=wall, threads=int(sim.threads),
         particle_steps_per_s=sim.n * total / wall))
+    fields = None
+    if cpl is not None and fluid_samples:
+        fields = {k: v / fluid_samples for k, v in fluid_acc.items()}
+        fields["r_m"] = cpl.grid.r_centres_m
+        fields["zeta_m"] = _zeta_of_grid(cpl.grid, scene.geometry)
+    flow = flow_summary(scene, sim, cpl, sx, sv, torques, budget0, fields, substeps)
+    bead_fields = flow.pop("_bead_fields", None)
+    stats.flow = _finite(flow)
     if window_s is not None:
         per = max(1, int(round(window_s / (every * dt))))
         rows = []
@@ -154,7 +234,163 @@ def run_scene(scene: DemScene, out_dir, progress: bool = True, threads: int | No
 
     plots.write_maps(out, scene, ev, EV_COLS)
     plots.write_distributions(out / "se_distributions.png", stats)
+    if bead_fields is not None:
+        np.savez(out / "bead_fields.npz", **bead_fields)
+        # the recorded bead samples, for measures of the bead motion made later
+        np.savez_compressed(out / "bead_samples.npz", x_m=np.array(sx, np.float32),
+                            v_m_s=np.array(sv, np.float32), radii_m=sim.rad)
+    if fields is not None:
+        np.savez(out / "fluid_fields.npz", **fields)
+        plots.write_fluid_maps(out, scene, fields)
+    if scene.geometry.has_disc and "swirl_profile_at_disc_radius" in stats.flow:
+        plots.write_swirl_profile(out / "swirl_profile.png", scene,
+                                  stats.flow["swirl_profile_at_disc_radius"])
     return stats
+
+
+def _finite(obj):
+    """Plain-JSON copy: numpy scalars as floats, non-finite numbers as None."""
+    if isinstance(obj, dict):
+        return {k: _finite(v) for k, v in obj.items()}
+    if isinstance(obj, (list, tuple)):
+        return [_finite(v) for v in obj]
+    if isinstance(obj, (float, np.floating)):
+        return float(obj) if math.isfinite(obj) else None
+    if isinstance(obj, np.integer):
+        return int(obj)
+    return obj
+
+
+def _zeta_of_grid(grid, geometry):
+    from millfmu.dem.flow_structure import fold_zeta
+
+    return fold_zeta(grid.z_centres_m, geometry.disc_z_m, geometry.height_m)
+
+
+def _budget_reading(sim, cpl) -> dict:
+    """Angular momenta [kg m2/s] and the fluid's wall impulses [N m s] at this instant."""
+    r = dict(beads=bead_angular_momentum_kgm2_s(sim), fluid=0.0, shaft=0.0, rotor_cells=0.0,
+             stator=0.0)
+    if cpl is not None:
+        r["fluid"] = cpl.solver.angular_momentum_kgm2_s()
+        r.update(cpl.angular_impulses_nms())
+    return r
+
+
+def flow_summary(scene, sim, cpl, sx, sv, torques, budget0, fields, substeps) -> dict:
+    """Mean-flow structure of the recording (plain JSON data; SI units, full circle per
+    axial period where a torque or power is given)."""
+    from millfmu.dem import flow_structure as FS
+
+    g = scene.geometry
+    frac = g.sector_fraction
+    n_steps = sum(t[0] for t in torques)
+    t_rec = n_steps * scene.dt_s
+    om = scene.omega_rad_s
+    out = {"fluid_mode": scene.fluid_mode}
+    # torques the beads exert on stirrer and chamber (mean over the recording, sector)
+    tb_rot = sum(t[1] for t in torques) / max(n_steps, 1)
+    tb_sta = sum(t[2] for t in torques) / max(n_steps, 1)
+    torque = {"stirrer_bead_contacts_nm": -tb_rot / frac,
+              "chamber_bead_contacts_nm": tb_sta / frac}
+    b1 = _budget_reading(sim, cpl)
+    if cpl is not None and budget0 is not None and t_rec > 0:
+        jf_rot = (b1["shaft"] - budget0["shaft"]) + (b1["rotor_cells"] - budget0["rotor_cells"])
+        jf_sta = b1["stator"] - budget0["stator"]
+        torque["stirrer_fluid_shear_nm"] = -jf_rot / t_rec / frac
+        torque["chamber_fluid_shear_nm"] = jf_sta / t_rec / frac
+        torque["stirrer_total_nm"] = torque["stirrer_fluid_shear_nm"] +             torque["stirrer_bead_contacts_nm"]
+        drive = -(jf_rot + tb_rot * t_rec)
+        walls = jf_sta + tb_sta * t_rec
+        change = (b1["fluid"] - budget0["fluid"]) + (b1["beads"] - budget0["beads"])
+        scale = max(abs(drive), abs(walls), abs(change), 1e-300)
+        out["angular_momentum_budget"] = dict(
+            note="simulated sector over the recording [N m s, kg m2/s]: stirrer drive = "
+                 "change of fluid + bead angular momentum + impulse taken by the chamber "
+                 "wall",
+            stirrer_drive_nms=drive, chamber_nms=walls,
+            change_fluid=b1["fluid"] - budget0["fluid"],
+            change_beads=b1["beads"] - budget0["beads"],
+            closure_rel=(drive - change - walls) / scale)
+        rho = scene.fluid.density_kg_m3
+        n_rev = om / (2.0 * math.pi)
+        p_tot = torque["stirrer_total_nm"] * om
+        d_disc = 2.0 * (g.disc_radius_m if g.has_disc else g.shaft_radius_m)
+        out["power_number"] = dict(
+            value=p_tot / (rho * n_rev ** 3 * d_disc ** 5),
+            definition="Ne = P / (rho_liquid n^3 d^5): P the stirrer power of one axial "
+                       "period (fluid shear + bead contacts), n [1/s] the stirrer speed, "
+                       "d the disc (annulus: shaft) diameter")
+        sub = np.asarray(substeps, float)
+        out["fluid"] = dict(
+            model=scene.fluid_description, grid=cpl.grid.describe(),
+            coupling_interval_s=cpl.interval_s,
+            cfd_substeps_per_interval=float(sub.mean()) if sub.size else None,
+            cfd_dt_s=cpl.interval_s / float(sub.mean()) if sub.size else None,
+            void_fraction_min=float(np.nanmin(fields["eps"])) if fields else None,
+            void_fraction_mean=float(np.nanmean(fields["eps"])) if fields else None,
+            clipped_cells_last=int(cpl.clipped_cells),
+            turbulent_viscosity_max_m2_s=float(np.nanmax(fields["nu_t"])) if fields else None)
+    out["power_w"] = {k.replace("_nm", "_w"): v * om for k, v in torque.items()}
+    out["torque"] = torque
+    if not g.has_disc:
+        return out
+    d = scene.bead_diameter_m
+    # seed 001's first layer: bead centres within 0.6 mm of the disc face (its stated
+    # distance, 0.75 d for its 0.8 mm beads); also the layer one bead diameter thick
+    ratio, n = FS.first_layer_angular_velocity(sx, sv, g, om, 0.75 * d)
+    out["first_bead_layer_angular_velocity_ratio"] = ratio
+    out["first_bead_layer_samples"] = n
+    out["bead_layer_1d_angular_velocity_ratio"] = FS.first_layer_angular_velocity(
+        sx, sv, g, om, d)[0]
+    # bead fields on the fluid's section grid (or a 0.75 mm grid without fluid)
+    if fields is not None:
+        r_edges = cpl.grid.r_faces_m
+        zeta_c = fields["zeta_m"]
+    else:
+        from millfmu.dem.fluid.grid import mill_grid
+
+        gr = mill_grid(g, 0.75e-3)
+        r_edges = gr.r_faces_m
+        zeta_c = _zeta_of_grid(gr, g)
+    order = np.argsort(zeta_c)
+    zs = zeta_c[order]
+    dz = float(np.diff(zs).mean())
+    z_edges = np.concatenate([zs - 0.5 * dz, [zs[-1] + 0.5 * dz]])
+    beads = FS.bead_section_fields(sx, sv, sim.rad, g, r_edges, z_edges)
+    out["_bead_fields"] = dict(beads, r_edges_m=r_edges, zeta_edges_m=z_edges)
+    r_c = 0.5 * (r_edges[1:] + r_edges[:-1])
+    dr = np.diff(r_edges)
+    hb = 0.5 * g.disc_thickness_m
+    psi_b = FS.stream_function(r_c, beads["flux_z"], dr)
+    top = hb + scene.zones.v1_width_m
+    out["vortices_beads"] = FS.vortex_summary(FS.vortices(
+        psi_b, r_c, zs, g.disc_radius_m, hb, valid=beads["samples"] > 0, threshold=0.05,
+        tip_zone_top_m=top))
+    # profiles at the disc radius across the gap, x/D from one disc face to the next
+    i_r = int(np.argmin(np.abs(r_c - g.disc_radius_m)))
+    gap = g.height_m - g.disc_thickness_m
+    x = np.where(zs >= hb, zs - hb, zs + g.height_m - hb)
+    in_gap = (np.abs(zs) >= hb)
+    o = np.argsort(x[in_gap])
+    prof = dict(r_m=float(r_c[i_r]), x_over_gap=list((x[in_gap][o] / gap).round(6)),
+                beads_speed_over_v_tip=_speed(beads, i_r, in_gap, o, scene.tip_speed_m_s))
+    if fields is not None:
+        f = {k: v[:, order] for k, v in fields.items() if np.ndim(v) == 2}
+        psi_f = FS.stream_function(r_c, np.nan_to_num(f["flux_z"]), dr)
+        out["vortices_fluid"] = FS.vortex_summary(FS.vortices(
+            psi_f, r_c, zs, g.disc_radius_m, hb, valid=np.isfinite(f["eps"]),
+            tip_zone_top_m=top))
+        prof["fluid_speed_over_v_tip"] = _speed(f, i_r, in_gap, o, scene.tip_speed_m_s)
+        prof["fluid_u_theta_over_v_tip"] = list(np.round(
+            f["u_theta"][i_r, in_gap][o] / scene.tip_speed_m_s, 6))
+    out["swirl_profile_at_disc_radius"] = prof
+    return out
+
+
+def _speed(f, i_r, sel, order, v_tip):
+    sp = np.sqrt(f["u_r"] ** 2 + f["u_theta"] ** 2 + f["u_z"] ** 2)[i_r, sel][order]
+    return [None if not np.isfinite(v) else round(float(v / v_tip), 6) for v in sp]
 
 
 def _write_windows(path: Path, rows):
@@ -193,8 +429,26 @@ def summary_table(stats: DemStats) -> str:
                      f"{z.speed_over_tip_speed:8.4f} {z.collision_frequency_per_m3_s:13.3e} "
                      f"{(q if q is not None else float('nan')):12.3e} "
                      f"{z.collision_power_w:10.3e}")
-    lines.append(f"stirrer torque {stats.stirrer_torque_nm:.4g} N m, power "
+    lines.append(f"stirrer torque from bead contacts {stats.stirrer_torque_nm:.4g} N m, power "
                  f"{stats.stirrer_power_w:.4g} W; kinetic energy "
                  f"{json.dumps(stats.kinetic_energy)}")
+    fl = stats.flow or {}
+    t = fl.get("torque", {})
+    if "stirrer_fluid_shear_nm" in t:
+        lines.append(f"coupled fluid: stirrer torque {t['stirrer_total_nm']:.4g} N m (fluid "
+                     f"shear {t['stirrer_fluid_shear_nm']:.4g}, bead contacts "
+                     f"{t['stirrer_bead_contacts_nm']:.4g}), power number "
+                     f"{fl['power_number']['value']:.4g}; angular momentum budget closes to "
+                     f"{fl['angular_momentum_budget']['closure_rel']:.1e}; CFD step "
+                     f"{fl['fluid']['cfd_dt_s']:.3g} s, grid {fl['fluid']['grid']['n_r']} x "
+                     f"{fl['fluid']['grid']['n_theta']} x {fl['fluid']['grid']['n_z']}")
+    if fl.get("first_bead_layer_angular_velocity_ratio") is not None:
+        vf = fl.get("vortices_fluid")
+        lines.append("first bead layer at the disc: angular velocity "
+                     f"{fl['first_bead_layer_angular_velocity_ratio']:.3f} of the disc's; "
+                     "vortices of the mean flow (between discs / disc tip to wall): beads "
+                     f"{fl['vortices_beads']['between_discs']} / "
+                     f"{fl['vortices_beads']['disc_tip_to_wall']}" +
+                     (f", fluid {vf['between_discs']} / {vf['disc_tip_to_wall']}" if vf else ""))
     return "\n".join(lines)
 

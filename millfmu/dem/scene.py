@@ -4,6 +4,13 @@ A scene names its geometry kind (``annulus`` or ``disc_slice``) and gives the mi
 bead, fluid, run and zone parameters; every key carries its unit in its name. The shipped
 scenes live next to this module in ``scenes/``. Errors name the key, the value and what
 is allowed.
+
+The fluid is chosen by ``[fluid] mode``: ``coupled`` (the liquid solved on a grid and
+coupled both ways, :mod:`millfmu.dem.coupling`; options in ``[fluid.coupled]``),
+``prescribed`` (Koch-Hill drag towards the prescribed swirl of
+:func:`millfmu.dem.kernels.swirl_velocity`), or ``none``. A scene without ``mode`` (files
+written before the coupled fluid) means ``prescribed``, or ``none`` with the old
+``enabled = false``.
 """
 
 from __future__ import annotations
@@ -18,6 +25,7 @@ if sys.version_info >= (3, 11):
 else:  # pragma: no cover
     import tomli as tomllib
 
+from millfmu.dem.coupling.settings import CouplingSettings
 from millfmu.dem.geometry import MillGeometry
 from millfmu.dem.params import BeadMaterial
 from millfmu.dem.sim import FluidSettings
@@ -25,6 +33,7 @@ from millfmu.dem.zones import ZoneSpec
 
 SCENE_DIR = Path(__file__).parent / "scenes"
 KINDS = ("annulus", "disc_slice")
+FLUID_MODES = ("coupled", "prescribed", "none")
 
 
 class DemSceneError(ValueError):
@@ -44,7 +53,9 @@ class DemScene:
     bulk_porosity: float
     lattice_spacing_m: float | None
     lattice_r_range_m: tuple | None
-    fluid: FluidSettings | None
+    fluid: FluidSettings | None  # liquid properties and lubrication; None for mode "none"
+    fluid_mode: str  # "coupled", "prescribed" or "none"
+    coupling: CouplingSettings | None  # the coupled fluid's options (mode "coupled")
     gravity_m_s2: tuple
     dt_s: float
     spin_up_s: float
@@ -54,6 +65,9 @@ class DemScene:
     zones: ZoneSpec
     map_bins_r: int
     map_bins_z: int
+    # beads and coupled fluid start turning at this fraction of the stirrer's angular
+    # velocity [-] (0: from rest); shortens the spin-up, the windows check decides
+    initial_rotation: float = 0.0
 
     @property
     def omega_rad_s(self) -> float:
@@ -64,14 +78,33 @@ class DemScene:
 
     def with_overrides(self, **kw) -> "DemScene":
         """Copy with run-time overrides (tip_speed_m_s, filling, sector_deg, spin_up_s,
-        record_s, dt_s); validated like file values."""
+        record_s, dt_s, fluid_mode, initial_rotation); validated like file values."""
         geo = self.geometry
         if kw.get("sector_deg") is not None:
             geo = _geometry_or_error(replace, geo, sector_deg=float(kw.pop("sector_deg")))
         kw.pop("sector_deg", None)
+        mode = kw.pop("fluid_mode", None)
         new = replace(self, geometry=geo, **{k: v for k, v in kw.items() if v is not None})
+        if mode is not None and mode != self.fluid_mode:
+            new = _with_fluid_mode(new, mode)
         _check_ranges(new)
         return new
+
+    @property
+    def fluid_description(self) -> str:
+        """One line naming the fluid model, for every output."""
+        if self.fluid_mode == "none" or self.fluid is None:
+            return "no fluid (beads in vacuum)"
+        if self.fluid_mode == "prescribed":
+            return ("prescribed swirl flow (no CFD coupling): azimuthal fluid velocity between "
+                    "the rotating stirrer and the fixed chamber wall as documented in "
+                    "millfmu.dem.kernels.swirl_velocity; no radial/axial circulation")
+        c = self.coupling
+        return (f"coupled CFD-DEM: volume-averaged Navier-Stokes model {c.model}, "
+                f"turbulence {c.turbulence}, Koch-Hill drag, cylindrical grid of "
+                f"~{c.cell_m * 1e3:g} mm cells, {c.n_theta} theta cell(s), coupling every "
+                f"{c.steps} DEM steps ({c.steps * self.dt_s:.3g} s), CFD step the coupling "
+                f"interval or the part of it that CFL {c.cfl:g} allows")
 
 
 def _geometry_or_error(fn, *a, **kw):
@@ -114,6 +147,9 @@ def _check_ranges(s: DemScene):
         _positive(name, v)
     if s.spin_up_s < 0:
         raise DemSceneError(f"run.spin_up_s = {s.spin_up_s!r}: must be >= 0")
+    if not 0.0 <= s.initial_rotation <= 1.0:
+        raise DemSceneError(f"run.initial_rotation = {s.initial_rotation!r}: allowed 0 to 1 "
+                            f"(a fraction of the stirrer's angular velocity)")
     m = s.material
     if not 0.0 < m.restitution <= 1.0:
         raise DemSceneError(f"beads.restitution = {m.restitution!r}: allowed 0 < e <= 1")
@@ -213,23 +249,7 @@ def scene_from_dict(d: dict, default_name: str = "scene") -> DemScene:
         if spacing_m < dia:
             raise DemSceneError(f"beads.lattice_spacing_m = {spacing_m!r}: must be >= the "
                                 f"bead diameter {dia}")
-    fl = None
-    if _get(fluid, "enabled", "fluid", bool, True):
-        fl = FluidSettings(
-            density_kg_m3=_get(fluid, "density_kg_m3", "fluid", f, 998.2),
-            viscosity_pa_s=_get(fluid, "viscosity_pa_s", "fluid", f, 1.002e-3),
-            drag=_get(fluid, "drag", "fluid", bool, True),
-            lubrication=_get(fluid, "lubrication", "fluid", bool, True),
-            lubrication_cutoff_m=_get(fluid, "lubrication_cutoff_m", "fluid", f, 0.05 * dia),
-            lubrication_min_gap_m=_get(fluid, "lubrication_min_gap_m", "fluid", f, 5e-4 * dia),
-            swirl_core_fraction=_get(fluid, "swirl_core_fraction", "fluid", f, 0.25),
-            swirl_layer_m=_get(fluid, "swirl_layer_m", "fluid", f, 0.7e-3),
-            void_fraction=_get(fluid, "void_fraction", "fluid", f, 0.5))
-        if not 0.0 < fl.void_fraction < 1.0:
-            raise DemSceneError(f"fluid.void_fraction = {fl.void_fraction!r}: allowed 0 < "
-                                f"eps < 1")
-        _positive("fluid.viscosity_pa_s", fl.viscosity_pa_s)
-        _positive("fluid.swirl_layer_m", fl.swirl_layer_m)
+    mode, fl, cpl = _fluid_from_dict(fluid, dia)
     grav = _get(run, "gravity_m_s2", "run", list, [0.0, 0.0, 0.0])
     if len(grav) != 3:
         raise DemSceneError(f"run.gravity_m_s2 = {grav!r}: must be a list of 3 numbers")
@@ -243,13 +263,113 @@ def scene_from_dict(d: dict, default_name: str = "scene") -> DemScene:
         placement=placement, filling=filling,
         bulk_porosity=_get(beads, "bulk_porosity", "beads", f, 0.4),
         lattice_spacing_m=spacing_m, lattice_r_range_m=r_range, fluid=fl,
-        gravity_m_s2=tuple(float(g) for g in grav),
+        fluid_mode=mode, coupling=cpl, gravity_m_s2=tuple(float(g) for g in grav),
         dt_s=_get(run, "dt_s", "run", f, 5e-6),
         spin_up_s=_get(run, "spin_up_s", "run", f, 2.0),
         record_s=_get(run, "record_s", "run", f, 1.0),
         sample_every_s=_get(run, "sample_every_s", "run", f, 0.02),
         seed=_get(run, "seed", "run", int, 1), zones=zs,
+        initial_rotation=_get(run, "initial_rotation", "run", f, 0.0),
         map_bins_r=_get(output, "map_bins_r", "output", int, 30),
         map_bins_z=_get(output, "map_bins_z", "output", int, 28))
     _check_ranges(s)
     return s
+
+
+_FLUID_KEYS = {"mode", "enabled", "density_kg_m3", "viscosity_pa_s", "drag", "lubrication",
+               "lubrication_cutoff_m", "lubrication_min_gap_m", "swirl_core_fraction",
+               "swirl_layer_m", "void_fraction", "coupled"}
+_COUPLED_KEYS = {"vans_model": str, "turbulence": str, "coupling_steps": int, "cell_m": float,
+                 "n_theta": int, "smoothing_diameters": float, "eps_min": float,
+                 "cfl": float}
+
+
+def _fluid_from_dict(fluid: dict, dia: float):
+    """(mode, FluidSettings or None, CouplingSettings or None) of a ``[fluid]`` table."""
+    for k in fluid:
+        if k not in _FLUID_KEYS:
+            raise DemSceneError(f"fluid.{k}: unknown key; allowed: {sorted(_FLUID_KEYS)}")
+    enabled = _get(fluid, "enabled", "fluid", bool, None)
+    mode = _get(fluid, "mode", "fluid", str, None)
+    if mode is None:
+        mode = "none" if enabled is False else "prescribed"
+    if mode not in FLUID_MODES:
+        raise DemSceneError(f"fluid.mode = {mode!r}: allowed {list(FLUID_MODES)}")
+    if enabled is not None and (enabled is False) != (mode == "none"):
+        raise DemSceneError(f"fluid.enabled = {enabled!r} contradicts fluid.mode = {mode!r}; "
+                            f"leave out 'enabled' (mode 'none' switches the fluid off)")
+    if mode == "none":
+        return mode, None, None
+    f = float
+    fl = FluidSettings(
+        density_kg_m3=_get(fluid, "density_kg_m3", "fluid", f, 998.2),
+        viscosity_pa_s=_get(fluid, "viscosity_pa_s", "fluid", f, 1.002e-3),
+        drag=_get(fluid, "drag", "fluid", bool, True) and mode == "prescribed",
+        lubrication=_get(fluid, "lubrication", "fluid", bool, True),
+        lubrication_cutoff_m=_get(fluid, "lubrication_cutoff_m", "fluid", f, 0.05 * dia),
+        lubrication_min_gap_m=_get(fluid, "lubrication_min_gap_m", "fluid", f, 5e-4 * dia),
+        swirl_core_fraction=_get(fluid, "swirl_core_fraction", "fluid", f, 0.25),
+        swirl_layer_m=_get(fluid, "swirl_layer_m", "fluid", f, 0.7e-3),
+        void_fraction=_get(fluid, "void_fraction", "fluid", f, 0.5))
+    if not 0.0 < fl.void_fraction < 1.0:
+        raise DemSceneError(f"fluid.void_fraction = {fl.void_fraction!r}: allowed 0 < "
+                            f"eps < 1")
+    _positive("fluid.density_kg_m3", fl.density_kg_m3)
+    _positive("fluid.viscosity_pa_s", fl.viscosity_pa_s)
+    _positive("fluid.swirl_layer_m", fl.swirl_layer_m)
+    cpl = _coupling_from_dict(_get(fluid, "coupled", "fluid", dict, {}))
+    return mode, fl, cpl if mode == "coupled" else None
+
+
+def _coupling_from_dict(c: dict) -> CouplingSettings:
+    for k in c:
+        if k not in _COUPLED_KEYS:
+            raise DemSceneError(f"fluid.coupled.{k}: unknown key; allowed: "
+                                f"{sorted(_COUPLED_KEYS)}")
+    d = CouplingSettings()
+    kw = {}
+    for k, kind in _COUPLED_KEYS.items():
+        kw[k] = _get(c, k, "fluid.coupled", kind, None)
+    out = CouplingSettings(
+        model=kw["vans_model"] if kw["vans_model"] is not None else d.model,
+        turbulence=kw["turbulence"] if kw["turbulence"] is not None else d.turbulence,
+        steps=kw["coupling_steps"] if kw["coupling_steps"] is not None else d.steps,
+        cell_m=kw["cell_m"] if kw["cell_m"] is not None else d.cell_m,
+        n_theta=kw["n_theta"] if kw["n_theta"] is not None else d.n_theta,
+        smoothing_diameters=(kw["smoothing_diameters"] if kw["smoothing_diameters"]
+                             is not None else d.smoothing_diameters),
+        eps_min=kw["eps_min"] if kw["eps_min"] is not None else d.eps_min,
+        cfl=kw["cfl"] if kw["cfl"] is not None else d.cfl)
+    if out.model not in ("A", "B"):
+        raise DemSceneError(f"fluid.coupled.vans_model = {out.model!r}: allowed 'A', 'B'")
+    if out.turbulence not in ("k_epsilon", "laminar"):
+        raise DemSceneError(f"fluid.coupled.turbulence = {out.turbulence!r}: allowed "
+                            f"'k_epsilon', 'laminar'")
+    if out.steps < 1:
+        raise DemSceneError(f"fluid.coupled.coupling_steps = {out.steps!r}: must be >= 1")
+    if out.n_theta < 1:
+        raise DemSceneError(f"fluid.coupled.n_theta = {out.n_theta!r}: must be >= 1")
+    _positive("fluid.coupled.cell_m", out.cell_m)
+    if not out.smoothing_diameters >= 0.0:
+        raise DemSceneError(f"fluid.coupled.smoothing_diameters = "
+                            f"{out.smoothing_diameters!r}: must be >= 0")
+    if not 0.1 <= out.eps_min < 0.9:
+        raise DemSceneError(f"fluid.coupled.eps_min = {out.eps_min!r}: allowed 0.1 to 0.9")
+    if not 0.0 < out.cfl <= 0.5:
+        raise DemSceneError(f"fluid.coupled.cfl = {out.cfl!r}: allowed 0 < cfl <= 0.5")
+    return out
+
+
+def _with_fluid_mode(scene: DemScene, mode: str) -> DemScene:
+    """The scene with another fluid mode (CLI/table override): liquid properties kept,
+    the coupled options the scene's (or the defaults)."""
+    if mode not in FLUID_MODES:
+        raise DemSceneError(f"fluid mode = {mode!r}: allowed {list(FLUID_MODES)}")
+    if mode == "none":
+        return replace(scene, fluid=None, fluid_mode=mode, coupling=None)
+    fl = scene.fluid if scene.fluid is not None else FluidSettings(
+        lubrication_cutoff_m=0.05 * scene.bead_diameter_m,
+        lubrication_min_gap_m=5e-4 * scene.bead_diameter_m)
+    fl = replace(fl, drag=(mode == "prescribed"))
+    cpl = (scene.coupling or CouplingSettings()) if mode == "coupled" else None
+    return replace(scene, fluid=fl, fluid_mode=mode, coupling=cpl)

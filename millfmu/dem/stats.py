@@ -79,6 +79,10 @@ class DemStats:
     kinetic_energy: dict  # steadiness of the bead kinetic energy
     counts: dict = field(default_factory=dict)
     notes: list = field(default_factory=list)
+    # mean-flow structure (beads, and the liquid when coupled): torques split into fluid
+    # shear and bead contacts, power number, angular-momentum budget, vortices, swirl
+    # profiles between the discs; see millfmu.dem.run
+    flow: dict = field(default_factory=dict)
 
     def to_json(self) -> str:
         return json.dumps(asdict(self), indent=1, allow_nan=False)

@@ -149,6 +149,15 @@ def sha256_bytes(b: bytes) -> str:
     return hashlib.sha256(b).hexdigest()
 
 
+#: A manifest's checksum of itself: sha256 of the canonical JSON of every other key. It
+#: travels inside the file, so an exported table (PREFIX.npz, PREFIX.json) is covered too.
+MANIFEST_SUM_KEY = "manifest_sha256"
+
+
+def manifest_digest(m: dict) -> str:
+    return sha256_bytes(canonical_json({k: v for k, v in m.items() if k != MANIFEST_SUM_KEY}).encode())
+
+
 def sha256_file(path) -> str:
     h = hashlib.sha256()
     with open(path, "rb") as fh:
@@ -158,9 +167,14 @@ def sha256_file(path) -> str:
 
 
 #: Modules whose source decides the DEM's numbers: contact laws and integration (kernels,
-#: sim) and what is measured (stats, zones). Their source hash is the kernel version.
+#: sim), the coupled fluid (fluid, coupling), the run loop (run) and what is measured
+#: (stats, zones). Their source hash is the kernel version.
 KERNEL_MODULES = ("millfmu.dem.kernels", "millfmu.dem.sim", "millfmu.dem.stats",
-                  "millfmu.dem.zones")
+                  "millfmu.dem.zones", "millfmu.dem.run", "millfmu.dem.fluid.grid",
+                  "millfmu.dem.fluid.vans_kernels", "millfmu.dem.fluid.k_epsilon",
+                  "millfmu.dem.fluid.pressure", "millfmu.dem.fluid.solver",
+                  "millfmu.dem.coupling.projection", "millfmu.dem.coupling.koch_hill2001",
+                  "millfmu.dem.coupling.cfd_dem", "millfmu.dem.coupling.settings")
 
 
 def dem_kernel_version() -> str:
@@ -577,6 +591,7 @@ class Table:
         m["components"] = list(COMPONENTS)
         m["quantiles"] = list(QUANTILE_NAMES)
         m["axes"] = {k: [float(x) for x in v] for k, v in self.axes.items()}
+        m[MANIFEST_SUM_KEY] = manifest_digest(m)
         text = json.dumps(m, indent=1, sort_keys=True, allow_nan=False).encode()
         _write_synced(folder / MANIFEST_FILE, text)
         _write_synced(folder / MANIFEST_SUM_FILE, (sha256_bytes(text) + "\n").encode())
@@ -657,6 +672,12 @@ def read_table(folder=None, *, npz=None, manifest_path=None, expect_key: str | N
         raise TableError(f"{manifest_path}: not valid JSON ({e})") from None
     if not isinstance(m, dict):
         raise TableError(f"{manifest_path}: not a JSON object: corrupted")
+    if MANIFEST_SUM_KEY in m:
+        if m[MANIFEST_SUM_KEY] != manifest_digest(m):
+            raise TableError(f"{manifest_path}: content does not match its {MANIFEST_SUM_KEY}: edited or corrupted")
+    elif not sum_path.exists():
+        raise TableError(f"{manifest_path}: no checksum ({MANIFEST_SUM_KEY} or {sum_path.name}): "
+                         f"written by an older millfmu; export the table again")
     if m.get("format") != FORMAT_VERSION:
         raise TableError(f"{manifest_path}: format = {m.get('format')!r}, this millfmu "
                          f"reads format {FORMAT_VERSION}: stale")
@@ -828,6 +849,9 @@ def manifest_for(spec: TableSpec, table: Table, extra: dict | None = None) -> di
 #: beads keep moving outwards for longer than 0.4 s (disc_slice, 10 m/s, 80 %:
 #: ``millfmu dem run disc_slice --windows``); seed 001 (coupled CFD) analyses after 2 s.
 STEADY_SPIN_UP_S = 1.0
+#: Spin-up [s] after which the coupled disc slice at 10 m/s and 80 % is stationary from rest
+#: (measured: bead speeds settle by 0.7 s, see the README's coupled-fluid section).
+COUPLED_SPIN_UP_S = 0.7
 
 
 def resolution_of(spec: TableSpec) -> dict:
@@ -842,7 +866,17 @@ def resolution_of(spec: TableSpec) -> dict:
                       "record_s": run.get("record_s", 1.0),
                       "sample_every_s": run.get("sample_every_s", 0.02),
                       "dt_s": run.get("dt_s", 5e-6)}
-        if res["dem"]["spin_up_s"] < STEADY_SPIN_UP_S:
+        mode = spec.scene.get("fluid", {}).get("mode")
+        if mode is None:  # files without a mode (older tables) meant the prescribed swirl
+            mode = "none" if spec.scene.get("fluid", {}).get("enabled") is False else \
+                "prescribed"
+        res["dem"]["fluid"] = mode
+        if mode == "coupled" and res["dem"]["spin_up_s"] < COUPLED_SPIN_UP_S:
+            res["note"] = (f"spin-up {res['dem']['spin_up_s']} s < {COUPLED_SPIN_UP_S} s: the "
+                           f"coupled slice at 10 m/s and 80 % settles within about 0.7 s from "
+                           f"rest (about 25 stirrer turns); see 'stationarity' for the "
+                           f"measured drift; seed 001 analyses after 2 s")
+        elif mode != "coupled" and res["dem"]["spin_up_s"] < STEADY_SPIN_UP_S:
             res["note"] = (f"spin-up {res['dem']['spin_up_s']} s < {STEADY_SPIN_UP_S} s: "
                            f"bead speeds and collision energies settle within about 0.04 s, "
                            f"the bead fillings keep drifting outwards (no secondary flow in "

@@ -37,13 +37,16 @@ RUN_OPTIONS = {
     "--record": ("run", "record_s", "recording time [s]"),
     "--sample-every": ("run", "sample_every_s", "sampling interval [s]"),
     "--dt": ("run", "dt_s", "DEM time step [s]"),
+    "--initial-rotation": ("run", "initial_rotation", "beads and coupled fluid start turning "
+                           "at this fraction of the stirrer's angular velocity [-]"),
 }
 #: The command that rebuilds the shipped default table (from the repository root); the
 #: table's manifest records it as ``rebuild_command``.
 REBUILD_DEFAULT = (
     "millfmu tables build --scene disc_slice --tip-speed 6,8,10,12,14 "
     "--filling 0.5,0.6,0.7,0.8,0.9 --sector-deg 10 --spin-up 0.05 --record 0.1 "
-    "--sample-every 0.005 --no-gravity --export millfmu/data/default_table")
+    "--sample-every 0.005 --no-gravity --fluid prescribed --export "
+    "millfmu/data/default_table")
 
 
 def _floats(text: str) -> list:
@@ -78,6 +81,9 @@ def register(subparsers) -> argparse.ArgumentParser:
     for opt, (sec, key, h) in RUN_OPTIONS.items():
         b.add_argument(opt, type=float, dest=f"run_{sec}_{key}", metavar="X", help=h)
     b.add_argument("--no-gravity", action="store_true", help="switch gravity off")
+    b.add_argument("--fluid", choices=("coupled", "prescribed", "none"),
+                   help="fluid model of the DEM runs (default: the scene's [fluid] mode; "
+                        "disc_slice: coupled)")
     cache_opt(b)
     b.add_argument("--executor", choices=("processes", "dask", "serial"), default="processes",
                    help="where grid points run: a local process pool (default), a Dask "
@@ -141,6 +147,8 @@ def _build(args) -> int:
             over.setdefault(sec, {})[key] = v
     if args.no_gravity:
         over.setdefault("run", {})["gravity_m_s2"] = [0.0, 0.0, 0.0]
+    if args.fluid:
+        over.setdefault("fluid", {})["mode"] = args.fluid
     try:
         if not grid:
             raise T.TableError("no grid given: name at least one of " +
@@ -188,6 +196,8 @@ def _command(args) -> str:
             cmd += [opt, f"{v:g}"]
     if args.no_gravity:
         cmd.append("--no-gravity")
+    if args.fluid:
+        cmd += ["--fluid", args.fluid]
     if args.builder:
         cmd += ["--builder", args.builder]
     if args.export:

@@ -78,6 +78,13 @@ class SizeGrid:
         return float(self.edges_m[1] / self.edges_m[0])
 
 
+def outside_fractions(q3_at_edges: np.ndarray) -> tuple[float, float]:
+    """Mass fractions [-] of a distribution below the lowest edge and above the top edge,
+    from its Q3 at the grid's edges."""
+    q = np.clip(np.asarray(q3_at_edges, dtype=float), 0.0, 1.0)
+    return float(q[0]), float(1.0 - q.max())
+
+
 def fractions_from_q3(grid: SizeGrid, q3_at_edges: np.ndarray) -> np.ndarray:
     """Class mass fractions from Q3 evaluated at the grid's edges.
 
@@ -135,16 +142,18 @@ def characteristic_size_m(grid: SizeGrid, fractions: np.ndarray, q: float) -> fl
     return float(math.exp(le0 + f * (le1 - le0)))
 
 
-def characteristic_sizes_m(grid: SizeGrid, fractions: np.ndarray, qs) -> tuple:
-    """Sizes [m] at which Q3 reaches each of ``qs``; same rules as :func:`characteristic_size_m`."""
+def characteristic_sizes_m(grid: SizeGrid, fractions: np.ndarray, qs, below: float = 0.0) -> tuple:
+    """Sizes [m] at which Q3 reaches each of ``qs``; same rules as :func:`characteristic_size_m`,
+    except that Q3 at the lowest edge is ``below``, the part of the finest class's fraction
+    that lies below the grid: a size whose Q3 is within it is reported as the lowest edge."""
     cum = np.cumsum(fractions)
     total = cum[-1]
     if not total > 0.0:
         return tuple(math.nan for _ in qs)
-    cum = np.concatenate(([0.0], cum / total))
+    cum = np.concatenate(([min(max(below, 0.0), cum[0])], cum)) / total
     q = np.asarray(qs, dtype=float)
     k = np.clip(np.searchsorted(cum, q, side="left"), 1, len(cum) - 1)
     c0, c1 = cum[k - 1], cum[k]
     le = np.log(grid.edges_m)
-    f = np.where(c1 > c0, (q - c0) / np.where(c1 > c0, c1 - c0, 1.0), 0.0)
+    f = np.clip(np.where(c1 > c0, (q - c0) / np.where(c1 > c0, c1 - c0, 1.0), 0.0), 0.0, 1.0)
     return tuple(np.exp(le[k - 1] + f * (le[k] - le[k - 1])).tolist())

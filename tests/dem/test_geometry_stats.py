@@ -152,7 +152,8 @@ def test_disc_slice_short_run_gives_zone_statistics(tmp_path):
     out = tmp_path / "ds"
     a = p.parse_args(["dem", "run", "disc_slice", "--out", str(out), "--sector-deg", "30",
                       "--no-gravity", "--spin-up", "1e-4", "--record", "2e-4",
-                      "--sample-every", "5e-5", "--windows", "1e-4", "--no-progress"])
+                      "--sample-every", "5e-5", "--windows", "1e-4", "--no-progress",
+                      "--fluid", "prescribed"])
     assert a.func(a) == 0
     stats = DemStats.from_json((out / "stats.json").read_text())
     assert [z.name for z in stats.zones] == ["V1", "V2", "V3", "V4"]

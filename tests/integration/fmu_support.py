@@ -146,16 +146,25 @@ def open_fmu(path, name="mill", logging=True, start=None, init=True):
     vr = {v.name: v.valueReference for v in md.modelVariables}
     fmu = FMU2Slave(guid=md.guid, unzipDirectory=d, modelIdentifier=md.coSimulation.modelIdentifier, instanceName=name)
     fmu.instantiate(callbacks=CB, loggingOn=logging)
-    if init:
-        fmu.setupExperiment(startTime=0.0)
-        fmu.enterInitializationMode()
-        for k, v in (start or {}).items():
-            fmu.setReal([vr[k]], [v])
-        fmu.exitInitializationMode()
     fmu.md, fmu.vr = md, vr
+    if init:
+        assert initialize(fmu, start) == 0
     fmu.out_names = [v.name for v in md.modelVariables if v.causality == "output"]
     fmu.out_vrs = [vr[n] for n in fmu.out_names]
     return fmu
+
+def initialize(fmu, start=None, start_time=0.0):
+    """setupExperiment .. exitInitializationMode with start values; exitInitializationMode's
+    status (0 ok, 3 error)."""
+    fmu.setupExperiment(startTime=start_time)
+    fmu.enterInitializationMode()
+    for k, v in (start or {}).items():
+        fmu.setReal([fmu.vr[k]], [v])
+    try:
+        fmu.exitInitializationMode()
+        return 0
+    except FMICallException as e:
+        return e.status
 
 def outputs(fmu):
     return dict(zip(fmu.out_names, fmu.getReal(fmu.out_vrs)))

@@ -18,7 +18,7 @@ pytest.importorskip("pythonfmu")
 pytest.importorskip("fmpy")
 
 SCALAR_OUTPUTS = ["x10", "x50", "x90", "holdup", "product_mass_flow", "se_beads", "se_product", "sf", "stress_number",
-                  "power", "specific_energy", "eta_eff", "reynolds"]
+                  "power", "specific_energy", "eta_eff", "reynolds", "below_grid"]
 PARAMS = ["bead_filling", "bead_diameter", "bead_density", "stress_frequency_factor"]
 
 
@@ -276,18 +276,22 @@ done({{"s1": s1, "s2": s2, "x50": x50}})
 def test_parameters_set_before_initialization_define_the_operating_point(work):
     """On the default scene's FMU (detailed model on the DEM table at 0.8 mm beads): tip
     speed and filling inside the table define the operating point; a bead diameter the
-    table does not hold, or a negative one, refuses every step with the reason logged."""
+    table does not hold, or a negative one, is fmi2Error at fmi2ExitInitializationMode and
+    refuses every step, with the reason logged."""
     res = run_py(work["python"], f"""
 f = open_fmu({str(work["fmus"]["batch"])!r}, start={{"tip_speed": 8.0, "bead_filling": 0.7}})
 o0 = outputs(f)
 assert step(f, 0.0, 2.0) == 0
 o1 = outputs(f)
-g = open_fmu({str(work["fmus"]["batch"])!r}, "g", start={{"bead_diameter": -1.0}})
+g = open_fmu({str(work["fmus"]["batch"])!r}, "g", init=False)
+ex_g = initialize(g, {{"bead_diameter": -1.0}})
 st = step(g, 0.0, 1.0)
-h = open_fmu({str(work["fmus"]["batch"])!r}, "h", start={{"bead_diameter": 0.5e-3}})
+h = open_fmu({str(work["fmus"]["batch"])!r}, "h", init=False)
+ex_h = initialize(h, {{"bead_diameter": 0.5e-3}})
 st_h = step(h, 0.0, 1.0)
-done({{"o0": o0, "o1": o1, "st": st, "st_h": st_h, "log": [e for e in LOG if e[0] in ("g", "h")]}})
+done({{"o0": o0, "o1": o1, "st": st, "st_h": st_h, "ex": [ex_g, ex_h], "log": [e for e in LOG if e[0] in ("g", "h")]}})
 """, work["dir"])
+    assert res["ex"] == [3, 3]  # fmi2Error
     from millfmu.scene import scene_from_dict
     from .fmu_support import scene_text as st
     import tomllib
@@ -360,4 +364,4 @@ def test_bench_fmu_command_prints_ratios_against_the_floor(tmp_path):
     assert any(ln.startswith("FMI 3.0: not measured") for ln in lines) == (len(libs) == 1)
     rows = [ln for ln in lines if ln.startswith("mill, ")]
     assert [ln.split()[1] for ln in rows] == ["batch", "continuous"] * len(libs)
-    assert all(ln.split()[2] == "113" for ln in rows)  # 100 classes + 13 scalar outputs
+    assert all(ln.split()[2] == "114" for ln in rows)  # 100 classes + 14 scalar outputs

@@ -23,7 +23,7 @@ from .fmu_support import CONTINUOUS, DETAILED, ROOT, build, isolated_python, nee
 pytest.importorskip("fmpy")
 
 SCALAR_OUTPUTS = ["x10", "x50", "x90", "holdup", "product_mass_flow", "se_beads", "se_product", "sf", "stress_number",
-                  "power", "specific_energy", "eta_eff", "reynolds"]
+                  "power", "specific_energy", "eta_eff", "reynolds", "below_grid"]
 PARAMS = ["bead_filling", "bead_diameter", "bead_density", "stress_frequency_factor"]
 KINDS = ["batch", "continuous", "detailed"]
 

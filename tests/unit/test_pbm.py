@@ -23,17 +23,21 @@ def test_operator_columns_sum_to_zero_and_metzler(inert):
     assert np.max(np.abs(a.sum(axis=0))) <= 1e-15 * scale * a.shape[0]
     off = a - np.diag(np.diag(a))
     assert off.min() >= 0.0 and np.diag(a).max() <= 0.0
-    if not inert:
-        assert np.allclose(np.tril(a, -1), 0.0)  # fragments only go to finer classes
+    # Fragments only go to finer classes (or below the grid): triangular in upper_order.
+    o = op.upper_order
+    assert np.all(np.tril(a[np.ix_(o, o)], -1) == 0.0)
+    assert np.all(a[-1] >= 0.0) and a[-1, -1] == 0.0  # the below-grid state only receives
 
 
-def test_system_matrix_upper_triangular_and_conservative():
+def test_system_matrix_block_bidiagonal_and_conservative():
     _, a = _operator(n=20)
+    m = a.shape[0]  # 20 classes and the below-grid state
     g = pbm.system_matrix(a, 3, 0.7)
-    f = pbm.feed_matrix(20, 3, 20)
-    assert np.allclose(np.tril(g, -1), 0.0)
+    f = pbm.feed_matrix(m, 3, 20)
     assert np.max(np.abs(g.sum(axis=0))) <= 1e-14 * np.abs(g).max()
-    assert np.all(f.sum(axis=0) == 1.0) and np.all(f[pbm.tank_slice(0, 20, 3)].sum(axis=0) == 1.0)
+    np.testing.assert_array_equal(g[pbm.tank_slice(1, m, 3), pbm.tank_slice(0, m, 3)], 0.7 * np.eye(m))
+    np.testing.assert_array_equal(g[pbm.tank_slice(0, m, 3), pbm.tank_slice(1, m, 3)], 0.0)
+    assert np.all(f.sum(axis=0) == 1.0) and np.all(f[pbm.tank_slice(0, m, 3)].sum(axis=0) == 1.0)
 
 
 def test_propagator_nonnegative_unit_columns():
@@ -155,12 +159,11 @@ def test_characteristic_sizes_lognormal():
 def test_adaptive_exponential_midpoint_second_order():
     """Fixed-step convergence of the exponential midpoint with a time-varying rate: order ~2."""
     _, a = _operator(n=30)
-    g0 = pbm.system_matrix(a, 1, 0.0)
-    y0 = np.zeros(g0.shape[0])
+    y0 = np.zeros(a.shape[0] + 1)
     y0[25] = 1.0
 
     def system(t, y):
-        return g0 * (1.0 + 0.9 * np.sin(t)), None, None
+        return pbm.TanksInSeries(a * (1.0 + 0.9 * np.sin(t)), 1, 0.0), None
 
     def run(n):
         y, t, h = y0.copy(), 0.0, 4.0 / n

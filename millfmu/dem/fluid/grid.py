@@ -192,7 +192,8 @@ def annulus_grid(r_inner_m: float, r_outer_m: float, height_m: float, n_r: int, 
 
 def housing_grid(disc_radius_m: float, gap_m: float, disc_thickness_m: float,
                  shaft_radius_m: float, rim_clearance_m: float, cell_r_m: float,
-                 cell_z_m: float, n_theta: int = 1) -> CylGrid:
+                 cell_z_m: float, n_theta: int = 1,
+                 sector_rad: float = 2.0 * math.pi) -> CylGrid:
     """A disc rotating in a closed cylindrical housing (Daily & Nece 1960): disc of radius
     a and thickness b on a shaft, axial gap s between each disc face and the housing's end
     wall, radial clearance between disc tip and housing wall. Axially: housing wall row,
@@ -211,4 +212,4 @@ def housing_grid(disc_radius_m: float, gap_m: float, disc_thickness_m: float,
     z0 = dz + gap_m
     in_z = (zc > z0) & (zc < z0 + disc_thickness_m)
     solid[np.ix_(rc < disc_radius_m, np.arange(n_theta), in_z)] = ROTOR
-    return CylGrid(rf, 2.0 * math.pi, n_theta, nz * dz, nz, solid, True)
+    return CylGrid(rf, sector_rad, n_theta, nz * dz, nz, solid, True)

@@ -56,6 +56,7 @@ class FluidSolver:
                  omega_rad_s: float = 0.0, turbulence: str = "k_epsilon", model: str = "A",
                  cfl: float = 0.4):
         from millfmu.dem.fluid import k_epsilon as KE
+        from millfmu.dem.fluid import step_kernels as SK
         from millfmu.dem.fluid import vans_kernels as VK
 
         if model not in MODELS:
@@ -66,6 +67,7 @@ class FluidSolver:
             raise FluidError(f"cfl = {cfl!r}: allowed 0 < cfl <= 0.5")
         self.VK = VK
         self.KE = KE
+        self.SK = SK
         self.grid = grid
         self.fluid = fluid
         self.rho = float(fluid.density_kg_m3)
@@ -157,6 +159,7 @@ class FluidSolver:
         self.sd_z = np.zeros(g.shape)
         self.body_z = 0.0  # axial body force per unit volume [N/m3] (e.g. -dP/dz)
         self.interval_s = None  # last coupling interval (continuity's d(eps)/dt)
+        self.fixed_t = np.zeros(g.shape)  # u_theta of fixed theta nodes [m/s]
         # ---- work arrays ----
         self._fr = np.zeros(shp_r)
         self._ft = np.zeros(g.shape)
@@ -189,6 +192,18 @@ class FluidSolver:
         self._zero_c = np.zeros(g.shape)
         self._gphi = (np.zeros(shp_r), np.zeros(g.shape), np.zeros(g.shape))
         self.pressure = PressureSolver(grid)
+        self._F = (self.ur, self.ut, self.uz, self.p, self.k, self.e, self.nu_t, self.eps_c,
+                   self.eps_c_old, self.eps_r, self.eps_t, self.eps_z, self.kd_r, self.kd_t,
+                   self.kd_z, self.sd_r, self.sd_t, self.sd_z, self.fixed_t, *self.mean_u,
+                   *self.mean_gp)
+        self._W = (self._fr, self._ft, self._fz, self._div, self._trr, self._ttt, self._tzz,
+                   self._s2, self._ert, self._erz, self._etz, self._grt, self._grz,
+                   self._gtz, self._rr, self._rt, self._rz, self._gpr, self._gpt, self._gpz,
+                   self._em, self._prod, self._ewall, self._knew, self._enew, *self._gphi,
+                   self._zero_r, self._zero_c)
+        self._K = (self.kr, self.kt, self.kz, self.solid)
+        self._acc = np.zeros(5)
+        self._dt_stable = None
         # ---- accounting ----
         self.time_s = 0.0
         self.substeps = 0
@@ -207,7 +222,7 @@ class FluidSolver:
         """Rotor angular velocity [rad/s]: sets the fixed velocities of the solid nodes."""
         self.omega = float(omega_rad_s)
         self.om_shaft = self.omega if self.grid.shaft_rotates else 0.0
-        self.fixed_t = np.where(self._rot_t, self.omega * self.rc[:, None, None], 0.0)
+        self.fixed_t[:] = np.where(self._rot_t, self.omega * self.rc[:, None, None], 0.0)
         self.wall_om = self._wom_rot * self.omega
         self._apply_fixed()
 
@@ -250,133 +265,51 @@ class FluidSolver:
     # ---- stepping ---------------------------------------------------------------------
     def stable_dt(self) -> float:
         """Largest substep [s] for the advective CFL number and explicit diffusion."""
-        nr, nt, nz = self.grid.shape
-        small = 1e-300
-        a = np.abs(self.ur[1:nr]) / self.h_r[1:nr]
-        m = float(a.max()) if a.size else 0.0
-        m = max(m, float((np.abs(self.uz) / self.dz).max()))
-        if nt > 1:
-            m = max(m, float((np.abs(self.ut) / self.h_t).max()))
-        dt_adv = self.cfl / max(m, small)
-        inv_h2 = 1.0 / self.dr.min() ** 2 + 1.0 / self.dz ** 2
-        if nt > 1:
-            inv_h2 += 1.0 / (self.rc.min() * self.dth) ** 2
-        nu_max = self.nu + float(self.nu_t.max())
-        dt_dif = 0.25 / (nu_max * inv_h2)
-        return min(dt_adv, dt_dif)
+        return self.SK.stable_dt(self.ur, self.ut, self.uz, self.nu_t, self.rc, self.dr,
+                                 self.dth, self.dz, self.nu, self.cfl)
 
     def advance(self, interval_s: float):
         """Advance the fluid by ``interval_s`` [s] (one coupling interval), in substeps of
         equal length within what :meth:`stable_dt` allows (re-evaluated after each)."""
+        SK = self.SK
         for a in self.mean_u + self.mean_gp:
             a[:] = 0.0
+        if self._dt_stable is None:
+            self._dt_stable = self.stable_dt()
+        rho, nu = self.rho, self.nu
+        model_a = self.model == "A"
+        kturb = self.turbulence == "k_epsilon"
+        acc = self._acc
+        acc[:] = 0.0
         done = 0.0
         n = 0
         while interval_s - done > 1e-12 * interval_s:
             rest = interval_s - done
-            dt = rest / max(1, int(math.ceil(rest / self.stable_dt() - 1e-9)))
-            self._substep(dt, interval_s)
-            for acc, gp in zip(self.mean_gp, (self._gpr, self._gpt, self._gpz)):
-                acc += dt * gp
+            dt = rest / max(1, int(math.ceil(rest / self._dt_stable - 1e-9)))
+            SK.predictor(self._F, self._W, self._K, self.rf, self.rc, self.dr, self.vc,
+                         self.dth, self.dz, self.om_shaft, rho, nu, kturb, model_a,
+                         self.body_z, dt, self.interval_s or 0.0, acc)
+            phi = self.pressure.solve(self._div)
+            self._dt_stable = SK.corrector(self._F, self._W, self._K, phi, self.wall,
+                                           self.wall_om, self.rf, self.rc, self.dr, self.vc,
+                                           self.dth, self.dz, rho, nu, kturb, dt, self.cfl)
             done += dt
             n += 1
+            self.time_s += dt
+        self.substeps += n
         for a in self.mean_u + self.mean_gp:
             a /= interval_s
+        if self.grid.shaft_rotates:
+            self.angular_impulse_shaft_nms += acc[0]
+        else:
+            self.angular_impulse_stator_nms += acc[0]
+        self.angular_impulse_rotor_nms += acc[1]
+        self.angular_impulse_stator_nms += acc[2]
+        self.exchange_angular_nms += acc[3]
+        self.exchange_axial_ns += acc[4]
         self.last_substeps = n
         if not (np.isfinite(self.ut).all() and np.isfinite(self.ur).all()):
             raise FluidError(f"fluid velocity not finite at t = {self.time_s:.6g} s")
-
-    def _substep(self, dt: float, interval_s: float):
-        VK, KE = self.VK, self.KE
-        rho, nu = self.rho, self.nu
-        model_a = self.model == "A"
-        kturb = self.turbulence == "k_epsilon"
-        VK.face_fluxes(self.ur, self.ut, self.uz, self.eps_r, self.eps_t, self.eps_z,
-                       self.rf, self.dr, self.vc, self.dth, self.dz, self._fr, self._ft,
-                       self._fz)
-        if kturb:
-            KE.eddy_viscosity(self.k, self.e, self.solid, self.nu_t)
-        fl = self.solid == FLUID
-        np.multiply((self.eps_c if model_a else 1.0) * rho, nu + self.nu_t, out=self._em)
-        self._em[~fl] = 0.0
-        VK.normal_stresses(self.ur, self.ut, self.uz, self._em, self.solid, self.rf, self.rc,
-                           self.dr, self.dth, self.dz, self._trr, self._ttt, self._tzz,
-                           self._s2)
-        VK.edge_stresses(self.ur, self.ut, self.uz, self.kr, self.kt, self.kz, self._em,
-                         self.eps_c, self.k, self.solid, self.rf, self.rc, self.dr, self.dth,
-                         self.dz, self.om_shaft, rho, nu, kturb, model_a, self._ert,
-                         self._erz, self._etz, self._grt, self._grz, self._gtz)
-        VK.rhs_r(self.ur, self.ut, self._fr, self._ft, self._fz, self.kr, self._trr,
-                 self._ttt, self._ert, self._erz, self.eps_r, self.rf, self.rc, self.dr,
-                 self.vc, self.dth, self.dz, rho, self._rr)
-        VK.rhs_t(self.ut, self._fr, self._ft, self._fz, self.kt, self._ttt, self._ert,
-                 self._etz, self.rf, self.rc, self.dr, self.vc, self.dth, self.dz, rho,
-                 self._rt)
-        VK.rhs_z(self.uz, self._fr, self._ft, self._fz, self.kz, self._tzz, self._erz,
-                 self._etz, self.rf, self.dr, self.vc, self.dth, self.dz, rho, self._rz)
-        sh, rot, sta = VK.wall_torques(self._ert, self._etz, self.kt, self.solid, self.rf,
-                                       self.rc, self.vc, self.dth, self.dz)
-        if self.grid.shaft_rotates:
-            self.angular_impulse_shaft_nms += sh * dt
-        else:
-            sta += sh
-        self.angular_impulse_rotor_nms += rot * dt
-        self.angular_impulse_stator_nms += sta * dt
-        VK.pressure_gradients(self.p, self.solid, self.rc, self.dr, self.dth, self.dz,
-                              self._gpr, self._gpt, self._gpz)
-        VK.predict(self.ur.ravel(), self.kr.ravel(), self.eps_r.ravel(), self._rr.ravel(),
-                   self.kd_r.ravel(), self.sd_r.ravel(), self._gpr.ravel(), 0.0, rho, dt,
-                   self._zero_r.ravel())
-        VK.predict(self.ut.ravel(), self.kt.ravel(), self.eps_t.ravel(), self._rt.ravel(),
-                   self.kd_t.ravel(), self.sd_t.ravel(), self._gpt.ravel(), 0.0, rho, dt,
-                   self.fixed_t.ravel())
-        VK.predict(self.uz.ravel(), self.kz.ravel(), self.eps_z.ravel(), self._rz.ravel(),
-                   self.kd_z.ravel(), self.sd_z.ravel(), self._gpz.ravel(), self.body_z,
-                   rho, dt, self._zero_c.ravel())
-        # the beads' drag acted on u* (implicit in the predictor): what they exchange
-        for acc, u in zip(self.mean_u, (self.ur, self.ut, self.uz)):
-            acc += dt * u
-        tq = self.rc[:, None, None] * self.vol_c * (self.kd_t * self.ut - self.sd_t)
-        self.exchange_angular_nms -= float(tq[self.kt == 0].sum()) * dt
-        fz = self.vol_c * (self.kd_z * self.uz - self.sd_z)
-        self.exchange_axial_ns -= float(fz[self.kz == 0].sum()) * dt
-        # ---- projection ----
-        VK.face_fluxes(self.ur, self.ut, self.uz, self.eps_r, self.eps_t, self.eps_z,
-                       self.rf, self.dr, self.vc, self.dth, self.dz, self._fr, self._ft,
-                       self._fz)
-        VK.divergence(self._fr, self._ft, self._fz, self._div)
-        b = self._div
-        if self.interval_s:
-            b = b + self.vol_c * (self.eps_c - self.eps_c_old) / self.interval_s
-        phi = self.pressure.solve(b * (rho / dt))
-        gphi = self._gphi
-        VK.pressure_gradients(phi, self.solid, self.rc, self.dr, self.dth, self.dz, *gphi)
-        for u, kind, eps, g in zip((self.ur, self.ut, self.uz), (self.kr, self.kt, self.kz),
-                                   (self.eps_r, self.eps_t, self.eps_z), gphi):
-            VK.correct(u.ravel(), kind.ravel(), eps.ravel(), g.ravel(), rho, dt)
-        self.p += phi
-        VK.pressure_gradients(self.p, self.solid, self.rc, self.dr, self.dth, self.dz,
-                              self._gpr, self._gpt, self._gpz)
-        # ---- turbulence ----
-        if kturb:
-            VK.face_fluxes(self.ur, self.ut, self.uz, self.eps_r, self.eps_t, self.eps_z,
-                           self.rf, self.dr, self.vc, self.dth, self.dz, self._fr, self._ft,
-                           self._fz)
-            KE.production(self.ur, self.ut, self.uz, self.nu_t, self._s2, self._grt,
-                          self._grz, self._gtz, self.solid, self.wall, self.wall_om, self.k,
-                          self.rc, self.dr, self.dth, self.dz, nu, self._prod, self._ewall)
-            KE.transport(self.k, self.k, self.e, False, self._fr, self._ft, self._fz,
-                         self.eps_c, self.nu_t, self.solid, self._prod, self._ewall, self.rf,
-                         self.rc, self.dr, self.vc, self.dth, self.dz, nu, dt, KE.K_MIN,
-                         self._knew)
-            KE.transport(self.e, self.k, self.e, True, self._fr, self._ft, self._fz,
-                         self.eps_c, self.nu_t, self.solid, self._prod, self._ewall, self.rf,
-                         self.rc, self.dr, self.vc, self.dth, self.dz, nu, dt, KE.EPS_MIN,
-                         self._enew)
-            self.k, self._knew = self._knew, self.k
-            self.e, self._enew = self._enew, self.e
-        self.time_s += dt
-        self.substeps += 1
 
     # ---- observables ------------------------------------------------------------------
     def angular_momentum_kgm2_s(self) -> float:

@@ -39,8 +39,6 @@ e_tz[i, j, k] = a tau_theta_z at (r_c[i], theta_{j+1/2}, z_{k+1/2}).
 
 import math
 
-import numpy as np
-
 from millfmu.dem._jit import device, serial
 
 KAPPA = 0.41  # von Karman constant (Launder & Spalding 1974)
@@ -522,7 +520,6 @@ def wall_torques(e_rt, e_tz, kt_, solid, rf, rc, vc, dth, dz):
     rot = 0.0
     sta = 0.0
     for j in range(nt):
-        jp = (j + 1) % nt
         for k in range(nz):
             kp = (k + 1) % nz
             # shaft (inner face of the first cell) and chamber (outer face of the last)

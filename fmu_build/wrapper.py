@@ -1,0 +1,249 @@
+"""pythonfmu's C++ wrapper (libpythonfmu-export.so) rebuilt from its sources with fixes.
+
+The wrapper that pythonfmu 0.7.0 ships has these faults, each seen with the mill FMU:
+
+1. ``findClass`` releases a reference it does not own (``Py_DECREF`` on the borrowed
+   module dict from ``PyModule_GetDict``) at every fmi2Instantiate: the script module's
+   namespace is freed under the interpreter once enough instances were made.
+2. Every Python exception becomes fmi2Fatal, and the wrapper then releases the instance's
+   Python objects while keeping the pointers: fmi2Terminate or fmi2FreeInstance after that
+   uses freed memory (a segfault), and fmi2Error, which FMI 2.0 asks for where a call
+   fails but the instance can go on (a state that cannot be deserialized, a
+   communication point that does not match), can never be returned.
+3. ``Fmi2Component`` destroys its logger before the slave, whose destructor still flushes
+   log messages through it.
+4. A compile error of the slave script calls ``Py_Finalize`` on the host's interpreter.
+5. At process exit, the library's ELF destructor resets the static ``pyState``
+   shared_ptr after that object's own C++ destructor has run (exit handlers run before the
+   libraries' fini functions, and hosts' dlclose does not unload it): the control block is
+   freed twice, and glibc aborts ("corrupted double-linked list") in a later free. Found
+   with valgrind (invalid read in finalizePythonInterpreter of a block freed by the exit
+   handlers); this is the abort hosts saw at exit.
+
+Measured (``python -m fmu_build.exit_study``, 200 processes each loading three mill FMUs
+in fmpy, stepping, freeing them and exiting normally): see the README, "FMU".
+
+pythonfmu 0.7.0's sdist carries no C++ sources, and its wrapper differs from 0.6.9's only
+in ``SetupExperiment`` passing stop time and tolerance on to Python (which 0.7.0's
+``Fmi2Slave.setup_experiment`` requires). So the sources are pythonfmu 0.6.9's sdist from
+PyPI (fetched with pip, checked against a pinned sha256), brought to 0.7.0's interface and
+fixed by the edits below, each required to match exactly once; then built with CMake and
+the system's C++ compiler. The result is cached per source, edits and Python
+(``$MILLFMU_WRAPPER_DIR``, else ``$XDG_CACHE_HOME/millfmu/pythonfmu-wrapper``, else
+``~/.cache/millfmu/pythonfmu-wrapper``). Where any step is not possible (no compiler, no
+CMake, no network, another pythonfmu version), :func:`fixed_wrapper` returns None with the
+reason and ``build-fmu`` keeps pythonfmu's own wrapper, with a warning.
+"""
+
+from __future__ import annotations
+
+import functools
+import hashlib
+import os
+import platform
+import shutil
+import subprocess
+import sys
+import sysconfig
+import tarfile
+import tempfile
+from pathlib import Path
+
+#: The pythonfmu version whose Python side the rebuilt wrapper serves.
+PYTHONFMU_VERSION = "0.7.0"
+#: The sdist with the C++ sources (0.7.0's has none) and its sha256.
+SOURCE_SDIST = "pythonfmu==0.6.9"
+SOURCE_SHA256 = "13eab981d3c86704ab19b35ebcee9347b2dcc378bbe8d0b43c9ae1fe35bc9fa7"
+EXPORT_DIR = "pythonfmu/pythonfmu-export"
+#: Written into an FMU's resources: which wrapper it carries ("fixed" or "stock"). The
+#: slave raises exceptions (-> fmi2Error) only under the fixed wrapper.
+MARKER_FILE = "wrapper.txt"
+
+#: (file, old, new): each ``old`` must occur exactly once in ``file``.
+EDITS = (
+    # 0.7.0's interface: setup_experiment(start_time, stop_time, tolerance), None if undefined.
+    ("src/pythonfmu/PySlaveInstance.cpp",
+     'py_safe_run([this, startTime](PyGILState_STATE gilState) {\n'
+     '            auto f = PyObject_CallMethod(pInstance_, "setup_experiment", "(d)", startTime);',
+     'py_safe_run([this, startTime, stop, tolerance](PyGILState_STATE gilState) {\n'
+     '            PyObject* pyStop = stop ? PyFloat_FromDouble(*stop) : (Py_INCREF(Py_None), Py_None);\n'
+     '            PyObject* pyTol = tolerance ? PyFloat_FromDouble(*tolerance) : (Py_INCREF(Py_None), Py_None);\n'
+     '            auto f = PyObject_CallMethod(pInstance_, "setup_experiment", "(dOO)", startTime, pyStop, pyTol);\n'
+     '            Py_DECREF(pyStop);\n'
+     '            Py_DECREF(pyTol);'),
+    # 1. The module dict is borrowed: never released here.
+    ("src/pythonfmu/PySlaveInstance.cpp",
+     "        PyErr_Print(); // Handle compilation error\n        Py_Finalize();\n        Py_DECREF(pGlobals);\n"
+     "        Py_DECREF(pyModule);\n        Py_DECREF(pLocals);\n        Py_DECREF(pCode);\n",
+     "        PyErr_Print(); // Handle compilation error\n"
+     "        Py_DECREF(pyModule);\n        Py_DECREF(pLocals);\n"),
+    ("src/pythonfmu/PySlaveInstance.cpp",
+     "    Py_DECREF(pyModule);\n    Py_DECREF(pGlobals);\n",
+     "    Py_DECREF(pyModule);\n"),
+    # 2. A Python exception is an error of this call (fmi2Error); the instance keeps its
+    #    Python objects and stays usable.
+    ("src/pythonfmu/PySlaveInstance.cpp",
+     "        const auto err = PyErr_Occurred();\n        if (err != nullptr) {\n            cleanPyObject();\n",
+     "        const auto err = PyErr_Occurred();\n        if (err == nullptr) {\n"
+     "            PyGILState_Release(gilState);\n"
+     "            throw std::runtime_error(what + \": failed without a Python exception\");\n"
+     "        }\n        {\n"),
+    ("src/pythonfmu/PySlaveInstance.cpp",
+     'oss << "Fatal py exception encountered: ";',
+     'oss << "Python exception: ";'),
+    ("src/pythonfmu/PySlaveInstance.cpp",
+     "            throw fatal_error(oss.str());",
+     "            throw std::runtime_error(oss.str());"),
+    # fmi2SetFMUstate's result was never released.
+    ("src/pythonfmu/PySlaveInstance.cpp",
+     'handle_py_exception("[_set_fmu_state] PyObject_CallMethod", gilState);\n            }\n',
+     'handle_py_exception("[_set_fmu_state] PyObject_CallMethod", gilState);\n            }\n'
+     "            Py_DECREF(f);\n"),
+    # 5. pyState's static destructor releases it; the fini function must not touch it again.
+    ("src/pythonfmu/PySlaveInstance.cpp",
+     "__attribute__((destructor)) void onLibraryUnload()\n{\n    finalizePythonInterpreter();\n}",
+     "__attribute__((destructor)) void onLibraryUnload()\n{\n"
+     "    // Nothing: pyState's own static destructor has released it by now.\n}"),
+    # 3. The slave (whose destructor logs) goes before the logger.
+    ("src/pythonfmu/fmi2.cpp",
+     "    double lastSuccessfulTime{0};\n",
+     "    ~Fmi2Component() { slave.reset(); }\n\n    double lastSuccessfulTime{0};\n"),
+)
+#: Changes with the edits or the build recipe: part of the cache key.
+RECIPE_VERSION = "2"
+
+
+def wrapper_dir() -> Path:
+    env = os.environ.get("MILLFMU_WRAPPER_DIR")
+    if env:
+        return Path(env).expanduser()
+    xdg = os.environ.get("XDG_CACHE_HOME")
+    return (Path(xdg).expanduser() if xdg else Path.home() / ".cache") / "millfmu" / "pythonfmu-wrapper"
+
+
+def _platform_dir() -> str | None:
+    """pythonfmu's binaries folder for this machine (only linux64 is rebuilt here)."""
+    if sys.platform.startswith("linux") and platform.machine() in ("x86_64", "AMD64") and sys.maxsize > 2**32:
+        return "linux64"
+    return None
+
+
+def _key() -> str:
+    h = hashlib.sha256()
+    for part in (SOURCE_SHA256, RECIPE_VERSION, repr(EDITS), sysconfig.get_paths()["include"], sys.version):
+        h.update(part.encode() + b"\0")
+    return h.hexdigest()[:16]
+
+
+def apply_edits(root: Path) -> None:
+    """Apply :data:`EDITS` to the export sources under ``root``; RuntimeError if one does not match once."""
+    for rel, old, new in EDITS:
+        p = root / rel
+        text = p.read_text()
+        n = text.count(old)
+        if n != 1:
+            raise RuntimeError(f"{rel}: expected the text to fix once, found it {n} times: {old.splitlines()[0].strip()!r}")
+        p.write_text(text.replace(old, new))
+
+
+def _run(cmd, cwd=None):
+    r = subprocess.run(cmd, cwd=cwd, capture_output=True, text=True)
+    if r.returncode != 0:
+        tail = "\n".join((r.stdout + r.stderr).strip().splitlines()[-15:])
+        raise RuntimeError(f"{' '.join(map(str, cmd[:3]))} ... failed (exit status {r.returncode}):\n{tail}")
+    return r
+
+
+def _fetch_sources(tmp: Path) -> Path:
+    """pythonfmu's sdist with the C++ sources, via pip; checked against SOURCE_SHA256."""
+    # No retries and a short timeout: without a network the build falls back at once.
+    _run([sys.executable, "-m", "pip", "download", "--quiet", "--retries", "0", "--timeout", "20", "--no-binary", ":all:",
+          "--no-deps", "--dest", str(tmp), SOURCE_SDIST])
+    (sdist,) = tmp.glob("pythonfmu-*.tar.gz")
+    digest = hashlib.sha256(sdist.read_bytes()).hexdigest()
+    if digest != SOURCE_SHA256:
+        raise RuntimeError(f"{sdist.name}: sha256 {digest}, expected {SOURCE_SHA256}")
+    with tarfile.open(sdist) as tar:
+        members = [m for m in tar.getmembers() if f"/{EXPORT_DIR}/" in m.name and (m.isfile() or m.isdir())]
+        tar.extractall(tmp / "src", members=members)
+    (export,) = (tmp / "src").glob(f"*/{EXPORT_DIR}")
+    return export
+
+
+def _cmake() -> str | None:
+    """CMake on PATH, else the one a Python environment brings (fmpy depends on the cmake package)."""
+    return shutil.which("cmake") or shutil.which("cmake", path=str(Path(sys.executable).parent))
+
+
+def build_wrapper(dest: Path) -> Path:
+    """Fetch, fix and build the wrapper into ``dest`` (a file); RuntimeError saying what failed."""
+    cmake = _cmake()
+    if cmake is None:
+        raise RuntimeError("no cmake found")
+    if not any(shutil.which(c) for c in ("c++", "g++", "clang++")):
+        raise RuntimeError("no C++ compiler (c++, g++, clang++) on PATH")
+    with tempfile.TemporaryDirectory(prefix="millfmu-wrapper-") as tmp:
+        tmp = Path(tmp)
+        export = _fetch_sources(tmp)
+        apply_edits(export)
+        build = tmp / "build"
+        include = sysconfig.get_paths()["include"]
+        _run([cmake, "-S", str(export), "-B", str(build), "-DCMAKE_BUILD_TYPE=Release",
+              f"-DPython3_EXECUTABLE={sys.executable}", f"-DPython3_INCLUDE_DIR={include}"])
+        _run([cmake, "--build", str(build), "-j", "2"])
+        (lib,) = export.parent.glob("resources/binaries/*/libpythonfmu-export.so")
+        dest.parent.mkdir(parents=True, exist_ok=True)
+        part = dest.with_name(dest.name + ".part")
+        shutil.copy2(lib, part)
+        part.replace(dest)
+    return dest
+
+
+@functools.lru_cache(maxsize=None)
+def fixed_wrapper() -> tuple[Path | None, str]:
+    """(path of the fixed wrapper for this machine, "") or (None, why it is not available);
+    tried once per process. MILLFMU_STOCK_WRAPPER=1 keeps pythonfmu's own on purpose."""
+    if os.environ.get("MILLFMU_STOCK_WRAPPER") == "1":
+        return None, "MILLFMU_STOCK_WRAPPER=1"
+    try:
+        import pythonfmu
+    except ImportError:
+        return None, "pythonfmu is not installed"
+    if pythonfmu.__version__ != PYTHONFMU_VERSION:
+        return None, f"pythonfmu {pythonfmu.__version__} installed; the fix is made for {PYTHONFMU_VERSION}"
+    plat = _platform_dir()
+    if plat is None:
+        return None, f"rebuilt only for linux64 (this is {sys.platform} {platform.machine()})"
+    dest = wrapper_dir() / _key() / plat / "libpythonfmu-export.so"
+    if dest.exists():
+        return dest, ""
+    try:
+        return build_wrapper(dest), ""
+    except (RuntimeError, OSError, ValueError, subprocess.SubprocessError) as e:
+        return None, str(e)
+
+
+_WARNED: set = set()
+
+
+def choose_wrapper(log=None) -> Path | None:
+    """The fixed wrapper, or None (pythonfmu's own kept) with a warning through ``log``
+    (default: stderr, once per process) saying why and what the FMU then cannot do."""
+    path, why = fixed_wrapper()
+    if path is None and (log is not None or why not in _WARNED):
+        _WARNED.add(why)
+        msg = (f"warning: pythonfmu's own C++ wrapper kept ({why}): a Python exception in the FMU "
+               f"would be fmi2Fatal, so refusals are logged errors with fmi2OK/fmi2Discard instead of fmi2Error, "
+               f"and hosts may abort at exit; install a C++ compiler and CMake to get the fixed wrapper")
+        (log or (lambda m: print(m, file=sys.stderr)))(msg)
+    return path
+
+
+def fmi2_replacements(ident: str, wrapper: Path | None) -> dict:
+    """Entries to replace in a pythonfmu FMU of model identifier ``ident`` (for
+    ``fmu_build.build.write_fmu``): the linux64 binary by ``wrapper`` when given, and the
+    resources' :data:`MARKER_FILE` naming the wrapper the FMU carries."""
+    out = {f"resources/{MARKER_FILE}": b"fixed\n" if wrapper is not None else b"stock\n"}
+    if wrapper is not None:
+        out[f"binaries/{_platform_dir()}/{ident}.so"] = Path(wrapper).read_bytes()
+    return out

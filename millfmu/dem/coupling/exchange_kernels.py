@@ -1,0 +1,229 @@
+"""Numba kernels of one coupling interval (:meth:`millfmu.dem.coupling.cfd_dem.CfdDem.exchange`):
+what each bead deposits, the split of the smoothed cell totals onto the velocity nodes, the
+read-back of node fields into cells, and the bead forces. Fused so that the beads are
+visited twice per interval and no temporary per-bead arrays are made.
+
+Bead columns deposited (q): 0 bead volume V [m3]; 1 drag coefficient c [kg/s] (r and z
+nodes); 2 c r [kg m/s] (theta nodes, torque form); 3 c v_r + a V dp/dr; 4 r (c v_theta +
+a V dp/(r dtheta)); 5 c v_z + a V (dp/dz - G) [N, N m, N] with a = 1 in model A (the
+reaction of the beads' pressure-gradient force) and 0 in model B.
+"""
+
+import math
+
+from numba import prange
+
+from millfmu.dem._jit import device, kernel, serial
+from millfmu.dem.coupling.koch_hill2001 import STIFF_RATIO, beta
+from millfmu.dem.coupling.projection import stencil_one
+
+NQ = 6
+
+
+@device
+def split(kind_a, kind_b):
+    """Shares of a cell's total for its two faces of a component, by their node kinds:
+    half each when both are solved, all to the solved one next to a wall or solid."""
+    fa = kind_a == 0
+    fb = kind_b == 0
+    if fa and fb:
+        return 0.5, 0.5
+    return (1.0 if fa else 0.0), (1.0 if fb else 0.0)
+
+
+@kernel
+def beads_in(x, v, rad, mass, fab, eps_cells, body_z, pf, model_b, mu, rho, interval,
+             rc, rtab, rh, dth, nt, dz, nz, lz, solid, idx, w, cyl, c, q, xmax):
+    """Stencils, cylindrical coordinates cyl = (r, v_r, v_theta, v_z), drag coefficients
+    c (Koch-Hill at the void fraction read from eps_cells and the relative speed to the
+    fluid velocity of the last interval, fab[:, 0:3]; see
+    :func:`millfmu.dem.coupling.koch_hill2001.bead_coefficients` for the stiff case) and
+    the deposit columns q of every bead; xmax[b] = interval c / m."""
+    for b in prange(x.shape[0]):
+        r = stencil_one(b, x, rc, rtab, rh, dth, nt, dz, nz, lz, solid, idx, w)
+        inv = 1.0 / r if r > 0.0 else 0.0
+        vr = (x[b, 0] * v[b, 0] + x[b, 1] * v[b, 1]) * inv
+        vt = (x[b, 0] * v[b, 1] - x[b, 1] * v[b, 0]) * inv
+        vz = v[b, 2]
+        eb = 0.0
+        for s in range(8):
+            if w[b, s] != 0.0:
+                eb += w[b, s] * eps_cells[idx[b, s]]
+        d = 2.0 * rad[b]
+        vol = math.pi / 6.0 * d * d * d
+        urel = math.sqrt((fab[b, 0] - vr) ** 2 + (fab[b, 1] - vt) ** 2 + (fab[b, 2] - vz) ** 2)
+        bt = beta(d, eb, mu, rho, urel)
+        if model_b:
+            bt /= eb
+        cc = vol * bt
+        xx = interval * cc / mass[b]
+        if xx > STIFF_RATIO:
+            cc = mass[b] * (1.0 - math.exp(-xx)) / interval
+        xmax[b] = xx
+        c[b] = cc
+        cyl[b, 0] = r
+        cyl[b, 1] = vr
+        cyl[b, 2] = vt
+        cyl[b, 3] = vz
+        q[b, 0] = vol
+        q[b, 1] = cc
+        q[b, 2] = cc * r
+        q[b, 3] = cc * vr + pf * vol * fab[b, 3]
+        q[b, 4] = r * (cc * vt + pf * vol * fab[b, 4])
+        q[b, 5] = cc * vz + pf * vol * (fab[b, 5] - body_z)
+
+
+@serial
+def cells_to_exchange(tot, vc, eps_min, solid, kr, kt, kz, vol_r, rc, eps_c, eps_r, eps_t,
+                      eps_z, kd_r, kd_t, kd_z, sd_r, sd_t, sd_z):
+    """From the smoothed cell totals tot (NQ, n_r, n_t, n_z): the void fraction per cell
+    (1 - V_beads / V, clipped below at eps_min; returns the number of clipped cells) and per
+    velocity node (volume-weighted mean of the two cells), and the drag coefficient kd
+    [kg/(m3 s)] and source sd [N/m3] per node: each cell's totals go half to each of its two
+    faces of a component (all to the free one next to a wall), divided by the node's control
+    volume (theta: also by r, the totals being in torque form)."""
+    nr, nt, nz = solid.shape
+    clipped = 0
+    for i in range(nr):
+        for j in range(nt):
+            for k in range(nz):
+                if solid[i, j, k] != 0:
+                    eps_c[i, j, k] = 1.0
+                    continue
+                e = 1.0 - tot[0, i, j, k] / vc[i]
+                if e < eps_min:
+                    e = eps_min
+                    clipped += 1
+                elif e > 1.0:
+                    e = 1.0
+                eps_c[i, j, k] = e
+    kd_r[:] = 0.0
+    kd_t[:] = 0.0
+    kd_z[:] = 0.0
+    sd_r[:] = 0.0
+    sd_t[:] = 0.0
+    sd_z[:] = 0.0
+    for i in range(nr):
+        for j in range(nt):
+            jm = (j - 1) % nt
+            for k in range(nz):
+                if solid[i, j, k] != 0:
+                    continue
+                km = (k - 1) % nz
+                # r: faces i (low) and i + 1
+                wa, wb = split(kr[i, j, k], kr[i + 1, j, k])
+                kd_r[i, j, k] += wa * tot[1, i, j, k]
+                kd_r[i + 1, j, k] += wb * tot[1, i, j, k]
+                sd_r[i, j, k] += wa * tot[3, i, j, k]
+                sd_r[i + 1, j, k] += wb * tot[3, i, j, k]
+                # theta: faces jm and j
+                wa, wb = split(kt[i, jm, k], kt[i, j, k])
+                kd_t[i, jm, k] += wa * tot[2, i, j, k]
+                kd_t[i, j, k] += wb * tot[2, i, j, k]
+                sd_t[i, jm, k] += wa * tot[4, i, j, k]
+                sd_t[i, j, k] += wb * tot[4, i, j, k]
+                # z: faces km and k
+                wa, wb = split(kz[i, j, km], kz[i, j, k])
+                kd_z[i, j, km] += wa * tot[1, i, j, k]
+                kd_z[i, j, k] += wb * tot[1, i, j, k]
+                sd_z[i, j, km] += wa * tot[5, i, j, k]
+                sd_z[i, j, k] += wb * tot[5, i, j, k]
+    for i in range(nr + 1):
+        for j in range(nt):
+            for k in range(nz):
+                kd_r[i, j, k] /= vol_r[i]
+                sd_r[i, j, k] /= vol_r[i]
+                if i == 0 or i == nr:
+                    eps_r[i, j, k] = 1.0
+                else:
+                    a = vc[i - 1] * eps_c[i - 1, j, k]
+                    b = vc[i] * eps_c[i, j, k]
+                    eps_r[i, j, k] = (a + b) / (vc[i - 1] + vc[i])
+    for i in range(nr):
+        sc = 1.0 / (rc[i] * vc[i])
+        for j in range(nt):
+            jp = (j + 1) % nt
+            for k in range(nz):
+                kp = (k + 1) % nz
+                kd_t[i, j, k] *= sc
+                sd_t[i, j, k] *= sc
+                kd_z[i, j, k] /= vc[i]
+                sd_z[i, j, k] /= vc[i]
+                eps_t[i, j, k] = 0.5 * (eps_c[i, j, k] + eps_c[i, jp, k])
+                eps_z[i, j, k] = 0.5 * (eps_c[i, j, k] + eps_c[i, j, kp])
+    return clipped
+
+
+
+@serial
+def nodes_to_cell_values(ur, ut, uz, gr, gt, gz, kr, kt, kz, solid, out):
+    """Transpose of the node split in :func:`cells_to_exchange` for intensive node
+    values: out[0:3, cell] the fluid velocity (u_r, u_theta, u_z) [m/s], out[3:6, cell] the
+    pressure gradient [Pa/m], each the split-weighted mean of the cell's two faces."""
+    nr, nt, nz = solid.shape
+    for i in range(nr):
+        for j in range(nt):
+            jm = (j - 1) % nt
+            for k in range(nz):
+                c = (i * nt + j) * nz + k
+                if solid[i, j, k] != 0:
+                    for m in range(6):
+                        out[m, c] = 0.0
+                    continue
+                km = (k - 1) % nz
+                wa, wb = split(kr[i, j, k], kr[i + 1, j, k])
+                out[0, c] = wa * ur[i, j, k] + wb * ur[i + 1, j, k]
+                out[3, c] = wa * gr[i, j, k] + wb * gr[i + 1, j, k]
+                wa, wb = split(kt[i, jm, k], kt[i, j, k])
+                out[1, c] = wa * ut[i, jm, k] + wb * ut[i, j, k]
+                out[4, c] = wa * gt[i, jm, k] + wb * gt[i, j, k]
+                wa, wb = split(kz[i, j, km], kz[i, j, k])
+                out[2, c] = wa * uz[i, j, km] + wb * uz[i, j, k]
+                out[5, c] = wa * gz[i, j, km] + wb * gz[i, j, k]
+
+
+@kernel
+def bead_forces(idx, w, cellv, c, cyl, rad, fab, pf, body_z, fext):
+    """Read the smoothed cell values back at each bead (fluid velocity and pressure
+    gradient), set the force held over the next interval, fext = (F_r [N], T_z [N m],
+    F_z [N]): drag c (u - v) with the fluid velocity of this interval, and in model A
+    (pf = 1) the pressure-gradient force -V (grad p - G e_z) with the gradient of the last
+    interval (the one whose reaction the fluid was given); then store the new values in
+    fab. Returns the sums of T_z and F_z over the beads."""
+    tsum = 0.0
+    fsum = 0.0
+    for b in prange(idx.shape[0]):
+        at0 = 0.0
+        at1 = 0.0
+        at2 = 0.0
+        at3 = 0.0
+        at4 = 0.0
+        at5 = 0.0
+        for s in range(8):
+            ww = w[b, s]
+            if ww != 0.0:
+                cc = idx[b, s]
+                at0 += ww * cellv[0, cc]
+                at1 += ww * cellv[1, cc]
+                at2 += ww * cellv[2, cc]
+                at3 += ww * cellv[3, cc]
+                at4 += ww * cellv[4, cc]
+                at5 += ww * cellv[5, cc]
+        d = 2.0 * rad[b]
+        vol = math.pi / 6.0 * d * d * d
+        r = cyl[b, 0]
+        fr = c[b] * (at0 - cyl[b, 1]) - pf * vol * fab[b, 3]
+        tz = r * (c[b] * (at1 - cyl[b, 2]) - pf * vol * fab[b, 4])
+        fz = c[b] * (at2 - cyl[b, 3]) - pf * vol * (fab[b, 5] - body_z)
+        fext[b, 0] = fr
+        fext[b, 1] = tz
+        fext[b, 2] = fz
+        tsum += tz
+        fsum += fz
+        fab[b, 0] = at0
+        fab[b, 1] = at1
+        fab[b, 2] = at2
+        fab[b, 3] = at3
+        fab[b, 4] = at4
+        fab[b, 5] = at5
+    return tsum, fsum

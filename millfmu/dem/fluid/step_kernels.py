@@ -1,0 +1,181 @@
+"""One fluid substep as two numba calls (the pressure solve between them is SuperLU's):
+:func:`predictor` (fluxes, stresses, explicit rates, wall torques, implicit-drag predictor,
+exchange bookkeeping, the projection's right-hand side) and :func:`corrector`
+(projection, pressure, turbulence, the next stable step). They only sequence the kernels
+of :mod:`~millfmu.dem.fluid.vans_kernels` and :mod:`~millfmu.dem.fluid.k_epsilon`, so that
+a substep pays the call overhead of two dispatches instead of some thirty.
+
+Arrays travel in tuples (see :class:`millfmu.dem.fluid.solver.FluidSolver`): F, the state
+and what the beads impose; W, work arrays; K, the int8 node kinds and cell kinds.
+"""
+
+from millfmu.dem._jit import serial
+from millfmu.dem.fluid import k_epsilon as KE
+from millfmu.dem.fluid import vans_kernels as VK
+
+# positions in the tuples
+(UR, UT, UZ, P, KT, ET, NUT, EPSC, EPSC0, EPSR, EPST, EPSZ, KDR, KDT, KDZ, SDR, SDT, SDZ,
+ FIXT, MUR, MUT, MUZ, MGR, MGT, MGZ) = range(25)
+(FR, FT, FZ, DIV, TRR, TTT, TZZ, S2, ERT, ERZ, ETZ, GRT, GRZ, GTZ, RR, RT, RZ, GPR, GPT,
+ GPZ, EM, PROD, EWALL, KNEW, ENEW, GHR, GHT, GHZ, ZR, ZC) = range(30)
+KR, KTH, KZ, SOLID = range(4)
+
+
+@serial
+def predictor(F, W, K, rf, rc, dr, vc, dth, dz, om_sh, rho, nu, kturb, model_a, body_z,
+              dt, interval, acc):
+    """Explicit part and implicit-drag predictor of one substep of dt [s]; leaves the
+    projection's right-hand side (rho / dt) (net outflow of eps u* + V d eps / dt) in
+    W[DIV] and adds to acc: [0] shaft, [1] rotor cells, [2] stator angular impulse the fluid
+    gave [N m s], [3] angular and [4] axial impulse the beads gave the fluid [N m s, N s]."""
+    kr, kt, kz, solid = K[KR], K[KTH], K[KZ], K[SOLID]
+    ur, ut, uz = F[UR], F[UT], F[UZ]
+    VK.face_fluxes(ur, ut, uz, F[EPSR], F[EPST], F[EPSZ], rf, dr, vc, dth, dz, W[FR], W[FT],
+                   W[FZ])
+    if kturb:
+        KE.eddy_viscosity(F[KT], F[ET], solid, F[NUT])
+    em = W[EM]
+    nr, nt, nz = ut.shape
+    for i in range(nr):
+        for j in range(nt):
+            for k in range(nz):
+                if solid[i, j, k] != 0:
+                    em[i, j, k] = 0.0
+                else:
+                    a = F[EPSC][i, j, k] if model_a else 1.0
+                    em[i, j, k] = a * rho * (nu + F[NUT][i, j, k])
+    VK.normal_stresses(ur, ut, uz, em, solid, rf, rc, dr, dth, dz, W[TRR], W[TTT], W[TZZ],
+                       W[S2])
+    VK.edge_stresses(ur, ut, uz, kr, kt, kz, em, F[EPSC], F[KT], solid, rf, rc, dr, dth, dz,
+                     om_sh, rho, nu, kturb, model_a, W[ERT], W[ERZ], W[ETZ], W[GRT], W[GRZ],
+                     W[GTZ])
+    VK.rhs_r(ur, ut, W[FR], W[FT], W[FZ], kr, W[TRR], W[TTT], W[ERT], W[ERZ], F[EPSR], rf, rc,
+             dr, vc, dth, dz, rho, W[RR])
+    VK.rhs_t(ut, W[FR], W[FT], W[FZ], kt, W[TTT], W[ERT], W[ETZ], rf, rc, dr, vc, dth, dz, rho,
+             W[RT])
+    VK.rhs_z(uz, W[FR], W[FT], W[FZ], kz, W[TZZ], W[ERZ], W[ETZ], rf, dr, vc, dth, dz, rho,
+             W[RZ])
+    sh, rot, sta = VK.wall_torques(W[ERT], W[ETZ], kt, solid, rf, rc, vc, dth, dz)
+    acc[0] += sh * dt
+    acc[1] += rot * dt
+    acc[2] += sta * dt
+    VK.pressure_gradients(F[P], solid, rc, dr, dth, dz, W[GPR], W[GPT], W[GPZ])
+    VK.predict(ur.reshape(-1), kr.reshape(-1), F[EPSR].reshape(-1), W[RR].reshape(-1),
+               F[KDR].reshape(-1), F[SDR].reshape(-1), W[GPR].reshape(-1), 0.0, rho, dt,
+               W[ZR].reshape(-1))
+    VK.predict(ut.reshape(-1), kt.reshape(-1), F[EPST].reshape(-1), W[RT].reshape(-1),
+               F[KDT].reshape(-1), F[SDT].reshape(-1), W[GPT].reshape(-1), 0.0, rho, dt,
+               F[FIXT].reshape(-1))
+    VK.predict(uz.reshape(-1), kz.reshape(-1), F[EPSZ].reshape(-1), W[RZ].reshape(-1),
+               F[KDZ].reshape(-1), F[SDZ].reshape(-1), W[GPZ].reshape(-1), body_z, rho, dt,
+               W[ZC].reshape(-1))
+    # the beads' drag acted on u* (implicit in the predictor): what they exchange, and the
+    # velocity they are given back
+    ang = 0.0
+    axl = 0.0
+    for i in range(nr):
+        for j in range(nt):
+            for k in range(nz):
+                if kt[i, j, k] == 0:
+                    ang += rc[i] * vc[i] * (F[KDT][i, j, k] * ut[i, j, k] - F[SDT][i, j, k])
+                if kz[i, j, k] == 0:
+                    axl += vc[i] * (F[KDZ][i, j, k] * uz[i, j, k] - F[SDZ][i, j, k])
+                F[MUT][i, j, k] += dt * ut[i, j, k]
+                F[MUZ][i, j, k] += dt * uz[i, j, k]
+    acc[3] -= ang * dt
+    acc[4] -= axl * dt
+    mr = F[MUR]
+    for i in range(nr + 1):
+        for j in range(nt):
+            for k in range(nz):
+                mr[i, j, k] += dt * ur[i, j, k]
+    VK.face_fluxes(ur, ut, uz, F[EPSR], F[EPST], F[EPSZ], rf, dr, vc, dth, dz, W[FR], W[FT],
+                   W[FZ])
+    div = W[DIV]
+    VK.divergence(W[FR], W[FT], W[FZ], div)
+    for i in range(nr):
+        for j in range(nt):
+            for k in range(nz):
+                b = div[i, j, k]
+                if interval > 0.0:
+                    b += vc[i] * (F[EPSC][i, j, k] - F[EPSC0][i, j, k]) / interval
+                div[i, j, k] = b * rho / dt
+
+
+@serial
+def corrector(F, W, K, phi, wall, wall_om, rf, rc, dr, vc, dth, dz, rho, nu, kturb, dt,
+              cfl):
+    """Projection with the pressure increment phi [Pa], the new pressure and its gradient
+    (added, times dt, to the interval means), k-epsilon; returns the largest stable
+    substep [s] for the new state (advective CFL number ``cfl``, explicit diffusion)."""
+    kr, kt, kz, solid = K[KR], K[KTH], K[KZ], K[SOLID]
+    ur, ut, uz = F[UR], F[UT], F[UZ]
+    VK.pressure_gradients(phi, solid, rc, dr, dth, dz, W[GHR], W[GHT], W[GHZ])
+    VK.correct(ur.reshape(-1), kr.reshape(-1), F[EPSR].reshape(-1), W[GHR].reshape(-1), rho, dt)
+    VK.correct(ut.reshape(-1), kt.reshape(-1), F[EPST].reshape(-1), W[GHT].reshape(-1), rho, dt)
+    VK.correct(uz.reshape(-1), kz.reshape(-1), F[EPSZ].reshape(-1), W[GHZ].reshape(-1), rho, dt)
+    p = F[P]
+    nr, nt, nz = ut.shape
+    for i in range(nr):
+        for j in range(nt):
+            for k in range(nz):
+                p[i, j, k] += phi[i, j, k]
+    VK.pressure_gradients(p, solid, rc, dr, dth, dz, W[GPR], W[GPT], W[GPZ])
+    for i in range(nr + 1):
+        for j in range(nt):
+            for k in range(nz):
+                F[MGR][i, j, k] += dt * W[GPR][i, j, k]
+    for i in range(nr):
+        for j in range(nt):
+            for k in range(nz):
+                F[MGT][i, j, k] += dt * W[GPT][i, j, k]
+                F[MGZ][i, j, k] += dt * W[GPZ][i, j, k]
+    if kturb:
+        VK.face_fluxes(ur, ut, uz, F[EPSR], F[EPST], F[EPSZ], rf, dr, vc, dth, dz, W[FR],
+                       W[FT], W[FZ])
+        KE.production(ur, ut, uz, F[NUT], W[S2], W[GRT], W[GRZ], W[GTZ], solid, wall, wall_om,
+                      F[KT], rc, dr, dth, dz, nu, W[PROD], W[EWALL])
+        KE.transport(F[KT], F[KT], F[ET], False, W[FR], W[FT], W[FZ], F[EPSC], F[NUT], solid,
+                     W[PROD], W[EWALL], rf, rc, dr, vc, dth, dz, nu, dt, KE.K_MIN, W[KNEW])
+        KE.transport(F[ET], F[KT], F[ET], True, W[FR], W[FT], W[FZ], F[EPSC], F[NUT], solid,
+                     W[PROD], W[EWALL], rf, rc, dr, vc, dth, dz, nu, dt, KE.EPS_MIN, W[ENEW])
+        F[KT][:] = W[KNEW]
+        F[ET][:] = W[ENEW]
+        KE.eddy_viscosity(F[KT], F[ET], solid, F[NUT])
+    return stable_dt(ur, ut, uz, F[NUT], rc, dr, dth, dz, nu, cfl)
+
+
+@serial
+def stable_dt(ur, ut, uz, nu_t, rc, dr, dth, dz, nu, cfl):
+    """Largest substep [s]: advective CFL number ``cfl`` on every node, and explicit
+    diffusion, dt (nu + nu_t)_max sum 1/h^2 <= 1/4."""
+    nr, nt, nz = ut.shape
+    m = 0.0
+    for i in range(1, nr):
+        h = rc[i] - rc[i - 1]
+        for j in range(nt):
+            for k in range(nz):
+                a = abs(ur[i, j, k]) / h
+                if a > m:
+                    m = a
+    ntm = 0.0
+    for i in range(nr):
+        ht = rc[i] * dth
+        for j in range(nt):
+            for k in range(nz):
+                a = abs(uz[i, j, k]) / dz
+                if a > m:
+                    m = a
+                if nt > 1:
+                    a = abs(ut[i, j, k]) / ht
+                    if a > m:
+                        m = a
+                if nu_t[i, j, k] > ntm:
+                    ntm = nu_t[i, j, k]
+    inv_h2 = 1.0 / dr.min() ** 2 + 1.0 / (dz * dz)
+    if nt > 1:
+        inv_h2 += 1.0 / (rc.min() * dth) ** 2
+    dt_dif = 0.25 / ((nu + ntm) * inv_h2)
+    if m <= 0.0:
+        return dt_dif
+    return min(cfl / m, dt_dif)

@@ -1,0 +1,189 @@
+"""Checks of the coupled fluid (millfmu.dem.coupling): the projection's exact transposes,
+one settling bead, a fixed bed with flow through it, and the angular-momentum budget of a
+coupled disc slice."""
+
+import math
+
+import numpy as np
+import pytest
+
+pytest.importorskip("numba")
+
+from millfmu.dem.coupling import exchange_kernels as EK  # noqa: E402
+from millfmu.dem.coupling import projection as PJ  # noqa: E402
+from millfmu.dem.coupling.cfd_dem import CfdDem  # noqa: E402
+from millfmu.dem.coupling.settings import CouplingSettings  # noqa: E402
+from millfmu.dem.fluid.grid import mill_grid  # noqa: E402
+from millfmu.dem.fluid.solver import FluidProperties, FluidSolver  # noqa: E402
+from millfmu.dem.geometry import MillGeometry, fcc_sites  # noqa: E402
+from millfmu.dem.params import BeadMaterial, koch_hill_f0_f3  # noqa: E402
+from millfmu.dem.sim import DemSimulation, FluidSettings  # noqa: E402
+
+D = 0.8e-3
+RHO_F, MU_F = 998.2, 1.002e-3
+
+
+def test_deposit_and_gather_are_transposes_and_conserve():
+    """Deposit (with smoothing and node splits) conserves every bead total, and reading a
+    field back is its exact transpose: <gather(field), q> = <field, deposit(q)>."""
+    geo = MillGeometry(0.015, 0.045, 0.028, disc_radius_m=0.036, disc_thickness_m=0.008,
+                       sector_deg=30.0)
+    grid = mill_grid(geo, 1e-3, n_theta=3)
+    proj = PJ.Projector(grid, 0.8e-3)
+    rng = np.random.default_rng(5)
+    x = fcc_sites(geo, 0.4e-3, 0.3e-3)[:400]
+    x = x[rng.permutation(len(x))]
+    n = x.shape[0]
+    idx = np.zeros((n, 8), np.int64)
+    w = np.zeros((n, 8))
+    nr, nt, nz = grid.shape
+    PJ.bead_stencils(x, proj.rc, proj.rtab, proj.rh, grid.dtheta_rad, nt, grid.dz_m, nz,
+                     grid.height_m,
+                     grid.solid, idx, w, np.zeros(n))
+    q = rng.normal(size=(n, 6))
+    tot = np.zeros((6, grid.solid.size))
+    PJ.deposit(idx, w, q, tot)
+    proj.smooth_totals(tot)
+    assert proj.sweeps > 1
+    assert np.allclose(tot.sum(axis=1), q.sum(axis=0), rtol=1e-12, atol=1e-12)
+    assert np.all(tot.reshape((6,) + grid.shape)[:, grid.solid != 0] == 0.0)
+    field = rng.normal(size=(6, grid.solid.size))
+    field[:, grid.solid.ravel() != 0] = 0.0
+    sm = field.copy()
+    proj.smooth_values(sm)
+    back = np.zeros((n, 6))
+    PJ.gather(idx, w, sm, back)
+    lhs = float((back * q).sum())
+    rhs = float((field * tot).sum())
+    assert abs(lhs - rhs) <= 1e-11 * (abs(lhs) + abs(rhs))
+    # cells -> velocity nodes and back (the solver's node kinds: walls and the disc)
+    s = FluidSolver(grid, FluidProperties(RHO_F, MU_F), 100.0, turbulence="laminar")
+    t6 = np.abs(tot).reshape((6,) + grid.shape) * 1e-12  # small volumes: no clipping
+    eps = [np.ones(grid.shape), np.ones(s.ur.shape), np.ones(grid.shape), np.ones(grid.shape)]
+    kd = [np.zeros(s.ur.shape), np.zeros(grid.shape), np.zeros(grid.shape)]
+    sd = [np.zeros(s.ur.shape), np.zeros(grid.shape), np.zeros(grid.shape)]
+    EK.cells_to_exchange(t6, grid.cell_volume_m3, 0.35, grid.solid, s.kr, s.kt, s.kz,
+                         np.ascontiguousarray(s.vol_r[:, 0, 0]), grid.r_centres_m, *eps, *kd,
+                         *sd)
+    node_tot = [kd[0] * s.vol_r, kd[1] * s.vol_c * grid.r_centres_m[:, None, None],
+                kd[2] * s.vol_c, sd[0] * s.vol_r,
+                sd[1] * s.vol_c * grid.r_centres_m[:, None, None], sd[2] * s.vol_c]
+    for m, col in enumerate((1, 2, 1, 3, 4, 5)):
+        assert abs(node_tot[m].sum() - t6[col].sum()) < 1e-12 * np.abs(t6).sum()
+    vals = [rng.normal(size=a.shape) for a in (s.ur, s.ut, s.uz, s.ur, s.ut, s.uz)]
+    cells = np.zeros((6, grid.solid.size))
+    EK.nodes_to_cell_values(*vals, s.kr, s.kt, s.kz, grid.solid, cells)
+    for m, col in enumerate((1, 2, 1, 3, 4, 5)):
+        lhs = float((vals[m] * node_tot[m]).sum())
+        rhs = float((cells[m] * t6[col].ravel()).sum())
+        assert abs(lhs - rhs) <= 1e-11 * (abs(lhs) + abs(rhs))
+
+
+def settling(model, n_theta=1):
+    """One glass bead settling along the axis in still water (the liquid column held by a
+    mean pressure gradient, as in a closed container); returns the bead's speed after
+    0.12 s, the coupling, the simulation. With theta cells: a 45 degree sector, the bead in
+    its middle."""
+    sector = 360.0 if n_theta == 1 else 45.0
+    geo = MillGeometry(0.015, 0.025, 0.01, sector_deg=sector)
+    a = math.radians(0.5 * sector if n_theta > 1 else 0.0)
+    x0 = np.array([[0.02 * math.cos(a), 0.02 * math.sin(a), 0.005]])
+    sim = DemSimulation(geo, BeadMaterial(), x0, 0.5 * D, 0.0, 2e-5,
+                        gravity_m_s2=(0.0, 0.0, -9.81),
+                        fluid=FluidSettings(drag=False, lubrication=False), threads=1)
+    grid = mill_grid(geo, 1e-3, n_theta=n_theta)
+    cpl = CfdDem(sim, grid, FluidProperties(RHO_F, MU_F),
+                 CouplingSettings(model=model, turbulence="laminar", steps=5,
+                                  n_theta=n_theta), 0.0)
+    weight = sim.mass[0] * 9.81 * (1.0 - RHO_F / 2510.0)
+    cpl.solver.body_z = weight / grid.fluid_volume_m3
+    cpl.run(6000)
+    return -float(sim.v[0, 2]), cpl, sim, weight
+
+
+@pytest.mark.parametrize("model,n_theta", [("A", 1), ("B", 1), ("A", 8)])
+def test_settling_bead_terminal_velocity_and_exchange(model, n_theta):
+    """With eight theta cells over 45 degrees the bead's drag goes into a few cells only and
+    drags the liquid around it along (u at the bead in the print): the settling speed is
+    then the drag law's up to that self-induced velocity."""
+    v, cpl, sim, weight = settling(model, n_theta)
+    # the drag law at the bead's local void fraction: (rho_p - rho_f) V g = V beta u
+    eps = float(cpl.void_fraction_at_beads()[0])
+    f0, f3 = koch_hill_f0_f3(eps)
+    uf = float(sim.per_bead["fluid_at_bead"][0, 2])
+
+    def drag(u):
+        re = D * eps * u * RHO_F / MU_F
+        beta = 18 * MU_F * eps ** 2 * (f0 + 0.5 * f3 * re) / D ** 2
+        return math.pi / 6 * D ** 3 * beta * u / (eps if model == "B" else 1.0)
+
+    lo, hi = 1e-6, 10.0
+    for _ in range(200):
+        mid = 0.5 * (lo + hi)
+        lo, hi = (mid, hi) if drag(mid) < weight else (lo, mid)
+    u_law = 0.5 * (lo + hi)
+    print(f"model {model}, {n_theta} theta cells: settling speed {v:.5f} m/s, drag law "
+          f"{u_law:.5f} m/s "
+          f"(relative to the liquid at the bead: {v + uf:.5f}), local eps {eps:.5f}")
+    assert abs(v / u_law - 1.0) < 0.02
+    # what the liquid lost through the exchange the bead gained, to round-off
+    f, b = cpl.solver.exchange_axial_ns, cpl.axial_impulse_to_beads_ns
+    assert abs(f + b) <= 1e-12 * abs(b)
+
+
+def test_fixed_bed_pressure_drop_koch_hill():
+    """A fixed fcc bed (void fraction 0.53) in an annular sector, liquid driven through it
+    by a mean pressure gradient G over a ramp: G equals the Koch-Hill prediction
+    (1 - eps) beta(eps, Re) U_s / eps^2 at the superficial velocity U_s the solver gives
+    (with a smoothing length of 5 d, so that the void fraction is uniform up to the walls:
+    the solver's consistency); Ergun printed beside."""
+    geo = MillGeometry(0.02, 0.03, 0.006, sector_deg=10.0)
+    x = fcc_sites(geo, 0.5 * D, 0.05 * D)
+    sim = DemSimulation(geo, BeadMaterial(), x, 0.5 * D, 0.0, 5e-6,
+                        fluid=FluidSettings(drag=False, lubrication=False), threads=1)
+    grid = mill_grid(geo, 0.75e-3)
+    cpl = CfdDem(sim, grid, FluidProperties(RHO_F, MU_F),
+                 CouplingSettings(turbulence="laminar", steps=100, smoothing_diameters=5.0),
+                 0.0)
+    s = cpl.solver
+    eps = 1.0 - x.shape[0] * math.pi / 6 * D ** 3 / geo.free_volume_m3()
+    f0, f3 = koch_hill_f0_f3(eps)
+    for g_pa_m in (2e3, 2e4, 2e5):
+        s.body_z = g_pa_m
+        for _ in range(300):
+            cpl.exchange()  # the beads are never moved
+        vol = s.vol_c[s.kz == 0]
+        us = float((s.eps_z * s.uz)[s.kz == 0] @ vol / vol.sum())
+        re = D * us * RHO_F / MU_F
+        beta = 18 * MU_F * eps ** 2 * (f0 + 0.5 * f3 * re) / D ** 2
+        pred = (1 - eps) * beta * us / eps ** 2
+        ergun = 150 * MU_F * (1 - eps) ** 2 * us / (eps ** 3 * D ** 2) + \
+            1.75 * RHO_F * (1 - eps) * us ** 2 / (eps ** 3 * D)
+        print(f"bed eps {eps:.3f}: G {g_pa_m:.3g} Pa/m, U_s {us:.4g} m/s, Re {re:.3g}, "
+              f"Koch-Hill {pred:.4g} Pa/m ({pred / g_pa_m - 1:+.2%}), Ergun {ergun:.4g} Pa/m")
+        assert abs(pred / g_pa_m - 1.0) < 0.05
+
+
+def test_coupled_disc_slice_angular_momentum_budget(tmp_path):
+    """Stirrer drive = change of fluid + bead angular momentum + chamber wall impulse,
+    over a short coupled run of the disc slice from rest (10 degree sector)."""
+    from millfmu.dem.run import run_scene
+    from millfmu.dem.scene import load_scene
+
+    sc = load_scene("disc_slice").with_overrides(
+        sector_deg=10.0, gravity_m_s2=(0.0, 0.0, 0.0), spin_up_s=0.0005, record_s=0.002,
+        sample_every_s=0.0005)
+    assert sc.fluid_mode == "coupled"
+    st = run_scene(sc, tmp_path, progress=False)
+    b = st.flow["angular_momentum_budget"]
+    print("budget", b)
+    assert abs(b["closure_rel"]) < 0.01
+    assert b["stirrer_drive_nms"] > 0 and b["change_fluid"] > 0 and b["change_beads"] > 0
+    assert "coupled CFD-DEM" in st.fluid_model and "k_epsilon" in st.fluid_model
+    for f in ("fluid_fields.npz", "map_fluid_radial.png", "swirl_profile.png"):
+        assert (tmp_path / f).exists()
+    fl = st.flow["fluid"]
+    assert fl["grid"]["n_theta"] == 1 and fl["coupling_interval_s"] == pytest.approx(5e-5)
+    t = st.flow["torque"]
+    assert t["stirrer_total_nm"] == pytest.approx(t["stirrer_fluid_shear_nm"] +
+                                                  t["stirrer_bead_contacts_nm"])

@@ -1,0 +1,69 @@
+"""The seed 001 deviation table: its verdicts on synthetic results, and the coupled bench
+row's structure (timings are printed, never asserted)."""
+
+import json
+
+import pytest
+
+from millfmu.dem import seed001
+
+
+def fake_stats(vt, fill, speeds=(0.13, 0.095, 0.085, 0.10), layer=0.22, secondary=None):
+    zones = []
+    vols = {"V1": 1.0, "V2": 2.0, "V3": 4.0, "V4": 3.0}
+    dens = {"V1": 1.0, "V2": 3.0, "V3": 2.0 if fill < 0.9 else 0.5, "V4": 1.5}
+    med = {"V1": 4e-8, "V2": 3e-8, "V3": 2e-8, "V4": 1e-8}
+    power = {"V1": 10.0, "V2": 5.0, "V3": 2.0, "V4": 1.0}
+    for z, sp in zip(("V1", "V2", "V3", "V4"), speeds):
+        zones.append(dict(name=z, volume_m3=vols[z], speed_over_tip_speed=sp,
+                          collision_frequency_per_m3_s=dens[z] * (vt + 4.0),
+                          collision_power_w=power[z] * vols[z],
+                          se={"tn": {"quantiles_j": {"q50": med[z]}}}))
+    sec = (0 if vt < 7 else 1) if secondary is None else secondary
+    vort = [dict(r_m=0.03, zeta_m=0.006, sign=-1, strength=1.0, region="between discs")]
+    vort += [dict(r_m=0.042, zeta_m=0.005, sign=1, strength=0.05,
+                  region="disc tip to wall")] * sec
+    census = {"large": 1, "between_discs": 1, "disc_tip_to_wall": sec, "vortices": vort}
+    flow = dict(first_bead_layer_angular_velocity_ratio=layer, vortices_fluid=census,
+                vortices_beads=census)
+    return dict(zones=zones, flow=flow)
+
+
+def write(tmp_path, fluid, **kw):
+    for vt, fill in seed001.CASES:
+        d = seed001.case_dir(tmp_path, fluid, vt, fill)
+        d.mkdir(parents=True)
+        (d / "stats.json").write_text(json.dumps(fake_stats(vt, fill, **kw)))
+
+
+def test_deviation_table_verdicts(tmp_path):
+    write(tmp_path, "coupled")
+    rows = seed001.deviation_rows(tmp_path)
+    assert len(rows) == 11
+    assert all(r["verdict"].startswith("matches") for r in rows), \
+        [r for r in rows if not r["verdict"].startswith("matches")]
+    # without prescribed runs in the folder the column comes from the shipped table
+    assert rows[0]["prescribed_source"] == seed001.TABLE_NOTE
+    assert "10 m/s 80 %: 0.325" in rows[0]["prescribed"]
+    md = seed001.markdown(rows)
+    assert md.count("\n") == 14 and "| verdict |" in md and seed001.TABLE_NOTE in md
+
+
+def test_deviation_table_names_what_is_missed(tmp_path):
+    write(tmp_path, "coupled", speeds=(0.33, 0.32, 0.17, 0.17), layer=0.5, secondary=0)
+    rows = {r["statement"][:40]: r for r in seed001.deviation_rows(tmp_path)}
+    missed = [k for k, r in rows.items() if r["verdict"].startswith("missed")]
+    assert any("V1 at 80" in k for k in missed) and any("first bead layer" in k
+                                                        for k in missed)
+    assert any("secondary vortex" in k for k in missed)
+
+
+@pytest.mark.bench
+def test_coupled_bench_row_prints_its_ratio():
+    pytest.importorskip("numba")
+    from millfmu.dem.coupling.bench import run_coupled_bench
+
+    r = run_coupled_bench(steps=200, repeats=1)
+    print(r.as_dict())
+    assert r.beads > 1000 and r.fluid_cells > 100 and r.coupling_steps == 10
+    assert r.dem_particle_steps_per_s > 0 and r.coupled_particle_steps_per_s > 0

@@ -1,0 +1,87 @@
+"""millfmu run: the output folder (issue 11, cases 1 and 6) and the provenance that
+reproduces a run (case 8)."""
+
+import json
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+
+from millfmu.mill import MillModel
+from millfmu.runner import simulate
+from millfmu.scene import scene_from_dict
+
+SHORT = "[run]\nt_end_s = 60.0\ndt_s = 10.0\noutput_interval_s = 30.0\n"
+
+
+def _run(*args, cwd=None):
+    return subprocess.run([sys.executable, "-m", "millfmu.cli", "run", "-q", *map(str, args)], capture_output=True, text=True, cwd=cwd)
+
+
+@pytest.fixture
+def short(tmp_path):
+    p = tmp_path / "short.toml"
+    p.write_text(SHORT)
+    return p
+
+
+def test_out_is_an_existing_file(tmp_path, short):
+    f = tmp_path / "result.txt"
+    f.write_text("keep me")
+    r = _run(short, "--out", f)
+    assert r.returncode == 2 and "Traceback" not in r.stderr
+    assert f"--out {f}: exists and is not a folder" in r.stderr
+    assert f.read_text() == "keep me"
+
+
+def test_out_cannot_be_written(tmp_path, short):
+    # A folder below a file cannot be made (a permission test would pass as root).
+    f = tmp_path / "file"
+    f.write_text("x")
+    r = _run(short, "--out", f / "sub")
+    assert r.returncode == 2 and "Traceback" not in r.stderr and f"--out {f / 'sub'}: cannot write there" in r.stderr
+    r = _run(short, "--out", "/proc/millfmu-out")
+    assert r.returncode == 2 and "cannot write there" in r.stderr and "Traceback" not in r.stderr
+
+
+def test_rerun_without_plots_leaves_no_plots_of_the_earlier_run(tmp_path, short):
+    out = tmp_path / "out"
+    assert _run(short, "--out", out).returncode == 0
+    assert {p.name for p in out.iterdir()} == {"result.json", "psd.csv", "psd.png", "sizes.png"}
+    (out / "notes.txt").write_text("mine")
+    first = json.loads((out / "result.json").read_text())
+    assert _run(short, "--out", out, "--no-plots").returncode == 0
+    assert {p.name for p in out.iterdir()} == {"result.json", "psd.csv", "notes.txt"}
+    assert json.loads((out / "result.json").read_text())["outputs"] == first["outputs"]
+
+
+def test_a_refused_run_keeps_the_earlier_results(tmp_path, short):
+    out = tmp_path / "out"
+    assert _run(short, "--out", out).returncode == 0
+    before = {p.name: p.read_bytes() for p in out.iterdir()}
+    bad = tmp_path / "bad.toml"
+    bad.write_text("[mill]\ntip_speed_m_per_s = 99.0\n")
+    assert _run(bad, "--out", out).returncode == 2
+    assert {p.name: p.read_bytes() for p in out.iterdir()} == before
+
+
+def test_result_json_reproduces_its_run(tmp_path, short):
+    out = tmp_path / "out"
+    assert _run(short, "--out", out).returncode == 0
+    res = json.loads((out / "result.json").read_text())
+    prov = res["provenance"]
+    import millfmu
+
+    assert prov["millfmu_version"] == millfmu.__version__ and prov["numpy_version"] == np.__version__
+    assert prov["python_version"].count(".") == 2 and prov["wall_time_s"] > 0.0
+    t = prov["table"]
+    assert t["ref"] == "default" and len(t["key"]) == 64 and len(t["files"]["table.npz"]["sha256"]) == 64
+    assert set(t["stated_error"]["zones"]) == {"V1", "V2", "V3", "V4"}
+    assert all(0.0 < e < 1.0 for e in t["stated_error"]["collision_frequency_relative"])
+    # Every scene key is there, and the resolved scene alone gives the same outputs.
+    scene = scene_from_dict(prov["scene"])
+    assert prov["scene"]["run"]["t_end_s"] == 60.0 and "bead_filling" in prov["scene"]["mill"]
+    _, recs, _ = simulate(scene, progress=False)
+    assert recs == res["outputs"]
+    assert "below_grid_fraction" in res["units"] and res["outputs"][0]["below_grid_fraction"] >= 0.0
