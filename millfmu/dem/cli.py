@@ -48,13 +48,27 @@ def register(subparsers) -> argparse.ArgumentParser:
     r.add_argument("--no-progress", action="store_true", help="no progress bar")
     r.set_defaults(func=_run)
 
-    b = sub.add_parser("bench", help="the annulus benchmark: particle-steps per second")
-    b.add_argument("--steps", type=int, default=None, help="steps (default 2000)")
-    b.add_argument("--threads", type=int, help="numba threads (default: all cores)")
-    b.add_argument("--json", action="store_true", help="print the result as JSON only")
+    b = sub.add_parser("bench", help="the dense sheared bed: ours (1 and 2 threads), LAMMPS and "
+                       "LIGGGHTS when installed, the GPU when present; ratios")
+    b.add_argument("--steps", type=int, default=None, help="steps per run (default 1000)")
+    b.add_argument("--repeats", type=int, default=None,
+                   help="rounds, codes alternating; each code's fastest run counts (default 3)")
+    b.add_argument("--cores", type=int, nargs="+", default=None, metavar="N",
+                   help="numba threads and MPI ranks to run (default: 1 2)")
+    b.add_argument("--ours-only", action="store_true", help="do not run LAMMPS and LIGGGHTS")
+    b.add_argument("--device", choices=("cpu", "gpu"), default=None,
+                   help="only the CPU rows (with LAMMPS and LIGGGHTS) or only the GPU rows "
+                        "(the bed and a million beads; numba.cuda); default: both, the "
+                        "GPU rows where a GPU is present")
+    b.add_argument("--profile", action="store_true",
+                   help="instead: where millfmu.dem's time goes, per kernel (1 and 2 threads)")
+    b.add_argument("--regenerate-bed", action="store_true",
+                   help="make the bed again (it is made once and cached)")
+    b.add_argument("--json", action="store_true", help="also print every run as JSON")
     b.add_argument("--coupled", action="store_true",
                    help="also the coupled row: disc_slice with the coupled fluid against the "
-                        "DEM alone on the same beads, alternating, best of 3")
+                        "DEM alone on the same beads, alternating, best of 3 (on the largest "
+                        "of --cores threads)")
     b.set_defaults(func=_bench)
 
     s = sub.add_parser("seed001", help="seed 001 side by side: run its cases, print the "
@@ -112,27 +126,29 @@ def _run(args) -> int:
 
 
 def _bench(args) -> int:
-    from millfmu.dem.bench import BENCH_STEPS, run_bench
+    from millfmu.dem import bench as B
 
-    res = run_bench(steps=args.steps or BENCH_STEPS, threads=args.threads)
-    out = {"annulus": res.__dict__}
+    steps = args.steps or B.BENCH_STEPS
+    cores = tuple(args.cores or (1, 2))
+    if args.profile:
+        path = B.bed_file(regenerate=args.regenerate_bed)
+        for nc in cores:
+            B.profile(path, nc, steps)
+        return 0
+    runs = B.bench(steps=steps, repeats=args.repeats or B.BENCH_REPEATS, cores=cores,
+                   others=not args.ours_only, regenerate=args.regenerate_bed,
+                   devices=(args.device,) if args.device else ("cpu", "gpu"))
+    out = {"runs": [dict(r.__dict__, rate=r.rate) for r in runs]}
     if args.coupled:
         from millfmu.dem.coupling.bench import run_coupled_bench
 
-        out["coupled"] = run_coupled_bench(steps=args.steps or BENCH_STEPS,
-                                           threads=args.threads).as_dict()
-    if args.json:
-        print(json.dumps(out))
-        return 0
-    print(f"annulus bench: {res.beads} beads, {res.steps} steps, {res.threads} threads: "
-          f"loop {res.loop_time_s:.3f} s, {res.particle_steps_per_s:.4g} particle-steps/s "
-          f"({res.neighbour_builds} neighbour builds)")
-    if args.coupled:
-        c = out["coupled"]
+        c = out["coupled"] = run_coupled_bench(steps=steps, threads=max(cores)).as_dict()
         print(f"coupled row (disc_slice 10 m/s, 80 %, 10 deg, {c['beads']} beads, "
               f"{c['fluid_cells']} fluid cells, coupling every {c['coupling_steps']} steps, "
               f"{c['threads']} threads, best of 3): DEM alone "
               f"{c['dem_particle_steps_per_s']:.4g}, coupled "
               f"{c['coupled_particle_steps_per_s']:.4g} particle-steps/s; the fluid and the "
               f"coupling add {c['added_cost']:.0%}")
+    if args.json:
+        print(json.dumps(out))
     return 0

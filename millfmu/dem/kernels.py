@@ -12,10 +12,15 @@ Conventions
   ``s`` in {-1, 0, +1}; neighbour entries store ``s`` next to the partner index.
 - Neighbour lists are *half* lists (Verlet lists with a skin, built from a cell grid):
   a pair is stored once, in the row of its lower bead index, with its tangential history
-  and contact flag, and is evaluated once per step. Beads are split into one contiguous
-  chunk per thread; each chunk adds its forces into its own buffer (its beads and their
-  higher-indexed partners), and a second pass sums the buffers and integrates: no
-  atomics, no races. A contact is recorded once, at its first overlap.
+  and contact flag, and is evaluated once per step. The pairs of a chunk of beads are
+  stored row after row in one region of flat pair arrays (no empty slots between rows:
+  the force loop is bound by the memory traffic of the pair data). Beads are split into
+  contiguous chunks, a fixed number for a given bead count (more than threads, so that
+  a thread held up on a shared machine leaves its chunks to the others, and so that the
+  results do not depend on the thread count); each chunk adds its forces into its own
+  buffer (its beads and their higher-indexed partners), and a second pass sums the
+  buffers and integrates: no atomics, no races. A contact is recorded once, at its first
+  overlap.
 
 Contact model (as in LIGGGHTS, see the project REFERENCE "DEM contact model"):
 Hertz-Mindlin with k_n = 4/3 Y* sqrt(R* d_n), S_t = 8 G* sqrt(R* d_n), viscous damping
@@ -31,7 +36,7 @@ import math
 import numpy as np
 from numba import prange
 
-from millfmu.dem._jit import device, kernel, serial
+from millfmu.dem._jit import contact, device, kernel, serial
 
 # ---- layout of the parameter vector prm (float64) -------------------------------------
 P_DT = 0  # time step [s]
@@ -84,7 +89,7 @@ EV_NF = 11
 SQRT56 = math.sqrt(5.0 / 6.0)
 
 
-@device
+@contact
 def hertz_mindlin(nx, ny, nz, delta, vrx, vry, vrz, wsx, wsy, wsz, wrx, wry, wrz,
                   mstar, rstar, s0, s1, s2, ystar, gstar, beta, mu, mur, dt):
     """Hertz-Mindlin contact force on bead i, LIGGGHTS form (REFERENCE, DEM contact model).
@@ -98,10 +103,12 @@ def hertz_mindlin(nx, ny, nz, delta, vrx, vry, vrz, wsx, wsy, wsz, wrx, wry, wrz
     """
     sq = math.sqrt(rstar * delta)
     kn = 4.0 / 3.0 * ystar * sq
-    sn = 2.0 * ystar * sq
     st = 8.0 * gstar * sq
-    gn = -2.0 * SQRT56 * beta * math.sqrt(sn * mstar)
-    gt = -2.0 * SQRT56 * beta * math.sqrt(st * mstar)
+    # gamma_n = -2 sqrt(5/6) beta sqrt(S_n m*) with S_n = 2 Y* sq, gamma_t the same with
+    # S_t = 8 G* sq: one root of sq m* serves both
+    rm = math.sqrt(sq * mstar)
+    gn = -2.0 * SQRT56 * beta * math.sqrt(2.0 * ystar) * rm
+    gt = -2.0 * SQRT56 * beta * math.sqrt(8.0 * gstar) * rm
     vn = vrx * nx + vry * ny + vrz * nz
     fel = kn * delta
     fnm = fel - gn * vn
@@ -116,14 +123,15 @@ def hertz_mindlin(nx, ny, nz, delta, vrx, vry, vrz, wsx, wsy, wsz, wrx, wry, wrz
     vty = vry - vn * ny - cy
     vtz = vrz - vn * nz - cz
     # history: rotate the old spring into the current tangent plane, keep its length
-    smag0 = math.sqrt(s0 * s0 + s1 * s1 + s2 * s2)
+    # (the length ratio from the squared lengths: one root instead of two)
+    sm0 = s0 * s0 + s1 * s1 + s2 * s2
     sdn = s0 * nx + s1 * ny + s2 * nz
     s0 -= sdn * nx
     s1 -= sdn * ny
     s2 -= sdn * nz
-    smag1 = math.sqrt(s0 * s0 + s1 * s1 + s2 * s2)
-    if smag1 > 0.0:
-        sc = smag0 / smag1
+    sm1 = s0 * s0 + s1 * s1 + s2 * s2
+    if sm1 > 0.0:
+        sc = math.sqrt(sm0 / sm1)
         s0 *= sc
         s1 *= sc
         s2 *= sc
@@ -133,18 +141,18 @@ def hertz_mindlin(nx, ny, nz, delta, vrx, vry, vrz, wsx, wsy, wsz, wrx, wry, wrz
     ftx = -st * s0 - gt * vtx
     fty = -st * s1 - gt * vty
     ftz = -st * s2 - gt * vtz
-    ftm = math.sqrt(ftx * ftx + fty * fty + ftz * ftz)
+    ft2 = ftx * ftx + fty * fty + ftz * ftz
     fcap = mu * abs(fnm)
-    if ftm > fcap:
-        if ftm > 0.0:
-            ratio = fcap / ftm
-            ftx *= ratio
-            fty *= ratio
-            ftz *= ratio
-            # spring reset to the Coulomb cap (LIGGGHTS tangential_history)
-            s0 = -(ftx + gt * vtx) / st
-            s1 = -(fty + gt * vty) / st
-            s2 = -(ftz + gt * vtz) / st
+    if ft2 > fcap * fcap:
+        ratio = fcap / math.sqrt(ft2)
+        ftx *= ratio
+        fty *= ratio
+        ftz *= ratio
+        # spring reset to the Coulomb cap (LIGGGHTS tangential_history)
+        ist = 1.0 / st
+        s0 = -(ftx + gt * vtx) * ist
+        s1 = -(fty + gt * vty) * ist
+        s2 = -(ftz + gt * vtz) * ist
     mrx = 0.0
     mry = 0.0
     mrz = 0.0
@@ -253,6 +261,130 @@ def wall_gap(x, y, z, rad, w, prm):
     return -(hb - abs(zr)), 0.0, 0.0, sgn, True
 
 
+@contact
+def axial_image(dz, lz):
+    """Axial separation dz [m] reduced to the nearest periodic image (|dz| <= lz / 2 for
+    separations below 1.5 lz)."""
+    if dz > 0.5 * lz:
+        return dz - lz
+    if dz < -0.5 * lz:
+        return dz + lz
+    return dz
+
+
+@contact
+def pair_response(nx, ny, nz, delta, vrx, vry, vrz, wix, wiy, wiz, wjx, wjy, wjz, ri, rj,
+                  mstar, s0, s1, s2, ystar, gstar, beta, mu, mur, dt):
+    """Force [N] on bead i and torques [N m] on i and j of a bead-bead contact (partner j in
+    i's frame, n from j to i): :func:`hertz_mindlin` with R* = ri rj / (ri + rj), the
+    tangential force acting at -ri n on i and at +rj n on j. Returns
+    (F, T_i, T_j, new history [m])."""
+    (fnx, fny, fnz, ftx, fty, ftz, mrx, mry, mrz, s0, s1, s2,
+     fel) = hertz_mindlin(nx, ny, nz, delta, vrx, vry, vrz,
+                          ri * wix + rj * wjx, ri * wiy + rj * wjy, ri * wiz + rj * wjz,
+                          wix - wjx, wiy - wjy, wiz - wjz, mstar, ri * rj / (ri + rj),
+                          s0, s1, s2, ystar, gstar, beta, mu, mur, dt)
+    # torque of F_t at -r_i n on i; on j, -F_t at +r_j n: -r_j n x F_t, the same sense
+    cx = ny * ftz - nz * fty
+    cy = nz * ftx - nx * ftz
+    cz = nx * fty - ny * ftx
+    return (fnx + ftx, fny + fty, fnz + ftz, -ri * cx + mrx, -ri * cy + mry, -ri * cz + mrz,
+            -rj * cx - mrx, -rj * cy - mry, -rj * cz - mrz, s0, s1, s2)
+
+
+@contact
+def wall_response(xi, yi, zi, vix, viy, viz, wix, wiy, wiz, ri, mi, q, s0, s1, s2, prm,
+                  ystar, gstar, beta, mu, mur, dt):
+    """Contact of a bead (centre x [m], velocity v [m/s], spin w [rad/s]) with wall q
+    (:func:`wall_gap`; the shaft and the disc turn at prm[P_OMEGA], the chamber stands):
+    Hertz-Mindlin with R* = ri, m* = mi against the wall's surface velocity at the
+    contact point p. Returns (touching, p, v - v_wall, n, wall spin about z [rad/s],
+    force [N] and torque [N m] on the bead, new history [m], torque about +z on the
+    wall [N m])."""
+    dist, nx, ny, nz, ok = wall_gap(xi, yi, zi, ri, q, prm)
+    delta = ri - dist
+    if not ok or delta <= 0.0:
+        return (False, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, nx, ny, nz, 0.0, 0.0, 0.0, 0.0, 0.0,
+                0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
+    px = xi - ri * nx
+    py = yi - ri * ny
+    pz = zi - ri * nz
+    om = prm[P_OMEGA] if q != 1 else 0.0  # shaft and disc turn with the stirrer
+    vrx = vix + om * py
+    vry = viy - om * px
+    (fnx, fny, fnz, ftx, fty, ftz, mrx, mry, mrz, s0, s1, s2,
+     fel) = hertz_mindlin(nx, ny, nz, delta, vrx, vry, viz, ri * wix, ri * wiy, ri * wiz,
+                          wix, wiy, wiz - om, mi, ri, s0, s1, s2, ystar, gstar, beta, mu,
+                          mur, dt)
+    gx = fnx + ftx
+    gy = fny + fty
+    # reaction on the wall: -F at p, plus the rolling torque's reaction
+    return (True, px, py, pz, vrx, vry, viz, nx, ny, nz, om, gx, gy, fnz + ftz,
+            -ri * (ny * ftz - nz * fty) + mrx, -ri * (nz * ftx - nx * ftz) + mry,
+            -ri * (nx * fty - ny * ftx) + mrz, s0, s1, s2, -(px * gy - py * gx) - mrz)
+
+
+@device
+def body_force(xi, yi, zi, vix, viy, viz, ri, mi, fr, tzh, fzh, prm):
+    """Force [N] on a bead from everything but contacts: gravity (buoyancy-reduced, prm
+    P_GX..P_GZ), the held force of a coupled fluid (F_r [N], T_z [N m], F_z [N], in
+    cylindrical components at the bead: F_r e_r + T_z / r e_theta + F_z e_z) and, with
+    prm[P_DRAG], Koch-Hill drag from the prescribed swirl. Also returns the bead's
+    distance from the axis [m]."""
+    fx = mi * prm[P_GX]
+    fy = mi * prm[P_GY]
+    fz = mi * prm[P_GZ]
+    rxy = math.sqrt(xi * xi + yi * yi)
+    if rxy > 0.0:
+        fx += (fr * xi - tzh * yi / rxy) / rxy
+        fy += (fr * yi + tzh * xi / rxy) / rxy
+    fz += fzh
+    if prm[P_DRAG] > 0.0:
+        ux, uy, uz = swirl_velocity(xi, yi, zi, prm)
+        ux -= vix
+        uy -= viy
+        uz -= viz
+        um = math.sqrt(ux * ux + uy * uy + uz * uz)
+        bt = koch_hill_beta(2.0 * ri, prm[P_EPSF], prm[P_MUF], prm[P_RHOF], um,
+                            prm[P_KH_F0], prm[P_KH_F3])
+        vp = 4.0 / 3.0 * math.pi * ri ** 3
+        fx += vp * bt * ux
+        fy += vp * bt * uy
+        fz += vp * bt * uz
+    return fx, fy, fz, rxy
+
+
+@device
+def lubrication_force(eta, rstar, vn, gap, hmin):
+    """Normal lubrication force [N] on bead i, -6 pi eta R*^2 v_n / max(h, h_min)
+    (REFERENCE, "Lubrication between beads"); vn: normal relative velocity [m/s]."""
+    return -6.0 * math.pi * eta * rstar * rstar * vn / max(gap, hmin)
+
+
+@device
+def write_event(row, typ, i, j, px, py, pz, vrx, vry, vrz, nx, ny, nz, wrx, wry, wrz,
+                mstar, istar, step):
+    """Record a contact at its first overlap into ``row`` (layout EV_*): contact point p
+    [m], stress energies from the relative velocity vr [m/s] split along the normal n,
+    and the relative spin wr [rad/s]: SE_tn = 1/2 m* v_n^2, SE_ts = 1/2 m* |v_t|^2,
+    SE_rot = 1/2 I* |wr|^2 [J]."""
+    vn = vrx * nx + vry * ny + vrz * nz
+    vtx = vrx - vn * nx
+    vty = vry - vn * ny
+    vtz = vrz - vn * nz
+    row[EV_TYPE] = typ
+    row[EV_I] = i
+    row[EV_J] = j
+    row[EV_X] = px
+    row[EV_Y] = py
+    row[EV_Z] = pz
+    row[EV_SETN] = 0.5 * mstar * vn * vn
+    row[EV_SETS] = 0.5 * mstar * (vtx * vtx + vty * vty + vtz * vtz)
+    row[EV_SEROT] = 0.5 * istar * (wrx * wrx + wry * wry + wrz * wrz)
+    row[EV_VN] = -vn
+    row[EV_STEP] = step
+
+
 # ---- integration -----------------------------------------------------------------------
 
 @kernel
@@ -277,9 +409,9 @@ def kick_drift(x, v, w, f, t, inv_m, inv_i, kick, dt, xref, cb, dmax):
 
 # ---- neighbour lists -------------------------------------------------------------------
 
-@serial
-def wrap_periodic(x, v, w, shw, prm, wrapk):
-    """Bring beads back into [0, Lz) axially and into the sector [0, sector) angularly.
+@device
+def wrap_one(i, x, v, w, shw, prm, wrapk):
+    """Bring bead i back into [0, Lz) axially and into the sector [0, sector) angularly.
 
     A bead leaving the sector is rotated by -+sector together with its velocity, spin and
     wall-contact history; wrapk[i] receives the rotation applied in units of the sector
@@ -287,36 +419,42 @@ def wrap_periodic(x, v, w, shw, prm, wrapk):
     """
     lz = prm[P_LZ]
     sec = prm[P_SECTOR]
+    x[i, 2] -= lz * math.floor(x[i, 2] / lz)
+    wrapk[i] = 0
+    if sec > 0.0:
+        th = math.atan2(x[i, 1], x[i, 0])
+        k = 0
+        if th < 0.0:
+            k = 1
+        elif th >= sec:
+            k = -1
+        if k != 0:
+            wrapk[i] = k
+            c = math.cos(k * sec)
+            s = math.sin(k * sec)
+            for a in range(3):
+                if a == 0:
+                    arr = x
+                elif a == 1:
+                    arr = v
+                else:
+                    arr = w
+                x0 = arr[i, 0]
+                y0 = arr[i, 1]
+                arr[i, 0] = c * x0 - s * y0
+                arr[i, 1] = s * x0 + c * y0
+            for q in range(NWALL):
+                x0 = shw[i, q, 0]
+                y0 = shw[i, q, 1]
+                shw[i, q, 0] = c * x0 - s * y0
+                shw[i, q, 1] = s * x0 + c * y0
+
+
+@serial
+def wrap_periodic(x, v, w, shw, prm, wrapk):
+    """:func:`wrap_one` for every bead."""
     for i in range(x.shape[0]):
-        x[i, 2] -= lz * math.floor(x[i, 2] / lz)
-        wrapk[i] = 0
-        if sec > 0.0:
-            th = math.atan2(x[i, 1], x[i, 0])
-            k = 0
-            if th < 0.0:
-                k = 1
-            elif th >= sec:
-                k = -1
-            if k != 0:
-                wrapk[i] = k
-                c = math.cos(k * sec)
-                s = math.sin(k * sec)
-                for a in range(3):
-                    if a == 0:
-                        arr = x
-                    elif a == 1:
-                        arr = v
-                    else:
-                        arr = w
-                    x0 = arr[i, 0]
-                    y0 = arr[i, 1]
-                    arr[i, 0] = c * x0 - s * y0
-                    arr[i, 1] = s * x0 + c * y0
-                for q in range(NWALL):
-                    x0 = shw[i, q, 0]
-                    y0 = shw[i, q, 1]
-                    shw[i, q, 0] = c * x0 - s * y0
-                    shw[i, q, 1] = s * x0 + c * y0
+        wrap_one(i, x, v, w, shw, prm, wrapk)
 
 
 @serial
@@ -401,18 +539,26 @@ def bin_entries(ej, es, ex, lo, cs, ncx, ncy, ncz, lz):
 
 @kernel
 def build_nlist(x, ej, es, ex, start, lo, cs, ncx, ncy, ncz, cut2, prm, wrapk,
-                nb_o, img_o, nnb_o, sh_o, fl_o, nb, img, nnb, sh, fl, cb, need, maxj):
-    """Half neighbour lists within sqrt(cut2) [m]: row i holds the partners j > i (each
-    pair once, owned by its lower index, image pairs included), carrying over the
-    tangential history and contact flags of pairs that existed before (rotated if a bead
-    was wrapped into the sector). need[c] receives the longest row found in chunk c
-    (overflow check), maxj[c] the highest partner index of the chunk's rows."""
+                pst_o, nnb_o, pj_o, pim_o, psh_o, pfl_o, pst, nnb, pj, pim, psh, pfl, cb,
+                need, maxj):
+    """Half neighbour lists within sqrt(cut2) [m]: bead i's partners j > i (each pair once,
+    owned by its lower index, image pairs included) are pj[pst[i]:pst[i] + nnb[i]], with
+    image code pim, tangential history psh and contact flag pfl. Chunk c stores its rows
+    one after the other in its region [c cap, (c + 1) cap) of the pair arrays (cap = their
+    length / chunks), so that the force loop streams through them without gaps.
+    Histories and flags of pairs that existed before (lists pst_o ...) are carried over
+    (rotated if a bead was wrapped into the sector). need[c] receives the pairs chunk c
+    needs (more than cap: overflow, these lists are unusable), maxj[c] the highest partner
+    index of the chunk's rows."""
     lz = prm[P_LZ]
     sec = prm[P_SECTOR]
-    maxnb = nb.shape[1]
+    nch = cb.shape[0] - 1
+    cap = pj.shape[0] // nch
     csz = lz / ncz
-    for c in prange(cb.shape[0] - 1):
-        longest = 0
+    for c in prange(nch):
+        base = c * cap
+        end = base + cap
+        q = base
         hij = cb[c + 1] - 1
         for i in range(cb[c], cb[c + 1]):
             xi = x[i, 0]
@@ -422,7 +568,9 @@ def build_nlist(x, ej, es, ex, start, lo, cs, ncx, ncy, ncz, cut2, prm, wrapk,
             iy = min(max(int((yi - lo[1]) / cs), 0), ncy - 1)
             zz = zi - lz * math.floor(zi / lz)
             iz = min(int(zz / csz), ncz - 1)
-            n = 0
+            pst[i] = q
+            ko = pst_o[i]
+            ke = ko + nnb_o[i]
             for ax in range(max(ix - 1, 0), min(ix + 2, ncx)):
                 for ay in range(max(iy - 1, 0), min(iy + 2, ncy)):
                     for dzc in range(-1, 2):
@@ -435,44 +583,38 @@ def build_nlist(x, ej, es, ex, start, lo, cs, ncx, ncy, ncz, cut2, prm, wrapk,
                             s = es[e]
                             dx = xi - ex[e, 0]
                             dy = yi - ex[e, 1]
-                            dz = zi - ex[e, 2]
-                            if dz > 0.5 * lz:
-                                dz -= lz
-                            elif dz < -0.5 * lz:
-                                dz += lz
+                            dz = axial_image(zi - ex[e, 2], lz)
                             if dx * dx + dy * dy + dz * dz < cut2:
                                 if j > hij:
                                     hij = j
-                                if n < maxnb:
-                                    nb[i, n] = j
-                                    img[i, n] = s
-                                    fl[i, n] = 0
-                                    sh[i, n, 0] = 0.0
-                                    sh[i, n, 1] = 0.0
-                                    sh[i, n, 2] = 0.0
+                                if q < end:
+                                    pj[q] = j
+                                    pim[q] = s
+                                    pfl[q] = 0
+                                    psh[q, 0] = 0.0
+                                    psh[q, 1] = 0.0
+                                    psh[q, 2] = 0.0
                                     # same physical pair before the wrap
                                     so = s - wrapk[i] + wrapk[j]
-                                    for k in range(nnb_o[i]):
-                                        if nb_o[i, k] == j and img_o[i, k] == so:
-                                            if fl_o[i, k] != 0:
-                                                fl[i, n] = fl_o[i, k]
-                                                a0 = sh_o[i, k, 0]
-                                                a1 = sh_o[i, k, 1]
+                                    for k in range(ko, ke):
+                                        if pj_o[k] == j and pim_o[k] == so:
+                                            if pfl_o[k] != 0:
+                                                pfl[q] = pfl_o[k]
+                                                a0 = psh_o[k, 0]
+                                                a1 = psh_o[k, 1]
                                                 if wrapk[i] != 0:
                                                     cr = math.cos(wrapk[i] * sec)
                                                     sr = math.sin(wrapk[i] * sec)
-                                                    sh[i, n, 0] = cr * a0 - sr * a1
-                                                    sh[i, n, 1] = sr * a0 + cr * a1
+                                                    psh[q, 0] = cr * a0 - sr * a1
+                                                    psh[q, 1] = sr * a0 + cr * a1
                                                 else:
-                                                    sh[i, n, 0] = a0
-                                                    sh[i, n, 1] = a1
-                                                sh[i, n, 2] = sh_o[i, k, 2]
+                                                    psh[q, 0] = a0
+                                                    psh[q, 1] = a1
+                                                psh[q, 2] = psh_o[k, 2]
                                             break
-                                n += 1
-            nnb[i] = min(n, maxnb)
-            if n > longest:
-                longest = n
-        need[c] = longest
+                                q += 1
+            nnb[i] = min(q, end) - pst[i]
+        need[c] = q - base
         maxj[c] = hij
 
 
@@ -487,13 +629,13 @@ def _add3(buf, c, j, ax, ay, az, cr, sr):
 
 
 @kernel
-def compute_forces(x, v, w, fb, tb, rad, mass, inertia, nb, img, nnb, sh, fl, shw, flw,
-                   prm, cb, maxj, record, step, evc, evn, torq, fext):
+def compute_forces(x, v, w, fb, tb, rad, mass, inertia, pst, nnb, pj, pim, psh, pfl, shw,
+                   flw, prm, cb, maxj, record, step, evc, evn, torq, fext):
     """Forces [N] and torques [N m] from bead contacts, lubrication, walls, drag and
     gravity, accumulated per chunk: fb[c, i], tb[c, i] hold what chunk c's rows put on
     bead i (its own beads cb[c] <= i < cb[c + 1] and partners up to maxj[c]); the rows of
-    chunk c are the half neighbour lists, so each pair is evaluated once (Newton's third
-    law) and no two chunks write the same buffer. :func:`reduce_kick` sums the chunks.
+    chunk c are the half neighbour lists (:func:`build_nlist`), so each pair is evaluated
+    once (Newton's third law) and no two chunks write the same buffer. :func:`reduce_kick` sums the chunks.
 
     New contacts (first overlap) go to evc[c, k, :] (layout EV_*) when record is true;
     torq[c, 0] receives the torque [N m] about +z that chunk c's beads exert on the stirrer
@@ -514,8 +656,6 @@ def compute_forces(x, v, w, fb, tb, rad, mass, inertia, nb, img, nnb, sh, fl, sh
     hmin = prm[P_LUB_HMIN]
     lz = prm[P_LZ]
     sec = prm[P_SECTOR]
-    om = prm[P_OMEGA]
-    drag = prm[P_DRAG] > 0.0
     cap = evc.shape[1]
     cs1 = math.cos(sec)
     sn1 = math.sin(sec)
@@ -539,34 +679,15 @@ def compute_forces(x, v, w, fb, tb, rad, mass, inertia, nb, img, nnb, sh, fl, sh
             zi = x[i, 2]
             ri = rad[i]
             mi = mass[i]
-            fx = mi * prm[P_GX]
-            fy = mi * prm[P_GY]
-            fz = mi * prm[P_GZ]
+            fx, fy, fz, rxy = body_force(xi, yi, zi, v[i, 0], v[i, 1], v[i, 2], ri, mi,
+                                         fext[i, 0], fext[i, 1], fext[i, 2], prm)
             tx = 0.0
             ty = 0.0
             tz = 0.0
-            r2xy = xi * xi + yi * yi
-            if r2xy > 0.0:
-                rxy_ = math.sqrt(r2xy)
-                fx += (fext[i, 0] * xi - fext[i, 1] * yi / rxy_) / rxy_
-                fy += (fext[i, 0] * yi + fext[i, 1] * xi / rxy_) / rxy_
-            fz += fext[i, 2]
-            if drag:
-                ux, uy, uz = swirl_velocity(xi, yi, zi, prm)
-                ux -= v[i, 0]
-                uy -= v[i, 1]
-                uz -= v[i, 2]
-                um = math.sqrt(ux * ux + uy * uy + uz * uz)
-                bt = koch_hill_beta(2.0 * ri, prm[P_EPSF], prm[P_MUF], prm[P_RHOF], um,
-                                    prm[P_KH_F0], prm[P_KH_F3])
-                vp = 4.0 / 3.0 * math.pi * ri ** 3
-                fx += vp * bt * ux
-                fy += vp * bt * uy
-                fz += vp * bt * uz
             # ---- bead-bead (half list: j > i) ----
-            for k in range(nnb[i]):
-                j = nb[i, k]
-                s = img[i, k] if sec > 0.0 else 0
+            for k in range(pst[i], pst[i] + nnb[i]):
+                j = pj[k]
+                s = pim[k] if sec > 0.0 else 0
                 xj = x[j, 0]
                 yj = x[j, 1]
                 cr = 1.0
@@ -577,21 +698,17 @@ def compute_forces(x, v, w, fb, tb, rad, mass, inertia, nb, img, nnb, sh, fl, sh
                     xj, yj = cr * xj - sr * yj, sr * xj + cr * yj
                 dx = xi - xj
                 dy = yi - yj
-                dz = zi - x[j, 2]
-                if dz > 0.5 * lz:
-                    dz -= lz
-                elif dz < -0.5 * lz:
-                    dz += lz
+                dz = axial_image(zi - x[j, 2], lz)
                 rj = rad[j]
                 rsum = ri + rj
                 r2 = dx * dx + dy * dy + dz * dz
                 lim = rsum + hcut
                 if r2 >= lim * lim:
-                    if fl[i, k] != 0:
-                        fl[i, k] = 0
-                        sh[i, k, 0] = 0.0
-                        sh[i, k, 1] = 0.0
-                        sh[i, k, 2] = 0.0
+                    if pfl[k] != 0:
+                        pfl[k] = 0
+                        psh[k, 0] = 0.0
+                        psh[k, 1] = 0.0
+                        psh[k, 2] = 0.0
                     continue
                 vjx = v[j, 0]
                 vjy = v[j, 1]
@@ -601,85 +718,59 @@ def compute_forces(x, v, w, fb, tb, rad, mass, inertia, nb, img, nnb, sh, fl, sh
                     vjx, vjy = cr * vjx - sr * vjy, sr * vjx + cr * vjy
                     wjx, wjy = cr * wjx - sr * wjy, sr * wjx + cr * wjy
                 r = math.sqrt(r2)
-                nx = dx / r
-                ny = dy / r
-                nz = dz / r
+                ir = 1.0 / r
+                nx = dx * ir
+                ny = dy * ir
+                nz = dz * ir
                 delta = rsum - r
                 vrx = v[i, 0] - vjx
                 vry = v[i, 1] - vjy
                 vrz = v[i, 2] - v[j, 2]
                 mstar = mi * mass[j] / (mi + mass[j])
-                rstar = ri * rj / rsum
                 if delta > 0.0:
-                    vn = vrx * nx + vry * ny + vrz * nz
-                    if record and fl[i, k] == 0:
+                    if record and pfl[k] == 0:
                         if ne < cap:
-                            vtx = vrx - vn * nx
-                            vty = vry - vn * ny
-                            vtz = vrz - vn * nz
-                            wrx = w[i, 0] - wjx
-                            wry = w[i, 1] - wjy
-                            wrz = w[i, 2] - w[j, 2]
-                            istar = inertia[i] * inertia[j] / (inertia[i] + inertia[j])
                             lev = ri - 0.5 * delta
-                            evc[c, ne, EV_TYPE] = 0.0
-                            evc[c, ne, EV_I] = i
-                            evc[c, ne, EV_J] = j
-                            evc[c, ne, EV_X] = xi - lev * nx
-                            evc[c, ne, EV_Y] = yi - lev * ny
-                            evc[c, ne, EV_Z] = zi - lev * nz
-                            evc[c, ne, EV_SETN] = 0.5 * mstar * vn * vn
-                            evc[c, ne, EV_SETS] = 0.5 * mstar * (vtx * vtx + vty * vty + vtz * vtz)
-                            evc[c, ne, EV_SEROT] = 0.5 * istar * (wrx * wrx + wry * wry + wrz * wrz)
-                            evc[c, ne, EV_VN] = -vn
-                            evc[c, ne, EV_STEP] = step
+                            write_event(evc[c, ne], 0.0, i, j, xi - lev * nx, yi - lev * ny,
+                                        zi - lev * nz, vrx, vry, vrz, nx, ny, nz,
+                                        w[i, 0] - wjx, w[i, 1] - wjy, w[i, 2] - w[j, 2],
+                                        mstar, inertia[i] * inertia[j] / (inertia[i] +
+                                                                          inertia[j]),
+                                        step)
                         ne += 1
-                    fl[i, k] = 1
-                    (fnx, fny, fnz, ftx, fty, ftz, mrx, mry, mrz, s0, s1, s2,
-                     fel) = hertz_mindlin(
-                        nx, ny, nz, delta, vrx, vry, vrz,
-                        ri * w[i, 0] + rj * wjx, ri * w[i, 1] + rj * wjy,
-                        ri * w[i, 2] + rj * w[j, 2],
-                        w[i, 0] - wjx, w[i, 1] - wjy, w[i, 2] - w[j, 2],
-                        mstar, rstar, sh[i, k, 0], sh[i, k, 1], sh[i, k, 2],
-                        ystar, gstar, beta, mu, mur, dt)
-                    sh[i, k, 0] = s0
-                    sh[i, k, 1] = s1
-                    sh[i, k, 2] = s2
-                    gx = fnx + ftx
-                    gy = fny + fty
-                    gz = fnz + ftz
+                    pfl[k] = 1
+                    (gx, gy, gz, tix, tiy, tiz, tjx, tjy, tjz, s0, s1,
+                     s2) = pair_response(nx, ny, nz, delta, vrx, vry, vrz, w[i, 0], w[i, 1],
+                                         w[i, 2], wjx, wjy, w[j, 2], ri, rj, mstar, psh[k, 0],
+                                         psh[k, 1], psh[k, 2], ystar, gstar, beta, mu, mur,
+                                         dt)
+                    psh[k, 0] = s0
+                    psh[k, 1] = s1
+                    psh[k, 2] = s2
                     fx += gx
                     fy += gy
                     fz += gz
-                    # torque of the tangential force at the contact point -r_i n; on j the
-                    # force -F_t acts at +r_j n: -r_j n x F_t, the same sense scaled by r_j
-                    cx = ny * ftz - nz * fty
-                    cy = nz * ftx - nx * ftz
-                    cz = nx * fty - ny * ftx
-                    tx += -ri * cx + mrx
-                    ty += -ri * cy + mry
-                    tz += -ri * cz + mrz
+                    tx += tix
+                    ty += tiy
+                    tz += tiz
                     # reaction on j, rotated back into j's frame (image pairs)
                     _add3(fb, c, j, -gx, -gy, -gz, cr, -sr)
-                    _add3(tb, c, j, -rj * cx - mrx, -rj * cy - mry, -rj * cz - mrz, cr, -sr)
+                    _add3(tb, c, j, tjx, tjy, tjz, cr, -sr)
                 else:
-                    if fl[i, k] != 0:
-                        fl[i, k] = 0
-                        sh[i, k, 0] = 0.0
-                        sh[i, k, 1] = 0.0
-                        sh[i, k, 2] = 0.0
+                    if pfl[k] != 0:
+                        pfl[k] = 0
+                        psh[k, 0] = 0.0
+                        psh[k, 1] = 0.0
+                        psh[k, 2] = 0.0
                     if eta > 0.0:
-                        vn = vrx * nx + vry * ny + vrz * nz
-                        h = max(-delta, hmin)
-                        fl_m = -6.0 * math.pi * eta * rstar * rstar * vn / h
+                        fl_m = lubrication_force(eta, ri * rj / rsum,
+                                                 vrx * nx + vry * ny + vrz * nz, -delta, hmin)
                         fx += fl_m * nx
                         fy += fl_m * ny
                         fz += fl_m * nz
                         _add3(fb, c, j, -fl_m * nx, -fl_m * ny, -fl_m * nz, cr, -sr)
             # ---- walls ----
-            # quick rejection: most beads touch no wall (one sqrt instead of three)
-            rxy = math.sqrt(xi * xi + yi * yi)
+            # quick rejection: most beads touch no wall
             near = rxy - rsh <= ri or rch - rxy <= ri
             if not near and has_disc:
                 zd = zi - zdisc
@@ -693,72 +784,38 @@ def compute_forces(x, v, w, fb, tb, rad, mass, inertia, nb, img, nnb, sh, fl, sh
                         shw[i, q, 1] = 0.0
                         shw[i, q, 2] = 0.0
             for q in range(NWALL if near else 0):
-                dist, nx, ny, nz, ok = wall_gap(xi, yi, zi, ri, q, prm)
-                delta = ri - dist
-                if not ok or delta <= 0.0:
+                (touch, px, py, pz, vrx, vry, vrz, nx, ny, nz, wz_w, gx, gy, gz, tix, tiy,
+                 tiz, s0, s1, s2, twall) = wall_response(
+                    xi, yi, zi, v[i, 0], v[i, 1], v[i, 2], w[i, 0], w[i, 1], w[i, 2], ri, mi,
+                    q, shw[i, q, 0], shw[i, q, 1], shw[i, q, 2], prm, ystar, gstar, beta, mu,
+                    mur, dt)
+                if not touch:
                     if flw[i, q] != 0:
                         flw[i, q] = 0
                         shw[i, q, 0] = 0.0
                         shw[i, q, 1] = 0.0
                         shw[i, q, 2] = 0.0
                     continue
-                px = xi - ri * nx
-                py = yi - ri * ny
-                pz = zi - ri * nz
-                wvx = 0.0
-                wvy = 0.0
-                if q != 1:  # shaft and disc rotate with the stirrer
-                    wvx = -om * py
-                    wvy = om * px
-                vrx = v[i, 0] - wvx
-                vry = v[i, 1] - wvy
-                vrz = v[i, 2]
                 if record and flw[i, q] == 0:
-                    vn = vrx * nx + vry * ny + vrz * nz
                     if ne < cap:
-                        vtx = vrx - vn * nx
-                        vty = vry - vn * ny
-                        vtz = vrz - vn * nz
-                        evc[c, ne, EV_TYPE] = 1.0 + q
-                        evc[c, ne, EV_I] = i
-                        evc[c, ne, EV_J] = -1.0
-                        evc[c, ne, EV_X] = px
-                        evc[c, ne, EV_Y] = py
-                        evc[c, ne, EV_Z] = pz
-                        evc[c, ne, EV_SETN] = 0.5 * mi * vn * vn
-                        evc[c, ne, EV_SETS] = 0.5 * mi * (vtx * vtx + vty * vty + vtz * vtz)
-                        wz_rel = w[i, 2] - (om if q != 1 else 0.0)
-                        evc[c, ne, EV_SEROT] = 0.5 * inertia[i] * (
-                            w[i, 0] * w[i, 0] + w[i, 1] * w[i, 1] + wz_rel * wz_rel)
-                        evc[c, ne, EV_VN] = -vn
-                        evc[c, ne, EV_STEP] = step
+                        write_event(evc[c, ne], 1.0 + q, i, -1.0, px, py, pz, vrx, vry, vrz,
+                                    nx, ny, nz, w[i, 0], w[i, 1], w[i, 2] - wz_w, mi,
+                                    inertia[i], step)
                     ne += 1
                 flw[i, q] = 1
-                wz_w = om if q != 1 else 0.0
-                (fnx, fny, fnz, ftx, fty, ftz, mrx, mry, mrz, s0, s1, s2,
-                 fel) = hertz_mindlin(
-                    nx, ny, nz, delta, vrx, vry, vrz,
-                    ri * w[i, 0], ri * w[i, 1], ri * w[i, 2],
-                    w[i, 0], w[i, 1], w[i, 2] - wz_w,
-                    mi, ri, shw[i, q, 0], shw[i, q, 1], shw[i, q, 2],
-                    ystar, gstar, beta, mu, mur, dt)
                 shw[i, q, 0] = s0
                 shw[i, q, 1] = s1
                 shw[i, q, 2] = s2
-                gx = fnx + ftx
-                gy = fny + fty
-                gz = fnz + ftz
                 fx += gx
                 fy += gy
                 fz += gz
-                tx += -ri * (ny * ftz - nz * fty) + mrx
-                ty += -ri * (nz * ftx - nx * ftz) + mry
-                tz += -ri * (nx * fty - ny * ftx) + mrz
-                # reaction on the wall: -F at p, plus the rolling torque's reaction
+                tx += tix
+                ty += tiy
+                tz += tiz
                 if q != 1:
-                    tq += -(px * gy - py * gx) - mrz
+                    tq += twall
                 else:
-                    tqc += -(px * gy - py * gx) - mrz
+                    tqc += twall
             fb[c, i, 0] += fx
             fb[c, i, 1] += fy
             fb[c, i, 2] += fz
@@ -826,13 +883,35 @@ def reduce_kick(fb, tb, cb, maxj, f, t, v, w, x, inv_m, inv_i, kick, dt, drift, 
 # ---- driver ----------------------------------------------------------------------------
 
 @serial
-def rebuild(x, v, w, shw, xref, prm, wrapk, cutoff, do_wrap, nb, img, nnb, sh, fl,
-            nb_n, img_n, nnb_n, sh_n, fl_n, cb, need, maxj):
-    """Wrap beads into the periodic cell and build new half neighbour lists (nb_n ...)
-    from the current ones (nb ...), carrying the tangential history over; reset the
-    displacement reference. Returns the longest row found: more than nb_n.shape[1] means
-    the new lists overflowed (the current ones are untouched; enlarge and call again with
-    do_wrap false, which keeps the beads and wrapk as they are)."""
+def gather_events(evc, evn, evbuf, evcount, acc):
+    """Append the chunks' new contacts (evc[c, :evn[c]]) to evbuf after its evcount[0] rows;
+    what does not fit is counted in acc[3] (dropped)."""
+    m = evcount[0]
+    for c in range(evn.shape[0]):
+        k = evn[c]
+        if k > evc.shape[1]:
+            acc[3] += k - evc.shape[1]
+            k = evc.shape[1]
+        for e in range(k):
+            if m < evbuf.shape[0]:
+                for a in range(EV_NF):
+                    evbuf[m, a] = evc[c, e, a]
+                m += 1
+            else:
+                acc[3] += 1.0
+    evcount[0] = m
+
+
+
+@serial
+def rebuild(x, v, w, shw, xref, prm, wrapk, cutoff, do_wrap, pst, nnb, pj, pim, psh, pfl,
+            pst_n, nnb_n, pj_n, pim_n, psh_n, pfl_n, cb, need, maxj):
+    """Wrap beads into the periodic cell and build new half neighbour lists (pst_n ...)
+    from the current ones (pst ...), carrying the tangential history over; reset the
+    displacement reference. Returns the pairs the fullest chunk needs: more than the
+    new lists' capacity per chunk (pj_n.shape[0] // chunks) means they overflowed (the
+    current ones are untouched; enlarge and call again with do_wrap false, which keeps
+    the beads and wrapk as they are)."""
     if do_wrap:
         wrap_periodic(x, v, w, shw, prm, wrapk)
     ej, es, ex = make_entries(x, prm, cutoff)
@@ -848,15 +927,17 @@ def rebuild(x, v, w, shw, xref, prm, wrapk, cutoff, do_wrap, nb, img, nnb, sh, f
     ncz = int(lz / cutoff)
     start, sj, ss, sx = bin_entries(ej, es, ex, lo, cs, ncx, ncy, ncz, lz)
     build_nlist(x, sj, ss, sx, start, lo, cs, ncx, ncy, ncz, cutoff * cutoff, prm,
-                wrapk, nb, img, nnb, sh, fl, nb_n, img_n, nnb_n, sh_n, fl_n, cb, need, maxj)
+                wrapk, pst, nnb, pj, pim, psh, pfl, pst_n, nnb_n, pj_n, pim_n, psh_n, pfl_n,
+                cb, need, maxj)
     xref[:, :] = x
     return need.max()
 
 
 @serial
 def advance(nsteps, x, v, w, f, t, rad, mass, inertia, inv_m, inv_i, xref, prm, wrapk,
-            cutoff, nb, img, nnb, sh, fl, nb_o, img_o, nnb_o, sh_o, fl_o, shw, flw, cb,
-            need, maxj, dmax, record, evc, evn, evbuf, evcount, acc, fb, tb, torq, fext):
+            cutoff, pst, nnb, pj, pim, psh, pfl, pst_o, nnb_o, pj_o, pim_o, psh_o, pfl_o,
+            shw, flw, cb, need, maxj, dmax, record, evc, evn, evbuf, evcount, acc, fb, tb,
+            torq, fext):
     """Advance ``nsteps`` velocity-Verlet steps of dt = prm[P_DT] [s] (nsteps >= 1).
 
     Velocities are synchronous with positions on entry and exit; the forces f, t must be
@@ -866,11 +947,11 @@ def advance(nsteps, x, v, w, f, t, rad, mass, inertia, inv_m, inv_i, xref, prm, 
     accumulates [0] stirrer torque x steps [N m], [1] steps, [2] neighbour builds,
     [3] contacts dropped for lack of chunk buffer space, [4] chamber-wall torque x steps
     [N m]; torq (chunks, 2) is the per-chunk scratch of compute_forces, fext the held
-    external force (see compute_forces). The two sets of neighbour lists
-    alternate at every build. Returns (steps done, status, list parity): parity 1 means
-    the caller must swap its list references. Status 0 done; 1 new neighbour lists too
-    short (positions advanced, velocities half a step ahead: enlarge, rebuild,
-    finish_step); 2 event buffer nearly full (stopped early, synchronous state).
+    external force (see compute_forces). The two sets of neighbour lists (pst ... and
+    pst_o ...) alternate at every build. Returns (steps done, status, list parity):
+    parity 1 means the caller must swap its list references. Status 0 done; 1 new
+    neighbour lists too short (positions advanced, velocities half a step ahead: enlarge,
+    rebuild, finish_step); 2 event buffer nearly full (stopped early, synchronous state).
     """
     dt = prm[P_DT]
     half_skin2 = (0.5 * prm[P_SKIN]) ** 2
@@ -879,23 +960,25 @@ def advance(nsteps, x, v, w, f, t, rad, mass, inertia, inv_m, inv_i, xref, prm, 
     kick_drift(x, v, w, f, t, inv_m, inv_i, 0.5 * dt, dt, xref, cb, dmax)
     for step in range(nsteps):
         if dmax.max() > half_skin2:
-            longest = rebuild(x, v, w, shw, xref, prm, wrapk, cutoff, True, nb, img, nnb,
-                              sh, fl, nb_o, img_o, nnb_o, sh_o, fl_o, cb, need, maxj)
+            needed = rebuild(x, v, w, shw, xref, prm, wrapk, cutoff, True, pst, nnb, pj, pim,
+                             psh, pfl, pst_o, nnb_o, pj_o, pim_o, psh_o, pfl_o, cb, need,
+                             maxj)
             acc[2] += 1.0
-            if longest > nb_o.shape[1]:
+            if needed > pj_o.shape[0] // nch:
                 return step, 1, parity
             # the new lists become the current ones (no copying)
-            nb, nb_o = nb_o, nb
-            img, img_o = img_o, img
+            pst, pst_o = pst_o, pst
             nnb, nnb_o = nnb_o, nnb
-            sh, sh_o = sh_o, sh
-            fl, fl_o = fl_o, fl
+            pj, pj_o = pj_o, pj
+            pim, pim_o = pim_o, pim
+            psh, psh_o = psh_o, psh
+            pfl, pfl_o = pfl_o, pfl
             parity ^= 1
         last = step == nsteps - 1
         if record and evcount[0] > evbuf.shape[0] - 2 * evc.shape[1] * nch:
             last = True
-        compute_forces(x, v, w, fb, tb, rad, mass, inertia, nb, img, nnb, sh, fl, shw,
-                       flw, prm, cb, maxj, record, step, evc, evn, torq, fext)
+        compute_forces(x, v, w, fb, tb, rad, mass, inertia, pst, nnb, pj, pim, psh, pfl,
+                       shw, flw, prm, cb, maxj, record, step, evc, evn, torq, fext)
         tq = 0.0
         tqc = 0.0
         for c in range(nch):
@@ -905,20 +988,7 @@ def advance(nsteps, x, v, w, f, t, rad, mass, inertia, inv_m, inv_i, xref, prm, 
         acc[4] += tqc
         acc[1] += 1.0
         if record:
-            m = evcount[0]
-            for c in range(nch):
-                k = evn[c]
-                if k > evc.shape[1]:
-                    acc[3] += k - evc.shape[1]
-                    k = evc.shape[1]
-                for e in range(k):
-                    if m < evbuf.shape[0]:
-                        for a in range(EV_NF):
-                            evbuf[m, a] = evc[c, e, a]
-                        m += 1
-                    else:
-                        acc[3] += 1.0
-            evcount[0] = m
+            gather_events(evc, evn, evbuf, evcount, acc)
         if last:
             reduce_kick(fb, tb, cb, maxj, f, t, v, w, x, inv_m, inv_i, 0.5 * dt, dt, False,
                         xref, dmax)
@@ -928,13 +998,13 @@ def advance(nsteps, x, v, w, f, t, rad, mass, inertia, inv_m, inv_i, xref, prm, 
 
 
 @serial
-def finish_step(x, v, w, f, t, rad, mass, inertia, inv_m, inv_i, prm, nb, img, nnb, sh,
-                fl, shw, flw, cb, maxj, record, evc, evn, torq, xref, dmax, fb, tb, kick,
-                fext):
+def finish_step(x, v, w, f, t, rad, mass, inertia, inv_m, inv_i, prm, pst, nnb, pj, pim,
+                psh, pfl, shw, flw, cb, maxj, record, evc, evn, torq, xref, dmax, fb, tb,
+                kick, fext):
     """Forces at the current positions, then v += kick F/m: with kick = dt/2 this closes
     a step after the neighbour lists were enlarged in the middle of it; with kick = 0 it
     only fills f, t. New contacts are left in evc/evn for the caller to collect."""
-    compute_forces(x, v, w, fb, tb, rad, mass, inertia, nb, img, nnb, sh, fl, shw, flw,
-                   prm, cb, maxj, record, 0, evc, evn, torq, fext)
+    compute_forces(x, v, w, fb, tb, rad, mass, inertia, pst, nnb, pj, pim, psh, pfl, shw,
+                   flw, prm, cb, maxj, record, 0, evc, evn, torq, fext)
     reduce_kick(fb, tb, cb, maxj, f, t, v, w, x, inv_m, inv_i, kick, prm[P_DT], False,
                 xref, dmax)

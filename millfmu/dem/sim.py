@@ -48,17 +48,23 @@ class DemSimulation:
 
     Parameters (SI): geometry; material; positions_m (n, 3); radii_m (n,); omega_rad_s
     stirrer angular velocity about +z; dt_s; gravity_m_s2 (3,); fluid (None: no fluid
-    forces at all); skin_m neighbour-list skin; threads: numba threads (None: all);
+    forces at all); skin_m neighbour-list skin; max_neighbours: initial list room in pairs
+    per bead (the lists grow as needed and are fitted after the first build); threads:
+    numba threads (None: all);
     sort_every_steps: reorder the beads along the cell grid every so many steps (memory
-    locality; None: 200 for 2000 beads or more, else never). After a reorder, row k of
-    the bead arrays holds the bead ``ids[k]`` of the initial order.
+    locality; None: 200 for 2000 beads or more, else never); spins_rad_s (n, 3) initial
+    angular velocities [rad/s] (None: at rest); device: "cpu" (numba threads) or "gpu"
+    (numba.cuda, :mod:`millfmu.dem.gpu`: same model; beads are not reordered; the host
+    arrays x, v, w, f, t are refreshed after each run() call and fext is read before it;
+    rad and mass are read once, here). After a reorder, row k of the bead arrays holds
+    the bead ``ids[k]`` of the initial order.
     """
 
     def __init__(self, geometry: MillGeometry, material: BeadMaterial, positions_m,
                  radii_m, omega_rad_s: float, dt_s: float, gravity_m_s2=(0.0, 0.0, 0.0),
                  fluid: FluidSettings | None = None, skin_m: float | None = None,
                  max_neighbours: int = 24, velocities_m_s=None, threads: int | None = None,
-                 sort_every_steps: int | None = None):
+                 sort_every_steps: int | None = None, spins_rad_s=None, device: str = "cpu"):
         import numba
 
         from millfmu.dem import kernels as K
@@ -87,7 +93,8 @@ class DemSimulation:
         self.x = x
         self.v = np.zeros((n, 3)) if velocities_m_s is None else \
             np.ascontiguousarray(velocities_m_s, dtype=np.float64).copy()
-        self.w = np.zeros((n, 3))
+        self.w = np.zeros((n, 3)) if spins_rad_s is None else \
+            np.ascontiguousarray(spins_rad_s, dtype=np.float64).copy()
         self.f = np.zeros((n, 3))
         self.t = np.zeros((n, 3))
         self.xref = x.copy()
@@ -135,8 +142,11 @@ class DemSimulation:
         prm[K.P_ZDISC] = geometry.disc_z_m
         prm[K.P_SKIN] = self.skin_m
         self.prm = prm
-        # one chunk of beads per thread: each chunk has its own force buffer
-        nch = max(1, self.threads)
+        # chunks of beads, each with its own force buffer: a fixed number for a given bead
+        # count (about 4096 beads each), so that results do not depend on the thread count
+        # (while threads <= chunks) and a thread held up on a shared machine leaves its
+        # chunks to the others
+        nch = min(max(1, self.threads, min(64, n // 4096)), max(n, 1))
         self.cb = np.linspace(0, n, nch + 1).astype(np.int64)
         self.need = np.zeros(nch, np.int64)
         self.maxj = np.zeros(nch, np.int64)
@@ -144,7 +154,7 @@ class DemSimulation:
         self.tb = np.zeros((nch, n, 3))
         self.dmax = np.zeros(nch)
         self.wrapk = np.zeros(n, np.int8)
-        self._alloc_lists(max_neighbours)
+        self._alloc_lists(int(max_neighbours) * int(np.diff(self.cb).max()))
         self.shw = np.zeros((n, K.NWALL, 3))
         self.flw = np.zeros((n, K.NWALL), np.uint8)
         self.evc = np.zeros((nch, 2048, K.EV_NF))
@@ -164,7 +174,21 @@ class DemSimulation:
             sort_every_steps = 200 if n >= 2000 else 0
         self.sort_every_steps = int(sort_every_steps)
         self._last_sort = 0
+        if device not in ("cpu", "gpu"):
+            raise ValueError(f"device = {device!r}: 'cpu' or 'gpu'")
+        self.device = device
+        self._gpu = None
+        if device == "gpu":
+            from millfmu.dem.gpu import GpuStepper
+
+            self.sort_every_steps = 0
+            self._gpu = GpuStepper(self, max_neighbours)  # builds and computes f, t
+            return
         self._build()
+        if self.pair_capacity > 1.5 * self.need.max() + 64:
+            # max_neighbours was generous: lists that fit (nothing to carry over yet)
+            self._alloc_lists(int(1.3 * self.need.max()) + 16)
+            self._build(do_wrap=False)
         if self.sort_every_steps:
             self._sort()
         # forces of the initial state; contacts present now are not "new" later
@@ -178,25 +202,38 @@ class DemSimulation:
         self.per_bead[name] = array
 
     # ---- neighbour lists --------------------------------------------------------------
-    _LISTS = ("nb", "img", "nnb", "sh", "fl")
+    # Two sets of half lists (kernels.build_nlist): the current one (pst, nnb, pj, pim,
+    # psh, pfl) and the spare one (the same names + "_o") that the next build fills; pair
+    # arrays hold `cap` pairs per chunk.
+    _LISTS = ("pst", "nnb", "pj", "pim", "psh", "pfl")
 
-    def _alloc_lists(self, m: int, keep: bool = False):
-        """Allocate current and spare neighbour lists with m slots per bead; with keep the
-        current lists' contents are preserved."""
-        n = self.n
-        new = dict(nb=np.zeros((n, m), np.int32), img=np.zeros((n, m), np.int8),
-                   nnb=np.zeros(n, np.int64), sh=np.zeros((n, m, 3)),
-                   fl=np.zeros((n, m), np.uint8))
-        if keep:
-            old_m = self.nb.shape[1]
-            for k in new:
-                if k == "nnb":
-                    new[k][:] = self.nnb
-                else:
-                    new[k][:, :old_m] = getattr(self, k)
-        for k, a in new.items():
+    def _new_lists(self, cap: int) -> dict:
+        n, nch = self.n, self.cb.size - 1
+        return dict(pst=np.zeros(n, np.int64), nnb=np.zeros(n, np.int64),
+                    pj=np.zeros(nch * cap, np.int32), pim=np.zeros(nch * cap, np.int8),
+                    psh=np.zeros((nch * cap, 3)), pfl=np.zeros(nch * cap, np.uint8))
+
+    def _alloc_lists(self, cap: int):
+        """Empty current and spare lists with room for cap pairs per chunk."""
+        for k, a in self._new_lists(cap).items():
             setattr(self, k, a)
-            setattr(self, k + "_o", np.zeros_like(a))
+        for k, a in self._new_lists(cap).items():
+            setattr(self, k + "_o", a)
+
+    def _alloc_spare(self, cap: int):
+        for k, a in self._new_lists(cap).items():
+            setattr(self, k + "_o", a)
+
+    @property
+    def pair_capacity(self) -> int:
+        """Pairs the current lists hold per chunk."""
+        return self.pj.shape[0] // (self.cb.size - 1)
+
+    @property
+    def slots_per_bead(self) -> int:
+        """List capacity in pairs per bead of the largest chunk (max_neighbours at the
+        start; grows when the lists overflow)."""
+        return self.pair_capacity // int(np.diff(self.cb).max())
 
     def _swap_lists(self):
         for k in self._LISTS:
@@ -205,26 +242,32 @@ class DemSimulation:
             setattr(self, k + "_o", a)
 
     def _build(self, do_wrap: bool = True):
-        """Build new neighbour lists from the current ones and make them current."""
+        """Build new neighbour lists from the current ones and make them current; the spare
+        lists are enlarged (by 30 %) until the fullest chunk's pairs fit."""
         K = self.K
+        nch = self.cb.size - 1
         while True:
-            longest = K.rebuild(self.x, self.v, self.w, self.shw, self.xref, self.prm,
-                                self.wrapk, self.cutoff_m, do_wrap, self.nb, self.img,
-                                self.nnb, self.sh, self.fl, self.nb_o, self.img_o,
-                                self.nnb_o, self.sh_o, self.fl_o, self.cb, self.need,
-                                self.maxj)
-            if longest <= self.nb_o.shape[1]:
+            needed = K.rebuild(self.x, self.v, self.w, self.shw, self.xref, self.prm,
+                               self.wrapk, self.cutoff_m, do_wrap, self.pst, self.nnb, self.pj,
+                               self.pim, self.psh, self.pfl, self.pst_o, self.nnb_o,
+                               self.pj_o, self.pim_o, self.psh_o, self.pfl_o, self.cb,
+                               self.need, self.maxj)
+            if needed <= self.pj_o.shape[0] // nch:
                 self._swap_lists()
+                if self.pj_o.shape[0] < self.pj.shape[0]:
+                    # both sets the same size, so that the next build fits too
+                    self._alloc_spare(self.pair_capacity)
                 return
-            self._alloc_lists(int(longest * 1.3) + 4, keep=True)
+            self._alloc_spare(int(needed * 1.3) + 16)
             do_wrap = False
 
     def _finish(self, record: bool, kick: float):
         self.K.finish_step(self.x, self.v, self.w, self.f, self.t, self.rad, self.mass,
-                           self.inertia, self.inv_m, self.inv_i, self.prm, self.nb,
-                           self.img, self.nnb, self.sh, self.fl, self.shw, self.flw,
-                           self.cb, self.maxj, record, self.evc, self.evn, self.torq,
-                           self.xref, self.dmax, self.fb, self.tb, kick, self.fext)
+                           self.inertia, self.inv_m, self.inv_i, self.prm, self.pst,
+                           self.nnb, self.pj, self.pim, self.psh, self.pfl, self.shw,
+                           self.flw, self.cb, self.maxj, record, self.evc, self.evn,
+                           self.torq, self.xref, self.dmax, self.fb, self.tb, kick,
+                           self.fext)
 
     _PER_BEAD = ("x", "v", "w", "f", "t", "xref", "rad", "mass", "inertia", "inv_m",
                  "inv_i", "wrapk", "shw", "flw", "ids", "fext")
@@ -235,6 +278,7 @@ class DemSimulation:
         g = self.geometry
         cs = self.cutoff_m
         x = self.x
+        n = self.n
         ix = np.floor((x[:, 0] + g.chamber_radius_m) / cs).astype(np.int64)
         iy = np.floor((x[:, 1] + g.chamber_radius_m) / cs).astype(np.int64)
         iz = np.floor(np.mod(x[:, 2], g.height_m) / cs).astype(np.int64)
@@ -244,12 +288,13 @@ class DemSimulation:
         inv[perm] = np.arange(perm.size)
         # the pairs, flattened; a pair stays with its lower (new) index
         nnb = self.nnb
-        rows = np.repeat(np.arange(self.n), nnb)
-        cols = np.arange(rows.size) - np.repeat(np.cumsum(nnb) - nnb, nnb)
-        pj = self.nb[rows, cols].astype(np.int64)
-        ps = self.img[rows, cols].astype(np.int64)
-        psh = self.sh[rows, cols].copy()
-        pfl = self.fl[rows, cols]
+        rows = np.repeat(np.arange(n), nnb)
+        first = np.cumsum(nnb) - nnb
+        pos = np.repeat(self.pst, nnb) + (np.arange(rows.size) - np.repeat(first, nnb))
+        pj = self.pj[pos].astype(np.int64)
+        ps = self.pim[pos].astype(np.int64)
+        psh = self.psh[pos]
+        pfl = self.pfl[pos]
         a = inv[rows]
         b = inv[pj]
         swap = a > b
@@ -266,38 +311,46 @@ class DemSimulation:
             psh[swap, 2] = -psh[swap, 2]
             ps = np.where(swap, -ps, ps)
         for k in self._PER_BEAD:
-            if k != "nnb":
-                setattr(self, k, np.ascontiguousarray(getattr(self, k)[perm]))
-        for k, a in self.per_bead.items():
-            a[:] = a[perm]
-        counts = np.bincount(owner, minlength=self.n)
-        m = self.nb.shape[1]
-        if counts.max() > m:
-            m = int(counts.max() * 1.3) + 4
-            self._alloc_lists(m)
+            setattr(self, k, np.ascontiguousarray(getattr(self, k)[perm]))
+        for k, arr in self.per_bead.items():
+            arr[:] = arr[perm]
+        # rows in the new order, each chunk's rows one after the other in its region
+        counts = np.bincount(owner, minlength=n)
+        before = np.cumsum(counts) - counts  # pairs of all lower rows
+        cb = self.cb
+        nch = cb.size - 1
+        chunk_of = np.repeat(np.arange(nch), np.diff(cb))
+        per_chunk = np.add.reduceat(counts, cb[:-1]) if n else np.zeros(nch, np.int64)
+        if per_chunk.max() > self.pair_capacity:
+            self._alloc_lists(int(per_chunk.max() * 1.3) + 16)
+        cap = self.pair_capacity
+        pst = chunk_of * cap + before - before[cb[chunk_of]]
         order = np.argsort(owner, kind="stable")
         owner, partner, ps, psh, pfl = (owner[order], partner[order], ps[order], psh[order],
                                         pfl[order])
-        slot = np.arange(owner.size) - np.repeat(np.cumsum(counts) - counts, counts)
-        self.nb[:] = 0
-        self.img[:] = 0
-        self.sh[:] = 0.0
-        self.fl[:] = 0
-        self.nb[owner, slot] = partner
-        self.img[owner, slot] = ps
-        self.sh[owner, slot] = psh
-        self.fl[owner, slot] = pfl
+        slot = pst[owner] + np.arange(owner.size) - before[owner]
+        self.pj[slot] = partner
+        self.pim[slot] = ps
+        self.psh[slot] = psh
+        self.pfl[slot] = pfl
+        self.pst[:] = pst
         self.nnb[:] = counts
         # the chunks' partner ranges changed with the names: recompute them
-        for c in range(self.cb.size - 1):
-            lo, hi = self.cb[c], self.cb[c + 1]
-            rowmax = self.nb[lo:hi][np.arange(m)[None, :] < self.nnb[lo:hi, None]]
-            self.maxj[c] = max(int(rowmax.max()) if rowmax.size else 0, hi - 1)
+        self.maxj[:] = cb[1:] - 1
+        if owner.size:
+            np.maximum.at(self.maxj, chunk_of[owner], partner)
         self._last_sort = self.step_count
 
     # ---- time stepping ----------------------------------------------------------------
     def run(self, nsteps: int, record: bool = False) -> StepStats:
         """Advance nsteps steps; with record, return every contact at its first overlap."""
+        if self._gpu is not None:
+            ev, torque, chamber, dropped, builds = self._gpu.run(nsteps, record)
+            ev[:, self.K.EV_STEP] += self.step_count
+            self.step_count += nsteps
+            return StepStats(steps=nsteps, events=ev, torque_sum_nm_steps=torque,
+                             chamber_torque_sum_nm_steps=chamber, dropped_events=dropped,
+                             neighbour_builds=builds)
         import numba
 
         K = self.K
@@ -313,14 +366,14 @@ class DemSimulation:
         while done < nsteps:
             self.evcount[0] = 0
             self.acc[:] = 0.0
-            k, status, parity = K.advance(nsteps - done, self.x, self.v, self.w, self.f, self.t,
-                                  self.rad, self.mass, self.inertia, self.inv_m, self.inv_i,
-                                  self.xref, self.prm, self.wrapk, self.cutoff_m, self.nb,
-                                  self.img, self.nnb, self.sh, self.fl, self.nb_o,
-                                  self.img_o, self.nnb_o, self.sh_o, self.fl_o, self.shw,
-                                  self.flw, self.cb, self.need, self.maxj, self.dmax, record,
-                                  self.evc, self.evn, self.evbuf, self.evcount, self.acc,
-                                  self.fb, self.tb, self.torq, self.fext)
+            k, status, parity = K.advance(
+                nsteps - done, self.x, self.v, self.w, self.f, self.t, self.rad, self.mass,
+                self.inertia, self.inv_m, self.inv_i, self.xref, self.prm, self.wrapk,
+                self.cutoff_m, self.pst, self.nnb, self.pj, self.pim, self.psh, self.pfl,
+                self.pst_o, self.nnb_o, self.pj_o, self.pim_o, self.psh_o, self.pfl_o,
+                self.shw, self.flw, self.cb, self.need, self.maxj, self.dmax, record,
+                self.evc, self.evn, self.evbuf, self.evcount, self.acc, self.fb, self.tb,
+                self.torq, self.fext)
             if parity:
                 self._swap_lists()
             m = int(self.evcount[0])
@@ -338,7 +391,6 @@ class DemSimulation:
             builds += int(self.acc[2])
             if status == 1:
                 # the new lists overflowed during step k: enlarge, rebuild, close the step
-                self._alloc_lists(int(self.nb.shape[1] * 1.5) + 4, keep=True)
                 self._build(do_wrap=False)
                 self._finish(record=record, kick=0.5 * self.dt_s)
                 torque += float(self.torq[:, 0].sum())
@@ -362,6 +414,16 @@ class DemSimulation:
                          chamber_torque_sum_nm_steps=chamber,
                          dropped_events=dropped, neighbour_builds=builds)
 
+    def _pairs(self):
+        """(i, j, s) of every pair in the current neighbour lists (partner j > i, image
+        code s), as arrays."""
+        if self._gpu is not None:
+            return self._gpu.pairs()
+        i = np.repeat(np.arange(self.n), self.nnb)
+        first = np.cumsum(self.nnb) - self.nnb
+        pos = np.repeat(self.pst, self.nnb) + (np.arange(i.size) - np.repeat(first, self.nnb))
+        return i, self.pj[pos].astype(np.int64), self.pim[pos].astype(np.int64)
+
     # ---- observables ------------------------------------------------------------------
     def kinetic_energy_j(self) -> tuple[float, float]:
         """Translational and rotational kinetic energy of all beads [J]."""
@@ -378,22 +440,17 @@ class DemSimulation:
         u = 0.0
         lz = self.geometry.height_m
         sec = self.geometry.sector_rad
-        for i in range(self.n):
-            for k in range(int(self.nnb[i])):
-                j = int(self.nb[i, k])
-                if j <= i:
-                    continue
-                s = int(self.img[i, k])
-                xj = x[j].copy()
-                if s:
-                    c, sn = math.cos(s * sec), math.sin(s * sec)
-                    xj[0], xj[1] = c * x[j, 0] - sn * x[j, 1], sn * x[j, 0] + c * x[j, 1]
-                d = x[i] - xj
-                d[2] -= lz * math.floor(d[2] / lz + 0.5)
-                delta = self.rad[i] + self.rad[j] - math.sqrt(d @ d)
-                if delta > 0:
-                    rs = self.rad[i] * self.rad[j] / (self.rad[i] + self.rad[j])
-                    u += 8.0 / 15.0 * ys * math.sqrt(rs) * delta ** 2.5
+        for i, j, s in zip(*self._pairs()):
+            xj = x[j].copy()
+            if s:
+                c, sn = math.cos(s * sec), math.sin(s * sec)
+                xj[0], xj[1] = c * x[j, 0] - sn * x[j, 1], sn * x[j, 0] + c * x[j, 1]
+            d = x[i] - xj
+            d[2] -= lz * math.floor(d[2] / lz + 0.5)
+            delta = self.rad[i] + self.rad[j] - math.sqrt(d @ d)
+            if delta > 0:
+                rs = self.rad[i] * self.rad[j] / (self.rad[i] + self.rad[j])
+                u += 8.0 / 15.0 * ys * math.sqrt(rs) * delta ** 2.5
         for i in range(self.n):
             for q in range(K.NWALL):
                 dist, _, _, _, ok = K.wall_gap(x[i, 0], x[i, 1], x[i, 2], self.rad[i], q,

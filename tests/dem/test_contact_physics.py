@@ -250,15 +250,43 @@ def test_neighbour_list_overflow_is_handled_without_changing_results():
     rng = np.random.default_rng(7)
     v = rng.normal(0.0, 0.3, size=x.shape)
     out = []
-    for maxnb in (3, 40):
+    for maxnb in (1, 40):
         sim = DemSimulation(geom, mat, x, R, 300.0, 5e-6, velocities_m_s=v,
                             max_neighbours=maxnb)
         st = sim.run(400, record=True)
-        out.append((sim.x.copy(), sim.v.copy(), st.events.shape[0], sim.nb.shape[1]))
-    assert out[0][3] > 3  # the lists did grow
+        out.append((sim.x.copy(), sim.v.copy(), st.events.shape[0], sim.pair_capacity))
+    assert out[0][3] > 700  # the lists did grow past their initial room (1 pair per bead)
     assert out[0][2] == out[1][2]
     np.testing.assert_allclose(out[0][0], out[1][0], rtol=0, atol=1e-15)
     np.testing.assert_allclose(out[0][1], out[1][1], rtol=0, atol=1e-12)
+
+
+def test_lists_overflowing_within_a_run_change_no_result():
+    """A neighbour build inside run() that finds the spare lists too small stops the
+    stepping loop, enlarges them and closes the step: same trajectory and contacts as a run
+    with room to spare."""
+    from millfmu.dem.geometry import place_beads
+    from millfmu.dem.sim import DemSimulation
+
+    mat = BeadMaterial()
+    geom = MillGeometry(shaft_radius_m=0.015, chamber_radius_m=0.019, height_m=0.004)
+    x = place_beads(geom, 700, R, seed=5)
+    v = np.random.default_rng(7).normal(0.0, 0.3, size=x.shape)
+    out = []
+    for tight in (True, False):
+        sim = DemSimulation(geom, mat, x, R, 300.0, 5e-6, velocities_m_s=v)
+        rebuilt = []
+        build = sim._build
+        sim._build = lambda **kw: (rebuilt.append(kw), build(**kw))
+        if tight:
+            sim._alloc_spare(8)  # the first build within the run overflows
+        st = sim.run(400, record=True)
+        out.append((sim.x.copy(), sim.v.copy(), st.events.shape[0], len(rebuilt)))
+    assert (out[0][3], out[1][3]) == (1, 0)  # the overflowing build was done again, once
+    assert out[0][2] == out[1][2]
+    # that step is closed with two half kicks instead of one fused kick: round-off apart
+    np.testing.assert_allclose(out[0][0], out[1][0], rtol=0, atol=1e-15)
+    np.testing.assert_allclose(out[0][1], out[1][1], rtol=1e-9, atol=1e-10)
 
 
 def test_bead_reordering_keeps_the_dynamics():
@@ -323,3 +351,57 @@ def test_koch_hill_drag_on_a_resting_bead(eps):
         # dilute limit: Stokes drag with the Koch-Hill inertial correction
         assert sim.f[0, 1] == pytest.approx(3 * math.pi * mu * d * u * (1 + 0.5 * f3 * re),
                                             rel=0.05)
+
+
+def wrapping_contact_pair(theta0_rad):
+    """Two beads in a sheared, slowly closing contact, drifting azimuthally (about -z)
+    in a 45 degree sector; the leading bead starts 0.05 mm past the ray theta0 (for
+    theta0 = 0 it crosses theta = 0 during the contact and is wrapped to the far side).
+    Returns (geometry, positions, velocities) [m, m/s]."""
+    geom = MillGeometry(shaft_radius_m=0.015, chamber_radius_m=0.045, height_m=0.004,
+                        sector_deg=45.0)
+    rc = 0.030
+    th_a = theta0_rad + 0.05e-3 / rc
+    th_b = th_a + 2 * R / rc
+    pos = np.array([[rc * math.cos(t), rc * math.sin(t), 0.002] for t in (th_a, th_b)])
+    e_t = np.array([[-math.sin(t), math.cos(t), 0.0] for t in (th_a, th_b)])
+    vel = -2.0 * e_t  # a neighbour build (and wrap) after about 37 steps of 2 us
+    vel[0] += 0.02 * e_t[0] + np.array([0.0, 0.0, 0.02])  # closing and shearing
+    return geom, pos, vel
+
+
+def test_contact_carried_across_a_sector_wrap_equals_one_away_from_the_boundary():
+    """Rotational periodicity with history: the leading bead is wrapped across the
+    boundary ray in the middle of a sticking-sliding contact; its spring must be carried
+    to the image pair (rotated with the bead), so that the contact evolves exactly as the
+    same contact placed 20 degrees into the sector."""
+    from millfmu.dem.sim import DemSimulation
+
+    mat = BeadMaterial(restitution=0.9, friction=0.5, rolling_friction=0.0)
+    out = []
+    for th0 in (0.0, math.radians(20.0)):
+        geom, pos, vel = wrapping_contact_pair(th0)
+        sim = DemSimulation(geom, mat, pos, R, 0.0, 2e-6, velocities_m_s=vel)
+        wrapped = False
+        for _ in range(12):
+            sim.run(5)
+            wrapped |= bool(np.arctan2(sim.x[0, 1], sim.x[0, 0]) > math.radians(30.0))
+        gaps = []
+        for k in (-1, 0, 1):  # through the periodic images of bead 0
+            c, s = math.cos(k * math.pi / 4), math.sin(k * math.pi / 4)
+            xa = np.array([c * sim.x[0, 0] - s * sim.x[0, 1], s * sim.x[0, 0] + c * sim.x[0, 1],
+                           sim.x[0, 2]])
+            gaps.append(np.linalg.norm(sim.x[1] - xa) - 2 * R)
+        assert min(gaps) < 0  # still in contact
+        # relative motion in the frame of the pair: rotate both beads back by their angle
+        th = np.arctan2(sim.x[:, 1], sim.x[:, 0])
+        rel = []
+        for k in range(2):
+            c, s = math.cos(-th[k]), math.sin(-th[k])
+            rot = np.array([[c, -s, 0], [s, c, 0], [0, 0, 1]])
+            rel.append((rot @ sim.v[k], rot @ sim.w[k]))
+        out.append((wrapped, rel))
+    assert out[0][0] and not out[1][0]  # only the first run crossed the boundary
+    for (va, wa), (vb, wb) in zip(out[0][1], out[1][1]):
+        np.testing.assert_allclose(va, vb, rtol=1e-6, atol=1e-9)
+        np.testing.assert_allclose(wa, wb, rtol=1e-6, atol=1e-6)

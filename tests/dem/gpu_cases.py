@@ -1,0 +1,159 @@
+"""The GPU path (DemSimulation(device="gpu"), numba.cuda) against the CPU path and closed
+forms, on tiny scenes. Run by test_gpu_simulator.py in a process with
+NUMBA_ENABLE_CUDASIM=1 (numba's CUDA simulator runs the kernels on the CPU, one Python
+thread per CUDA thread: hence few beads and few steps); on a machine with a GPU the same
+file runs on the GPU without the variable.
+
+The GPU sums forces with atomic adds in no fixed order and records contacts in no fixed
+order: it must agree with the CPU to round-off, and record the same contacts."""
+
+import math
+
+import numpy as np
+import pytest
+
+from millfmu.dem import kernels as K
+from millfmu.dem.geometry import MillGeometry, place_beads
+from millfmu.dem.params import BeadMaterial, bead_mass_kg, hertz_contact_time_s
+from millfmu.dem.sim import DemSimulation, FluidSettings
+
+R = 0.4e-3  # bead radius [m]
+ANNULUS = MillGeometry(shaft_radius_m=0.015, chamber_radius_m=0.019, height_m=0.004)
+
+
+def both(*args, **kw):
+    """The same simulation on each device."""
+    return {dev: DemSimulation(*args, device=dev, **kw) for dev in ("cpu", "gpu")}
+
+
+def sorted_events(ev):
+    # bead-bead contacts first, then walls; within a type by beads and step
+    return ev[np.lexsort((ev[:, K.EV_STEP], ev[:, K.EV_J], ev[:, K.EV_I], ev[:, K.EV_TYPE]))]
+
+
+def assert_same_state(sims, atol_x=1e-15, rtol_v=1e-9):
+    c, g = sims["cpu"], sims["gpu"]
+    # the CPU may have reordered its beads (ids); the GPU never does
+    order = np.argsort(c.ids)
+    np.testing.assert_allclose(g.x, c.x[order], rtol=0, atol=atol_x)
+    for name in ("v", "w", "f", "t"):
+        a, b = getattr(g, name), getattr(c, name)[order]
+        np.testing.assert_allclose(a, b, rtol=rtol_v, atol=rtol_v * np.abs(b).max() + 1e-300,
+                                   err_msg=name)
+
+
+def run_both(sims, steps, record=True):
+    out = {dev: s.run(steps, record=record) for dev, s in sims.items()}
+    assert out["gpu"].neighbour_builds == out["cpu"].neighbour_builds
+    assert out["gpu"].dropped_events == out["cpu"].dropped_events == 0
+    ec, eg = sorted_events(out["cpu"].events), sorted_events(out["gpu"].events)
+    assert eg.shape == ec.shape
+    np.testing.assert_allclose(eg, ec, rtol=1e-9, atol=1e-24)
+    for key in ("torque_sum_nm_steps", "chamber_torque_sum_nm_steps"):
+        a, b = getattr(out["gpu"], key), getattr(out["cpu"], key)
+        assert a == pytest.approx(b, rel=1e-9, abs=1e-18), key
+    return out
+
+
+def test_head_on_restitution_hertz_time_and_cpu_agreement():
+    e, v0, dt = 0.9, 2.0, 5e-7  # the contact lasts about 170 steps
+    mat = BeadMaterial(restitution=e, friction=0.3, rolling_friction=0.0)
+    c = np.array([0.017, 0.0, 0.002])
+    x = np.array([c - [R + 1e-9, 0, 0], c + [R + 1e-9, 0, 0]])
+    v = np.array([[0.5 * v0, 0, 0], [-0.5 * v0, 0, 0]])
+    sims = both(ANNULUS, mat, x, R, 0.0, dt, velocities_m_s=v)
+    g = sims["gpu"]
+    steps = 0
+    touching = 0
+    for _ in range(40):
+        run_both(sims, 5)
+        steps += 5
+        d = g.x[1] - g.x[0]
+        if 2 * R - math.sqrt(d @ d) > 0:
+            touching += 5
+        elif touching:
+            break
+    assert_same_state(sims)
+    assert g.v[1, 0] - g.v[0, 0] == pytest.approx(e * v0, rel=0.01)
+    m = bead_mass_kg(2 * R, mat.density_kg_m3)
+    t_hertz = hertz_contact_time_s(m / 2, R / 2, mat.effective_youngs_pa, v0)
+    # within the 5-step resolution of the check and the damping's lengthening
+    assert touching * dt == pytest.approx(t_hertz, rel=0.05)
+
+
+@pytest.mark.parametrize("ratio, mu", [(4.0, 0.3), (0.5, 100.0)])
+def test_oblique_impacts_sliding_and_sticking_match_cpu(ratio, mu):
+    """Tangential history, Coulomb cap and spin: gross sliding (ratio 4 of Maw's limit)
+    and a stick impact (friction too high to slide)."""
+    mat = BeadMaterial(restitution=0.99, friction=mu, rolling_friction=0.1)
+    vn0 = 0.02
+    vt0 = ratio * 3.5 * 0.3 * 1.99 * vn0
+    c = np.array([0.017, 0.0, 0.002])
+    x = np.array([c - [R + 1e-10, 0, 0], c + [R + 1e-10, 0, 0]])
+    v = np.array([[0.5 * vn0, 0.5 * vt0, 0], [-0.5 * vn0, -0.5 * vt0, 0]])
+    sims = both(ANNULUS, mat, x, R, 0.0, 2e-6, velocities_m_s=v)
+    for _ in range(3):
+        run_both(sims, 20)
+    assert_same_state(sims)
+    assert abs(sims["gpu"].w[0, 2]) > 0  # the contact did turn the beads
+
+
+def test_shaft_chamber_and_fluid_forces_match_cpu():
+    """Beads on the rotating shaft and the chamber wall, with gravity, Koch-Hill drag,
+    lubrication and a held (coupled-fluid) force: forces, torques on both walls."""
+    geom = MillGeometry(shaft_radius_m=0.015, chamber_radius_m=0.0175, height_m=0.004)
+    x = place_beads(geom, 12, R, seed=3)
+    r = np.hypot(x[:, 0], x[:, 1])
+    # push half of them onto the shaft, the others onto the chamber wall
+    scale = np.where(np.arange(12) % 2 == 0, (0.015 + R - 2e-6) / r, (0.0175 - R + 2e-6) / r)
+    x[:, :2] *= scale[:, None]
+    sims = both(geom, BeadMaterial(), x, R, 500.0, 2e-6, gravity_m_s2=(0.0, -9.81, 0.0),
+                fluid=FluidSettings(), max_neighbours=1)
+    for s in sims.values():
+        s.fext[:] = np.array([1e-6, 2e-9, -3e-7])  # F_r [N], T_z [N m], F_z [N]
+    out = run_both(sims, 40)
+    assert abs(out["gpu"].torque_sum_nm_steps) > 0
+    assert abs(out["gpu"].chamber_torque_sum_nm_steps) > 0
+    assert_same_state(sims)
+
+
+def test_sector_disc_slice_gas_with_rebuilds_matches_cpu():
+    """A bead gas in a 45 degree sector of a disc cell: image pairs across both boundary
+    rays, wraps into the sector (history rotated), disc contacts, neighbour rebuilds with
+    the history carried over, lists that overflow."""
+    geom = MillGeometry(shaft_radius_m=0.015, chamber_radius_m=0.024, height_m=0.006,
+                        disc_radius_m=0.02, disc_thickness_m=0.002, sector_deg=45.0)
+    x = place_beads(geom, 40, R, seed=11)
+    v = np.random.default_rng(4).normal(0.0, 0.8, size=x.shape)
+    sims = both(geom, BeadMaterial(), x, R, 400.0, 5e-6, velocities_m_s=v, max_neighbours=1,
+                fluid=FluidSettings())
+    builds = 0
+    for _ in range(4):
+        builds += run_both(sims, 25)["gpu"].neighbour_builds
+    assert builds >= 2
+    assert_same_state(sims, atol_x=1e-14, rtol_v=1e-8)
+    th = np.arctan2(sims["gpu"].x[:, 1], sims["gpu"].x[:, 0])
+    assert np.all(th > -0.01) and np.all(th < math.radians(45.0) + 0.01)
+
+
+def test_hertz_energy_reads_the_gpu_lists():
+    geom = MillGeometry(shaft_radius_m=0.015, chamber_radius_m=0.019, height_m=0.004)
+    x = place_beads(geom, 30, R, seed=2, gap_m=-2e-6)  # every neighbour pair overlaps
+    sims = both(geom, BeadMaterial(), x, R, 0.0, 1e-6)
+    ec, eg = sims["cpu"].hertz_energy_j(), sims["gpu"].hertz_energy_j()
+    assert ec > 0
+    assert eg == pytest.approx(ec, rel=1e-12)
+
+
+def test_contact_carried_across_a_sector_wrap_matches_cpu():
+    """The wrap kernel and the history carried to the image pair (see the CPU test of
+    the same name in test_contact_physics)."""
+    from test_contact_physics import wrapping_contact_pair
+
+    geom, pos, vel = wrapping_contact_pair(0.0)
+    mat = BeadMaterial(restitution=0.9, friction=0.5, rolling_friction=0.0)
+    sims = both(geom, mat, pos, R, 0.0, 2e-6, velocities_m_s=vel)
+    for _ in range(12):
+        run_both(sims, 5)
+    assert np.arctan2(sims["gpu"].x[0, 1], sims["gpu"].x[0, 0]) > math.radians(30.0)
+    assert_same_state(sims)
