@@ -15,7 +15,7 @@ def register(subparsers) -> argparse.ArgumentParser:
     """Add the ``dem`` command group to an argparse subparsers object."""
     p = subparsers.add_parser("dem", help="bead DEM: run a scene, benchmark",
                               description="Soft-sphere DEM of the grinding beads.")
-    sub = p.add_subparsers(dest="dem_command", metavar="{run,bench}")
+    sub = p.add_subparsers(dest="dem_command", metavar="{run,bench,seed001,compare}")
     sub.required = True
 
     r = sub.add_parser("run", help="run a DEM scene and write statistics, histograms, maps")
@@ -80,7 +80,23 @@ def register(subparsers) -> argparse.ArgumentParser:
                    help="fluid models to run (comma-separated; default both)")
     s.add_argument("--threads", type=int, help="numba threads (default: all cores)")
     s.set_defaults(func=_seed001)
+
+    c = sub.add_parser("compare", help="key results of run folders side by side (sector, grid "
+                                       "or run-length checks), relative to the first")
+    c.add_argument("runs", nargs="+", metavar="RUN_DIR", help="folders written by 'dem run'")
+    c.set_defaults(func=_compare)
     return p
+
+
+def _compare(args) -> int:
+    from millfmu.dem.compare import CompareError, markdown
+
+    try:
+        print(markdown(args.runs))
+    except CompareError as e:
+        print(f"millfmu dem compare: {e}", file=sys.stderr)
+        return 2
+    return 0
 
 
 def _seed001(args) -> int:
