@@ -506,7 +506,6 @@ def profile(path, threads: int, steps: int = BENCH_STEPS, out=print) -> dict:
     profile is the steadier figure). Returns {phase: (wall, cpu)} plus 'total', 'builds'."""
     import numba
 
-    from millfmu.dem import kernels as K
     from millfmu.dem.sim import DemSimulation
 
     bed = read_data(path)

@@ -1,6 +1,5 @@
 """Collision statistics must not depend on the time step (seed 001 Table 1: dt = 5e-6 s)."""
 
-import numpy as np
 import pytest
 
 pytest.importorskip("numba")

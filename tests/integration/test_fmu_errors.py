@@ -5,7 +5,6 @@ the model refuses; a start time other than 0 is honoured."""
 
 from __future__ import annotations
 
-import json
 
 import pytest
 

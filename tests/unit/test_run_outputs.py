@@ -8,7 +8,6 @@ import sys
 import numpy as np
 import pytest
 
-from millfmu.mill import MillModel
 from millfmu.runner import simulate
 from millfmu.scene import scene_from_dict
 

@@ -16,7 +16,6 @@ neither depending on how the mass is distributed inside the class. The numerical
 must then equal the closed form to round-off at every resolution.
 """
 
-import math
 
 import numpy as np
 import pytest
