@@ -147,6 +147,8 @@ def compare_rows(paths) -> list[list[str]]:
 def markdown(paths) -> str:
     rows = compare_rows(paths)
     names = [Path(p).name or str(p) for p in paths]
+    if len(set(names)) < len(names):  # same folder names in different places
+        names = ["/".join(Path(p).resolve().parts[-2:]) for p in paths]
     lines = ["| quantity | " + " | ".join(names) + " |",
              "|---" * (len(names) + 1) + "|"]
     lines += ["| " + " | ".join(r) + " |" for r in rows]
