@@ -67,3 +67,27 @@ def test_coupled_bench_row_prints_its_ratio():
     print(r.as_dict())
     assert r.beads > 1000 and r.fluid_cells > 100 and r.coupling_steps == 10
     assert r.dem_particle_steps_per_s > 0 and r.coupled_particle_steps_per_s > 0
+
+
+def test_campaign_runs_the_stated_protocol(tmp_path, monkeypatch):
+    """seed001 run: the protocol of the README's table (no gravity, 10 degree sector,
+    coupled: start at 0.1 of the stirrer's rotation, 1.0 s spin-up; 0.3 s recording in
+    0.1 s windows), skipping cases already done. The DEM itself is not run here."""
+    import millfmu.dem.run as R
+
+    calls = []
+    monkeypatch.setattr(R, "run_scene", lambda sc, d, **kw: calls.append((sc, d, kw)))
+    done = seed001.case_dir(tmp_path, "coupled", 10.0, 0.8)
+    done.mkdir(parents=True)
+    (done / "stats.json").write_text("{}")
+    seed001.run_campaign(tmp_path, progress=False)
+    assert len(calls) == 2 * len(seed001.CASES) - 1
+    for sc, d, kw in calls:
+        coupled = d.name.startswith("c_")
+        assert sc.fluid_mode == ("coupled" if coupled else "prescribed")
+        assert sc.gravity_m_s2 == (0.0, 0.0, 0.0) and sc.geometry.sector_deg == 10.0
+        assert sc.spin_up_s == (1.0 if coupled else 0.3) and sc.record_s == 0.3
+        assert sc.initial_rotation == (0.1 if coupled else 0.0)
+        assert kw["window_s"] == 0.1
+        vt, fill = float(d.name.split("_v")[1].split("_")[0]), int(d.name.split("_f")[1])
+        assert sc.tip_speed_m_s == vt and round(sc.filling * 100) == fill
