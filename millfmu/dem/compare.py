@@ -35,20 +35,21 @@ def load_run(path) -> dict:
     return st
 
 
-def _zone(st, name):
+def zone(st, name) -> dict | None:
+    """The zone ``name`` of a run's stats (None if the run has no such zone)."""
     return next((z for z in st["zones"] if z["name"] == name), None)
 
 
 def _zq(name, key):
     def f(st):
-        z = _zone(st, name)
+        z = zone(st, name)
         return None if z is None else z.get(key)
     return f
 
 
 def _median_tn(name):
     def f(st):
-        z = _zone(st, name)
+        z = zone(st, name)
         try:
             return z["se"]["tn"]["quantiles_j"]["q50"]
         except (TypeError, KeyError):
@@ -56,7 +57,8 @@ def _median_tn(name):
     return f
 
 
-def _chamber_density(st):
+def chamber_collision_density(st) -> float:
+    """Collision density of all zones together [1/(m3 s)] (volume-weighted mean)."""
     vol = sum(z["volume_m3"] for z in st["zones"])
     return sum(z["collision_frequency_per_m3_s"] * z["volume_m3"] for z in st["zones"]) / vol
 
@@ -92,7 +94,7 @@ QUANTITIES = (
     + [(f"local filling {z}", _zq(z, "filling"), "-", True) for z in ZONES]
     + [(f"collision density {z}", _zq(z, "collision_frequency_per_m3_s"), "1/(m3 s)", True)
        for z in ZONES]
-    + [("collision density, chamber", _chamber_density, "1/(m3 s)", True)]
+    + [("collision density, chamber", chamber_collision_density, "1/(m3 s)", True)]
     + [(f"median SE_tn {z}", _median_tn(z), "J", True) for z in ZONES]
     + [("first bead layer / disc angular velocity",
         _flow("first_bead_layer_angular_velocity_ratio"), "-", True),

@@ -17,6 +17,8 @@ from pathlib import Path
 
 import numpy as np
 
+from millfmu.dem.compare import chamber_collision_density, zone
+
 #: (tip speed [m/s], filling [-]) of seed 001's cases used here
 CASES = ((10.0, 0.8), (6.0, 0.8), (14.0, 0.8), (6.0, 0.5), (6.0, 0.9), (8.0, 0.8),
          (12.0, 0.8))
@@ -147,10 +149,6 @@ def prescribed_from_table(vt: float, fill: float, table=None) -> dict | None:
     return dict(zones=zones, flow={}, source=TABLE_NOTE)
 
 
-def _zone(st, name):
-    return next(z for z in st["zones"] if z["name"] == name)
-
-
 def _fmt(x, nd=3):
     return "n/a" if x is None or (isinstance(x, float) and not math.isfinite(x)) else \
         f"{x:.{nd}g}"
@@ -179,33 +177,34 @@ def deviation_rows(out_dir) -> list[dict]:
                          else f"{k[0]:g} m/s {round(k[1] * 100)} %: {_fmt(v, nd)}"
                          for v, k in zip(vals, keys) if v is not None) or "not run"
 
+    def add_row(statement, paper, fn, keys, accept, note=""):
+        """A row from fn(stats) per case in keys; verdict from accept(coupled values)."""
+        vals = {f: per(f, fn, keys) for f in FLUIDS}
+        got = [v for v in vals["coupled"] if v is not None]
+        rows.append(dict(statement=statement, paper=paper,
+                         coupled=show(vals["coupled"], keys),
+                         prescribed=show(vals["prescribed"], keys),
+                         verdict=("matches" if accept(got) else "missed") + note if got
+                         else "not run"))
+
     keys80 = [(vt, 0.8) for vt in at80]
     all_keys = list(CASES)
     # 1. mean bead speed over tip speed per zone at 80 %
     paper = {"V1": (0.12, 0.14), "V2": (0.095, 0.095), "V3": (0.085, 0.085)}
+    tol = 0.15
     for zn, (lo, hi) in paper.items():
-        vals = {f: per(f, lambda st: _zone(st, zn)["speed_over_tip_speed"], keys80)
-                for f in FLUIDS}
-        got = [v for v in vals["coupled"] if v is not None]
-        tol = 0.15
-        ok = bool(got) and all(lo * (1 - tol) <= v <= hi * (1 + tol) for v in got)
-        rows.append(dict(
-            statement=f"mean bead speed / tip speed in {zn} at 80 % (section 3.2, Fig. 8a)",
-            paper=f"{lo:.3g}" + (f"-{hi:.3g}" if hi != lo else ""),
-            coupled=show(vals["coupled"], keys80), prescribed=show(vals["prescribed"], keys80),
-            verdict=("matches" if ok else "missed") + f" (within {tol:.0%})" if got else
-            "not run"))
+        add_row(f"mean bead speed / tip speed in {zn} at 80 % (section 3.2, Fig. 8a)",
+                f"{lo:.3g}" + (f"-{hi:.3g}" if hi != lo else ""),
+                lambda st, zn=zn: zone(st, zn)["speed_over_tip_speed"], keys80,
+                lambda got, lo=lo, hi=hi: all(lo * (1 - tol) <= v <= hi * (1 + tol)
+                                              for v in got),
+                f" (within {tol:.0%})")
     # 2. first bead layer at the disc
-    vals = {f: per(f, lambda st: st.get("flow", {}).get(
-        "first_bead_layer_angular_velocity_ratio"), keys80) for f in FLUIDS}
-    got = [v for v in vals["coupled"] if v is not None]
-    ok = bool(got) and all(0.20 * 0.85 <= v <= 0.26 * 1.15 for v in got)
-    rows.append(dict(statement="angular velocity of the first bead layer at the disc / the "
-                               "disc's (section 3.2, Fig. 6b)", paper="0.20-0.26",
-                     coupled=show(vals["coupled"], keys80),
-                     prescribed=show(vals["prescribed"], keys80),
-                     verdict=("matches" if ok else "missed") + " (within 15 %)" if got
-                     else "not run"))
+    add_row("angular velocity of the first bead layer at the disc / the disc's (section 3.2, "
+            "Fig. 6b)", "0.20-0.26",
+            lambda st: st.get("flow", {}).get("first_bead_layer_angular_velocity_ratio"),
+            keys80, lambda got: all(0.20 * 0.85 <= v <= 0.26 * 1.15 for v in got),
+            " (within 15 %)")
 
     # 3. median SE_tn order
     def order(st):
@@ -214,13 +213,8 @@ def deviation_rows(out_dir) -> list[dict]:
             return "n/a"
         return " > ".join(sorted(med, key=lambda n: -med[n]))
 
-    vals = {f: per(f, order, all_keys) for f in FLUIDS}
-    got = [v for v in vals["coupled"] if v is not None]
-    ok = bool(got) and all(v == "V1 > V2 > V3 > V4" for v in got)
-    rows.append(dict(statement="median SE_tn: V1 > V2 > V3 > V4 in all cases (section 3.3)",
-                     paper="V1 > V2 > V3 > V4", coupled=show(vals["coupled"], all_keys),
-                     prescribed=show(vals["prescribed"], all_keys),
-                     verdict=("matches" if ok else "missed") if got else "not run"))
+    add_row("median SE_tn: V1 > V2 > V3 > V4 in all cases (section 3.3)", "V1 > V2 > V3 > V4",
+            order, all_keys, lambda got: all(v == "V1 > V2 > V3 > V4" for v in got))
 
     # 4. collision density highest in V2, lowest in V1 (80 %)
     def dens_order(st):
@@ -228,31 +222,16 @@ def deviation_rows(out_dir) -> list[dict]:
         o = sorted(f, key=lambda n: -f[n])
         return f"max {o[0]}, min {o[-1]}"
 
-    vals = {f: per(f, dens_order, keys80) for f in FLUIDS}
-    got = [v for v in vals["coupled"] if v is not None]
-    ok = bool(got) and all(v == "max V2, min V1" for v in got)
-    rows.append(dict(statement="collision density highest in V2, lowest in V1 (80 %, all tip "
-                               "speeds; section 3.4, Fig. 14b)", paper="max V2, min V1",
-                     coupled=show(vals["coupled"], keys80),
-                     prescribed=show(vals["prescribed"], keys80),
-                     verdict=("matches" if ok else "missed") if got else "not run"))
+    add_row("collision density highest in V2, lowest in V1 (80 %, all tip speeds; section 3.4, "
+            "Fig. 14b)", "max V2, min V1", dens_order, keys80,
+            lambda got: all(v == "max V2, min V1" for v in got))
     # 5. at 90 % V3 lowest
-    k90 = [(6.0, 0.9)]
-    vals = {f: per(f, dens_order, k90) for f in FLUIDS}
-    got = [v for v in vals["coupled"] if v is not None]
-    ok = bool(got) and got[0].endswith("min V3")
-    rows.append(dict(statement="at 90 % filling V3 has the lowest collision density (6 m/s)",
-                     paper="min V3", coupled=show(vals["coupled"], k90),
-                     prescribed=show(vals["prescribed"], k90),
-                     verdict=("matches" if ok else "missed") if got else "not run"))
+    add_row("at 90 % filling V3 has the lowest collision density (6 m/s)", "min V3",
+            dens_order, [(6.0, 0.9)], lambda got: got[0].endswith("min V3"))
 
     # 6. chamber collision density roughly linear in tip speed
-    def chamber_density(st):
-        n = sum(z["collision_frequency_per_m3_s"] * z["volume_m3"] for z in st["zones"])
-        return n / sum(z["volume_m3"] for z in st["zones"])
-
     def linearity(f):
-        pts = [(vt, chamber_density(runs[f][(vt, 0.8)])) for vt in at80
+        pts = [(vt, chamber_collision_density(runs[f][(vt, 0.8)])) for vt in at80
                if runs[f].get((vt, 0.8)) is not None]
         if len(pts) < 3:
             return None, "fewer than 3 tip speeds"
@@ -278,15 +257,9 @@ def deviation_rows(out_dir) -> list[dict]:
         p = {z["name"]: z["collision_power_w"] / z["volume_m3"] for z in st["zones"]}
         return p["V1"] / p["V4"] if p["V4"] > 0 else float("inf")
 
-    vals = {f: per(f, p_ratio, all_keys) for f in FLUIDS}
-    got = [v for v in vals["coupled"] if v is not None]
-    ok = bool(got) and all(10 ** 0.5 <= v <= 10 ** 1.5 for v in got)
-    rows.append(dict(statement="collision power density of V1 over V4 (section 4: V4 about "
-                               "one decade below V1)", paper="about 10",
-                     coupled=show(vals["coupled"], all_keys),
-                     prescribed=show(vals["prescribed"], all_keys),
-                     verdict=("matches" if ok else "missed") + " (3.2-32)" if got
-                     else "not run"))
+    add_row("collision power density of V1 over V4 (section 4: V4 about one decade below V1)",
+            "about 10", p_ratio, all_keys,
+            lambda got: all(10 ** 0.5 <= v <= 10 ** 1.5 for v in got), " (3.2-32)")
 
     # 8./9. vortices of the mean flow (fluid when coupled; beads for both)
     def census(st, which, region):
