@@ -43,7 +43,7 @@ def run_coupled_bench(steps: int = 2000, repeats: int = 3, threads: int | None =
     evolves (a stirred bed's cost per step drifts by 10-20 % over a few thousand steps,
     which timing one long run after the other mistakes for a cost of the coupling). The
     liquid takes the beads' present void fraction after each DEM-alone block (see
-    ``CfdDem._resync``). Best of ``repeats``."""
+    ``CfdDem.exchange``). Best of ``repeats``."""
     from millfmu.dem.run import make_simulation
     from millfmu.dem.scene import load_scene
 

@@ -87,7 +87,7 @@ class CfdDem:
         self._deposit_and_split(np.ones(ncell))
         self._eps_cells = self._eps[0].ravel().copy()
         # DEM step count at the last exchange: the liquid expects the beads one interval
-        # (or no step) further at the next (see _resync)
+        # (or no step) further at the next (see exchange)
         self._synced_step = sim.step_count
 
     def _deposit_and_split(self, eps_cells):
@@ -115,12 +115,21 @@ class CfdDem:
         """Beads -> grid, advance the fluid by one interval, grid -> bead forces (held in
         ``sim.fext`` over the next ``settings.steps`` DEM steps)."""
         sim, s = self.sim, self.solver
-        if sim.step_count - self._synced_step not in (0, self.settings.steps):
-            self._resync()
+        # The DEM advanced without the liquid (``sim.run`` called directly, as the bench
+        # does to time the DEM alone): the beads' displacement over that gap was never a
+        # flux the liquid saw, so it must not enter continuity as d(eps)/dt over one
+        # interval (which drove pressure gradients large enough to throw beads out of the
+        # chamber). The liquid and the drag laws take the beads' present void fraction.
+        gap = sim.step_count - self._synced_step not in (0, self.settings.steps)
         self._synced_step = sim.step_count
+        if gap:
+            self._deposit_and_split(self._eps_cells)
+            self._eps_cells[:] = self._eps[0].ravel()
         self._deposit_and_split(self._eps_cells)
         e = self._eps
         s.set_beads(e[0], e[1], e[2], e[3], self._kd, self._sd, self.interval_s)
+        if gap:
+            s.eps_c_old[:] = s.eps_c  # no change of the void fraction over this interval
         s.advance(self.interval_s)
         self._eps_cells[:] = e[0].ravel()
         self.EK.nodes_to_cell_values(s.mean_u[0], s.mean_u[1], s.mean_u[2], s.mean_gp[0],
@@ -135,20 +144,6 @@ class CfdDem:
         self.angular_impulse_to_beads_nms += ts * self.interval_s
         self.axial_impulse_to_beads_ns += fs * self.interval_s
         self.intervals += 1
-
-    def _resync(self):
-        """The DEM was advanced without the liquid (``sim.run`` called directly, as the
-        bench does to time the DEM alone): the beads' displacement over that gap was never
-        a flux the liquid saw, so it must not enter continuity as d(eps)/dt over one
-        interval (which drove pressure gradients large enough to throw beads out of the
-        chamber). Take the beads' present void fraction as the liquid's, with no change
-        of it over the coming interval, and let the drag laws read it."""
-        s = self.solver
-        self._deposit_and_split(self._eps_cells)
-        e = self._eps
-        s.set_beads(e[0], e[1], e[2], e[3], self._kd, self._sd, self.interval_s)
-        s.eps_c_old[:] = s.eps_c
-        self._eps_cells[:] = e[0].ravel()
 
     def run(self, nsteps: int, record: bool = False):
         """Advance the coupled system by ``nsteps`` DEM steps (a whole number of coupling
