@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import math
 import sys
 
 
@@ -15,15 +16,19 @@ def register(subparsers) -> argparse.ArgumentParser:
     """Add the ``dem`` command group to an argparse subparsers object."""
     p = subparsers.add_parser("dem", help="bead DEM: run a scene, benchmark",
                               description="Soft-sphere DEM of the grinding beads.")
-    sub = p.add_subparsers(dest="dem_command", metavar="{run,bench,seed001,compare}")
+    sub = p.add_subparsers(dest="dem_command",
+                           metavar="{run,bench,seed001,seed002,compare}")
     sub.required = True
 
     r = sub.add_parser("run", help="run a DEM scene and write statistics, histograms, maps")
-    r.add_argument("scene", help="shipped scene name (annulus, disc_slice) or a .toml path")
+    r.add_argument("scene", help="shipped scene name (annulus, disc_slice, accelerator_slice) "
+                                 "or a .toml path")
     r.add_argument("--out", required=True, help="output folder")
     r.add_argument("--tip-speed", type=float, dest="tip_speed_m_s", metavar="M_S",
                    help="stirrer tip speed [m/s] (overrides the scene)")
-    r.add_argument("--filling", type=float, help="grinding-media filling [-] (disc_slice)")
+    r.add_argument("--rpm", type=float, dest="rotor_speed_rpm", metavar="RPM",
+                   help="stirrer speed [1/min] (overrides the scene; instead of --tip-speed)")
+    r.add_argument("--filling", type=float, help="grinding-media filling [-]")
     r.add_argument("--sector-deg", type=float, dest="sector_deg", metavar="DEG",
                    help="simulate a rotationally periodic sector of 360/k degrees (k >= 4); "
                         "needs zero gravity (use --no-gravity)")
@@ -81,6 +86,14 @@ def register(subparsers) -> argparse.ArgumentParser:
     s.add_argument("--threads", type=int, help="numba threads (default: all cores)")
     s.set_defaults(func=_seed001)
 
+    s2 = sub.add_parser("seed002", help="seed 002 side by side (accelerator mill): run its "
+                                        "cases, print the deviation table")
+    s2.add_argument("action", choices=("run", "table"), help="run the cases (skipping those "
+                    "done) or print the table from their results")
+    s2.add_argument("--out", required=True, help="folder of the case runs")
+    s2.add_argument("--threads", type=int, help="numba threads (default: all cores)")
+    s2.set_defaults(func=_seed002)
+
     c = sub.add_parser("compare", help="key results of run folders side by side (sector, grid "
                                        "or run-length checks), relative to the first")
     c.add_argument("runs", nargs="+", metavar="RUN_DIR", help="folders written by 'dem run'")
@@ -114,6 +127,15 @@ def _seed001(args) -> int:
     return 0
 
 
+def _seed002(args) -> int:
+    from millfmu.dem import seed002
+
+    if args.action == "run":
+        seed002.run_campaign(args.out, threads=args.threads)
+    print(seed002.markdown(seed002.deviation_rows(args.out)))
+    return 0
+
+
 def _run(args) -> int:
     from millfmu.dem.scene import DemSceneError, load_scene
 
@@ -124,6 +146,13 @@ def _run(args) -> int:
                                               "dt_s", "fluid_mode", "initial_rotation")}
         if args.no_gravity:
             over["gravity_m_s2"] = (0.0, 0.0, 0.0)
+        if args.rotor_speed_rpm is not None:
+            if args.tip_speed_m_s is not None:
+                raise DemSceneError("--rpm and --tip-speed: give one of them")
+            if not args.rotor_speed_rpm > 0:
+                raise DemSceneError(f"--rpm = {args.rotor_speed_rpm!r}: must be > 0")
+            r = scene.geometry.disc_radius_m or scene.geometry.shaft_radius_m
+            over["tip_speed_m_s"] = args.rotor_speed_rpm * 2.0 * math.pi / 60.0 * r
         scene = scene.with_overrides(**over)
     except DemSceneError as e:
         print(f"millfmu dem run: {e}", file=sys.stderr)

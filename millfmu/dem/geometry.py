@@ -9,6 +9,9 @@ so that a sector is convex and no narrower than a right angle).
 - ``disc_slice``: the PM-1 slice of seed 001 (section 2.1): shaft 15 mm, one full disc of
   radius 36 mm and thickness 8 mm centred at z = 0, chamber 45 mm, axial period
   D + b = 28 mm (disc spacing D = 20 mm between disc faces).
+- ``accelerator_slice``: a rotor with a channel (:mod:`millfmu.dem.accelerator`): the disc's
+  slab becomes two shrouds (``eye_radius_m`` ... disc radius) around a channel of height
+  ``channel_height_m`` that holds ``vane_count`` radial vanes from the shaft to the rim.
 """
 
 from __future__ import annotations
@@ -34,6 +37,11 @@ class MillGeometry:
     disc_thickness_m: float = 0.0
     disc_z_m: float = 0.0  # axial position of the disc mid-plane
     sector_deg: float = 360.0
+    # rotor with a channel (accelerator rotors); all 0: a solid disc
+    eye_radius_m: float = 0.0  # inner radius of the shrouds (the channel's inlet) [m]
+    channel_height_m: float = 0.0  # axial height of the channel between the shrouds [m]
+    vane_count: int = 0  # radial vanes in the channel over the full circle
+    vane_thickness_m: float = 0.0
 
     def __post_init__(self):
         if not 0.0 < self.shaft_radius_m < self.chamber_radius_m:
@@ -51,6 +59,29 @@ class MillGeometry:
                 raise GeometryError(
                     f"disc_thickness_m = {self.disc_thickness_m!r}: must be > 0 and below "
                     f"the axial period {self.height_m}")
+        if self.channel_height_m:
+            if not self.has_disc or not 0.0 < self.channel_height_m < self.disc_thickness_m:
+                raise GeometryError(
+                    f"channel_height_m = {self.channel_height_m!r}: needs a rotor and must lie "
+                    f"between 0 and its thickness {self.disc_thickness_m}")
+            if not self.shaft_radius_m < self.eye_radius_m < self.disc_radius_m:
+                raise GeometryError(
+                    f"eye_radius_m = {self.eye_radius_m!r}: must lie between the shaft "
+                    f"({self.shaft_radius_m}) and the rotor ({self.disc_radius_m}) radius")
+        if self.vane_count:
+            if not self.channel_height_m or self.vane_count < 1:
+                raise GeometryError(f"vane_count = {self.vane_count!r}: vanes need a channel "
+                                    f"(channel_height_m > 0) and a count >= 1")
+            pitch = 2.0 * math.pi * self.shaft_radius_m / self.vane_count
+            if not 0.0 < self.vane_thickness_m < 0.5 * pitch:
+                raise GeometryError(
+                    f"vane_thickness_m = {self.vane_thickness_m!r}: must be > 0 and below half "
+                    f"the vane pitch at the shaft ({0.5 * pitch:.3g} m)")
+            per = self.vane_count * self.sector_deg / 360.0
+            if abs(per - round(per)) > 1e-9:
+                raise GeometryError(
+                    f"sector_deg = {self.sector_deg!r}: must hold a whole number of vane "
+                    f"pitches (360 / {self.vane_count} degrees) to be periodic")
         k = 360.0 / self.sector_deg if self.sector_deg > 0 else 0.0
         if self.sector_deg != 360.0 and (k < 4.0 - 1e-9 or abs(k - round(k)) > 1e-9):
             raise GeometryError(
@@ -60,6 +91,10 @@ class MillGeometry:
     @property
     def has_disc(self) -> bool:
         return self.disc_radius_m > 0.0
+
+    @property
+    def has_channel(self) -> bool:
+        return self.channel_height_m > 0.0
 
     @property
     def sector_fraction(self) -> float:
@@ -74,10 +109,20 @@ class MillGeometry:
     def free_volume_m3(self) -> float:
         """Volume open to beads and fluid in the simulated cell [m3]."""
         v = math.pi * (self.chamber_radius_m ** 2 - self.shaft_radius_m ** 2) * self.height_m
-        if self.has_disc:
-            v -= math.pi * (self.disc_radius_m ** 2 - self.shaft_radius_m ** 2) * \
+        return (v - self.rotor_volume_m3()) * self.sector_fraction
+
+    def rotor_volume_m3(self) -> float:
+        """Solid volume of the disc, or of the shrouds and vanes, over the full circle [m3]."""
+        if not self.has_disc:
+            return 0.0
+        if not self.has_channel:
+            return math.pi * (self.disc_radius_m ** 2 - self.shaft_radius_m ** 2) * \
                 self.disc_thickness_m
-        return v * self.sector_fraction
+        v = math.pi * (self.disc_radius_m ** 2 - self.eye_radius_m ** 2) * \
+            (self.disc_thickness_m - self.channel_height_m)
+        v += self.vane_count * self.vane_thickness_m * \
+            (self.disc_radius_m - self.shaft_radius_m) * self.channel_height_m
+        return v
 
     def inside(self, p: np.ndarray, radius_m: float) -> np.ndarray:
         """True where a bead of radius_m [m] centred at p [m] (n, 3) overlaps no wall and
@@ -87,13 +132,41 @@ class MillGeometry:
         if self.has_disc:
             zr = p[:, 2] - self.disc_z_m
             zr -= self.height_m * np.floor(zr / self.height_m + 0.5)
-            rc = np.clip(r, self.shaft_radius_m, self.disc_radius_m)
-            zc = np.clip(zr, -0.5 * self.disc_thickness_m, 0.5 * self.disc_thickness_m)
-            ok &= np.hypot(r - rc, zr - zc) >= radius_m
+            hb = 0.5 * self.disc_thickness_m
+            if not self.has_channel:
+                rc = np.clip(r, self.shaft_radius_m, self.disc_radius_m)
+                zc = np.clip(zr, -hb, hb)
+                ok &= np.hypot(r - rc, zr - zc) >= radius_m
+            else:
+                hc = 0.5 * self.channel_height_m
+                rc = np.clip(r, self.eye_radius_m, self.disc_radius_m)
+                zc = np.where(zr >= 0.0, np.clip(zr, hc, hb), np.clip(zr, -hb, -hc))
+                ok &= np.hypot(r - rc, zr - zc) >= radius_m
+                if self.vane_count:
+                    ok &= self.vane_distance(p, 0.0) >= radius_m
         if self.sector_deg != 360.0:
             th = np.arctan2(p[:, 1], p[:, 0])
             ok &= (th >= 0.0) & (th < self.sector_rad)
         return ok
+
+
+    def vane_distance(self, p: np.ndarray, rotor_angle_rad: float) -> np.ndarray:
+        """Distance [m] from points p (n, 3) to the nearest vane with the first vane at
+        ``rotor_angle_rad`` (the kernels' wall 3); inf without vanes."""
+        if not self.vane_count:
+            return np.full(p.shape[0], np.inf)
+        pitch = 2.0 * math.pi / self.vane_count
+        ang = rotor_angle_rad + pitch * np.floor(
+            (np.arctan2(p[:, 1], p[:, 0]) - rotor_angle_rad) / pitch + 0.5)
+        s = p[:, 0] * np.cos(ang) + p[:, 1] * np.sin(ang)
+        t = -p[:, 0] * np.sin(ang) + p[:, 1] * np.cos(ang)
+        zr = p[:, 2] - self.disc_z_m
+        zr -= self.height_m * np.floor(zr / self.height_m + 0.5)
+        ds = s - np.clip(s, self.shaft_radius_m, self.disc_radius_m)
+        dt = t - np.clip(t, -0.5 * self.vane_thickness_m, 0.5 * self.vane_thickness_m)
+        hc = 0.5 * self.channel_height_m
+        dz = zr - np.clip(zr, -hc, hc)
+        return np.sqrt(ds * ds + dt * dt + dz * dz)
 
 
 def simple_cubic_annulus(spacing_m: float, r_min_m: float, r_max_m: float,

@@ -68,9 +68,19 @@ P_RHOF = 25  # fluid density [kg/m3]
 P_SKIN = 26  # neighbour-list skin [m]
 P_KH_F0 = 27  # Koch-Hill F0 at the drag law's void fraction [-]
 P_KH_F3 = 28  # Koch-Hill F3 at the drag law's void fraction [-]
-N_PRM = 29
+# rotor with channels (accelerator rotors, :mod:`millfmu.dem.accelerator`): two shroud
+# slabs r_eye..R at |z - z_disc| in [h_ch / 2, b / 2] around a channel of height h_ch that
+# holds n_vane radial vanes (r_sh..R, thickness t_vane, |z - z_disc| <= h_ch / 2)
+P_REYE = 29  # inner radius of the rotor's slabs [m] (the disc: the shaft radius)
+P_HCH = 30  # channel height between the shrouds [m]; 0: a solid disc
+P_NVANE = 31  # number of vanes over the full circle; 0: none
+P_TVANE = 32  # vane thickness [m]
+P_ROTANG = 33  # rotor angle [rad] at the positions' time (first vane at this angle)
+N_PRM = 34
 
-NWALL = 3  # wall ids: 0 shaft (rotating), 1 chamber (fixed), 2 disc (rotating)
+# wall ids: 0 shaft (rotating), 1 chamber (fixed), 2 disc or shrouds (rotating), 3 vanes
+# (rotating)
+NWALL = 4
 
 # ---- layout of a recorded contact (float64 row) -------------------------------------
 EV_TYPE = 0  # 0 bead-bead, 1 + wall id for bead-wall
@@ -246,19 +256,52 @@ def wall_gap(x, y, z, rad, w, prm):
     zr = z - prm[P_ZDISC]
     zr -= lz * math.floor(zr / lz + 0.5)
     hb = 0.5 * prm[P_BDISC]
-    # closest point of the disc (an annular slab r_sh..R, |z| <= b/2) in the (r, z) plane
-    rc = min(max(r, prm[P_RSH]), rd)
-    zc = min(max(zr, -hb), hb)
+    hc = 0.5 * prm[P_HCH]
+    if w == 3:
+        nv = prm[P_NVANE]
+        if nv <= 0.0 or abs(zr) - hc > rad:
+            return 1.0, 1.0, 0.0, 0.0, False
+        # nearest vane (radial plates: the nearest in angle is the nearest in distance)
+        pitch = 2.0 * math.pi / nv
+        a0 = prm[P_ROTANG]
+        ang = a0 + pitch * math.floor((math.atan2(y, x) - a0) / pitch + 0.5)
+        ca = math.cos(ang)
+        sa = math.sin(ang)
+        s = x * ca + y * sa  # along the vane
+        t = -x * sa + y * ca  # across it
+        ht = 0.5 * prm[P_TVANE]
+        ds = s - min(max(s, prm[P_RSH]), rd)
+        dt_ = t - min(max(t, -ht), ht)
+        dz = zr - min(max(zr, -hc), hc)
+        d = math.sqrt(ds * ds + dt_ * dt_ + dz * dz)
+        if d > 1e-300:
+            return d, (ds * ca - dt_ * sa) / d, (ds * sa + dt_ * ca) / d, dz / d, True
+        sgn = 1.0 if t >= 0.0 else -1.0  # centre inside the vane: out through its face
+        return -(ht - abs(t)), -sgn * sa, sgn * ca, 0.0, True
+    # closest point of the disc (an annular slab r_in..R, |z| <= b/2) in the (r, z) plane,
+    # or with a channel, of the nearer shroud (r_in..R, h_ch/2 <= |z| <= b/2)
+    rin = max(prm[P_REYE], prm[P_RSH])
+    rc = min(max(r, rin), rd)
+    zlo = -hb
+    zhi = hb
+    if hc > 0.0:
+        if zr >= 0.0:
+            zlo = hc
+        else:
+            zhi = -hc
+    zc = min(max(zr, zlo), zhi)
     dr = r - rc
     dz = zr - zc
     d = math.sqrt(dr * dr + dz * dz)
     if d > 1e-300:
         return d, dr / d * ex, dr / d * ey, dz / d, True
-    # centre inside the disc (should not happen): push out through the nearest face
-    if rd - r < hb - abs(zr):
+    # centre inside the slab (should not happen): push out through the nearest face
+    zmid = 0.5 * (zlo + zhi)
+    hh = 0.5 * (zhi - zlo)
+    if rd - r < hh - abs(zr - zmid):
         return -(rd - r), ex, ey, 0.0, True
-    sgn = 1.0 if zr >= 0.0 else -1.0
-    return -(hb - abs(zr)), 0.0, 0.0, sgn, True
+    sgn = 1.0 if zr >= zmid else -1.0
+    return -(hh - abs(zr - zmid)), 0.0, 0.0, sgn, True
 
 
 @contact
@@ -934,6 +977,17 @@ def rebuild(x, v, w, shw, xref, prm, wrapk, cutoff, do_wrap, pst, nnb, pj, pim, 
 
 
 @serial
+def advance_rotor(prm, dt):
+    """Turn the rotor angle prm[P_ROTANG] [rad] by omega dt, kept within one vane pitch
+    (only the vanes' pattern matters, and a small angle keeps its round-off small)."""
+    a = prm[P_ROTANG] + prm[P_OMEGA] * dt
+    if prm[P_NVANE] > 0.0:
+        pitch = 2.0 * math.pi / prm[P_NVANE]
+        a -= pitch * math.floor(a / pitch)
+    prm[P_ROTANG] = a
+
+
+@serial
 def advance(nsteps, x, v, w, f, t, rad, mass, inertia, inv_m, inv_i, xref, prm, wrapk,
             cutoff, pst, nnb, pj, pim, psh, pfl, pst_o, nnb_o, pj_o, pim_o, psh_o, pfl_o,
             shw, flw, cb, need, maxj, dmax, record, evc, evn, evbuf, evcount, acc, fb, tb,
@@ -959,6 +1013,8 @@ def advance(nsteps, x, v, w, f, t, rad, mass, inertia, inv_m, inv_i, xref, prm, 
     parity = 0
     kick_drift(x, v, w, f, t, inv_m, inv_i, 0.5 * dt, dt, xref, cb, dmax)
     for step in range(nsteps):
+        # the positions are now a step further: so is the rotor (its vanes)
+        advance_rotor(prm, dt)
         if dmax.max() > half_skin2:
             needed = rebuild(x, v, w, shw, xref, prm, wrapk, cutoff, True, pst, nnb, pj, pim,
                              psh, pfl, pst_o, nnb_o, pj_o, pim_o, psh_o, pfl_o, cb, need,

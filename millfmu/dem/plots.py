@@ -36,9 +36,33 @@ def section_maps(scene, events: np.ndarray, cols: dict):
     return zr_edges, r_edges, mean_se, n / (vol * t), s / (vol * t)
 
 
+def _sev_outline(ax, scene):
+    """Rotor (shrouds, channel) and the SEV_1-4 boundaries of an accelerator slice."""
+    g = scene.geometry
+    mm = 1e3
+    R = g.disc_radius_m
+    hb = 0.5 * g.disc_thickness_m
+    hc = 0.5 * g.channel_height_m
+    for z0, z1 in ((-hb, -hc), (hc, hb)):
+        ax.fill_between([z0 * mm, z1 * mm], g.eye_radius_m * mm, R * mm, color="0.6")
+    ax.fill_between([-hc * mm, hc * mm], g.shaft_radius_m * mm, R * mm, color="0.85",
+                    alpha=0.3)  # the channel with its vanes
+    span = g.chamber_radius_m - g.shaft_radius_m
+    z = scene.zones
+    for zz in (z.z1, z.z2):
+        ax.axhline((g.chamber_radius_m - zz * span) * mm, color="w", lw=1, ls="--")
+    r2 = (g.chamber_radius_m - z.z2 * span) * mm
+    for sgn in (-1, 1):
+        x = sgn * (1.0 - z.x3) * 0.5 * g.height_m * mm  # X'/L = x3 (from the mid-plane)
+        ax.plot([x, x], [g.shaft_radius_m * mm, r2], "w:", lw=1)
+
+
 def _zone_outline(ax, scene):
     g = scene.geometry
     if not g.has_disc:
+        return
+    if g.has_channel:
+        _sev_outline(ax, scene)
         return
     mm = 1e3
     R = g.disc_radius_m
@@ -84,6 +108,82 @@ def write_maps(out: Path, scene, events: np.ndarray, cols: dict):
         fig.tight_layout()
         fig.savefig(out / fname, dpi=110)
         plt.close(fig)
+
+
+def write_seed002_maps(out: Path, scene, events: np.ndarray, cols: dict):
+    """Seed 002's maps in the axial section (its figures 12-15): stress intensity SI, stress
+    number SN_g, collision stress energy SE_cs = SI SN_g and its components SE_tn, SE_ts per
+    volume and time, with the paper's definitions (bead mass and moment of inertia, see
+    :mod:`millfmu.dem.accelerator`)."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    from matplotlib.colors import LogNorm
+
+    g = scene.geometry
+    ze = np.linspace(-0.5 * g.height_m, 0.5 * g.height_m, scene.map_bins_z + 1)
+    re_ = np.linspace(g.shaft_radius_m, g.chamber_radius_m, scene.map_bins_r + 1)
+    bb = events[events[:, cols["type"]] == 0] if events.size else events
+    z = bb[:, cols["z"]] - g.disc_z_m
+    z = z - g.height_m * np.floor(z / g.height_m + 0.5)
+    r = np.hypot(bb[:, cols["x"]], bb[:, cols["y"]])
+    # recorded with m* = m/2, I* = I/2 (equal beads); the paper's use the bead's m, I
+    tn = 2.0 * bb[:, cols["setn"]]
+    ts = 2.0 * bb[:, cols["serot"]]
+    n, _, _ = np.histogram2d(z, r, bins=[ze, re_])
+    s_tn, _, _ = np.histogram2d(z, r, bins=[ze, re_], weights=tn)
+    s_ts, _, _ = np.histogram2d(z, r, bins=[ze, re_], weights=ts)
+    vol = np.outer(np.diff(ze), math.pi * np.diff(re_ ** 2) * g.sector_fraction)
+    t = scene.record_s
+    with np.errstate(invalid="ignore", divide="ignore"):
+        si = np.where(n > 0, (s_tn + s_ts) / n, np.nan)
+    items = [("map_stress_intensity.png", si, "stress intensity SI per contact [J]"),
+             ("map_stress_number.png", n / (vol * t), "stress number SN_g [1/(m3 s)]"),
+             ("map_collision_stress_energy.png", (s_tn + s_ts) / (vol * t),
+              "collision stress energy SE_cs [W/m3]"),
+             ("map_se_tn.png", s_tn / (vol * t), "SE_tn per volume and time [W/m3]"),
+             ("map_se_ts.png", s_ts / (vol * t), "SE_ts per volume and time [W/m3]")]
+    for fname, data, label in items:
+        fig, ax = plt.subplots(figsize=(6, 4.5))
+        norm = None
+        pos = data[np.isfinite(data) & (data > 0)]
+        if pos.size:
+            norm = LogNorm(vmin=pos.min(), vmax=pos.max())
+        m = ax.pcolormesh(ze * 1e3, re_ * 1e3, np.ma.masked_invalid(
+            np.where(data > 0, data, np.nan)).T, shading="flat", norm=norm, cmap="viridis")
+        fig.colorbar(m, ax=ax, label=label)
+        _zone_outline(ax, scene)
+        ax.set_xlabel("axial position from the rotor mid-plane [mm]")
+        ax.set_ylabel("radius [mm]")
+        ax.set_title(f"{scene.name}: {scene.rotor_speed_rpm:.0f} rpm, filling "
+                     f"{scene.filling}, fluid {scene.fluid_mode}", fontsize=9)
+        fig.tight_layout()
+        fig.savefig(out / fname, dpi=110)
+        plt.close(fig)
+
+
+def write_speed_profiles(path: Path, seed002: dict):
+    """Bead speed over tip speed against Z'/R and X'/L (seed 002 figures 3 and 4)."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, (a, b) = plt.subplots(1, 2, figsize=(9, 3.6))
+    rp = seed002["radial_speed_profile"]
+    a.plot(rp["z_over_r"], [np.nan if v is None else v for v in rp["speed_over_tip_speed"]],
+           "o-")
+    a.set_xlabel("Z'/R (0: chamber wall, 1: shaft)")
+    a.set_ylabel("bead speed / tip speed [-]")
+    ap = seed002["axial_speed_profile"]
+    b.plot(ap["x_over_l"], [np.nan if v is None else v for v in ap["speed_over_tip_speed"]],
+           "o-")
+    b.set_xlabel("X'/L (0: between rotors, 1: rotor mid-plane), beside the shaft")
+    fig.suptitle(f"{seed002['rotor_speed_rpm']:.0f} rpm", fontsize=9)
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
 
 
 def write_distributions(path: Path, stats):

@@ -13,7 +13,11 @@ Outputs in the output folder:
 - ``map_stress_energy.png``, ``map_collision_frequency.png``, ``map_collision_power.png``:
   radially averaged (i.e. averaged over the angle) maps in the axial section, like seed 001
   figures 12-15; ``se_distributions.png``: SE_tn distributions per zone (seed 001 Fig. A1);
-- disc slices: ``bead_fields.npz`` (time-mean bead fields of the axial section: solids
+- accelerator slices: ``map_stress_intensity.png``, ``map_stress_number.png``,
+  ``map_collision_stress_energy.png``, ``map_se_tn.png``, ``map_se_ts.png`` (seed 002
+  figures 12-15), ``speed_profiles.png`` (figures 3 and 4), and in ``stats.json``
+  ``flow.seed002`` (see :func:`accelerator_summary`);
+- disc and accelerator slices: ``bead_fields.npz`` (time-mean bead fields of the axial section: solids
   fraction, velocities, axial solids flux, on the fluid grid's bins);
 - coupled fluid only: ``fluid_fields.npz`` (time-mean fields of the axial section),
   ``map_fluid_swirl.png``, ``map_fluid_radial.png`` (with its zero contour, seed 001
@@ -35,7 +39,7 @@ from millfmu.dem.geometry import (bead_count_for_filling, place_beads,
                                   simple_cubic_annulus)
 from millfmu.dem.scene import DemScene
 from millfmu.dem.stats import DemStats, compute_stats
-from millfmu.dem.zones import Zones
+from millfmu.dem.zones import zones_for
 
 #: Initial turbulence of the coupled fluid (the stirrer starts from rest): k = (0.02 v_t)^2,
 #: epsilon from a 1 mm mixing length; k-epsilon forgets it within a few stirrer turns.
@@ -110,7 +114,7 @@ def run_scene(scene: DemScene, out_dir, progress: bool = True, threads: int | No
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     sim, cpl = make_simulation(scene, threads)
-    zones = Zones(scene.geometry, scene.zones)
+    zones = zones_for(scene)
     dt = scene.dt_s
     unit = cpl.settings.steps if cpl is not None else 1
 
@@ -182,7 +186,9 @@ def run_scene(scene: DemScene, out_dir, progress: bool = True, threads: int | No
         "fluid: " + scene.fluid_description,
         "spin-up excluded from all statistics; samples and contacts from the recording "
         "window only",
-        "zones V1-V4 as read from seed 001 Figure 2 (see millfmu.dem.zones)",
+        ("zones SEV_1-4 from seed 002 figure 4 (see millfmu.dem.accelerator)"
+         if scene.kind == "accelerator_slice" else
+         "zones V1-V4 as read from seed 001 Figure 2 (see millfmu.dem.zones)"),
         "stirrer torque and power scaled from the simulated sector to the full circle; "
         "per axial period of the cell",
     ]
@@ -216,6 +222,9 @@ def run_scene(scene: DemScene, out_dir, progress: bool = True, threads: int | No
         fields["zeta_m"] = _zeta_of_grid(cpl.grid, scene.geometry)
     flow = flow_summary(scene, sim, cpl, sx, sv, torques, budget0, fields, substeps)
     bead_fields = flow.pop("_bead_fields", None)
+    if scene.kind == "accelerator_slice":
+        flow["seed002"] = accelerator_summary(scene, sim, zones, ev, EV_COLS, stats.record_s,
+                                              sx, sv, fields)
     stats.flow = _finite(flow)
     if window_s is not None:
         per = max(1, int(round(window_s / (every * dt))))
@@ -233,6 +242,9 @@ def run_scene(scene: DemScene, out_dir, progress: bool = True, threads: int | No
     from millfmu.dem import plots
 
     plots.write_maps(out, scene, ev, EV_COLS)
+    if scene.kind == "accelerator_slice":
+        plots.write_seed002_maps(out, scene, ev, EV_COLS)
+        plots.write_speed_profiles(out / "speed_profiles.png", stats.flow["seed002"])
     plots.write_distributions(out / "se_distributions.png", stats)
     if bead_fields is not None:
         np.savez(out / "bead_fields.npz", **bead_fields)
@@ -242,10 +254,30 @@ def run_scene(scene: DemScene, out_dir, progress: bool = True, threads: int | No
     if fields is not None:
         np.savez(out / "fluid_fields.npz", **fields)
         plots.write_fluid_maps(out, scene, fields)
-    if scene.geometry.has_disc and "swirl_profile_at_disc_radius" in stats.flow:
+    if "swirl_profile_at_disc_radius" in stats.flow:
         plots.write_swirl_profile(out / "swirl_profile.png", scene,
                                   stats.flow["swirl_profile_at_disc_radius"])
     return stats
+
+
+def accelerator_summary(scene, sim, zones, ev, ev_cols, record_s, sx, sv, fields) -> dict:
+    """Seed 002's quantities of an accelerator slice (plain JSON data, SI units): SI, SN_g,
+    SE_cs, SE_ts,sum / SE_cs,sum per zone and in total, SE_net and the efficiency; bead
+    speed over tip speed against Z'/R and X'/L (figures 3 and 4); the rotor's pumped flow."""
+    from millfmu.dem import accelerator as A
+
+    out = A.stress_quantities(ev, ev_cols, zones, record_s, scene.bead_diameter_m,
+                              scene.material.density_kg_m3, sim.n, scene.tip_speed_m_s,
+                              scene.omega_rad_s)
+    out["rotor_speed_rpm"] = scene.rotor_speed_rpm
+    out["radial_speed_profile"] = A.radial_speed_profile(sx, sv, scene.geometry,
+                                                         scene.tip_speed_m_s)
+    out["axial_speed_profile"] = A.axial_speed_profile(sx, sv, scene.geometry,
+                                                       scene.tip_speed_m_s,
+                                                       z_min=scene.zones.z2)
+    q = A.rotor_throughflow_m3_s(fields, scene.geometry)
+    out["rotor_throughflow_m3_s"] = q
+    return out
 
 
 def _finite(obj):
@@ -335,6 +367,11 @@ def flow_summary(scene, sim, cpl, sx, sv, torques, budget0, fields, substeps) ->
     out["torque"] = torque
     if not g.has_disc:
         return out
+    if g.has_channel:
+        # the accelerator rotor: the disc's layer, vortex census and gap profile do not
+        # apply; its bead fields (section maps) are written as for a disc slice
+        out["_bead_fields"] = _section_bead_fields(scene, sim, cpl, sx, sv, fields)
+        return out
     d = scene.bead_diameter_m
     # seed 001's first layer: bead centres within 0.6 mm of the disc face (its stated
     # distance, 0.75 d for its 0.8 mm beads); also the layer one bead diameter thick
@@ -386,6 +423,27 @@ def flow_summary(scene, sim, cpl, sx, sv, torques, budget0, fields, substeps) ->
             f["u_theta"][i_r, in_gap][o] / scene.tip_speed_m_s, 6))
     out["swirl_profile_at_disc_radius"] = prof
     return out
+
+
+def _section_bead_fields(scene, sim, cpl, sx, sv, fields) -> dict:
+    """Time-mean bead fields of the axial section on the fluid's bins (or 0.75 mm)."""
+    from millfmu.dem import flow_structure as FS
+
+    g = scene.geometry
+    if fields is not None:
+        r_edges = cpl.grid.r_faces_m
+        zeta_c = fields["zeta_m"]
+    else:
+        from millfmu.dem.fluid.grid import mill_grid
+
+        gr = mill_grid(g, 0.75e-3)
+        r_edges = gr.r_faces_m
+        zeta_c = _zeta_of_grid(gr, g)
+    zs = np.sort(zeta_c)
+    dz = float(np.diff(zs).mean())
+    z_edges = np.concatenate([zs - 0.5 * dz, [zs[-1] + 0.5 * dz]])
+    beads = FS.bead_section_fields(sx, sv, sim.rad, g, r_edges, z_edges)
+    return dict(beads, r_edges_m=r_edges, zeta_edges_m=z_edges)
 
 
 def _speed(f, i_r, sel, order, v_tip):
@@ -442,6 +500,18 @@ def summary_table(stats: DemStats) -> str:
                      f"{fl['angular_momentum_budget']['closure_rel']:.1e}; CFD step "
                      f"{fl['fluid']['cfd_dt_s']:.3g} s, grid {fl['fluid']['grid']['n_r']} x "
                      f"{fl['fluid']['grid']['n_theta']} x {fl['fluid']['grid']['n_z']}")
+    a = fl.get("seed002")
+    if a:
+        lines.append(f"seed 002 ({a['rotor_speed_rpm']:.0f} rpm): " + "; ".join(
+            f"{k} SN_g {z['SN_g_per_m3_s']:.3g} 1/(m3 s), SI "
+            f"{(z['SI_j'] if z['SI_j'] is not None else float('nan')):.3g} J, SE_ts share "
+            f"{(z['ts_share'] if z['ts_share'] is not None else float('nan')):.3f}"
+            for k, z in a["zones"].items()))
+        t = a["total"]
+        lines.append(f"SE_cs,sum {t['SE_cs_sum_w']:.4g} W, SE_ts,sum / SE_cs,sum "
+                     f"{(t['ts_share'] or float('nan')):.3f}, SE_net {t['SE_net_w']:.4g} W, "
+                     f"efficiency {(t['efficiency'] or float('nan')):.3%}; rotor pumps "
+                     f"{(a['rotor_throughflow_m3_s'] or float('nan')) * 6e4:.4g} L/min")
     if fl.get("first_bead_layer_angular_velocity_ratio") is not None:
         vf = fl.get("vortices_fluid")
         lines.append("first bead layer at the disc: angular velocity "

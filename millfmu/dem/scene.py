@@ -1,6 +1,7 @@
 """DEM scene files (TOML) -> validated, typed DemScene in SI units.
 
-A scene names its geometry kind (``annulus`` or ``disc_slice``) and gives the mill,
+A scene names its geometry kind (``annulus``, ``disc_slice`` or ``accelerator_slice``,
+:mod:`millfmu.dem.accelerator`) and gives the mill,
 bead, fluid, run and zone parameters; every key carries its unit in its name. The shipped
 scenes live next to this module in ``scenes/``. Errors name the key, the value and what
 is allowed.
@@ -32,7 +33,9 @@ from millfmu.dem.sim import FluidSettings
 from millfmu.dem.zones import ZoneSpec
 
 SCENE_DIR = Path(__file__).parent / "scenes"
-KINDS = ("annulus", "disc_slice")
+KINDS = ("annulus", "disc_slice", "accelerator_slice")
+#: rotor speeds of seed 002 are 800-1400 rpm (and 400 rpm in its section 3.2)
+ACCELERATOR_RPM_RANGE = (400.0, 1600.0)
 FLUID_MODES = ("coupled", "prescribed", "none")
 
 
@@ -62,7 +65,7 @@ class DemScene:
     record_s: float
     sample_every_s: float
     seed: int
-    zones: ZoneSpec
+    zones: ZoneSpec  # accelerator_slice: millfmu.dem.accelerator.SevSpec
     map_bins_r: int
     map_bins_z: int
     # beads and coupled fluid start turning at this fraction of the stirrer's angular
@@ -72,9 +75,14 @@ class DemScene:
     @property
     def omega_rad_s(self) -> float:
         """Stirrer angular velocity [rad/s]."""
-        r = self.geometry.disc_radius_m if self.kind == "disc_slice" else \
+        r = self.geometry.disc_radius_m if self.geometry.has_disc else \
             self.geometry.shaft_radius_m
         return self.tip_speed_m_s / r
+
+    @property
+    def rotor_speed_rpm(self) -> float:
+        """Stirrer speed [1/min]."""
+        return self.omega_rad_s * 60.0 / (2.0 * math.pi)
 
     def with_overrides(self, **kw) -> "DemScene":
         """Copy with run-time overrides (tip_speed_m_s, filling, sector_deg, spin_up_s,
@@ -140,6 +148,16 @@ def _check_ranges(s: DemScene):
         if s.filling is None or not 0.5 <= s.filling <= 0.9:
             raise DemSceneError(f"beads.filling = {s.filling!r}: allowed 0.5 to 0.9 for "
                                 f"disc_slice (the range of seed 001)")
+    elif s.kind == "accelerator_slice":
+        lo, hi = ACCELERATOR_RPM_RANGE
+        if not lo - 1e-9 <= s.rotor_speed_rpm <= hi + 1e-9:
+            raise DemSceneError(
+                f"mill.rotor_speed_rpm = {s.rotor_speed_rpm:.6g}: allowed {lo:g} to {hi:g} "
+                f"rpm for accelerator_slice (seed 002: 800-1400; tip speed "
+                f"{s.tip_speed_m_s:.4g} m/s)")
+        if s.filling is None or not 0.5 <= s.filling <= 0.9:
+            raise DemSceneError(f"beads.filling = {s.filling!r}: allowed 0.5 to 0.9 for "
+                                f"accelerator_slice (seed 002: 0.6-0.9)")
     else:
         _positive("mill.tip_speed_m_s", s.tip_speed_m_s)
     for name, v in (("run.dt_s", s.dt_s), ("run.record_s", s.record_s),
@@ -217,6 +235,17 @@ def scene_from_dict(d: dict, default_name: str = "scene") -> DemScene:
         spacing = _get(mill, "disc_spacing_m", "mill", f, 0.020)
         _positive("mill.disc_spacing_m", spacing)
         geo = _geometry_or_error(MillGeometry, rsh, rch, spacing + bd, rd, bd, 0.0, sector)
+    elif kind == "accelerator_slice":
+        rd = _get(mill, "rotor_radius_m", "mill", f, required=True)
+        bd = _get(mill, "rotor_thickness_m", "mill", f, required=True)
+        period = _get(mill, "rotor_pitch_m", "mill", f, required=True)
+        _positive("mill.rotor_pitch_m", period)
+        geo = _geometry_or_error(
+            MillGeometry, rsh, rch, period, rd, bd, 0.0, sector,
+            eye_radius_m=_get(mill, "eye_radius_m", "mill", f, required=True),
+            channel_height_m=_get(mill, "channel_height_m", "mill", f, required=True),
+            vane_count=_get(mill, "vane_count", "mill", int, required=True),
+            vane_thickness_m=_get(mill, "vane_thickness_m", "mill", f, required=True))
     else:
         h = _get(mill, "height_m", "mill", f, 0.004)
         geo = _geometry_or_error(MillGeometry, rsh, rch, h, 0.0, 0.0, 0.0, sector)
@@ -253,13 +282,42 @@ def scene_from_dict(d: dict, default_name: str = "scene") -> DemScene:
     grav = _get(run, "gravity_m_s2", "run", list, [0.0, 0.0, 0.0])
     if len(grav) != 3:
         raise DemSceneError(f"run.gravity_m_s2 = {grav!r}: must be a list of 3 numbers")
-    zs = ZoneSpec(v1_width_m=_get(zones, "v1_width_m", "zones", f, 2.5e-3),
-                  r_v1_over_disc_radius=_get(zones, "r_v1_over_disc_radius", "zones", f, 0.55),
-                  r_v3_over_disc_radius=_get(zones, "r_v3_over_disc_radius", "zones", f, 0.80))
+    if kind == "accelerator_slice":
+        from millfmu.dem.accelerator import SevSpec
+
+        for k in zones:
+            if k not in ("sev_z1", "sev_z2", "sev_x3"):
+                raise DemSceneError(f"zones.{k}: unknown key for accelerator_slice; allowed: "
+                                    f"['sev_x3', 'sev_z1', 'sev_z2']")
+        zs = SevSpec(z1=_get(zones, "sev_z1", "zones", f, 0.39),
+                     z2=_get(zones, "sev_z2", "zones", f, 0.69),
+                     x3=_get(zones, "sev_x3", "zones", f, 0.40))
+        if not 0.0 < zs.z1 < zs.z2 < 1.0 or not 0.0 < zs.x3 < 1.0:
+            raise DemSceneError(f"zones.sev_z1 = {zs.z1!r}, sev_z2 = {zs.z2!r}, sev_x3 = "
+                                f"{zs.x3!r}: need 0 < z1 < z2 < 1 and 0 < x3 < 1")
+    else:
+        zs = ZoneSpec(v1_width_m=_get(zones, "v1_width_m", "zones", f, 2.5e-3),
+                      r_v1_over_disc_radius=_get(zones, "r_v1_over_disc_radius", "zones", f,
+                                                 0.55),
+                      r_v3_over_disc_radius=_get(zones, "r_v3_over_disc_radius", "zones", f,
+                                                 0.80))
+    tip = _get(mill, "tip_speed_m_s", "mill", f, None)
+    rpm = _get(mill, "rotor_speed_rpm", "mill", f, None) if kind == "accelerator_slice" \
+        else None
+    if rpm is not None:
+        if tip is not None:
+            raise DemSceneError(f"mill.rotor_speed_rpm = {rpm!r} and mill.tip_speed_m_s = "
+                                f"{tip!r}: give one of them")
+        _positive("mill.rotor_speed_rpm", rpm)
+        tip = rpm * 2.0 * math.pi / 60.0 * geo.disc_radius_m
+    if tip is None:
+        raise DemSceneError("mill.tip_speed_m_s: missing (required" +
+                            (", or mill.rotor_speed_rpm)" if kind == "accelerator_slice"
+                             else ")"))
     s = DemScene(
         name=_get(d, "name", "scene", str, default_name), kind=kind, geometry=geo,
         material=mat, bead_diameter_m=dia,
-        tip_speed_m_s=_get(mill, "tip_speed_m_s", "mill", f, required=True),
+        tip_speed_m_s=tip,
         placement=placement, filling=filling,
         bulk_porosity=_get(beads, "bulk_porosity", "beads", f, 0.4),
         lattice_spacing_m=spacing_m, lattice_r_range_m=r_range, fluid=fl,

@@ -140,6 +140,11 @@ class DemSimulation:
         prm[K.P_RDISC] = geometry.disc_radius_m
         prm[K.P_BDISC] = geometry.disc_thickness_m
         prm[K.P_ZDISC] = geometry.disc_z_m
+        prm[K.P_REYE] = geometry.eye_radius_m
+        prm[K.P_HCH] = geometry.channel_height_m
+        prm[K.P_NVANE] = geometry.vane_count
+        prm[K.P_TVANE] = geometry.vane_thickness_m
+        prm[K.P_ROTANG] = 0.0
         prm[K.P_SKIN] = self.skin_m
         self.prm = prm
         # chunks of beads, each with its own force buffer: a fixed number for a given bead
@@ -178,6 +183,9 @@ class DemSimulation:
             raise ValueError(f"device = {device!r}: 'cpu' or 'gpu'")
         self.device = device
         self._gpu = None
+        if device == "gpu" and geometry.vane_count:
+            raise ValueError(f"device = 'gpu': the GPU stepper does not turn vanes "
+                             f"(vane_count = {geometry.vane_count}); use device 'cpu'")
         if device == "gpu":
             from millfmu.dem.gpu import GpuStepper
 

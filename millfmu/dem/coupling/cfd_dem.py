@@ -128,8 +128,11 @@ class CfdDem:
         self._deposit_and_split(self._eps_cells)
         e = self._eps
         s.set_beads(e[0], e[1], e[2], e[3], self._kd, self._sd, self.interval_s)
-        if gap:
-            s.eps_c_old[:] = s.eps_c  # no change of the void fraction over this interval
+        if gap or self.intervals == 0:
+            # no change of the void fraction over this interval: after a gap, and at the
+            # first exchange, where the liquid's previous void fraction is the bead-free 1
+            # (the beads were not poured in over one interval)
+            s.eps_c_old[:] = s.eps_c
         s.advance(self.interval_s)
         self._eps_cells[:] = e[0].ravel()
         self.EK.nodes_to_cell_values(s.mean_u[0], s.mean_u[1], s.mean_u[2], s.mean_gp[0],

@@ -13,7 +13,9 @@ between cells j and j + 1, u_z[i, j, k] on the z-face between cells k and k + 1;
 void fraction and the turbulence quantities at cell centres.
 
 Solids are whole cells (``solid``: 0 fluid, 1 rotor: turns with the stirrer, 2 stationary
-housing). The PM-1 disc is an annular slab r_sh ... R, |z - z_disc| <= b/2 whose faces lie
+housing). ``driven`` marks fluid cells between a rotor's vanes (accelerator rotors): the
+vanes hold the swirl there at the rotor's speed while the liquid moves freely along them
+(radially and axially), see :class:`millfmu.dem.fluid.solver.FluidSolver`. The PM-1 disc is an annular slab r_sh ... R, |z - z_disc| <= b/2 whose faces lie
 on cell faces: :func:`mill_grid` chooses the spacings so that they do. The shaft
 (r = r_sh, rotating or not) and the chamber wall (r = r_ch, fixed) are the grid's radial
 boundaries. A closed housing (walls in z) is a row of stationary solid cells at k = 0.
@@ -53,6 +55,7 @@ class CylGrid:
     n_z: int
     solid: np.ndarray
     shaft_rotates: bool = True
+    driven: np.ndarray | None = None  # (n_r, n_theta, n_z) bool: cells between vanes
 
     def __post_init__(self):
         rf = np.asarray(self.r_faces_m, float)
@@ -66,6 +69,9 @@ class CylGrid:
         if self.solid.shape != (rf.size - 1, self.n_theta, self.n_z):
             raise GridError(f"solid: shape {self.solid.shape}, expected "
                             f"{(rf.size - 1, self.n_theta, self.n_z)}")
+        if self.driven is not None and (self.driven.shape != self.solid.shape or
+                                        (self.driven & (self.solid != FLUID)).any()):
+            raise GridError("driven: must have the cells' shape and mark fluid cells only")
 
     # ---- sizes ---------------------------------------------------------------------------
     @property
@@ -155,18 +161,25 @@ def mill_grid(geometry, cell_m: float = 0.75e-3, n_theta: int = 1,
     pts = [g.shaft_radius_m, g.chamber_radius_m]
     if g.has_disc:
         pts = [g.shaft_radius_m, g.disc_radius_m, g.chamber_radius_m]
+    if g.has_channel:
+        pts = [g.shaft_radius_m, g.eye_radius_m, g.disc_radius_m, g.chamber_radius_m]
     rf = _piecewise_faces(pts, cell_m)
     lengths = [g.height_m]
     if g.has_disc:
-        # the disc faces at z_disc -+ b/2 must be z-faces: cut the period there (and at 0)
-        cuts = sorted({0.0, (g.disc_z_m - 0.5 * g.disc_thickness_m) % g.height_m,
-                       (g.disc_z_m + 0.5 * g.disc_thickness_m) % g.height_m})
+        # the disc faces at z_disc -+ b/2 (and a channel's at -+ h_ch/2) must be z-faces:
+        # cut the period there (and at 0)
+        zs = [0.5 * g.disc_thickness_m]
+        if g.has_channel:
+            zs.append(0.5 * g.channel_height_m)
+        cuts = sorted({0.0} | {(g.disc_z_m + sg * h) % g.height_m for h in zs
+                               for sg in (-1.0, 1.0)})
         cuts.append(g.height_m)
         lengths = [b - a for a, b in zip(cuts[:-1], cuts[1:]) if b - a > 1e-12]
     nz = _axial_cells(lengths, cell_m)
     sector = 2.0 * math.pi if g.sector_deg == 360.0 else math.radians(g.sector_deg)
     nr = rf.size - 1
     solid = np.zeros((nr, n_theta, nz), np.int8)
+    driven = None
     dz = g.height_m / nz
     if g.has_disc:
         rc = 0.5 * (rf[1:] + rf[:-1])
@@ -175,10 +188,21 @@ def mill_grid(geometry, cell_m: float = 0.75e-3, n_theta: int = 1,
         zr -= g.height_m * np.floor(zr / g.height_m + 0.5)
         in_z = np.abs(zr) < 0.5 * g.disc_thickness_m
         in_r = rc < g.disc_radius_m
-        solid[np.ix_(in_r, np.arange(n_theta), in_z)] = ROTOR
+        if not g.has_channel:
+            solid[np.ix_(in_r, np.arange(n_theta), in_z)] = ROTOR
+        else:
+            # shrouds r_eye..R around the channel; the channel's cells are driven (vanes)
+            in_ch = np.abs(zr) < 0.5 * g.channel_height_m
+            shroud = in_z & ~in_ch
+            solid[np.ix_(in_r & (rc > g.eye_radius_m), np.arange(n_theta), shroud)] = ROTOR
+            driven = np.zeros((nr, n_theta, nz), np.bool_)
+            if g.vane_count:
+                driven[np.ix_(in_r, np.arange(n_theta), in_ch)] = True
     if walls_z:
         solid[:, :, 0] = STATOR
-    return CylGrid(rf, sector, int(n_theta), g.height_m, nz, solid, shaft_rotates)
+        if driven is not None:
+            driven[:, :, 0] = False
+    return CylGrid(rf, sector, int(n_theta), g.height_m, nz, solid, shaft_rotates, driven)
 
 
 def annulus_grid(r_inner_m: float, r_outer_m: float, height_m: float, n_r: int, n_z: int,

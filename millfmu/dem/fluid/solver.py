@@ -28,6 +28,11 @@ from millfmu.dem.fluid.grid import FLUID, ROTOR, CylGrid
 from millfmu.dem.fluid.pressure import PressureSolver
 
 MODELS = ("A", "B")
+#: Slip time [s] of the liquid between a rotor's vanes (driven cells): the vanes hold the
+#: swirl there at the rotor's speed. Radial vanes leave no path for relative swirl, so the
+#: slip is set far below the coupling interval (5e-5 s); the implicit predictor keeps any
+#: value stable, and the torque it takes is the vanes' share of the rotor torque.
+VANE_SLIP_TIME_S = 1e-5
 TURBULENCE = ("k_epsilon", "laminar")
 
 
@@ -160,6 +165,12 @@ class FluidSolver:
         self.body_z = 0.0  # axial body force per unit volume [N/m3] (e.g. -dP/dz)
         self.interval_s = None  # last coupling interval (continuity's d(eps)/dt)
         self.fixed_t = np.zeros(g.shape)  # u_theta of fixed theta nodes [m/s]
+        # theta drag of beads and vanes together (what the predictor uses): the vanes of a
+        # driven zone hold the swirl at omega r with a slip time of VANE_SLIP_TIME_S
+        self.kd_t_all = np.zeros(g.shape)
+        self.sd_t_all = np.zeros(g.shape)
+        self._driven = (np.zeros(g.shape, np.bool_) if g.driven is None
+                        else np.asarray(g.driven, np.bool_) & (kt == 0))
         # ---- work arrays ----
         self._fr = np.zeros(shp_r)
         self._ft = np.zeros(g.shape)
@@ -195,7 +206,7 @@ class FluidSolver:
         self._F = (self.ur, self.ut, self.uz, self.p, self.k, self.e, self.nu_t, self.eps_c,
                    self.eps_c_old, self.eps_r, self.eps_t, self.eps_z, self.kd_r, self.kd_t,
                    self.kd_z, self.sd_r, self.sd_t, self.sd_z, self.fixed_t, *self.mean_u,
-                   *self.mean_gp)
+                   *self.mean_gp, self.kd_t_all, self.sd_t_all)
         self._W = (self._fr, self._ft, self._fz, self._div, self._trr, self._ttt, self._tzz,
                    self._s2, self._ert, self._erz, self._etz, self._grt, self._grz,
                    self._gtz, self._rr, self._rt, self._rz, self._gpr, self._gpt, self._gpz,
@@ -208,7 +219,7 @@ class FluidSolver:
         self.time_s = 0.0
         self.substeps = 0
         # time integrals of the fluid's torque on the turning shaft, on the rotor's solid
-        # cells (disc) and on the walls at rest [N m s]
+        # cells (disc) and vanes, and on the walls at rest [N m s]
         self.angular_impulse_shaft_nms = 0.0
         self.angular_impulse_rotor_nms = 0.0
         self.angular_impulse_stator_nms = 0.0
@@ -224,7 +235,15 @@ class FluidSolver:
         self.om_shaft = self.omega if self.grid.shaft_rotates else 0.0
         self.fixed_t[:] = np.where(self._rot_t, self.omega * self.rc[:, None, None], 0.0)
         self.wall_om = self._wom_rot * self.omega
+        self._theta_drag()
         self._apply_fixed()
+
+    def _theta_drag(self):
+        """kd_t_all, sd_t_all: the beads' theta drag plus the vanes' (driven cells):
+        K_v = eps rho / VANE_SLIP_TIME_S towards u_theta = omega r."""
+        kv = np.where(self._driven, self.eps_t * self.rho / VANE_SLIP_TIME_S, 0.0)
+        self.kd_t_all[:] = self.kd_t + kv
+        self.sd_t_all[:] = self.sd_t + kv * self.omega * self.rc[:, None, None]
 
     def _apply_fixed(self):
         self.ur[self.kr != 0] = 0.0
@@ -260,6 +279,7 @@ class FluidSolver:
         self.kd_r[:], self.kd_t[:], self.kd_z[:] = kd
         self.sd_r[:], self.sd_t[:], self.sd_z[:] = sd
         self.interval_s = float(interval_s)
+        self._theta_drag()
         self._apply_fixed()
 
     # ---- stepping ---------------------------------------------------------------------

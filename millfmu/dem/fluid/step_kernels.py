@@ -15,7 +15,7 @@ from millfmu.dem.fluid import vans_kernels as VK
 
 # positions in the tuples
 (UR, UT, UZ, P, KT, ET, NUT, EPSC, EPSC0, EPSR, EPST, EPSZ, KDR, KDT, KDZ, SDR, SDT, SDZ,
- FIXT, MUR, MUT, MUZ, MGR, MGT, MGZ) = range(25)
+ FIXT, MUR, MUT, MUZ, MGR, MGT, MGZ, KDTA, SDTA) = range(27)
 (FR, FT, FZ, DIV, TRR, TTT, TZZ, S2, ERT, ERZ, ETZ, GRT, GRZ, GTZ, RR, RT, RZ, GPR, GPT,
  GPZ, EM, PROD, EWALL, KNEW, ENEW, GHR, GHT, GHZ, ZR, ZC) = range(30)
 KR, KTH, KZ, SOLID = range(4)
@@ -26,8 +26,10 @@ def predictor(F, W, K, rf, rc, dr, vc, dth, dz, om_sh, rho, nu, kturb, model_a, 
               dt, interval, acc):
     """Explicit part and implicit-drag predictor of one substep of dt [s]; leaves the
     projection's right-hand side (rho / dt) (net outflow of eps u* + V d eps / dt) in
-    W[DIV] and adds to acc: [0] shaft, [1] rotor cells, [2] stator angular impulse the fluid
-    gave [N m s], [3] angular and [4] axial impulse the beads gave the fluid [N m s, N s]."""
+    W[DIV] and adds to acc: [0] shaft, [1] rotor cells and vanes, [2] stator angular impulse
+    the fluid gave [N m s], [3] angular and [4] axial impulse the beads gave the fluid
+    [N m s, N s]. The theta predictor uses the beads' and the vanes' drag together (KDTA,
+    SDTA); the vanes' part (KDTA - KDT, SDTA - SDT) is their torque."""
     kr, kt, kz, solid = K[KR], K[KTH], K[KZ], K[SOLID]
     ur, ut, uz = F[UR], F[UT], F[UZ]
     VK.face_fluxes(ur, ut, uz, F[EPSR], F[EPST], F[EPSZ], rf, dr, vc, dth, dz, W[FR], W[FT],
@@ -64,7 +66,7 @@ def predictor(F, W, K, rf, rc, dr, vc, dth, dz, om_sh, rho, nu, kturb, model_a, 
                F[KDR].reshape(-1), F[SDR].reshape(-1), W[GPR].reshape(-1), 0.0, rho, dt,
                W[ZR].reshape(-1))
     VK.predict(ut.reshape(-1), kt.reshape(-1), F[EPST].reshape(-1), W[RT].reshape(-1),
-               F[KDT].reshape(-1), F[SDT].reshape(-1), W[GPT].reshape(-1), 0.0, rho, dt,
+               F[KDTA].reshape(-1), F[SDTA].reshape(-1), W[GPT].reshape(-1), 0.0, rho, dt,
                F[FIXT].reshape(-1))
     VK.predict(uz.reshape(-1), kz.reshape(-1), F[EPSZ].reshape(-1), W[RZ].reshape(-1),
                F[KDZ].reshape(-1), F[SDZ].reshape(-1), W[GPZ].reshape(-1), body_z, rho, dt,
@@ -73,15 +75,20 @@ def predictor(F, W, K, rf, rc, dr, vc, dth, dz, om_sh, rho, nu, kturb, model_a, 
     # velocity they are given back
     ang = 0.0
     axl = 0.0
+    vane = 0.0
     for i in range(nr):
         for j in range(nt):
             for k in range(nz):
                 if kt[i, j, k] == 0:
                     ang += rc[i] * vc[i] * (F[KDT][i, j, k] * ut[i, j, k] - F[SDT][i, j, k])
+                    vane += rc[i] * vc[i] * ((F[KDTA][i, j, k] - F[KDT][i, j, k]) *
+                                             ut[i, j, k] - (F[SDTA][i, j, k] -
+                                                            F[SDT][i, j, k]))
                 if kz[i, j, k] == 0:
                     axl += vc[i] * (F[KDZ][i, j, k] * uz[i, j, k] - F[SDZ][i, j, k])
                 F[MUT][i, j, k] += dt * ut[i, j, k]
                 F[MUZ][i, j, k] += dt * uz[i, j, k]
+    acc[1] += vane * dt
     acc[3] -= ang * dt
     acc[4] -= axl * dt
     mr = F[MUR]

@@ -1,0 +1,267 @@
+"""Accelerator slice of seed 002: geometry, zones, the paper's stress quantities, a short
+coupled run through the CLI."""
+
+import argparse
+import json
+import math
+
+import numpy as np
+import pytest
+
+from millfmu.dem import accelerator as A
+from millfmu.dem.geometry import GeometryError, MillGeometry, bead_count_for_filling
+from millfmu.dem.scene import DemSceneError, load_scene, load_scene_dict, scene_from_dict
+from millfmu.dem.zones import zones_for
+
+MM = 1e-3
+
+
+def _scene(**mill):
+    d = load_scene_dict("accelerator_slice")
+    d["mill"].update(mill)
+    return scene_from_dict(d)
+
+
+def test_scene_reproduces_the_papers_bead_counts_and_speeds():
+    """30 mL slice: 40,306-60,459 beads at 60-90 % filling (seed 002 section 2.3) within
+    2 %; rim at Z'/R = 0.39; 800-1400 rpm as tip speeds 2 pi n R."""
+    s = load_scene("accelerator_slice")
+    g = s.geometry
+    full = g.free_volume_m3() / g.sector_fraction
+    assert full == pytest.approx(30e-6, rel=0.02)
+    for phi, paper in ((0.6, 40306), (0.9, 60459)):
+        n = bead_count_for_filling(g, phi, 0.8e-3) / g.sector_fraction
+        assert n == pytest.approx(paper, rel=0.02)
+    span = g.chamber_radius_m - g.shaft_radius_m
+    assert (g.chamber_radius_m - g.disc_radius_m) / span == pytest.approx(0.39)
+    assert s.rotor_speed_rpm == pytest.approx(1200.0)
+    assert s.tip_speed_m_s == pytest.approx(2 * math.pi * 20.0 * g.disc_radius_m)
+    m = s.material
+    assert (m.density_kg_m3, m.restitution, m.friction, m.rolling_friction) == (
+        6040.0, 0.5, 0.3, 0.01)
+    # shear modulus of seed 002 Table 1, G = Y / (2 (1 + nu))
+    assert m.youngs_modulus_pa / (2 * (1 + m.poisson_ratio)) == pytest.approx(3.36e6)
+    assert (s.fluid.density_kg_m3, s.fluid.viscosity_pa_s) == (1050.0, 0.4)
+
+
+def test_rotor_volume_and_walls_agree_with_the_kernels():
+    """Shroud and vane volumes by hand; the kernels' wall distances (walls 2 and 3) equal
+    the numpy geometry's at random points."""
+    pytest.importorskip("numba")
+    from millfmu.dem import kernels as K
+    from millfmu.dem.sim import DemSimulation
+
+    s = load_scene("accelerator_slice")
+    g = s.geometry
+    shrouds = math.pi * (22.2 ** 2 - 14.0 ** 2) * (6.0 - 3.0)
+    vanes = 12 * 1.0 * (22.2 - 10.0) * 3.0
+    assert g.rotor_volume_m3() == pytest.approx((shrouds + vanes) * MM ** 3)
+    x0 = np.array([[0.028 * math.cos(0.2), 0.028 * math.sin(0.2), 0.006]])
+    sim = DemSimulation(g, s.material, x0, 0.4e-3, s.omega_rad_s, 1e-5)
+    rng = np.random.default_rng(3)
+    n = 4000
+    r = rng.uniform(g.shaft_radius_m, g.chamber_radius_m, n)
+    th = rng.uniform(0.0, math.radians(30.0), n)
+    z = rng.uniform(-0.5 * g.height_m, 0.5 * g.height_m, n)
+    p = np.column_stack([r * np.cos(th), r * np.sin(th), z])
+    for ang in (0.0, 0.1):
+        sim.prm[K.P_ROTANG] = ang
+        dv = g.vane_distance(p, ang)
+        for i in range(0, n, 7):
+            d, nx, ny, nz, ok = K.wall_gap(p[i, 0], p[i, 1], p[i, 2], 0.4e-3, 3, sim.prm)
+            if ok and d > 0:
+                assert d == pytest.approx(dv[i], abs=1e-12)
+                assert nx * nx + ny * ny + nz * nz == pytest.approx(1.0)
+    # shroud: a point above the upper shroud's face, one in the eye (no shroud), one in
+    # the channel below the shroud
+    hb, hc = 0.5 * g.disc_thickness_m, 0.5 * g.channel_height_m
+    for (rr, zz), want in (((0.018, hb + 1e-3), 1e-3), ((0.012, hb + 1e-3), None),
+                           ((0.018, hc - 0.5e-3), 0.5e-3)):
+        d, nx, ny, nz, ok = K.wall_gap(rr, 0.0, zz, 0.4e-3, 2, sim.prm)
+        if want is None:
+            assert d == pytest.approx(math.hypot(0.014 - rr, zz - hb))  # the eye's corner
+        else:
+            assert d == pytest.approx(want) and abs(nz) == pytest.approx(1.0)
+
+
+def test_geometry_refuses_what_cannot_be_built():
+    base = dict(shaft_radius_m=0.01, chamber_radius_m=0.03, height_m=0.0132,
+                disc_radius_m=0.0222, disc_thickness_m=0.006, eye_radius_m=0.014,
+                channel_height_m=0.003, vane_count=12, vane_thickness_m=0.001)
+    MillGeometry(**base, sector_deg=30.0)
+    with pytest.raises(GeometryError, match="vane pitches"):
+        MillGeometry(**base, sector_deg=45.0)
+    with pytest.raises(GeometryError, match="eye_radius_m"):
+        MillGeometry(**dict(base, eye_radius_m=0.025))
+    with pytest.raises(GeometryError, match="channel_height_m"):
+        MillGeometry(**dict(base, channel_height_m=0.007))
+    with pytest.raises(DemSceneError, match="rotor_speed_rpm"):
+        _scene(rotor_speed_rpm=3000.0)
+    with pytest.raises(DemSceneError, match="give one of them"):
+        _scene(tip_speed_m_s=2.0)
+    d = load_scene_dict("accelerator_slice")
+    d["zones"]["v1_width_m"] = 0.002
+    with pytest.raises(DemSceneError, match="zones.v1_width_m"):
+        scene_from_dict(d)
+
+
+def test_sev_zones_follow_the_papers_stages_and_tile_the_chamber():
+    s = load_scene("accelerator_slice")
+    g = s.geometry
+    z = zones_for(s)
+    assert z.names == ("SEV_1", "SEV_2", "SEV_3", "SEV_4")
+    span = g.chamber_radius_m - g.shaft_radius_m
+    half = 0.5 * g.height_m
+
+    def at(zr, xl):  # point at Z'/R, X'/L (X' from the mid-plane between rotors)
+        r = g.chamber_radius_m - zr * span
+        return [r, 0.0, half * (1.0 - xl)]
+
+    pts = np.array([at(0.1, 0.1), at(0.38, 0.9), at(0.5, 0.2), at(0.68, 0.95),
+                    at(0.8, 0.3), at(0.95, 0.1), at(0.8, 0.5), at(0.95, 0.99)])
+    assert list(z.classify(pts)) == [0, 0, 1, 1, 2, 2, 3, 3]
+    v = z.volumes_m3()
+    assert v.sum() == pytest.approx(g.free_volume_m3(), rel=2e-4)
+    # SEV_1 by hand: the ring rim..wall over the whole period (no rotor there)
+    v1 = math.pi * (g.chamber_radius_m ** 2 - (g.chamber_radius_m - 0.39 * span) ** 2) * \
+        g.height_m * g.sector_fraction
+    assert v[0] == pytest.approx(v1, rel=2e-3)
+
+
+def test_stress_quantities_match_hand_calculations():
+    """Two bead-bead contacts and one wall contact, recorded with m* = m/2, I* = I/2: the
+    paper's SE_tn = 1/2 m v_n^2, SE_ts = 1/2 I w^2, SI, SN_g, SE_cs, shares, SE_net."""
+    s = load_scene("accelerator_slice")
+    z = zones_for(s)
+    g = s.geometry
+    d, rho = 0.8e-3, 6040.0
+    m = math.pi / 6 * d ** 3 * rho
+    inertia = m * d * d / 10
+    cols = dict(type=0, x=1, y=2, z=3, setn=4, sets=5, serot=6)
+    vn, w = 0.3, 200.0
+    near_wall = [0.029, 0.0, 0.0]  # SEV_1
+    ev = np.array([
+        [0, *near_wall, 0.5 * (m / 2) * vn ** 2, 0.0, 0.5 * (inertia / 2) * w ** 2],
+        [0, *near_wall, 0.5 * (m / 2) * (2 * vn) ** 2, 0.0, 0.0],
+        [1, *near_wall, 1.0, 1.0, 1.0],  # a wall contact: not a stress event here
+    ])
+    t = 0.5
+    q = A.stress_quantities(ev, cols, z, t, d, rho, n_beads=100,
+                            tip_speed_m_s=s.tip_speed_m_s, omega_rad_s=s.omega_rad_s)
+    z1 = q["zones"]["SEV_1"]
+    tn = 0.5 * m * vn ** 2 + 0.5 * m * (2 * vn) ** 2
+    ts = 0.5 * inertia * w ** 2
+    v1 = z.volumes_m3()[0]
+    assert z1["contacts"] == 2
+    assert z1["SE_tn_mean_j"] == pytest.approx(tn / 2)
+    assert z1["SE_ts_mean_j"] == pytest.approx(ts / 2)
+    assert z1["SI_j"] == pytest.approx((tn + ts) / 2)
+    assert z1["SN_g_per_m3_s"] == pytest.approx(2 / (v1 * t))
+    assert z1["SE_cs_w_per_m3"] == pytest.approx((tn + ts) / (v1 * t))
+    frac = g.sector_fraction
+    assert z1["SE_cs_sum_w"] == pytest.approx((tn + ts) / t / frac)
+    assert z1["ts_share"] == pytest.approx(ts / (tn + ts))
+    assert q["zones"]["SEV_3"]["contacts"] == 0 and q["zones"]["SEV_3"]["SI_j"] is None
+    n_rev = s.omega_rad_s / (2 * math.pi)
+    se_net = 6 / math.pi * (100 * m / frac) * s.tip_speed_m_s ** 2 * n_rev / 1.04
+    assert q["total"]["SE_net_w"] == pytest.approx(se_net)
+    assert q["total"]["efficiency"] == pytest.approx((tn + ts) / t / frac / se_net)
+
+
+def test_fluid_grid_has_shrouds_eye_and_a_driven_channel():
+    from millfmu.dem.fluid.grid import FLUID, ROTOR, mill_grid
+
+    g = load_scene("accelerator_slice").geometry
+    grid = mill_grid(g, 5e-4)
+    rf = grid.r_faces_m
+    for r in (g.shaft_radius_m, g.eye_radius_m, g.disc_radius_m, g.chamber_radius_m):
+        assert np.min(np.abs(rf - r)) < 1e-12
+    rc = grid.r_centres_m
+    zc = grid.z_centres_m
+    zr = zc - g.height_m * np.floor(zc / g.height_m + 0.5)
+    i_in = np.where((rc > g.eye_radius_m) & (rc < g.disc_radius_m))[0][0]
+    k_sh = np.where((np.abs(zr) > 0.5 * g.channel_height_m) &
+                    (np.abs(zr) < 0.5 * g.disc_thickness_m))[0]
+    k_ch = np.where(np.abs(zr) < 0.5 * g.channel_height_m)[0]
+    assert (grid.solid[i_in, 0, k_sh] == ROTOR).all()
+    assert (grid.solid[0, 0, k_sh] == FLUID).all()  # the eye
+    assert grid.driven[i_in, 0, k_ch].all() and grid.driven[0, 0, k_ch].all()
+    assert not grid.driven[rc > g.disc_radius_m].any()
+    # the open volume of the fluid grid is the chamber minus the shrouds
+    shrouds = math.pi * (g.disc_radius_m ** 2 - g.eye_radius_m ** 2) * \
+        (g.disc_thickness_m - g.channel_height_m) * g.sector_fraction
+    open_ = math.pi * (g.chamber_radius_m ** 2 - g.shaft_radius_m ** 2) * g.height_m * \
+        g.sector_fraction - shrouds
+    assert grid.fluid_volume_m3 == pytest.approx(open_)
+
+
+def test_vanes_pump_the_liquid_out_at_the_rim():
+    """The liquid alone: the vanes hold the channel's swirl at the rotor's speed, the liquid
+    leaves the channel at the rim and returns between the rotors (seed 002 section 3.1);
+    the rotor's torque (vanes included) balances the angular momentum budget."""
+    pytest.importorskip("numba")
+    from millfmu.dem.fluid.grid import mill_grid
+    from millfmu.dem.fluid.solver import FluidProperties, FluidSolver
+
+    s = load_scene("accelerator_slice")
+    g = s.geometry
+    grid = mill_grid(g, 1e-3)
+    fs = FluidSolver(grid, FluidProperties(1050.0, 0.4), s.omega_rad_s, turbulence="laminar")
+    l0 = fs.angular_momentum_kgm2_s()
+    for _ in range(20):
+        fs.advance(1e-3)
+    drv = grid.driven
+    om_r = s.omega_rad_s * grid.r_centres_m[:, None, None]
+    assert np.allclose(fs.ut[drv], np.broadcast_to(om_r, fs.ut.shape)[drv], rtol=2e-3)
+    i = int(np.argmin(np.abs(grid.r_faces_m - g.disc_radius_m)))
+    zr = grid.z_centres_m - g.height_m * np.floor(grid.z_centres_m / g.height_m + 0.5)
+    ch = np.abs(zr) < 0.5 * g.channel_height_m
+    gap = np.abs(zr) > 0.5 * g.disc_thickness_m
+    area = grid.r_faces_m[i] * grid.dtheta_rad * grid.dz_m
+    q_out = (fs.ur[i, 0, ch] * area).sum()
+    q_gap = (fs.ur[i, 0, gap] * area).sum()
+    assert q_out > 0 and q_gap == pytest.approx(-q_out, rel=1e-6)  # continuity at r = R
+    l1 = fs.angular_momentum_kgm2_s()
+    torque_in = -(fs.angular_impulse_rotor_nms + fs.angular_impulse_shaft_nms)
+    assert l1 - l0 == pytest.approx(torque_in - fs.angular_impulse_stator_nms, rel=1e-6)
+
+
+def _parser():
+    from millfmu.dem.cli import register
+
+    p = argparse.ArgumentParser()
+    register(p.add_subparsers())
+    return p
+
+
+def test_short_coupled_run_has_the_papers_quantities(tmp_path):
+    """A short coupled run through the CLI: SEV zones, seed 002's quantities with their
+    units, maps, and the budget closing."""
+    pytest.importorskip("numba")
+    from millfmu.dem.stats import DemStats
+
+    out = tmp_path / "acc"
+    a = _parser().parse_args(["dem", "run", "accelerator_slice", "--out", str(out),
+                              "--rpm", "1000", "--filling", "0.7", "--spin-up", "2e-3",
+                              "--record", "2e-3", "--sample-every", "1e-3", "--windows",
+                              "1e-3", "--no-progress", "--threads", "1"])
+    assert a.func(a) == 0
+    stats = DemStats.from_json((out / "stats.json").read_text())
+    assert [z.name for z in stats.zones] == list(A.ZONE_NAMES)
+    assert stats.tip_speed_m_s == pytest.approx(2 * math.pi * 1000 / 60 * 0.0222)
+    q = stats.flow["seed002"]
+    assert q["rotor_speed_rpm"] == pytest.approx(1000.0)
+    assert set(q["zones"]) == set(A.ZONE_NAMES)
+    tot = q["total"]
+    assert tot["SE_cs_sum_w"] == pytest.approx(sum(z["SE_cs_sum_w"]
+                                                   for z in q["zones"].values()))
+    assert 0 < tot["ts_share"] < 1 and 0 < tot["efficiency"] < 1
+    assert sum(z["contacts"] for z in q["zones"].values()) == stats.counts["bead_bead"]
+    assert "kg" in q["definitions"]["SE_net"] or "W" in q["definitions"]["SE_net"]
+    assert abs(stats.flow["angular_momentum_budget"]["closure_rel"]) < 1e-3
+    assert len(q["radial_speed_profile"]["speed_over_tip_speed"]) == 20
+    for f in ("map_stress_intensity.png", "map_stress_number.png",
+              "map_collision_stress_energy.png", "map_se_tn.png", "map_se_ts.png",
+              "speed_profiles.png", "windows.csv", "fluid_fields.npz"):
+        assert (out / f).stat().st_size > 0
+    json.loads((out / "stats.json").read_text())
