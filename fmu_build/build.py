@@ -192,7 +192,7 @@ def _export_table_slice(scene, prefix: Path) -> list:
     sd = scene.kinetics.stress_distribution
     if scene.kinetics.model != "detailed" or sd.source != "table":
         return []
-    from millfmu.dem.tables import read_table_ref
+    from millfmu.dem.tables.table import read_table_ref
 
     tab = read_table_ref(sd.table)
     fixed = {"bead_diameter_m": scene.beads.diameter_m, "bead_density_kg_m3": scene.beads.density_kg_per_m3, "viscosity_pa_s": scene.suspension.viscosity_Pa_s}
