@@ -40,8 +40,9 @@ class TableStressSource:
     ``tip_speed_m_s`` in ``similar_axes`` lets tip speeds outside the grid (a ramp from
     standstill, a controller's excursion) use the nearest edge's dimensionless fields.
     A point outside the grid raises :class:`OutsideGridError` unless
-    ``on_outside='build'``: then ``rebuild(table, point)`` (default :func:`rebuild_including`
-    with the DEM) builds and caches a table whose grid covers the point, progress shown.
+    ``on_outside='build'``: then ``rebuild(table, point)`` (default
+    :func:`~millfmu.dem.tables.dem_builder.rebuild_including` with the DEM) builds and
+    caches a table whose grid covers the point, progress shown.
     At tip speed 0 (stirrer at rest) there are no collisions: zones with zero rate.
     """
 
