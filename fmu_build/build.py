@@ -34,9 +34,11 @@ from . import fmi3_wrapper
 #: Modules the FMU must never carry or import for a scene (heavy, and not needed by the
 #: kinetics; the DEM would be imported only by scenes that run it).
 FORBIDDEN = ("numba", "millfmu.dem", "matplotlib", "tqdm")
-#: Exceptions to FORBIDDEN: the table reader of the detailed model (numpy only; reading a
-#: table never touches the DEM kernels).
-ALLOWED = ("millfmu.dem", "millfmu.dem.tables")
+#: Exceptions to FORBIDDEN: the table reader of the detailed model, its reading and lookup
+#: modules only (numpy; reading a table never touches the DEM kernels). The builder's modules
+#: (millfmu.dem.tables.build, .cache, .dem_builder) stay forbidden: they run the DEM.
+ALLOWED = ("millfmu.dem", "millfmu.dem.tables", "millfmu.dem.tables.spec", "millfmu.dem.tables.files",
+           "millfmu.dem.tables.table", "millfmu.dem.tables.stress_source")
 #: Prefix of the table files in the FMU's resources (TABLE_PREFIX.npz, TABLE_PREFIX.json).
 TABLE_PREFIX = "table"
 
@@ -190,7 +192,7 @@ def _export_table_slice(scene, prefix: Path) -> list:
     sd = scene.kinetics.stress_distribution
     if scene.kinetics.model != "detailed" or sd.source != "table":
         return []
-    from millfmu.dem.tables import read_table_ref
+    from millfmu.dem.tables.table import read_table_ref
 
     tab = read_table_ref(sd.table)
     fixed = {"bead_diameter_m": scene.beads.diameter_m, "bead_density_kg_m3": scene.beads.density_kg_per_m3, "viscosity_pa_s": scene.suspension.viscosity_Pa_s}

@@ -192,8 +192,11 @@ class MillModel:
         if self.kinetics_model != "detailed":
             return None
         if sd.source == "table":
-            # Imported only here: scenes without a table never load the table code.
-            from .dem.tables import TableError, TableStressSource, read_table_ref
+            # Imported only here: scenes without a table never load the table code (and the
+            # modules that read a table are all an FMU carries of it).
+            from .dem.tables.spec import TableError
+            from .dem.tables.stress_source import TableStressSource
+            from .dem.tables.table import read_table_ref
 
             try:
                 table = read_table_ref(sd.table)

@@ -122,7 +122,8 @@ def register(subparsers) -> argparse.ArgumentParser:
 
 
 def _load_builder(text: str | None, threads):
-    from millfmu.dem.tables import DemBuilder, TableError
+    from millfmu.dem.tables.dem_builder import DemBuilder
+    from millfmu.dem.tables.spec import TableError
 
     if not text:
         return DemBuilder(threads=threads)
@@ -160,7 +161,7 @@ def _build(args) -> int:
         if args.builder:
             spec = T.TableSpec(scene=spec.scene, grid=spec.grid,
                                kernel_version=spec.kernel_version,
-                               builder_id=T._builder_id(builder))
+                               builder_id=T.builder_id_of(builder))
         log = (lambda msg: print(msg, file=sys.stderr))
         table = T.get_table(spec, builder, cache_dir=args.cache_dir, force=args.force,
                             log=log, executor=args.executor, workers=args.workers,

@@ -72,7 +72,7 @@ def spec(grid=None, kernel_version="test-kernel-1", **scene):
                        grid=grid or {"tip_speed_m_s": [6.0, 10.0, 14.0],
                                      "filling": [0.5, 0.7, 0.9]},
                        kernel_version=kernel_version,
-                       builder_id=T._builder_id(analytic_builder))
+                       builder_id=T.builder_id_of(analytic_builder))
 
 
 def count(path) -> int:

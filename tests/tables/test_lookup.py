@@ -159,7 +159,7 @@ def test_source_checks_axes_the_table_does_not_vary(tmp_path):
     s = T.TableSpec(scene={"name": "analytic", "beads": {"diameter_m": D_GB_M,
                                                          "density_kg_m3": RHO_KG_M3}},
                     grid={"tip_speed_m_s": [6.0, 10.0, 14.0], "filling": [0.5, 0.7, 0.9]},
-                    kernel_version="k", builder_id=T._builder_id(analytic_builder))
+                    kernel_version="k", builder_id=T.builder_id_of(analytic_builder))
     t = T.get_table(s, analytic_builder, cache_dir=tmp_path, executor="serial", progress=False)
     assert t.fixed_axis_values() == {"bead_diameter_m": D_GB_M,
                                      "bead_density_kg_m3": RHO_KG_M3}

@@ -9,6 +9,7 @@ import sys
 import pytest
 
 from millfmu.dem import tables as T
+from millfmu.dem.tables import table as table_module  # where read_default_table finds its files
 from millfmu.mill import MillModel
 from millfmu.scene import SceneError
 from tests.conftest import make_scene
@@ -57,7 +58,7 @@ def test_damaged_default_table_names_the_rebuild_command(monkeypatch, tmp_path, 
     shutil.copy(npz, tmp_path / "default_table.npz")
     shutil.copy(man, tmp_path / "default_table.json")
     _flip(tmp_path / "default_table.npz", 2000)
-    monkeypatch.setattr(T, "default_table_paths", lambda: (tmp_path / "default_table.npz", tmp_path / "default_table.json"))
+    monkeypatch.setattr(table_module, "default_table_paths", lambda: (tmp_path / "default_table.npz", tmp_path / "default_table.json"))
     with pytest.raises(SceneError) as e:
         MillModel(make_scene(scene_dict))
     assert "default_table.npz" in str(e.value) and "corrupted" in str(e.value)

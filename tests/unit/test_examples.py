@@ -40,8 +40,8 @@ def test_rampup_follows_profile():
 
 
 def test_model_and_cli_never_import_numba():
-    """The default scene reads the DEM table (the table reader, no numba, no DEM kernels);
-    a simple-model scene does not even load the table reader."""
+    """The default scene reads the DEM table (the table reader, no numba, no DEM kernels, none
+    of the table builder's modules); a simple-model scene does not even load the table reader."""
     simple = resources.files("millfmu.data").joinpath("examples", "limestone_simple.toml")
     code = (
         "import sys, millfmu.cli, millfmu.mill, millfmu.runner;"
@@ -54,7 +54,9 @@ def test_model_and_cli_never_import_numba():
         "MillModel(load_scene()).step(1.0);"
         "bad = [m for m in sys.modules if m.split('.')[0] == 'numba' or m in dem];"
         "assert not bad, bad;"
-        "assert 'millfmu.dem.tables' in sys.modules"
+        "assert 'millfmu.dem.tables' in sys.modules;"
+        "tabs = sorted(m for m in sys.modules if m.startswith('millfmu.dem.tables.'));"
+        "assert tabs == ['millfmu.dem.tables.' + m for m in ('files', 'spec', 'stress_source', 'table')], tabs"
     )
     r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
     assert r.returncode == 0, r.stderr

@@ -1,0 +1,193 @@
+"""The tables cache: entries named by the key of their :class:`TableSpec`, built once and
+verified on every read, safe against concurrent builders.
+
+The cache lives in ``$MILLFMU_CACHE_DIR``, else ``$XDG_CACHE_HOME/millfmu/tables``, else
+``~/.cache/millfmu/tables``; each entry is a folder named by the sha256 of the canonical JSON
+of (format, builder, DEM scene content, grid, kernel version). Entries are written into a
+temporary folder and renamed into place under an exclusive ``fcntl.flock``; an entry that
+fails any check (manifest checksum, file checksums and sizes, key, version, array shapes)
+is rebuilt, never used. An entry built by another DEM (:func:`dem_kernel_version`) is stale.
+
+Imports no numba: the DEM's version is a hash of its source files, read, not imported.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import fcntl
+import hashlib
+import importlib.util
+import os
+import shutil
+import tempfile
+from pathlib import Path
+from typing import Callable
+
+from .build import build_table
+from .files import fsync_dir
+from .spec import DEM_BUILDER_ID, TableError, TableSpec, manifest_for
+from .table import Table, read_table
+
+
+#: Modules whose source decides the DEM's numbers: contact laws and integration (kernels,
+#: sim), the coupled fluid (fluid, coupling), the run loop (run) and what is measured
+#: (stats, zones). Their source hash is the kernel version.
+KERNEL_MODULES = ("millfmu.dem.kernels", "millfmu.dem.sim", "millfmu.dem.stats",
+                  "millfmu.dem.zones", "millfmu.dem.run", "millfmu.dem.fluid.grid",
+                  "millfmu.dem.fluid.vans_kernels", "millfmu.dem.fluid.k_epsilon",
+                  "millfmu.dem.fluid.pressure", "millfmu.dem.fluid.solver",
+                  "millfmu.dem.coupling.projection", "millfmu.dem.coupling.koch_hill2001",
+                  "millfmu.dem.coupling.cfd_dem", "millfmu.dem.coupling.settings")
+
+
+def dem_kernel_version() -> str:
+    """sha256 over the source files of :data:`KERNEL_MODULES` (read, not imported: no numba)."""
+    h = hashlib.sha256()
+    for mod in KERNEL_MODULES:
+        spec = importlib.util.find_spec(mod)
+        if spec is None or spec.origin is None:
+            raise TableError(f"DEM kernel version: module {mod} not found")
+        h.update(mod.encode() + b"\0" + Path(spec.origin).read_bytes() + b"\0")
+    return "sha256:" + h.hexdigest()
+
+
+def default_cache_dir() -> Path:
+    """The tables cache folder: $MILLFMU_CACHE_DIR, else $XDG_CACHE_HOME/millfmu/tables,
+    else ~/.cache/millfmu/tables."""
+    env = os.environ.get("MILLFMU_CACHE_DIR")
+    if env:
+        return Path(env).expanduser()
+    xdg = os.environ.get("XDG_CACHE_HOME")
+    base = Path(xdg).expanduser() if xdg else Path.home() / ".cache"
+    return base / "millfmu" / "tables"
+
+
+def resolve_cache_dir(cache_dir=None) -> Path:
+    """``cache_dir`` if given (CLI --cache-dir), else :func:`default_cache_dir`."""
+    return Path(cache_dir).expanduser() if cache_dir else default_cache_dir()
+
+
+@contextlib.contextmanager
+def _locked(path: Path):
+    with open(path, "a+") as fh:
+        fcntl.flock(fh.fileno(), fcntl.LOCK_EX)
+        try:
+            yield
+        finally:
+            fcntl.flock(fh.fileno(), fcntl.LOCK_UN)
+
+
+def entry_dir(spec: TableSpec, cache_dir=None) -> Path:
+    return resolve_cache_dir(cache_dir) / spec.key()
+
+
+def load_cached(spec: TableSpec, cache_dir=None) -> Table | None:
+    """The cached table of ``spec`` if its entry passes every check, else None."""
+    d = entry_dir(spec, cache_dir)
+    if not d.exists():
+        return None
+    try:
+        return read_table(d, expect_key=spec.key(), expect_kernel=spec.kernel_version)
+    except TableError:
+        return None
+
+
+def get_table(spec: TableSpec, builder: Callable, cache_dir=None, force: bool = False,
+              log: Callable[[str], None] | None = None, **run_kw) -> Table:
+    """The table of ``spec``: from the cache if its entry verifies, else built and cached.
+
+    Concurrent callers serialize on ``<cache>/<key>.lock`` (fcntl.flock); the second finds
+    the first one's entry. A new entry is written into a temporary folder in the cache and
+    renamed into place, so readers see either no entry or a complete one; an entry that
+    fails verification is replaced. ``force`` rebuilds even a good entry.
+    """
+    root = resolve_cache_dir(cache_dir)
+    key = spec.key()
+    if not force:
+        t = load_cached(spec, root)
+        if t is not None:
+            return t
+    root.mkdir(parents=True, exist_ok=True)
+    with _locked(root / f"{key}.lock"):
+        if not force:
+            t = load_cached(spec, root)  # built by another process while we waited
+            if t is not None:
+                return t
+        final = root / key
+        if final.exists() and log is not None:
+            try:
+                read_table(final, expect_key=key, expect_kernel=spec.kernel_version)
+            except TableError as e:
+                log(f"rebuilding cache entry {key[:12]}: {e}")
+        table = build_table(spec, builder, **run_kw)
+        tmp = Path(tempfile.mkdtemp(prefix=f".tmp-{key[:16]}-", dir=root))
+        try:
+            table.save(tmp, manifest_for(spec, table))
+            if final.exists():
+                trash = Path(tempfile.mkdtemp(prefix=f".old-{key[:16]}-", dir=root))
+                os.rename(final, trash / "entry")
+                shutil.rmtree(trash, ignore_errors=True)
+            os.rename(tmp, final)
+        except BaseException:
+            shutil.rmtree(tmp, ignore_errors=True)
+            raise
+        fsync_dir(root)
+        return read_table(final, expect_key=key, expect_kernel=spec.kernel_version)
+
+
+def cache_entries(cache_dir=None, kernel_version: str | None = None) -> list[dict]:
+    """Every entry of the cache with its state: ``ok``, ``stale`` (older kernel version or
+    format) or ``bad`` (fails a check), the reason, scene name, grid shape and size [bytes]."""
+    root = resolve_cache_dir(cache_dir)
+    out = []
+    if not root.exists():
+        return out
+    kv = kernel_version if kernel_version is not None else dem_kernel_version()
+    for d in sorted(p for p in root.iterdir() if p.is_dir() and not p.name.startswith(".")):
+        info = {"key": d.name, "path": str(d),
+                "bytes": sum(f.stat().st_size for f in d.iterdir() if f.is_file())}
+        try:
+            t = read_table(d, expect_key=d.name)
+            m = t.manifest
+            info.update(scene=m["scene"].get("name", "?"), shape=list(t.shape),
+                        axes=list(t.axes), builder=m["builder"])
+            if m["builder"] == DEM_BUILDER_ID and m["kernel_version"] != kv:
+                info.update(state="stale", reason="built with DEM kernel version "
+                            f"{m['kernel_version'][:19]}..., current {kv[:19]}...")
+            else:
+                info.update(state="ok", reason="")
+        except TableError as e:
+            info.update(state="stale" if "stale" in str(e) else "bad", reason=str(e))
+        out.append(info)
+    return out
+
+
+def clear_cache(cache_dir=None, only_not_ok: bool = False,
+                kernel_version: str | None = None) -> list[str]:
+    """Remove cache entries (all, or only stale and bad ones) and leftover temporary
+    folders; returns the removed keys. Takes each entry's lock so that no build is cut."""
+    root = resolve_cache_dir(cache_dir)
+    removed = []
+    if not root.exists():
+        return removed
+    for e in cache_entries(root, kernel_version):
+        if only_not_ok and e["state"] == "ok":
+            continue
+        with _locked(root / f"{e['key']}.lock"):
+            shutil.rmtree(e["path"], ignore_errors=True)
+        (root / f"{e['key']}.lock").unlink(missing_ok=True)
+        removed.append(e["key"])
+    for p in root.glob(".tmp-*"):
+        key16 = p.name[5:21]
+        locks = list(root.glob(f"{key16}*.lock"))
+        if not locks:
+            shutil.rmtree(p, ignore_errors=True)
+            continue
+        with open(locks[0], "a+") as fh:  # skip folders of a build in progress
+            try:
+                fcntl.flock(fh.fileno(), fcntl.LOCK_EX | fcntl.LOCK_NB)
+            except BlockingIOError:
+                continue
+            shutil.rmtree(p, ignore_errors=True)
+            fcntl.flock(fh.fileno(), fcntl.LOCK_UN)
+    return removed

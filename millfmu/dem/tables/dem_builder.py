@@ -1,0 +1,166 @@
+"""The DEM as a table builder: :class:`DemBuilder` runs millfmu's DEM at a grid point and
+normalizes its statistics into table fields; :func:`dem_spec` makes the specification of a
+DEM table from a scene file; :func:`rebuild_including` builds a table whose grid covers a
+point outside the old one.
+
+The DEM (and numba) loads only inside :class:`DemBuilder` calls, not on import.
+"""
+
+from __future__ import annotations
+
+import math
+import tempfile
+import time
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Callable
+
+import numpy as np
+
+from .cache import dem_kernel_version, get_table
+from .spec import (COMPONENTS, DEM_BUILDER_ID, DRIFT_FIELDS, QUANTILE_NAMES, TableError,
+                   TableSpec, builder_id_of, e_ref_J, n_gb_per_m3, norm_log10_edges,
+                   scene_at_point)
+from .table import Table
+
+
+def rebin_density(dem_edges_J: np.ndarray, density_per_decade: np.ndarray,
+                  e_ref: float) -> np.ndarray:
+    """Number density over log10(SE) on the DEM's bins -> density over log10(SE / E_ref)
+    on :func:`norm_log10_edges` [1/decade]. The density is taken constant within a DEM bin
+    (the cumulative distribution linear in log10 SE); mass beyond the normalized range goes
+    to the end bins, as the DEM statistics do with theirs."""
+    u = np.log10(np.asarray(dem_edges_J, float)) - math.log10(e_ref)
+    dens = np.asarray(density_per_decade, float)
+    mass = dens * np.diff(u)
+    total = mass.sum()
+    U = norm_log10_edges()
+    if total <= 0.0:
+        return np.zeros(U.size - 1)
+    cdf = np.concatenate([[0.0], np.cumsum(mass)]) / total
+    F = np.interp(U, u, cdf, left=0.0, right=1.0)
+    w = np.diff(F)
+    w[0] += F[0]
+    w[-1] += 1.0 - F[-1]
+    return w / np.diff(U)
+
+
+def normalize_stats(stats, scene) -> dict:
+    """Per-point table fields from DEM statistics (:class:`millfmu.dem.stats.DemStats`) of
+    a run of ``scene`` (:class:`millfmu.dem.scene.DemScene`, placement 'filling')."""
+    d, rho = scene.bead_diameter_m, scene.material.density_kg_m3
+    eref = e_ref_J(d, rho, scene.tip_speed_m_s)
+    omega = scene.omega_rad_s
+    ngb = n_gb_per_m3(scene.filling, scene.bulk_porosity, d)
+    vols = np.array([z.volume_m3 for z in stats.zones])
+    edges = np.asarray(stats.se_bin_edges_j)
+    out = {
+        "zone_names": [z.name for z in stats.zones],
+        "volume_fraction": vols / vols.sum(),
+        "filling_local": np.array([z.filling for z in stats.zones]),
+        "speed_over_tip_speed": np.array([z.speed_over_tip_speed for z in stats.zones]),
+        "collision_frequency_norm": np.array([z.collision_frequency_per_m3_s
+                                              for z in stats.zones]) / (omega * ngb),
+        "collision_power_norm": np.array([z.collision_power_w for z in stats.zones])
+        / (vols * eref * omega * ngb),
+        "collision_count": np.array([z.collision_count for z in stats.zones], float),
+        "se_density": np.array([[rebin_density(edges, z.se[c].density_per_decade, eref)
+                                 for z in stats.zones] for c in COMPONENTS]),
+        "se_quantiles_norm": np.array([[[np.nan if z.se[c].quantiles_j[q] is None
+                                         else z.se[c].quantiles_j[q] / eref
+                                         for q in QUANTILE_NAMES] for z in stats.zones]
+                                       for c in COMPONENTS]),
+        "e_ref_J": eref, "omega_rad_s": omega, "n_gb_per_m3": ngb,
+    }
+    return out
+
+
+@dataclass(frozen=True)
+class DemBuilder:
+    """Builder of one grid point: runs millfmu's DEM (:func:`millfmu.dem.run.run_scene`) on
+    the scene with the point's values and returns the normalized fields. ``threads``: numba
+    threads per run (1 when grid points run in parallel)."""
+
+    threads: int | None = None
+    builder_id = DEM_BUILDER_ID
+
+    def __call__(self, scene: dict, point: dict) -> dict:
+        from ..run import run_scene
+        from ..scene import scene_from_dict
+
+        s = scene_from_dict(scene_at_point(scene, point))
+        if s.placement != "filling":
+            raise TableError(f"scene {s.name}: beads.placement = {s.placement!r}; tables "
+                             f"need placement 'filling'")
+        with tempfile.TemporaryDirectory(prefix="millfmu-table-point-") as tmp:
+            t0 = time.perf_counter()
+            # Two windows, the halves of the recording: their difference shows whether the
+            # recorded state is stationary (manifest "stationarity").
+            stats = run_scene(s, tmp, progress=False, threads=self.threads,
+                              window_s=0.5 * s.record_s)
+            out = normalize_stats(stats, s)
+            out["drift"] = recording_drift(Path(tmp) / "windows.csv", out["zone_names"])
+        out["wall_time_s"] = time.perf_counter() - t0
+        return out
+
+
+def recording_drift(windows_csv, zone_names) -> dict:
+    """Relative change [-] of each of :data:`DRIFT_FIELDS` per zone from the first to the
+    last window of a DEM run's ``windows.csv``: (last - first) / mean of the two."""
+    import csv
+
+    with open(windows_csv, newline="") as fh:
+        rows = list(csv.DictReader(fh))
+    starts = sorted({float(r["t_start_s"]) for r in rows})
+    first = {r["zone"]: r for r in rows if float(r["t_start_s"]) == starts[0]}
+    last = {r["zone"]: r for r in rows if float(r["t_start_s"]) == starts[-1]}
+    out = {}
+    for f in DRIFT_FIELDS:
+        vals = []
+        for z in zone_names:
+            a, b = float(first[z][f]), float(last[z][f])
+            m = 0.5 * (a + b)
+            vals.append((b - a) / m if math.isfinite(m) and m > 0.0 else float("nan"))
+        out[f] = vals
+    return out
+
+
+def dem_spec(scene_name_or_path: str, grid: dict, overrides: dict | None = None) -> TableSpec:
+    """Spec for a DEM table: the scene file's content (TOML -> dict) with ``overrides``
+    (section -> {key: value}, e.g. {"run": {"spin_up_s": 0.05}}) merged in, validated."""
+    from ..scene import load_scene_dict
+
+    d = load_scene_dict(scene_name_or_path)
+    for sec, kv in (overrides or {}).items():
+        d.setdefault(sec, {}).update(kv)
+    spec = TableSpec(scene=d, grid=grid, kernel_version=dem_kernel_version())
+    for p in (spec.points()[0], spec.points()[-1]):  # validate the corners early
+        _validate_scene_dict(scene_at_point(d, p))
+    return spec
+
+
+def _validate_scene_dict(d: dict):
+    from ..scene import scene_from_dict
+
+    scene_from_dict(d)
+
+
+def rebuild_including(table: Table, point: dict, builder: Callable | None = None,
+                      cache_dir=None, progress: bool = True, **run_kw) -> Table:
+    """Build (or find in the cache) a table like ``table`` whose grid also covers ``point``:
+    each axis whose value lies outside gets that value as a new end node. Every grid point
+    of the new table is built (the cache holds whole tables). ``builder``: default the DEM
+    (:class:`DemBuilder`, with the installed kernel version)."""
+    old = table.spec()
+    grid = {}
+    for ax, vals in old.grid.items():
+        x = float(point[ax])
+        grid[ax] = sorted(set(vals) | ({x} if not vals[0] <= x <= vals[-1] else set()))
+    if builder is None:
+        builder = DemBuilder()
+        kv = dem_kernel_version()
+    else:
+        kv = old.kernel_version
+    spec = TableSpec(scene=old.scene, grid=grid, kernel_version=kv,
+                     builder_id=builder_id_of(builder))
+    return get_table(spec, builder, cache_dir=cache_dir, progress=progress, **run_kw)

@@ -1,0 +1,144 @@
+"""The kinetics' stress-energy source read from a table: :class:`TableStressSource` turns a
+table lookup at an operating point into the zones (volume share, collision rate, stress
+energy distribution) of :mod:`millfmu.kinetics.stress_distribution`.
+
+The kinetics reads the normal component ``tn`` by default: SE_tn = 1/2 m* v_n^2 is the
+impact energy that compresses a particle caught between two beads, the quantity of the
+stress-energy concept (Kwade) and the distribution seed 001 reports; the shear and
+rotational parts mostly rub rather than break. ``total`` can be chosen instead.
+
+Part of what an FMU carries: the DEM builder loads only for ``on_outside='build'``.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Callable
+
+import numpy as np
+
+from .spec import AXES, COMPONENTS, TableError, norm_log10_edges
+from .table import EXTRAPOLABLE_AXES, FIXED_AXIS_RTOL, Lookup, OutsideGridError, Table
+
+
+@dataclass
+class TableStressSource:
+    """Stress-energy source of the detailed model read from a table
+    (:class:`millfmu.kinetics.stress_distribution.StressEnergySource`).
+
+    ``zones(op)`` interpolates the table at (tip speed, filling, and bead diameter, bead
+    density, viscosity where the table has them as axes) and scales back with the operating
+    point's own E_ref (= op.se_beads_J) and omega n_gb: energies [J] = table bins x E_ref,
+    collision rate [1/(m3 s)] = collision_frequency_norm x omega n_gb. ``component``: 'tn'
+    (default, see the module docstring) or 'total'.
+
+    Axes the table does not vary (e.g. bead diameter, bead density, viscosity of the
+    default table) must match the table's DEM scene (relative tolerance 1e-9), unless
+    named in ``similar_axes``: then the dimensionless fields are used unchanged, i.e.
+    similarity in that axis is assumed (recorded in ``last_notes``); millfmu's tests show
+    the scaling only along the tip speed, so this is an explicit choice of the scene.
+    ``tip_speed_m_s`` in ``similar_axes`` lets tip speeds outside the grid (a ramp from
+    standstill, a controller's excursion) use the nearest edge's dimensionless fields.
+    A point outside the grid raises :class:`OutsideGridError` unless
+    ``on_outside='build'``: then ``rebuild(table, point)`` (default
+    :func:`~millfmu.dem.tables.dem_builder.rebuild_including` with the DEM) builds and
+    caches a table whose grid covers the point, progress shown.
+    At tip speed 0 (stirrer at rest) there are no collisions: zones with zero rate.
+    """
+
+    table: Table
+    component: str = "tn"
+    similar_axes: tuple = ()
+    on_outside: str = "refuse"
+    rebuild: Callable | None = None  # (table, point) -> Table covering the point
+    last_lookup: Lookup | None = None
+    last_notes: list = field(default_factory=list)
+
+    def __post_init__(self):
+        if self.component not in COMPONENTS:
+            raise TableError(f"component = {self.component!r}: allowed {list(COMPONENTS)}")
+        if self.on_outside not in ("refuse", "build"):
+            raise TableError(f"on_outside = {self.on_outside!r}: allowed 'refuse', 'build'")
+        self.similar_axes = tuple(self.similar_axes)
+        for ax in self.similar_axes:
+            if ax not in EXTRAPOLABLE_AXES:
+                raise TableError(f"similar_axes: {ax!r} not allowed; allowed: "
+                                 f"{', '.join(EXTRAPOLABLE_AXES)}")
+
+    def point_of(self, op) -> dict:
+        return {ax: float(getattr(op, AXES[ax][3])) for ax in self.table.axes}
+
+    def _check_fixed_axes(self, op) -> list:
+        """Notes for the axes the table does not vary whose op value differs (similarity
+        assumed); OutsideGridError for such an axis not named in ``similar_axes``."""
+        notes = []
+        for ax, v in self.table.fixed_axis_values().items():
+            x = float(getattr(op, AXES[ax][3]))
+            if abs(x - v) <= FIXED_AXIS_RTOL * abs(v):
+                continue
+            if ax not in self.similar_axes:
+                raise OutsideGridError(ax, x, v, v, note=" (its DEM scene's value; the "
+                                       "table does not vary it; name it in similar_axes "
+                                       "to assume similarity)")
+            notes.append(f"{ax} = {x!r}: table scene has {v!r}; similarity assumed")
+        return notes
+
+    def check(self, op):
+        """Raise :class:`OutsideGridError` if :meth:`zones` would refuse ``op`` (a point
+        outside the grid with ``on_outside='refuse'``); cheap: the axes' bounds only, by
+        the same rules as the lookup (:meth:`Table.axis_value`), no interpolation."""
+        self._check_fixed_axes(op)
+        if self.on_outside == "build":
+            return
+        for ax, x in self.point_of(op).items():
+            if ax == "tip_speed_m_s" and not x > 0.0:
+                continue  # the stirrer at rest: no collisions, nothing to look up
+            self.table.axis_value(ax, x, self.similar_axes)
+
+    def zones(self, op):
+        from ...kinetics.stress_distribution import Zone
+
+        names = self.table.zone_names
+        U = norm_log10_edges()
+        if not op.tip_speed_m_per_s > 0.0:
+            # Stirrer at rest: no collisions carry energy.
+            edges = np.array([1e-300, 2e-300])
+            vf = self._volume_fractions()
+            return [Zone(n, float(v), 0.0, edges, np.array([1.0])) for n, v in zip(names, vf)]
+        notes = self._check_fixed_axes(op)
+        point = self.point_of(op)
+        try:
+            lk = self.table.lookup(point, self.similar_axes)
+        except OutsideGridError:
+            if self.on_outside != "build":
+                raise
+            rebuild = self.rebuild
+            if rebuild is None:
+                # Imported here: the builder (cache, grid runs, DEM) stays out of FMUs.
+                from .dem_builder import rebuild_including as rebuild
+            self.table = rebuild(self.table, point)
+            lk = self.table.lookup(point, self.similar_axes)
+        self.last_lookup = lk
+        self.last_notes = notes + lk.notes
+        eref = float(op.se_beads_J)
+        scale = float(op.omega_rad_per_s * op.n_gb_per_m3)
+        edges = eref * 10.0 ** U
+        ci = COMPONENTS.index(self.component)
+        vf = lk.values["volume_fraction"]
+        vf = vf / vf.sum()
+        out = []
+        for k, n in enumerate(names):
+            w = np.clip(lk.values["se_density"][ci, k], 0.0, None) * np.diff(U)
+            rate = max(float(lk.values["collision_frequency_norm"][k]), 0.0) * scale
+            if w.sum() <= 0.0:
+                # No recorded collisions here: no rate, and a placeholder bin at the bottom.
+                w = np.zeros_like(w)
+                w[0] = 1.0
+                rate = 0.0
+            out.append(Zone(n, float(vf[k]), rate, edges, w / w.sum()))
+        return out
+
+    def _volume_fractions(self):
+        # The geometry fixes the zone volumes; take them at the first grid point.
+        vf = self.table.data["volume_fraction"].reshape(-1, len(self.table.zone_names))[0]
+        return vf / vf.sum()

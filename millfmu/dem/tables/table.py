@@ -1,0 +1,536 @@
+"""The stress-energy table and its lookup: :class:`Table` (multilinear interpolation with
+error estimates and sampling standard deviations, slices, export), :func:`read_table`, which
+verifies a table's files before it is used, and the shipped default table.
+
+Part of what an FMU carries (with :mod:`.spec`, :mod:`.files` and :mod:`.stress_source`):
+numpy only, no DEM, no numba.
+"""
+
+from __future__ import annotations
+
+import importlib.util
+import itertools
+import json
+import math
+import os
+import tempfile
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Iterable
+
+import numpy as np
+
+from .files import (MANIFEST_FILE, MANIFEST_SUM_FILE, MANIFEST_SUM_KEY, TABLE_FILE,
+                    manifest_digest, sha256_bytes, sha256_file, write_synced)
+from .spec import (AXES, COMPONENTS, DRIFT_FIELDS, FIELDS, FORMAT_VERSION, OPTIONAL_FIELDS,
+                   QUANTILE_NAMES, ZONE_FIELDS, TableError, TableSpec, manifest_for,
+                   norm_log10_edges)
+
+
+#: Error estimates multiply the second-difference estimate of the linear-interpolation error
+#: by this factor, because the curvature is taken at neighbouring nodes, not at the point.
+ERROR_SAFETY = 2.0
+#: Gridded axes along which ``similar_axes`` may extend a lookup beyond the grid by holding
+#: the dimensionless fields at the nearest edge: energies over E_ref ~ v_t^2 and frequencies
+#: over omega n_gb ~ v_t take out the leading tip-speed dependence (seed 000's stress model);
+#: tests/tables and the default table's manifest show how far that holds. Not filling: the
+#: bead fillings and collision densities change with it in ways no normalization removes.
+EXTRAPOLABLE_AXES = ("tip_speed_m_s", "bead_diameter_m", "bead_density_kg_m3",
+                     "viscosity_pa_s")
+#: Relative tolerance for matching a single-valued axis (an axis the grid does not vary).
+FIXED_AXIS_RTOL = 1e-9
+
+
+class OutsideGridError(TableError):
+    """A lookup point outside the grid; names the axis, the value and the bounds."""
+
+    def __init__(self, axis: str, value: float, lo: float, hi: float, note: str = ""):
+        self.axis, self.value, self.lo, self.hi = axis, value, lo, hi
+        unit = f" {AXES[axis][2]}" if axis in AXES and AXES[axis][2] != "-" else ""
+        bounds = (f"the table holds only {lo!r}{unit}" if lo == hi
+                  else f"allowed {lo!r} to {hi!r}{unit}")
+        #: What is allowed, in words (for errors that name the input or scene key instead).
+        self.allowed = f"outside the stress-energy table's grid; {bounds}{note}"
+        super().__init__(f"table lookup: {axis} = {value!r}{unit} is outside the grid; "
+                         f"{bounds}{note}")
+
+
+# ---- the table -----------------------------------------------------------------------------
+@dataclass
+class Lookup:
+    """Interpolated fields at one point (``values``), their interpolation-error estimates
+    (``error``, same shapes; NaN where an axis has too few points to estimate curvature)
+    and the sampling standard deviation carried over from the DEM nodes (``sigma``)."""
+
+    point: dict
+    values: dict
+    error: dict
+    notes: list = field(default_factory=list)
+    sigma: dict = field(default_factory=dict)
+
+    def bound(self, name: str, k_sigma: float = 2.0) -> np.ndarray:
+        """Interpolation error plus ``k_sigma`` sampling standard deviations of a field."""
+        return self.error[name] + k_sigma * self.sigma.get(name, 0.0)
+
+
+@dataclass
+class Table:
+    """Grid axes, zone names and the fields of :data:`FIELDS` as arrays of shape
+    grid shape + field shape; plus per grid point the references ``e_ref_J`` [J],
+    ``omega_rad_s`` [rad/s] and ``n_gb_per_m3`` [1/m3] used to normalize."""
+
+    axes: dict
+    zone_names: tuple
+    data: dict
+    refs: dict
+    manifest: dict = field(default_factory=dict)
+
+    # -- geometry of the grid
+    @property
+    def shape(self) -> tuple:
+        return tuple(len(v) for v in self.axes.values())
+
+    @property
+    def edges_log10(self) -> np.ndarray:
+        return norm_log10_edges()
+
+    def check_shapes(self):
+        """Raise TableError unless every array has the shape the grid and zones imply."""
+        z, c, b, q = len(self.zone_names), len(COMPONENTS), norm_log10_edges().size - 1, \
+            len(QUANTILE_NAMES)
+        want = {k: (z,) for k in ZONE_FIELDS}
+        want.update(se_density=(c, z, b), se_quantiles_norm=(c, z, q))
+        if "recording_drift" in self.data:
+            want["recording_drift"] = (len(DRIFT_FIELDS), z)
+        for k, tail in want.items():
+            if k not in self.data:
+                raise TableError(f"table: field {k!r} missing")
+            if self.data[k].shape != self.shape + tail:
+                raise TableError(f"table: field {k} has shape {self.data[k].shape}, "
+                                 f"expected {self.shape + tail}")
+        for k in ("e_ref_J", "omega_rad_s", "n_gb_per_m3"):
+            if k not in self.refs or self.refs[k].shape != self.shape:
+                raise TableError(f"table: reference {k!r} missing or of wrong shape")
+
+    # -- lookup
+    def axis_value(self, name: str, x: float, similar=()) -> tuple:
+        """The value a lookup uses on axis ``name`` for ``x``, and a note (or None); raises
+        :class:`OutsideGridError` where :meth:`lookup` refuses (see there): round-off at an
+        edge is the edge; a similar axis keeps a single node's value, and an extrapolable
+        one holds the nearest edge outside the grid."""
+        ax = self.axes[name]
+        lo, hi = float(ax[0]), float(ax[-1])
+        if ax.size == 1:
+            if abs(x - lo) <= FIXED_AXIS_RTOL * abs(lo):
+                return lo, None
+            if name in similar:
+                return lo, (f"{name} = {x!r}: table holds {lo!r} only; dimensionless "
+                            f"fields used unchanged (similarity assumed)")
+            raise OutsideGridError(name, x, lo, hi, note="; the axis is not varied in "
+                                   "this table (allow it with similar_axes to assume "
+                                   "similarity)")
+        if not math.isfinite(x):
+            raise OutsideGridError(name, x, lo, hi)
+        # Round-off at an edge (a filling computed as 0.8000000000000002) is on the edge.
+        tol = FIXED_AXIS_RTOL * max(abs(lo), abs(hi))
+        if lo - tol <= x < lo or hi < x <= hi + tol:
+            return (lo if x < lo else hi), None
+        if lo <= x <= hi:
+            return x, None
+        if name not in similar or name not in EXTRAPOLABLE_AXES:
+            raise OutsideGridError(name, x, lo, hi)
+        edge = lo if x < lo else hi
+        return edge, (f"{name} = {x!r} outside the grid [{lo!r}, {hi!r}]: "
+                      f"dimensionless fields held at {edge!r} (similarity assumed)")
+
+    def lookup(self, point: dict, similar_axes: Iterable[str] = ()) -> Lookup:
+        """Multilinear interpolation of all fields at ``point`` (axis -> value).
+
+        Every axis of the table must be given. Axes with one value must match it (relative
+        tolerance 1e-9) unless named in ``similar_axes``: then the value is accepted and the
+        table's dimensionless fields are used as they are, which assumes similarity in that
+        axis (a stated assumption, recorded in the notes). A value outside an axis's range
+        raises :class:`OutsideGridError` naming the axis, the value and the bounds, unless
+        the axis is in :data:`EXTRAPOLABLE_AXES` and named in ``similar_axes``: then the
+        fields of the nearest grid edge are used (noted), the similarity the table's
+        normalization rests on.
+
+        Error estimate per field: for each axis with at least 3 points, the linear
+        interpolation error t (1 - t) h^2 / 2 |f''| with f'' from the second divided
+        difference at the interval's end nodes (the larger), summed over axes and multiplied
+        by ERROR_SAFETY, plus 16 ulps of the value for rounding; zero at grid points; NaN
+        when an axis with 2 points has t in (0, 1). This is the error of interpolating
+        between the stored values. The DEM's own sampling noise is separate:
+        ``Lookup.sigma`` (see :meth:`node_sigma`) propagated through the weights,
+        sqrt(sum w_c^2 sigma_c^2); :meth:`Lookup.bound` combines the two.
+        """
+        similar = set(similar_axes)
+        idx, ts, notes = [], [], []
+        for name, ax in self.axes.items():
+            if name not in point:
+                raise TableError(f"table lookup: axis {name} missing from the point "
+                                 f"{point!r}; the table's axes: {list(self.axes)}")
+            x, note = self.axis_value(name, float(point[name]), similar)
+            if note:
+                notes.append(note)
+            if ax.size == 1:
+                idx.append(0), ts.append(0.0)
+                continue
+            i = int(np.searchsorted(ax, x, side="right") - 1)
+            i = min(max(i, 0), ax.size - 2)
+            t = (x - ax[i]) / (ax[i + 1] - ax[i])
+            # Snap to the node so that grid points are reproduced exactly.
+            if t == 1.0:
+                i, t = i + 1, 0.0
+            if i == ax.size - 1:
+                i, t = i - 1, 1.0
+            idx.append(i), ts.append(float(t))
+        values, errors, sigmas = {}, {}, {}
+        at_node = all(t in (0.0, 1.0) for t in ts)
+        node_sigma = self.node_sigma()
+        for k, arr in self.data.items():
+            values[k] = _multilinear(arr, idx, ts)
+            errors[k] = self._error(arr, idx, ts)
+            if not at_node:
+                # rounding of the weighted sum: a few ulps of the value
+                errors[k] = errors[k] + 16.0 * np.finfo(float).eps * np.abs(values[k])
+            var = None
+            for corner, w in _corners(idx, ts):
+                v = (w * node_sigma[k][corner]) ** 2
+                var = v if var is None else var + v
+            sigmas[k] = np.sqrt(var) if var is not None else np.array(node_sigma[k], float)
+        return Lookup(point=dict(point), values=values, error=errors, notes=notes,
+                      sigma=sigmas)
+
+    def node_sigma(self) -> dict:
+        """Sampling standard deviation of each stored value, from the recorded collision
+        count N of its zone (Poisson / binomial statistics; collisions treated as
+        independent, so a lower bound where the same beads collide repeatedly):
+        collision frequency f/sqrt(N); collision power P sqrt(<e^2>)/(<e> sqrt(N)) with the
+        moments of the SE_total bins; bin density sqrt(w (1 - w) / N) / dlog10; quantile
+        q_p: q ln10 sqrt(p (1 - p) / N) / g, g the density per decade at q_p. Fields
+        without a count model (volume fraction, local filling, speed) get 0.
+        Tables that keep ``recording_drift`` (DEM tables) add half the relative change
+        between the halves of each point's recording times the value, in quadrature, to
+        the local filling, speed, collision frequency and power and to the SE quantiles:
+        the slow drift of the bead motion that the counts cannot see.
+        Against held-back DEM points (tests/tables) the quantiles and the frequencies of
+        well-sampled zones stay within error + 2 sigma; zones that (almost) empty during a
+        run (V4 below 70 % filling) do not: treat these sigmas as lower bounds there."""
+        if getattr(self, "_node_sigma", None) is not None:
+            return self._node_sigma
+        U = norm_log10_edges()
+        dU = np.diff(U)
+        n = self.data["collision_count"]  # (..., Z)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            inv = np.where(n > 0, 1.0 / np.sqrt(np.maximum(n, 1.0)), np.inf)
+            out = {k: np.zeros_like(v, dtype=float) for k, v in self.data.items()}
+            out["collision_frequency_norm"] = np.abs(self.data["collision_frequency_norm"]) * inv
+            dens = self.data["se_density"]  # (..., C, Z, B)
+            w = dens * dU
+            out["se_density"] = np.sqrt(np.clip(w * (1.0 - w), 0.0, None)) \
+                * inv[..., None, :, None] / dU
+            e = 10.0 ** (0.5 * (U[:-1] + U[1:]))
+            wt = w[..., COMPONENTS.index("total"), :, :]
+            m1, m2 = (wt * e).sum(-1), (wt * e * e).sum(-1)
+            rel = np.where(m1 > 0, np.sqrt(m2) / m1, 0.0)
+            out["collision_power_norm"] = np.abs(self.data["collision_power_norm"]) * rel * inv
+            q = self.data["se_quantiles_norm"]  # (..., C, Z, Q)
+            p = np.array([0.1, 0.5, 0.9])
+            b = np.clip(np.searchsorted(U, np.log10(np.where(q > 0, q, 1.0))) - 1, 0,
+                        U.size - 2)
+            g = np.take_along_axis(dens, b, axis=-1)
+            sq = q * math.log(10.0) * np.sqrt(p * (1 - p))[None] * inv[..., None, :, None] / g
+            out["se_quantiles_norm"] = np.where(np.isfinite(sq), sq, np.abs(q))
+        if "recording_drift" in self.data:
+            # The collision counts miss the slow changes of the bead motion over a run:
+            # the change between the halves of the recording, |drift| / 2 of the value,
+            # is added in quadrature (the energy scale's drift to every quantile).
+            d = 0.5 * np.abs(np.nan_to_num(self.data["recording_drift"], nan=0.0))
+            fi = {f: i for i, f in enumerate(DRIFT_FIELDS)}
+            for k, f in (("filling_local", "filling"),
+                         ("speed_over_tip_speed", "speed_over_tip_speed"),
+                         ("collision_frequency_norm", "collision_frequency_per_m3_s"),
+                         ("collision_power_norm", "collision_frequency_per_m3_s")):
+                out[k] = np.hypot(out[k], np.abs(self.data[k]) * d[..., fi[f], :])
+            dq = d[..., fi["se_tn_q50_j"], :][..., None, :, None]
+            out["se_quantiles_norm"] = np.hypot(out["se_quantiles_norm"],
+                                                np.abs(self.data["se_quantiles_norm"]) * dq)
+        self._node_sigma = out
+        return out
+
+    def _error(self, arr, idx, ts) -> np.ndarray:
+        tail = arr.shape[len(self.axes):]
+        err = np.zeros(tail)
+        for a, (name, ax) in enumerate(self.axes.items()):
+            t = ts[a]
+            if ax.size == 1 or t == 0.0 or t == 1.0:
+                continue
+            if ax.size < 3:
+                err = err + np.nan
+                continue
+            i = idx[a]
+            h = ax[i + 1] - ax[i]
+            curv = np.zeros(tail)
+            # Second divided differences at the nodes i and i+1 where they exist; the
+            # other axes at the corners of the interpolation cell (their max).
+            for c in (i, i + 1):
+                if 1 <= c <= ax.size - 2:
+                    hl, hr = ax[c] - ax[c - 1], ax[c + 1] - ax[c]
+                    f = [np.take(arr, c + d, axis=a) for d in (-1, 0, 1)]
+                    d2 = 2.0 * ((f[2] - f[1]) / hr - (f[1] - f[0]) / hl) / (hl + hr)
+                    sub_idx = idx[:a] + idx[a + 1:]
+                    sub_ts = ts[:a] + ts[a + 1:]
+                    curv = np.maximum(curv, _corner_max(np.abs(d2), sub_idx, sub_ts))
+            err = err + ERROR_SAFETY * t * (1.0 - t) * h * h / 2.0 * curv
+        return err
+
+    def fixed_axis_values(self) -> dict:
+        """Values of the axes of :data:`AXES` that the grid does not vary, as the table's
+        DEM scene (manifest) gives them; axes the scene does not name are left out."""
+        scene = self.manifest.get("scene", {})
+        out = {}
+        for ax, (sec, key, _, _) in AXES.items():
+            if ax not in self.axes and isinstance(scene.get(sec), dict) and key in scene[sec]:
+                out[ax] = float(scene[sec][key])
+        return out
+
+    def spec(self) -> "TableSpec":
+        """The specification this table was built from (from its manifest)."""
+        m = self.manifest
+        try:
+            return TableSpec(scene=m["scene"], grid=m["grid"],
+                             kernel_version=m["kernel_version"], builder_id=m["builder"])
+        except KeyError as e:
+            raise TableError(f"table: manifest lacks {e}; not a cached or exported table") \
+                from None
+
+    def subset(self, bounds: dict) -> "Table":
+        """The slice of the grid that a scene needs: for each axis named in ``bounds``
+        (axis -> (lo, hi)), the nodes from the last one <= lo to the first one >= hi.
+        Lookups inside the bounds give the same values as on the full table (their error
+        estimates can be NaN when fewer than 3 nodes remain). The slice's manifest is that
+        of a table built on the sliced grid, with ``slice_of`` naming the full table."""
+        idx = []
+        for name, ax in self.axes.items():
+            if name not in bounds:
+                idx.append(np.arange(ax.size))
+                continue
+            lo, hi = (float(x) for x in bounds[name])
+            if lo > hi:
+                raise TableError(f"subset: {name} bounds ({lo!r}, {hi!r}): lo > hi")
+            for x in (lo, hi):
+                if not ax[0] <= x <= ax[-1]:
+                    raise OutsideGridError(name, x, float(ax[0]), float(ax[-1]))
+            i0 = int(np.searchsorted(ax, lo, side="right") - 1)
+            i1 = int(np.searchsorted(ax, hi, side="left"))
+            idx.append(np.arange(i0, i1 + 1))
+        sel = np.ix_(*idx)
+        axes = {k: ax[i] for (k, ax), i in zip(self.axes.items(), idx)}
+        data = {k: v[sel] for k, v in self.data.items()}
+        refs = {k: v[sel] for k, v in self.refs.items()}
+        sub = Table(axes=axes, zone_names=self.zone_names, data=data, refs=refs)
+        if "scene" in self.manifest:
+            old = self.spec()
+            spec = TableSpec(scene=old.scene, grid={k: list(v) for k, v in axes.items()},
+                             kernel_version=old.kernel_version, builder_id=old.builder_id)
+            sub.manifest = manifest_for(spec, sub, {"slice_of": self.manifest.get("key")})
+        return sub
+
+    def export(self, prefix) -> tuple[Path, Path]:
+        """Write ``PREFIX.npz`` and ``PREFIX.json`` (the manifest, with the .npz checksum),
+        e.g. for the package data or an FMU's resources; returns the two paths."""
+        if "key" not in self.manifest:
+            raise TableError("export: the table has no manifest (build it with get_table)")
+        prefix = Path(prefix)
+        prefix.parent.mkdir(parents=True, exist_ok=True)
+        with tempfile.TemporaryDirectory(dir=prefix.parent) as tmp:
+            m = {k: v for k, v in self.manifest.items() if k != "files"}
+            self.save(tmp, m)
+            npz, man = Path(str(prefix) + ".npz"), Path(str(prefix) + ".json")
+            os.replace(Path(tmp) / TABLE_FILE, npz)
+            os.replace(Path(tmp) / MANIFEST_FILE, man)
+        read_table(npz=npz, manifest_path=man)
+        return npz, man
+
+    # -- files
+    def arrays(self) -> dict:
+        out = {f"axis_{k}": np.asarray(v, float) for k, v in self.axes.items()}
+        out.update({k: np.asarray(v) for k, v in self.data.items()})
+        out.update({f"ref_{k}": np.asarray(v, float) for k, v in self.refs.items()})
+        out["norm_log10_edges"] = norm_log10_edges()
+        return out
+
+    def save(self, folder, manifest: dict) -> dict:
+        """Write ``table.npz``, ``manifest.json`` (with the table file's size and sha256)
+        and ``manifest.json.sha256`` into ``folder``, each fsync'ed; returns the manifest."""
+        folder = Path(folder)
+        folder.mkdir(parents=True, exist_ok=True)
+        tp = folder / TABLE_FILE
+        with open(tp, "wb") as fh:
+            np.savez_compressed(fh, **self.arrays())
+            fh.flush()
+            os.fsync(fh.fileno())
+        m = dict(manifest)
+        m["files"] = {TABLE_FILE: {"bytes": tp.stat().st_size, "sha256": sha256_file(tp)}}
+        m["zone_names"] = list(self.zone_names)
+        m["components"] = list(COMPONENTS)
+        m["quantiles"] = list(QUANTILE_NAMES)
+        m["axes"] = {k: [float(x) for x in v] for k, v in self.axes.items()}
+        m[MANIFEST_SUM_KEY] = manifest_digest(m)
+        text = json.dumps(m, indent=1, sort_keys=True, allow_nan=False).encode()
+        write_synced(folder / MANIFEST_FILE, text)
+        write_synced(folder / MANIFEST_SUM_FILE, (sha256_bytes(text) + "\n").encode())
+        self.manifest = m
+        return m
+
+
+def _corners(idx, ts):
+    """(index tuple, weight) of the 2^d corners of a cell; zero-weight corners skipped."""
+    for bits in itertools.product((0, 1), repeat=len(idx)):
+        w = 1.0
+        for b, t in zip(bits, ts):
+            w *= t if b else (1.0 - t)
+        if w != 0.0:
+            yield tuple(i + b for i, b in zip(idx, bits)), w
+
+
+def _multilinear(arr, idx, ts) -> np.ndarray:
+    if not idx:
+        return np.array(arr, float)
+    out = None
+    for corner, w in _corners(idx, ts):
+        v = w * arr[corner].astype(float) if w != 1.0 else arr[corner].astype(float)
+        out = v if out is None else out + v
+    return out
+
+
+def _corner_max(arr, idx, ts) -> np.ndarray:
+    if not idx:
+        return np.array(arr, float)
+    out = None
+    for bits in itertools.product((0, 1), repeat=len(idx)):
+        corner = tuple(min(i + b, arr.shape[k] - 1) for k, (i, b) in enumerate(zip(idx, bits)))
+        v = np.nan_to_num(arr[corner].astype(float), nan=0.0)
+        out = v if out is None else np.maximum(out, v)
+    return out
+
+
+# ---- reading and verifying files ------------------------------------------------------------
+def read_table(folder=None, *, npz=None, manifest_path=None, expect_key: str | None = None,
+               expect_kernel: str | None = None) -> Table:
+    """Read and verify a table; raise TableError saying what is wrong.
+
+    Either ``folder`` (a cache entry: table.npz, manifest.json, manifest.json.sha256) or
+    ``npz`` and ``manifest_path`` (a shipped table such as millfmu/data/default_table.*).
+    Checks: manifest checksum (when its .sha256 file exists, always in cache entries),
+    format version, key = sha256 of the manifest's key content (and = ``expect_key``),
+    kernel version (= ``expect_kernel`` when given), the table file's size and sha256, the
+    array shapes. Arrays are loaded with allow_pickle=False.
+    """
+    if folder is not None:
+        folder = Path(folder)
+        npz, manifest_path = folder / TABLE_FILE, folder / MANIFEST_FILE
+        sum_path = folder / MANIFEST_SUM_FILE
+        if not sum_path.exists():
+            raise TableError(f"{sum_path}: missing (entry incomplete)")
+    else:
+        npz, manifest_path = Path(npz), Path(manifest_path)
+        sum_path = Path(str(manifest_path) + ".sha256")
+    if not manifest_path.exists():
+        raise TableError(f"{manifest_path}: missing")
+    text = manifest_path.read_bytes()
+    if sum_path.exists():
+        want = sum_path.read_text().strip()
+        if sha256_bytes(text) != want:
+            raise TableError(f"{manifest_path}: sha256 {sha256_bytes(text)[:16]}... does not "
+                             f"match {sum_path.name} ({want[:16]}...): corrupted")
+    try:
+        m = json.loads(text)
+    except (json.JSONDecodeError, UnicodeDecodeError) as e:
+        raise TableError(f"{manifest_path}: not valid JSON ({e})") from None
+    if not isinstance(m, dict):
+        raise TableError(f"{manifest_path}: not a JSON object: corrupted")
+    if MANIFEST_SUM_KEY in m:
+        if m[MANIFEST_SUM_KEY] != manifest_digest(m):
+            raise TableError(f"{manifest_path}: content does not match its {MANIFEST_SUM_KEY}: edited or corrupted")
+    elif not sum_path.exists():
+        raise TableError(f"{manifest_path}: no checksum ({MANIFEST_SUM_KEY} or {sum_path.name}): "
+                         f"written by an older millfmu; export the table again")
+    if m.get("format") != FORMAT_VERSION:
+        raise TableError(f"{manifest_path}: format = {m.get('format')!r}, this millfmu "
+                         f"reads format {FORMAT_VERSION}: stale")
+    try:
+        spec = TableSpec(scene=m["scene"], grid=m["grid"], kernel_version=m["kernel_version"],
+                         builder_id=m["builder"])
+    except KeyError as e:
+        raise TableError(f"{manifest_path}: key {e} missing") from None
+    except (TypeError, ValueError) as e:
+        raise TableError(f"{manifest_path}: {e}") from None
+    if not isinstance(m.get("zone_names"), list):
+        raise TableError(f"{manifest_path}: zone_names missing")
+    key = spec.key()
+    if m.get("key") != key:
+        raise TableError(f"{manifest_path}: key {m.get('key')!r} does not match its content "
+                         f"({key}): corrupted or edited")
+    if expect_key is not None and key != expect_key:
+        raise TableError(f"{manifest_path}: key {key} is not the expected {expect_key}: stale")
+    if expect_kernel is not None and m["kernel_version"] != expect_kernel:
+        raise TableError(f"{manifest_path}: built with DEM kernel version "
+                         f"{m['kernel_version']}, current is {expect_kernel}: stale")
+    info = (m.get("files") or {}).get(TABLE_FILE)
+    if not isinstance(info, dict) or not {"bytes", "sha256"} <= set(info):
+        raise TableError(f"{manifest_path}: no checksum for {TABLE_FILE}")
+    if not npz.exists():
+        raise TableError(f"{npz}: missing")
+    size = npz.stat().st_size
+    if size != info["bytes"]:
+        raise TableError(f"{npz}: {size} bytes, manifest says {info['bytes']}: truncated "
+                         f"or extended")
+    digest = sha256_file(npz)
+    if digest != info["sha256"]:
+        raise TableError(f"{npz}: sha256 {digest[:16]}... does not match the manifest "
+                         f"({info['sha256'][:16]}...): corrupted")
+    try:
+        with np.load(npz, allow_pickle=False) as f:
+            arrs = {k: f[k] for k in f.files}
+    except Exception as e:  # a zip/npy error: the file is not a table
+        raise TableError(f"{npz}: cannot be read as .npz ({type(e).__name__}: {e})") from None
+    axes = {}
+    for name in spec.grid:
+        a = arrs.get(f"axis_{name}")
+        if a is None or not np.array_equal(a, np.asarray(spec.grid[name])):
+            raise TableError(f"{npz}: axis {name} missing or differs from the manifest grid")
+        axes[name] = a
+    t = Table(axes=axes, zone_names=tuple(m["zone_names"]),
+              data={k: arrs[k] for k in FIELDS + OPTIONAL_FIELDS if k in arrs},
+              refs={k[4:]: v for k, v in arrs.items() if k.startswith("ref_")}, manifest=m)
+    t.check_shapes()
+    return t
+
+
+# ---- shipped default table -----------------------------------------------------------------
+DEFAULT_TABLE_NPZ = "default_table.npz"
+DEFAULT_TABLE_MANIFEST = "default_table.json"
+
+
+def default_table_paths() -> tuple[Path, Path]:
+    """Paths of the shipped default table (millfmu/data/default_table.npz, .json)."""
+    base = Path(importlib.util.find_spec("millfmu").origin).parent / "data"
+    return base / DEFAULT_TABLE_NPZ, base / DEFAULT_TABLE_MANIFEST
+
+
+def read_table_ref(ref: str) -> Table:
+    """The table a scene names: "default" (the shipped one) or PREFIX of PREFIX.npz/PREFIX.json."""
+    if ref == "default":
+        return read_default_table()
+    return read_table(npz=ref + ".npz", manifest_path=ref + ".json")
+
+
+def read_default_table() -> Table:
+    """The shipped default table, verified (checksums, key, shapes; its kernel version is
+    recorded in its manifest and not required to match the installed DEM)."""
+    npz, man = default_table_paths()
+    if not npz.exists():
+        raise TableError(f"default table {npz.name}: not shipped in this installation")
+    return read_table(npz=npz, manifest_path=man)
