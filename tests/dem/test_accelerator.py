@@ -265,3 +265,47 @@ def test_short_coupled_run_has_the_papers_quantities(tmp_path):
               "speed_profiles.png", "windows.csv", "fluid_fields.npz"):
         assert (out / f).stat().st_size > 0
     json.loads((out / "stats.json").read_text())
+
+
+def _fake_stats(rpm, fill, eff):
+    """stats.json content with every seed 002 statement holding."""
+    from millfmu.dem.seed002 import ZONE_NAMES
+
+    speed = {"SEV_1": 0.3, "SEV_2": 0.4, "SEV_3": 0.6, "SEV_4": 0.55}
+    filling = {"SEV_1": 0.9, "SEV_2": 0.7, "SEV_3": 0.5, "SEV_4": 0.8}
+    sn = {"SEV_1": 4e11, "SEV_2": 2e11, "SEV_3": 0.5e11, "SEV_4": 1e11}
+    si = {"SEV_1": 2e-8, "SEV_2": 1.5e-8, "SEV_3": 1.2e-8, "SEV_4": 1.4e-8}
+    zq = {z: dict(SN_g_per_m3_s=sn[z] * fill, SI_j=si[z], SE_cs_w_per_m3=sn[z] * si[z])
+          for z in ZONE_NAMES}
+    prof = dict(z_over_r=[0.05, 0.5, 0.9],
+                speed_over_tip_speed=[0.2, 0.4, 0.6], samples=[1, 1, 1])
+    return dict(zones=[dict(name=z, filling=filling[z], speed_over_tip_speed=speed[z])
+                       for z in ZONE_NAMES],
+                flow=dict(seed002=dict(zones=zq, radial_speed_profile=prof, total=dict(
+                    SN_g_per_m3_s=1e11 * fill, SE_ts_sum_w=10.0, SE_tn_sum_w=1.0,
+                    ts_share=10.0 / 11.0, efficiency=eff))))
+
+
+def test_seed002_table_gives_verdicts_from_the_runs(tmp_path):
+    from millfmu.dem import seed002 as S
+
+    def write(case, st):
+        d = S.case_dir(tmp_path, *case)
+        d.mkdir(parents=True, exist_ok=True)
+        (d / "stats.json").write_text(json.dumps(st))
+
+    for case in S.CASES:
+        eff = 0.004 if case in ((1000.0, 0.8), (1200.0, 0.8)) else 0.003
+        if case == (1000.0, 0.8):
+            eff = 0.0044
+        write(case, _fake_stats(*case, eff))
+    rows = S.deviation_rows(tmp_path)
+    assert len(rows) == 12
+    assert all(r["verdict"].startswith("matches") for r in rows), S.markdown(rows)
+    bad = _fake_stats(800.0, 0.8, 0.01)  # 1 % efficiency, and SEV_3 the slowest
+    bad["zones"][2]["speed_over_tip_speed"] = 0.1
+    write((800.0, 0.8), bad)
+    v = {r["statement"][:40]: r["verdict"] for r in S.deviation_rows(tmp_path)}
+    assert v["efficiency SE_cs,sum / SE_net at most 0."].startswith("missed")
+    assert v["beads fastest in SEV_3 and SEV_4, slowes"].startswith("missed")
+    assert "|" in S.markdown(rows).splitlines()[2]

@@ -165,6 +165,10 @@ def scene_at_point(scene: dict, point: dict) -> dict:
     for axis, value in point.items():
         sec, key = AXES[axis][0], AXES[axis][1]
         d.setdefault(sec, {})[key] = float(value)
+        if key == "tip_speed_m_s":
+            # an accelerator scene may give its speed in rpm instead: the point's tip
+            # speed replaces it
+            d[sec].pop("rotor_speed_rpm", None)
     return d
 
 

@@ -520,10 +520,20 @@ def default_table_paths() -> tuple[Path, Path]:
     return base / DEFAULT_TABLE_NPZ, base / DEFAULT_TABLE_MANIFEST
 
 
+#: Tables shipped beside the default one, by the name a scene gives (``table = NAME``):
+#: millfmu/data/NAME_table.npz and .json.
+SHIPPED_TABLES = ("accelerator",)
+
+
 def read_table_ref(ref: str) -> Table:
-    """The table a scene names: "default" (the shipped one) or PREFIX of PREFIX.npz/PREFIX.json."""
+    """The table a scene names: "default" (the shipped one), a name in SHIPPED_TABLES
+    (millfmu/data/NAME_table.*), or PREFIX of PREFIX.npz/PREFIX.json."""
     if ref == "default":
         return read_default_table()
+    if ref in SHIPPED_TABLES:
+        base = default_table_paths()[0].parent
+        return read_table(npz=base / f"{ref}_table.npz",
+                          manifest_path=base / f"{ref}_table.json")
     return read_table(npz=ref + ".npz", manifest_path=ref + ".json")
 
 
