@@ -92,6 +92,9 @@ def register(subparsers) -> argparse.ArgumentParser:
                     "done) or print the table from their results")
     s2.add_argument("--out", required=True, help="folder of the case runs")
     s2.add_argument("--threads", type=int, help="numba threads (default: all cores)")
+    s2.add_argument("--export-table", metavar="PREFIX", help="also write the stress-energy "
+                    "table of the 80 %% runs over the rotor speeds to PREFIX.npz/.json (e.g. "
+                    "millfmu/data/accelerator_table)")
     s2.set_defaults(func=_seed002)
 
     c = sub.add_parser("compare", help="key results of run folders side by side (sector, grid "
@@ -133,6 +136,16 @@ def _seed002(args) -> int:
     if args.action == "run":
         seed002.run_campaign(args.out, threads=args.threads)
     print(seed002.markdown(seed002.deviation_rows(args.out)))
+    if args.export_table:
+        from millfmu.dem.tables.spec import TableError
+
+        try:
+            t = seed002.export_table(args.out, args.export_table)
+        except TableError as e:
+            print(f"millfmu dem seed002: {e}", file=sys.stderr)
+            return 2
+        print(f"exported {args.export_table}.npz/.json ({t.axes['tip_speed_m_s'].size} "
+              f"tip speeds)")
     return 0
 
 

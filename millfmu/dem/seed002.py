@@ -59,6 +59,79 @@ def run_campaign(out_dir, cases=CASES, threads=None, progress=True):
                   window_s=WINDOW_S)
 
 
+#: Builder id of a table assembled from the campaign's runs (not the DemBuilder: the runs'
+#: windows are WINDOW_S long, not the halves of the recording, and they keep their outputs)
+CAMPAIGN_BUILDER_ID = "millfmu.dem.seed002.campaign_runs"
+
+
+def protocol_overrides(sector_deg: float = SECTOR_DEG) -> dict:
+    """The protocol as scene overrides (section -> {key: value}), as ``tables build`` takes
+    them."""
+    return {"mill": {"sector_deg": sector_deg},
+            "run": {"spin_up_s": SPIN_UP_S, "record_s": RECORD_S, "sample_every_s": SAMPLE_S,
+                    "gravity_m_s2": [0.0, 0.0, 0.0]}}
+
+
+def export_table(out_dir, prefix, filling: float = 0.8):
+    """The stress-energy table of the campaign's runs at ``filling`` over the rotor speeds
+    (tip-speed axis), written to PREFIX.npz / PREFIX.json with a manifest that names the
+    runs, the protocol and the commands that rebuild it. Returns the Table."""
+    from millfmu.dem.scene import scene_from_dict
+    from millfmu.dem.stats import DemStats
+    from millfmu.dem.tables.build import assemble, stationarity_summary
+    from millfmu.dem.tables.cache import dem_kernel_version
+    from millfmu.dem.tables.dem_builder import normalize_stats, recording_drift
+    from millfmu.dem.tables.spec import (TableError, TableSpec, manifest_for,
+                                         scene_at_point)
+    from millfmu.dem.scene import load_scene_dict
+
+    base = load_scene_dict("accelerator_slice")
+    for sec, kv in protocol_overrides().items():
+        base.setdefault(sec, {}).update(kv)
+    base["beads"]["filling"] = filling
+    r_rim = base["mill"]["rotor_radius_m"]
+    tips = [n * 2.0 * math.pi / 60.0 * r_rim for n in SPEEDS]
+    spec = TableSpec(scene=base, grid={"tip_speed_m_s": tips},
+                     kernel_version=dem_kernel_version(), builder_id=CAMPAIGN_BUILDER_ID)
+    results, walls = [], 0.0
+    for n, point in zip(SPEEDS, spec.points()):
+        d = case_dir(out_dir, n, filling)
+        if not (d / "stats.json").exists():
+            raise TableError(f"{d}: no stats.json; run 'millfmu dem seed002 run --out "
+                             f"{out_dir}' first")
+        stats = DemStats.from_json((d / "stats.json").read_text())
+        sc = scene_from_dict(scene_at_point(base, point))
+        if abs(stats.tip_speed_m_s - sc.tip_speed_m_s) > 1e-9 * sc.tip_speed_m_s or \
+                abs(stats.record_s - sc.record_s) > 1e-6 or \
+                abs(stats.spin_up_s - sc.spin_up_s) > 1e-6 or \
+                abs(stats.sector_deg - sc.geometry.sector_deg) > 1e-9:
+            raise TableError(f"{d}: its run (tip speed {stats.tip_speed_m_s} m/s, spin-up "
+                             f"{stats.spin_up_s} s, record {stats.record_s} s, sector "
+                             f"{stats.sector_deg} deg) is not the protocol's")
+        r = normalize_stats(stats, sc)
+        r["drift"] = recording_drift(d / "windows.csv", r["zone_names"])
+        results.append(r)
+        walls += float(stats.counts.get("wall_time_s", 0.0))
+    table = assemble(spec, results)
+    table.manifest = {"build_wall_time_s": walls}
+    st = stationarity_summary(results, table.zone_names)
+    if st is not None:
+        table.manifest["stationarity"] = st
+    res = {"grid_points": len(SPEEDS), "shape": [len(SPEEDS)],
+           "dem": {"sector_deg": SECTOR_DEG, "spin_up_s": SPIN_UP_S, "record_s": RECORD_S,
+                   "sample_every_s": SAMPLE_S, "dt_s": base["run"]["dt_s"],
+                   "fluid": base["fluid"]["mode"]},
+           "note": (f"assembled from the seed 002 campaign's runs at {filling:g} filling "
+                    f"({', '.join(f'{n:g}' for n in SPEEDS)} rpm); drift: first against last "
+                    f"window of {WINDOW_S} s")}
+    table.manifest = manifest_for(spec, table, {
+        "resolution": res,
+        "rebuild_command": (f"millfmu dem seed002 run --out DIR && millfmu dem seed002 "
+                            f"table --out DIR --export-table {prefix}")})
+    table.export(prefix)
+    return table
+
+
 def _load(out_dir, rpm, fill):
     p = case_dir(out_dir, rpm, fill) / "stats.json"
     return json.loads(p.read_text()) if p.exists() else None

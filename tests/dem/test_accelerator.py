@@ -309,3 +309,29 @@ def test_seed002_table_gives_verdicts_from_the_runs(tmp_path):
     assert v["efficiency SE_cs,sum / SE_net at most 0."].startswith("missed")
     assert v["beads fastest in SEV_3 and SEV_4, slowes"].startswith("missed")
     assert "|" in S.markdown(rows).splitlines()[2]
+
+
+def test_campaign_table_from_short_runs(tmp_path, monkeypatch):
+    """The seed 002 campaign's runs at 80 % make a table over the rotor speeds that reads,
+    verifies and is refused when a run's protocol differs."""
+    pytest.importorskip("numba")
+    from millfmu.dem import seed002 as S
+    from millfmu.dem.tables import read_table
+    from millfmu.dem.tables.spec import TableError
+
+    for name, v in (("SPIN_UP_S", 1e-3), ("RECORD_S", 2e-3), ("WINDOW_S", 1e-3),
+                    ("SAMPLE_S", 1e-3), ("SPEEDS", (1000.0, 1400.0))):
+        monkeypatch.setattr(S, name, v)
+    S.run_campaign(tmp_path, cases=[(1000.0, 0.8), (1400.0, 0.8)], threads=1,
+                   progress=False)
+    t = S.export_table(tmp_path, tmp_path / "acc_table")
+    back = read_table(npz=tmp_path / "acc_table.npz", manifest_path=tmp_path / "acc_table.json")
+    assert back.zone_names == A.ZONE_NAMES
+    r = 0.0222 * 2 * math.pi / 60
+    assert back.axes["tip_speed_m_s"] == pytest.approx([1000 * r, 1400 * r])
+    assert back.manifest["builder"] == S.CAMPAIGN_BUILDER_ID
+    assert "seed002" in back.manifest["rebuild_command"]
+    assert np.all(t.data["collision_frequency_norm"] > 0)
+    monkeypatch.setattr(S, "SPIN_UP_S", 2e-3)
+    with pytest.raises(TableError, match="not the protocol"):
+        S.export_table(tmp_path, tmp_path / "again")
