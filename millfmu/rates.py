@@ -369,13 +369,6 @@ def to_json(result: RatesResult, calibration: dict | None = None) -> str:
     return json.dumps(doc, indent=1)
 
 
-def main_quantity(result: RatesResult) -> str:
-    """The quantity a summary shows: the disruption rate for cells, S at the middle size."""
-    if "disruption_rate" in result.quantities:
-        return "disruption_rate"
-    return result.quantities[len(result.sizes_m) // 2]
-
-
 def _qlabel(q: str) -> str:
     if q == "disruption_rate":
         return "disruption rate"
