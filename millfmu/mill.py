@@ -309,6 +309,7 @@ class MillModel:
             eta_susp_Pa_s=s.suspension.viscosity_Pa_s,
             solids_mass_fraction=float(inputs["solids_mass_fraction"]),
             k_c=s.mill.stress_frequency_factor,
+            energy_transfer=s.kinetics.energy_transfer,
         )
 
     def suspension_volume_m3(self, op: rates.OperatingPoint) -> float:

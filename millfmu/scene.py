@@ -65,7 +65,7 @@ class Mill:
     n_discs: int = _f(5, lo=1, hi=1000, doc="number of stirrer discs (stirrer power)")
     power_number_laminar: float = _f(100.0, lo=0.0, doc="C_lam of Ne = C_lam/Re + C_turb (stirrer power characteristic; fit to the mill)")
     power_number_turbulent: float = _f(0.1, lo=0.0, doc="C_turb of Ne = C_lam/Re + C_turb")
-    stress_frequency_factor: float = _f(1.0, lo=0.0, doc="k_c of n_c/t = k_c omega n_gb (Kwade's proportionality constant; calibrate)")
+    stress_frequency_factor: float = _f(1.0, lo=0.0, doc="simple model: k_c of n_c/t = k_c omega n_gb (Kwade's proportionality constant; the simple model's fitted constant)")
 
 
 @dataclass(frozen=True)
@@ -127,6 +127,7 @@ class StressDistribution:
 class Kinetics:
     model: str = _f("simple", choices=("simple", "detailed", "none"), doc="stress model: Kwade simple, detailed (SE distribution), none (rates from the scene)")
     capture: str = _f("class", choices=("class", "psd"), doc="number concentration in P_cap: per size class (rates frozen) or from the current PSD (state-dependent)")
+    energy_transfer: float = _f(1.0, lo=0.0, hi=1.0, lo_open=True, doc="detailed model: share eta_E of a collision's energy that reaches a captured particle (before the elasticity factor); the detailed model's fitted constant, as mill.stress_frequency_factor is the simple model's")
     stress_distribution: StressDistribution = _f(StressDistribution(), doc="detailed model's stress-energy source")
 
 

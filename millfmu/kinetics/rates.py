@@ -6,6 +6,9 @@
   S(x) = sum_z f_z (n_c/t)_z sum_b w_zb P_break(x, E_zb,P) P_cap(x) / (n_p (1 - c_v)),
   the distribution of stress energies times the probability that a stress exceeds the
   particle's breakage energy times the collision frequency times the capture probability.
+  A captured particle receives E_zb,P = eta_E E_zb (1 + Y_P/Y_GM)^-1 of a collision's
+  energy E_zb: eta_E (``energy_transfer``) is the detailed model's one fitted constant,
+  as k_c is the simple model's (seed 000 calibrates each model at one operating point).
 - "none": S(x) taken from the scene (Austin's selection function).
 """
 
@@ -27,7 +30,9 @@ class OperatingPoint:
     d_gb_m, bead density rho_gb_kg_per_m3, bead Young's modulus y_gb_Pa, product Young's
     modulus y_p_Pa, product density rho_p_kg_per_m3, liquid density rho_l_kg_per_m3,
     suspension viscosity eta_susp_Pa_s, solids mass fraction of the suspension
-    solids_mass_fraction [-], stress-frequency constant k_c [-].
+    solids_mass_fraction [-]; the two models' fitted constants: k_c [-], Kwade's
+    stress-frequency constant (simple model), and energy_transfer [-], the share of a
+    collision's energy that reaches a captured particle (detailed model).
     """
 
     tip_speed_m_per_s: float
@@ -43,6 +48,7 @@ class OperatingPoint:
     eta_susp_Pa_s: float
     solids_mass_fraction: float
     k_c: float = 1.0
+    energy_transfer: float = 1.0
 
     # ---- derived numbers -------------------------------------------------------------
     @property
@@ -156,7 +162,9 @@ def selection_per_s(model: str, material, op: OperatingPoint, x_m, n_p_per_m3=No
     for zone in source.zones(op):
         if zone.collision_rate_per_m3_s <= 0.0:
             continue
-        e_p = zone.energy_J * op.elasticity_factor
+        # The share eta_E of the collision's energy that reaches the captured particle,
+        # of which the elasticity factor leaves the particle its part.
+        e_p = zone.energy_J * (op.energy_transfer * op.elasticity_factor)
         p = material.breakage_probability(x[..., None], e_p)
         # Collisions per chamber volume from this zone times the zone's mean breakage
         # probability per stress.

@@ -14,7 +14,7 @@ EXAMPLES = sorted(p.name for p in resources.files("millfmu.data").joinpath("exam
 
 
 def test_examples_present():
-    assert {"yeast_disruption.toml", "limestone_continuous.toml", "limestone_simple.toml", "limestone_rampup.toml", "austin_generic.toml"} <= set(EXAMPLES)
+    assert {"yeast_disruption.toml", "yeast_disruption_detailed.toml", "limestone_continuous.toml", "limestone_simple.toml", "limestone_rampup.toml", "austin_generic.toml"} <= set(EXAMPLES)
 
 
 @pytest.mark.parametrize("name", EXAMPLES)

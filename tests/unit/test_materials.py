@@ -44,12 +44,28 @@ def test_yeast_disruption_first_order_and_tip_speed(scene_dict):
 
 
 def test_detailed_with_narrow_distribution_equals_simple(scene_dict):
-    """A collision-energy distribution concentrated at SE, with Kwade's collision rate, reduces to the simple model."""
-    s_simple = make_scene(scene_dict)
-    s_det = make_scene(scene_dict, kinetics={"model": "detailed", "stress_distribution": {"median_fraction": 1.0, "sigma_ln": 1e-6, "collision_factor": 1.0}})
+    """A collision-energy distribution concentrated at SE, with Kwade's collision rate and the whole
+    collision energy reaching the particle, reduces to the simple model."""
+    k_c = 2.5
+    s_simple = make_scene(scene_dict, mill={"stress_frequency_factor": k_c}, kinetics={"model": "simple"})
+    s_det = make_scene(scene_dict, kinetics={"model": "detailed", "energy_transfer": 1.0, "stress_distribution": {
+        "source": "lognormal", "median_fraction": 1.0, "sigma_ln": 1e-6, "collision_factor": k_c}})
     a, b = MillModel(s_simple), MillModel(s_det)
     ra, rb = a.class_rates_per_s(), b.class_rates_per_s()
+    assert ra.max() > 10.0 * ra[ra > 0.0].min()  # rates that differ between classes
     assert np.allclose(rb, ra, rtol=1e-4, atol=1e-14)
+
+
+def test_energy_transfer_scales_the_collision_energies(scene_dict):
+    """eta_E multiplies every collision energy: eta_E = 0.3 on a distribution gives the rates of
+    eta_E = 1 on the same distribution at 0.3 times the energies."""
+    sd = {"source": "lognormal", "sigma_ln": 1.2, "collision_factor": 1.0}
+    a = MillModel(make_scene(scene_dict, kinetics={"model": "detailed", "energy_transfer": 0.3, "stress_distribution": {**sd, "median_fraction": 0.1}}))
+    b = MillModel(make_scene(scene_dict, kinetics={"model": "detailed", "energy_transfer": 1.0, "stress_distribution": {**sd, "median_fraction": 0.03}}))
+    c = MillModel(make_scene(scene_dict, kinetics={"model": "detailed", "energy_transfer": 1.0, "stress_distribution": {**sd, "median_fraction": 0.1}}))
+    ra, rb, rc = a.class_rates_per_s(), b.class_rates_per_s(), c.class_rates_per_s()
+    assert np.allclose(ra, rb, rtol=1e-12, atol=0.0)
+    assert np.all(ra <= rc) and np.any(ra < 0.5 * rc)
 
 
 def test_detailed_distribution_lowers_rates_of_coarse_particles(scene_dict):

@@ -1,0 +1,568 @@
+"""``millfmu rates``: breakage rates of the simple and the detailed model against each
+operating parameter, relative to a reference point (seed 000).
+
+For a scene, whose operating point is the reference, the specific breakage rate S(x) at a
+few sizes and, for cells, the initial disruption rate (the feed's mass-weighted S) of
+Kwade's simple model and of the detailed model side by side, as each operating parameter
+(tip speed, bead diameter, bead density, solids mass fraction, bead filling) moves away
+from the reference with the others held. Each model keeps its own fitted constant
+(``mill.stress_frequency_factor``, ``kinetics.energy_transfer``; :mod:`millfmu.calibration`),
+so the curves are the models' predictions of the variations.
+
+Along the detailed model's stress-energy source, each point says what it rests on:
+
+- a DEM table along an axis it varies (tip speed, filling): interpolated on its grid
+  (outside it only where the scene names the axis in ``similar_axes``; else the point is
+  refused and left empty, never extrapolated silently);
+- a DEM table along an axis it does not vary (bead diameter and density of the default
+  table): the table's similarity scaling, energies over E_ref = pi/12 d^3 rho v_t^2 and
+  collision frequencies over omega n_gb held at the table's values ("table, similarity
+  assumed"), whose error the README measures (bead density: energies within 10 %,
+  frequencies 21-31 % lower at 6040 kg/m3; bead diameter 1.2 mm: energies 1.1-1.8 times,
+  frequencies 0.65-1.13 times);
+- the solids mass fraction is not a table axis: the DEM has no product particles, so only
+  the capture probability and the particle number concentration change, as in the simple
+  model;
+- the log-normal source scales with SE and omega n_gb by construction.
+
+Outputs per scene: ``rates_NAME.csv`` (one row per parameter value, model and quantity),
+``rates_NAME.json`` (reference point, constants, sizes, sources) and ``rates_NAME.png``
+(one panel per parameter). Without a scene, the shipped calibrated pairs of seed 000's
+two materials (yeast cells, limestone) and their calibration (``calibration.csv``).
+
+(:mod:`millfmu.kinetics.rates` holds the rate formulas; this module only evaluates them.)
+"""
+
+from __future__ import annotations
+
+import csv
+import io
+import json
+import math
+import os
+import re
+import sys
+import tempfile
+from dataclasses import dataclass, replace
+from pathlib import Path
+
+import numpy as np
+
+#: Operating parameters: name -> (label, unit, scene section, scene key, OperatingPoint field,
+#: stress-energy table axis or None).
+PARAMETERS = {
+    "tip_speed": ("tip speed", "m/s", "mill", "tip_speed_m_per_s", "tip_speed_m_per_s", "tip_speed_m_s"),
+    "bead_diameter": ("bead diameter", "m", "beads", "diameter_m", "d_gb_m", "bead_diameter_m"),
+    "bead_density": ("bead density", "kg/m3", "beads", "density_kg_per_m3", "rho_gb_kg_per_m3", "bead_density_kg_m3"),
+    "solids_mass_fraction": ("solids mass fraction", "-", "suspension", "solids_mass_fraction", "solids_mass_fraction", None),
+    "filling": ("bead filling", "-", "mill", "bead_filling", "filling", "filling"),
+}
+#: Default values of the variations around the reference (the reference value is added):
+#: the shipped table's grid for tip speed and filling; bead sizes of lab disc mills; glass
+#: (seed 001) to zirconia (seed 002); half to twice the reference's solids content.
+DEFAULT_VALUES = {
+    "tip_speed": (6.0, 8.0, 10.0, 12.0, 14.0),
+    "bead_diameter": (0.4e-3, 0.6e-3, 0.8e-3, 1.0e-3, 1.2e-3),
+    "bead_density": (2510.0, 4000.0, 6040.0),
+    "solids_mass_fraction": None,  # reference x (0.5, 1, 1.5, 2)
+    "filling": (0.5, 0.6, 0.7, 0.8, 0.9),
+}
+SOLIDS_FACTORS = (0.5, 1.0, 1.5, 2.0)
+MODELS = ("simple", "detailed")
+CSV_COLUMNS = ("scene", "material", "parameter", "unit", "value", "value_over_ref", "model", "source", "quantity",
+               "x_m", "rate_per_s", "rate_over_ref", "sf_per_s", "sf_over_ref", "p_break", "p_cap", "se_J",
+               "se_over_ref", "se_product_J", "note")
+
+
+@dataclass
+class Curve:
+    """Rates of one model along one parameter: ``values`` [parameter unit], per quantity
+    ``rate`` [1/s] and ``sf`` [1/s] arrays (quantity: 'S(x)' at each size, or
+    'disruption_rate'), ``sources`` and ``notes`` per value."""
+
+    parameter: str
+    model: str
+    values: np.ndarray
+    rates: dict
+    sf: dict
+    p_cap: dict
+    se_J: np.ndarray
+    se_product_J: np.ndarray
+    sources: list
+    notes: list
+
+
+@dataclass
+class RatesResult:
+    """Everything ``millfmu rates`` computes for one scene."""
+
+    name: str
+    scene: object
+    reference: dict
+    sizes_m: tuple
+    quantities: tuple
+    curves: dict  # (parameter, model) -> Curve
+    constants: dict
+    source_description: dict
+
+    def curve(self, parameter: str, model: str) -> Curve:
+        return self.curves[(parameter, model)]
+
+    def reference_index(self, parameter: str) -> int:
+        v = self.curves[(parameter, "simple")].values
+        return int(np.argmin(np.abs(v - self.reference[parameter])))
+
+    def relative(self, parameter: str, model: str, quantity: str) -> np.ndarray:
+        """Rate over the same model's rate at the reference point [-] (NaN where refused or
+        where the reference rate is zero)."""
+        c = self.curve(parameter, model)
+        r = c.rates[quantity]
+        ref = r[self.reference_index(parameter)]
+        with np.errstate(divide="ignore", invalid="ignore"):
+            return r / ref if ref > 0.0 else np.full_like(r, math.nan)
+
+    def rows(self):
+        """CSV rows (dicts keyed by :data:`CSV_COLUMNS`)."""
+        material = self.scene.material.model
+        for (p, model), c in self.curves.items():
+            unit = PARAMETERS[p][1]
+            i_ref = self.reference_index(p)
+            for q in self.quantities:
+                rel = self.relative(p, model, q)
+                sf = c.sf[q]
+                for k, v in enumerate(c.values):
+                    rate = c.rates[q][k]
+                    yield {
+                        "scene": self.name, "material": material, "parameter": p, "unit": unit,
+                        "value": _g(v), "value_over_ref": _g(v / self.reference[p]), "model": model,
+                        "source": c.sources[k], "quantity": "disruption_rate" if q == "disruption_rate" else "S(x)",
+                        "x_m": "" if q == "disruption_rate" else _g(float(q.split("=")[1])),
+                        "rate_per_s": _g(rate), "rate_over_ref": _g(rel[k]),
+                        "sf_per_s": _g(sf[k]), "sf_over_ref": _g(sf[k] / sf[i_ref] if sf[i_ref] > 0 else math.nan),
+                        "p_break": _g(rate / sf[k] if sf[k] > 0 else math.nan),
+                        "p_cap": _g(c.p_cap[q][k]) if q in c.p_cap else "",
+                        "se_J": _g(c.se_J[k]), "se_over_ref": _g(c.se_J[k] / c.se_J[i_ref]),
+                        "se_product_J": _g(c.se_product_J[k]), "note": c.notes[k],
+                    }
+
+
+def _g(v) -> str:
+    v = float(v)
+    return "" if math.isnan(v) else f"{v:.10g}"
+
+
+# ---- evaluation ----------------------------------------------------------------------------
+def _size_key(x: float) -> str:
+    return f"S(x)={x!r}"
+
+
+@dataclass(frozen=True)
+class _Coverage:
+    """How the detailed model's stress-energy source covers one parameter: ``kind`` is
+    'lognormal', 'gridded' (a table axis with a grid from ``lo`` to ``hi``), 'fixed' (the
+    table holds the one value ``lo``), 'unstated' (a table axis its DEM scene does not
+    state) or 'product' (not an axis of a table: the solids content); ``similar``: whether
+    the model assumes similarity beyond what the table holds."""
+
+    kind: str
+    lo: float = math.nan
+    hi: float = math.nan
+    similar: bool = False
+
+    def label(self, v: float) -> str:
+        """The source of one point: 'lognormal', 'table' or 'table, similarity assumed'."""
+        if self.kind == "lognormal":
+            return "lognormal"
+        inside = {"gridded": self.lo <= v <= self.hi,
+                  "fixed": math.isclose(v, self.lo, rel_tol=1e-9),
+                  "unstated": False, "product": True}[self.kind]
+        return "table" if inside else "table, similarity assumed"
+
+
+def _detailed_models(scene, MillModel):
+    """Per parameter: the detailed model to evaluate it with (the scene's, or one whose table
+    assumes similarity along an axis the table does not vary), how its source covers the
+    parameter (:class:`_Coverage`) and that in words."""
+    from .calibration import with_model
+
+    det_scene = with_model(scene, "detailed")
+    base = MillModel(det_scene)
+    sd = scene.kinetics.stress_distribution
+    table = getattr(base.source, "table", None)
+    models, cover, desc = {}, {}, {}
+    for p, (_label, _unit, _sec, _key, _field, tax) in PARAMETERS.items():
+        models[p] = base
+        if table is None:
+            cover[p] = _Coverage("lognormal")
+            desc[p] = (f"lognormal (median {sd.median_fraction:g} SE, sigma_ln {sd.sigma_ln:g}, collisions "
+                       f"{sd.collision_factor:g} omega n_gb: Kwade's scaling by construction)")
+            continue
+        if tax is None:
+            cover[p] = _Coverage("product")
+            desc[p] = (f"DEM table {sd.table!r}; not an axis of a table: the DEM has no product particles, so only "
+                       "the capture probability and the particle number change, as in the simple model")
+            continue
+        fixed = table.fixed_axis_values()
+        if tax in table.axes and np.asarray(table.axes[tax]).size > 1:
+            ax = np.asarray(table.axes[tax], dtype=float)
+            cover[p] = _Coverage("gridded", float(ax[0]), float(ax[-1]), tax in sd.similar_axes)
+            beyond = ("beyond it the edge's energies over E_ref and frequencies over omega n_gb (similarity, "
+                      "the scene's similar_axes)") if tax in sd.similar_axes else "refused beyond it"
+            desc[p] = f"DEM table {sd.table!r}, interpolated on its grid {ax[0]:g}-{ax[-1]:g}; {beyond}"
+            continue
+        value = float(np.asarray(table.axes[tax])[0]) if tax in table.axes else fixed.get(tax, math.nan)
+        if tax not in sd.similar_axes:
+            sim = replace(sd, similar_axes=list(sd.similar_axes) + [tax])
+            models[p] = MillModel(replace(det_scene, kinetics=replace(det_scene.kinetics, stress_distribution=sim)))
+        if math.isnan(value):
+            cover[p] = _Coverage("unstated", similar=True)
+            desc[p] = (f"DEM table {sd.table!r}, whose DEM scene does not state {tax}: similarity assumed "
+                       "(energies over pi/12 d^3 rho v_t^2, collision frequencies over omega n_gb held)")
+        else:
+            cover[p] = _Coverage("fixed", value, value, similar=True)
+            desc[p] = (f"DEM table {sd.table!r}, built at {tax} = {value:g} only: elsewhere similarity assumed "
+                       "(energies over pi/12 d^3 rho v_t^2, collision frequencies over omega n_gb held)")
+    return models, cover, desc
+
+
+def _values(parameter: str, ref: float, given=None) -> np.ndarray:
+    if given is not None:
+        vals = list(given)
+    elif parameter == "solids_mass_fraction":
+        vals = [ref * f for f in SOLIDS_FACTORS]
+    else:
+        vals = list(DEFAULT_VALUES[parameter])
+    vals.append(ref)
+    out = []
+    for v in sorted(vals):
+        if not out or not math.isclose(v, out[-1], rel_tol=1e-12):
+            out.append(v)
+    # the reference exactly, not a near-duplicate of it
+    return np.array([ref if math.isclose(v, ref, rel_tol=1e-12) else v for v in out], dtype=float)
+
+
+def _default_sizes(scene, model) -> tuple:
+    """Feed x10, x50, x90 [m] for a mineral; the feed's x50 for cells."""
+    from .kinetics import grid as kgrid
+    from .mill import psd_fractions
+
+    w = psd_fractions(model.grid, scene.feed)
+    qs = (0.5,) if scene.material.model == "yeast" else (0.1, 0.5, 0.9)
+    return tuple(float(f"{x:.3g}") for x in kgrid.characteristic_sizes_m(model.grid, w, qs))
+
+
+def _check_value(parameter, v, scene):
+    from .scene import SceneError
+
+    lo = {"tip_speed": 0.0, "bead_diameter": 1e-5, "bead_density": 500.0, "solids_mass_fraction": 0.0, "filling": 0.0}[parameter]
+    hi = {"tip_speed": 40.0, "bead_diameter": 0.05, "bead_density": 20000.0, "solids_mass_fraction": 0.8,
+          "filling": min(1.0, 0.64 / (1.0 - scene.mill.bead_porosity))}[parameter]
+    if not (math.isfinite(v) and lo < v < hi):
+        raise SceneError(f"--values {parameter}", v, f"must lie in ({lo:g}, {hi:g}) {PARAMETERS[parameter][1]}", "millfmu rates")
+
+
+def compute(scene, name: str | None = None, sizes_m=None, values: dict | None = None) -> RatesResult:
+    """Rates of both models along every parameter for ``scene`` (its operating point is the
+    reference). ``sizes_m``: sizes of S(x) [m] (default: feed x10/x50/x90, cells: x50);
+    ``values``: parameter -> values to use instead of :data:`DEFAULT_VALUES`."""
+    from .kinetics import rates as krates
+    from .kinetics import stress as kstress
+    from .mill import MillModel, psd_fractions
+    from .scene import SceneError
+
+    if scene.material.model not in ("mineral", "yeast"):
+        raise SceneError("material.model", scene.material.model,
+                         "must be 'mineral' or 'yeast' for millfmu rates: 'austin' takes its rates from the scene, "
+                         "without a stress model", scene.scene.name)
+    from .calibration import with_model
+
+    simple = MillModel(with_model(scene, "simple"))
+    detailed_models, coverage, desc = _detailed_models(scene, MillModel)
+    op_ref = simple.operating_point(simple.inputs)
+    reference = {p: float(getattr(op_ref, PARAMETERS[p][4])) for p in PARAMETERS}
+    sizes = tuple(float(x) for x in (sizes_m if sizes_m is not None else _default_sizes(scene, simple)))
+    if not sizes or any(not (math.isfinite(x) and x > 0.0) for x in sizes):
+        raise SceneError("--sizes", sizes, "must be positive sizes in m", "millfmu rates")
+    is_cells = scene.material.model == "yeast"
+    quantities = tuple(_size_key(x) for x in sizes) + (("disruption_rate",) if is_cells else ())
+    x = np.array(sizes)
+    values = values or {}
+    for p, vs in values.items():
+        if p not in PARAMETERS:
+            raise SceneError("--values", p, "unknown parameter; allowed: " + ", ".join(PARAMETERS), "millfmu rates")
+        for v in vs:
+            _check_value(p, v, scene)
+    w_feed = psd_fractions(simple.grid, scene.feed)
+
+    curves = {}
+    for p, (_label, _unit, _sec, _key, field, _tax) in PARAMETERS.items():
+        vals = _values(p, reference[p], values.get(p))
+        for model_name in MODELS:
+            m = simple if model_name == "simple" else detailed_models[p]
+            src = m.source
+            n = len(vals)
+            rates_q = {q: np.full(n, math.nan) for q in quantities}
+            sf_q = {q: np.full(n, math.nan) for q in quantities}
+            pcap_q = {q: np.full(n, math.nan) for q in quantities if q != "disruption_rate"}
+            se, sep = np.empty(n), np.empty(n)
+            sources, notes = [], []
+            for k, v in enumerate(vals):
+                op = replace(op_ref, **{field: float(v)})
+                se[k], sep[k] = op.se_beads_J, op.se_product_J
+                label = "Kwade: SE_P per stress, SF = k_c omega n_gb P_cap / (n_p (1 - c_v))" if model_name == "simple" \
+                    else coverage[p].label(float(v))
+                try:
+                    s_x = krates.selection_per_s(model_name, m.material, op, x, None, src)
+                    s_nodes = krates.selection_per_s(model_name, m.material, op, m.operator.nodes_m, None, src) if is_cells else None
+                    coll = None if model_name == "simple" else _collision_rate(src, op)
+                except ValueError as e:  # a table that refuses the point (outside its grid)
+                    sources.append(label)
+                    notes.append(f"refused: {e}")
+                    continue
+                sf_x = op.stress_frequency_per_s(x, None, coll)
+                p_cap = kstress.capture_probability(op.class_number_concentration_per_m3(x), kstress.active_volume_m3(x, op.d_gb_m))
+                for i, xs in enumerate(sizes):
+                    q = _size_key(xs)
+                    rates_q[q][k], sf_q[q][k], pcap_q[q][k] = s_x[i], sf_x[i], p_cap[i]
+                if is_cells:
+                    sf_nodes = op.stress_frequency_per_s(m.operator.nodes_m, None, coll)
+                    rates_q["disruption_rate"][k] = float(w_feed @ m.operator.class_rates(s_nodes))
+                    sf_q["disruption_rate"][k] = float(w_feed @ m.operator.class_rates(sf_nodes))
+                sources.append(label)
+                notes.append("; ".join(getattr(src, "last_notes", []) or []) if model_name == "detailed" else "")
+            curves[(p, model_name)] = Curve(p, model_name, vals, rates_q, sf_q, pcap_q, se, sep, sources, notes)
+    constants = {"k_c": scene.mill.stress_frequency_factor, "energy_transfer": scene.kinetics.energy_transfer}
+    return RatesResult(name or scene.scene.name, scene, reference, sizes, quantities, curves, constants, desc)
+
+
+def _collision_rate(source, op) -> float:
+    """The detailed model's collisions per chamber volume and time, sum_z f_z (n_c/t)_z [1/(m3 s)]."""
+    return float(sum(z.volume_fraction * z.collision_rate_per_m3_s for z in source.zones(op)))
+
+
+# ---- output ---------------------------------------------------------------------------------
+def to_csv(result: RatesResult) -> str:
+    buf = io.StringIO()
+    w = csv.DictWriter(buf, fieldnames=CSV_COLUMNS, lineterminator="\n")
+    w.writeheader()
+    for row in result.rows():
+        w.writerow(row)
+    return buf.getvalue()
+
+
+def to_json(result: RatesResult, calibration: dict | None = None) -> str:
+    s = result.scene
+    doc = {
+        "scene": result.name,
+        "material": s.material.model,
+        "reference_point": {p: {"value": result.reference[p], "unit": PARAMETERS[p][1]} for p in PARAMETERS},
+        "constants": {"simple: k_c (mill.stress_frequency_factor)": result.constants["k_c"],
+                      "detailed: eta_E (kinetics.energy_transfer)": result.constants["energy_transfer"]},
+        "sizes_m": list(result.sizes_m),
+        "quantities": {"S(x)": "specific breakage rate at size x [1/s], P_cap from x's class concentration",
+                       "disruption_rate": "initial disruption rate of the feed's cells, sum_i w_i S_i [1/s]"},
+        "detailed_source": result.source_description,
+        "values": {p: result.curve(p, "simple").values.tolist() for p in PARAMETERS},
+    }
+    if calibration is not None:
+        doc["calibration"] = calibration
+    return json.dumps(doc, indent=1)
+
+
+def _qlabel(q: str) -> str:
+    if q == "disruption_rate":
+        return "disruption rate"
+    return f"S({float(q.split('=')[1]) * 1e6:.3g} um)"
+
+
+def summary(result: RatesResult) -> str:
+    """Text table: per parameter value, each model's rate relative to the reference."""
+    lines = [f"{result.name} ({result.scene.material.model}): k_c = {result.constants['k_c']:g}, "
+             f"eta_E = {result.constants['energy_transfer']:g}; rates over their value at the reference point"]
+    qs = [q for q in result.quantities]
+    head = f"{'parameter':22s} {'value':>10s} " + " ".join(f"{_qlabel(q) + ' ' + m[:3]:>22s}" for q in qs for m in MODELS)
+    lines.append(head)
+    for p in PARAMETERS:
+        vals = result.curve(p, "simple").values
+        rel = {(q, m): result.relative(p, m, q) for q in qs for m in MODELS}
+        for k, v in enumerate(vals):
+            mark = "*" if k == result.reference_index(p) else " "
+            det_src = result.curve(p, "detailed").sources[k]
+            flag = " (sim.)" if "similarity" in det_src else ""
+            cells = " ".join(f"{_fmt(rel[(q, m)][k]) + (flag if m == 'detailed' else ''):>22s}" for q in qs for m in MODELS)
+            lines.append(f"{PARAMETERS[p][0]:22s} {v:>9.4g}{mark} {cells}")
+    lines.append("* reference point; (sim.): detailed model on the table with similarity assumed along that axis")
+    return "\n".join(lines)
+
+
+def _fmt(v) -> str:
+    return "refused" if math.isnan(v) else f"{v:.3g}"
+
+
+def plot(result: RatesResult, path):
+    """One panel per parameter: each model's rate over its value at the reference point."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    qs = ("disruption_rate",) if "disruption_rate" in result.quantities else result.quantities
+    colors = plt.rcParams["axes.prop_cycle"].by_key()["color"]
+    fig, axes = plt.subplots(2, 3, figsize=(13.5, 8.0))
+    for ax, p in zip(axes.ravel(), PARAMETERS):
+        label, unit = PARAMETERS[p][0], PARAMETERS[p][1]
+        scale, shown_unit = (1e3, "mm") if unit == "m" else (1.0, unit)
+        for j, q in enumerate(qs):
+            c = colors[j % len(colors)]
+            for m, style in zip(MODELS, ("-", "--")):
+                cur = result.curve(p, m)
+                rel = result.relative(p, m, q)
+                xv = cur.values * scale
+                ax.plot(xv, rel, style, color=c, label=f"{m}, {_qlabel(q)}")
+                if m == "detailed":
+                    sim = np.array(["similarity" in s for s in cur.sources])
+                    ax.plot(xv[~sim], rel[~sim], "s", color=c, ms=4)
+                    ax.plot(xv[sim], rel[sim], "s", color=c, mfc="none", ms=6)
+                else:
+                    ax.plot(xv, rel, "o", color=c, ms=3)
+        ax.axvline(result.reference[p] * scale, color="0.6", lw=0.8, ls=":")
+        ax.axhline(1.0, color="0.8", lw=0.6)
+        shown = np.concatenate([result.relative(p, m, q) for q in qs for m in MODELS])
+        shown = shown[np.isfinite(shown) & (shown > 0.0)]
+        if shown.size and shown.max() / shown.min() > 10.0:  # a decade or more: log scale
+            ax.set_yscale("log")
+        ax.set_xlabel(f"{label} [{shown_unit}]")
+        ax.set_ylabel("rate / rate at reference")
+        src = result.source_description[p]
+        sim_any = any("similarity" in x for x in result.curve(p, "detailed").sources)
+        short = "detailed: table, similarity assumed (open squares)" if sim_any else \
+            ("detailed: log-normal source" if src.startswith("lognormal") else "detailed: DEM table")
+        ax.set_title(f"{label}\n{short}", fontsize=9)
+        ax.grid(True, which="both", alpha=0.25)
+    info = axes.ravel()[-1]
+    info.axis("off")
+    handles, labels = axes.ravel()[0].get_legend_handles_labels()
+    info.legend(handles, labels, loc="upper left", fontsize=8, frameon=False)
+    ref = result.reference
+    text = (f"{result.name} ({result.scene.material.model})\n"
+            f"reference: {ref['tip_speed']:g} m/s, d {ref['bead_diameter'] * 1e3:g} mm, "
+            f"rho {ref['bead_density']:g} kg/m3,\n  solids {ref['solids_mass_fraction']:g}, filling {ref['filling']:g}\n"
+            f"simple: k_c = {result.constants['k_c']:g}\ndetailed: eta_E = {result.constants['energy_transfer']:g}\n"
+            "solid: simple; dashed: detailed")
+    info.text(0.0, 0.02, text, fontsize=8, va="bottom", transform=info.transAxes)
+    fig.suptitle(f"Breakage rates relative to the reference point: {result.name}", fontsize=11)
+    fig.tight_layout()
+    fig.savefig(path, dpi=110, format="png")
+    plt.close(fig)
+
+
+def _safe(name: str) -> str:
+    return re.sub(r"[^A-Za-z0-9_.-]+", "_", name).strip("_") or "scene"
+
+
+def write(out_dir, results: list, calibration: list | None = None, plots: bool = True) -> list:
+    """Write every result's CSV, JSON and PNG (and the calibration table) into ``out_dir``;
+    each file is written beside its place and moved there when complete."""
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    written = []
+
+    def put(name, data: bytes | None = None, draw=None):
+        fd, tmp = tempfile.mkstemp(prefix=f".{name}.", dir=out)
+        try:
+            with os.fdopen(fd, "wb") as f:
+                if data is not None:
+                    f.write(data)
+            if draw is not None:
+                draw(tmp)
+            os.replace(tmp, out / name)
+        except BaseException:
+            Path(tmp).unlink(missing_ok=True)
+            raise
+        written.append(out / name)
+
+    cal_by_material = {c["material"]: c for c in (calibration or [])}
+    for r in results:
+        base = f"rates_{_safe(r.name)}"
+        put(base + ".csv", to_csv(r).encode())
+        put(base + ".json", to_json(r, cal_by_material.get(r.name)).encode())
+        if plots:
+            put(base + ".png", draw=lambda p, r=r: plot(r, p))
+    if calibration:
+        buf = io.StringIO()
+        cols = ("material", "quantity", "t_s", "datum", "simple", "detailed", "k_c", "k_c_fit", "energy_transfer",
+                "energy_transfer_fit", "source")
+        w = csv.DictWriter(buf, fieldnames=cols, lineterminator="\n", extrasaction="ignore")
+        w.writeheader()
+        for c in calibration:
+            w.writerow(c)
+        put("calibration.csv", buf.getvalue().encode())
+    return written
+
+
+# ---- command line ---------------------------------------------------------------------------
+def _parse_values(items) -> dict:
+    from .scene import SceneError
+
+    out = {}
+    for item in items or []:
+        name, _, rest = item.partition("=")
+        try:
+            out[name.strip()] = [float(v) for v in rest.split(",") if v.strip()]
+        except ValueError:
+            raise SceneError("--values", item, "must be PARAMETER=V1,V2,... with numbers in SI units", "millfmu rates") from None
+        if not out[name.strip()]:
+            raise SceneError("--values", item, "must be PARAMETER=V1,V2,... with at least one value", "millfmu rates")
+    return out
+
+
+def _cmd_rates(args) -> int:
+    from . import calibration as cal
+    from .runner import check_out_dir
+    from .scene import load_scene
+
+    values = _parse_values(args.values)
+    if args.scene:
+        jobs = [(None, load_scene(s)) for s in args.scene]  # SceneError -> exit 2 before anything runs
+    else:
+        jobs = [(pair.material, pair.scenes()[0]) for pair in cal.SHIPPED]
+    check_out_dir(args.out)
+    results = [compute(scene, name=name, sizes_m=args.sizes, values=values) for name, scene in jobs]
+    calibration = None
+    if not args.scene:
+        calibration = [cal.check(pair) for pair in cal.SHIPPED]
+    for r in results:
+        print(summary(r))
+        for p, d in r.source_description.items():
+            print(f"  detailed model along {PARAMETERS[p][0]}: {d}")
+        print()
+    if calibration:
+        print("calibration (each model's constant fitted at its reference point to the datum):")
+        for c in calibration:
+            unit = "um" if c["quantity"] == "x50_m" else ""
+            f = 1e6 if unit else 1.0
+            print(f"  {c['material']:9s} {c['quantity']} after {c['t_s']:g} s: datum {c['datum'] * f:.4g}{unit}, "
+                  f"simple {c['simple'] * f:.4g}{unit} (k_c = {c['k_c']:g}, fit {c['k_c_fit']:.4g}), "
+                  f"detailed {c['detailed'] * f:.4g}{unit} (eta_E = {c['energy_transfer']:g}, fit {c['energy_transfer_fit']:.4g})")
+    files = write(args.out, results, calibration, plots=not args.no_plots)
+    print("wrote " + ", ".join(str(f) for f in files))
+    return 0
+
+
+def register(sub):
+    r = sub.add_parser("rates", help="breakage rates of the simple and the detailed model against each operating "
+                                     "parameter, relative to the scene's operating point (CSV, PNG)")
+    r.add_argument("scene", nargs="*", help="scene files (TOML); none: the shipped calibrated pairs of yeast and limestone")
+    r.add_argument("--out", default="out/rates", help="output folder (default: ./out/rates)")
+    r.add_argument("--sizes", type=float, nargs="+", default=None,
+                   help="sizes [m] of S(x) (default: the feed's x10, x50, x90; cells: x50)")
+    r.add_argument("--values", action="append", metavar="PARAMETER=V1,V2,...",
+                   help=f"values of one parameter instead of the defaults, SI units; parameters: {', '.join(PARAMETERS)}")
+    r.add_argument("--no-plots", action="store_true", help="skip the PNG plots")
+    r.set_defaults(func=_cmd_rates)
+
+
+if __name__ == "__main__":  # pragma: no cover
+    from .cli import main
+
+    sys.exit(main(["rates", *sys.argv[1:]]))
