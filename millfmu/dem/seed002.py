@@ -218,13 +218,15 @@ def deviation_rows(out_dir) -> list[dict]:
         lambda got, vals: all(g == "max SEV_1, min SEV_3" for g in got))
     fills = [runs.get(k) for k in at80[:3]]
     if all(f is not None for f in fills):
-        ch = max((max(_zone(f, z)["filling"] for f in fills) -
-                  min(_zone(f, z)["filling"] for f in fills)) /
-                 np.mean([_zone(f, z)["filling"] for f in fills]) for z in ZONE_NAMES)
+        ch = {z: max(_zone(f, z)["filling"] for f in fills) -
+              min(_zone(f, z)["filling"] for f in fills) for z in ZONE_NAMES}
+        worst = max(ch, key=ch.get)
         rows.append(dict(statement="local filling at 80 % unchanged from 800 to 1200 rpm "
-                                   "(figure 6a): largest relative spread of a zone's filling",
-                         paper="unchanged", ours=f"{ch:.1%}",
-                         verdict=("matches" if ch <= 0.10 else "missed") + " (within 10 %)"))
+                                   "(figure 6a): largest change of a zone's local filling",
+                         paper="unchanged", ours=f"{ch[worst]:.3f} ({worst}); " + ", ".join(
+                             f"{z} {ch[z]:.3f}" for z in ZONE_NAMES),
+                         verdict=("matches" if ch[worst] <= 0.05 else "missed") +
+                         " (within 0.05)"))
     add("beads fastest in SEV_3 and SEV_4, slowest in SEV_1 (section 3.3, figure 11)",
         "SEV_3, SEV_4 > SEV_2 > SEV_1",
         lambda st: ", ".join(f"{z} {v:.3f}" for z, v in
