@@ -104,31 +104,36 @@ class SevZones:
         return out.astype(np.int64)
 
     def volumes_m3(self) -> np.ndarray:
-        """Open volume of each zone in the simulated sector [m3]: shrouds and vanes taken
-        out (midpoint quadrature over r and z, exact for the vanes' share at each r)."""
-        if self._vols is None:
-            self._vols = self._quadrature(800, 1600)
-        return self._vols
-
-    def _quadrature(self, nr: int, nz: int) -> np.ndarray:
+        """Open volume of each zone in the simulated sector [m3]: the ring and axial band of
+        the zone, less the shrouds' and vanes' parts in it (exact: annular slabs and plates
+        of constant thickness)."""
         g = self.g
-        re = np.linspace(g.shaft_radius_m, g.chamber_radius_m, nr + 1)
-        rc = 0.5 * (re[1:] + re[:-1])
-        z = (np.arange(nz) + 0.5) / nz * g.height_m - 0.5 * g.height_m + g.disc_z_m
-        R, Z = np.meshgrid(rc, z, indexing="ij")
-        zr = np.abs(Z - g.disc_z_m)
-        open_ = np.ones_like(R)
-        in_rotor = (R < g.disc_radius_m) & (zr < 0.5 * g.disc_thickness_m)
-        in_ch = zr < 0.5 * g.channel_height_m
-        open_[in_rotor & ~in_ch & (R > g.eye_radius_m)] = 0.0
-        if g.vane_count:
-            share = g.vane_count * g.vane_thickness_m / (2.0 * math.pi * R)
-            open_ = np.where(in_rotor & in_ch, 1.0 - share, open_)
-        dv = 2.0 * math.pi * R * np.diff(re)[:, None] * (g.height_m / nz) * open_
-        pts = np.column_stack([R.ravel(), np.zeros(R.size), Z.ravel()])
-        zid = self.classify(pts)
-        v = np.array([dv.ravel()[zid == k].sum() for k in range(4)])
-        return v * g.sector_fraction
+        s = self.spec
+        span = g.chamber_radius_m - g.shaft_radius_m
+        half = 0.5 * g.height_m
+        r1 = g.chamber_radius_m - s.z1 * span
+        r2 = g.chamber_radius_m - s.z2 * span
+        zx = (1.0 - s.x3) * half  # |z| from the rotor's mid-plane at X'/L = x3
+        bands = [((r1, g.chamber_radius_m), (0.0, half)), ((r2, r1), (0.0, half)),
+                 ((g.shaft_radius_m, r2), (zx, half)), ((g.shaft_radius_m, r2), (0.0, zx))]
+        hb, hc = 0.5 * g.disc_thickness_m, 0.5 * g.channel_height_m
+
+        def overlap(a, b):
+            return max(0.0, min(a[1], b[1]) - max(a[0], b[0]))
+
+        def ring(r):  # area of the annulus r[0] < r < r[1]
+            return math.pi * (r[1] ** 2 - r[0] ** 2) if r[1] > r[0] else 0.0
+
+        out = []
+        for rr, zz in bands:
+            v = ring(rr) * 2.0 * (zz[1] - zz[0])
+            rs = (max(rr[0], g.eye_radius_m), min(rr[1], g.disc_radius_m))
+            v -= ring(rs) * 2.0 * overlap(zz, (hc, hb))
+            if g.vane_count:
+                v -= g.vane_count * g.vane_thickness_m * \
+                    overlap(rr, (g.shaft_radius_m, g.disc_radius_m)) * 2.0 * overlap(zz, (0.0, hc))
+            out.append(v)
+        return np.array(out) * g.sector_fraction
 
 
 def bead_mass_kg(diameter_m: float, density_kg_m3: float) -> float:
