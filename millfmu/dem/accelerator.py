@@ -215,25 +215,37 @@ def stress_quantities(events: np.ndarray, ev_cols: dict, zones, record_s: float,
     return out
 
 
-def radial_speed_profile(sample_x, sample_v, geometry: MillGeometry, tip_speed_m_s: float,
-                         bins: int = 20) -> dict:
-    """Mean bead speed over tip speed against Z'/R (seed 002 figures 3a, 4a) [-]."""
-    g = geometry
+def _speed_profile(sample_x, sample_v, coord, tip_speed_m_s: float, bins: int):
+    """Mean bead speed over tip speed [-] in ``bins`` equal bins of coord(x) over [0, 1]
+    (coord: positions (n, 3) -> (values, mask of the beads counted)); (centres, profile,
+    samples)."""
     edges = np.linspace(0.0, 1.0, bins + 1)
     acc = np.zeros(bins)
     cnt = np.zeros(bins)
     for xs, vs in zip(sample_x, sample_v):
-        zz = (g.chamber_radius_m - np.hypot(xs[:, 0], xs[:, 1])) / \
-            (g.chamber_radius_m - g.shaft_radius_m)
-        k = np.clip(np.searchsorted(edges, zz, side="right") - 1, 0, bins - 1)
-        np.add.at(acc, k, np.linalg.norm(vs, axis=1))
+        c, m = coord(xs)
+        k = np.clip(np.searchsorted(edges, c[m], side="right") - 1, 0, bins - 1)
+        np.add.at(acc, k, np.linalg.norm(vs[m], axis=1))
         np.add.at(cnt, k, 1.0)
     with np.errstate(invalid="ignore"):
         prof = acc / cnt / tip_speed_m_s
-    return dict(z_over_r=list(np.round(0.5 * (edges[1:] + edges[:-1]), 6)),
-                speed_over_tip_speed=[None if not np.isfinite(p) else round(float(p), 6)
-                                      for p in prof],
-                samples=[int(c) for c in cnt])
+    return (list(np.round(0.5 * (edges[1:] + edges[:-1]), 6)),
+            [None if not np.isfinite(p) else round(float(p), 6) for p in prof],
+            [int(c) for c in cnt])
+
+
+def _z_over_r(xs, g: MillGeometry):
+    return (g.chamber_radius_m - np.hypot(xs[:, 0], xs[:, 1])) / \
+        (g.chamber_radius_m - g.shaft_radius_m)
+
+
+def radial_speed_profile(sample_x, sample_v, geometry: MillGeometry, tip_speed_m_s: float,
+                         bins: int = 20) -> dict:
+    """Mean bead speed over tip speed against Z'/R (seed 002 figures 3a, 4a) [-]."""
+    c, p, n = _speed_profile(sample_x, sample_v,
+                             lambda xs: (_z_over_r(xs, geometry), slice(None)),
+                             tip_speed_m_s, bins)
+    return dict(z_over_r=c, speed_over_tip_speed=p, samples=n)
 
 
 def axial_speed_profile(sample_x, sample_v, geometry: MillGeometry, tip_speed_m_s: float,
@@ -241,25 +253,14 @@ def axial_speed_profile(sample_x, sample_v, geometry: MillGeometry, tip_speed_m_
     """Mean bead speed over tip speed against X'/L beside the shaft (Z'/R > z_min; seed
     002 figure 3b) [-]."""
     g = geometry
-    edges = np.linspace(0.0, 1.0, bins + 1)
-    acc = np.zeros(bins)
-    cnt = np.zeros(bins)
-    for xs, vs in zip(sample_x, sample_v):
-        zz = (g.chamber_radius_m - np.hypot(xs[:, 0], xs[:, 1])) / \
-            (g.chamber_radius_m - g.shaft_radius_m)
+
+    def x_over_l(xs):
         zr = xs[:, 2] - g.disc_z_m
-        zr = 1.0 - np.abs(zr - g.height_m * np.floor(zr / g.height_m + 0.5)) / \
-            (0.5 * g.height_m)  # X'/L
-        m = zz > z_min
-        k = np.clip(np.searchsorted(edges, zr[m], side="right") - 1, 0, bins - 1)
-        np.add.at(acc, k, np.linalg.norm(vs[m], axis=1))
-        np.add.at(cnt, k, 1.0)
-    with np.errstate(invalid="ignore"):
-        prof = acc / cnt / tip_speed_m_s
-    return dict(x_over_l=list(np.round(0.5 * (edges[1:] + edges[:-1]), 6)),
-                speed_over_tip_speed=[None if not np.isfinite(p) else round(float(p), 6)
-                                      for p in prof],
-                samples=[int(c) for c in cnt])
+        zr = zr - g.height_m * np.floor(zr / g.height_m + 0.5)
+        return 1.0 - np.abs(zr) / (0.5 * g.height_m), _z_over_r(xs, g) > z_min
+
+    c, p, n = _speed_profile(sample_x, sample_v, x_over_l, tip_speed_m_s, bins)
+    return dict(x_over_l=c, speed_over_tip_speed=p, samples=n)
 
 
 def rotor_throughflow_m3_s(fields: dict, geometry: MillGeometry) -> float | None:

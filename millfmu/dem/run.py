@@ -381,21 +381,11 @@ def flow_summary(scene, sim, cpl, sx, sv, torques, budget0, fields, substeps) ->
     out["bead_layer_1d_angular_velocity_ratio"] = FS.first_layer_angular_velocity(
         sx, sv, g, om, d)[0]
     # bead fields on the fluid's section grid (or a 0.75 mm grid without fluid)
-    if fields is not None:
-        r_edges = cpl.grid.r_faces_m
-        zeta_c = fields["zeta_m"]
-    else:
-        from millfmu.dem.fluid.grid import mill_grid
-
-        gr = mill_grid(g, 0.75e-3)
-        r_edges = gr.r_faces_m
-        zeta_c = _zeta_of_grid(gr, g)
-    order = np.argsort(zeta_c)
-    zs = zeta_c[order]
-    dz = float(np.diff(zs).mean())
-    z_edges = np.concatenate([zs - 0.5 * dz, [zs[-1] + 0.5 * dz]])
-    beads = FS.bead_section_fields(sx, sv, sim.rad, g, r_edges, z_edges)
-    out["_bead_fields"] = dict(beads, r_edges_m=r_edges, zeta_edges_m=z_edges)
+    out["_bead_fields"] = bf = _section_bead_fields(scene, sim, cpl, sx, sv, fields)
+    beads = bf
+    r_edges = bf["r_edges_m"]
+    zs = bf["zeta_centres_m"]
+    order = np.argsort(fields["zeta_m"]) if fields is not None else None
     r_c = 0.5 * (r_edges[1:] + r_edges[:-1])
     dr = np.diff(r_edges)
     hb = 0.5 * g.disc_thickness_m
@@ -443,7 +433,7 @@ def _section_bead_fields(scene, sim, cpl, sx, sv, fields) -> dict:
     dz = float(np.diff(zs).mean())
     z_edges = np.concatenate([zs - 0.5 * dz, [zs[-1] + 0.5 * dz]])
     beads = FS.bead_section_fields(sx, sv, sim.rad, g, r_edges, z_edges)
-    return dict(beads, r_edges_m=r_edges, zeta_edges_m=z_edges)
+    return dict(beads, r_edges_m=r_edges, zeta_edges_m=z_edges, zeta_centres_m=zs)
 
 
 def _speed(f, i_r, sel, order, v_tip):

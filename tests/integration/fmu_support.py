@@ -284,3 +284,23 @@ def done(obj):
     sys.stderr.flush()
     os._exit(0)  # as in PRELUDE: no interpreter teardown with FMUs loaded
 '''
+
+
+def run_isolated_and_compare(fmu: Path, scene_path, d: Path, outs, stop_time=20.0,
+                             step_size=2.0) -> dict:
+    """Simulate ``fmu`` with fmpy in a Python without millfmu (and without numba loaded),
+    and compare its outputs with the model run directly on the same steps to 1e-12.
+    Returns the FMU's results."""
+    py = isolated_python(d)
+    res = run_py(py, f"""
+import importlib.util
+assert importlib.util.find_spec("millfmu") is None
+from fmpy import simulate_fmu
+r = simulate_fmu({str(fmu)!r}, stop_time={stop_time!r}, step_size={step_size!r}, output={list(outs)!r})
+assert not any(m.startswith("numba") for m in sys.modules)
+done({{"time": r["time"].tolist(), **{{k: r[k].tolist() for k in {list(outs)!r}}}}})
+""", d)
+    ref = reference(scene_path, np.diff(res["time"]).tolist())
+    for k in outs:
+        np.testing.assert_allclose(res[k][1:], ref[k], rtol=1e-12, atol=0, err_msg=k)
+    return res

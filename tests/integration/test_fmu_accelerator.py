@@ -5,10 +5,9 @@ model run directly."""
 import zipfile
 from pathlib import Path
 
-import numpy as np
 import pytest
 
-from tests.integration.fmu_support import build, isolated_python, reference, run_py
+from tests.integration.fmu_support import build, run_isolated_and_compare
 
 SCENE = Path(__file__).resolve().parents[2] / "millfmu/data/examples/accelerator_detailed.toml"
 OUTS = ["x10", "x50", "x90", "sf", "holdup"]
@@ -39,17 +38,5 @@ def test_validates_and_carries_the_accelerator_table(acc_fmu):
 
 def test_runs_in_fmpy_and_matches_the_model(acc_fmu):
     d, fmu = acc_fmu
-    py = isolated_python(d)
-    res = run_py(py, f"""
-import importlib.util
-assert importlib.util.find_spec("millfmu") is None
-from fmpy import simulate_fmu
-r = simulate_fmu({str(fmu)!r}, stop_time=20.0, step_size=2.0, output={OUTS!r})
-assert not any(m.startswith("numba") for m in sys.modules)
-done({{"time": r["time"].tolist(), **{{k: r[k].tolist() for k in {OUTS!r}}}}})
-""", d)
-    steps = np.diff(res["time"]).tolist()
-    ref = reference(SCENE, steps)
-    for k in OUTS:
-        np.testing.assert_allclose(res[k][1:], ref[k], rtol=1e-12, atol=0, err_msg=k)
+    res = run_isolated_and_compare(fmu, SCENE, d, OUTS)
     assert res["x50"][-1] < res["x50"][0]

@@ -3,10 +3,9 @@ slice its scene needs and runs without millfmu."""
 
 import zipfile
 
-import numpy as np
 import pytest
 
-from tests.integration.fmu_support import build, isolated_python, reference, run_py
+from tests.integration.fmu_support import build, run_isolated_and_compare
 
 SCENE = None  # the embedded default scene: detailed model on the shipped table
 OUTS = ["x10", "x50", "x90", "sf", "holdup"]
@@ -35,17 +34,5 @@ def test_carries_table_slice_and_reader_only(table_fmu):
 
 def test_runs_without_millfmu_and_matches_model(table_fmu):
     d, fmu = table_fmu
-    py = isolated_python(d)
-    res = run_py(py, f"""
-import importlib.util
-assert importlib.util.find_spec("millfmu") is None
-from fmpy import simulate_fmu
-r = simulate_fmu({str(fmu)!r}, stop_time=20.0, step_size=2.0, output={OUTS!r})
-assert not any(m.startswith("numba") for m in sys.modules)
-done({{"time": r["time"].tolist(), **{{k: r[k].tolist() for k in {OUTS!r}}}}})
-""", d)
-    steps = np.diff(res["time"]).tolist()
-    ref = reference(SCENE, steps)
-    for k in OUTS:
-        np.testing.assert_allclose(res[k][1:], ref[k], rtol=1e-12, atol=0, err_msg=k)
+    res = run_isolated_and_compare(fmu, SCENE, d, OUTS)
     assert res["x50"][-1] < res["x50"][0]
