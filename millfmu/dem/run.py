@@ -10,6 +10,9 @@ Outputs in the output folder:
 - ``se_histograms.csv``: stress-energy number densities [1/decade] per zone and component
   on the log bins of ``stats.json``;
 - ``kinetic_energy.csv``: bead kinetic energy over time (spin-up and recording);
+- with ``contacts=True`` only: ``contacts.npz``, every recorded bead-bead contact with its
+  zone, recording chunk (one sampling interval) and SE_tn, SE_total [J], so that statistics
+  of any part of the recording can be recomputed (see :func:`write_contacts`);
 - ``map_stress_energy.png``, ``map_collision_frequency.png``, ``map_collision_power.png``:
   radially averaged (i.e. averaged over the angle) maps in the axial section, like seed 001
   figures 12-15; ``se_distributions.png``: SE_tn distributions per zone (seed 001 Fig. A1);
@@ -97,14 +100,14 @@ def bead_angular_momentum_kgm2_s(sim) -> float:
 
 
 def run_scene(scene: DemScene, out_dir, progress: bool = True, threads: int | None = None,
-              window_s: float | None = None) -> DemStats:
+              window_s: float | None = None, contacts: bool = False) -> DemStats:
     """Run ``scene`` and write its outputs to ``out_dir``; returns the statistics.
 
     ``window_s`` [s]: also cut the recording into consecutive windows of this length (a
     whole number of sampling intervals) and write each window's zone statistics to
     ``windows.csv``, to see whether the recorded state is stationary. With the coupled
     fluid, spin-up, recording and sampling interval are rounded up to whole coupling
-    intervals.
+    intervals. ``contacts``: also write ``contacts.npz`` (:func:`write_contacts`).
     """
     from millfmu.dem import kernels as K
 
@@ -235,6 +238,10 @@ def run_scene(scene: DemScene, out_dir, progress: bool = True, threads: int | No
             rows.append((t0, t0 + sum(torques[i][0] for i in chunks) * dt,
                          stats_of(chunks, t0)))
         _write_windows(out / "windows.csv", rows)
+    if contacts:
+        write_contacts(out / "contacts.npz", events, [t[0] for t in torques], zones,
+                       n_spin * dt, dt, K.EV_TYPE, [K.EV_X, K.EV_Y, K.EV_Z], K.EV_SETN,
+                       [K.EV_SETN, K.EV_SETS, K.EV_SEROT])
     (out / "stats.json").write_text(stats.to_json())
     _write_histograms(out / "se_histograms.csv", stats)
     np.savetxt(out / "kinetic_energy.csv", np.column_stack([ke_t, ke]), delimiter=",",
@@ -453,6 +460,31 @@ def _write_windows(path: Path, rows):
                     z.filling, z.speed_over_tip_speed, z.collision_frequency_per_m3_s,
                     q["q50"], q["q90"], z.collision_power_w)]))
     path.write_text("\n".join(lines) + "\n")
+
+
+def write_contacts(path: Path, events, chunk_steps, zones: Zones, t0_s: float, dt_s: float,
+                   c_type: int, c_xyz, c_setn: int, c_setotal) -> None:
+    """Bead-bead contacts of the recording, per recording chunk (one sampling interval):
+    ``zone`` (index into ``zone_names``, -1 outside every zone), ``chunk`` (index of the
+    chunk), ``se_tn_j`` and ``se_total_j`` [J] (as in :mod:`millfmu.dem.stats`);
+    ``chunk_start_s`` and ``chunk_s`` [s] per chunk; ``zone_names``, ``zone_volumes_m3``.
+    ``events``: the recorded contact rows per chunk; ``chunk_steps``: DEM steps per chunk."""
+    zone, chunk, setn, setot = [], [], [], []
+    for i, e in enumerate(events):
+        bb = e[e[:, c_type] == 0] if e.size else e
+        zone.append(zones.classify(bb[:, c_xyz]).astype(np.int8) if bb.size else
+                    np.zeros(0, np.int8))
+        chunk.append(np.full(bb.shape[0], i, np.int32))
+        setn.append(bb[:, c_setn] if bb.size else np.zeros(0))
+        setot.append(bb[:, c_setotal].sum(axis=1) if bb.size else np.zeros(0))
+    steps = np.asarray(chunk_steps, np.int64)
+    starts = t0_s + np.concatenate([[0], np.cumsum(steps)[:-1]]) * dt_s if steps.size else \
+        np.zeros(0)
+    cat = (lambda a, dt: np.concatenate(a) if a else np.zeros(0, dt))
+    np.savez_compressed(path, zone=cat(zone, np.int8), chunk=cat(chunk, np.int32),
+                        se_tn_j=cat(setn, float), se_total_j=cat(setot, float),
+                        chunk_start_s=starts, chunk_s=steps * dt_s,
+                        zone_names=np.array(zones.names), zone_volumes_m3=zones.volumes_m3())
 
 
 def _write_histograms(path: Path, stats: DemStats):
