@@ -4,6 +4,11 @@
 exact Jacobian) on the same batch grinding problem, at equal accuracy: BDF's tolerances are
 tightened until its error against the closed-form solution expm(A t) m0 is no larger than
 the accuracy target, and the exact stepper's error is measured the same way.
+
+``integrator_study``: error against run time of the population-balance integrators (the
+exact step, the adaptive exponential integrator, scipy's BDF and truncated Taylor steps as
+Dyssol's crusher unit uses, :func:`taylor_step`) on a smooth and a stiff case whose rates
+change in time, with measured orders (``millfmu bench integrators``, ``millfmu report``).
 """
 
 from __future__ import annotations
@@ -170,3 +175,174 @@ def bench_pbm(classes=(50, 100, 200), hours=1.0, repeats=3, dt_s=1.0, out=print,
         for stiff in (False, True):
             rows.append(bench_tanks(tanks, dt_s, repeats, dense, stiff, out))
     return rows
+
+
+# --- Integrators of the population balance: error against run time -----------------------
+
+def taylor_step(a: np.ndarray, y: np.ndarray, h_s: float, order: int) -> np.ndarray:
+    """One step of dy/dt = A y by the Taylor series of expm(h A) truncated after ``order``
+    terms: y + h A y (+ h^2 A^2 y / 2 ...). Orders 1 and 2 are the transformation matrices
+    I + A h and (I + A h)(I + A h / 2) - A h / 2 = I + A h + (A h)^2 / 2 that Dyssol's
+    population-balance crusher unit (CrusherPBMTM, methods "Newton" and "Runge-Kutta")
+    applies per time step. It conserves mass (A's columns sum to zero) but is stable only
+    for h below about 2 / max S and keeps masses non-negative only below 1 / max S."""
+    out = np.array(y, dtype=float)
+    term = out
+    for k in range(1, order + 1):
+        term = (h_s / k) * (a @ term)
+        out = out + term
+    return out
+
+
+#: The integrator study's cases: the breakage operator swings between two operating points,
+#: A(t) = (1 - th(t)) A_lo + th(t) A_hi with th(t) = (1 + sin(2 pi t / P)) / 2, over t_end_s.
+#: Smooth: the default scene (detailed model on the DEM table) at 8 and 12 m/s (rates up to
+#: about 1e-2 1/s); stiff: Austin rates a (x / 200 um)^alpha spanning 1e-8 ... 1e8 1/s
+#: (STIFF) with alpha 4.85 and 4.0. The two operators do not commute, so no closed form:
+#: the reference is the exact step at 2^14 and 2^15 steps, Richardson-extrapolated.
+INTEGRATOR_CASES = {
+    "smooth": dict(period_s=1300.0, t_end_s=3600.0),
+    "stiff": dict(period_s=0.37, t_end_s=1.0),
+}
+
+
+def _case_operators(case: str):
+    """(A_lo, A_hi) [1/s] (state: classes and below-grid mass) and the initial masses [kg]
+    of a study case (:data:`INTEGRATOR_CASES`)."""
+    import tomllib
+
+    from .scene import default_scene_text, scene_from_dict
+
+    d = tomllib.loads(default_scene_text())
+    mats = []
+    for k in range(2):
+        if case == "stiff":
+            sel = dict(STIFF["selection"], alpha=(4.85, 4.0)[k])
+            d["material"], d["kinetics"] = dict(STIFF, selection=sel), {"model": "none"}
+        else:
+            d["mill"]["tip_speed_m_per_s"] = (8.0, 12.0)[k]
+        model = MillModel(scene_from_dict(d))
+        mats.append(model.operator.matrix(model.selection_nodes(model.operating_point(model.inputs))))
+    return mats[0], mats[1], model.y[1:].copy()
+
+
+def _order(x, e, floor):
+    """Least-squares slope of log(e) against log(x) over the points above 10 x ``floor``
+    (the reference's error) and below 0.1 (the asymptotic range); nan with fewer than 2."""
+    x, e = np.asarray(x, float), np.asarray(e, float)
+    ok = np.isfinite(e) & np.isfinite(x) & (x > 0) & (e > 10.0 * floor) & (e < 0.1)
+    if ok.sum() < 2:
+        return float("nan")
+    return float(np.polyfit(np.log(x[ok]), np.log(e[ok]), 1)[0])
+
+
+def _exact_steps(a_of_t, m0, t_end, n):
+    """n exact steps with the operator at each step's midpoint (exponential midpoint rule)."""
+    h = t_end / n
+    y = m0.copy()
+    for k in range(n):
+        y = pbm.propagators(a_of_t((k + 0.5) * h), None, h)[0] @ y
+    return y
+
+
+def integrator_study(quick: bool = False, repeats: int | None = None, out=print) -> dict:
+    """Error against run time of the population-balance integrators on a smooth and a
+    stiff case of batch grinding whose rates change in time (:data:`INTEGRATOR_CASES`).
+    Methods:
+
+    - ``exact step``: the matrix exponential of each step with the operator at the step's
+      midpoint (exact for rates constant over the step; second order for changing ones);
+    - ``adaptive exponential``: :func:`millfmu.kinetics.pbm.adaptive_exponential_step`
+      (the model's ``adaptive`` integrator) over the whole time, tolerance swept;
+    - ``scipy BDF``: solve_ivp over the whole time with the exact Jacobian, tolerance swept;
+    - ``Taylor 1`` and ``Taylor 2``: :func:`taylor_step` with the midpoint operator
+      (the transformation matrices of Dyssol's crusher unit), fixed steps.
+
+    Error: max over classes of |m(T) - m_ref(T)| / total mass, m_ref the exact step at
+    2^13 and 2^14 steps (quick: 2^9, 2^10), Richardson-extrapolated (the midpoint rule is
+    symmetric, so its error expands in even powers of h); the same extrapolation one level
+    coarser estimates the reference's error. Run time: best of ``repeats``. Measured order:
+    least-squares slope of log error against log step size (for the adaptive methods the
+    mean step, t_end / steps taken), over the points between 10 x the reference's error
+    and 0.1 (for BDF, whose order varies up to 5, only a slope).
+    Returns {case: {"rows": [...], "orders": {...}, ...}}.
+    """
+    repeats = repeats or (1 if quick else 3)
+    res = {}
+    for case, c in INTEGRATOR_CASES.items():
+        a_lo, a_hi, m0 = _case_operators(case)
+        per, t_end = c["period_s"], c["t_end_s"]
+        w = 2.0 * np.pi / per
+
+        def a_of_t(t):
+            th = 0.5 * (1.0 + np.sin(w * t))
+            return (1.0 - th) * a_lo + th * a_hi
+
+        total = float(m0.sum())
+        n_ref = 2 ** (8 if quick else 12)
+        t0 = time.perf_counter()
+        y = [_exact_steps(a_of_t, m0, t_end, n_ref * 2 ** k) for k in range(3)]
+        ref = (4.0 * y[2] - y[1]) / 3.0
+        # the same extrapolation one level coarser: their difference bounds the reference's
+        # error, and only errors well above it count for the orders
+        ref_err = float(np.max(np.abs(ref - (4.0 * y[1] - y[0]) / 3.0)) / total)
+        t_ref = time.perf_counter() - t0
+        floor = max(1e-15, ref_err)
+        s_max = float(max(-np.diag(a_lo).min(), -np.diag(a_hi).min()))
+        rows = []
+
+        def err(y):
+            return float(np.max(np.abs(y - ref)) / total) if np.all(np.isfinite(y)) else float("inf")
+
+        def mmin(y):
+            return float(np.min(y) / total) if np.all(np.isfinite(y)) else float("nan")
+
+        n_steps = [2 ** k for k in ((2, 4, 6) if quick else range(2, 11))]
+        for name, kind in (("exact step", 0), ("Taylor 1", 1), ("Taylor 2", 2)):
+            for n in n_steps:
+                h = t_end / n
+
+                def run(h=h, n=n, kind=kind):
+                    if kind == 0:
+                        return _exact_steps(a_of_t, m0, t_end, n)
+                    y = m0.copy()
+                    with np.errstate(over="ignore", invalid="ignore"):
+                        for k in range(n):
+                            y = taylor_step(a_of_t((k + 0.5) * h), y, h, kind)
+                    return y
+
+                t, y = _best(run, repeats)
+                rows.append(dict(method=name, steps=n, step_s=h, error=err(y), wall_s=t,
+                                 min_mass=mmin(y), h_times_max_rate=h * s_max))
+
+        def system(t, y):
+            return pbm.TanksInSeries(a_of_t(t), 1, 0.0), None
+
+        y0 = np.concatenate(([0.0], m0))
+        for rtol in ((1e-3, 1e-4) if quick else (1e-2, 1e-3, 1e-4, 1e-5, 1e-6, 1e-7, 1e-8)):
+            t, (y, n_sub) = _best(lambda: pbm.adaptive_exponential_step(y0, 0.0, t_end, system, rtol=rtol, atol=rtol * 1e-6 * total), repeats)
+            rows.append(dict(method="adaptive exponential", rtol=rtol, steps=int(n_sub), step_s=t_end / n_sub,
+                             error=err(y[1:]), wall_s=t, min_mass=mmin(y)))
+        for rtol in ((1e-4, 1e-6, 1e-8) if quick else (1e-3, 1e-4, 1e-5, 1e-6, 1e-7, 1e-8, 1e-9, 1e-10)):
+            def bdf():
+                return solve_ivp(lambda t, m: a_of_t(t) @ m, (0.0, t_end), m0, method="BDF",
+                                 jac=lambda t, m: a_of_t(t), rtol=rtol, atol=rtol * 1e-3 * total)
+            t, sol = _best(bdf, repeats)
+            y = sol.y[:, -1]
+            rows.append(dict(method="scipy BDF", rtol=rtol, steps=int(sol.t.size - 1), step_s=t_end / max(sol.t.size - 1, 1),
+                             error=err(y), wall_s=t, min_mass=mmin(y), nfev=int(sol.nfev)))
+        orders = {}
+        for name in ("exact step", "Taylor 1", "Taylor 2", "adaptive exponential", "scipy BDF"):
+            rr = [r for r in rows if r["method"] == name]
+            orders[name] = _order([r["step_s"] for r in rr], [r["error"] for r in rr], floor)
+        res[case] = dict(rows=rows, orders=orders, states=int(a_lo.shape[0]), t_end_s=t_end,
+                         period_s=per, max_rate_per_s=s_max, reference_steps=4 * n_ref,
+                         reference_wall_s=t_ref, reference_error=ref_err)
+        out(f"{case}: {a_lo.shape[0]} states, operator swinging between two operating points with period {per:g} s, "
+            f"{t_end:g} s simulated, largest rate {s_max:.3g} 1/s; reference: exact steps at {2 * n_ref} and {4 * n_ref}, "
+            f"extrapolated (error estimate {ref_err:.1e})")
+        out(f"  {'method':22s} {'steps':>7s} {'rtol':>7s} {'error':>9s} {'wall [s]':>9s} {'min mass':>9s}")
+        for r in rows:
+            out(f"  {r['method']:22s} {r['steps']:7d} {r.get('rtol', float('nan')):7.0e} {r['error']:9.2e} {r['wall_s']:9.3g} {r['min_mass']:9.1e}")
+        out("  measured orders: " + ", ".join(f"{k} {v:.2f}" for k, v in orders.items()))
+    return res

@@ -1,0 +1,44 @@
+"""The truncated Taylor step (Dyssol's crusher unit) of the integrator study: its order,
+mass conservation, and its stability limit against the exact step."""
+
+import numpy as np
+from scipy.linalg import expm
+
+from millfmu.bench import _order, taylor_step
+
+
+def _operator(n=6, rate=1.0):
+    """A small breakage operator: rates rising with size, equal fragments into every finer
+    class, columns summing to zero."""
+    a = np.zeros((n, n))
+    for j in range(1, n):
+        s = rate * (j / (n - 1)) ** 2
+        a[:j, j] = s / j
+        a[j, j] = -s
+    return a
+
+
+def test_taylor_steps_converge_with_orders_one_and_two_and_conserve_mass():
+    a, y0 = _operator(), np.r_[np.zeros(5), 1.0]
+    exact = expm(3.0 * a) @ y0
+    for order in (1, 2):
+        hs, errs = [], []
+        for n in (16, 32, 64, 128):
+            y = y0.copy()
+            for _ in range(n):
+                y = taylor_step(a, y, 3.0 / n, order)
+            assert abs(y.sum() - 1.0) < 1e-14  # columns sum to zero: mass conserved
+            hs.append(3.0 / n)
+            errs.append(np.abs(y - exact).max())
+        assert abs(_order(hs, errs, 1e-16) - order) < 0.1, (order, errs)
+
+
+def test_taylor_step_diverges_beyond_its_stability_limit_where_the_exponential_does_not():
+    a, y0 = _operator(rate=1e6), np.r_[np.zeros(5), 1.0]
+    y = y0.copy()
+    for _ in range(20):
+        y = taylor_step(a, y, 1e-3, 2)  # h S_max = 1000, far beyond 2
+    assert not np.all(np.isfinite(y)) or np.abs(y).max() > 1e6
+    e = expm(1e-3 * a)
+    z = np.linalg.matrix_power(e, 20) @ y0
+    assert z.min() > -1e-15 and abs(z.sum() - 1.0) < 1e-12
