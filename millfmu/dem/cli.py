@@ -17,7 +17,7 @@ def register(subparsers) -> argparse.ArgumentParser:
     p = subparsers.add_parser("dem", help="bead DEM: run a scene, benchmark",
                               description="Soft-sphere DEM of the grinding beads.")
     sub = p.add_subparsers(dest="dem_command",
-                           metavar="{run,bench,seed001,seed002,compare}")
+                           metavar="{run,bench,seed001,seed002,compare,work-precision}")
     sub.required = True
 
     r = sub.add_parser("run", help="run a DEM scene and write statistics, histograms, maps")
@@ -101,7 +101,53 @@ def register(subparsers) -> argparse.ArgumentParser:
                                        "or run-length checks), relative to the first")
     c.add_argument("runs", nargs="+", metavar="RUN_DIR", help="folders written by 'dem run'")
     c.set_defaults(func=_compare)
+
+    w = sub.add_parser("work-precision", help="error of the tabulated statistics against "
+                       "recording length, spin-up, sector, time step and coupling interval, "
+                       "with run times (coupled disc slice, 10 m/s, 80 %%)")
+    w.add_argument("action", choices=("run", "table"), help="make the runs (skipping those "
+                   "done; hours on one core) or the table, JSON, CSV and plot from them")
+    w.add_argument("--out", required=True, help="folder of the study's runs and results")
+    w.add_argument("--variants", default=None, help="comma-separated separate runs (default: "
+                   "coupling_1e-4,dt_1e-5,coupling_2.5e-5,sector_30; also coupling_2e-4, "
+                   "dt_2.5e-6)")
+    w.add_argument("--quick", action="store_true", help="instead: one short run and its "
+                   "recording-length errors (about a minute)")
+    w.add_argument("--export", metavar="FILE", help="table: also write the summary a table "
+                   "manifest quotes (millfmu/data/dem_work_precision.json ships it)")
+    w.add_argument("--threads", type=int, default=1, help="numba threads (default 1)")
+    w.set_defaults(func=_work_precision)
     return p
+
+
+def _work_precision(args) -> int:
+    from pathlib import Path
+
+    from millfmu.dem import work_precision as W
+    from millfmu.dem.compare import CompareError
+
+    out = Path(args.out)
+    try:
+        if args.quick:
+            if args.action == "run":
+                W.run_quick(out / "quick", threads=args.threads, progress=True)
+            res = W.analyse_quick(out / "quick")
+        else:
+            if args.action == "run":
+                variants = W.DEFAULT_VARIANTS if args.variants is None else tuple(
+                    v.strip() for v in args.variants.split(",") if v.strip())
+                W.run_study(out, variants=variants, threads=args.threads)
+            res = W.analyse(out)
+    except (W.WorkPrecisionError, CompareError) as e:
+        print(f"millfmu dem work-precision: {e}", file=sys.stderr)
+        return 2
+    files = W.write(res, out)
+    if args.export and not args.quick:
+        files.append(W.export(res, args.export))
+    print(W.markdown(res))
+    print("wrote " + ", ".join(str(f) for f in files))
+    return 0
+
 
 
 def _compare(args) -> int:

@@ -1,0 +1,742 @@
+"""DEM work-precision: the error of the tabulated statistics against run time.
+
+At one operating point of the coupled disc slice (10 m/s, 80 % filling, 10 degree sector,
+no gravity; seed 001's protocol of :mod:`millfmu.dem.seed001`) this measures how far each
+statistic a stress-energy table holds (per zone: quantiles of SE_tn, collision frequency,
+local filling, collision power) lies from a long reference run, as a function of
+
+- the recording length T: from one long run whose recording is cut into chunks of one
+  sampling interval, with every bead-bead contact kept (``contacts.npz``) so that any part
+  of the recording gives exact statistics. The error of a recording of length T is the
+  root-mean-square deviation of the statistics of the run's consecutive, non-overlapping
+  T-blocks (inside the reference window) from the whole window's, times sqrt(n / (n - 1))
+  for n blocks (batch means: the standard error of one T-recording against the stationary
+  value). Sampling statistics predict that it falls as T^-1/2 once T exceeds the flow's
+  correlation time; beside it, the error independent contacts would give (Poisson counts,
+  order statistics), and a power law error = a T^b fitted to the measured errors;
+- the spin-up s: the window [s, s + RECORD_S] of the same long run against the reference
+  window (the run is deterministic, so this is the run a spin-up of s would have made);
+- the sector angle, the DEM time step and the coupling interval: separate runs with one
+  setting changed, each against the long run's window with the same spin-up and recording
+  (the reference setting). Their trajectories separate within milliseconds, so each
+  difference also holds the sampling error of two independent recordings, stated beside it
+  as the 2-sigma noise from the recording-length law.
+
+Run times are the runs' CPU times on one thread (``cost.json``, written by the study's
+runs; the machine is shared, so wall times would measure the other users too; wall time
+from ``stats.json`` for runs without it); a recording-length or spin-up row gives the time
+a run of that spin-up and recording would take at the long run's cost per simulated
+second.
+
+``millfmu dem work-precision run --out DIR`` makes the runs (skipping those done),
+``millfmu dem work-precision table --out DIR`` prints the table and writes
+``work_precision.json``, ``work_precision.csv`` and ``work_precision.png``; ``--export
+FILE`` also writes the summary a table manifest quotes (:func:`manifest_entry`).
+"""
+
+from __future__ import annotations
+
+import csv
+import json
+import math
+import platform
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from millfmu.dem.compare import ZONES, load_run
+from millfmu.dem.seed001 import COUPLED_INITIAL_ROTATION, COUPLED_SPIN_UP_S, RECORD_S
+
+#: The operating point (``DemScene.with_overrides`` keys): seed 001's 10 m/s, 80 % case in
+#: the coupled slice with the seed001 protocol's start.
+OPERATING_POINT = dict(tip_speed_m_s=10.0, filling=0.8, sector_deg=10.0,
+                       gravity_m_s2=(0.0, 0.0, 0.0), fluid_mode="coupled",
+                       initial_rotation=COUPLED_INITIAL_ROTATION)
+#: Sampling interval [s] = chunk of the contacts file = window of windows.csv.
+SAMPLE_S = 0.01
+#: The long run: recording from LONG_START_S (the shortest spin-up studied) to LONG_END_S [s].
+LONG_START_S = 0.2
+LONG_END_S = 3.0
+#: Reference window [s] of the long run, after every spin-up window studied. A first run to
+#: 1.9 s showed the zones still changing after the protocol's 1.0 s (V1 filling 0.43 ->
+#: 0.37 and V4 0.53 -> 0.45 by 1.6 s, then level), hence the later reference.
+REFERENCE_WINDOW_S = (1.8, 3.0)
+#: Recording lengths studied [s] (blocks inside the reference window).
+RECORD_LENGTHS_S = (0.01, 0.02, 0.03, 0.05, 0.1, 0.2, 0.4)
+#: Spin-ups studied [s] (windows [s, s + RECORD_S] of the long run).
+SPIN_UPS_S = (0.2, 0.35, 0.5, 0.565, 0.75, 1.0, 1.25, 1.5)
+#: Separate runs: name -> (overrides of the long run's scene, coupling steps or None,
+#: spin-up [s], what changes). dt variants keep the coupling interval (5e-5 s); the sector
+#: run is 3 times the beads, so it spins up for 25 stirrer revolutions (0.565 s) as the
+#: README's sector check did, and is compared with the 10 degree window of the same times.
+VARIANTS = {
+    "coupling_2.5e-5": (dict(), 5, COUPLED_SPIN_UP_S, "coupling interval 2.5e-5 s (5 steps)"),
+    "coupling_1e-4": (dict(), 20, COUPLED_SPIN_UP_S, "coupling interval 1e-4 s (20 steps)"),
+    "coupling_2e-4": (dict(), 40, COUPLED_SPIN_UP_S, "coupling interval 2e-4 s (40 steps)"),
+    "dt_1e-5": (dict(dt_s=1e-5), 5, COUPLED_SPIN_UP_S, "DEM step 1e-5 s (coupling 5e-5 s)"),
+    "dt_2.5e-6": (dict(dt_s=2.5e-6), 20, COUPLED_SPIN_UP_S,
+                  "DEM step 2.5e-6 s (coupling 5e-5 s)"),
+    "sector_30": (dict(sector_deg=30.0), None, 0.565, "30 degree sector (3 x the beads)"),
+}
+#: The variants run by default (the others on request): what fits a few hours on one core.
+DEFAULT_VARIANTS = ("coupling_1e-4", "dt_1e-5", "coupling_2.5e-5", "sector_30")
+#: Short study (``quick``): the same point, spun up briefly, sampled every ``sample_s``
+#: [s]: the method on a real run for the tests and the quick report (about 30 s of CPU). It
+#: is not stationary, so its errors say nothing about a table's.
+QUICK = dict(spin_up_s=0.02, record_s=0.04, sample_s=0.002,
+             lengths_s=(0.002, 0.004, 0.01, 0.02))
+
+#: Tabulated statistics: SE_tn quantiles (the table holds q10, q50, q90; the quartiles
+#: beside them), collision frequency, local filling, collision power density.
+QUANTILES = {"q10": 0.10, "q25": 0.25, "q50": 0.50, "q75": 0.75, "q90": 0.90}
+STATISTICS = tuple(f"se_tn_{q}" for q in QUANTILES) + ("collision_frequency", "filling",
+                                                        "collision_power")
+
+
+class WorkPrecisionError(ValueError):
+    """A run folder the study cannot use (missing files, no contacts)."""
+
+
+def base_scene():
+    """The operating point's DEM scene (:class:`millfmu.dem.scene.DemScene`)."""
+    from millfmu.dem.scene import load_scene
+
+    return load_scene("disc_slice").with_overrides(**OPERATING_POINT)
+
+
+def _scene_of(name: str):
+    from dataclasses import replace
+
+    sc = base_scene()
+    if name == "long":
+        return sc.with_overrides(spin_up_s=LONG_START_S, record_s=LONG_END_S - LONG_START_S,
+                                 sample_every_s=SAMPLE_S)
+    over, steps, spin, _ = VARIANTS[name]
+    sc = sc.with_overrides(spin_up_s=spin, record_s=RECORD_S, sample_every_s=SAMPLE_S, **over)
+    if steps is not None:
+        sc = replace(sc, coupling=replace(sc.coupling, steps=steps))
+    return sc
+
+
+def run_study(out_dir, variants=DEFAULT_VARIANTS, threads: int | None = 1,
+              progress: bool = True, log=print) -> list[Path]:
+    """Make the study's runs in ``out_dir`` (``long`` and each of ``variants``), skipping
+    those with a ``stats.json``; returns the run folders. One core: about 15 minutes for the
+    long run, 8-13 for a 10 degree variant, 3 times that for the 30 degree sector."""
+    from millfmu.dem.run import run_scene
+
+    bad = [v for v in variants if v not in VARIANTS]
+    if bad:
+        raise WorkPrecisionError(f"variants {bad}: allowed {sorted(VARIANTS)}")
+    out = Path(out_dir)
+    dirs = []
+    for name in ("long",) + tuple(variants):
+        d = out / name
+        dirs.append(d)
+        if (d / "stats.json").exists():
+            continue
+        log(f"work-precision: running {name} into {d}")
+        _timed(run_scene, d, _scene_of(name), d, progress=progress, threads=threads,
+               window_s=SAMPLE_S, contacts=True)
+    return dirs
+
+
+def _timed(fn, out_dir, *a, **kw):
+    """Run ``fn`` and write its CPU time (this process, all threads) and wall time [s] to
+    ``out_dir/cost.json``: on a shared machine the CPU time is the run's cost."""
+    c0, w0 = time.process_time(), time.perf_counter()
+    r = fn(*a, **kw)
+    (Path(out_dir) / "cost.json").write_text(json.dumps(dict(
+        cpu_s=time.process_time() - c0, wall_s=time.perf_counter() - w0,
+        threads=kw.get("threads"))))
+    return r
+
+
+def run_quick(out_dir, threads: int | None = 1, progress: bool = False) -> Path:
+    """The short run of the quick study (``QUICK``) into ``out_dir``; returns it."""
+    from millfmu.dem.run import run_scene
+
+    d = Path(out_dir)
+    if not (d / "stats.json").exists():
+        sc = base_scene().with_overrides(spin_up_s=QUICK["spin_up_s"],
+                                         record_s=QUICK["record_s"],
+                                         sample_every_s=QUICK["sample_s"])
+        _timed(run_scene, d, sc, d, progress=progress, threads=threads,
+               window_s=QUICK["sample_s"], contacts=True)
+    return d
+
+
+# --- reading runs ----------------------------------------------------------------------
+
+@dataclass
+class RunData:
+    """One run folder: ``stats.json`` (plain dict), and where written, its per-chunk
+    windows (``windows.csv`` at the sampling interval) and contacts (``contacts.npz``)."""
+
+    path: Path
+    stats: dict
+    chunk_start_s: np.ndarray | None = None
+    chunk_s: np.ndarray | None = None
+    filling: np.ndarray | None = None  # (chunks, zones) local filling per chunk [-]
+    zone_names: list = field(default_factory=list)
+    volumes_m3: np.ndarray | None = None
+    # per zone: SE_tn and SE_total [J] sorted by chunk, and the offsets of each chunk
+    se_tn: list = field(default_factory=list)
+    se_total: list = field(default_factory=list)
+    offsets: list = field(default_factory=list)
+
+    @property
+    def has_contacts(self) -> bool:
+        return self.chunk_start_s is not None
+
+    @property
+    def cost_s(self) -> float:
+        """The run's cost [s]: its CPU time where ``cost.json`` has it (one thread: the
+        cost on an idle core), else the wall time of ``stats.json``."""
+        f = self.path / "cost.json"
+        if f.is_file():
+            return float(json.loads(f.read_text())["cpu_s"])
+        return float(self.stats.get("counts", {}).get("wall_time_s", float("nan")))
+
+    @property
+    def simulated_s(self) -> float:
+        return float(self.stats["spin_up_s"] + self.stats["record_s"])
+
+    @property
+    def recording_s(self) -> tuple:
+        """(start, end) of the recording [s]."""
+        return (float(self.stats["spin_up_s"]),
+                float(self.stats["spin_up_s"] + self.stats["record_s"]))
+
+
+def load(path) -> RunData:
+    """Read a run folder (:class:`RunData`); contacts and windows where the run wrote them
+    (``run_scene(..., window_s=sampling interval, contacts=True)``)."""
+    path = Path(path)
+    st = load_run(path)
+    rd = RunData(path=path, stats=st, zone_names=[z["name"] for z in st["zones"]])
+    cf = path / "contacts.npz"
+    if not cf.is_file():
+        return rd
+    with np.load(cf) as c:
+        zone, chunk = c["zone"], c["chunk"]
+        rd.chunk_start_s, rd.chunk_s = c["chunk_start_s"], c["chunk_s"]
+        rd.zone_names = [str(z) for z in c["zone_names"]]
+        rd.volumes_m3 = c["zone_volumes_m3"]
+        se_tn, se_tot = c["se_tn_j"], c["se_total_j"]
+    n_chunks = rd.chunk_start_s.size
+    for k in range(len(rd.zone_names)):
+        m = zone == k
+        o = np.argsort(chunk[m], kind="stable")
+        ch = chunk[m][o]
+        rd.se_tn.append(se_tn[m][o])
+        rd.se_total.append(se_tot[m][o])
+        rd.offsets.append(np.searchsorted(ch, np.arange(n_chunks + 1)))
+    wf = path / "windows.csv"
+    if not wf.is_file():
+        raise WorkPrecisionError(f"run {str(path)!r}: contacts.npz without windows.csv")
+    with open(wf, newline="") as fh:
+        rows = list(csv.DictReader(fh))
+    starts = sorted({float(r["t_start_s"]) for r in rows})
+    if len(starts) != n_chunks or not np.allclose(starts, rd.chunk_start_s, atol=1e-9):
+        raise WorkPrecisionError(f"run {str(path)!r}: windows.csv must have one window per "
+                                 f"sampling interval ({n_chunks}), has {len(starts)}")
+    idx = {t: i for i, t in enumerate(starts)}
+    rd.filling = np.full((n_chunks, len(rd.zone_names)), np.nan)
+    for r in rows:
+        rd.filling[idx[float(r["t_start_s"])], rd.zone_names.index(r["zone"])] = float(r["filling"])
+    return rd
+
+
+def _chunk_range(rd: RunData, t0: float, t1: float) -> tuple[int, int]:
+    ends = rd.chunk_start_s + rd.chunk_s
+    tol = 1e-6 * float(rd.chunk_s.min())
+    sel = np.flatnonzero((rd.chunk_start_s >= t0 - tol) & (ends <= t1 + tol))
+    if sel.size == 0:
+        raise WorkPrecisionError(f"run {str(rd.path)!r}: no recording chunk inside "
+                                 f"[{t0:g}, {t1:g}] s (recorded {rd.recording_s})")
+    return int(sel[0]), int(sel[-1]) + 1
+
+
+def block_stats(rd: RunData, t0: float | None = None, t1: float | None = None) -> dict:
+    """The tabulated statistics of the recording between t0 and t1 [s] (whole chunks;
+    default the whole recording): {statistic: {zone: value}}: SE quantiles [J], collision
+    frequency [1/(m3 s)], filling [-], collision power per zone volume [W/m3] (per volume,
+    as the table holds it, so that sectors of other sizes compare); None
+    where a zone had no collision. Without contacts only the whole recording, from
+    ``stats.json`` (the quartiles then None: it holds q10, q50, q90)."""
+    if not rd.has_contacts:
+        if t0 is not None and not math.isclose(t0, rd.recording_s[0], abs_tol=1e-9) or \
+                t1 is not None and not math.isclose(t1, rd.recording_s[1], abs_tol=1e-9):
+            raise WorkPrecisionError(f"run {str(rd.path)!r}: no contacts.npz, so only its "
+                                     f"whole recording {rd.recording_s} can be used")
+        out = {s: {} for s in STATISTICS}
+        for z in rd.stats["zones"]:
+            q = z["se"]["tn"]["quantiles_j"]
+            for name in QUANTILES:
+                out[f"se_tn_{name}"][z["name"]] = q.get(name)
+            out["collision_frequency"][z["name"]] = z["collision_frequency_per_m3_s"]
+            out["filling"][z["name"]] = z["filling"]
+            out["collision_power"][z["name"]] = z["collision_power_w"] / z["volume_m3"]
+        return out
+    a, b = _chunk_range(rd, rd.recording_s[0] if t0 is None else t0,
+                        rd.recording_s[1] if t1 is None else t1)
+    dur = float(rd.chunk_s[a:b].sum())
+    qs = list(QUANTILES.values())
+    out = {s: {} for s in STATISTICS}
+    for k, z in enumerate(rd.zone_names):
+        i0, i1 = rd.offsets[k][a], rd.offsets[k][b]
+        tn = rd.se_tn[k][i0:i1]
+        qv = np.quantile(tn, qs) if tn.size else [None] * len(qs)
+        for name, v in zip(QUANTILES, qv):
+            out[f"se_tn_{name}"][z] = None if v is None else float(v)
+        out["collision_frequency"][z] = tn.size / (float(rd.volumes_m3[k]) * dur)
+        out["filling"][z] = float(np.mean(rd.filling[a:b, k]))
+        out["collision_power"][z] = float(rd.se_total[k][i0:i1].sum()) / (float(rd.volumes_m3[k]) * dur)
+    return out
+
+
+def _rel(a, b):
+    """Relative difference (a - b) / b, None where undefined."""
+    if a is None or b is None or not b:
+        return None
+    return (a - b) / abs(b)
+
+
+# --- the study -------------------------------------------------------------------------
+
+def _predicted(tn, tot):
+    """Relative errors [-] that independent contacts would give for one block: Poisson
+    counts for the collision frequency, compound Poisson for the collision power, and for a
+    quantile x_p of N energies half the distance between the quantiles p -+ sqrt(p (1 - p)
+    / N) (the order statistics' standard error) over x_p."""
+    n = tn.size
+    out = {"collision_frequency": 1.0 / math.sqrt(n) if n else None,
+           "collision_power": float(math.sqrt(np.sum(tot ** 2)) / np.sum(tot)) if n and np.sum(tot) > 0 else None,
+           "filling": None}
+    for name, p in QUANTILES.items():
+        if n < 10:
+            out[f"se_tn_{name}"] = None
+            continue
+        d = math.sqrt(p * (1.0 - p) / n)
+        lo, mid, hi = np.quantile(tn, [max(p - d, 0.0), p, min(p + d, 1.0)])
+        out[f"se_tn_{name}"] = float(0.5 * (hi - lo) / mid) if mid > 0 else None
+    return out
+
+
+def recording_length_errors(rd: RunData, window_s: tuple, lengths_s) -> list[dict]:
+    """Batch-means error of a recording of each length T inside ``window_s`` of a run with
+    contacts, for the lengths that give at least 2 blocks: {"record_s", "blocks", "error":
+    {statistic: {zone: relative error}}, "predicted": {...}}. Error: sqrt(n / (n - 1)
+    mean_b ((X_b - X) / X)^2) over the n consecutive T-blocks X_b, X the whole window's
+    value: the error of one T-recording against the long reference, slow fluctuations and
+    drift inside the window included. Predicted: what independent contacts would give
+    (:func:`_predicted`, root mean square over the blocks), the sampling statistics' T^-1/2."""
+    whole = block_stats(rd, *window_s)
+    a, b = _chunk_range(rd, *window_s)
+    chunk = float(np.median(rd.chunk_s[a:b]))
+    rows = []
+    for t in lengths_s:
+        k = max(1, int(round(t / chunk)))
+        n = (b - a) // k
+        if n < 2:
+            continue
+        spans = [(a + i * k, a + i * k + k) for i in range(n)]
+        blocks = [block_stats(rd, float(rd.chunk_start_s[c0]),
+                              float(rd.chunk_start_s[c1 - 1] + rd.chunk_s[c1 - 1]))
+                  for c0, c1 in spans]
+        err, pred = {}, {}
+        for s in STATISTICS:
+            err[s] = {}
+            for z in rd.zone_names:
+                d = [_rel(bl[s][z], whole[s][z]) for bl in blocks]
+                d = [x for x in d if x is not None]
+                err[s][z] = math.sqrt(n / (n - 1) * float(np.mean(np.square(d)))) \
+                    if len(d) == n else None
+        per_zone = {}
+        for kz, z in enumerate(rd.zone_names):
+            ps = []
+            for c0, c1 in spans:
+                i0, i1 = rd.offsets[kz][c0], rd.offsets[kz][c1]
+                ps.append(_predicted(rd.se_tn[kz][i0:i1], rd.se_total[kz][i0:i1]))
+            per_zone[z] = ps
+        for s in STATISTICS:
+            pred[s] = {}
+            for z in rd.zone_names:
+                v = [x[s] for x in per_zone[z]]
+                pred[s][z] = None if any(x is None for x in v) else \
+                    float(math.sqrt(np.mean(np.square(v))))
+        rows.append(dict(record_s=k * chunk, blocks=n, error=err, predicted=pred))
+    return rows
+
+
+def fit_sampling_law(rows: list[dict], t_min_s: float = 0.0) -> dict:
+    """Per statistic and zone, over the rows with T >= t_min_s and at least 3 blocks: the
+    measured power law error = at_1s T^slope (least squares in log-log; T in s), and the
+    slope of the independent-contacts prediction (-1/2 by construction where defined)."""
+    use = [r for r in rows if r["record_s"] >= t_min_s - 1e-12 and r["blocks"] >= 3]
+    out = {}
+    for s in STATISTICS:
+        out[s] = {}
+        for z in (use[0]["error"][s] if use else {}):
+            pts = [(r["record_s"], r["error"][s][z]) for r in use
+                   if r["error"][s][z] is not None and r["error"][s][z] > 0]
+            if len(pts) < 2:
+                out[s][z] = None
+                continue
+            t, e = np.log([p[0] for p in pts]), np.log([p[1] for p in pts])
+            slope, icpt = np.polyfit(t, e, 1)
+            f = dict(slope=float(slope), at_1s=float(np.exp(icpt)))
+            pp = [(r["record_s"], r.get("predicted", {}).get(s, {}).get(z)) for r in use]
+            pp = [x for x in pp if x[1]]
+            if len(pp) >= 2:
+                f["predicted_slope"] = float(np.polyfit(np.log([x[0] for x in pp]),
+                                                        np.log([x[1] for x in pp]), 1)[0])
+                f["inflation"] = float(np.exp(np.mean([math.log(r["error"][s][z] / x[1])
+                                                       for r, x in zip(use, pp)
+                                                       if r["error"][s][z]])))
+            out[s][z] = f
+    return out
+
+
+#: Variants that are the more accurate setting of their axis: their row gives the error of
+#: the reference setting against them; the other variants' rows give their own error
+#: against the reference setting.
+FINER = ("coupling_2.5e-5", "dt_2.5e-6", "sector_30")
+#: Recording lengths below this [s] are left out of the power-law fit.
+LAW_T_MIN_S = 0.05
+#: Zones whose statistics the table-build choice holds to its target: V2-V4, the densely
+#: filled zones that carry most collisions; V1 (half empty at 80 % filling, a tenth of the
+#: collisions) is stated beside it.
+TARGET_ZONES = ("V2", "V3", "V4")
+
+
+def machine() -> dict:
+    """Where a study ran: platform, CPU count, Python and numpy versions, date (UTC)."""
+    import os
+
+    return dict(platform=platform.platform(), processor=platform.processor() or platform.machine(),
+                cpus=os.cpu_count(), python=platform.python_version(), numpy=np.__version__,
+                date_utc=time.strftime("%Y-%m-%d %H:%M:%SZ", time.gmtime()))
+
+
+def _sigma(law, s, z, t_s, scale=1.0):
+    """Error of statistic s in zone z for a recording of t_s [s] from the measured law
+    (:func:`fit_sampling_law`; beyond the longest recording studied an extrapolation)."""
+    f = law.get(s, {}).get(z)
+    return None if f is None else scale * f["at_1s"] * t_s ** f["slope"]
+
+
+def analyse(study_dir) -> dict:
+    """The study from the run folders in ``study_dir`` (``long`` and any of
+    :data:`VARIANTS`): recording-length rows with the power-law fit, spin-up rows, variant
+    rows, the table-build choice and its expected error. Plain JSON data."""
+    study = Path(study_dir)
+    long = load(study / "long")
+    if not long.has_contacts:
+        raise WorkPrecisionError(f"{study / 'long'}: the long run needs contacts.npz")
+    rate = long.cost_s / long.simulated_s  # run seconds per simulated second
+    zones = long.zone_names
+    rec_window = REFERENCE_WINDOW_S
+    rec_rows = recording_length_errors(long, rec_window, RECORD_LENGTHS_S)
+    for r in rec_rows:
+        r["run_s"] = rate * (COUPLED_SPIN_UP_S + r["record_s"])
+    law = fit_sampling_law(rec_rows, LAW_T_MIN_S)
+    ref_window = REFERENCE_WINDOW_S
+    ref = block_stats(long, *ref_window)
+    ref_len = ref_window[1] - ref_window[0]
+
+    spin_rows = []
+    for s in SPIN_UPS_S:
+        if s + RECORD_S > long.recording_s[1] + 1e-9 or s < long.recording_s[0] - 1e-9:
+            continue
+        x = block_stats(long, s, s + RECORD_S)
+        err, noise = {}, {}
+        for st in STATISTICS:
+            err[st], noise[st] = {}, {}
+            for z in zones:
+                err[st][z] = _rel(x[st][z], ref[st][z])
+                a, b = _sigma(law, st, z, RECORD_S), _sigma(law, st, z, ref_len)
+                noise[st][z] = None if a is None or b is None else 2.0 * math.hypot(a, b)
+        spin_rows.append(dict(spin_up_s=s, record_s=RECORD_S, error=err, noise_2sigma=noise,
+                              run_s=rate * (s + RECORD_S)))
+
+    var_rows = []
+    for name, (over, steps, spin, what) in VARIANTS.items():
+        d = study / name
+        if not (d / "stats.json").exists():
+            continue
+        rd = load(d)
+        x = block_stats(rd)
+        t0, t1 = rd.recording_s
+        base = block_stats(long, t0, t1)
+        finer = name in FINER
+        beads = rd.stats["beads"] / long.stats["beads"]
+        err, noise = {}, {}
+        for st in STATISTICS:
+            err[st], noise[st] = {}, {}
+            for z in zones:
+                err[st][z] = _rel(base[st][z], x[st][z]) if finer else _rel(x[st][z], base[st][z])
+                a = _sigma(law, st, z, t1 - t0)
+                b = _sigma(law, st, z, t1 - t0, 1.0 / math.sqrt(beads))
+                noise[st][z] = None if a is None else 2.0 * math.hypot(a, b)
+        pn_var = (rd.stats.get("flow", {}).get("power_number") or {}).get("value")
+        var_rows.append(dict(
+            name=name, what=what, finer=finer, spin_up_s=t0, record_s=t1 - t0,
+            beads=rd.stats["beads"], error=err, noise_2sigma=noise, run_s=rd.cost_s,
+            reference_run_s=rate * (t0 + (t1 - t0)) * beads,
+            power_number=pn_var, contacts=rd.has_contacts))
+    res = dict(operating_point=dict(OPERATING_POINT, scene="disc_slice"),
+               long_run=dict(recorded_s=list(long.recording_s), run_s=long.cost_s,
+                             run_per_simulated_s=rate, beads=long.stats["beads"],
+                             threads=long.stats.get("counts", {}).get("threads")),
+               reference_window_s=list(ref_window), recording_window_s=list(rec_window),
+               law_t_min_s=LAW_T_MIN_S, recording=rec_rows, law=law, spin_up=spin_rows,
+               variants=var_rows, zones=zones, statistics=list(STATISTICS),
+               machine=machine())
+    res["choice"] = choose(res)
+    return res
+
+
+def _bias(spin_row, st, z):
+    """Spin-up bias [-]: the measured error less the two recordings' sampling errors."""
+    e = spin_row["error"][st][z]
+    n = spin_row["noise_2sigma"][st][z]
+    if e is None or n is None:
+        return None
+    return math.sqrt(max(e * e - (0.5 * n) ** 2, 0.0))
+
+
+def _resolution(res, st, z):
+    """Resolution errors of the reference setting that exceed their 2-sigma noise: the
+    rows of the finer variants (sector, DEM step, coupling interval) [-]."""
+    out = []
+    for r in res["variants"]:
+        if r["finer"]:
+            e, n = r["error"][st][z], r["noise_2sigma"][st][z]
+            if e is not None and n is not None and abs(e) > n:
+                out.append(abs(e))
+    return out
+
+
+def expected_error(res, spin_up_s, record_s) -> dict:
+    """Expected relative error [-] of each statistic and zone for a table point built
+    with ``spin_up_s`` (one of the studied spin-ups) and ``record_s``: the root sum of
+    squares of the recording-length error a T^b, the spin-up bias (measured error less the
+    sampling noise) and the reference setting's resolution differences that exceed their
+    noise."""
+    row = min(res["spin_up"], key=lambda r: abs(r["spin_up_s"] - spin_up_s))
+    if abs(row["spin_up_s"] - spin_up_s) > 1e-9:
+        raise WorkPrecisionError(f"spin-up {spin_up_s} s: not studied "
+                                 f"({[r['spin_up_s'] for r in res['spin_up']]})")
+    out = {}
+    for st in STATISTICS:
+        out[st] = {}
+        for z in res["zones"]:
+            sig = _sigma(res["law"], st, z, record_s)
+            b = _bias(row, st, z)
+            if sig is None or b is None:
+                out[st][z] = None
+                continue
+            out[st][z] = math.sqrt(sig ** 2 + b ** 2 + sum(x * x for x in _resolution(res, st, z)))
+    return out
+
+
+#: Error targets [-] tried in turn by :func:`choose`.
+TARGETS = (0.05, 0.1, 0.15, 0.2, 0.3)
+#: Recording lengths [s] :func:`choose` considers (beyond the longest studied the
+#: recording-length law is extrapolated, which the choice states).
+CHOICE_LENGTHS_S = (0.05, 0.1, 0.15, 0.2, 0.3, 0.4, 0.5, 0.75, 1.0)
+
+
+def choose(res, targets=TARGETS, zones=TARGET_ZONES) -> dict | None:
+    """The table-build choice: for the smallest target in ``targets`` that some studied
+    spin-up with a recording of :data:`CHOICE_LENGTHS_S` meets (expected error,
+    :func:`expected_error`, at most the target for every statistic in ``zones``), the
+    cheapest such setting; None when none meets the largest."""
+    rate = res["long_run"]["run_per_simulated_s"]
+    longest = max((r["record_s"] for r in res["recording"] if r["blocks"] >= 3), default=0.0)
+    for target in targets:
+        best = None
+        for r in res["spin_up"]:
+            for t in CHOICE_LENGTHS_S:
+                e = expected_error(res, r["spin_up_s"], t)
+                worst = max((e[st][z] for st in STATISTICS for z in zones
+                             if e[st][z] is not None), default=None)
+                if worst is None or worst > target:
+                    continue
+                cost = rate * (r["spin_up_s"] + t)
+                if best is None or cost < best["run_s"] - 1e-9:
+                    best = dict(spin_up_s=r["spin_up_s"], record_s=t, run_s=cost, worst=worst,
+                                expected_error=e, extrapolated=t > longest + 1e-9)
+        if best is not None:
+            best.update(target=target, target_zones=list(zones),
+                        sector_deg=OPERATING_POINT["sector_deg"], dt_s=5e-6,
+                        coupling_interval_s=5e-5, sample_every_s=SAMPLE_S)
+            return best
+    return None
+
+
+# --- output ----------------------------------------------------------------------------
+
+#: Columns of the printed table: label -> statistics whose largest |error| it shows.
+COLUMNS = {"median SE_tn": ("se_tn_q50",),
+           "SE_tn q10, q25, q75, q90": ("se_tn_q10", "se_tn_q25", "se_tn_q75", "se_tn_q90"),
+           "collision frequency": ("collision_frequency",),
+           "local filling": ("filling",),
+           "collision power": ("collision_power",)}
+
+
+def _worst(d, stats, zones):
+    vals = [abs(d[s][z]) for s in stats for z in zones if d.get(s, {}).get(z) is not None]
+    return max(vals) if vals else None
+
+
+def _pct(v):
+    return "n/a" if v is None else f"{100 * v:.2g} %" if v < 0.1 else f"{100 * v:.0f} %"
+
+
+def _cell(row, stats, zones):
+    e = _worst(row["error"], stats, zones)
+    s = _pct(e)
+    if "noise_2sigma" in row:
+        n = _worst(row["noise_2sigma"], stats, zones)
+        s += f" ({_pct(n)})"
+    return s
+
+
+def table_rows(res, zones=TARGET_ZONES) -> list[list[str]]:
+    """Rows [setting, run time, one cell per :data:`COLUMNS`]: the largest relative error
+    over ``zones`` and the statistics of the column; spin-up and variant rows add the 2-sigma
+    sampling noise of the comparison in brackets."""
+    rows = []
+    for r in res["recording"]:
+        rows.append([f"recording {r['record_s']:g} s ({r['blocks']} blocks)",
+                     f"{r['run_s']:.0f}"] + [_cell(r, c, zones) for c in COLUMNS.values()])
+    for r in res["spin_up"]:
+        rows.append([f"spin-up {r['spin_up_s']:g} s, recording {r['record_s']:g} s",
+                     f"{r['run_s']:.0f}"] + [_cell(r, c, zones) for c in COLUMNS.values()])
+    for r in res["variants"]:
+        label = (f"reference against {r['what']}" if r["finer"] else r["what"])
+        rows.append([label, f"{r['run_s']:.0f} ({r['reference_run_s']:.0f})"] +
+                    [_cell(r, c, zones) for c in COLUMNS.values()])
+    return rows
+
+
+def markdown(res, zones=TARGET_ZONES) -> str:
+    """The table (Markdown) with the measured slopes and the choice below it."""
+    head = ["setting", "run time [s]"] + list(COLUMNS)
+    lines = ["| " + " | ".join(head) + " |", "|---" * len(head) + "|"]
+    lines += ["| " + " | ".join(r) + " |" for r in table_rows(res, zones)]
+    lines.append("")
+    lines.append(summary_text(res))
+    return "\n".join(lines)
+
+
+def slopes(res, zones=ZONES) -> dict:
+    """Measured slope of log(error) against log(T) per statistic: the median over
+    ``zones`` (and the range)."""
+    out = {}
+    for s in STATISTICS:
+        v = [res["law"][s][z]["slope"] for z in zones if res["law"][s].get(z)]
+        if v:
+            out[s] = dict(median=float(np.median(v)), min=float(min(v)), max=float(max(v)))
+    return out
+
+
+def summary_text(res) -> str:
+    sl = slopes(res)
+    txt = ("Error against recording length falls as T^" +
+           ", ".join(f"{v['median']:.2f} ({k})" for k, v in sl.items()) +
+           f" (median over zones, T >= {res['law_t_min_s']:g} s; sampling statistics: -0.5).")
+    c = res.get("choice")
+    if c:
+        v1 = _worst(c["expected_error"], STATISTICS, ("V1",))
+        txt += (f" Choice for table builds (the cheapest setting meeting {_pct(c['target'])}, the "
+                f"smallest of the targets {', '.join(_pct(t) for t in TARGETS)} that a studied "
+                f"setting meets): spin-up {c['spin_up_s']:g} s, recording {c['record_s']:g} s "
+                f"({c['run_s']:.0f} s per point on one core of this machine), expected error "
+                f"at most {_pct(c['worst'])} in {', '.join(c['target_zones'])} (V1: {_pct(v1)})"
+                + ("; the recording-length law extrapolated beyond the longest recording "
+                   "studied" if c.get("extrapolated") else "") + ".")
+    else:
+        txt += f" No studied setting meets {_pct(TARGETS[-1])} in {', '.join(TARGET_ZONES)}."
+    return txt
+
+
+def write(res, out_dir) -> list[Path]:
+    """Write ``work_precision.json``, ``.csv``, ``.md`` and ``.png`` into ``out_dir``."""
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    files = [out / "work_precision.json", out / "work_precision.csv", out / "work_precision.md",
+             out / "work_precision.png"]
+    files[0].write_text(json.dumps(res, indent=1))
+    with open(files[1], "w", newline="") as fh:
+        w = csv.writer(fh)
+        w.writerow(["kind", "setting", "run_s", "statistic", "zone", "relative_error",
+                    "noise_2sigma"])
+        for kind, key in (("recording", "record_s"), ("spin_up", "spin_up_s"),
+                          ("variants", "name")):
+            for r in res[kind]:
+                for s in STATISTICS:
+                    for z in res["zones"]:
+                        w.writerow([kind, r[key], r["run_s"], s, z, r["error"][s][z],
+                                    r.get("noise_2sigma", {}).get(s, {}).get(z)])
+    files[2].write_text(markdown(res) + "\n")
+    plot(res, files[3])
+    return files
+
+
+def plot(res, path, title=None) -> None:
+    """Error of the median SE_tn and of the collision frequency against recording length per
+    zone, with what independent contacts would give (dashed) and T^-1/2; and the largest
+    error against run time of every row."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    wp = bool(res.get("spin_up") or res.get("variants"))
+    fig, ax = plt.subplots(1, 3 if wp else 2, figsize=(16 if wp else 11, 4.6), squeeze=False)
+    ax = ax[0]
+    rows = res["recording"]
+    t = np.array([r["record_s"] for r in rows])
+    for a, s, label in ((ax[0], "se_tn_q50", "median SE_tn"),
+                        (ax[1], "collision_frequency", "collision frequency")):
+        for z, col in zip(res["zones"], ("C0", "C1", "C2", "C3")):
+            e = [r["error"][s][z] for r in rows]
+            pr = [r.get("predicted", {}).get(s, {}).get(z) for r in rows]
+            if all(v is not None for v in e):
+                a.loglog(t, e, "o-", color=col, label=f"{z}")
+            if all(v is not None for v in pr):
+                a.loglog(t, pr, "--", color=col, lw=1)
+        if t.size:
+            a.loglog(t, 0.5 * min(r["error"][s][z] or 1 for r in rows[:1] for z in res["zones"])
+                     * np.sqrt(t[0] / t), "k:", lw=1.5, label="T^-1/2")
+        a.set(xlabel="recording length T [s]", ylabel="relative error (batch means)",
+              title=f"{label}: measured (o), independent contacts (--)")
+        a.legend(fontsize=7)
+    if title:
+        fig.suptitle(title)
+    if wp:
+        for kind, mk in (("recording", "o"), ("spin_up", "s"), ("variants", "D")):
+            for r in res.get(kind, []):
+                e = _worst(r["error"], STATISTICS, TARGET_ZONES)
+                if e is None:
+                    continue
+                lab = {"recording": f"T {r.get('record_s', 0):g} s",
+                       "spin_up": f"spin-up {r.get('spin_up_s', 0):g} s",
+                       "variants": r.get("name", "")}[kind]
+                ax[2].loglog(r["run_s"], e, mk, color={"recording": "C0", "spin_up": "C1",
+                                                      "variants": "C3"}[kind])
+                ax[2].annotate(lab, (r["run_s"], e), fontsize=6)
+        ax[2].set(xlabel="run time [s] (CPU, 1 thread)",
+                  ylabel=f"largest relative error, {', '.join(TARGET_ZONES)}",
+                  title="work-precision (o recording, s spin-up, D variants)")
+    for a in ax:
+        a.grid(alpha=0.3, which="both")
+    fig.tight_layout()
+    fig.savefig(path, dpi=90)
+    plt.close(fig)

@@ -1,0 +1,109 @@
+"""DEM work-precision (millfmu.dem.work_precision): the batch-means error of a recording of
+length T against closed-form sampling statistics, and on a short coupled run."""
+
+import json
+import math
+
+import numpy as np
+import pytest
+
+from millfmu.dem import work_precision as W
+
+
+def _fake_run(path, rate_per_chunk=400.0, n_chunks=200, chunk_s=0.01, seed=3):
+    """A run folder with independent chunks: Poisson contact counts of mean
+    ``rate_per_chunk`` per zone, SE_tn exponential with mean 1e-10 J, constant filling."""
+    rng = np.random.default_rng(seed)
+    zones, vols = ["V1", "V2"], np.array([1e-6, 2e-6])
+    zone, chunk, se = [], [], []
+    for c in range(n_chunks):
+        for k in range(2):
+            n = rng.poisson(rate_per_chunk)
+            zone.append(np.full(n, k, np.int8))
+            chunk.append(np.full(n, c, np.int32))
+            se.append(rng.exponential(1e-10, n))
+    se = np.concatenate(se)
+    starts = 1.0 + chunk_s * np.arange(n_chunks)
+    path.mkdir()
+    np.savez_compressed(path / "contacts.npz", zone=np.concatenate(zone), chunk=np.concatenate(chunk),
+                        se_tn_j=se, se_total_j=2 * se, chunk_start_s=starts,
+                        chunk_s=np.full(n_chunks, chunk_s), zone_names=np.array(zones),
+                        zone_volumes_m3=vols)
+    lines = ["t_start_s,t_end_s,zone,filling,speed_over_tip_speed,collision_frequency_per_m3_s,"
+             "se_tn_q50_j,se_tn_q90_j,collision_power_w"]
+    for t in starts:
+        for z in zones:
+            lines.append(f"{t:.9g},{t + chunk_s:.9g},{z},0.5,0.1,1,1,1,1")
+    (path / "windows.csv").write_text("\n".join(lines) + "\n")
+    st = {"zones": [{"name": z, "volume_m3": v} for z, v in zip(zones, vols)], "beads": 100,
+          "spin_up_s": 1.0, "record_s": n_chunks * chunk_s, "counts": {"wall_time_s": 10.0}}
+    (path / "stats.json").write_text(json.dumps(st))
+    return path
+
+
+def test_batch_means_error_matches_poisson_and_median_sampling_statistics(tmp_path):
+    rd = W.load(_fake_run(tmp_path / "run"))
+    rows = W.recording_length_errors(rd, rd.recording_s, (0.01, 0.02, 0.05, 0.1, 0.2))
+    assert [r["blocks"] for r in rows] == [200, 100, 40, 20, 10]
+    for r in rows:
+        n_contacts = 400.0 * r["record_s"] / 0.01
+        # Poisson counts: relative error 1/sqrt(N); sample median of an exponential
+        # distribution: standard error 1/(2 f(m) sqrt(N)) = 1/sqrt(N) of the scale, ln 2 the median
+        for z in ("V1", "V2"):
+            f = r["error"]["collision_frequency"][z] * math.sqrt(n_contacts)
+            m = r["error"]["se_tn_q50"][z] * math.sqrt(n_contacts) * math.log(2.0)
+            tol = 3.0 / math.sqrt(2 * r["blocks"]) + 0.05  # chi-square spread of the estimate
+            assert abs(f - 1.0) < tol, (r["record_s"], z, f)
+            assert abs(m - 1.0) < tol, (r["record_s"], z, m)
+            assert r["error"]["filling"][z] == 0.0
+    law = W.fit_sampling_law(rows)
+    for s in ("collision_frequency", "se_tn_q50", "se_tn_q25", "collision_power"):
+        for z in ("V1", "V2"):
+            f = law[s][z]
+            assert f["slope"] == pytest.approx(-0.5, abs=0.1), (s, z, f)
+            assert f["predicted_slope"] == pytest.approx(-0.5, abs=0.05), (s, z, f)
+            # independent contacts: the measured error is the predicted one
+            assert f["inflation"] == pytest.approx(1.0, abs=0.3), (s, z, f)
+    # the whole recording's statistics are the contacts' own
+    whole = W.block_stats(rd)
+    assert whole["se_tn_q50"]["V2"] == pytest.approx(
+        np.median(rd.se_tn[1]), rel=1e-12)
+    assert whole["collision_frequency"]["V1"] == pytest.approx(rd.se_tn[0].size / (1e-6 * 2.0))
+
+
+def test_windows_outside_the_recording_and_runs_without_contacts_are_refused(tmp_path):
+    rd = W.load(_fake_run(tmp_path / "run"))
+    with pytest.raises(W.WorkPrecisionError, match=r"no recording chunk inside \[3, 4\] s"):
+        W.block_stats(rd, 3.0, 4.0)
+    (tmp_path / "run" / "contacts.npz").unlink()
+    plain = W.load(tmp_path / "run")
+    with pytest.raises(W.WorkPrecisionError, match="no contacts.npz"):
+        W.block_stats(plain, 1.0, 1.5)
+
+
+@pytest.mark.skipif(__import__("importlib").util.find_spec("numba") is None, reason="needs numba")
+def test_short_coupled_run_recomputes_its_statistics_and_errors_exceed_independent_sampling(tmp_path):
+    """The quick study's short run of the coupled disc slice (about 30 s on one core): the
+    contacts reproduce stats.json exactly; the error independent contacts would give falls
+    as T^-1/2, and the measured error of a T-recording is larger (contacts in a granular
+    flow are correlated; the short run is not stationary either)."""
+    run = W.run_quick(tmp_path / "quick")
+    rd = W.load(run)
+    whole = W.block_stats(rd)
+    for z in rd.stats["zones"]:
+        n = z["name"]
+        assert whole["collision_frequency"][n] == pytest.approx(z["collision_frequency_per_m3_s"], rel=1e-12)
+        assert whole["collision_power"][n] == pytest.approx(z["collision_power_w"] / z["volume_m3"], rel=1e-12)
+        assert whole["filling"][n] == pytest.approx(z["filling"], rel=1e-12)
+        for q in ("q10", "q50", "q90"):
+            assert whole[f"se_tn_{q}"][n] == z["se"]["tn"]["quantiles_j"][q]
+    res = W.analyse_quick(run)
+    assert [r["blocks"] for r in res["recording"]] == [20, 10, 4, 2]
+    for s in ("collision_frequency", "se_tn_q50", "collision_power"):
+        for z in ("V2", "V3"):
+            f = res["law"][s][z]
+            assert f["predicted_slope"] == pytest.approx(-0.5, abs=0.1), (s, z, f)
+            for r in res["recording"]:
+                if r["blocks"] >= 4:
+                    assert r["error"][s][z] > r["predicted"][s][z], (s, z, r["record_s"])
+    assert json.loads((run / "cost.json").read_text())["cpu_s"] > 0
