@@ -64,7 +64,7 @@ LONG_END_S = 3.0
 #: 0.37 and V4 0.53 -> 0.45 by 1.6 s, then level), hence the later reference.
 REFERENCE_WINDOW_S = (1.8, 3.0)
 #: Recording lengths studied [s] (blocks inside the reference window).
-RECORD_LENGTHS_S = (0.01, 0.02, 0.03, 0.05, 0.1, 0.2, 0.4)
+RECORD_LENGTHS_S = (0.01, 0.02, 0.03, 0.05, 0.1, 0.2, 0.3, 0.4)
 #: Spin-ups studied [s] (windows [s, s + RECORD_S] of the long run).
 SPIN_UPS_S = (0.2, 0.35, 0.5, 0.565, 0.75, 1.0, 1.25, 1.5)
 #: Separate runs: name -> (overrides of the long run's scene, coupling steps or None,
@@ -374,20 +374,22 @@ def recording_length_errors(rd: RunData, window_s: tuple, lengths_s) -> list[dic
 
 def fit_sampling_law(rows: list[dict], t_min_s: float = 0.0) -> dict:
     """Per statistic and zone, over the rows with T >= t_min_s and at least 3 blocks: the
-    measured power law error = at_1s T^slope (least squares in log-log; T in s), and the
+    measured power law error = at_1s T^slope (least squares in log-log, each row weighted
+    by the square root of its degrees of freedom; T in s), and the
     slope of the independent-contacts prediction (-1/2 by construction where defined)."""
     use = [r for r in rows if r["record_s"] >= t_min_s - 1e-12 and r["blocks"] >= 3]
     out = {}
     for s in STATISTICS:
         out[s] = {}
         for z in (use[0]["error"][s] if use else {}):
-            pts = [(r["record_s"], r["error"][s][z]) for r in use
+            pts = [(r["record_s"], r["error"][s][z], r["blocks"]) for r in use
                    if r["error"][s][z] is not None and r["error"][s][z] > 0]
             if len(pts) < 2:
                 out[s][z] = None
                 continue
             t, e = np.log([p[0] for p in pts]), np.log([p[1] for p in pts])
-            slope, icpt = np.polyfit(t, e, 1)
+            # log of a batch-means error from n blocks scatters by about 1 / sqrt(2 (n - 1))
+            slope, icpt = np.polyfit(t, e, 1, w=np.sqrt([p[2] - 1.0 for p in pts]))
             f = dict(slope=float(slope), at_1s=float(np.exp(icpt)))
             pp = [(r["record_s"], r.get("predicted", {}).get(s, {}).get(z)) for r in use]
             pp = [x for x in pp if x[1]]
@@ -564,7 +566,7 @@ def choose(res, targets=TARGETS, zones=TARGET_ZONES) -> dict | None:
             for t in CHOICE_LENGTHS_S:
                 e = expected_error(res, r["spin_up_s"], t)
                 worst = max((e[st][z] for st in STATISTICS for z in zones
-                             if e[st][z] is not None), default=None)
+                             if e[st].get(z) is not None), default=None)
                 if worst is None or worst > target:
                     continue
                 cost = rate * (r["spin_up_s"] + t)
@@ -636,13 +638,20 @@ def markdown(res, zones=TARGET_ZONES) -> str:
 
 
 def slopes(res, zones=ZONES) -> dict:
-    """Measured slope of log(error) against log(T) per statistic: the median over
-    ``zones`` (and the range)."""
+    """Per statistic, the median over ``zones`` (and the range) of the measured slope of
+    log(error) against log(T); the median slope of what independent contacts would give and
+    the median ratio of the measured error to it (where defined)."""
     out = {}
     for s in STATISTICS:
-        v = [res["law"][s][z]["slope"] for z in zones if res["law"][s].get(z)]
-        if v:
-            out[s] = dict(median=float(np.median(v)), min=float(min(v)), max=float(max(v)))
+        fits = [res["law"][s][z] for z in zones if res["law"][s].get(z)]
+        if not fits:
+            continue
+        v = [f["slope"] for f in fits]
+        out[s] = dict(median=float(np.median(v)), min=float(min(v)), max=float(max(v)))
+        for k in ("predicted_slope", "inflation"):
+            w = [f[k] for f in fits if f.get(k) is not None]
+            if w:
+                out[s][k] = float(np.median(w))
     return out
 
 
@@ -740,3 +749,97 @@ def plot(res, path, title=None) -> None:
     fig.tight_layout()
     fig.savefig(path, dpi=90)
     plt.close(fig)
+
+
+def analyse_quick(run_dir) -> dict:
+    """The recording-length part of the study on one short run with contacts
+    (:func:`run_quick`): rows over its whole recording and the fitted law (all lengths
+    with at least 3 blocks)."""
+    rd = load(run_dir)
+    if not rd.has_contacts:
+        raise WorkPrecisionError(f"{run_dir}: the run needs contacts.npz")
+    rate = rd.cost_s / rd.simulated_s
+    rows = recording_length_errors(rd, rd.recording_s, QUICK["lengths_s"])
+    for r in rows:
+        r["run_s"] = rate * (rd.recording_s[0] + r["record_s"])
+    return dict(operating_point=dict(OPERATING_POINT, scene="disc_slice"), quick=True,
+                long_run=dict(recorded_s=list(rd.recording_s), run_s=rd.cost_s,
+                              run_per_simulated_s=rate, beads=rd.stats["beads"]),
+                recording_window_s=list(rd.recording_s), law_t_min_s=0.0, recording=rows,
+                law=fit_sampling_law(rows, 0.0), spin_up=[], variants=[],
+                zones=rd.zone_names, statistics=list(STATISTICS), machine=machine())
+
+
+#: The study's summary and data shipped with millfmu (``table --export``), which table
+#: manifests quote and ``millfmu report`` shows.
+SUMMARY_PATH = Path(__file__).resolve().parent.parent / "data" / "dem_work_precision.json"
+RUN_COMMAND = ("millfmu dem work-precision run --out DIR && "
+               "millfmu dem work-precision table --out DIR")
+
+
+def summary(res) -> dict:
+    """What a table manifest quotes (plain JSON): the operating point, the choice with its
+    expected error, the recording-length law (error = at_1s T^slope), spin-up biases,
+    resolution differences with their noise, where and when it was measured."""
+    c = res.get("choice")
+    return dict(
+        operating_point=res["operating_point"],
+        command=RUN_COMMAND,
+        measured_on=res["machine"],
+        long_run=res["long_run"],
+        choice=None if c is None else {k: c[k] for k in (
+            "spin_up_s", "record_s", "sector_deg", "dt_s", "coupling_interval_s",
+            "sample_every_s", "run_s", "worst", "target", "target_zones", "extrapolated",
+            "expected_error")},
+        recording_law={s: {z: ({k: v[k] for k in ("at_1s", "slope")} if v else None)
+                           for z, v in d.items()} for s, d in res["law"].items()},
+        slopes=slopes(res),
+        spin_up_bias={f"{r['spin_up_s']:g}": {s: {z: _bias(r, s, z) for z in res["zones"]}
+                                               for s in STATISTICS}
+                      for r in res["spin_up"]},
+        resolution=[dict(name=r["name"], what=r["what"], finer=r["finer"],
+                         worst_error=_worst(r["error"], STATISTICS, TARGET_ZONES),
+                         worst_noise_2sigma=_worst(r["noise_2sigma"], STATISTICS, TARGET_ZONES),
+                         run_s=r["run_s"], reference_run_s=r["reference_run_s"])
+                    for r in res["variants"]],
+        note="relative errors [-] of a DEM table point's statistics (per zone: SE_tn "
+             "quantiles, collision frequency, local filling, collision power density) at the "
+             "operating point only; other tip speeds and fillings were not measured")
+
+
+def export(res, path) -> Path:
+    """Write the study's summary (:func:`summary`) and its data to ``path`` (JSON): what
+    :func:`manifest_entry` and ``millfmu report`` read."""
+    path = Path(path)
+    path.write_text(json.dumps({"summary": summary(res), "study": res}, indent=1) + "\n")
+    return path
+
+
+def manifest_entry(dem_resolution: dict | None = None, path=None) -> dict | None:
+    """The work-precision entry of a DEM table's manifest: the study's choice and its
+    expected error and, for a table built with ``dem_resolution`` (the ``dem`` part of the
+    manifest's resolution: spin_up_s, record_s, dt_s, sector_deg), the expected error of
+    its settings (:func:`expected_error` at the longest studied spin-up not above the
+    table's). None when no study is shipped (``path``: default :data:`SUMMARY_PATH`)."""
+    p = Path(path) if path is not None else SUMMARY_PATH
+    if not p.is_file():
+        return None
+    data = json.loads(p.read_text())
+    s, res = data["summary"], data["study"]
+    out = {k: s[k] for k in ("operating_point", "command", "measured_on", "choice", "note")}
+    if dem_resolution and dem_resolution.get("record_s") and \
+            dem_resolution.get("spin_up_s") is not None:
+        t, su = float(dem_resolution["record_s"]), float(dem_resolution["spin_up_s"])
+        studied = [r["spin_up_s"] for r in res["spin_up"] if r["spin_up_s"] <= su + 1e-9]
+        this = dict(record_s=t, spin_up_s=su, matches_choice=bool(s.get("choice")) and all(
+            math.isclose(float(dem_resolution.get(k, math.nan)), s["choice"][k], rel_tol=1e-9)
+            for k in ("spin_up_s", "record_s", "dt_s", "sector_deg")))
+        if studied:
+            this["spin_up_used_s"] = max(studied)
+            this["expected_error"] = expected_error(res, max(studied), t)
+        else:
+            this["expected_error"] = None
+            this["note"] = (f"spin-up {su} s is below the shortest studied "
+                            f"({min(r['spin_up_s'] for r in res['spin_up'])} s)")
+        out["this_table"] = this
+    return out

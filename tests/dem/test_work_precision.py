@@ -10,7 +10,7 @@ import pytest
 from millfmu.dem import work_precision as W
 
 
-def _fake_run(path, rate_per_chunk=400.0, n_chunks=200, chunk_s=0.01, seed=3):
+def _fake_run(path, rate_per_chunk=400.0, n_chunks=200, chunk_s=0.01, seed=3, t0_s=1.0):
     """A run folder with independent chunks: Poisson contact counts of mean
     ``rate_per_chunk`` per zone, SE_tn exponential with mean 1e-10 J, constant filling."""
     rng = np.random.default_rng(seed)
@@ -23,8 +23,8 @@ def _fake_run(path, rate_per_chunk=400.0, n_chunks=200, chunk_s=0.01, seed=3):
             chunk.append(np.full(n, c, np.int32))
             se.append(rng.exponential(1e-10, n))
     se = np.concatenate(se)
-    starts = 1.0 + chunk_s * np.arange(n_chunks)
-    path.mkdir()
+    starts = t0_s + chunk_s * np.arange(n_chunks)
+    path.mkdir(parents=True)
     np.savez_compressed(path / "contacts.npz", zone=np.concatenate(zone), chunk=np.concatenate(chunk),
                         se_tn_j=se, se_total_j=2 * se, chunk_start_s=starts,
                         chunk_s=np.full(n_chunks, chunk_s), zone_names=np.array(zones),
@@ -36,7 +36,7 @@ def _fake_run(path, rate_per_chunk=400.0, n_chunks=200, chunk_s=0.01, seed=3):
             lines.append(f"{t:.9g},{t + chunk_s:.9g},{z},0.5,0.1,1,1,1,1")
     (path / "windows.csv").write_text("\n".join(lines) + "\n")
     st = {"zones": [{"name": z, "volume_m3": v} for z, v in zip(zones, vols)], "beads": 100,
-          "spin_up_s": 1.0, "record_s": n_chunks * chunk_s, "counts": {"wall_time_s": 10.0}}
+          "spin_up_s": t0_s, "record_s": n_chunks * chunk_s, "counts": {"wall_time_s": 10.0}}
     (path / "stats.json").write_text(json.dumps(st))
     return path
 
@@ -107,3 +107,35 @@ def test_short_coupled_run_recomputes_its_statistics_and_errors_exceed_independe
                 if r["blocks"] >= 4:
                     assert r["error"][s][z] > r["predicted"][s][z], (s, z, r["record_s"])
     assert json.loads((run / "cost.json").read_text())["cpu_s"] > 0
+
+
+def test_study_of_a_stationary_synthetic_run_writes_table_choice_and_manifest_entry(tmp_path):
+    """The whole study (analyse, choose, write, export, manifest_entry) on a long run of
+    independent chunks: no spin-up bias beyond its noise, errors falling as T^-1/2, a
+    choice, and the manifest's expected error for a table's settings."""
+    n = int(round((W.LONG_END_S - W.LONG_START_S) / 0.01))
+    _fake_run(tmp_path / "study" / "long", rate_per_chunk=800.0, n_chunks=n, t0_s=W.LONG_START_S)
+    res = W.analyse(tmp_path / "study")
+    assert [r["spin_up_s"] for r in res["spin_up"]] == list(W.SPIN_UPS_S)
+    # stationary: the spin-up windows differ from the reference by their sampling noise
+    z_scores = [abs(r["error"][s][z]) / (0.5 * r["noise_2sigma"][s][z]) for r in res["spin_up"]
+                for s in ("collision_frequency", "se_tn_q50", "collision_power") for z in ("V1", "V2")]
+    # |N(0, 1)| has median 0.67; the noise comes from a power law fitted to batch means of
+    # few blocks at the longer recordings, so allow for it being off by a factor 3
+    assert 0.2 < np.median(z_scores) < 2.0, z_scores
+    sl = W.slopes(res)["collision_frequency"]  # T >= 0.05 s: 24 ... 3 blocks, so +-0.25
+    assert sl["median"] == pytest.approx(-0.5, abs=0.25) and sl["inflation"] == pytest.approx(1.0, abs=0.4)
+    c = res["choice"]
+    assert c is not None and c["target"] == 0.05 and c["worst"] <= 0.05
+    assert c["spin_up_s"] == min(W.SPIN_UPS_S)  # no bias: the shortest spin-up is cheapest
+    files = W.write(res, tmp_path / "out")
+    assert all(f.stat().st_size > 0 for f in files)
+    assert "| recording 0.01 s (120 blocks) |" in (tmp_path / "out" / "work_precision.md").read_text()
+    path = W.export(res, tmp_path / "wp.json")
+    m = W.manifest_entry({"spin_up_s": 1.0, "record_s": 0.2, "dt_s": 5e-6, "sector_deg": 10.0}, path=path)
+    assert m["choice"]["record_s"] == c["record_s"] and m["this_table"]["spin_up_used_s"] == 1.0
+    e = m["this_table"]["expected_error"]["collision_frequency"]["V2"]
+    assert e == pytest.approx(1.0 / math.sqrt(800.0 * 20), rel=0.5)  # Poisson at 0.2 s
+    short = W.manifest_entry({"spin_up_s": 0.05, "record_s": 0.1}, path=path)
+    assert short["this_table"]["expected_error"] is None and "below the shortest" in short["this_table"]["note"]
+    assert W.manifest_entry({}, path=tmp_path / "none.json") is None
