@@ -21,7 +21,8 @@ for _var in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
 #: optionally, ``register_bench(bench_subparsers)`` for ``millfmu bench ...``. They are
 #: imported only to register their parsers; heavy imports (numba, pythonfmu) stay inside
 #: their handlers.
-PLUGINS = ("millfmu.dem.cli", "millfmu.dem.tables_cli", "fmu_build.cli", "flowsheets.cli", "millfmu.rates")
+PLUGINS = ("millfmu.dem.cli", "millfmu.dem.tables_cli", "fmu_build.cli", "flowsheets.cli", "millfmu.rates",
+           "millfmu.report")
 
 
 def _cmd_run(args) -> int:

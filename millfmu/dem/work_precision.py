@@ -660,7 +660,9 @@ def summary_text(res) -> str:
     txt = ("Error against recording length falls as T^" +
            ", ".join(f"{v['median']:.2f} ({k})" for k, v in sl.items()) +
            f" (median over zones, T >= {res['law_t_min_s']:g} s; sampling statistics: -0.5).")
-    c = res.get("choice")
+    if "choice" not in res:  # the quick study: no choice
+        return txt
+    c = res["choice"]
     if c:
         v1 = _worst(c["expected_error"], STATISTICS, ("V1",))
         txt += (f" Choice for table builds (the cheapest setting meeting {_pct(c['target'])}, the "
@@ -746,7 +748,7 @@ def plot(res, path, title=None) -> None:
                   title="work-precision (o recording, s spin-up, D variants)")
     for a in ax:
         a.grid(alpha=0.3, which="both")
-    fig.tight_layout()
+    fig.tight_layout(rect=(0, 0, 1, 0.94) if title else None)
     fig.savefig(path, dpi=90)
     plt.close(fig)
 

@@ -1,0 +1,388 @@
+"""``millfmu report``: one self-contained HTML page of every error-against-run-time study.
+
+Sections (each with its measured orders, the machine it ran on and the date):
+
+1. population-balance integrators (:func:`millfmu.bench.integrator_study`): the exact step,
+   the adaptive exponential integrator, scipy's BDF and truncated Taylor steps (Dyssol's
+   crusher unit) on a smooth and a stiff case;
+2. the co-simulation communication step of flowsheet (a), ``circuit.toml``
+   (:func:`flowsheets.wp.work_precision`);
+3. the DEM work-precision (:mod:`millfmu.dem.work_precision`): a recording-length study run
+   now (``--quick``: one short coupled run) or the full study's runs (``--dem-runs DIR``,
+   made by ``millfmu dem work-precision run``), and the full study shipped with millfmu.
+
+The page (``report.html``) has no external CSS or scripts; its PNG images are written
+beside it and referenced by relative name. ``--quick`` finishes in minutes (for CI); the
+full report repeats the README's studies (tens of minutes without the DEM runs, which take
+hours on one core and are made only when ``--dem-runs`` names a folder to make them in).
+"""
+
+from __future__ import annotations
+
+import html
+import json
+import math
+import os
+import platform
+import shutil
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+#: The page's sections: id -> title (the test checks that each is present).
+SECTIONS = {
+    "pbm": "Population-balance integrators",
+    "cosim": "Co-simulation communication step",
+    "dem": "DEM work-precision",
+}
+#: Co-simulation study settings: (flowsheet file, t_end [s] or None for the file's,
+#: communication steps [s], reference step [s]); quick is the default tests' short version.
+COSIM_QUICK = ("circuit.toml", 300.0, (2.5, 5.0, 10.0), 0.625)
+COSIM_FULL = ("circuit.toml", None, (0.625, 1.25, 2.5, 5.0, 10.0, 20.0), 0.078125)
+
+CSS = """
+body { font-family: sans-serif; max-width: 1200px; margin: 2em auto; color: #222; }
+h1 { font-size: 1.6em; } h2 { border-bottom: 1px solid #999; margin-top: 2em; }
+table { border-collapse: collapse; margin: 0.8em 0; font-size: 0.85em; }
+td, th { border: 1px solid #bbb; padding: 2px 6px; text-align: right; }
+th { background: #eee; } td:first-child, th:first-child { text-align: left; }
+img { max-width: 100%; border: 1px solid #ddd; }
+pre { background: #f6f6f6; padding: 0.6em; font-size: 0.8em; overflow-x: auto; }
+.meta { color: #555; font-size: 0.85em; }
+"""
+
+
+def machine() -> dict:
+    """Platform, CPU count, load, Python, numpy, scipy (numba where installed), date."""
+    import numpy
+    import scipy
+
+    m = dict(platform=platform.platform(), processor=platform.processor() or platform.machine(),
+             cpus=os.cpu_count(), python=platform.python_version(), numpy=numpy.__version__,
+             scipy=scipy.__version__, date_utc=time.strftime("%Y-%m-%d %H:%M:%SZ", time.gmtime()))
+    try:
+        import importlib.metadata as md
+
+        m["numba"] = md.version("numba")
+    except Exception:  # not installed: the DEM section says so
+        pass
+    if hasattr(os, "getloadavg"):
+        m["load_average_1min"] = round(os.getloadavg()[0], 2)
+    return m
+
+
+def _esc(x) -> str:
+    return html.escape(str(x))
+
+
+def _table(head, rows) -> str:
+    out = ["<table><tr>" + "".join(f"<th>{_esc(h)}</th>" for h in head) + "</tr>"]
+    for r in rows:
+        out.append("<tr>" + "".join(f"<td>{_esc(c)}</td>" for c in r) + "</tr>")
+    return "\n".join(out) + "</table>"
+
+
+def _meta(m: dict, wall_s: float | None = None) -> str:
+    keys = ("date_utc", "platform", "processor", "cpus", "load_average_1min", "python", "numpy",
+            "scipy", "numba")
+    s = "; ".join(f"{k}: {m[k]}" for k in keys if k in m)
+    if wall_s is not None:
+        s += f"; section took {wall_s:.0f} s"
+    return f'<p class="meta">{_esc(s)}</p>'
+
+
+def _fmt(v, spec=".2e"):
+    if v is None or (isinstance(v, float) and not math.isfinite(v)):
+        return "n/a" if v is None else str(v)
+    return format(v, spec)
+
+
+# --- 1. population balance --------------------------------------------------------------
+
+def pbm_section(out: Path, quick: bool, log=print) -> str:
+    from .bench import INTEGRATOR_CASES, integrator_study
+
+    t0 = time.perf_counter()
+    res = integrator_study(quick=quick, out=log)
+    wall = time.perf_counter() - t0
+    _plot_pbm(res, out / "pbm_integrators.png")
+    (out / "pbm_integrators.json").write_text(json.dumps(res, indent=1, default=float))
+    parts = [f'<h2 id="pbm">1. {SECTIONS["pbm"]}</h2>', _meta(machine(), wall),
+             "<p>Batch grinding whose breakage operator swings between two operating points, "
+             "A(t) = (1 - th) A_lo + th A_hi, th = (1 + sin(2 pi t / P)) / 2; the two operators "
+             "do not commute. Reference: the exact step (matrix exponential with the operator "
+             "at the step midpoint) at many steps, Richardson-extrapolated. Error: max over "
+             "classes of |m - m_ref| / total mass at the end. <b>Exact step</b>: one matrix "
+             "exponential per step (exact for rates constant over a step). <b>Adaptive "
+             "exponential</b>: the model's adaptive integrator (exponential midpoint, step "
+             "doubling), tolerance swept. <b>scipy BDF</b>: solve_ivp with the exact "
+             "Jacobian, one call over the whole time, tolerance swept. <b>Taylor 1, Taylor "
+             "2</b>: the series of expm(h A) truncated after 1 or 2 terms, as the "
+             "transformation matrices of Dyssol's population-balance crusher unit "
+             "(CrusherPBMTM, methods Newton and Runge-Kutta), here at fixed steps with the "
+             "midpoint operator. Measured order: slope of log error against log step size "
+             "(mean step for the adaptive methods) between 10 x the reference's error and "
+             "0.1; for BDF, whose order varies up to 5, only that slope.</p>",
+             '<img src="pbm_integrators.png" alt="PBM integrators: error against run time">']
+    for case, r in res.items():
+        c = INTEGRATOR_CASES[case]
+        parts.append(f"<h3>{_esc(case)} case: {r['states']} states, largest rate "
+                     f"{r['max_rate_per_s']:.3g} 1/s, period {c['period_s']:g} s, "
+                     f"{r['t_end_s']:g} s simulated</h3>")
+        parts.append(_table(["method", "measured order"], [[k, _order_cell(k, v)]
+                                                          for k, v in r["orders"].items()]))
+        parts.append(_table(
+            ["method", "steps", "rtol", "error", "run time [s]", "smallest mass / total",
+             "h x largest rate"],
+            [[x["method"], x["steps"], _fmt(x.get("rtol"), ".0e"), _fmt(x["error"]),
+              _fmt(x["wall_s"], ".3g"), _fmt(x["min_mass"], ".1e"),
+              _fmt(x.get("h_times_max_rate"), ".2g")] for x in r["rows"]]))
+        parts.append(f"<p>Reference: {r['reference_steps']} exact steps "
+                     f"({r['reference_wall_s']:.1f} s), estimated error "
+                     f"{r['reference_error']:.1e}.</p>")
+    return "\n".join(parts)
+
+
+def _order_cell(method, v) -> str:
+    if not math.isfinite(v):
+        return "none: diverged (or went negative) at every step tried"
+    if method == "scipy BDF":
+        return f"slope {v:.2f} (variable order 1-5, not an order)"
+    return f"{v:.2f}"
+
+
+def _plot_pbm(res, path):
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, ax = plt.subplots(2, len(res), figsize=(6.5 * len(res), 9), squeeze=False)
+    for j, (case, r) in enumerate(res.items()):
+        gone = []
+        for k, (name, order) in enumerate(r["orders"].items()):
+            rows = [x for x in r["rows"] if x["method"] == name and math.isfinite(x["error"])
+                    and x["error"] < 1e3]
+            if not rows:
+                gone.append(name)
+                continue
+            lab = (f"{name} (unstable)" if not math.isfinite(order) else
+                   f"{name} (slope {order:.1f})" if name == "scipy BDF" else
+                   f"{name} (order {order:.2f})")
+            ax[0, j].loglog([x["wall_s"] for x in rows], [x["error"] for x in rows], "o-",
+                            color=f"C{k}", label=lab)
+            ax[1, j].loglog([x["step_s"] for x in rows], [x["error"] for x in rows], "o-",
+                            color=f"C{k}", label=lab)
+        ax[0, j].set(xlabel="run time [s]", ylabel="error / total mass", title=f"{case}: work-precision")
+        for a in ax[:, j]:
+            if gone:
+                a.text(0.02, 0.02, f"{', '.join(gone)}: diverged at every step tried",
+                       transform=a.transAxes, fontsize=8)
+        ax[1, j].set(xlabel="step size [s] (mean for adaptive)", ylabel="error / total mass",
+                     title=f"{case}: error against step")
+        for a in ax[:, j]:
+            a.grid(alpha=0.3, which="both")
+            a.legend(fontsize=7)
+    fig.tight_layout()
+    fig.savefig(path, dpi=80)
+    plt.close(fig)
+
+
+# --- 2. co-simulation -------------------------------------------------------------------
+
+def cosim_section(out: Path, quick: bool, log=print) -> str:
+    import flowsheets
+    from flowsheets.spec import load_flowsheet
+    from flowsheets.wp import work_precision
+
+    name, t_end, steps, ref = COSIM_QUICK if quick else COSIM_FULL
+    fs = load_flowsheet(Path(flowsheets.__file__).parent / name)
+    if t_end is not None:
+        fs = fs.with_(t_end_s=t_end)
+    t0 = time.perf_counter()
+    with tempfile.TemporaryDirectory(prefix="millfmu-report-wp-") as tmp:
+        fmu_dir = Path(tmp) / "fmus"
+        wp_out = Path(tmp) / "wp"
+        wp_out.mkdir()
+        table = work_precision(fs, list(steps), ref, wp_out, fmu_dir=fmu_dir, log=log)
+        shutil.copyfile(wp_out / "wp.png", out / "cosim_wp.png")
+        wp = json.loads((wp_out / "wp.json").read_text())
+        (out / "cosim_wp.json").write_text(json.dumps(wp, indent=1))
+    wall = time.perf_counter() - t0
+    pairs = [r.get("order_to_previous") for r in wp["rows"] if r.get("order_to_previous") is not None]
+    parts = [f'<h2 id="cosim">2. {SECTIONS["cosim"]}</h2>', _meta(machine(), wall),
+             f"<p>Flowsheet {_esc(fs.name)} ({_esc(name)}, {fs.t_end_s:g} s simulated, "
+             f"{_esc(fs.algorithm)}, fmpy master): error of {_esc(wp['variable'])} against a "
+             f"run with step {ref:g} s, max over the common output times; wall time of the "
+             f"master's run. Measured order (least squares over all steps): "
+             f"{wp['order']:.2f} for the max error, {wp['order_at_end']:.2f} for the error at "
+             f"the end; between neighbouring steps: "
+             f"{', '.join(_fmt(p, '.2f') for p in pairs)}.</p>",
+             '<img src="cosim_wp.png" alt="co-simulation step: error against run time">',
+             _table(["step [s]", "steps", "max error", "relative", "order to previous",
+                     "error at end", "wall [s]", "mass residual"],
+                    [[f"{r['step_s']:g}", r["steps"], _fmt(r["error"]), _fmt(r["relative_error"]),
+                      _fmt(r.get("order_to_previous"), ".2f"), _fmt(r["error_end"]),
+                      _fmt(r["wall_s"], ".3g"), _fmt(r["mass_residual"], ".1e")] for r in wp["rows"]]),
+             f"<pre>{_esc(table)}</pre>"]
+    return "\n".join(parts)
+
+
+# --- 3. DEM -----------------------------------------------------------------------------
+
+def _dem_tables(res) -> str:
+    from millfmu.dem import work_precision as W
+
+    head = ["setting", "run time [CPU s]"] + [f"{c} (largest in {', '.join(W.TARGET_ZONES)})"
+                                      for c in W.COLUMNS]
+    parts = [_table(head, W.table_rows(res))]
+    sl = W.slopes(res)
+    parts.append(_table(["statistic", "measured order: slope of log error against log T "
+                         "(median over zones)", "range over zones",
+                         "independent contacts: slope", "measured / independent contacts"],
+                        [[k, f"{v['median']:.2f}", f"{v['min']:.2f} ... {v['max']:.2f}",
+                          _fmt(v.get("predicted_slope"), ".2f"), _fmt(v.get("inflation"), ".1f")]
+                         for k, v in sl.items()]))
+    parts.append(f"<p>{_esc(W.summary_text(res))}</p>")
+    return "\n".join(parts)
+
+
+def dem_section(out: Path, quick: bool, dem_runs=None, log=print) -> str:
+    from millfmu.dem import work_precision as W
+
+    parts = [f'<h2 id="dem">3. {SECTIONS["dem"]}</h2>',
+             "<p>Coupled disc slice at 10 m/s, 80 % filling, 10 degree sector, no gravity "
+             "(seed 001's protocol). Error of each tabulated statistic (per zone: SE_tn "
+             "quantiles, collision frequency, local filling, collision power) against a long "
+             "reference run. Recording length: batch means over the T-blocks of one long run, "
+             "beside what independent contacts would give (Poisson counts, order statistics: "
+             "the sampling statistics' T^-1/2); spin-up: windows of the same run; sector, "
+             "DEM step and coupling interval: separate runs, each with the 2-sigma sampling "
+             "noise of the comparison in brackets. Cells: largest relative error over the "
+             "densely filled zones and the column's statistics.</p>"]
+    t0 = time.perf_counter()
+    import importlib.util
+
+    if importlib.util.find_spec("numba") is None:  # the DEM needs it
+        parts.append("<p><b>Not run now:</b> numba is not installed (pip install -e '.[dem]').</p>")
+    elif quick:
+        run_dir = W.run_quick(Path(tempfile.mkdtemp(prefix="millfmu-report-dem-")) / "quick")
+        try:
+            res = W.analyse_quick(run_dir)
+        finally:
+            shutil.rmtree(run_dir.parent, ignore_errors=True)
+        W.plot(res, out / "dem_recording.png",
+               title=f"short coupled run: spin-up {W.QUICK['spin_up_s']:g} s, recording "
+                     f"{W.QUICK['record_s']:g} s")
+        (out / "dem_recording.json").write_text(json.dumps(res, indent=1))
+        parts += [f"<h3>Run now: recording length on a short run (spin-up "
+                  f"{W.QUICK['spin_up_s']:g} s, recording {W.QUICK['record_s']:g} s, "
+                  f"{res['long_run']['beads']} beads, {res['long_run']['run_s']:.0f} CPU s)</h3>",
+                  _meta(machine(), time.perf_counter() - t0),
+                  '<img src="dem_recording.png" alt="DEM: error against recording length">',
+                  _dem_tables(res),
+                  "<p>The short run is not stationary (spun up for 0.02 s only): it checks "
+                  "the method on a real run (what independent contacts would give falls as "
+                  "T^-1/2; the measured error of this transient does not), not a table's "
+                  "error.</p>"]
+    else:
+        if dem_runs is None:
+            parts.append("<p><b>Not run now:</b> the full study's runs take hours on one core; "
+                         "make them with <code>millfmu dem work-precision run --out DIR</code> "
+                         "and pass <code>--dem-runs DIR</code>.</p>")
+        else:
+            W.run_study(dem_runs, log=log)
+            res = W.analyse(dem_runs)
+            W.plot(res, out / "dem_work_precision.png")
+            (out / "dem_work_precision.json").write_text(json.dumps(res, indent=1))
+            parts += ["<h3>Run now: the full study</h3>", _meta(res["machine"]),
+                      '<img src="dem_work_precision.png" alt="DEM work-precision">',
+                      _dem_tables(res)]
+    shipped = W.SUMMARY_PATH
+    if shipped.is_file():
+        data = json.loads(shipped.read_text())
+        res = data["study"]
+        W.plot(res, out / "dem_shipped.png")
+        parts += [f"<h3>The full study shipped with millfmu "
+                  f"(<code>{_esc(W.RUN_COMMAND)}</code>)</h3>", _meta(res["machine"]),
+                  f"<p>Long run: {res['long_run']['beads']} beads, recorded "
+                  f"{res['long_run']['recorded_s'][0]:g}-{res['long_run']['recorded_s'][1]:g} s, "
+                  f"{res['long_run']['run_s']:.0f} CPU s on "
+                  f"{res['long_run'].get('threads')} thread(s); reference window "
+                  f"{res['reference_window_s'][0]:g}-{res['reference_window_s'][1]:g} s.</p>",
+                  '<img src="dem_shipped.png" alt="DEM work-precision, shipped study">',
+                  _dem_tables(res)]
+    else:
+        parts.append("<p>No full study shipped (millfmu/data/dem_work_precision.json).</p>")
+    return "\n".join(parts)
+
+
+# --- the page ---------------------------------------------------------------------------
+
+def build_report(out_dir, quick: bool = False, dem_runs=None, log=print) -> list[Path]:
+    """Write ``report.html`` and its PNGs (and the studies' JSON) into ``out_dir``, built in
+    a temporary folder beside it and moved into place when complete; returns the files."""
+    from .runner import check_out_dir
+
+    out = check_out_dir(out_dir)
+    t0 = time.perf_counter()
+    start = machine()
+    tmp = Path(tempfile.mkdtemp(prefix=".millfmu-report-", dir=out.parent))
+    try:
+        body = [pbm_section(tmp, quick, log), cosim_section(tmp, quick, log),
+                dem_section(tmp, quick, dem_runs, log)]
+        wall = time.perf_counter() - t0
+        page = ["<!DOCTYPE html>", '<html lang="en"><head><meta charset="utf-8">',
+                f"<title>millfmu: error against run time</title><style>{CSS}</style></head><body>",
+                "<h1>millfmu: error against run time</h1>",
+                f"<p>{'Quick report (short versions of each study, for CI)' if quick else 'Full report'}; "
+                f"built in {wall:.0f} s.</p>", _meta(start),
+                "<ul>" + "".join(f'<li><a href="#{k}">{_esc(v)}</a></li>' for k, v in SECTIONS.items()) + "</ul>"]
+        page += body + ["</body></html>"]
+        (tmp / "report.html").write_text("\n".join(page), encoding="utf-8")
+        out.mkdir(parents=True, exist_ok=True)
+        files = []
+        for f in sorted(tmp.iterdir()):
+            dst = out / f.name
+            os.replace(f, dst)
+            files.append(dst)
+    finally:
+        shutil.rmtree(tmp, ignore_errors=True)
+    return files
+
+
+def _cmd_report(args) -> int:
+    t0 = time.perf_counter()
+    files = build_report(args.out, quick=args.quick, dem_runs=args.dem_runs,
+                         log=lambda m: print(m, file=sys.stderr, flush=True))
+    print(f"wrote {files[[f.name for f in files].index('report.html')]} and {len(files) - 1} "
+          f"files beside it in {time.perf_counter() - t0:.0f} s")
+    return 0
+
+
+def _cmd_bench_integrators(args) -> int:
+    from .bench import integrator_study
+
+    integrator_study(quick=args.quick)
+    return 0
+
+
+def register(subparsers):
+    r = subparsers.add_parser("report", help="one HTML page of every error-against-run-time "
+                              "study (PBM integrators, co-simulation step, DEM work-precision)")
+    r.add_argument("--out", default="report", help="output folder (default ./report): "
+                   "report.html, PNGs beside it, the studies' JSON")
+    r.add_argument("--quick", action="store_true", help="short versions of each study "
+                   "(minutes; for CI)")
+    r.add_argument("--dem-runs", default=None, metavar="DIR", help="full report: the DEM study's "
+                   "run folder (made there where missing: hours on one core)")
+    r.set_defaults(func=_cmd_report)
+
+
+def register_bench(bench_subparsers):
+    b = bench_subparsers.add_parser("integrators", help="PBM integrators (exact step, adaptive "
+                                    "exponential, scipy BDF, truncated Taylor): error against "
+                                    "run time and measured orders on a smooth and a stiff case")
+    b.add_argument("--quick", action="store_true", help="fewer steps and tolerances")
+    b.set_defaults(func=_cmd_bench_integrators)

@@ -1,0 +1,47 @@
+"""``millfmu report --quick``: one self-contained HTML page with every study's section, its
+images beside it, the measured orders, the machine and the date."""
+
+from __future__ import annotations
+
+import json
+import math
+import re
+
+import pytest
+
+pytest.importorskip("pythonfmu")
+pytest.importorskip("fmpy")
+pytest.importorskip("numba")
+
+
+def test_quick_report_writes_every_section_and_no_missing_image(tmp_path):
+    from millfmu.cli import main
+    from millfmu.report import SECTIONS
+
+    out = tmp_path / "report"
+    assert main(["report", "--quick", "--out", str(out)]) == 0
+    page = (out / "report.html").read_text(encoding="utf-8")
+    for sid, title in SECTIONS.items():
+        assert f'id="{sid}"' in page and title in page, sid
+    imgs = re.findall(r'<img src="([^"]+)"', page)
+    assert {"pbm_integrators.png", "cosim_wp.png", "dem_recording.png"} <= set(imgs), imgs
+    for name in imgs:
+        assert "/" not in name and ":" not in name, name  # beside the page, relative
+        data = (out / name).read_bytes()
+        assert data[:8] == b"\x89PNG\r\n\x1a\n" and len(data) > 10_000, name
+    # self-contained: no external style sheets, scripts or remote sources
+    assert not re.search(r"<(link|script)\b", page, re.I)
+    assert not re.search(r'(src|href)="(https?:)?//', page, re.I)
+    for key in ("date_utc", "platform", "cpus", "python", "numpy"):
+        assert page.count(key + ":") >= 3, key  # in the header and in every section run now
+
+    pbm = json.loads((out / "pbm_integrators.json").read_text())
+    smooth, stiff = pbm["smooth"]["orders"], pbm["stiff"]["orders"]
+    assert 1.8 < smooth["exact step"] < 2.3 and 1.8 < stiff["exact step"] < 2.4
+    assert 0.9 < smooth["Taylor 1"] < 1.2 and 1.8 < smooth["Taylor 2"] < 2.3
+    assert math.isnan(stiff["Taylor 1"]) and math.isnan(stiff["Taylor 2"])  # unstable
+    assert 1.6 < smooth["adaptive exponential"] < 3.0
+    cosim = json.loads((out / "cosim_wp.json").read_text())
+    assert cosim["order"] > 0.9
+    dem = json.loads((out / "dem_recording.json").read_text())
+    assert dem["recording"] and dem["law"]["collision_frequency"]["V2"] is not None
