@@ -45,3 +45,24 @@ def test_quick_report_writes_every_section_and_no_missing_image(tmp_path):
     assert cosim["order"] > 0.9
     dem = json.loads((out / "dem_recording.json").read_text())
     assert dem["recording"] and dem["law"]["collision_frequency"]["V2"] is not None
+
+
+@pytest.mark.slow
+def test_full_report_repeats_the_readme_studies(tmp_path):
+    """The full report (tens of minutes; the DEM runs only with --dem-runs): the integrator
+    study at 2^2 ... 2^10 steps and the README's co-simulation study (steps 0.625 ... 20 s
+    against 0.078125 s, 30 minutes simulated)."""
+    from millfmu.cli import main
+
+    out = tmp_path / "report"
+    assert main(["report", "--out", str(out)]) == 0
+    page = (out / "report.html").read_text(encoding="utf-8")
+    assert "Full report" in page and "--dem-runs" in page
+    pbm = json.loads((out / "pbm_integrators.json").read_text())
+    for case in ("smooth", "stiff"):
+        o = pbm[case]["orders"]
+        assert 1.9 < o["exact step"] < 2.2 and 1.9 < o["adaptive exponential"] < 2.4, o
+    assert 0.95 < pbm["smooth"]["orders"]["Taylor 1"] < 1.1 and 1.9 < pbm["smooth"]["orders"]["Taylor 2"] < 2.2
+    cosim = json.loads((out / "cosim_wp.json").read_text())
+    small = [r["order_to_previous"] for r in cosim["rows"] if "order_to_previous" in r and r["step_s"] <= 5.0]
+    assert len(small) == 3 and all(0.9 < o < 1.3 for o in small), cosim
