@@ -523,12 +523,12 @@ def _resolution(res, st, z):
     return out
 
 
-def expected_error(res, spin_up_s, record_s) -> dict:
+def expected_error(res, spin_up_s, record_s, resolution: bool = True) -> dict:
     """Expected relative error [-] of each statistic and zone for a table point built
     with ``spin_up_s`` (one of the studied spin-ups) and ``record_s``: the root sum of
     squares of the recording-length error a T^b, the spin-up bias (measured error less the
-    sampling noise) and the reference setting's resolution differences that exceed their
-    noise."""
+    sampling noise) and, with ``resolution``, the reference setting's resolution
+    differences (sector, DEM step, coupling interval) that exceed their noise."""
     row = min(res["spin_up"], key=lambda r: abs(r["spin_up_s"] - spin_up_s))
     if abs(row["spin_up_s"] - spin_up_s) > 1e-9:
         raise WorkPrecisionError(f"spin-up {spin_up_s} s: not studied "
@@ -542,7 +542,8 @@ def expected_error(res, spin_up_s, record_s) -> dict:
             if sig is None or b is None:
                 out[st][z] = None
                 continue
-            out[st][z] = math.sqrt(sig ** 2 + b ** 2 + sum(x * x for x in _resolution(res, st, z)))
+            extra = sum(x * x for x in _resolution(res, st, z)) if resolution else 0.0
+            out[st][z] = math.sqrt(sig ** 2 + b ** 2 + extra)
     return out
 
 
@@ -551,33 +552,53 @@ TARGETS = (0.05, 0.1, 0.15, 0.2, 0.3)
 #: Recording lengths [s] :func:`choose` considers (beyond the longest studied the
 #: recording-length law is extrapolated, which the choice states).
 CHOICE_LENGTHS_S = (0.05, 0.1, 0.15, 0.2, 0.3, 0.4, 0.5, 0.75, 1.0)
+#: Having found the cheapest setting, :func:`choose` lengthens its recording while the run
+#: costs at most this much more: the spin-up dominates a point's cost, so a longer recording
+#: is cheap and lowers the error further.
+LENGTHEN_WITHIN = 1.25
+
+
+def _worst_of(e, zones):
+    return max((e[st][z] for st in STATISTICS for z in zones if e[st].get(z) is not None),
+               default=None)
 
 
 def choose(res, targets=TARGETS, zones=TARGET_ZONES) -> dict | None:
-    """The table-build choice: for the smallest target in ``targets`` that some studied
-    spin-up with a recording of :data:`CHOICE_LENGTHS_S` meets (expected error,
-    :func:`expected_error`, at most the target for every statistic in ``zones``), the
-    cheapest such setting; None when none meets the largest."""
+    """The table-build choice at the reference resolution (10 degree sector, DEM step
+    5e-6 s, coupling every 5e-5 s): for the smallest target in ``targets`` that some
+    studied spin-up with a recording of :data:`CHOICE_LENGTHS_S` meets (the error the
+    recording and the spin-up add, :func:`expected_error` without the resolution part, at
+    most the target for every statistic in ``zones``), the cheapest such setting, its
+    recording then lengthened within :data:`LENGTHEN_WITHIN` of its cost (up to the
+    longest recording studied). States that error and the total with the resolution part;
+    None when no target is met."""
     rate = res["long_run"]["run_per_simulated_s"]
     longest = max((r["record_s"] for r in res["recording"] if r["blocks"] >= 3), default=0.0)
     for target in targets:
         best = None
         for r in res["spin_up"]:
             for t in CHOICE_LENGTHS_S:
-                e = expected_error(res, r["spin_up_s"], t)
-                worst = max((e[st][z] for st in STATISTICS for z in zones
-                             if e[st].get(z) is not None), default=None)
+                worst = _worst_of(expected_error(res, r["spin_up_s"], t, False), zones)
                 if worst is None or worst > target:
                     continue
                 cost = rate * (r["spin_up_s"] + t)
-                if best is None or cost < best["run_s"] - 1e-9:
-                    best = dict(spin_up_s=r["spin_up_s"], record_s=t, run_s=cost, worst=worst,
-                                expected_error=e, extrapolated=t > longest + 1e-9)
-        if best is not None:
-            best.update(target=target, target_zones=list(zones),
-                        sector_deg=OPERATING_POINT["sector_deg"], dt_s=5e-6,
-                        coupling_interval_s=5e-5, sample_every_s=SAMPLE_S)
-            return best
+                if best is None or cost < best[2] - 1e-9:
+                    best = (r["spin_up_s"], t, cost)
+        if best is None:
+            continue
+        su, t, cost = best
+        cheapest = dict(spin_up_s=su, record_s=t, run_s=cost)
+        for t2 in CHOICE_LENGTHS_S:
+            if t < t2 <= longest + 1e-9 and rate * (su + t2) <= LENGTHEN_WITHIN * cost:
+                t = t2
+        e_rec = expected_error(res, su, t, False)
+        e = expected_error(res, su, t, True)
+        return dict(spin_up_s=su, record_s=t, run_s=rate * (su + t),
+                    worst=_worst_of(e_rec, zones), worst_total=_worst_of(e, zones),
+                    expected_error=e, expected_error_recording_spin_up=e_rec,
+                    extrapolated=t > longest + 1e-9, cheapest=cheapest, target=target,
+                    target_zones=list(zones), sector_deg=OPERATING_POINT["sector_deg"],
+                    dt_s=5e-6, coupling_interval_s=5e-5, sample_every_s=SAMPLE_S)
     return None
 
 
@@ -665,11 +686,15 @@ def summary_text(res) -> str:
     c = res["choice"]
     if c:
         v1 = _worst(c["expected_error"], STATISTICS, ("V1",))
-        txt += (f" Choice for table builds (the cheapest setting meeting {_pct(c['target'])}, the "
-                f"smallest of the targets {', '.join(_pct(t) for t in TARGETS)} that a studied "
-                f"setting meets): spin-up {c['spin_up_s']:g} s, recording {c['record_s']:g} s "
-                f"({c['run_s']:.0f} s per point on one core of this machine), expected error "
-                f"at most {_pct(c['worst'])} in {', '.join(c['target_zones'])} (V1: {_pct(v1)})"
+        txt += (f" Choice for table builds at the reference resolution: spin-up "
+                f"{c['spin_up_s']:g} s, recording {c['record_s']:g} s ({c['run_s']:.0f} s per "
+                f"point on one core of this machine): recording and spin-up add at most "
+                f"{_pct(c['worst'])} in {', '.join(c['target_zones'])} (target "
+                f"{_pct(c['target'])}, the smallest of {', '.join(_pct(t) for t in TARGETS)} "
+                f"met; cheapest: recording {c['cheapest']['record_s']:g} s, lengthened while "
+                f"the run costs at most {LENGTHEN_WITHIN:g} times as much); with the "
+                f"resolution differences beyond their noise at most {_pct(c['worst_total'])} "
+                f"(V1: {_pct(v1)})"
                 + ("; the recording-length law extrapolated beyond the longest recording "
                    "studied" if c.get("extrapolated") else "") + ".")
     else:
@@ -791,8 +816,8 @@ def summary(res) -> dict:
         long_run=res["long_run"],
         choice=None if c is None else {k: c[k] for k in (
             "spin_up_s", "record_s", "sector_deg", "dt_s", "coupling_interval_s",
-            "sample_every_s", "run_s", "worst", "target", "target_zones", "extrapolated",
-            "expected_error")},
+            "sample_every_s", "run_s", "worst", "worst_total", "target", "target_zones",
+            "extrapolated", "cheapest", "expected_error", "expected_error_recording_spin_up")},
         recording_law={s: {z: ({k: v[k] for k in ("at_1s", "slope")} if v else None)
                            for z, v in d.items()} for s, d in res["law"].items()},
         slopes=slopes(res),
