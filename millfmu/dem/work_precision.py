@@ -490,7 +490,16 @@ def analyse(study_dir) -> dict:
             beads=rd.stats["beads"], error=err, noise_2sigma=noise, run_s=rd.cost_s,
             reference_run_s=rate * (t0 + (t1 - t0)) * beads,
             power_number=pn_var, contacts=rd.has_contacts))
-    res = dict(operating_point=dict(OPERATING_POINT, scene="disc_slice"),
+    drift = dict(block_s=DRIFT_BLOCK_S, t_s=[], **{st: {z: [] for z in zones} for st in DRIFT_STATS})
+    t = long.recording_s[0]
+    while t + DRIFT_BLOCK_S <= long.recording_s[1] + 1e-9:
+        x = block_stats(long, t, t + DRIFT_BLOCK_S)
+        drift["t_s"].append(t + 0.5 * DRIFT_BLOCK_S)
+        for st in DRIFT_STATS:
+            for z in zones:
+                drift[st][z].append(_rel(x[st][z], ref[st][z]))
+        t += DRIFT_BLOCK_S
+    res = dict(operating_point=dict(OPERATING_POINT, scene="disc_slice"), drift=drift,
                long_run=dict(recorded_s=list(long.recording_s), run_s=long.cost_s,
                              run_per_simulated_s=rate, beads=long.stats["beads"],
                              threads=long.stats.get("counts", {}).get("threads")),
@@ -500,6 +509,12 @@ def analyse(study_dir) -> dict:
                machine=machine())
     res["choice"] = choose(res)
     return res
+
+
+#: The long run's course: these statistics per block of DRIFT_BLOCK_S [s], relative to the
+#: reference window.
+DRIFT_STATS = ("filling", "collision_frequency", "se_tn_q50")
+DRIFT_BLOCK_S = 0.1
 
 
 def _bias(spin_row, st, z):
@@ -735,7 +750,9 @@ def plot(res, path, title=None) -> None:
     import matplotlib.pyplot as plt
 
     wp = bool(res.get("spin_up") or res.get("variants"))
-    fig, ax = plt.subplots(1, 3 if wp else 2, figsize=(16 if wp else 11, 4.6), squeeze=False)
+    dr = res.get("drift")
+    n = 2 + wp + bool(dr)
+    fig, ax = plt.subplots(1, n, figsize=(5.4 * n, 4.6), squeeze=False)
     ax = ax[0]
     rows = res["recording"]
     t = np.array([r["record_s"] for r in rows])
@@ -771,6 +788,17 @@ def plot(res, path, title=None) -> None:
         ax[2].set(xlabel="run time [s] (CPU, 1 thread)",
                   ylabel=f"largest relative error, {', '.join(TARGET_ZONES)}",
                   title="work-precision (o recording, s spin-up, D variants)")
+    if dr:
+        a = ax[-1]
+        for st, ls in zip(DRIFT_STATS, ("-", "--", ":")):
+            for z, col in zip(res["zones"], ("C0", "C1", "C2", "C3")):
+                a.plot(dr["t_s"], [np.nan if v is None else 100 * v for v in dr[st][z]], ls,
+                       color=col, label=f"{st} {z}" if st == DRIFT_STATS[0] or z == "V1" else None)
+        w = res["reference_window_s"]
+        a.axvspan(w[0], w[1], color="0.9")
+        a.set(xlabel="t [s] (block centre)", ylabel="relative to the reference window [%]",
+              title=f"the long run in blocks of {dr['block_s']:g} s (grey: reference)")
+        a.legend(fontsize=6, ncol=2)
     for a in ax:
         a.grid(alpha=0.3, which="both")
     fig.tight_layout(rect=(0, 0, 1, 0.94) if title else None)
