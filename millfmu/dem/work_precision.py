@@ -436,6 +436,10 @@ def analyse(study_dir) -> dict:
     :data:`VARIANTS`): recording-length rows with the power-law fit, spin-up rows, variant
     rows, the table-build choice and its expected error. Plain JSON data."""
     study = Path(study_dir)
+    if not (study / "long" / "stats.json").is_file():
+        raise WorkPrecisionError(f"--out {str(study)!r}: no finished long run (long/stats.json); "
+                                 f"make the runs with 'millfmu dem work-precision run --out "
+                                 f"{study}'")
     long = load(study / "long")
     if not long.has_contacts:
         raise WorkPrecisionError(f"{study / 'long'}: the long run needs contacts.npz")
@@ -810,6 +814,9 @@ def analyse_quick(run_dir) -> dict:
     """The recording-length part of the study on one short run with contacts
     (:func:`run_quick`): rows over its whole recording and the fitted law (all lengths
     with at least 3 blocks)."""
+    if not (Path(run_dir) / "stats.json").is_file():
+        raise WorkPrecisionError(f"{str(run_dir)!r}: no finished short run; make it with "
+                                 f"'millfmu dem work-precision run --quick --out DIR'")
     rd = load(run_dir)
     if not rd.has_contacts:
         raise WorkPrecisionError(f"{run_dir}: the run needs contacts.npz")

@@ -139,3 +139,13 @@ def test_study_of_a_stationary_synthetic_run_writes_table_choice_and_manifest_en
     short = W.manifest_entry({"spin_up_s": 0.05, "record_s": 0.1}, path=path)
     assert short["this_table"]["expected_error"] is None and "below the shortest" in short["this_table"]["note"]
     assert W.manifest_entry({}, path=tmp_path / "none.json") is None
+
+
+def test_cli_refuses_a_folder_without_runs_and_unknown_variants(tmp_path, capsys):
+    from millfmu.cli import main
+
+    assert main(["dem", "work-precision", "table", "--out", str(tmp_path)]) == 2
+    assert "no finished long run" in capsys.readouterr().err
+    assert main(["dem", "work-precision", "run", "--out", str(tmp_path), "--variants", "dt_7"]) == 2
+    assert "variants ['dt_7']: allowed" in capsys.readouterr().err
+    assert not any(tmp_path.iterdir())  # nothing written
