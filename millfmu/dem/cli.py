@@ -106,11 +106,12 @@ def register(subparsers) -> argparse.ArgumentParser:
                        "recording length, spin-up, sector, time step and coupling interval, "
                        "with run times (coupled disc slice, 10 m/s, 80 %%)")
     w.add_argument("action", choices=("run", "table"), help="make the runs (skipping those "
-                   "done; hours on one core) or the table, JSON, CSV and plot from them")
+                   "done; about 1.6 CPU hours on one core) or the table, JSON, CSV and plot "
+                   "from them")
     w.add_argument("--out", required=True, help="folder of the study's runs and results")
     w.add_argument("--variants", default=None, help="comma-separated separate runs (default: "
-                   "coupling_1e-4,dt_1e-5,coupling_2.5e-5,sector_30; also coupling_2e-4, "
-                   "dt_2.5e-6)")
+                   "dt_1e-5,coupling_1e-4,coupling_2.5e-5,dt_2.5e-6,sector_30; also "
+                   "coupling_2e-4)")
     w.add_argument("--quick", action="store_true", help="instead: one short run and its "
                    "recording-length errors (about a minute)")
     w.add_argument("--export", metavar="FILE", help="table: also write the summary a table "
