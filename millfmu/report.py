@@ -123,7 +123,8 @@ def pbm_section(out: Path, quick: bool, log=print) -> str:
              "(CrusherPBMTM, methods Newton and Runge-Kutta), here at fixed steps with the "
              "midpoint operator. Measured order: slope of log error against log step size "
              "(mean step for the adaptive methods) between 10 x the reference's error and "
-             "0.1; for BDF, whose order varies up to 5, only that slope.</p>",
+             "0.1, Taylor steps only where h times the largest rate is at most 1; for BDF, "
+             "whose order varies up to 5, only that slope.</p>",
              '<img src="pbm_integrators.png" alt="PBM integrators: error against run time">']
     for case, r in res.items():
         c = INTEGRATOR_CASES[case]

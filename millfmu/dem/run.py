@@ -462,7 +462,7 @@ def _write_windows(path: Path, rows):
     path.write_text("\n".join(lines) + "\n")
 
 
-def write_contacts(path: Path, events, chunk_steps, zones: Zones, t0_s: float, dt_s: float,
+def write_contacts(path: Path, events, chunk_steps, zones, t0_s: float, dt_s: float,
                    c_type: int, c_xyz, c_setn: int, c_setotal) -> None:
     """Bead-bead contacts of the recording, per recording chunk (one sampling interval):
     ``zone`` (index into ``zone_names``, -1 outside every zone), ``chunk`` (index of the
