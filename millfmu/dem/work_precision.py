@@ -887,15 +887,22 @@ def export(res, path) -> Path:
 def manifest_entry(dem_resolution: dict | None = None, path=None) -> dict | None:
     """The work-precision entry of a DEM table's manifest: the study's choice and its
     expected error and, for a table built with ``dem_resolution`` (the ``dem`` part of the
-    manifest's resolution: spin_up_s, record_s, dt_s, sector_deg), the expected error of
-    its settings (:func:`expected_error` at the longest studied spin-up not above the
-    table's). None when no study is shipped (``path``: default :data:`SUMMARY_PATH`)."""
+    manifest's resolution: spin_up_s, record_s, dt_s, sector_deg, fluid), the expected error
+    of its settings (:func:`expected_error` at the longest studied spin-up not above the
+    table's; none for a fluid other than the coupled one). None when no study is shipped
+    (``path``: default :data:`SUMMARY_PATH`)."""
     p = Path(path) if path is not None else SUMMARY_PATH
     if not p.is_file():
         return None
     data = json.loads(p.read_text())
     s, res = data["summary"], data["study"]
     out = {k: s[k] for k in ("operating_point", "command", "measured_on", "choice", "note")}
+    fluid = (dem_resolution or {}).get("fluid")
+    if fluid not in (None, "coupled"):
+        out["this_table"] = dict(expected_error=None, note=(
+            f"this table's fluid is {fluid!r}; the study is of the coupled slice and does not "
+            f"cover it"))
+        return out
     if dem_resolution and dem_resolution.get("record_s") and \
             dem_resolution.get("spin_up_s") is not None:
         t, su = float(dem_resolution["record_s"]), float(dem_resolution["spin_up_s"])

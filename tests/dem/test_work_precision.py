@@ -139,6 +139,19 @@ def test_study_of_a_stationary_synthetic_run_writes_table_choice_and_manifest_en
     short = W.manifest_entry({"spin_up_s": 0.05, "record_s": 0.1}, path=path)
     assert short["this_table"]["expected_error"] is None and "below the shortest" in short["this_table"]["note"]
     assert W.manifest_entry({}, path=tmp_path / "none.json") is None
+    pres = W.manifest_entry({"spin_up_s": 1.0, "record_s": 0.2, "fluid": "prescribed"}, path=path)
+    assert pres["this_table"]["expected_error"] is None and "does not cover" in pres["this_table"]["note"]
+
+
+def test_shipped_study_gives_the_choice_and_a_coupled_tables_expected_error():
+    m = W.manifest_entry({"sector_deg": 10.0, "spin_up_s": 1.5, "record_s": 0.4, "dt_s": 5e-6,
+                          "fluid": "coupled"})
+    assert m is not None, "millfmu/data/dem_work_precision.json is shipped"
+    c = m["choice"]
+    assert (c["spin_up_s"], c["record_s"]) == (1.5, 0.4) and m["this_table"]["matches_choice"]
+    assert c["worst"] <= c["target"] and c["worst_total"] >= c["worst"]
+    e = m["this_table"]["expected_error"]
+    assert set(e) == set(W.STATISTICS) and all(set(v) == {"V1", "V2", "V3", "V4"} for v in e.values())
 
 
 def test_cli_refuses_a_folder_without_runs_and_unknown_variants(tmp_path, capsys):
