@@ -210,6 +210,15 @@ def _detailed_models(scene, MillModel):
                       "the scene's similar_axes)") if tax in sd.similar_axes else "refused beyond it"
             desc[p] = f"DEM table {sd.table!r}, interpolated on its grid {ax[0]:g}-{ax[-1]:g}; {beyond}"
             continue
+        oat = getattr(table, "one_at_a_time", {})
+        if tax in oat:
+            ax = np.asarray(oat[tax].axes[tax], dtype=float)
+            cover[p] = _Coverage("gridded", float(ax[0]), float(ax[-1]), tax in sd.similar_axes)
+            beyond = "the edge's beyond it (similarity)" if tax in sd.similar_axes else "refused beyond it"
+            desc[p] = (f"DEM table {sd.table!r}, varied one at a time over {ax[0]:g}-{ax[-1]:g} at "
+                       f"{table.anchor}: its change there scales the grid's fields (separability "
+                       f"assumed); {beyond}")
+            continue
         value = float(np.asarray(table.axes[tax])[0]) if tax in table.axes else fixed.get(tax, math.nan)
         if tax not in sd.similar_axes:
             sim = replace(sd, similar_axes=list(sd.similar_axes) + [tax])

@@ -6,6 +6,7 @@ the DEM loads only in the processes that build grid points.
 Examples::
 
     millfmu tables build --scene disc_slice --tip-speed 6,10,14 --filling 0.6,0.8
+    millfmu tables build ... --bead-diameter 0.0005,0.0008,0.0012 --one-at-a-time bead-diameter
     millfmu tables build ... --scheduler tcp://10.0.0.5:8786     # an existing Dask cluster
     millfmu tables status
     millfmu tables verify --default
@@ -60,6 +61,20 @@ def _floats(text: str) -> list:
     return vals
 
 
+def _axis_names(text: str) -> list:
+    """CLI names (bead-diameter) or axis names (bead_diameter_m) -> axis names."""
+    by_opt = {opt[2:]: axis for opt, (axis, _) in GRID_OPTIONS.items()}
+    axes = {axis for axis, _ in GRID_OPTIONS.values()}
+    out = []
+    for name in (x.strip() for x in text.split(",") if x.strip()):
+        axis = by_opt.get(name, name if name in axes else None)
+        if axis is None:
+            raise argparse.ArgumentTypeError(
+                f"{name!r}: not an axis; allowed: {', '.join(by_opt)}")
+        out.append(axis)
+    return out
+
+
 def register(subparsers) -> argparse.ArgumentParser:
     """Add the ``tables`` command group to an argparse subparsers object."""
     p = subparsers.add_parser("tables", help="stress-energy lookup tables: build, status, "
@@ -80,6 +95,10 @@ def register(subparsers) -> argparse.ArgumentParser:
                        help=f"grid of {h} (default: the scene's value only)")
     for opt, (sec, key, h) in RUN_OPTIONS.items():
         b.add_argument(opt, type=float, dest=f"run_{sec}_{key}", metavar="X", help=h)
+    b.add_argument("--one-at-a-time", type=_axis_names, metavar="OPT1,OPT2,..",
+                   help="axes (e.g. bead-diameter,bead-density) varied one at a time from the "
+                        "scene's operating point instead of over the whole grid; their values "
+                        "must include the scene's")
     b.add_argument("--no-gravity", action="store_true", help="switch gravity off")
     b.add_argument("--fluid", choices=("coupled", "prescribed", "none"),
                    help="fluid model of the DEM runs (default: the scene's [fluid] mode; "
@@ -141,6 +160,14 @@ def _build(args) -> int:
 
     grid = {axis: getattr(args, f"grid_{axis}") for _, (axis, _) in GRID_OPTIONS.items()
             if getattr(args, f"grid_{axis}") is not None}
+    oat = {}
+    for axis in args.one_at_a_time or ():
+        if axis not in grid:
+            opt = next(o for o, (a, _) in GRID_OPTIONS.items() if a == axis)
+            print(f"millfmu tables build: --one-at-a-time {axis}: give its values with {opt}",
+                  file=sys.stderr)
+            return 2
+        oat[axis] = grid.pop(axis)
     over: dict = {}
     for _, (sec, key, _) in RUN_OPTIONS.items():
         v = getattr(args, f"run_{sec}_{key}")
@@ -157,11 +184,11 @@ def _build(args) -> int:
         parallel = args.executor != "serial" or args.scheduler
         threads = args.threads if args.threads is not None else (1 if parallel else None)
         builder = _load_builder(args.builder, threads)
-        spec = T.dem_spec(args.scene, grid, over)
+        spec = T.dem_spec(args.scene, grid, over, one_at_a_time=oat)
         if args.builder:
             spec = T.TableSpec(scene=spec.scene, grid=spec.grid,
                                kernel_version=spec.kernel_version,
-                               builder_id=T.builder_id_of(builder))
+                               builder_id=T.builder_id_of(builder), one_at_a_time=oat)
         log = (lambda msg: print(msg, file=sys.stderr))
         table = T.get_table(spec, builder, cache_dir=args.cache_dir, force=args.force,
                             log=log, executor=args.executor, workers=args.workers,
@@ -171,7 +198,8 @@ def _build(args) -> int:
         return 2
     entry = T.entry_dir(spec, args.cache_dir)
     m = table.manifest
-    print(f"table {spec.key()} ({' x '.join(map(str, spec.shape))} points, "
+    extra = "".join(f" + {len(v)} {k} values one at a time" for k, v in oat.items())
+    print(f"table {spec.key()} ({' x '.join(map(str, spec.shape))} points{extra}, "
           f"{(entry / T.TABLE_FILE).stat().st_size} bytes): {entry}")
     if m.get("build_wall_time_s"):
         print(f"build wall time {m['build_wall_time_s']:.1f} s")
@@ -191,6 +219,9 @@ def _command(args) -> str:
         v = getattr(args, f"grid_{axis}")
         if v is not None:
             cmd += [opt, ",".join(f"{x:g}" for x in v)]
+    if args.one_at_a_time:
+        by_axis = {axis: opt[2:] for opt, (axis, _) in GRID_OPTIONS.items()}
+        cmd += ["--one-at-a-time", ",".join(by_axis[a] for a in args.one_at_a_time)]
     for opt, (sec, key, _) in RUN_OPTIONS.items():
         v = getattr(args, f"run_{sec}_{key}")
         if v is not None:

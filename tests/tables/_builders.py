@@ -77,3 +77,38 @@ def spec(grid=None, kernel_version="test-kernel-1", **scene):
 
 def count(path) -> int:
     return len(open(path).read().split()) if os.path.exists(path) else 0
+
+
+def separable_builder(scene: dict, point: dict) -> dict:
+    """The analytic builder times factors of bead diameter and density that do not depend
+    on tip speed or filling (a separable dependence, which one-at-a-time axes reproduce
+    exactly): rates, speeds and fillings times (d/0.8 mm)^-0.4 (rho/2510)^0.2, the energy
+    distribution shifted by (d/0.8 mm)^0.7 (rho/2510)^0.3. Reads d and rho from the point,
+    else the scene's [beads]."""
+    beads = scene.get("beads", {})
+    d = float(point.get("bead_diameter_m", beads.get("diameter_m", D_GB_M)))
+    rho = float(point.get("bead_density_kg_m3", beads.get("density_kg_m3", RHO_KG_M3)))
+    out = analytic_builder(scene, point)
+    f = (d / D_GB_M) ** -0.4 * (rho / RHO_KG_M3) ** 0.2
+    shift = math.log10((d / D_GB_M) ** 0.7 * (rho / RHO_KG_M3) ** 0.3)
+    for k in ("filling_local", "speed_over_tip_speed", "collision_frequency_norm",
+              "collision_power_norm"):
+        out[k] = out[k] * f
+    out["se_quantiles_norm"] = out["se_quantiles_norm"] * 10.0 ** shift
+    out["se_density"] = T.shift_log_density(out["se_density"], np.full((3, 2), shift))
+    return out
+
+
+def separable_spec(anchor_filling=0.7, **kw):
+    """TableSpec of :func:`separable_builder`: tip speed x filling grid, bead diameter and
+    density one at a time from the scene's 10 m/s, ``anchor_filling``, 0.8 mm, 2510 kg/m3."""
+    scene = {"name": "separable", "mill": {"tip_speed_m_s": 10.0},
+             "beads": {"filling": anchor_filling, "diameter_m": D_GB_M,
+                       "density_kg_m3": RHO_KG_M3}}
+    return T.TableSpec(scene=scene,
+                       grid={"tip_speed_m_s": [6.0, 10.0, 14.0], "filling": [0.5, 0.7, 0.9]},
+                       kernel_version="test-kernel-1",
+                       builder_id=T.builder_id_of(separable_builder),
+                       one_at_a_time=kw.get("one_at_a_time", {
+                           "bead_diameter_m": [0.5e-3, D_GB_M, 1.2e-3],
+                           "bead_density_kg_m3": [RHO_KG_M3, 6040.0]}))

@@ -106,9 +106,15 @@ def _rebuilds_after(damage, cache, tmp_path, match):
         T.read_table(cache / s.key(), expect_key=s.key())
     assert T.load_cached(s, cache) is None  # never used
     t = T.get_table(s, analytic_builder, cache_dir=cache, executor="serial", progress=False)
-    assert count(cf) == 18  # rebuilt
+    assert count(cf) == 9  # rebuilt from the finished points, none run again
     _same(good, t)
     T.read_table(cache / s.key(), expect_key=s.key())
+    # without the finished points, every point runs again
+    damage(cache / s.key())
+    shutil.rmtree(cache / T.POINTS_DIR)
+    t = T.get_table(s, analytic_builder, cache_dir=cache, executor="serial", progress=False)
+    assert count(cf) == 18
+    _same(good, t)
 
 
 def test_truncated_file_is_rebuilt(cache, tmp_path):
@@ -162,8 +168,9 @@ def test_concurrent_builders_leave_one_good_entry(cache, tmp_path):
     assert got[0] == got[1]
     # 9 points x 0.2 s: the second process waited on the lock and found the entry.
     assert count(cf) == 9
-    entries = [p.name for p in cache.iterdir() if p.is_dir()]
+    entries = [p.name for p in cache.iterdir() if p.is_dir() and p.name != T.POINTS_DIR]
     assert entries == [got[0][0]]  # no temporary folders left behind
+    assert not list((cache / T.POINTS_DIR).glob(".tmp-*"))
     T.read_table(cache / got[0][0], expect_key=got[0][0])
 
 
@@ -176,7 +183,10 @@ def test_status_and_clear(cache, tmp_path):
     assert states == {a.key(): "ok", b.key(): "bad"}
     assert T.clear_cache(cache, only_not_ok=True, kernel_version="x") == [b.key()]
     assert [e["key"] for e in T.cache_entries(cache, kernel_version="x")] == [a.key()]
-    assert T.clear_cache(cache, kernel_version="x") == [a.key()]
+    removed = T.clear_cache(cache, kernel_version="x")
+    # the analytic builder's points are not the DEM's: kept by --stale, removed by a clear
+    assert removed[0] == a.key() and len(removed) == 1 + 18
+    assert all(r.startswith(T.POINTS_DIR + "/") for r in removed[1:])
     assert T.cache_entries(cache, kernel_version="x") == []
 
 
@@ -185,3 +195,41 @@ def test_spec_rejects_bad_grid():
         spec(grid={"speed": [1.0]})
     with pytest.raises(T.TableError, match="strictly ascending"):
         spec(grid={"filling": [0.8, 0.6]})
+
+
+def _fail_at_fill_09(scene, point):
+    if point["tip_speed_m_s"] == 10.0 and point["filling"] == 0.9:
+        raise RuntimeError("cut off")
+    return analytic_builder(scene, point)
+
+
+def test_cut_build_resumes_with_its_finished_points(cache, tmp_path):
+    cf = str(tmp_path / "builds")
+    s = spec(count_file=cf)
+    with pytest.raises(RuntimeError, match="cut off"):
+        T.get_table(s, _fail_at_fill_09, cache_dir=cache, executor="serial", progress=False)
+    assert count(cf) == 5  # grid order: (6, *), (10, 0.5), (10, 0.7) finished, then the cut
+    assert T.load_cached(s, cache) is None  # no half-written entry
+    assert len(list((cache / T.POINTS_DIR).glob("*.json"))) == 5
+    t = T.get_table(s, analytic_builder, cache_dir=cache, executor="serial", progress=False)
+    assert count(cf) == 9  # only the 4 missing points ran
+    want = analytic_builder({}, {"tip_speed_m_s": 6.0, "filling": 0.5})
+    np.testing.assert_array_equal(t.data["se_density"][0, 0], want["se_density"])
+    # force runs every point again; a table sharing points runs only its new ones
+    T.get_table(s, analytic_builder, cache_dir=cache, executor="serial", progress=False,
+                force=True)
+    assert count(cf) == 18
+    wider = spec(count_file=cf, grid={"tip_speed_m_s": [6.0, 10.0, 14.0, 18.0],
+                                      "filling": [0.5, 0.7, 0.9]})
+    T.get_table(wider, analytic_builder, cache_dir=cache, executor="serial", progress=False)
+    assert count(cf) == 21
+    # a point file that does not hold its key's content is not used
+    f = sorted((cache / T.POINTS_DIR).glob("*.json"))[0]
+    f.write_text(f.read_text().replace('"format": 1', '"format": 0'))
+    store = T.PointStore(cache / T.POINTS_DIR)
+    damaged = [p for p in wider.points() if store.key(wider, p) == f.stem]
+    assert len(damaged) == 1 and store.get(wider, damaged[0]) is None
+    T.clear_cache(cache, only_not_ok=True, kernel_version="test-kernel-1")
+    assert len(list((cache / T.POINTS_DIR).glob("*.json"))) == 12
+    T.clear_cache(cache)
+    assert not list((cache / T.POINTS_DIR).glob("*.json"))

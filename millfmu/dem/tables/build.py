@@ -2,32 +2,122 @@
 :class:`~millfmu.dem.tables.dem_builder.DemBuilder`) run at every grid point, serially, in a
 local process pool or on a Dask cluster, and the results stacked into a :class:`Table`.
 
+Each finished point is kept in a point store (:class:`PointStore`, ``<cache>/points``),
+named by what decides its numbers (builder, kernel version, the scene at the point), so an
+interrupted build resumes where it stopped and tables that share a point (a grid and its
+one-at-a-time axes, a grid extended by :func:`rebuild_including`) run it once.
+
 Imports no numba: the builder loads the DEM in the processes that run grid points.
 """
 
 from __future__ import annotations
 
 import contextlib
+import json
+import math
 import os
+import tempfile
 import time
+from pathlib import Path
 from typing import Callable
 
 import numpy as np
 
-from .spec import DRIFT_FIELDS, FIELDS, TableError, TableSpec
+from .files import canonical_json, sha256_bytes, write_synced
+from .spec import DRIFT_FIELDS, FIELDS, FORMAT_VERSION, TableError, TableSpec, scene_at_point
 from .table import Table
 
 
+class PointStore:
+    """Finished grid points on disk: ``<folder>/<key>.json``, the key the sha256 of the
+    canonical JSON of (format, builder id, kernel version, the scene with the point's values
+    put in). A file is written to a temporary name, fsync'ed and renamed, so a reader sees
+    a whole point or none; a file that does not parse or whose content is not its key's is
+    ignored (the point is run again)."""
+
+    def __init__(self, folder, reuse: bool = True):
+        self.folder = Path(folder)
+        #: False: every point is run again (and stored), e.g. for ``--force``.
+        self.reuse = reuse
+
+    @staticmethod
+    def key_content(spec: TableSpec, point: dict) -> dict:
+        return {"format": FORMAT_VERSION, "builder": spec.builder_id,
+                "kernel_version": spec.kernel_version,
+                "scene": scene_at_point(spec.scene, point)}
+
+    def key(self, spec: TableSpec, point: dict) -> str:
+        return sha256_bytes(canonical_json(self.key_content(spec, point)).encode())
+
+    def get(self, spec: TableSpec, point: dict) -> dict | None:
+        if not self.reuse:
+            return None
+        path = self.folder / f"{self.key(spec, point)}.json"
+        try:
+            d = json.loads(path.read_text())
+        except (OSError, ValueError):
+            return None
+        if not isinstance(d, dict) or d.get("key_content") != json.loads(
+                canonical_json(self.key_content(spec, point))):
+            return None
+        return d.get("result")
+
+    def put(self, spec: TableSpec, point: dict, result: dict):
+        self.folder.mkdir(parents=True, exist_ok=True)
+        text = json.dumps({"key_content": self.key_content(spec, point),
+                           "result": _plain(result)}, sort_keys=True)
+        fd, tmp = tempfile.mkstemp(prefix=".tmp-point-", dir=self.folder)
+        os.close(fd)
+        try:
+            write_synced(Path(tmp), text.encode())
+            os.replace(tmp, self.folder / f"{self.key(spec, point)}.json")
+        except BaseException:
+            Path(tmp).unlink(missing_ok=True)
+            raise
+
+
+def _plain(obj):
+    """A builder's result as JSON values (arrays as nested lists, NaN kept as NaN)."""
+    if isinstance(obj, dict):
+        return {str(k): _plain(v) for k, v in obj.items()}
+    if isinstance(obj, (list, tuple)):
+        return [_plain(v) for v in obj]
+    if isinstance(obj, np.ndarray):
+        return obj.tolist()
+    if isinstance(obj, np.generic):
+        return obj.item()
+    return obj
+
+
 def assemble(spec: TableSpec, results: list[dict]) -> Table:
-    """Stack per-point builder results (grid order, see :meth:`TableSpec.points`)."""
-    if len(results) != len(spec.points()):
-        raise TableError(f"assemble: {len(results)} results for {len(spec.points())} points")
+    """Stack per-point builder results (in the order of :meth:`TableSpec.points`): the grid
+    points into the table, the anchor and one-at-a-time points into its 1-D side tables
+    (``Table.one_at_a_time``, each holding the scene's value from the anchor's result)."""
+    points = spec.points()
+    if len(results) != len(points):
+        raise TableError(f"assemble: {len(results)} results for {len(points)} points")
     zn = tuple(results[0]["zone_names"])
     for r in results:
         if tuple(r["zone_names"]) != zn:
             raise TableError(f"assemble: zone names differ between points: {zn} vs "
                              f"{tuple(r['zone_names'])}")
-    shape = spec.shape
+    n = len(spec.grid_points())
+    t = _stack(spec.grid, results[:n], zn)
+    if spec.one_at_a_time:
+        anchor = spec.anchor()
+        by_point = {json.dumps(p, sort_keys=True): r for p, r in zip(points, results)}
+        for name, vals in spec.one_at_a_time.items():
+            rs = [by_point[json.dumps(dict(anchor, **{name: v}) if not math.isclose(
+                v, spec.scene_value(name), rel_tol=1e-9) else anchor, sort_keys=True)]
+                for v in vals]
+            t.one_at_a_time[name] = _stack({name: vals}, rs, zn)
+            t.one_at_a_time_ref[name] = spec.scene_value(name)
+        t.anchor = anchor
+    return t
+
+
+def _stack(grid: dict, results: list[dict], zn: tuple) -> Table:
+    shape = tuple(len(v) for v in grid.values())
     data = {k: np.stack([np.asarray(r[k], float) for r in results]).reshape(
         shape + np.asarray(results[0][k]).shape) for k in FIELDS}
     if all("drift" in r for r in results):
@@ -36,7 +126,7 @@ def assemble(spec: TableSpec, results: list[dict]) -> Table:
             shape + (len(DRIFT_FIELDS), len(zn)))
     refs = {k: np.array([float(r[k]) for r in results]).reshape(shape)
             for k in ("e_ref_J", "omega_rad_s", "n_gb_per_m3")}
-    t = Table(axes={k: np.asarray(v, float) for k, v in spec.grid.items()}, zone_names=zn,
+    t = Table(axes={k: np.asarray(v, float) for k, v in grid.items()}, zone_names=zn,
               data=data, refs=refs)
     t.check_shapes()
     return t
@@ -44,46 +134,59 @@ def assemble(spec: TableSpec, results: list[dict]) -> Table:
 
 def run_points(spec: TableSpec, builder: Callable, executor: str = "processes",
                workers: int | None = None, scheduler: str | None = None,
-               progress: bool = True) -> list[dict]:
+               progress: bool = True, point_store: PointStore | None = None) -> list[dict]:
     """Evaluate ``builder(scene, point)`` at every grid point; results in grid order.
 
     executor: ``serial``; ``processes`` (a local process pool of ``workers`` processes,
     default all cores); ``dask`` (a Dask LocalCluster on 127.0.0.1 with ``workers``
     single-threaded worker processes, or the existing cluster at ``scheduler``, e.g.
     ``tcp://host:8786``, when given). A tqdm bar counts finished grid points.
+    ``point_store``: points found there are not run again, and each point is put there as
+    soon as it finishes (so that a build cut off resumes).
     """
     points = spec.points()
+    if executor not in ("serial", "processes", "dask"):
+        raise TableError(f"executor = {executor!r}: allowed 'serial', 'processes', 'dask'")
+    results: list = [None] * len(points)
+    if point_store is not None:
+        for i, p in enumerate(points):
+            results[i] = point_store.get(spec, p)
+    todo = [i for i, r in enumerate(results) if r is None]
     bar = None
     if progress:
         from tqdm import tqdm
-        bar = tqdm(total=len(points), unit="point", desc=f"table {spec.key()[:10]}")
-    results: list = [None] * len(points)
+        bar = tqdm(total=len(points), initial=len(points) - len(todo), unit="point",
+                   desc=f"table {spec.key()[:10]}")
+
+    def done(i, r):
+        results[i] = r
+        if point_store is not None:
+            point_store.put(spec, points[i], r)
+        if bar is not None:
+            bar.update(1)
+
     try:
-        if scheduler is not None or executor == "dask":
-            _run_dask(spec, builder, points, results, workers, scheduler, bar)
-        elif executor == "serial" or len(points) == 1:
-            for i, p in enumerate(points):
-                results[i] = builder(spec.scene, p)
-                if bar is not None:
-                    bar.update(1)
-        elif executor == "processes":
-            from concurrent.futures import ProcessPoolExecutor, as_completed
-            n = min(workers or os.cpu_count() or 1, len(points))
-            with ProcessPoolExecutor(max_workers=n) as pool:
-                futs = {pool.submit(builder, spec.scene, p): i for i, p in enumerate(points)}
-                for f in as_completed(futs):
-                    results[futs[f]] = f.result()
-                    if bar is not None:
-                        bar.update(1)
+        if not todo:
+            pass
+        elif scheduler is not None or executor == "dask":
+            _run_dask(spec, builder, points, todo, done, workers, scheduler)
+        elif executor == "serial" or len(todo) == 1:
+            for i in todo:
+                done(i, builder(spec.scene, points[i]))
         else:
-            raise TableError(f"executor = {executor!r}: allowed 'serial', 'processes', 'dask'")
+            from concurrent.futures import ProcessPoolExecutor, as_completed
+            n = min(workers or os.cpu_count() or 1, len(todo))
+            with ProcessPoolExecutor(max_workers=n) as pool:
+                futs = {pool.submit(builder, spec.scene, points[i]): i for i in todo}
+                for f in as_completed(futs):
+                    done(futs[f], f.result())
     finally:
         if bar is not None:
             bar.close()
     return results
 
 
-def _run_dask(spec, builder, points, results, workers, scheduler, bar):
+def _run_dask(spec, builder, points, todo, done, workers, scheduler):
     try:
         from dask.distributed import Client, LocalCluster, as_completed
     except ImportError:
@@ -94,16 +197,15 @@ def _run_dask(spec, builder, points, results, workers, scheduler, bar):
             client = stack.enter_context(Client(scheduler))
         else:
             cluster = stack.enter_context(LocalCluster(
-                n_workers=min(workers or os.cpu_count() or 1, len(points)),
+                n_workers=min(workers or os.cpu_count() or 1, len(todo)),
                 threads_per_worker=1, processes=True, host="127.0.0.1",
                 dashboard_address=None))
             client = stack.enter_context(Client(cluster))
-        futs = client.map(builder, [spec.scene] * len(points), points, pure=False)
-        where = {f.key: i for i, f in enumerate(futs)}
+        futs = client.map(builder, [spec.scene] * len(todo), [points[i] for i in todo],
+                          pure=False)
+        where = {f.key: i for i, f in zip(todo, futs)}
         for f in as_completed(futs):
-            results[where[f.key]] = f.result()
-            if bar is not None:
-                bar.update(1)
+            done(where[f.key], f.result())
 
 
 def build_table(spec: TableSpec, builder: Callable, **run_kw) -> Table:

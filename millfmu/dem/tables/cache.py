@@ -23,7 +23,7 @@ import tempfile
 from pathlib import Path
 from typing import Callable
 
-from .build import build_table
+from .build import PointStore, build_table
 from .files import fsync_dir
 from .spec import DEM_BUILDER_ID, TableError, TableSpec, manifest_for
 from .table import Table, read_table
@@ -38,6 +38,10 @@ KERNEL_MODULES = ("millfmu.dem.kernels", "millfmu.dem.sim", "millfmu.dem.stats",
                   "millfmu.dem.fluid.pressure", "millfmu.dem.fluid.solver",
                   "millfmu.dem.coupling.projection", "millfmu.dem.coupling.koch_hill2001",
                   "millfmu.dem.coupling.cfd_dem", "millfmu.dem.coupling.settings")
+
+
+#: Folder of the cache that holds finished grid points (:class:`PointStore`).
+POINTS_DIR = "points"
 
 
 def dem_kernel_version() -> str:
@@ -99,7 +103,10 @@ def get_table(spec: TableSpec, builder: Callable, cache_dir=None, force: bool = 
     Concurrent callers serialize on ``<cache>/<key>.lock`` (fcntl.flock); the second finds
     the first one's entry. A new entry is written into a temporary folder in the cache and
     renamed into place, so readers see either no entry or a complete one; an entry that
-    fails verification is replaced. ``force`` rebuilds even a good entry.
+    fails verification is replaced. Finished grid points are kept in ``<cache>/points``
+    (:class:`~.build.PointStore`): a build that was cut off, or a damaged entry, is
+    completed from them, running only the points that are missing. ``force`` rebuilds even
+    a good entry and runs every point again.
     """
     root = resolve_cache_dir(cache_dir)
     key = spec.key()
@@ -119,6 +126,7 @@ def get_table(spec: TableSpec, builder: Callable, cache_dir=None, force: bool = 
                 read_table(final, expect_key=key, expect_kernel=spec.kernel_version)
             except TableError as e:
                 log(f"rebuilding cache entry {key[:12]}: {e}")
+        run_kw.setdefault("point_store", PointStore(root / POINTS_DIR, reuse=not force))
         table = build_table(spec, builder, **run_kw)
         tmp = Path(tempfile.mkdtemp(prefix=f".tmp-{key[:16]}-", dir=root))
         try:
@@ -143,7 +151,8 @@ def cache_entries(cache_dir=None, kernel_version: str | None = None) -> list[dic
     if not root.exists():
         return out
     kv = kernel_version if kernel_version is not None else dem_kernel_version()
-    for d in sorted(p for p in root.iterdir() if p.is_dir() and not p.name.startswith(".")):
+    for d in sorted(p for p in root.iterdir()
+                    if p.is_dir() and not p.name.startswith(".") and p.name != POINTS_DIR):
         info = {"key": d.name, "path": str(d),
                 "bytes": sum(f.stat().st_size for f in d.iterdir() if f.is_file())}
         try:
@@ -177,6 +186,9 @@ def clear_cache(cache_dir=None, only_not_ok: bool = False,
             shutil.rmtree(e["path"], ignore_errors=True)
         (root / f"{e['key']}.lock").unlink(missing_ok=True)
         removed.append(e["key"])
+    removed += _clear_points(root / POINTS_DIR, only_not_ok,
+                             kernel_version if kernel_version is not None
+                             else dem_kernel_version())
     for p in root.glob(".tmp-*"):
         key16 = p.name[5:21]
         locks = list(root.glob(f"{key16}*.lock"))
@@ -190,4 +202,25 @@ def clear_cache(cache_dir=None, only_not_ok: bool = False,
                 continue
             shutil.rmtree(p, ignore_errors=True)
             fcntl.flock(fh.fileno(), fcntl.LOCK_UN)
+    return removed
+
+
+def _clear_points(folder: Path, only_stale: bool, kernel_version: str) -> list[str]:
+    """Remove finished grid points (all, or those of another DEM kernel version or that
+    do not parse); returns 'points/KEY' for each removed file."""
+    import json
+
+    removed = []
+    if not folder.is_dir():
+        return removed
+    for f in sorted(folder.glob("*.json")):  # not .tmp-point-*: a build is writing those
+        if only_stale:
+            try:
+                kc = json.loads(f.read_text())["key_content"]
+                if kc["builder"] != DEM_BUILDER_ID or kc["kernel_version"] == kernel_version:
+                    continue
+            except (OSError, ValueError, KeyError, TypeError):
+                pass
+        f.unlink(missing_ok=True)
+        removed.append(f"{POINTS_DIR}/{f.stem}")
     return removed

@@ -125,16 +125,22 @@ def recording_drift(windows_csv, zone_names) -> dict:
     return out
 
 
-def dem_spec(scene_name_or_path: str, grid: dict, overrides: dict | None = None) -> TableSpec:
+def dem_spec(scene_name_or_path: str, grid: dict, overrides: dict | None = None,
+             one_at_a_time: dict | None = None) -> TableSpec:
     """Spec for a DEM table: the scene file's content (TOML -> dict) with ``overrides``
-    (section -> {key: value}, e.g. {"run": {"spin_up_s": 0.05}}) merged in, validated."""
+    (section -> {key: value}, e.g. {"run": {"spin_up_s": 0.05}}) merged in, validated;
+    ``one_at_a_time``: axes varied one at a time from the scene's point
+    (:class:`TableSpec`)."""
     from ..scene import load_scene_dict
 
     d = load_scene_dict(scene_name_or_path)
     for sec, kv in (overrides or {}).items():
         d.setdefault(sec, {}).update(kv)
-    spec = TableSpec(scene=d, grid=grid, kernel_version=dem_kernel_version())
-    for p in (spec.points()[0], spec.points()[-1]):  # validate the corners early
+    spec = TableSpec(scene=d, grid=grid, kernel_version=dem_kernel_version(),
+                     one_at_a_time=one_at_a_time or {})
+    gp = spec.grid_points()
+    # validate the grid's corners and every point off the grid early
+    for p in [gp[0], gp[-1]] + spec.points()[len(gp):]:
         _validate_scene_dict(scene_at_point(d, p))
     return spec
 
@@ -148,19 +154,24 @@ def _validate_scene_dict(d: dict):
 def rebuild_including(table: Table, point: dict, builder: Callable | None = None,
                       cache_dir=None, progress: bool = True, **run_kw) -> Table:
     """Build (or find in the cache) a table like ``table`` whose grid also covers ``point``:
-    each axis whose value lies outside gets that value as a new end node. Every grid point
-    of the new table is built (the cache holds whole tables). ``builder``: default the DEM
+    each axis (grid or one-at-a-time) whose value lies outside gets that value as a new end
+    node. Only the points not in the cache's point store are run. ``builder``: default the DEM
     (:class:`DemBuilder`, with the installed kernel version)."""
     old = table.spec()
-    grid = {}
-    for ax, vals in old.grid.items():
-        x = float(point[ax])
-        grid[ax] = sorted(set(vals) | ({x} if not vals[0] <= x <= vals[-1] else set()))
+
+    def extended(axes):
+        out = {}
+        for ax, vals in axes.items():
+            x = float(point[ax])
+            out[ax] = sorted(set(vals) | ({x} if not vals[0] <= x <= vals[-1] else set()))
+        return out
+
+    grid, oat = extended(old.grid), extended(old.one_at_a_time)
     if builder is None:
         builder = DemBuilder()
         kv = dem_kernel_version()
     else:
         kv = old.kernel_version
     spec = TableSpec(scene=old.scene, grid=grid, kernel_version=kv,
-                     builder_id=builder_id_of(builder))
+                     builder_id=builder_id_of(builder), one_at_a_time=oat)
     return get_table(spec, builder, cache_dir=cache_dir, progress=progress, **run_kw)

@@ -27,7 +27,7 @@ class TableStressSource:
     (:class:`millfmu.kinetics.stress_distribution.StressEnergySource`).
 
     ``zones(op)`` interpolates the table at (tip speed, filling, and bead diameter, bead
-    density, viscosity where the table has them as axes) and scales back with the operating
+    density, viscosity where the table has them as grid or one-at-a-time axes) and scales back with the operating
     point's own E_ref (= op.se_beads_J) and omega n_gb: energies [J] = table bins x E_ref,
     collision rate [1/(m3 s)] = collision_frequency_norm x omega n_gb. ``component``: 'tn'
     (default, see the module docstring) or 'total'.
@@ -66,7 +66,9 @@ class TableStressSource:
                                  f"{', '.join(EXTRAPOLABLE_AXES)}")
 
     def point_of(self, op) -> dict:
-        return {ax: float(getattr(op, AXES[ax][3])) for ax in self.table.axes}
+        """The lookup point of an operating point: the table's grid and one-at-a-time axes."""
+        return {ax: float(getattr(op, AXES[ax][3]))
+                for ax in (*self.table.axes, *self.table.one_at_a_time)}
 
     def _check_fixed_axes(self, op) -> list:
         """Notes for the axes the table does not vary whose op value differs (similarity
@@ -93,7 +95,8 @@ class TableStressSource:
         for ax, x in self.point_of(op).items():
             if ax == "tip_speed_m_s" and not x > 0.0:
                 continue  # the stirrer at rest: no collisions, nothing to look up
-            self.table.axis_value(ax, x, self.similar_axes)
+            t = self.table.one_at_a_time.get(ax, self.table)
+            t.axis_value(ax, x, self.similar_axes)
 
     def zones(self, op):
         from ...kinetics.stress_distribution import Zone

@@ -39,6 +39,8 @@ EXTRAPOLABLE_AXES = ("tip_speed_m_s", "bead_diameter_m", "bead_density_kg_m3",
                      "viscosity_pa_s")
 #: Relative tolerance for matching a single-valued axis (an axis the grid does not vary).
 FIXED_AXIS_RTOL = 1e-9
+#: Prefix of a one-at-a-time axis's arrays in table.npz: ``oat__<axis>__<array>``.
+ONE_AT_A_TIME_PREFIX = "oat__"
 
 
 class OutsideGridError(TableError):
@@ -84,6 +86,13 @@ class Table:
     data: dict
     refs: dict
     manifest: dict = field(default_factory=dict)
+    #: One-at-a-time axes (:class:`TableSpec`): axis -> a 1-D table along it at the anchor,
+    #: the scene's value among its nodes.
+    one_at_a_time: dict = field(default_factory=dict)
+    #: Reference (the scene's value) of each one-at-a-time axis, and the anchor (the scene's
+    #: values of the grid axes) they are varied from.
+    one_at_a_time_ref: dict = field(default_factory=dict)
+    anchor: dict = field(default_factory=dict)
 
     # -- geometry of the grid
     @property
@@ -111,6 +120,14 @@ class Table:
         for k in ("e_ref_J", "omega_rad_s", "n_gb_per_m3"):
             if k not in self.refs or self.refs[k].shape != self.shape:
                 raise TableError(f"table: reference {k!r} missing or of wrong shape")
+        if set(self.one_at_a_time_ref) != set(self.one_at_a_time) or (
+                self.one_at_a_time and set(self.anchor) != set(self.axes)):
+            raise TableError("table: one-at-a-time axes without their reference or anchor")
+        for name, side in self.one_at_a_time.items():
+            if list(side.axes) != [name] or side.zone_names != self.zone_names:
+                raise TableError(f"table: one-at-a-time axis {name}: its table has axes "
+                                 f"{list(side.axes)} and zones {side.zone_names}")
+            side.check_shapes()
 
     # -- lookup
     def axis_value(self, name: str, x: float, similar=()) -> tuple:
@@ -199,8 +216,75 @@ class Table:
                 v = (w * node_sigma[k][corner]) ** 2
                 var = v if var is None else var + v
             sigmas[k] = np.sqrt(var) if var is not None else np.array(node_sigma[k], float)
-        return Lookup(point=dict(point), values=values, error=errors, notes=notes,
-                      sigma=sigmas)
+        lk = Lookup(point=dict(point), values=values, error=errors, notes=notes,
+                    sigma=sigmas)
+        shift = 0.0
+        for name in self.one_at_a_time:
+            if name not in point:
+                raise TableError(f"table lookup: one-at-a-time axis {name} missing from the "
+                                 f"point {point!r}")
+            shift = shift + self._apply_one_at_a_time(lk, name, float(point[name]), similar)
+        if np.any(shift != 0.0):
+            # one shift for all axes: successive shifts would each smear by a bin
+            for d in (lk.values, lk.error, lk.sigma):
+                d["se_density"] = shift_log_density(np.asarray(d["se_density"], float), shift)
+        return lk
+
+    def _apply_one_at_a_time(self, lk: Lookup, name: str, x: float, similar):
+        """Scale the grid's fields at ``lk`` by what axis ``name`` changes at the anchor,
+        from its reference (the scene's value) to ``x`` (separability assumed):
+
+        - local filling, speed, collision frequency and power: times S(x) / S(ref), S the
+          side table's value per zone (unchanged where S(ref) = 0);
+        - SE quantiles and densities: shifted in log10(SE / E_ref) by the change of the
+          side table's median, log10 q50(x) / q50(ref), per component and zone; the shape
+          of the distribution stays the grid's;
+        - volume fractions (geometry), collision counts and recording drift: unchanged.
+
+        Errors: the grid's scaled, plus the value times the side's relative interpolation
+        error; sigma: the grid's scaled, with the side's relative sigmas at x and at the
+        reference in quadrature. Returns the shift [decades] per (component, zone) that the
+        caller applies to the densities (0.0 at the reference)."""
+        side = self.one_at_a_time[name]
+        xu, note = side.axis_value(name, x, similar)
+        if note:
+            lk.notes.append(note)
+        ref = self.one_at_a_time_ref[name]
+        if math.isclose(xu, ref, rel_tol=FIXED_AXIS_RTOL):
+            return 0.0
+        at = side.lookup({name: xu})
+        r0 = side.lookup({name: ref})
+        lk.notes.append(f"{name} = {x!r}: the grid's fields scaled by the change from "
+                        f"{ref!r} at the anchor {self.anchor} (one-at-a-time axis; "
+                        f"separability assumed)")
+
+        def rel(a, b):
+            with np.errstate(divide="ignore", invalid="ignore"):
+                return np.where(np.abs(b) > 0, np.abs(a) / np.abs(b), 0.0)
+
+        for k in ("filling_local", "speed_over_tip_speed", "collision_frequency_norm",
+                  "collision_power_norm"):
+            s_x, s_0 = at.values[k], r0.values[k]
+            with np.errstate(divide="ignore", invalid="ignore"):
+                f = np.where(s_0 > 0, s_x / s_0, 1.0)
+            v = lk.values[k] * f
+            lk.error[k] = lk.error[k] * f + np.abs(v) * rel(at.error[k], s_x)
+            lk.sigma[k] = np.hypot(lk.sigma.get(k, 0.0) * f, np.abs(v) * np.hypot(
+                rel(at.sigma[k], s_x), rel(r0.sigma[k], s_0)))
+            lk.values[k] = v
+        qi = QUANTILE_NAMES.index("q50")
+        q_x, q_0 = at.values["se_quantiles_norm"][..., qi], r0.values["se_quantiles_norm"][..., qi]
+        with np.errstate(divide="ignore", invalid="ignore"):
+            shift = np.where((q_x > 0) & (q_0 > 0), np.log10(q_x / q_0), 0.0)  # (C, Z)
+        f = (10.0 ** shift)[..., None]
+        k = "se_quantiles_norm"
+        v = lk.values[k] * f
+        relq = np.hypot(rel(at.sigma[k][..., qi], q_x), rel(r0.sigma[k][..., qi], q_0))
+        lk.error[k] = lk.error[k] * f + np.abs(v) * rel(at.error[k][..., qi], q_x)[..., None]
+        lk.sigma[k] = np.hypot(lk.sigma.get(k, 0.0) * f, np.abs(v) * relq[..., None])
+        lk.values[k] = v
+        return shift
+
 
     def node_sigma(self) -> dict:
         """Sampling standard deviation of each stored value, from the recorded collision
@@ -291,7 +375,8 @@ class Table:
         scene = self.manifest.get("scene", {})
         out = {}
         for ax, (sec, key, _, _) in AXES.items():
-            if ax not in self.axes and isinstance(scene.get(sec), dict) and key in scene[sec]:
+            if ax not in self.axes and ax not in self.one_at_a_time and \
+                    isinstance(scene.get(sec), dict) and key in scene[sec]:
                 out[ax] = float(scene[sec][key])
         return out
 
@@ -300,7 +385,8 @@ class Table:
         m = self.manifest
         try:
             return TableSpec(scene=m["scene"], grid=m["grid"],
-                             kernel_version=m["kernel_version"], builder_id=m["builder"])
+                             kernel_version=m["kernel_version"], builder_id=m["builder"],
+                             one_at_a_time=m.get("one_at_a_time") or {})
         except KeyError as e:
             raise TableError(f"table: manifest lacks {e}; not a cached or exported table") \
                 from None
@@ -329,11 +415,14 @@ class Table:
         axes = {k: ax[i] for (k, ax), i in zip(self.axes.items(), idx)}
         data = {k: v[sel] for k, v in self.data.items()}
         refs = {k: v[sel] for k, v in self.refs.items()}
-        sub = Table(axes=axes, zone_names=self.zone_names, data=data, refs=refs)
+        sub = Table(axes=axes, zone_names=self.zone_names, data=data, refs=refs,
+                    one_at_a_time=self.one_at_a_time, one_at_a_time_ref=self.one_at_a_time_ref,
+                    anchor=self.anchor)
         if "scene" in self.manifest:
             old = self.spec()
             spec = TableSpec(scene=old.scene, grid={k: list(v) for k, v in axes.items()},
-                             kernel_version=old.kernel_version, builder_id=old.builder_id)
+                             kernel_version=old.kernel_version, builder_id=old.builder_id,
+                             one_at_a_time=old.one_at_a_time)
             sub.manifest = manifest_for(spec, sub, {"slice_of": self.manifest.get("key")})
         return sub
 
@@ -359,6 +448,12 @@ class Table:
         out.update({k: np.asarray(v) for k, v in self.data.items()})
         out.update({f"ref_{k}": np.asarray(v, float) for k, v in self.refs.items()})
         out["norm_log10_edges"] = norm_log10_edges()
+        for name, side in self.one_at_a_time.items():
+            pre = f"{ONE_AT_A_TIME_PREFIX}{name}__"
+            out.update({pre + k: v for k, v in side.arrays().items()
+                        if k != "norm_log10_edges"})
+            out[pre + "reference"] = np.float64(self.one_at_a_time_ref[name])
+        out.update({f"anchor_{k}": np.float64(v) for k, v in self.anchor.items()})
         return out
 
     def save(self, folder, manifest: dict) -> dict:
@@ -416,6 +511,31 @@ def _corner_max(arr, idx, ts) -> np.ndarray:
     return out
 
 
+def shift_log_density(density: np.ndarray, shift: np.ndarray) -> np.ndarray:
+    """Densities over log10(SE / E_ref) [1/decade] on :func:`norm_log10_edges`, trailing
+    shape (..., B), moved by ``shift`` [decades] (shape (...)): the cumulative distribution
+    F(u) becomes F(u - shift), linear within a bin; what moves beyond the ends goes to the
+    end bins, so the total is kept."""
+    U = norm_log10_edges()
+    dU = np.diff(U)
+    out = np.empty_like(density)
+    flat_d = density.reshape(-1, density.shape[-1])
+    flat_s = np.broadcast_to(shift, density.shape[:-1]).reshape(-1)
+    for i, (row, sh) in enumerate(zip(flat_d, flat_s)):
+        w = row * dU
+        total = w.sum()
+        if sh == 0.0 or not np.isfinite(sh) or total == 0.0:
+            out.reshape(-1, density.shape[-1])[i] = row
+            continue
+        F = np.concatenate([[0.0], np.cumsum(w)])
+        Fn = np.interp(U - sh, U, F, left=0.0, right=total)
+        wn = np.diff(Fn)
+        wn[0] += Fn[0]
+        wn[-1] += total - Fn[-1]
+        out.reshape(-1, density.shape[-1])[i] = wn / dU
+    return out
+
+
 # ---- reading and verifying files ------------------------------------------------------------
 def read_table(folder=None, *, npz=None, manifest_path=None, expect_key: str | None = None,
                expect_kernel: str | None = None) -> Table:
@@ -462,7 +582,7 @@ def read_table(folder=None, *, npz=None, manifest_path=None, expect_key: str | N
                          f"reads format {FORMAT_VERSION}: stale")
     try:
         spec = TableSpec(scene=m["scene"], grid=m["grid"], kernel_version=m["kernel_version"],
-                         builder_id=m["builder"])
+                         builder_id=m["builder"], one_at_a_time=m.get("one_at_a_time") or {})
     except KeyError as e:
         raise TableError(f"{manifest_path}: key {e} missing") from None
     except (TypeError, ValueError) as e:
@@ -502,11 +622,30 @@ def read_table(folder=None, *, npz=None, manifest_path=None, expect_key: str | N
         if a is None or not np.array_equal(a, np.asarray(spec.grid[name])):
             raise TableError(f"{npz}: axis {name} missing or differs from the manifest grid")
         axes[name] = a
-    t = Table(axes=axes, zone_names=tuple(m["zone_names"]),
-              data={k: arrs[k] for k in FIELDS + OPTIONAL_FIELDS if k in arrs},
-              refs={k[4:]: v for k, v in arrs.items() if k.startswith("ref_")}, manifest=m)
+    t = _table_of(arrs, axes, tuple(m["zone_names"]))
+    t.manifest = m
+    for name, vals in spec.one_at_a_time.items():
+        pre = f"{ONE_AT_A_TIME_PREFIX}{name}__"
+        sub = {k[len(pre):]: v for k, v in arrs.items() if k.startswith(pre)}
+        a = sub.get(f"axis_{name}")
+        if a is None or not np.array_equal(a, np.asarray(vals)) or "reference" not in sub:
+            raise TableError(f"{npz}: one-at-a-time axis {name} missing or differs from the "
+                             f"manifest")
+        t.one_at_a_time[name] = _table_of(sub, {name: a}, t.zone_names)
+        t.one_at_a_time_ref[name] = float(sub["reference"])
+    if spec.one_at_a_time:
+        t.anchor = {k: float(arrs[f"anchor_{k}"]) for k in axes if f"anchor_{k}" in arrs}
+        if t.anchor != spec.anchor():
+            raise TableError(f"{npz}: anchor {t.anchor} differs from the manifest scene's "
+                             f"{spec.anchor()}")
     t.check_shapes()
     return t
+
+
+def _table_of(arrs: dict, axes: dict, zone_names: tuple) -> Table:
+    return Table(axes=axes, zone_names=zone_names,
+                 data={k: arrs[k] for k in FIELDS + OPTIONAL_FIELDS if k in arrs},
+                 refs={k[4:]: v for k, v in arrs.items() if k.startswith("ref_")})
 
 
 # ---- shipped default table -----------------------------------------------------------------
