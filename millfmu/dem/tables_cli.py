@@ -179,7 +179,8 @@ def _build(args) -> int:
         over.setdefault("fluid", {})["mode"] = args.fluid
     try:
         if not grid:
-            raise T.TableError("no grid given: name at least one of " +
+            raise T.TableError(("no grid given: " if not oat else "--one-at-a-time needs a "
+                                "grid axis besides: ") + "name at least one of " +
                                ", ".join(GRID_OPTIONS))
         parallel = args.executor != "serial" or args.scheduler
         threads = args.threads if args.threads is not None else (1 if parallel else None)

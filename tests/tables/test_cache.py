@@ -206,13 +206,15 @@ def _fail_at_fill_09(scene, point):
 def test_cut_build_resumes_with_its_finished_points(cache, tmp_path):
     cf = str(tmp_path / "builds")
     s = spec(count_file=cf)
-    with pytest.raises(RuntimeError, match="cut off"):
+    with pytest.raises(T.TableError, match=r"grid point \{'tip_speed_m_s': 10.0, 'filling': "
+                       r"0.9\}: RuntimeError: cut off; the 5 finished points are kept"):
         T.get_table(s, _fail_at_fill_09, cache_dir=cache, executor="serial", progress=False)
     assert count(cf) == 5  # grid order: (6, *), (10, 0.5), (10, 0.7) finished, then the cut
     assert T.load_cached(s, cache) is None  # no half-written entry
     assert len(list((cache / T.POINTS_DIR).glob("*.json"))) == 5
     t = T.get_table(s, analytic_builder, cache_dir=cache, executor="serial", progress=False)
     assert count(cf) == 9  # only the 4 missing points ran
+    assert t.manifest["points_run"] == 4 and t.manifest["points_reused"] == 5
     want = analytic_builder({}, {"tip_speed_m_s": 6.0, "filling": 0.5})
     np.testing.assert_array_equal(t.data["se_density"][0, 0], want["se_density"])
     # force runs every point again; a table sharing points runs only its new ones
@@ -229,7 +231,20 @@ def test_cut_build_resumes_with_its_finished_points(cache, tmp_path):
     store = T.PointStore(cache / T.POINTS_DIR)
     damaged = [p for p in wider.points() if store.key(wider, p) == f.stem]
     assert len(damaged) == 1 and store.get(wider, damaged[0]) is None
+    # --stale drops the point of another format (the damaged one), keeps the others
     T.clear_cache(cache, only_not_ok=True, kernel_version="test-kernel-1")
-    assert len(list((cache / T.POINTS_DIR).glob("*.json"))) == 12
+    assert len(list((cache / T.POINTS_DIR).glob("*.json"))) == 11
+    assert not (cache / T.POINTS_DIR / f.name).exists()
     T.clear_cache(cache)
     assert not list((cache / T.POINTS_DIR).glob("*.json"))
+
+
+def test_parallel_build_keeps_the_points_that_finished(cache, tmp_path):
+    cf = str(tmp_path / "builds")
+    s = spec(count_file=cf)
+    with pytest.raises(T.TableError, match="RuntimeError: cut off; the 8 finished points"):
+        T.get_table(s, _fail_at_fill_09, cache_dir=cache, executor="processes", workers=2,
+                    progress=False)
+    assert len(list((cache / T.POINTS_DIR).glob("*.json"))) == 8
+    T.get_table(s, analytic_builder, cache_dir=cache, executor="serial", progress=False)
+    assert count(cf) == 9  # 8 before the failure was reported, 1 on the resume

@@ -18,6 +18,7 @@ import math
 import os
 import tempfile
 import time
+import warnings
 from pathlib import Path
 from typing import Callable
 
@@ -62,18 +63,26 @@ class PointStore:
             return None
         return d.get("result")
 
-    def put(self, spec: TableSpec, point: dict, result: dict):
-        self.folder.mkdir(parents=True, exist_ok=True)
-        text = json.dumps({"key_content": self.key_content(spec, point),
-                           "result": _plain(result)}, sort_keys=True)
-        fd, tmp = tempfile.mkstemp(prefix=".tmp-point-", dir=self.folder)
-        os.close(fd)
+    def put(self, spec: TableSpec, point: dict, result: dict) -> bool:
+        """Store a point's result; False (with a warning) where it cannot be written (a
+        full disk, a result that is not JSON): the build goes on without it."""
+        tmp = None
         try:
+            self.folder.mkdir(parents=True, exist_ok=True)
+            text = json.dumps({"key_content": self.key_content(spec, point),
+                               "result": _plain(result)}, sort_keys=True)
+            fd, tmp = tempfile.mkstemp(prefix=".tmp-point-", dir=self.folder)
+            os.close(fd)
+            os.chmod(tmp, 0o644)
             write_synced(Path(tmp), text.encode())
             os.replace(tmp, self.folder / f"{self.key(spec, point)}.json")
-        except BaseException:
-            Path(tmp).unlink(missing_ok=True)
-            raise
+            return True
+        except (OSError, TypeError, ValueError) as e:
+            if tmp is not None:
+                Path(tmp).unlink(missing_ok=True)
+            warnings.warn(f"point store {self.folder}: point {point} not kept ({e}); the "
+                          f"build goes on, a resume would run it again", stacklevel=2)
+            return False
 
 
 def _plain(obj):
@@ -158,7 +167,16 @@ def run_points(spec: TableSpec, builder: Callable, executor: str = "processes",
         bar = tqdm(total=len(points), initial=len(points) - len(todo), unit="point",
                    desc=f"table {spec.key()[:10]}")
 
-    def done(i, r):
+    errors = []
+
+    def done(i, f):
+        """Store the outcome of point i (``f()`` returns its result or raises); a failed
+        point is remembered and the others go on, so that they are stored for a resume."""
+        try:
+            r = f()
+        except Exception as e:  # noqa: BLE001 - re-raised below, after the others
+            errors.append((i, e))
+            return
         results[i] = r
         if point_store is not None:
             point_store.put(spec, points[i], r)
@@ -172,17 +190,27 @@ def run_points(spec: TableSpec, builder: Callable, executor: str = "processes",
             _run_dask(spec, builder, points, todo, done, workers, scheduler)
         elif executor == "serial" or len(todo) == 1:
             for i in todo:
-                done(i, builder(spec.scene, points[i]))
+                done(i, lambda: builder(spec.scene, points[i]))
+                if errors:
+                    break  # one after the other: stop at the first failure
         else:
             from concurrent.futures import ProcessPoolExecutor, as_completed
             n = min(workers or os.cpu_count() or 1, len(todo))
             with ProcessPoolExecutor(max_workers=n) as pool:
                 futs = {pool.submit(builder, spec.scene, points[i]): i for i in todo}
                 for f in as_completed(futs):
-                    done(futs[f], f.result())
+                    done(futs[f], f.result)
     finally:
         if bar is not None:
             bar.close()
+    if errors:
+        i, e = errors[0]
+        more = f" ({len(errors) - 1} more failed)" if len(errors) > 1 else ""
+        finished = sum(r is not None for r in results)
+        kept = (f"; the {finished} finished points are kept for a resume"
+                if point_store is not None else "")
+        raise TableError(f"grid point {points[i]}: {type(e).__name__}: {e}{more}{kept}") \
+            from e
     return results
 
 
@@ -205,15 +233,22 @@ def _run_dask(spec, builder, points, todo, done, workers, scheduler):
                           pure=False)
         where = {f.key: i for i, f in zip(todo, futs)}
         for f in as_completed(futs):
-            done(where[f.key], f.result())
+            done(where[f.key], f.result)
 
 
 def build_table(spec: TableSpec, builder: Callable, **run_kw) -> Table:
     """Run the builder over the grid and assemble the table (not cached)."""
     t0 = time.perf_counter()
+    store = run_kw.get("point_store")
+    reused = sum(store.get(spec, p) is not None for p in spec.points()) if store else 0
     results = run_points(spec, builder, **run_kw)
     table = assemble(spec, results)
-    table.manifest = {"build_wall_time_s": time.perf_counter() - t0}
+    point_s = [r.get("wall_time_s") for r in results]
+    table.manifest = {"build_wall_time_s": time.perf_counter() - t0,
+                      "points_run": len(results) - reused, "points_reused": reused}
+    if all(isinstance(x, (int, float)) for x in point_s):
+        # what the points cost where they ran, this build's or an earlier one's
+        table.manifest["points_wall_time_s"] = float(sum(point_s))
     st = stationarity_summary(results, table.zone_names)
     if st is not None:
         table.manifest["stationarity"] = st
@@ -221,11 +256,12 @@ def build_table(spec: TableSpec, builder: Callable, **run_kw) -> Table:
 
 
 def stationarity_summary(results: list[dict], zone_names) -> dict | None:
-    """Largest |drift| over the grid points per field and zone (None without drift data)."""
+    """Largest |drift| over the points per field and zone (None without drift data)."""
     if not all("drift" in r for r in results):
         return None
-    out = {"measure": "relative change from the first to the second half of each grid "
-                      "point's recording, largest magnitude over the grid points"}
+    out = {"measure": "relative change from the first to the second half of each "
+                      "point's recording, largest magnitude over the points (grid and "
+                      "one-at-a-time)"}
     for f in DRIFT_FIELDS:
         arr = np.abs(np.array([r["drift"][f] for r in results], float))
         out[f] = {z: round(float(np.nanmax(arr[:, k])), 4) for k, z in enumerate(zone_names)}

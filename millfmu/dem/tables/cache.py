@@ -210,17 +210,30 @@ def _clear_points(folder: Path, only_stale: bool, kernel_version: str) -> list[s
     do not parse); returns 'points/KEY' for each removed file."""
     import json
 
+    import time
+
+    from .spec import FORMAT_VERSION
+
     removed = []
     if not folder.is_dir():
         return removed
-    for f in sorted(folder.glob("*.json")):  # not .tmp-point-*: a build is writing those
+    for f in sorted(folder.glob("*.json")):
         if only_stale:
             try:
                 kc = json.loads(f.read_text())["key_content"]
-                if kc["builder"] != DEM_BUILDER_ID or kc["kernel_version"] == kernel_version:
+                if kc["format"] == FORMAT_VERSION and (
+                        kc["builder"] != DEM_BUILDER_ID or kc["kernel_version"] == kernel_version):
                     continue
             except (OSError, ValueError, KeyError, TypeError):
                 pass
         f.unlink(missing_ok=True)
         removed.append(f"{POINTS_DIR}/{f.stem}")
+    # Temporary files of a point being written live for milliseconds; one older than an
+    # hour was left by a killed build.
+    for f in folder.glob(".tmp-point-*"):
+        try:
+            if time.time() - f.stat().st_mtime > 3600.0:
+                f.unlink()
+        except OSError:
+            pass
     return removed

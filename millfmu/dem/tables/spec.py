@@ -243,6 +243,9 @@ def manifest_for(spec: TableSpec, table: Table, extra: dict | None = None) -> di
         from ..work_precision import manifest_entry  # build time only; FMUs never build
         m["work_precision"] = manifest_entry(m["resolution"]["dem"])
     m["build_wall_time_s"] = table.manifest.get("build_wall_time_s")
+    for k in ("points_run", "points_reused", "points_wall_time_s"):
+        if k in table.manifest:
+            m[k] = table.manifest[k]
     if "stationarity" in table.manifest:
         m["stationarity"] = table.manifest["stationarity"]
     if extra:

@@ -218,16 +218,26 @@ class Table:
             sigmas[k] = np.sqrt(var) if var is not None else np.array(node_sigma[k], float)
         lk = Lookup(point=dict(point), values=values, error=errors, notes=notes,
                     sigma=sigmas)
-        shift = 0.0
+        shift, d_err, d_sig = 0.0, 0.0, 0.0
         for name in self.one_at_a_time:
             if name not in point:
                 raise TableError(f"table lookup: one-at-a-time axis {name} missing from the "
-                                 f"point {point!r}")
-            shift = shift + self._apply_one_at_a_time(lk, name, float(point[name]), similar)
+                                 f"point {point!r}; the table's axes: {list(self.axes)} and "
+                                 f"one at a time {list(self.one_at_a_time)}")
+            s_, e_, g_ = self._apply_one_at_a_time(lk, name, float(point[name]), similar)
+            shift, d_err, d_sig = shift + s_, d_err + e_, np.hypot(d_sig, g_)
         if np.any(shift != 0.0):
             # one shift for all axes: successive shifts would each smear by a bin
             for d in (lk.values, lk.error, lk.sigma):
                 d["se_density"] = shift_log_density(np.asarray(d["se_density"], float), shift)
+            # the shift's own uncertainty [decades] moves the density by |d rho/du| delta
+            v = lk.values["se_density"]
+            for d, delta in ((lk.error, d_err), (lk.sigma, d_sig)):
+                delta = np.broadcast_to(np.asarray(delta, float), v.shape[:-1])
+                moved = shift_log_density(v, np.nan_to_num(delta))
+                extra = np.where(np.isnan(delta)[..., None], np.nan, np.abs(moved - v))
+                d["se_density"] = d["se_density"] + extra if d is lk.error else \
+                    np.hypot(d["se_density"], extra)
         return lk
 
     def _apply_one_at_a_time(self, lk: Lookup, name: str, x: float, similar):
@@ -244,14 +254,15 @@ class Table:
         Errors: the grid's scaled, plus the value times the side's relative interpolation
         error; sigma: the grid's scaled, with the side's relative sigmas at x and at the
         reference in quadrature. Returns the shift [decades] per (component, zone) that the
-        caller applies to the densities (0.0 at the reference)."""
+        caller applies to the densities, and that shift's interpolation error and sigma
+        [decades] (0.0 each at the reference)."""
         side = self.one_at_a_time[name]
         xu, note = side.axis_value(name, x, similar)
         if note:
             lk.notes.append(note)
         ref = self.one_at_a_time_ref[name]
         if math.isclose(xu, ref, rel_tol=FIXED_AXIS_RTOL):
-            return 0.0
+            return 0.0, 0.0, 0.0
         at = side.lookup({name: xu})
         r0 = side.lookup({name: ref})
         lk.notes.append(f"{name} = {x!r}: the grid's fields scaled by the change from "
@@ -267,6 +278,10 @@ class Table:
             s_x, s_0 = at.values[k], r0.values[k]
             with np.errstate(divide="ignore", invalid="ignore"):
                 f = np.where(s_0 > 0, s_x / s_0, 1.0)
+            if np.any(s_0 <= 0):
+                lk.notes.append(f"{name}: {k} is 0 at the anchor in zones "
+                                f"{[z for z, b in zip(self.zone_names, s_0 <= 0) if b]}: "
+                                f"left unscaled there")
             v = lk.values[k] * f
             lk.error[k] = lk.error[k] * f + np.abs(v) * rel(at.error[k], s_x)
             lk.sigma[k] = np.hypot(lk.sigma.get(k, 0.0) * f, np.abs(v) * np.hypot(
@@ -274,8 +289,13 @@ class Table:
             lk.values[k] = v
         qi = QUANTILE_NAMES.index("q50")
         q_x, q_0 = at.values["se_quantiles_norm"][..., qi], r0.values["se_quantiles_norm"][..., qi]
+        ok = (q_x > 0) & (q_0 > 0)
         with np.errstate(divide="ignore", invalid="ignore"):
-            shift = np.where((q_x > 0) & (q_0 > 0), np.log10(q_x / q_0), 0.0)  # (C, Z)
+            shift = np.where(ok, np.log10(q_x / q_0), 0.0)  # (C, Z)
+        if not np.all(ok):
+            lk.notes.append(f"{name}: no median SE at x or at the anchor in zones "
+                            f"{sorted({self.zone_names[z] for z in np.nonzero(~ok)[1]})}: "
+                            f"their energy distributions left unshifted")
         f = (10.0 ** shift)[..., None]
         k = "se_quantiles_norm"
         v = lk.values[k] * f
@@ -283,7 +303,9 @@ class Table:
         lk.error[k] = lk.error[k] * f + np.abs(v) * rel(at.error[k][..., qi], q_x)[..., None]
         lk.sigma[k] = np.hypot(lk.sigma.get(k, 0.0) * f, np.abs(v) * relq[..., None])
         lk.values[k] = v
-        return shift
+        ln10 = math.log(10.0)
+        return (shift, rel(at.error[k][..., qi], q_x) / ln10,
+                relq / ln10)
 
 
     def node_sigma(self) -> dict:
@@ -416,8 +438,8 @@ class Table:
         data = {k: v[sel] for k, v in self.data.items()}
         refs = {k: v[sel] for k, v in self.refs.items()}
         sub = Table(axes=axes, zone_names=self.zone_names, data=data, refs=refs,
-                    one_at_a_time=self.one_at_a_time, one_at_a_time_ref=self.one_at_a_time_ref,
-                    anchor=self.anchor)
+                    one_at_a_time=dict(self.one_at_a_time),
+                    one_at_a_time_ref=dict(self.one_at_a_time_ref), anchor=dict(self.anchor))
         if "scene" in self.manifest:
             old = self.spec()
             spec = TableSpec(scene=old.scene, grid={k: list(v) for k, v in axes.items()},
