@@ -114,7 +114,7 @@ class Material:
 @dataclass(frozen=True)
 class StressDistribution:
     source: str = _f("lognormal", choices=("lognormal", "table"), doc="stress-energy source of the detailed model: log-normal, or a DEM table")
-    table: str = _f("default", doc="table: 'default' (shipped millfmu/data/default_table) or PREFIX of PREFIX.npz/PREFIX.json")
+    table: str = _f("default", doc="table: 'default' (shipped millfmu/data/default_table), a shipped table by name ('coupled', 'accelerator': millfmu/data/NAME_table) or PREFIX of PREFIX.npz/PREFIX.json")
     component: str = _f("tn", choices=("tn", "total"), doc="table: stress-energy component (tn: normal impact energy)")
     similar_axes: list = _f([], doc="table: axes along which similarity is assumed: an axis the table does not vary (bead_diameter_m, bead_density_kg_m3, viscosity_pa_s) may differ from the table's value, and a value outside the grid (also tip_speed_m_s) uses the nearest edge's dimensionless fields")
     on_outside: str = _f("refuse", choices=("refuse", "build"), doc="table: operating point outside the grid: refuse, or build a covering table with the DEM")

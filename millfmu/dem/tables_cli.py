@@ -204,6 +204,11 @@ def _build(args) -> int:
           f"{(entry / T.TABLE_FILE).stat().st_size} bytes): {entry}")
     if m.get("build_wall_time_s"):
         print(f"build wall time {m['build_wall_time_s']:.1f} s")
+    if "points_run" in m:
+        cost = (f"; the points took {m['points_wall_time_s']:.0f} s where they ran"
+                if m.get("points_wall_time_s") is not None else "")
+        print(f"points: {m['points_run']} run, {m['points_reused']} reused from the cache"
+              f"{cost}")
     if args.export:
         table.manifest = dict(table.manifest, resolution=T.resolution_of(spec),
                               rebuild_command=_command(args))

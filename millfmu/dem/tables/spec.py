@@ -278,7 +278,8 @@ def resolution_of(spec: TableSpec) -> dict:
             "note": ("varied one at a time at the anchor; away from the scene's value a lookup "
                      "scales the grid's fields by the change at the anchor (rates and speeds "
                      "by their ratio, the energy distributions shifted by the change of their "
-                     "median): separability assumed, not measured off the anchor")}
+                     "median): separability assumed; a separability_check, where the manifest "
+                     "has one, measures it off the anchor")}
     if spec.builder_id == DEM_BUILDER_ID:
         mill, run = spec.scene.get("mill", {}), spec.scene.get("run", {})
         res["dem"] = {"sector_deg": mill.get("sector_deg", 360.0),

@@ -682,8 +682,9 @@ def default_table_paths() -> tuple[Path, Path]:
 
 
 #: Tables shipped beside the default one, by the name a scene gives (``table = NAME``):
-#: millfmu/data/NAME_table.npz and .json.
-SHIPPED_TABLES = ("accelerator",)
+#: millfmu/data/NAME_table.npz and .json. ``coupled``: the disc slice with the coupled
+#: fluid (tip speed x filling, bead diameter and density one at a time; README "Tables").
+SHIPPED_TABLES = ("accelerator", "coupled")
 
 
 def read_table_ref(ref: str) -> Table:

@@ -1,0 +1,71 @@
+"""The shipped coupled table (millfmu/data/coupled_table.*): coupled DEM-CFD of the disc
+slice at the work-precision study's settings, tip speed x filling with bead diameter and
+density one at a time; it verifies, states how it was built and what is missing, and the
+detailed model reads it."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from millfmu.dem import tables as T
+
+
+@pytest.fixture(scope="module")
+def table():
+    return T.read_table_ref("coupled")
+
+
+def test_coupled_table_verifies_and_states_its_build(table):
+    m = table.manifest
+    base = T.default_table_paths()[0].parent
+    size = sum((base / f"coupled_table.{e}").stat().st_size for e in ("npz", "json"))
+    assert size < 5e6
+    assert m["builder"] == T.DemBuilder.builder_id
+    res = m["resolution"]["dem"]
+    assert res["fluid"] == "coupled" and res["spin_up_s"] == 1.5 and res["record_s"] == 0.4
+    assert "note" not in m["resolution"]  # spin-up at least the coupled slice's 1.5 s
+    assert m["work_precision"]["this_table"]["matches_choice"] is True
+    assert set(table.one_at_a_time) == {"bead_diameter_m", "bead_density_kg_m3"}
+    assert list(table.one_at_a_time["bead_diameter_m"].axes["bead_diameter_m"]) == \
+        [0.5e-3, 0.8e-3, 1.2e-3]
+    assert list(table.one_at_a_time["bead_density_kg_m3"].axes["bead_density_kg_m3"]) == \
+        [2510.0, 6040.0]
+    assert table.anchor == {"tip_speed_m_s": 10.0, "filling": 0.8}
+    assert m["rebuild_command"].startswith("millfmu tables build --scene disc_slice")
+    assert "--one-at-a-time bead-diameter,bead-density" in m["rebuild_command"]
+    assert "--tip-speed 6,8,10,12,14" in m["complete_command"]
+    # every point recorded collisions in the zones that hold beads
+    assert np.all(table.data["collision_count"].sum(axis=-1) > 1000)
+
+
+def test_lookup_between_nodes_and_refusals(table):
+    pt = {"tip_speed_m_s": 8.0, "filling": 0.6, "bead_diameter_m": 1.0e-3,
+          "bead_density_kg_m3": 4000.0}
+    lk = table.lookup(pt)
+    assert np.all(np.isfinite(lk.values["se_density"]))
+    assert np.all(lk.values["collision_frequency_norm"] >= 0)
+    assert any("separability assumed" in n for n in lk.notes)
+    with pytest.raises(T.OutsideGridError, match="bead_diameter_m = 0.002 m"):
+        table.lookup(dict(pt, bead_diameter_m=2e-3))
+    with pytest.raises(T.OutsideGridError, match="filling = 0.95"):
+        table.lookup(dict(pt, filling=0.95))
+
+
+def test_detailed_model_reads_the_coupled_table():
+    from dataclasses import replace
+
+    from millfmu.mill import MillModel
+    from millfmu.scene import load_scene
+
+    sc = load_scene()
+    sd = replace(sc.kinetics.stress_distribution, table="coupled")
+    beads = replace(sc.beads, diameter_m=1.0e-3, density_kg_per_m3=6040.0)
+    sc = replace(sc, beads=beads, kinetics=replace(sc.kinetics, stress_distribution=sd,
+                                                  energy_transfer=1.0))
+    model = MillModel(sc)
+    assert isinstance(model.source, T.TableStressSource)
+    zones = model.source.zones(model.operating_point(model.inputs))
+    assert [z.name for z in zones] == ["V1", "V2", "V3", "V4"]
+    assert all(z.collision_rate_per_m3_s > 0 for z in zones)
+    assert any("bead_diameter_m = 0.001" in n for n in model.source.last_notes)
