@@ -39,7 +39,6 @@ from __future__ import annotations
 import csv
 import json
 import math
-import platform
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -48,6 +47,7 @@ import numpy as np
 
 from millfmu.dem.compare import ZONES, load_run
 from millfmu.dem.seed001 import COUPLED_INITIAL_ROTATION, COUPLED_SPIN_UP_S, RECORD_S
+from millfmu.report import machine  # where a study ran: one description for every study
 
 #: The operating point (``DemScene.with_overrides`` keys): seed 001's 10 m/s, 80 % case in
 #: the coupled slice with the seed001 protocol's start.
@@ -415,15 +415,6 @@ LAW_T_MIN_S = 0.05
 #: filled zones that carry most collisions; V1 (half empty at 80 % filling, a tenth of the
 #: collisions) is stated beside it.
 TARGET_ZONES = ("V2", "V3", "V4")
-
-
-def machine() -> dict:
-    """Where a study ran: platform, CPU count, Python and numpy versions, date (UTC)."""
-    import os
-
-    return dict(platform=platform.platform(), processor=platform.processor() or platform.machine(),
-                cpus=os.cpu_count(), python=platform.python_version(), numpy=np.__version__,
-                date_utc=time.strftime("%Y-%m-%d %H:%M:%SZ", time.gmtime()))
 
 
 def _sigma(law, s, z, t_s, scale=1.0):

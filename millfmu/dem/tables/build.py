@@ -14,7 +14,6 @@ from __future__ import annotations
 
 import contextlib
 import json
-import math
 import os
 import tempfile
 import time
@@ -113,15 +112,13 @@ def assemble(spec: TableSpec, results: list[dict]) -> Table:
     n = len(spec.grid_points())
     t = _stack(spec.grid, results[:n], zn)
     if spec.one_at_a_time:
-        anchor = spec.anchor()
         by_point = {json.dumps(p, sort_keys=True): r for p, r in zip(points, results)}
         for name, vals in spec.one_at_a_time.items():
-            rs = [by_point[json.dumps(dict(anchor, **{name: v}) if not math.isclose(
-                v, spec.scene_value(name), rel_tol=1e-9) else anchor, sort_keys=True)]
-                for v in vals]
+            rs = [by_point[json.dumps(spec.point_along(name, v), sort_keys=True)]
+                  for v in vals]
             t.one_at_a_time[name] = _stack({name: vals}, rs, zn)
             t.one_at_a_time_ref[name] = spec.scene_value(name)
-        t.anchor = anchor
+        t.anchor = spec.anchor()
     return t
 
 
@@ -141,9 +138,19 @@ def _stack(grid: dict, results: list[dict], zn: tuple) -> Table:
     return t
 
 
+def stored_results(spec: TableSpec, point_store: PointStore | None) -> list:
+    """Each point's result from the point store, None where it has none (all None without
+    a store), in the order of :meth:`TableSpec.points`."""
+    points = spec.points()
+    if point_store is None:
+        return [None] * len(points)
+    return [point_store.get(spec, p) for p in points]
+
+
 def run_points(spec: TableSpec, builder: Callable, executor: str = "processes",
                workers: int | None = None, scheduler: str | None = None,
-               progress: bool = True, point_store: PointStore | None = None) -> list[dict]:
+               progress: bool = True, point_store: PointStore | None = None,
+               stored: list | None = None) -> list[dict]:
     """Evaluate ``builder(scene, point)`` at every grid point; results in grid order.
 
     executor: ``serial``; ``processes`` (a local process pool of ``workers`` processes,
@@ -151,15 +158,13 @@ def run_points(spec: TableSpec, builder: Callable, executor: str = "processes",
     single-threaded worker processes, or the existing cluster at ``scheduler``, e.g.
     ``tcp://host:8786``, when given). A tqdm bar counts finished grid points.
     ``point_store``: points found there are not run again, and each point is put there as
-    soon as it finishes (so that a build cut off resumes).
+    soon as it finishes (so that a build cut off resumes); ``stored``: what
+    :func:`stored_results` gave, when the caller has read the store already.
     """
     points = spec.points()
     if executor not in ("serial", "processes", "dask"):
         raise TableError(f"executor = {executor!r}: allowed 'serial', 'processes', 'dask'")
-    results: list = [None] * len(points)
-    if point_store is not None:
-        for i, p in enumerate(points):
-            results[i] = point_store.get(spec, p)
+    results = list(stored) if stored is not None else stored_results(spec, point_store)
     todo = [i for i, r in enumerate(results) if r is None]
     bar = None
     if progress:
@@ -239,9 +244,9 @@ def _run_dask(spec, builder, points, todo, done, workers, scheduler):
 def build_table(spec: TableSpec, builder: Callable, **run_kw) -> Table:
     """Run the builder over the grid and assemble the table (not cached)."""
     t0 = time.perf_counter()
-    store = run_kw.get("point_store")
-    reused = sum(store.get(spec, p) is not None for p in spec.points()) if store else 0
-    results = run_points(spec, builder, **run_kw)
+    stored = stored_results(spec, run_kw.get("point_store"))
+    reused = sum(r is not None for r in stored)
+    results = run_points(spec, builder, stored=stored, **run_kw)
     table = assemble(spec, results)
     point_s = [r.get("wall_time_s") for r in results]
     table.manifest = {"build_wall_time_s": time.perf_counter() - t0,

@@ -17,15 +17,17 @@ import contextlib
 import fcntl
 import hashlib
 import importlib.util
+import json
 import os
 import shutil
 import tempfile
+import time
 from pathlib import Path
 from typing import Callable
 
 from .build import PointStore, build_table
 from .files import fsync_dir
-from .spec import DEM_BUILDER_ID, TableError, TableSpec, manifest_for
+from .spec import DEM_BUILDER_ID, FORMAT_VERSION, TableError, TableSpec, manifest_for
 from .table import Table, read_table
 
 
@@ -208,12 +210,6 @@ def clear_cache(cache_dir=None, only_not_ok: bool = False,
 def _clear_points(folder: Path, only_stale: bool, kernel_version: str) -> list[str]:
     """Remove finished grid points (all, or those of another DEM kernel version or that
     do not parse); returns 'points/KEY' for each removed file."""
-    import json
-
-    import time
-
-    from .spec import FORMAT_VERSION
-
     removed = []
     if not folder.is_dir():
         return removed

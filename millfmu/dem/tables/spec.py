@@ -143,7 +143,7 @@ class TableSpec:
                 raise TableError(f"one-at-a-time axis {name}: also a grid axis; give it "
                                  f"either way, not both")
             ref = self.scene_value(name)
-            if not any(math.isclose(v, ref, rel_tol=1e-9) for v in vals):
+            if not any(self._is_reference(name, v, ref) for v in vals):
                 raise TableError(f"one-at-a-time axis {name} = {list(vals)!r}: must include "
                                  f"the scene's value {ref!r} (its reference)")
         if oat:
@@ -164,6 +164,16 @@ class TableSpec:
         the grid axes."""
         return {ax: self.scene_value(ax) for ax in self.grid}
 
+    def _is_reference(self, name: str, v: float, ref: float | None = None) -> bool:
+        ref = self.scene_value(name) if ref is None else ref
+        return math.isclose(v, ref, rel_tol=1e-9)
+
+    def point_along(self, name: str, v: float) -> dict:
+        """The point a one-at-a-time axis ``name`` runs at value ``v``: the anchor itself at
+        the scene's value, else the anchor with ``v``."""
+        a = self.anchor()
+        return a if self._is_reference(name, v) else dict(a, **{name: v})
+
     @property
     def shape(self) -> tuple:
         return tuple(len(v) for v in self.grid.values())
@@ -182,11 +192,9 @@ class TableSpec:
             return pts
         a = self.anchor()
         if a not in pts:
-            pts.append(dict(a))
+            pts.append(a)
         for name, vals in self.one_at_a_time.items():
-            ref = self.scene_value(name)
-            pts += [dict(a, **{name: v}) for v in vals
-                    if not math.isclose(v, ref, rel_tol=1e-9)]
+            pts += [p for p in (self.point_along(name, v) for v in vals) if p != a]
         return pts
 
     def key_content(self) -> dict:

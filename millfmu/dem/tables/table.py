@@ -304,8 +304,7 @@ class Table:
         lk.sigma[k] = np.hypot(lk.sigma.get(k, 0.0) * f, np.abs(v) * relq[..., None])
         lk.values[k] = v
         ln10 = math.log(10.0)
-        return (shift, rel(at.error[k][..., qi], q_x) / ln10,
-                relq / ln10)
+        return shift, rel(at.error[k][..., qi], q_x) / ln10, relq / ln10
 
 
     def node_sigma(self) -> dict:
