@@ -598,11 +598,15 @@ def build_nlist(x, ej, es, ex, start, lo, cs, ncx, ncy, ncz, cut2, prm, wrapk,
     nch = cb.shape[0] - 1
     cap = pj.shape[0] // nch
     csz = lz / ncz
+    occ = 0  # the fullest cell's entries: a row sees at most 27 cells' worth
+    for cc in range(start.shape[0] - 1):
+        occ = max(occ, start[cc + 1] - start[cc])
     for c in prange(nch):
         base = c * cap
         end = base + cap
         q = base
         hij = cb[c + 1] - 1
+        hit = np.empty(27 * occ, np.int64)  # a row's entries in reach
         for i in range(cb[c], cb[c + 1]):
             xi = x[i, 0]
             yi = x[i, 1]
@@ -614,48 +618,55 @@ def build_nlist(x, ej, es, ex, start, lo, cs, ncx, ncy, ncz, cut2, prm, wrapk,
             pst[i] = q
             ko = pst_o[i]
             ke = ko + nnb_o[i]
+            # Two passes: the entries in reach are collected without a branch on the
+            # distance (about one candidate in six is in reach, at random, and the
+            # mispredicted branch cost more than the test: 12 % of the build on the bench
+            # bed), then only they are stored.
+            nh = 0
             for ax in range(max(ix - 1, 0), min(ix + 2, ncx)):
                 for ay in range(max(iy - 1, 0), min(iy + 2, ncy)):
                     for dzc in range(-1, 2):
                         az = (iz + dzc) % ncz
                         cc = (ax * ncy + ay) * ncz + az
                         for e in range(start[cc], start[cc + 1]):
-                            j = ej[e]
-                            if j <= i:
-                                continue
-                            s = es[e]
                             dx = xi - ex[e, 0]
                             dy = yi - ex[e, 1]
                             dz = axial_image(zi - ex[e, 2], lz)
-                            if dx * dx + dy * dy + dz * dz < cut2:
-                                if j > hij:
-                                    hij = j
-                                if q < end:
-                                    pj[q] = j
-                                    pim[q] = s
-                                    pfl[q] = 0
-                                    psh[q, 0] = 0.0
-                                    psh[q, 1] = 0.0
-                                    psh[q, 2] = 0.0
-                                    # same physical pair before the wrap
-                                    so = s - wrapk[i] + wrapk[j]
-                                    for k in range(ko, ke):
-                                        if pj_o[k] == j and pim_o[k] == so:
-                                            if pfl_o[k] != 0:
-                                                pfl[q] = pfl_o[k]
-                                                a0 = psh_o[k, 0]
-                                                a1 = psh_o[k, 1]
-                                                if wrapk[i] != 0:
-                                                    cr = math.cos(wrapk[i] * sec)
-                                                    sr = math.sin(wrapk[i] * sec)
-                                                    psh[q, 0] = cr * a0 - sr * a1
-                                                    psh[q, 1] = sr * a0 + cr * a1
-                                                else:
-                                                    psh[q, 0] = a0
-                                                    psh[q, 1] = a1
-                                                psh[q, 2] = psh_o[k, 2]
-                                            break
-                                q += 1
+                            ok = (dx * dx + dy * dy + dz * dz < cut2) & (ej[e] > i)
+                            hit[nh] = e
+                            nh += 1 if ok else 0
+            for h in range(nh):
+                e = hit[h]
+                j = ej[e]
+                s = es[e]
+                if j > hij:
+                    hij = j
+                if q < end:
+                    pj[q] = j
+                    pim[q] = s
+                    pfl[q] = 0
+                    psh[q, 0] = 0.0
+                    psh[q, 1] = 0.0
+                    psh[q, 2] = 0.0
+                    # same physical pair before the wrap
+                    so = s - wrapk[i] + wrapk[j]
+                    for k in range(ko, ke):
+                        if pj_o[k] == j and pim_o[k] == so:
+                            if pfl_o[k] != 0:
+                                pfl[q] = pfl_o[k]
+                                a0 = psh_o[k, 0]
+                                a1 = psh_o[k, 1]
+                                if wrapk[i] != 0:
+                                    cr = math.cos(wrapk[i] * sec)
+                                    sr = math.sin(wrapk[i] * sec)
+                                    psh[q, 0] = cr * a0 - sr * a1
+                                    psh[q, 1] = sr * a0 + cr * a1
+                                else:
+                                    psh[q, 0] = a0
+                                    psh[q, 1] = a1
+                                psh[q, 2] = psh_o[k, 2]
+                            break
+                q += 1
             nnb[i] = min(q, end) - pst[i]
         need[c] = q - base
         maxj[c] = hij
