@@ -78,8 +78,8 @@ def _axis_names(text: str) -> list:
 def register(subparsers) -> argparse.ArgumentParser:
     """Add the ``tables`` command group to an argparse subparsers object."""
     p = subparsers.add_parser("tables", help="stress-energy lookup tables: build, status, "
-                              "verify, clear", description=__doc__.split("\n\n")[0])
-    sub = p.add_subparsers(dest="tables_command", metavar="{build,status,verify,clear}")
+                              "verify, check, clear", description=__doc__.split("\n\n")[0])
+    sub = p.add_subparsers(dest="tables_command", metavar="{build,status,verify,check,clear}")
     sub.required = True
 
     def cache_opt(q):
@@ -132,6 +132,23 @@ def register(subparsers) -> argparse.ArgumentParser:
                    "(default: every cache entry)")
     v.add_argument("--default", action="store_true", help="verify the shipped default table")
     v.set_defaults(func=_verify)
+
+    k = sub.add_parser("check", help="run the DEM at one point and compare the table's "
+                       "lookup there with it (interpolation; one-at-a-time separability)")
+    k.add_argument("table", help="a shipped table's name (default, coupled, accelerator) or "
+                   "PREFIX of PREFIX.npz/PREFIX.json")
+    for opt, (axis, h) in GRID_OPTIONS.items():
+        k.add_argument(opt, type=float, dest=f"at_{axis}", metavar="X",
+                       help=f"{axis} at the point (default: the table scene's value; for a "
+                            f"one-at-a-time axis its reference)")
+    k.add_argument("--threads", type=int, help="numba threads of the DEM run (default: all "
+                   "cores)")
+    k.add_argument("--builder", metavar="MODULE:NAME", help="builder callable instead of "
+                   "the DEM (the one the table was built with)")
+    k.add_argument("--write", action="store_true", help="record the result in the table's "
+                   "manifest (separability_check or interpolation_check) and write the "
+                   "table's files again")
+    k.set_defaults(func=_check)
 
     c = sub.add_parser("clear", help="remove cache entries")
     cache_opt(c)
@@ -293,6 +310,50 @@ def _verify(args) -> int:
         checked += 1
     print(f"{checked} checked, {bad} bad")
     return 1 if bad else 0
+
+
+def _table_prefix(ref: str) -> Path:
+    from millfmu.dem import tables as T
+
+    if ref == "default":
+        return T.default_table_paths()[0].with_suffix("")
+    if ref in T.SHIPPED_TABLES:
+        return T.default_table_paths()[0].parent / f"{ref}_table"
+    return Path(ref)
+
+
+def _check(args) -> int:
+    from millfmu.dem import tables as T
+    from millfmu.dem.scene import DemSceneError
+    from millfmu.dem.tables.build import check_point, record_check
+
+    point = {axis: getattr(args, f"at_{axis}") for _, (axis, _) in GRID_OPTIONS.items()
+             if getattr(args, f"at_{axis}") is not None}
+    try:
+        table = T.read_table_ref(args.table)
+        builder = _load_builder(args.builder, args.threads)
+        res = check_point(table, point, builder)
+    except (T.TableError, DemSceneError) as e:
+        print(f"millfmu tables check: {e}", file=sys.stderr)
+        return 2
+    print(f"table {args.table} at {res['point']} (run {res['wall_time_s']:.0f} s): relative "
+          f"difference of the lookup [and of the grid alone] against the run")
+    print(f"  {'quantity':26s} " + " ".join(f"{z:>22s}" for z in res["zones"]))
+
+    def fmt(x):
+        return "-" if x is None else f"{x:+.3f}"
+
+    for k in T.CHECK_FIELDS:
+        e = res[k]
+        cells = [f"{fmt(a)} [{fmt(b)}]" if "grid_only_rel_diff" in e else fmt(a)
+                 for a, b in zip(e["lookup_rel_diff"],
+                                 e.get("grid_only_rel_diff", e["lookup_rel_diff"]))]
+        print(f"  {k:26s} " + " ".join(f"{c:>22s}" for c in cells))
+    if args.write:
+        table.manifest = record_check(table, res)
+        npz, man = table.export(_table_prefix(args.table))
+        print(f"recorded in {man}")
+    return 0
 
 
 def _clear(args) -> int:

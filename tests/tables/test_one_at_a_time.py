@@ -214,3 +214,52 @@ def test_cli_one_at_a_time(tmp_path, capsys):
         capsys.readouterr().err
     with pytest.raises(SystemExit):
         main(argv[:2] + ["--one-at-a-time", "colour"])
+
+
+def test_cli_check_point(tmp_path, capsys):
+    """`millfmu tables check` runs the builder at a point and compares the lookup: exact for
+    a separable builder at a grid node with a one-at-a-time axis off its reference, where
+    the grid alone misses the axis's factor; --write records it in the manifest."""
+    from millfmu.cli import main
+
+    prefix = str(tmp_path / "t")
+    b = "tests.tables._builders:separable_builder"
+    assert main(["tables", "build", "--scene", "disc_slice", "--tip-speed", "8,10,12",
+                 "--filling", "0.7,0.8,0.9", "--bead-density", "2510,6040",
+                 "--one-at-a-time", "bead-density", "--sector-deg", "10", "--no-gravity",
+                 "--cache-dir", str(tmp_path / "cache"), "--executor", "serial",
+                 "--no-progress", "--builder", b, "--export", prefix]) == 0
+    capsys.readouterr()
+    check = ["tables", "check", prefix, "--builder", b]
+    assert main(check + ["--tip-speed", "12", "--filling", "0.9", "--bead-density", "6040",
+                         "--write"]) == 0
+    out = capsys.readouterr().out
+    assert "collision_frequency_norm" in out and "recorded in" in out
+    t = T.read_table(npz=prefix + ".npz", manifest_path=prefix + ".json")
+    (res,) = t.manifest["separability_check"]["points"]
+    assert res["point"] == {"tip_speed_m_s": 12.0, "filling": 0.9,
+                            "bead_density_kg_m3": 6040.0}
+    f = (6040.0 / RHO_KG_M3) ** 0.2  # the builder's factor on rates, speeds, fillings
+    for k in ("speed_over_tip_speed", "filling_local", "collision_frequency_norm"):
+        assert np.allclose(res[k]["lookup_rel_diff"], 0.0, atol=1e-9)
+        assert np.allclose(res[k]["grid_only_rel_diff"], 1.0 / f - 1.0, rtol=1e-3)
+    assert np.allclose(res["se_tn_q50_norm"]["lookup_rel_diff"], 0.0, atol=1e-9)
+    assert np.allclose(res["se_tn_q50_norm"]["grid_only_rel_diff"],
+                       (6040.0 / RHO_KG_M3) ** -0.3 - 1.0, rtol=1e-3)
+    # the same point again replaces its entry; a point on the axes' references between
+    # grid nodes is an interpolation check
+    assert main(check + ["--tip-speed", "12", "--filling", "0.9", "--bead-density", "6040",
+                         "--write"]) == 0
+    assert main(check + ["--tip-speed", "9", "--write"]) == 0
+    m = json.loads((tmp_path / "t.json").read_text())
+    assert len(m["separability_check"]["points"]) == 1
+    (res,) = m["interpolation_check"]["points"]
+    assert res["point"] == {"tip_speed_m_s": 9.0, "filling": 0.8,
+                            "bead_density_kg_m3": RHO_KG_M3}
+    assert "grid_only_rel_diff" in res["filling_local"]
+    capsys.readouterr()
+    # axes the table does not have and points outside it are refused, before any run
+    assert main(check + ["--viscosity", "0.002"]) == 2
+    assert "axes ['viscosity_pa_s'] are not the table's" in capsys.readouterr().err
+    assert main(check + ["--tip-speed", "20"]) == 2
+    assert "tip_speed_m_s" in capsys.readouterr().err

@@ -41,11 +41,11 @@ _EXPORTS = {
     **dict.fromkeys((
         "DEFAULT_TABLE_MANIFEST", "DEFAULT_TABLE_NPZ", "ERROR_SAFETY", "EXTRAPOLABLE_AXES",
         "FIXED_AXIS_RTOL", "Lookup", "ONE_AT_A_TIME_PREFIX", "OutsideGridError", "Table",
-        "default_table_paths", "shift_log_density",
+        "SHIPPED_TABLES", "default_table_paths", "shift_log_density",
         "read_default_table", "read_table", "read_table_ref"), "table"),
     "TableStressSource": "stress_source",
-    **dict.fromkeys(("PointStore", "assemble", "build_table", "run_points",
-                     "stationarity_summary"), "build"),
+    **dict.fromkeys(("CHECK_FIELDS", "PointStore", "assemble", "build_table", "check_point",
+                     "record_check", "run_points", "stationarity_summary"), "build"),
     **dict.fromkeys((
         "KERNEL_MODULES", "POINTS_DIR", "cache_entries", "clear_cache", "default_cache_dir",
         "dem_kernel_version", "entry_dir", "get_table", "load_cached", "resolve_cache_dir"),

@@ -271,3 +271,87 @@ def stationarity_summary(results: list[dict], zone_names) -> dict | None:
         arr = np.abs(np.array([r["drift"][f] for r in results], float))
         out[f] = {z: round(float(np.nanmax(arr[:, k])), 4) for k, z in enumerate(zone_names)}
     return out
+
+
+# ---- checking a table against a run at a point -------------------------------------------
+#: Per-zone quantities a point check compares: the table's fields, and the median of the
+#: normal impact energy SE_tn / E_ref.
+CHECK_FIELDS = ("speed_over_tip_speed", "filling_local", "collision_frequency_norm",
+                "se_tn_q50_norm")
+
+
+def _check_fields(values: dict) -> dict:
+    from .spec import COMPONENTS, QUANTILE_NAMES
+
+    out = {k: np.asarray(values[k], float) for k in CHECK_FIELDS[:-1]}
+    q = np.asarray(values["se_quantiles_norm"], float)
+    out["se_tn_q50_norm"] = q[COMPONENTS.index("tn"), :, QUANTILE_NAMES.index("q50")]
+    return out
+
+
+def _rel(a, b) -> list:
+    """(a - b) / b per zone, None where b is zero or missing (4 significant digits)."""
+    out = []
+    for x, y in zip(np.ravel(a), np.ravel(b)):
+        ok = np.isfinite(x) and np.isfinite(y) and y != 0.0
+        out.append(float(f"{(x - y) / y:.4g}") if ok else None)
+    return out
+
+
+def check_point(table: Table, point: dict, builder: Callable) -> dict:
+    """Run ``builder`` at ``point`` and compare the table's lookup there with the run.
+
+    ``point``: axis -> value; axes left out take the scene's value (grid axes) or their
+    reference (one-at-a-time axes). Per zone and quantity of :data:`CHECK_FIELDS`: the
+    run's value, the relative difference of the lookup (``lookup_rel_diff``) and, where
+    the table has one-at-a-time axes, of the grid alone with those axes at their references
+    (``grid_only_rel_diff``): how much the one-at-a-time scaling (its separability
+    assumption) gains or loses there. Returns a JSON-ready dict (``point``, ``zones``, one
+    entry per quantity, ``wall_time_s`` of the run)."""
+    if "scene" not in table.manifest:
+        raise TableError("check: the table's manifest names no scene to run")
+    spec = table.spec()
+    known = set(table.axes) | set(table.one_at_a_time)
+    unknown = sorted(set(point) - known)
+    if unknown:
+        raise TableError(f"check: axes {unknown} are not the table's; it has {sorted(known)}")
+    full = {}
+    for name, ax in table.axes.items():
+        full[name] = float(point[name]) if name in point else (
+            float(ax[0]) if len(ax) == 1 else spec.scene_value(name))
+    refs = {k: float(v) for k, v in table.one_at_a_time_ref.items()}
+    full.update({k: float(point.get(k, v)) for k, v in refs.items()})
+    lk = table.lookup(full)  # outside the table: OutsideGridError, before the run
+    t0 = time.perf_counter()
+    run = builder(spec.scene, full)
+    wall = time.perf_counter() - t0
+    got, want = _check_fields(lk.values), _check_fields(run)
+    base = _check_fields(table.lookup({**full, **refs}).values) if refs else None
+    out = {"point": full, "zones": list(table.zone_names), "wall_time_s": round(wall, 1)}
+    for k in CHECK_FIELDS:
+        e = {"run": [float(f"{v:.4g}") if np.isfinite(v) else None for v in want[k]],
+             "lookup_rel_diff": _rel(got[k], want[k])}
+        if base is not None:
+            e["grid_only_rel_diff"] = _rel(base[k], want[k])
+        out[k] = e
+    return out
+
+
+def record_check(table: Table, result: dict) -> dict:
+    """The table's manifest with ``result`` (:func:`check_point`) among its checks:
+    ``separability_check`` where a one-at-a-time axis is off its reference, else
+    ``interpolation_check``; a check at the same point is replaced."""
+    off = any(not np.isclose(result["point"][k], v, rtol=1e-9, atol=0.0)
+              for k, v in table.one_at_a_time_ref.items())
+    key = "separability_check" if off else "interpolation_check"
+    measure = ("one-at-a-time values run away from the anchor: relative difference of the "
+               "table's lookup (lookup_rel_diff) and of the grid alone without the "
+               "one-at-a-time scaling (grid_only_rel_diff) against the run, per zone"
+               if off else "points off the grid's nodes: relative difference of the "
+               "table's lookup (lookup_rel_diff) against the run, per zone")
+    m = json.loads(json.dumps(table.manifest))
+    entry = m.get(key) or {"measure": measure, "points": []}
+    same = [p for p in entry["points"] if p.get("point") == result["point"]]
+    entry["points"] = [p for p in entry["points"] if p not in same] + [result]
+    m[key] = entry
+    return m
