@@ -350,6 +350,8 @@ def _check(args) -> int:
                                  e.get("grid_only_rel_diff", e["lookup_rel_diff"]))]
         print(f"  {k:26s} " + " ".join(f"{c:>22s}" for c in cells))
     if args.write:
+        # read again: another check may have recorded its point while this one ran
+        table = T.read_table_ref(args.table)
         table.manifest = record_check(table, res)
         npz, man = table.export(_table_prefix(args.table))
         print(f"recorded in {man}")
