@@ -312,16 +312,6 @@ def _verify(args) -> int:
     return 1 if bad else 0
 
 
-def _table_prefix(ref: str) -> Path:
-    from millfmu.dem import tables as T
-
-    if ref == "default":
-        return T.default_table_paths()[0].with_suffix("")
-    if ref in T.SHIPPED_TABLES:
-        return T.default_table_paths()[0].parent / f"{ref}_table"
-    return Path(ref)
-
-
 def _check(args) -> int:
     from millfmu.dem import tables as T
     from millfmu.dem.scene import DemSceneError
@@ -353,7 +343,7 @@ def _check(args) -> int:
         # read again: another check may have recorded its point while this one ran
         table = T.read_table_ref(args.table)
         table.manifest = record_check(table, res)
-        npz, man = table.export(_table_prefix(args.table))
+        npz, man = table.export(T.table_ref_prefix(args.table))
         print(f"recorded in {man}")
     return 0
 

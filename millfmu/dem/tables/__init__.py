@@ -42,7 +42,7 @@ _EXPORTS = {
         "DEFAULT_TABLE_MANIFEST", "DEFAULT_TABLE_NPZ", "ERROR_SAFETY", "EXTRAPOLABLE_AXES",
         "FIXED_AXIS_RTOL", "Lookup", "ONE_AT_A_TIME_PREFIX", "OutsideGridError", "Table",
         "SHIPPED_TABLES", "default_table_paths", "shift_log_density",
-        "read_default_table", "read_table", "read_table_ref"), "table"),
+        "read_default_table", "read_table", "read_table_ref", "table_ref_prefix"), "table"),
     "TableStressSource": "stress_source",
     **dict.fromkeys(("CHECK_FIELDS", "PointStore", "assemble", "build_table", "check_point",
                      "record_check", "run_points", "stationarity_summary"), "build"),

@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import contextlib
 import json
+import math
 import os
 import tempfile
 import time
@@ -341,7 +342,9 @@ def record_check(table: Table, result: dict) -> dict:
     """The table's manifest with ``result`` (:func:`check_point`) among its checks:
     ``separability_check`` where a one-at-a-time axis is off its reference, else
     ``interpolation_check``; a check at the same point is replaced."""
-    off = any(not np.isclose(result["point"][k], v, rtol=1e-9, atol=0.0)
+    from .table import FIXED_AXIS_RTOL  # the lookup's rule for "at the reference"
+
+    off = any(not math.isclose(result["point"][k], v, rel_tol=FIXED_AXIS_RTOL)
               for k, v in table.one_at_a_time_ref.items())
     key = "separability_check" if off else "interpolation_check"
     measure = ("one-at-a-time values run away from the anchor: relative difference of the "

@@ -691,11 +691,18 @@ def read_table_ref(ref: str) -> Table:
     (millfmu/data/NAME_table.*), or PREFIX of PREFIX.npz/PREFIX.json."""
     if ref == "default":
         return read_default_table()
+    prefix = str(table_ref_prefix(ref))
+    return read_table(npz=prefix + ".npz", manifest_path=prefix + ".json")
+
+
+def table_ref_prefix(ref: str) -> Path:
+    """PREFIX of the files (PREFIX.npz, PREFIX.json) of the table a scene names (see
+    :func:`read_table_ref`)."""
+    if ref == "default":
+        return default_table_paths()[0].with_suffix("")
     if ref in SHIPPED_TABLES:
-        base = default_table_paths()[0].parent
-        return read_table(npz=base / f"{ref}_table.npz",
-                          manifest_path=base / f"{ref}_table.json")
-    return read_table(npz=ref + ".npz", manifest_path=ref + ".json")
+        return default_table_paths()[0].parent / f"{ref}_table"
+    return Path(ref)
 
 
 def read_default_table() -> Table:
