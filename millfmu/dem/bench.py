@@ -547,9 +547,9 @@ def profile_sim(sim, steps: int, out=print) -> dict:
             ncx = max(int((ex[:, 0].max() + 1e-9 - lo[0]) / cs) + 1, 1)
             ncy = max(int((ex[:, 1].max() + 1e-9 - lo[1]) / cs) + 1, 1)
             ncz = int(lz / cs)
-            start, sj, ss, sx = K.bin_entries(ej, es, ex, lo, cs, ncx, ncy, ncz, lz)
+            start, sj, ss, sx, cmax = K.bin_entries(ej, es, ex, lo, cs, ncx, ncy, ncz, lz)
             t1 = clock()
-            K.build_nlist(s.x, sj, ss, sx, start, lo, cs, ncx, ncy, ncz, cs * cs, s.prm,
+            K.build_nlist(s.x, sj, ss, sx, start, cmax, lo, cs, ncx, ncy, ncz, cs * cs, s.prm,
                           s.wrapk, s.pst, s.nnb, s.pj, s.pim, s.psh, s.pfl, s.pst_o, s.nnb_o,
                           s.pj_o, s.pim_o, s.psh_o, s.pfl_o, s.cb, s.need, s.maxj)
             s.xref[:, :] = s.x

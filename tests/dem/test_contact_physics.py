@@ -315,6 +315,48 @@ def test_bead_reordering_keeps_the_dynamics():
     np.testing.assert_allclose(res[0][0], res[1][0], rtol=0, atol=1e-10)
 
 
+@pytest.mark.parametrize("every", [0, 50])
+def test_half_lists_hold_every_pair_within_the_cutoff_once(every):
+    """The half neighbour lists against all pairs: every pair of beads (and of a bead with
+    the rotated image of another across a 30 degree sector's rays) closer than the
+    cutoff is listed exactly once, under its lower index, with its image code; with the
+    beads sorted along the cells (the build skips cells of lower beads only) and without."""
+    from millfmu.dem.geometry import place_beads
+    from millfmu.dem.sim import DemSimulation
+
+    geom = MillGeometry(shaft_radius_m=0.015, chamber_radius_m=0.024, height_m=0.004,
+                        sector_deg=30.0)
+    x = place_beads(geom, 500, R, seed=3)
+    v = np.random.default_rng(4).normal(0.0, 0.5, size=x.shape)
+    sim = DemSimulation(geom, BeadMaterial(), x, R, 300.0, 5e-6, velocities_m_s=v,
+                        sort_every_steps=every)
+    sim.run(120)
+    from millfmu.dem import kernels as K
+
+    K.rebuild(sim.x, sim.v, sim.w, sim.shw, sim.xref, sim.prm, sim.wrapk, sim.cutoff_m, True,
+              sim.pst, sim.nnb, sim.pj, sim.pim, sim.psh, sim.pfl, sim.pst_o, sim.nnb_o,
+              sim.pj_o, sim.pim_o, sim.psh_o, sim.pfl_o, sim.cb, sim.need, sim.maxj)
+    listed = []
+    for i in range(sim.n):
+        for k in range(sim.pst_o[i], sim.pst_o[i] + sim.nnb_o[i]):
+            listed.append((i, int(sim.pj_o[k]), int(sim.pim_o[k])))
+    assert len(listed) == len(set(listed))
+    sec = math.radians(30.0)
+    lz = geom.height_m
+    want = set()
+    for s in (-1, 0, 1):
+        c, sn = math.cos(s * sec), math.sin(s * sec)
+        img = sim.x @ np.array([[c, sn, 0.0], [-sn, c, 0.0], [0.0, 0.0, 1.0]])
+        d = sim.x[:, None, :] - img[None, :, :]
+        d[..., 2] -= lz * np.round(d[..., 2] / lz)
+        close = (d ** 2).sum(-1) < sim.cutoff_m ** 2
+        for i, j in zip(*np.nonzero(close)):
+            if j > i:
+                want.add((int(i), int(j), s))
+    assert any(s != 0 for _, _, s in want)  # the sector's images are exercised
+    assert set(listed) == want
+
+
 @pytest.mark.parametrize("eps", [0.999, 0.6, 0.45])
 def test_koch_hill_drag_on_a_resting_bead(eps):
     """Force on a bead at rest in the prescribed Couette swirl: V_p beta U_f with beta from
