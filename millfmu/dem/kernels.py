@@ -587,7 +587,8 @@ def bin_entries(ej, es, ex, lo, cs, ncx, ncy, ncz, lz):
 def build_nlist(x, ej, es, ex, start, cmax, lo, cs, ncx, ncy, ncz, cut2, prm, wrapk,
                 pst_o, nnb_o, pj_o, pim_o, psh_o, pfl_o, pst, nnb, pj, pim, psh, pfl, cb,
                 need, maxj):
-    """Half neighbour lists within sqrt(cut2) [m]: bead i's partners j > i (each pair once,
+    """Half neighbour lists within sqrt(cut2) [m] from the binned entries of
+    :func:`bin_entries` (ej, es, ex, start, cmax): bead i's partners j > i (each pair once,
     owned by its lower index, image pairs included) are pj[pst[i]:pst[i] + nnb[i]], with
     image code pim, tangential history psh and contact flag pfl. Chunk c stores its rows
     one after the other in its region [c cap, (c + 1) cap) of the pair arrays (cap = their
