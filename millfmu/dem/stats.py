@@ -176,6 +176,9 @@ def compute_stats(*, scene: str, zones, events: np.ndarray, ev_cols: dict,
     typ = ev[:, ev_cols["type"]] if ev.size else np.zeros(0)
     pos = ev[:, [ev_cols["x"], ev_cols["y"], ev_cols["z"]]] if ev.size else np.zeros((0, 3))
     zid_ev = zones.classify(pos) if ev.size else np.zeros(0, int)
+    if ev.size and (typ > 0).any():
+        # a bead-wall contact point lies inside the wall: count it at the wall's surface
+        zid_ev[typ > 0] = zones.classify(pos[typ > 0], on_wall=True)
     se_tn = ev[:, ev_cols["setn"]] if ev.size else np.zeros(0)
     se_ts = ev[:, ev_cols["sets"]] if ev.size else np.zeros(0)
     se_tot = se_tn + se_ts + (ev[:, ev_cols["serot"]] if ev.size else np.zeros(0))
