@@ -83,6 +83,11 @@ class DemStats:
     # shear and bead contacts, power number, angular-momentum budget, vortices, swirl
     # profiles between the discs; see millfmu.dem.run
     flow: dict = field(default_factory=dict)
+    # bead-wall impacts per wall (shaft, chamber, disc or shrouds, vanes): contacts,
+    # rate_per_s_cell (in the simulated cell [1/s]) and quantiles q50, q90, q99 and the
+    # largest value of SE_tn and SE_ts [J] (1/2 m v^2 of the bead against the wall's
+    # surface velocity at the first overlap)
+    walls: dict = field(default_factory=dict)
 
     def to_json(self) -> str:
         return json.dumps(asdict(self), indent=1, allow_nan=False)
@@ -101,6 +106,17 @@ class DemStats:
             if z.name == name:
                 return z
         raise KeyError(name)
+
+
+#: wall names by the contact record's type - 1 (kernel wall ids: 0 shaft, 1 chamber,
+#: 2 disc or the accelerator's shrouds, 3 vanes)
+WALL_NAMES = ("shaft", "chamber", "disc", "vanes")
+
+
+def _tail(se_j: np.ndarray) -> dict:
+    """Median, upper quantiles and largest value [J] of energies se_j (not empty)."""
+    q = np.quantile(se_j, [0.5, 0.9, 0.99])
+    return dict(q50=float(q[0]), q90=float(q[1]), q99=float(q[2]), max=float(se_j.max()))
 
 
 def energy_distribution(se_j: np.ndarray, edges: np.ndarray) -> EnergyDistribution:
@@ -195,6 +211,12 @@ def compute_stats(*, scene: str, zones, events: np.ndarray, ev_cols: dict,
             wall_collision_frequency_per_m3_s=float(bw.sum() / (vols[k] * record_s)),
             collision_power_w=float(se_tot[bb].sum() / record_s),
             se={c: energy_distribution(v, edges) for c, v in comp.items()}))
+    walls = {}
+    for q, wname in enumerate(WALL_NAMES):
+        m = typ == 1.0 + q
+        if m.any():
+            walls[wname] = dict(contacts=int(m.sum()), rate_per_s_cell=float(m.sum() / record_s),
+                                se_tn_j=_tail(se_tn[m]), se_ts_j=_tail(se_ts[m]))
     frac = g.sector_fraction
     drive_torque = -torque_on_stirrer_nm / frac + 0.0  # + 0.0: no "-0" without contacts
     return DemStats(
@@ -204,4 +226,4 @@ def compute_stats(*, scene: str, zones, events: np.ndarray, ev_cols: dict,
         zones=out, stirrer_torque_nm=float(drive_torque),
         stirrer_power_w=float(drive_torque * omega_rad_s),
         kinetic_energy=kinetic_energy_steadiness(ke_t_s, ke_j, spin_up_s),
-        counts=dict(counts or {}), notes=list(notes))
+        counts=dict(counts or {}), notes=list(notes), walls=walls)

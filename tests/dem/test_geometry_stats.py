@@ -194,6 +194,14 @@ def test_disc_slice_short_run_gives_zone_statistics(tmp_path):
                 for z in stats.zones)
     assert stats.counts["bead_wall"] > 0
     assert walls == pytest.approx(stats.counts["bead_wall"], rel=1e-9)
+    # and per wall: the impacts' count, rate and energy tail
+    assert set(stats.walls) <= {"shaft", "chamber", "disc"} and stats.walls
+    assert sum(w["contacts"] for w in stats.walls.values()) == stats.counts["bead_wall"]
+    for w in stats.walls.values():
+        assert w["rate_per_s_cell"] == pytest.approx(w["contacts"] / stats.record_s)
+        for c in ("se_tn_j", "se_ts_j"):
+            e = w[c]
+            assert 0.0 <= e["q50"] <= e["q90"] <= e["q99"] <= e["max"]
     assert stats.stirrer_torque_nm > 0 and stats.stirrer_power_w == pytest.approx(
         stats.stirrer_torque_nm * 10.0 / 0.036)
     assert {"mean_j", "rel_std", "rel_trend_over_record"} <= set(stats.kinetic_energy)
