@@ -95,13 +95,9 @@ class SevZones:
         return ((g.chamber_radius_m - r) / (g.chamber_radius_m - g.shaft_radius_m),
                 1.0 - np.abs(zr) / half)
 
-    def classify(self, p: np.ndarray, on_wall: bool = False) -> np.ndarray:
-        """Zone index per point p [m] (n, 3); -1 outside the chamber. ``on_wall``: bead-wall
-        contact points, inside the shaft or the chamber wall by up to the overlap, count
-        at that wall (the zones hold the rotor, so its contacts need no move)."""
+    def classify(self, p: np.ndarray) -> np.ndarray:
+        """Zone index per point p [m] (n, 3); -1 outside the chamber."""
         zz, xx = self.coordinates(p)
-        if on_wall:
-            zz = np.clip(zz, 0.0, 1.0)
         s = self.spec
         out = np.where(zz <= s.z1, 0, np.where(zz <= s.z2, 1, np.where(xx <= s.x3, 2, 3)))
         out[(zz < 0.0) | (zz > 1.0)] = -1

@@ -344,7 +344,7 @@ def g_forces(x, v, w, f, t, rad, mass, inertia, nb, img, nnb, sh, fl, shw, flw, 
         if record and flw[i, q] == 0:
             e = cuda.atomic.add(flags, F_EVENTS, 1)
             if e < cap:
-                write_event(evbuf[e], 1.0 + q, i, -1.0, px, py, pz, vrx, vry, vrz, nx, ny,
+                write_event(evbuf[e], 1.0 + q, i, -1.0, xi, yi, zi, vrx, vry, vrz, nx, ny,
                             nz, w[i, 0], w[i, 1], w[i, 2] - wz_w, mi, inertia[i], step)
         flw[i, q] = 1
         shw[i, q, 0] = s0

@@ -86,7 +86,7 @@ NWALL = 4
 EV_TYPE = 0  # 0 bead-bead, 1 + wall id for bead-wall
 EV_I = 1
 EV_J = 2  # partner bead index, -1 for walls
-EV_X = 3  # contact point x, y, z [m]
+EV_X = 3  # where: two beads, the middle of their overlap; a wall, the bead's centre [m]
 EV_Y = 4
 EV_Z = 5
 EV_SETN = 6  # translational normal stress energy 1/2 m* v_n^2 [J]
@@ -407,10 +407,11 @@ def lubrication_force(eta, rstar, vn, gap, hmin):
 @device
 def write_event(row, typ, i, j, px, py, pz, vrx, vry, vrz, nx, ny, nz, wrx, wry, wrz,
                 mstar, istar, step):
-    """Record a contact at its first overlap into ``row`` (layout EV_*): contact point p
-    [m], stress energies from the relative velocity vr [m/s] split along the normal n,
-    and the relative spin wr [rad/s]: SE_tn = 1/2 m* v_n^2, SE_ts = 1/2 m* |v_t|^2,
-    SE_rot = 1/2 I* |wr|^2 [J]."""
+    """Record a contact at its first overlap into ``row`` (layout EV_*): position p [m]
+    (two beads: the middle of their overlap; a wall: the bead's centre), stress energies
+    from the relative velocity vr [m/s] split along the normal n, and the relative spin
+    wr [rad/s]: SE_tn = 1/2 m* v_n^2, SE_ts = 1/2 m* |v_t|^2, SE_rot = 1/2 I* |wr|^2 [J]
+    (m* [kg], I* [kg m2]: reduced for two beads, the bead's own against a wall)."""
     vn = vrx * nx + vry * ny + vrz * nz
     vtx = vrx - vn * nx
     vty = vry - vn * ny
@@ -861,7 +862,10 @@ def compute_forces(x, v, w, fb, tb, rad, mass, inertia, pst, nnb, pj, pim, psh, 
                     continue
                 if record and flw[i, q] == 0:
                     if ne < cap:
-                        write_event(evc[c, ne], 1.0 + q, i, -1.0, px, py, pz, vrx, vry, vrz,
+                        # recorded at the bead's centre: the contact point lies inside
+                        # the wall by the overlap, outside every zone, and at an edge
+                        # (disc rim and face, rotor rim) could not tell the bead's side
+                        write_event(evc[c, ne], 1.0 + q, i, -1.0, xi, yi, zi, vrx, vry, vrz,
                                     nx, ny, nz, w[i, 0], w[i, 1], w[i, 2] - wz_w, mi,
                                     inertia[i], step)
                     ne += 1

@@ -8,7 +8,8 @@ Definitions (seed 001, sections 2.2-2.3 and 3):
   (seed 001 eq. 2), time-averaged over the samples, beads assigned by their centre;
 - mean bead speed over the stirrer tip speed, averaged over beads and samples;
 - collision frequency: bead-bead contacts, each counted once at its first overlap,
-  located at the contact point, per zone volume and recording time [1/(m3 s)];
+  located at the contact point, per zone volume and recording time [1/(m3 s)]; the
+  wall collision frequency likewise for bead-wall contacts, located at the bead's centre;
 - stress energies at the first overlap: SE_tn = 1/2 m* v_n^2 (seed 001 eq. 1 with the
   reduced mass), SE_ts = 1/2 m* |v_t|^2 (translational shear), SE_rot = 1/2 I* |w_i -
   w_j|^2 (rolling and torsion lumped), SE_total = SE_tn + SE_ts + SE_rot [J];
@@ -83,10 +84,11 @@ class DemStats:
     # shear and bead contacts, power number, angular-momentum budget, vortices, swirl
     # profiles between the discs; see millfmu.dem.run
     flow: dict = field(default_factory=dict)
-    # bead-wall impacts per wall (shaft, chamber, disc or shrouds, vanes): contacts,
-    # rate_per_s_cell (in the simulated cell [1/s]) and quantiles q50, q90, q99 and the
-    # largest value of SE_tn and SE_ts [J] (1/2 m v^2 of the bead against the wall's
-    # surface velocity at the first overlap)
+    # bead-wall impacts per wall that had any (shaft, chamber, disc or shrouds, vanes):
+    # contacts, rate_per_s_cell (in the simulated cell [1/s]) and quantiles q50, q90, q99
+    # and the largest value of SE_tn = 1/2 m v_n^2 and SE_ts = 1/2 m |v_t|^2 [J] at the
+    # first overlap, v relative to the wall's surface and m the bead's mass (between two
+    # equal beads m* is half of it)
     walls: dict = field(default_factory=dict)
 
     def to_json(self) -> str:
@@ -191,10 +193,8 @@ def compute_stats(*, scene: str, zones, events: np.ndarray, ev_cols: dict,
     ev = events
     typ = ev[:, ev_cols["type"]] if ev.size else np.zeros(0)
     pos = ev[:, [ev_cols["x"], ev_cols["y"], ev_cols["z"]]] if ev.size else np.zeros((0, 3))
+    # bead-wall contacts are recorded at the bead's centre: they count in the bead's zone
     zid_ev = zones.classify(pos) if ev.size else np.zeros(0, int)
-    if ev.size and (typ > 0).any():
-        # a bead-wall contact point lies inside the wall: count it at the wall's surface
-        zid_ev[typ > 0] = zones.classify(pos[typ > 0], on_wall=True)
     se_tn = ev[:, ev_cols["setn"]] if ev.size else np.zeros(0)
     se_ts = ev[:, ev_cols["sets"]] if ev.size else np.zeros(0)
     se_tot = se_tn + se_ts + (ev[:, ev_cols["serot"]] if ev.size else np.zeros(0))

@@ -64,29 +64,16 @@ class Zones:
         else:
             self.names = ("annulus",)
 
-    def classify(self, p: np.ndarray, on_wall: bool = False) -> np.ndarray:
-        """Zone index per point p [m] (n, 3); -1 for points outside every zone.
-
-        ``on_wall``: the points are bead-wall contact points, which lie inside the wall by
-        up to the overlap; each is first moved onto the nearest surface of the wall it is
-        in (shaft, chamber, disc face or rim), so that it counts in the zone at that wall.
-        """
+    def classify(self, p: np.ndarray) -> np.ndarray:
+        """Zone index per point p [m] (n, 3); -1 for points outside every zone."""
         g = self.g
         r = np.hypot(p[:, 0], p[:, 1])
-        if on_wall:
-            r = np.clip(r, g.shaft_radius_m, g.chamber_radius_m)
         if not g.has_disc:
             return np.where((r >= g.shaft_radius_m) & (r <= g.chamber_radius_m), 0, -1)
         zr = p[:, 2] - g.disc_z_m
         zr = zr - g.height_m * np.floor(zr / g.height_m + 0.5)
         a = np.abs(zr)
         hb = 0.5 * g.disc_thickness_m
-        if on_wall:
-            R0 = g.disc_radius_m
-            inside = (a < hb) & (r < R0)
-            face = inside & (hb - a <= R0 - r)
-            a = np.where(face, hb, a)
-            r = np.where(inside & ~face, R0, r)
         w1 = self.spec.v1_width_m
         R = g.disc_radius_m
         r1 = self.spec.r_v1_over_disc_radius * R

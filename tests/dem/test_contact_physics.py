@@ -315,6 +315,39 @@ def test_bead_reordering_keeps_the_dynamics():
     np.testing.assert_allclose(res[0][0], res[1][0], rtol=0, atol=1e-10)
 
 
+def test_wall_contacts_are_recorded_at_the_bead_and_counted_in_its_zone():
+    """A bead that hits the chamber wall, and one that hits the disc's outer edge from the
+    gap beyond the rim (zone V2): each contact is recorded once, at the bead's centre at
+    its first overlap (the contact point lies inside the wall, and at the edge would not
+    tell the bead's side), so that it lands in the bead's zone."""
+    from millfmu.dem import kernels as K
+    from millfmu.dem.sim import DemSimulation
+    from millfmu.dem.zones import Zones
+
+    geom = MillGeometry(shaft_radius_m=0.015, chamber_radius_m=0.045, height_m=0.028,
+                        disc_radius_m=0.036, disc_thickness_m=0.008)
+    hb = 0.004
+    d = 0.3e-3  # start outside the edge by this much in r and z [m]
+    x = np.array([[0.045 - R - 0.05e-3, 0.0, 0.010],   # just off the chamber wall
+                  [0.0, 0.036 + d, hb + d]])            # beyond the disc's edge
+    u = 0.5 / math.sqrt(2.0)
+    v = np.array([[0.5, 0.0, 0.0], [0.0, -u, -u]])     # towards the wall and the edge
+    sim = DemSimulation(geom, BeadMaterial(restitution=0.9), x, R, 0.0, 2e-7,
+                        velocities_m_s=v)
+    st = sim.run(4000, record=True)
+    ev = st.events
+    assert sorted(ev[:, K.EV_TYPE].tolist()) == [2.0, 3.0]  # chamber (1 + 1), disc (1 + 2)
+    p = ev[:, [K.EV_X, K.EV_Y, K.EV_Z]]
+    ch, dc = p[ev[:, K.EV_TYPE] == 2.0][0], p[ev[:, K.EV_TYPE] == 3.0][0]
+    # first overlap: the centre within one step's travel of touching
+    step = 0.5 * 2e-7
+    assert 0.045 - R - math.hypot(ch[0], ch[1]) == pytest.approx(0.0, abs=step)
+    corner = math.hypot(math.hypot(dc[0], dc[1]) - 0.036, dc[2] - hb)
+    assert corner == pytest.approx(R, abs=step)
+    zones = Zones(geom)
+    assert list(zones.classify(p[np.argsort(ev[:, K.EV_TYPE])])) == [2, 1]  # V3, V2
+
+
 @pytest.mark.parametrize("every", [0, 50])
 def test_half_lists_hold_every_pair_within_the_cutoff_once(every):
     """The half neighbour lists against all pairs: every pair of beads (and of a bead with
