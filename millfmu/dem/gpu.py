@@ -329,8 +329,8 @@ def g_forces(x, v, w, f, t, rad, mass, inertia, nb, img, nnb, sh, fl, shw, flw, 
                 cuda.atomic.add(f, (j, 2), -fm * nz)
     # ---- walls ----
     for q in range(K.NWALL):
-        (touch, px, py, pz, vrx, vry, vrz, nx, ny, nz, wz_w, gx, gy, gz, tix, tiy, tiz, s0,
-         s1, s2, twall) = wall_response(xi, yi, zi, v[i, 0], v[i, 1], v[i, 2], w[i, 0],
+        (touch, vrx, vry, vrz, nx, ny, nz, wz_w, gx, gy, gz, tix, tiy, tiz, s0, s1, s2,
+         twall) = wall_response(xi, yi, zi, v[i, 0], v[i, 1], v[i, 2], w[i, 0],
                                         w[i, 1], w[i, 2], ri, mi, q, shw[i, q, 0],
                                         shw[i, q, 1], shw[i, q, 2], prm, ystar, gstar, beta,
                                         mu, mur, dt)

@@ -341,17 +341,16 @@ def wall_response(xi, yi, zi, vix, viy, viz, wix, wiy, wiz, ri, mi, q, s0, s1, s
     """Contact of a bead (centre x [m], velocity v [m/s], spin w [rad/s]) with wall q
     (:func:`wall_gap`; the shaft and the disc turn at prm[P_OMEGA], the chamber stands):
     Hertz-Mindlin with R* = ri, m* = mi against the wall's surface velocity at the
-    contact point p. Returns (touching, p, v - v_wall, n, wall spin about z [rad/s],
+    contact point p = x - ri n. Returns (touching, v - v_wall, n, wall spin about z [rad/s],
     force [N] and torque [N m] on the bead, new history [m], torque about +z on the
     wall [N m])."""
     dist, nx, ny, nz, ok = wall_gap(xi, yi, zi, ri, q, prm)
     delta = ri - dist
     if not ok or delta <= 0.0:
-        return (False, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, nx, ny, nz, 0.0, 0.0, 0.0, 0.0, 0.0,
-                0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
+        return (False, 0.0, 0.0, 0.0, nx, ny, nz, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0,
+                0.0, 0.0, 0.0)
     px = xi - ri * nx
     py = yi - ri * ny
-    pz = zi - ri * nz
     om = prm[P_OMEGA] if q != 1 else 0.0  # shaft and disc turn with the stirrer
     vrx = vix + om * py
     vry = viy - om * px
@@ -362,7 +361,7 @@ def wall_response(xi, yi, zi, vix, viy, viz, wix, wiy, wiz, ri, mi, q, s0, s1, s
     gx = fnx + ftx
     gy = fny + fty
     # reaction on the wall: -F at p, plus the rolling torque's reaction
-    return (True, px, py, pz, vrx, vry, viz, nx, ny, nz, om, gx, gy, fnz + ftz,
+    return (True, vrx, vry, viz, nx, ny, nz, om, gx, gy, fnz + ftz,
             -ri * (ny * ftz - nz * fty) + mrx, -ri * (nz * ftx - nx * ftz) + mry,
             -ri * (nx * fty - ny * ftx) + mrz, s0, s1, s2, -(px * gy - py * gx) - mrz)
 
@@ -848,8 +847,8 @@ def compute_forces(x, v, w, fb, tb, rad, mass, inertia, pst, nnb, pj, pim, psh, 
                         shw[i, q, 1] = 0.0
                         shw[i, q, 2] = 0.0
             for q in range(NWALL if near else 0):
-                (touch, px, py, pz, vrx, vry, vrz, nx, ny, nz, wz_w, gx, gy, gz, tix, tiy,
-                 tiz, s0, s1, s2, twall) = wall_response(
+                (touch, vrx, vry, vrz, nx, ny, nz, wz_w, gx, gy, gz, tix, tiy, tiz, s0, s1,
+                 s2, twall) = wall_response(
                     xi, yi, zi, v[i, 0], v[i, 1], v[i, 2], w[i, 0], w[i, 1], w[i, 2], ri, mi,
                     q, shw[i, q, 0], shw[i, q, 1], shw[i, q, 2], prm, ystar, gstar, beta, mu,
                     mur, dt)

@@ -354,6 +354,7 @@ def test_half_lists_hold_every_pair_within_the_cutoff_once(every):
     the rotated image of another across a 30 degree sector's rays) closer than the
     cutoff is listed exactly once, under its lower index, with its image code; with the
     beads sorted along the cells (the build skips cells of lower beads only) and without."""
+    from millfmu.dem import kernels as K
     from millfmu.dem.geometry import place_beads
     from millfmu.dem.sim import DemSimulation
 
@@ -364,8 +365,6 @@ def test_half_lists_hold_every_pair_within_the_cutoff_once(every):
     sim = DemSimulation(geom, BeadMaterial(), x, R, 300.0, 5e-6, velocities_m_s=v,
                         sort_every_steps=every)
     sim.run(120)
-    from millfmu.dem import kernels as K
-
     K.rebuild(sim.x, sim.v, sim.w, sim.shw, sim.xref, sim.prm, sim.wrapk, sim.cutoff_m, True,
               sim.pst, sim.nnb, sim.pj, sim.pim, sim.psh, sim.pfl, sim.pst_o, sim.nnb_o,
               sim.pj_o, sim.pim_o, sim.psh_o, sim.pfl_o, sim.cb, sim.need, sim.maxj)
