@@ -611,6 +611,7 @@ def build_nlist(x, ej, es, ex, start, cmax, lo, cs, ncx, ncy, ncz, cut2, prm, wr
         q = base
         hij = cb[c + 1] - 1
         hit = np.empty(27 * occ, np.int64)  # a row's entries in reach
+        runs = np.empty((18, 2), np.int64)  # runs of stencil cells [first, end)
         for i in range(cb[c], cb[c + 1]):
             xi = x[i, 0]
             yi = x[i, 1]
@@ -627,23 +628,53 @@ def build_nlist(x, ej, es, ex, start, cmax, lo, cs, ncx, ncy, ncz, cut2, prm, wr
             # mispredicted branch cost more than the test: 12 % of the build on the bench
             # bed), then only they are stored.
             nh = 0
+            # The stencil's cells as runs of consecutive cell indices (cells are numbered
+            # z fastest): one run per (ax, ay) column, split in two where the axial
+            # stencil wraps, and, when the stencil spans the whole axial period (ncz ==
+            # 3), one run per ax over the three columns. Looping over cells one by one
+            # cost a mispredicted loop exit per cell, more than the distance tests.
+            nr = 0
             for ax in range(max(ix - 1, 0), min(ix + 2, ncx)):
-                for ay in range(max(iy - 1, 0), min(iy + 2, ncy)):
-                    for dzc in range(-1, 2):
-                        az = (iz + dzc) % ncz
-                        cc = (ax * ncy + ay) * ncz + az
-                        # a cell whose beads all have lower indices holds no partner of
-                        # i (rows own j > i); with the beads sorted along the cells
-                        # (DemSimulation._sort) that is about half of the 27
-                        if cmax[cc] <= i:
-                            continue
-                        for e in range(start[cc], start[cc + 1]):
-                            dx = xi - ex[e, 0]
-                            dy = yi - ex[e, 1]
-                            dz = axial_image(zi - ex[e, 2], lz)
-                            ok = (dx * dx + dy * dy + dz * dz < cut2) & (ej[e] > i)
-                            hit[nh] = e
-                            nh += 1 if ok else 0
+                ay0 = max(iy - 1, 0)
+                ay1 = min(iy + 2, ncy)
+                if ncz == 3:
+                    runs[nr, 0] = (ax * ncy + ay0) * ncz
+                    runs[nr, 1] = (ax * ncy + ay1) * ncz
+                    nr += 1
+                    continue
+                for ay in range(ay0, ay1):
+                    cxy = (ax * ncy + ay) * ncz
+                    if iz == 0:
+                        runs[nr, 0] = cxy
+                        runs[nr, 1] = cxy + 2
+                        runs[nr + 1, 0] = cxy + ncz - 1
+                        runs[nr + 1, 1] = cxy + ncz
+                        nr += 2
+                    elif iz == ncz - 1:
+                        runs[nr, 0] = cxy
+                        runs[nr, 1] = cxy + 1
+                        runs[nr + 1, 0] = cxy + ncz - 2
+                        runs[nr + 1, 1] = cxy + ncz
+                        nr += 2
+                    else:
+                        runs[nr, 0] = cxy + iz - 1
+                        runs[nr, 1] = cxy + iz + 2
+                        nr += 1
+            for r in range(nr):
+                c0 = runs[r, 0]
+                c1 = runs[r, 1]
+                # leading cells whose beads all have lower indices hold no partner of i
+                # (rows own j > i); with the beads sorted along the cells
+                # (DemSimulation._sort) that is about half of the stencil
+                while c0 < c1 and cmax[c0] <= i:
+                    c0 += 1
+                for e in range(start[c0], start[c1]):
+                    dx = xi - ex[e, 0]
+                    dy = yi - ex[e, 1]
+                    dz = axial_image(zi - ex[e, 2], lz)
+                    ok = (dx * dx + dy * dy + dz * dz < cut2) & (ej[e] > i)
+                    hit[nh] = e
+                    nh += 1 if ok else 0
             for h in range(nh):
                 e = hit[h]
                 j = ej[e]

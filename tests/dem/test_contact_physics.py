@@ -349,18 +349,21 @@ def test_wall_contacts_are_recorded_at_the_bead_and_counted_in_its_zone():
 
 
 @pytest.mark.parametrize("every", [0, 50])
-def test_half_lists_hold_every_pair_within_the_cutoff_once(every):
+@pytest.mark.parametrize("height", [0.004, 0.0067])
+def test_half_lists_hold_every_pair_within_the_cutoff_once(every, height):
     """The half neighbour lists against all pairs: every pair of beads (and of a bead with
     the rotated image of another across a 30 degree sector's rays) closer than the
     cutoff is listed exactly once, under its lower index, with its image code; with the
-    beads sorted along the cells (the build skips cells of lower beads only) and without."""
+    beads sorted along the cells (the build skips cells of lower beads only) and without;
+    with three axial cells (the stencil's columns searched as one run of cells) and with
+    six (runs split where the stencil wraps axially)."""
     from millfmu.dem import kernels as K
     from millfmu.dem.geometry import place_beads
     from millfmu.dem.sim import DemSimulation
 
-    geom = MillGeometry(shaft_radius_m=0.015, chamber_radius_m=0.024, height_m=0.004,
+    geom = MillGeometry(shaft_radius_m=0.015, chamber_radius_m=0.024, height_m=height,
                         sector_deg=30.0)
-    x = place_beads(geom, 500, R, seed=3)
+    x = place_beads(geom, int(500 * height / 0.004), R, seed=3)
     v = np.random.default_rng(4).normal(0.0, 0.5, size=x.shape)
     sim = DemSimulation(geom, BeadMaterial(), x, R, 300.0, 5e-6, velocities_m_s=v,
                         sort_every_steps=every)
@@ -386,6 +389,7 @@ def test_half_lists_hold_every_pair_within_the_cutoff_once(every):
             if j > i:
                 want.add((int(i), int(j), s))
     assert any(s != 0 for _, _, s in want)  # the sector's images are exercised
+    assert int(geom.height_m / sim.cutoff_m) == (3 if height < 0.005 else 6)
     assert set(listed) == want
 
 
