@@ -38,8 +38,10 @@ from millfmu.dem._jit import gpu_device, gpu_kernel
 
 axial_image = gpu_device(K.axial_image)
 hertz_mindlin = gpu_device(K.hertz_mindlin)
+history_frame_pair = gpu_device(K.history_frame_pair)
 pair_response = gpu_device(K.pair_response, hertz_mindlin=hertz_mindlin)
 wall_response = gpu_device(K.wall_response, hertz_mindlin=hertz_mindlin,
+                           history_frame=gpu_device(K.history_frame),
                            wall_gap=gpu_device(K.wall_gap))
 body_force = gpu_device(K.body_force, swirl_velocity=gpu_device(K.swirl_velocity),
                         koch_hill_beta=gpu_device(K.koch_hill_beta))
@@ -273,7 +275,10 @@ def g_forces(x, v, w, f, t, rad, mass, inertia, nb, img, nnb, sh, fl, shw, flw, 
         wjx = cr * w[j, 0] - sr * w[j, 1]
         wjy = sr * w[j, 0] + cr * w[j, 1]
         r = math.sqrt(r2)
-        ir = 1.0 / r
+        # 1/r from 1/r2, which does not wait for the root: a product after the root
+        # instead of a division
+        ir2 = 1.0 / r2
+        ir = r * ir2
         nx = dx * ir
         ny = dy * ir
         nz = dz * ir
@@ -292,10 +297,14 @@ def g_forces(x, v, w, f, t, rad, mass, inertia, nb, img, nnb, sh, fl, shw, flw, 
                                 w[i, 1] - wjy, w[i, 2] - w[j, 2], mstar,
                                 inertia[i] * inertia[j] / (inertia[i] + inertia[j]), step)
             fl[k, i] = 1
+            s0 = sh[k, i, 0]
+            s1 = sh[k, i, 1]
+            s2 = sh[k, i, 2]
+            sdn, sm0, sm1 = history_frame_pair(s0, s1, s2, dx, dy, dz, ir2, ir)
             (gx, gy, gz, tix, tiy, tiz, tjx, tjy, tjz, s0, s1,
              s2) = pair_response(nx, ny, nz, delta, vrx, vry, vrz, w[i, 0], w[i, 1], w[i, 2],
-                                 wjx, wjy, w[j, 2], ri, rj, mstar, sh[k, i, 0], sh[k, i, 1],
-                                 sh[k, i, 2], ystar, gstar, beta, mu, mur, dt)
+                                 wjx, wjy, w[j, 2], ri, rj, mstar, ri * rj / rsum, s0, s1,
+                                 s2, sdn, sm0, sm1, ystar, gstar, beta, mu, mur, dt)
             sh[k, i, 0] = s0
             sh[k, i, 1] = s1
             sh[k, i, 2] = s2

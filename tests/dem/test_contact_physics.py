@@ -315,6 +315,74 @@ def test_bead_reordering_keeps_the_dynamics():
     np.testing.assert_allclose(res[0][0], res[1][0], rtol=0, atol=1e-10)
 
 
+def _forces_once(sim):
+    """One call of the force kernel on a copy of the contact state: (F [N], T [N m]) on
+    every bead."""
+    from millfmu.dem import kernels as K
+
+    psh, pfl, shw, flw = sim.psh.copy(), sim.pfl.copy(), sim.shw.copy(), sim.flw.copy()
+    K.compute_forces(sim.x, sim.v, sim.w, sim.fb, sim.tb, sim.rad, sim.mass, sim.inertia,
+                     sim.pst, sim.nnb, sim.pj, sim.pim, psh, pfl, shw, flw, sim.prm, sim.cb,
+                     sim.maxj, False, 0, sim.evc, sim.evn, sim.torq, sim.fext)
+    K.reduce_kick(sim.fb, sim.tb, sim.cb, sim.maxj, sim.f, sim.t, sim.v.copy(), sim.w.copy(),
+                  sim.x.copy(), sim.inv_m, sim.inv_i, 0.0, 0.0, False, sim.xref, sim.dmax)
+    return sim.f.copy(), sim.t.copy()
+
+
+def test_equal_beads_shortcut_gives_the_general_forces_bit_for_bit():
+    """With one radius and mass for all beads the force loop takes R* and m* computed once;
+    making one bead with no neighbour a little larger sends every pair through the
+    general formulas, and the other beads' forces and torques are the same bit for bit."""
+    from millfmu.dem.geometry import place_beads
+    from millfmu.dem.sim import DemSimulation
+
+    geom = MillGeometry(shaft_radius_m=0.015, chamber_radius_m=0.019, height_m=0.004)
+    x = place_beads(geom, 700, R, seed=5)
+    v = np.random.default_rng(7).normal(0.0, 0.3, size=x.shape)
+    sim = DemSimulation(geom, BeadMaterial(), x, R, 300.0, 5e-6, velocities_m_s=v,
+                        sort_every_steps=0)
+    sim.run(100)
+    listed = np.zeros(sim.n, bool)  # beads with a neighbour within the cutoff
+    for i in range(sim.n):
+        for k in range(sim.pst[i], sim.pst[i] + sim.nnb[i]):
+            listed[[i, sim.pj[k]]] = True
+    lone = int(np.nonzero(~listed)[0][0])
+    assert sim.pfl.sum() > 30  # pairs in contact are exercised
+    f_eq, t_eq = _forces_once(sim)
+    sim.rad[lone] *= 1.01
+    sim.mass[lone] *= 1.01 ** 3
+    f_gen, t_gen = _forces_once(sim)
+    others = np.arange(sim.n) != lone
+    assert np.abs(f_eq[others]).max() > 0.0
+    assert np.array_equal(f_eq[others], f_gen[others])
+    assert np.array_equal(t_eq[others], t_gen[others])
+
+
+def test_history_frame_from_the_separation_equals_the_one_from_the_normal():
+    """The pair loop projects the tangential history with |s - (s.n) n|^2 = |s|^2 -
+    (s.d)^2 / |d|^2 (no root); against the direct projection on the unit normal, for a
+    history lying in a previous tangent plane turned by up to 0.1 rad: agreement to
+    round-off."""
+    from millfmu.dem import kernels as K
+
+    rng = np.random.default_rng(11)
+    for _ in range(200):
+        d = rng.normal(size=3) * 0.8e-3
+        n = d / np.linalg.norm(d)
+        t = np.cross(n, rng.normal(size=3))
+        s_old = t / np.linalg.norm(t) * 10.0 ** rng.uniform(-9, -5)  # [m]
+        tilt = rng.uniform(0, 0.1)
+        s = s_old * math.cos(tilt) + n * np.linalg.norm(s_old) * math.sin(tilt)
+        r2 = float(d @ d)
+        want = K.history_frame(*s, *n)
+        got = K.history_frame_pair(*s, *d, 1.0 / r2, 1.0 / math.sqrt(r2))
+        assert got[0] == pytest.approx(want[0], rel=1e-12, abs=1e-12 * np.linalg.norm(s))
+        assert got[1] == want[1]
+        assert got[2] == pytest.approx(want[2], rel=1e-12)
+    # a new contact: no history, nothing to rescale
+    assert K.history_frame_pair(0.0, 0.0, 0.0, *d, 1.0 / r2, 1.0) == (0.0, 0.0, 0.0)
+
+
 def test_wall_contacts_are_recorded_at_the_bead_and_counted_in_its_zone():
     """A bead that hits the chamber wall, and one that hits the disc's outer edge from the
     gap beyond the rim (zone V2): each contact is recorded once, at the bead's centre at
