@@ -443,6 +443,11 @@ def test_half_lists_hold_every_pair_within_the_cutoff_once(every, height):
     for i in range(sim.n):
         for k in range(sim.pst_o[i], sim.pst_o[i] + sim.nnb_o[i]):
             listed.append((i, int(sim.pj_o[k]), int(sim.pim_o[k])))
+        # the pairs in contact come first in each row (the force loop's branch on
+        # overlap then changes once per row)
+        fl = sim.pfl_o[sim.pst_o[i]:sim.pst_o[i] + sim.nnb_o[i]]
+        assert np.all(fl[1:] <= fl[:-1])
+    assert sim.pfl_o.sum() > 5
     assert len(listed) == len(set(listed))
     sec = math.radians(30.0)
     lz = geom.height_m
