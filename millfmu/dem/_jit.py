@@ -14,14 +14,26 @@ Only the kernel modules import this file, and only when a DEM run is requested, 
   made the force loop on the bench bed 28 % slower.
 - ``serial``: the same flags for serial drivers and bookkeeping (binning, wrapping).
 
-Threading layer: ``workqueue`` unless NUMBA_THREADING_LAYER is set. numba picks TBB by
-default where libtbb is installed, and its TBB layer (numba 0.68, libtbb 2021/2022) keeps
-about 7 kB per parallel launch and makes every launch slower than the one before: a DEM
-run launches two or three per step, so its cost grew with the square of its length (a
-0.4 s disc_slice run had not finished after 29 minutes, 0.2 s took 65 s). OpenMP's
-layer busy-waits, which halves the throughput on a shared machine. workqueue has neither
-problem; it cannot launch from several Python threads at once (run one DEM per process,
-as the tables' process pool and Dask workers with one thread do).
+Threading layer: OpenMP (numba's ``omp`` layer), else ``workqueue``, unless
+NUMBA_THREADING_LAYER is set; OpenMP's idle threads wait passively (OMP_WAIT_POLICY=passive
+unless set). Measured on the DEM bench bed (1000 steps, shared 2-core machine, M
+particle-steps/s):
+- TBB, which numba picks by default where libtbb is installed (numba 0.68, libtbb
+  2021/2022), keeps about 7 kB per parallel launch and makes every launch slower than the
+  one before: a DEM run launches two or three per step, so its cost grew with the square
+  of its length (a 0.4 s disc_slice run had not finished after 29 minutes). Never chosen.
+- workqueue costs about 100 us per launch (two handshakes with each thread) and left the
+  second core idle much of the time: one 2-thread run 5.4-6.2, while two such runs side
+  by side made 4.2 each.
+- OpenMP with its default active waiting (threads spin after a launch): 7.7-8.3 for one
+  run, but 2.2 each for two runs side by side, since the spinning takes the other run's
+  core.
+- OpenMP with passive waiting: 7.5 for one run and 4.4 each for two, the best of both.
+- One thread per process (the tables' builds) runs no team, so the layers do not differ.
+GNU OpenMP is not fork safe: a process that has run a parallel kernel must not fork a
+child that runs one (numba stops such a child). The tables' process pool therefore spawns
+its workers; Dask's workers are spawned too. Neither layer can launch from several Python
+threads at once (run one DEM per process).
 """
 
 import os
@@ -29,7 +41,11 @@ import os
 import numba
 
 if "NUMBA_THREADING_LAYER" not in os.environ:
-    numba.config.THREADING_LAYER = "workqueue"
+    # numba wants all three named; workqueue always loads, so TBB is never reached
+    numba.config.THREADING_LAYER_PRIORITY = ["omp", "workqueue", "tbb"]
+    numba.config.THREADING_LAYER = "default"
+# read by the OpenMP runtime when it loads, at the first parallel launch
+os.environ.setdefault("OMP_WAIT_POLICY", "passive")
 
 FLAGS = dict(cache=True, nogil=True, fastmath=False, error_model="numpy",
              boundscheck=False)

@@ -33,6 +33,52 @@ def test_parallel_launches_keep_no_memory():
     out = subprocess.run([sys.executable, "-c", CODE], capture_output=True, text=True,
                          env=env, check=True)
     layer, grown_kb = out.stdout.split()
-    assert layer == "workqueue"
+    assert layer == _expected_layer()
     # TBB kept about 7 kB per launch: 40 MB here
     assert int(grown_kb) < 4000
+
+
+def _expected_layer() -> str:
+    """The layer millfmu.dem chooses: OpenMP where numba's omp layer loads, else workqueue."""
+    try:
+        from numba.np.ufunc import omppool  # noqa: F401
+    except ImportError:
+        return "workqueue"
+    return "omp"
+
+
+POOL_AFTER_DEM = r"""
+import os, sys
+sys.path.insert(0, os.getcwd())
+import numba
+from millfmu.dem.geometry import MillGeometry, place_beads
+from millfmu.dem.params import BeadMaterial
+from millfmu.dem.sim import DemSimulation
+from millfmu.dem import tables as T
+from tests.tables._builders import dem_threads_builder
+geom = MillGeometry(shaft_radius_m=0.015, chamber_radius_m=0.019, height_m=0.004)
+x = place_beads(geom, 300, 0.4e-3, seed=5)
+DemSimulation(geom, BeadMaterial(), x, 0.4e-3, 300.0, 5e-6, threads=2).run(20)
+spec = T.TableSpec(scene={"name": "analytic"},
+                   grid={"tip_speed_m_s": [6.0, 14.0], "filling": [0.5, 0.9]},
+                   kernel_version="test-kernel-1",
+                   builder_id=T.builder_id_of(dem_threads_builder))
+t = T.build_table(spec, dem_threads_builder, executor="processes", workers=2,
+                  progress=False)
+print(numba.threading_layer(), t.data["collision_count"].shape[:2])
+"""
+
+
+@pytest.mark.skipif(sys.platform != "linux", reason="fork is the default start method on Linux")
+def test_tables_process_pool_runs_the_dem_after_the_parent_did():
+    """A process that has run the DEM's parallel kernels (an OpenMP team) builds a table
+    with the process pool whose workers run them too: the workers are spawned, since a
+    forked child of a GNU OpenMP process cannot run OpenMP kernels (numba stops it)."""
+    env = {k: v for k, v in os.environ.items() if k != "NUMBA_THREADING_LAYER"}
+    env["NUMBA_NUM_THREADS"] = "2"
+    root = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
+    out = subprocess.run([sys.executable, "-c", POOL_AFTER_DEM], capture_output=True,
+                         text=True, env=env, cwd=root, timeout=600)
+    assert out.returncode == 0, out.stderr[-2000:]
+    assert out.stdout.split()[0] == _expected_layer()
+    assert "(2, 2)" in out.stdout

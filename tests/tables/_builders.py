@@ -121,3 +121,16 @@ def separable_spec(anchor_filling=0.7, **kw):
                        one_at_a_time=kw.get("one_at_a_time", {
                            "bead_diameter_m": [0.5e-3, D_GB_M, 1.2e-3],
                            "bead_density_kg_m3": [RHO_KG_M3, 6040.0]}))
+
+
+def dem_threads_builder(scene: dict, point: dict) -> dict:
+    """:func:`analytic_builder` after a few steps of a small DEM on two threads, so that a
+    process pool's worker runs the DEM's parallel kernels."""
+    from millfmu.dem.geometry import MillGeometry, place_beads
+    from millfmu.dem.params import BeadMaterial
+    from millfmu.dem.sim import DemSimulation
+
+    geom = MillGeometry(shaft_radius_m=0.015, chamber_radius_m=0.019, height_m=0.004)
+    x = place_beads(geom, 300, 0.4e-3, seed=5)
+    DemSimulation(geom, BeadMaterial(), x, 0.4e-3, 300.0, 5e-6, threads=2).run(20)
+    return analytic_builder(scene, point)

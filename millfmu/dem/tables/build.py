@@ -200,9 +200,13 @@ def run_points(spec: TableSpec, builder: Callable, executor: str = "processes",
                 if errors:
                     break  # one after the other: stop at the first failure
         else:
+            import multiprocessing
             from concurrent.futures import ProcessPoolExecutor, as_completed
             n = min(workers or os.cpu_count() or 1, len(todo))
-            with ProcessPoolExecutor(max_workers=n) as pool:
+            # spawned, not forked: a forked child of a process that has run the DEM's
+            # OpenMP kernels cannot run them (GNU OpenMP is not fork safe)
+            with ProcessPoolExecutor(max_workers=n,
+                                     mp_context=multiprocessing.get_context("spawn")) as pool:
                 futs = {pool.submit(builder, spec.scene, points[i]): i for i in todo}
                 for f in as_completed(futs):
                     done(futs[f], f.result)
