@@ -188,10 +188,10 @@ def history_frame(s0, s1, s2, nx, ny, nz):
 
 @contact
 def history_frame_pair(s0, s1, s2, dx, dy, dz, ir2, ir):
-    """:func:`history_frame` for a bead pair from its separation d [m] (r2 = |d|^2 [m2],
-    ir = 1 / |d| [1/m]): |s - (s.n) n|^2 = |s|^2 - (s.d)^2 / r2, which needs no root, so
-    the length ratio's division and root wait for a division of r2 only, not for the
-    root of r2 and a division after it (the longest chain of dependent operations in the
+    """:func:`history_frame` for a bead pair from its separation d [m] (ir2 = 1 / |d|^2
+    [1/m2], ir = 1 / |d| [1/m]): |s - (s.n) n|^2 = |s|^2 - (s.d)^2 / |d|^2, which needs no
+    root, so the length ratio's division and root wait for a division of |d|^2 only, not
+    for the root of |d|^2 and a division after it (the longest chain of dependent operations in the
     contact law; this form made the law alone 20 % faster on the bench bed). The two
     forms differ by round-off: the history lies in the previous step's tangent plane, so
     |s.n| << |s| and the difference does not cancel."""
@@ -670,21 +670,18 @@ def build_nlist(x, ej, es, ex, start, cmax, lo, cs, ncx, ncy, ncz, cut2, prm, wr
                     continue
                 for ay in range(ay0, ay1):
                     cxy = (ax * ncy + ay) * ncz
-                    if iz == 0:
-                        runs[nr, 0] = cxy
-                        runs[nr, 1] = cxy + 2
-                        runs[nr + 1, 0] = cxy + ncz - 1
-                        runs[nr + 1, 1] = cxy + ncz
-                        nr += 2
-                    elif iz == ncz - 1:
+                    # in cell order: the wrapped cell 0 of a top cell, the cells
+                    # iz - 1 .. iz + 1 within the period, the wrapped top cell of cell 0
+                    if iz == ncz - 1:
                         runs[nr, 0] = cxy
                         runs[nr, 1] = cxy + 1
-                        runs[nr + 1, 0] = cxy + ncz - 2
-                        runs[nr + 1, 1] = cxy + ncz
-                        nr += 2
-                    else:
-                        runs[nr, 0] = cxy + iz - 1
-                        runs[nr, 1] = cxy + iz + 2
+                        nr += 1
+                    runs[nr, 0] = cxy + max(iz - 1, 0)
+                    runs[nr, 1] = cxy + min(iz + 2, ncz)
+                    nr += 1
+                    if iz == 0:
+                        runs[nr, 0] = cxy + ncz - 1
+                        runs[nr, 1] = cxy + ncz
                         nr += 1
             for r in range(nr):
                 c0 = runs[r, 0]
