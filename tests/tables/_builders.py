@@ -134,3 +134,19 @@ def dem_threads_builder(scene: dict, point: dict) -> dict:
     x = place_beads(geom, 300, 0.4e-3, seed=5)
     DemSimulation(geom, BeadMaterial(), x, 0.4e-3, 300.0, 5e-6, threads=2).run(20)
     return analytic_builder(scene, point)
+
+
+class CostedBuilder:
+    """The analytic builder with a cost estimate: the cost of a point is its filling (so
+    that the costliest-first order differs from the grid order). Each call appends its
+    point's filling to the scene's ``count_file``, so a test can read the run order."""
+
+    builder_id = "tests.costed"
+
+    def __call__(self, scene: dict, point: dict) -> dict:
+        with open(scene["count_file"], "a") as fh:
+            fh.write(f"{point['tip_speed_m_s']} {point['filling']}\n")
+        return analytic_builder(dict(scene, count_file=None), point)
+
+    def relative_cost(self, scene: dict, point: dict) -> float:
+        return float(point["filling"])

@@ -115,3 +115,44 @@ def test_cli_errors_name_the_problem(tmp_path, capsys):
     assert "tip_speed_m_s = 4.0" in capsys.readouterr().err
     with pytest.raises(SystemExit):
         _cli(["tables", "build", "--tip-speed", "8,x"])
+
+
+ORDER_GRID = {"tip_speed_m_s": [6.0, 10.0], "filling": [0.5, 0.7, 0.9]}
+
+
+def _run_order(path) -> list:
+    return [tuple(map(float, line.split())) for line in open(path).read().splitlines()]
+
+
+def _costed_spec(tmp_path):
+    s = spec(grid=ORDER_GRID, count_file=str(tmp_path / "order.txt"))
+    return T.TableSpec(scene=s.scene, grid=s.grid, kernel_version=s.kernel_version,
+                       builder_id=_builders.CostedBuilder.builder_id)
+
+
+def test_serial_build_runs_the_costliest_points_first(tmp_path):
+    """A builder that estimates its points' cost has them run costliest first (the cost
+    here is the filling); the table is the same as in grid order."""
+    s = _costed_spec(tmp_path)
+    tab = T.build_table(s, _builders.CostedBuilder(), executor="serial", progress=False)
+    fill = [f for _, f in _run_order(tmp_path / "order.txt")]
+    assert fill == [0.9, 0.9, 0.7, 0.7, 0.5, 0.5]
+    ref = T.build_table(spec(grid=ORDER_GRID), analytic_builder, executor="serial",
+                        progress=False)
+    _assert_same(ref, tab)
+
+
+def test_dask_runs_the_costliest_points_first(tmp_path):
+    """On one Dask worker the points run in the order of their priorities (costliest
+    first), not in the scheduler's own order of the task keys."""
+    pytest.importorskip("distributed")
+    import cloudpickle
+
+    cloudpickle.register_pickle_by_value(_builders)
+    try:
+        T.build_table(_costed_spec(tmp_path), _builders.CostedBuilder(), executor="dask",
+                      workers=1, progress=False)
+    finally:
+        cloudpickle.unregister_pickle_by_value(_builders)
+    fill = [f for _, f in _run_order(tmp_path / "order.txt")]
+    assert fill == [0.9, 0.9, 0.7, 0.7, 0.5, 0.5]

@@ -89,3 +89,22 @@ def test_stationarity_summary_takes_the_largest_drift_per_zone():
     for f in T.DRIFT_FIELDS:
         assert st[f] == {"V1": 0.03, "V2": 0.6}
     assert T.stationarity_summary(res + [{}], zones) is None  # a builder without drift data
+
+
+def test_dem_builder_cost_ranks_small_beads_and_high_fillings_first():
+    """The DEM builder's cost estimate grows with the bead count (filling / d^3) and the
+    steps ((spin-up + recording) / dt), so that a build starts the 0.5 mm bead point
+    before the grid's points."""
+    s = T.dem_spec("disc_slice", {"tip_speed_m_s": [6.0, 14.0], "filling": [0.5, 0.9]},
+                   OVER, one_at_a_time={"bead_diameter_m": [0.5e-3, 0.8e-3]})
+    b = T.DemBuilder(threads=1)
+    cost = {tuple(sorted(p.items())): b.relative_cost(s.scene, p) for p in s.points()}
+    small = [c for k, c in cost.items() if dict(k).get("bead_diameter_m") == 0.5e-3]
+    grid = [b.relative_cost(s.scene, p) for p in s.grid_points()]
+    assert len(small) == 1 and small[0] > max(grid)
+    a = s.anchor()
+    assert small[0] == pytest.approx(b.relative_cost(s.scene, a) * (0.8 / 0.5) ** 3)
+    assert b.relative_cost(s.scene, dict(a, filling=0.9)) == pytest.approx(
+        b.relative_cost(s.scene, dict(a, filling=0.5)) * 0.9 / 0.5)
+    order = T.order_by_cost(s, b, s.points(), list(range(len(s.points()))))
+    assert s.points()[order[0]]["bead_diameter_m"] == 0.5e-3

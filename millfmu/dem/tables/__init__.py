@@ -45,7 +45,8 @@ _EXPORTS = {
         "read_default_table", "read_table", "read_table_ref", "table_ref_prefix"), "table"),
     "TableStressSource": "stress_source",
     **dict.fromkeys(("CHECK_FIELDS", "PointStore", "assemble", "build_table", "check_point",
-                     "record_check", "run_points", "stationarity_summary"), "build"),
+                     "order_by_cost", "record_check", "run_points", "stationarity_summary"),
+                    "build"),
     **dict.fromkeys((
         "KERNEL_MODULES", "POINTS_DIR", "cache_entries", "clear_cache", "default_cache_dir",
         "dem_kernel_version", "entry_dir", "get_table", "load_cached", "resolve_cache_dir"),

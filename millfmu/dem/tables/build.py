@@ -148,6 +148,18 @@ def stored_results(spec: TableSpec, point_store: PointStore | None) -> list:
     return [point_store.get(spec, p) for p in points]
 
 
+def order_by_cost(spec: TableSpec, builder: Callable, points: list, todo: list) -> list:
+    """The indices ``todo`` with the costliest points first, where the builder estimates
+    its points' cost (``builder.relative_cost(scene, point)``); else unchanged. Running
+    the longest first keeps the workers busy to the end of a build (a 0.5 mm bead point
+    costs about 5 anchor points: started last, it ran alone for most of its time)."""
+    cost = getattr(builder, "relative_cost", None)
+    if cost is None:
+        return list(todo)
+    c = {i: float(cost(spec.scene, points[i])) for i in todo}
+    return sorted(todo, key=lambda i: -c[i])  # stable: grid order among equal costs
+
+
 def run_points(spec: TableSpec, builder: Callable, executor: str = "processes",
                workers: int | None = None, scheduler: str | None = None,
                progress: bool = True, point_store: PointStore | None = None,
@@ -166,7 +178,8 @@ def run_points(spec: TableSpec, builder: Callable, executor: str = "processes",
     if executor not in ("serial", "processes", "dask"):
         raise TableError(f"executor = {executor!r}: allowed 'serial', 'processes', 'dask'")
     results = list(stored) if stored is not None else stored_results(spec, point_store)
-    todo = [i for i, r in enumerate(results) if r is None]
+    todo = order_by_cost(spec, builder, points,
+                         [i for i, r in enumerate(results) if r is None])
     bar = None
     if progress:
         from tqdm import tqdm
@@ -239,6 +252,7 @@ def _run_dask(spec, builder, points, todo, done, workers, scheduler):
                 threads_per_worker=1, processes=True, host="127.0.0.1",
                 dashboard_address=None))
             client = stack.enter_context(Client(cluster))
+        # the scheduler starts mapped tasks in the order given (todo: costliest first)
         futs = client.map(builder, [spec.scene] * len(todo), [points[i] for i in todo],
                           pure=False)
         where = {f.key: i for i, f in zip(todo, futs)}

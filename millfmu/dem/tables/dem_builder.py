@@ -103,6 +103,16 @@ class DemBuilder:
         out["wall_time_s"] = time.perf_counter() - t0
         return out
 
+    def relative_cost(self, scene: dict, point: dict) -> float:
+        """Expected run time of the point, up to a constant: bead count (filling / d^3) times
+        DEM steps ((spin-up + recording) / dt). A build runs the costliest points first, so
+        that a long point (small beads) does not start last and leave the other workers
+        idle while it runs."""
+        from ..scene import scene_from_dict
+
+        s = scene_from_dict(scene_at_point(scene, point))
+        return s.filling / s.bead_diameter_m**3 * (s.spin_up_s + s.record_s) / s.dt_s
+
 
 def recording_drift(windows_csv, zone_names) -> dict:
     """Relative change [-] of each of :data:`DRIFT_FIELDS` per zone from the first to the
