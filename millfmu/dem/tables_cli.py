@@ -148,6 +148,10 @@ def register(subparsers) -> argparse.ArgumentParser:
     k.add_argument("--write", action="store_true", help="record the result in the table's "
                    "manifest (separability_check or interpolation_check) and write the "
                    "table's files again")
+    k.add_argument("--from", dest="from_manifest", metavar="MANIFEST.json",
+                   help="instead of running the DEM, compare the table with the runs of the "
+                        "checks recorded in another manifest of the same scene and settings "
+                        "(e.g. the table's manifest before a rebuild or refinement)")
     k.set_defaults(func=_check)
 
     c = sub.add_parser("clear", help="remove cache entries")
@@ -319,6 +323,12 @@ def _check(args) -> int:
 
     point = {axis: getattr(args, f"at_{axis}") for _, (axis, _) in GRID_OPTIONS.items()
              if getattr(args, f"at_{axis}") is not None}
+    if args.from_manifest:
+        if point or args.builder:
+            print("millfmu tables check: --from compares recorded runs; give no point and no "
+                  "--builder with it", file=sys.stderr)
+            return 2
+        return _recheck(args)
     try:
         table = T.read_table_ref(args.table)
         builder = _load_builder(args.builder, args.threads)
@@ -326,7 +336,61 @@ def _check(args) -> int:
     except (T.TableError, DemSceneError) as e:
         print(f"millfmu tables check: {e}", file=sys.stderr)
         return 2
-    print(f"table {args.table} at {res['point']} (run {res['wall_time_s']:.0f} s): relative "
+    _print_check(args.table, res)
+    if args.write:
+        # read again: another check may have recorded its point while this one ran
+        table = T.read_table_ref(args.table)
+        table.manifest = record_check(table, res)
+        npz, man = table.export(T.table_ref_prefix(args.table))
+        print(f"recorded in {man}")
+    return 0
+
+
+def _recheck(args) -> int:
+    """``tables check TABLE --from OLD.json``: the checks recorded in OLD.json compared with
+    TABLE's lookup, without running the DEM (:func:`~millfmu.dem.tables.build.recheck`)."""
+    from millfmu.dem import tables as T
+    from millfmu.dem.tables.build import recheck, record_check
+
+    try:
+        old = json.loads(Path(args.from_manifest).read_text())
+        table = T.read_table_ref(args.table)
+    except (OSError, ValueError, T.TableError) as e:
+        print(f"millfmu tables check: --from {args.from_manifest}: {e}", file=sys.stderr)
+        return 2
+    if not isinstance(old, dict) or old.get("scene") != table.manifest.get("scene"):
+        print(f"millfmu tables check: --from {args.from_manifest}: its scene and run settings "
+              f"are not the table's, so its runs are no samples of it", file=sys.stderr)
+        return 2
+    results = []
+    for key in ("interpolation_check", "separability_check"):
+        for res in (old.get(key) or {}).get("points", []):
+            try:
+                results.append(recheck(table, res, old.get("kernel_version")))
+            except T.TableError as e:  # OutsideGridError is one
+                print(f"skipped the {key.split('_')[0]} check at {res.get('point')}: {e}")
+    if not results:
+        print(f"millfmu tables check: --from {args.from_manifest}: no recorded check lies "
+              f"within the table", file=sys.stderr)
+        return 2
+    for res in results:
+        _print_check(args.table, res)
+    if args.write:
+        table = T.read_table_ref(args.table)
+        for res in results:
+            table.manifest = record_check(table, res)
+        npz, man = table.export(T.table_ref_prefix(args.table))
+        print(f"recorded {len(results)} checks in {man}")
+    return 0
+
+
+def _print_check(name: str, res: dict) -> None:
+    from millfmu.dem import tables as T
+
+    run = (f"run {res['wall_time_s']:.0f} s" if res.get("wall_time_s") is not None else "run")
+    if res.get("run_from"):
+        run += ", recorded by an earlier table's check"
+    print(f"table {name} at {res['point']} ({run}): relative "
           f"difference of the lookup [and of the grid alone] against the run")
     print(f"  {'quantity':26s} " + " ".join(f"{z:>22s}" for z in res["zones"]))
 
@@ -339,13 +403,6 @@ def _check(args) -> int:
                  for a, b in zip(e["lookup_rel_diff"],
                                  e.get("grid_only_rel_diff", e["lookup_rel_diff"]))]
         print(f"  {k:26s} " + " ".join(f"{c:>22s}" for c in cells))
-    if args.write:
-        # read again: another check may have recorded its point while this one ran
-        table = T.read_table_ref(args.table)
-        table.manifest = record_check(table, res)
-        npz, man = table.export(T.table_ref_prefix(args.table))
-        print(f"recorded in {man}")
-    return 0
 
 
 def _clear(args) -> int:

@@ -8,6 +8,7 @@ import pytest
 
 from millfmu.dem import tables as T
 from millfmu.dem.tables_cli import REBUILD_DEFAULT
+from tests.tables._heldback import held_back
 
 
 @pytest.fixture(scope="module")
@@ -87,32 +88,7 @@ def test_interpolation_within_stated_error_on_held_back_points(table):
     Measured: 97 of 99 within; the two others (V3's frequency along filling) at 1.08 and
     1.15 times; largest relative errors 10.5 % (median SE_tn), 6.2 % (frequency), 2.3 %
     (filling)."""
-    ratios, worst = [], {}
-    hs = table.node_sigma()
-    for a, name in enumerate(table.axes):
-        keep = slice(None, None, 2)
-        sl = (keep, slice(None)) if a == 0 else (slice(None), keep)
-        axes = dict(table.axes)
-        axes[name] = axes[name][keep]
-        coarse = T.Table(axes=axes, zone_names=table.zone_names,
-                         data={k: v[sl] for k, v in table.data.items()},
-                         refs={k: v[sl] for k, v in table.refs.items()})
-        for h in (1, 3):
-            for o in range(table.shape[1 - a]):
-                idx = (h, o) if a == 0 else (o, h)
-                if table.axes["filling"][idx[1]] < 0.7:
-                    continue  # zones emptying at low filling: see WELL
-                point = {n: float(table.axes[n][i]) for n, i in zip(table.axes, idx)}
-                lk = coarse.lookup(point)
-                for k, sel in (("se_quantiles_norm", (0, slice(0, 3), 1)),
-                               ("collision_frequency_norm", (slice(0, 3),)),
-                               ("filling_local", (slice(0, 3),))):
-                    want = table.data[k][idx][sel]
-                    err = np.abs(lk.values[k][sel] - want)
-                    bound = lk.error[k][sel] + 2.0 * np.hypot(lk.sigma[k][sel], hs[k][idx][sel])
-                    ratios.extend((err / bound).tolist())
-                    worst[k] = max(worst.get(k, 0.0), float(np.max(err / want)))
-    ratios = np.array(ratios)
+    ratios, worst = held_back(table, WELL["zones"], min(WELL["fillings"]))
     print(f"held-back values within the stated bound: {np.sum(ratios <= 1)} of {ratios.size}; "
           f"largest error / bound {ratios.max():.2f}; largest relative errors {worst}")
     assert ratios.size == 99  # 11 held-back nodes x 3 fields x 3 zones

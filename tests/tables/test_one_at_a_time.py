@@ -263,3 +263,46 @@ def test_cli_check_point(tmp_path, capsys):
     assert "axes ['viscosity_pa_s'] are not the table's" in capsys.readouterr().err
     assert main(check + ["--tip-speed", "20"]) == 2
     assert "tip_speed_m_s" in capsys.readouterr().err
+
+
+def test_cli_check_from_an_earlier_manifest(tmp_path, capsys):
+    """`millfmu tables check NEW --from OLD.json` compares NEW's lookup with the runs that
+    OLD's checks recorded, without running the builder: after a refinement that makes the
+    interpolation check's point a node, that check is exact to the recorded 4 digits; the
+    separability check stays exact; a manifest of other settings is refused."""
+    from millfmu.cli import main
+
+    b = "tests.tables._builders:separable_builder"
+    common = ["--filling", "0.7,0.8,0.9", "--bead-density", "2510,6040", "--one-at-a-time",
+              "bead-density", "--sector-deg", "10", "--no-gravity", "--cache-dir",
+              str(tmp_path / "cache"), "--executor", "serial", "--no-progress", "--builder", b]
+    old, new = str(tmp_path / "old"), str(tmp_path / "new")
+    assert main(["tables", "build", "--tip-speed", "8,10,12"] + common + ["--export", old]) == 0
+    check = ["tables", "check", old, "--builder", b, "--write"]
+    assert main(check + ["--tip-speed", "12", "--filling", "0.9", "--bead-density", "6040"]) == 0
+    assert main(check + ["--tip-speed", "9"]) == 0
+    interp_old = json.loads((tmp_path / "old.json").read_text())["interpolation_check"]
+    assert abs(interp_old["points"][0]["se_tn_q50_norm"]["lookup_rel_diff"][0]) > 1e-3
+    assert main(["tables", "build", "--tip-speed", "8,9,10,12"] + common + ["--export", new]) == 0
+    capsys.readouterr()
+    assert main(["tables", "check", new, "--from", old + ".json", "--write"]) == 0
+    out = capsys.readouterr().out
+    assert "recorded by an earlier table's check" in out and "recorded 2 checks" in out
+    m = json.loads((tmp_path / "new.json").read_text())
+    (sep,) = m["separability_check"]["points"]
+    (itp,) = m["interpolation_check"]["points"]
+    assert itp["point"]["tip_speed_m_s"] == 9.0 and itp["run_from"]
+    assert sep["run_kernel_version"] == \
+        json.loads((tmp_path / "old.json").read_text())["kernel_version"]
+    for res in (sep, itp):
+        for k in T.CHECK_FIELDS:
+            # the runs are recorded to 4 significant digits: 5e-4 relative at most
+            assert np.allclose(res[k]["lookup_rel_diff"], 0.0, atol=5e-4), (k, res[k])
+    # runs of other settings are no samples of this table; a point with --from is refused
+    other = str(tmp_path / "other")
+    assert main(["tables", "build", "--tip-speed", "8,10,12"] + common +
+                ["--record", "0.2", "--export", other]) == 0
+    capsys.readouterr()
+    assert main(["tables", "check", other, "--from", old + ".json"]) == 2
+    assert "are not the table's, so its runs are no samples of it" in capsys.readouterr().err
+    assert main(["tables", "check", new, "--from", old + ".json", "--tip-speed", "9"]) == 2

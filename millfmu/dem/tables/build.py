@@ -340,20 +340,53 @@ def check_point(table: Table, point: dict, builder: Callable) -> dict:
             float(ax[0]) if len(ax) == 1 else spec.scene_value(name))
     refs = {k: float(v) for k, v in table.one_at_a_time_ref.items()}
     full.update({k: float(point.get(k, v)) for k, v in refs.items()})
-    lk = table.lookup(full)  # outside the table: OutsideGridError, before the run
+    table.lookup(full)  # outside the table: OutsideGridError, before the run
     t0 = time.perf_counter()
     run = builder(spec.scene, full)
     wall = time.perf_counter() - t0
-    got, want = _check_fields(lk.values), _check_fields(run)
-    base = _check_fields(table.lookup({**full, **refs}).values) if refs else None
     out = {"point": full, "zones": list(table.zone_names), "wall_time_s": round(wall, 1)}
+    return _compare(table, out, _check_fields(run))
+
+
+def _compare(table: Table, out: dict, want: dict) -> dict:
+    """``out`` with, per quantity of :data:`CHECK_FIELDS`, the run's values ``want[k]``
+    (per zone; NaN or None where missing; recorded to 4 significant digits) and the
+    relative differences of the lookup at ``out["point"]`` (and of the grid alone) against
+    them."""
+    full = out["point"]
+    refs = {k: float(v) for k, v in table.one_at_a_time_ref.items()}
+    got = _check_fields(table.lookup(full).values)
+    base = _check_fields(table.lookup({**full, **refs}).values) if refs else None
     for k in CHECK_FIELDS:
-        e = {"run": [float(f"{v:.4g}") if np.isfinite(v) else None for v in want[k]],
-             "lookup_rel_diff": _rel(got[k], want[k])}
+        w = np.array([np.nan if v is None else v for v in np.ravel(want[k])], float)
+        e = {"run": [float(f"{v:.4g}") if np.isfinite(v) else None for v in w],
+             "lookup_rel_diff": _rel(got[k], w)}
         if base is not None:
-            e["grid_only_rel_diff"] = _rel(base[k], want[k])
+            e["grid_only_rel_diff"] = _rel(base[k], w)
         out[k] = e
     return out
+
+
+def recheck(table: Table, result: dict, run_kernel_version: str | None = None) -> dict:
+    """A check recorded against another table (``result``, as :func:`check_point` gave it)
+    compared with this table's lookup at its point, without running the DEM again: the
+    run's values are the recorded ones (4 significant digits). For a table rebuilt or
+    refined on the same scene and settings, whose checks' runs stay valid samples of it.
+    ``run_kernel_version``: the DEM kernel version the run had (the old table's), kept in
+    the entry. Raises OutsideGridError where this table does not cover the point."""
+    full = {k: float(v) for k, v in result["point"].items()}
+    if set(full) != set(table.axes) | set(table.one_at_a_time):
+        raise TableError(f"recheck: the check's point names {sorted(full)}; the table's axes "
+                         f"are {sorted(set(table.axes) | set(table.one_at_a_time))}")
+    out = {"point": full, "zones": list(table.zone_names),
+           "wall_time_s": result.get("wall_time_s"),
+           "run_from": "an earlier table's check (the DEM not run again)"}
+    if run_kernel_version is not None:
+        out["run_kernel_version"] = run_kernel_version
+    if list(result.get("zones", ())) != list(table.zone_names):
+        raise TableError(f"recheck: the check's zones {result.get('zones')} are not the "
+                         f"table's {list(table.zone_names)}")
+    return _compare(table, out, {k: result[k]["run"] for k in CHECK_FIELDS})
 
 
 def record_check(table: Table, result: dict) -> dict:
