@@ -152,7 +152,7 @@ def order_by_cost(spec: TableSpec, builder: Callable, points: list, todo: list) 
     """The indices ``todo`` with the costliest points first, where the builder estimates
     its points' cost (``builder.relative_cost(scene, point)``); else unchanged. Running
     the longest first keeps the workers busy to the end of a build (a 0.5 mm bead point
-    costs about 5 anchor points: started last, it ran alone for most of its time)."""
+    costs about 5 anchor points: started last, it could run alone for most of its time)."""
     cost = getattr(builder, "relative_cost", None)
     if cost is None:
         return list(todo)
@@ -373,19 +373,21 @@ def recheck(table: Table, result: dict, run_kernel_version: str | None = None) -
     run's values are the recorded ones (4 significant digits). For a table rebuilt or
     refined on the same scene and settings, whose checks' runs stay valid samples of it.
     ``run_kernel_version``: the DEM kernel version the run had (the old table's), kept in
-    the entry. Raises OutsideGridError where this table does not cover the point."""
+    the entry unless the check was itself carried over and names its run's version.
+    Raises OutsideGridError where this table does not cover the point."""
     full = {k: float(v) for k, v in result["point"].items()}
     if set(full) != set(table.axes) | set(table.one_at_a_time):
         raise TableError(f"recheck: the check's point names {sorted(full)}; the table's axes "
                          f"are {sorted(set(table.axes) | set(table.one_at_a_time))}")
-    out = {"point": full, "zones": list(table.zone_names),
-           "wall_time_s": result.get("wall_time_s"),
-           "run_from": "an earlier table's check (the DEM not run again)"}
-    if run_kernel_version is not None:
-        out["run_kernel_version"] = run_kernel_version
     if list(result.get("zones", ())) != list(table.zone_names):
         raise TableError(f"recheck: the check's zones {result.get('zones')} are not the "
                          f"table's {list(table.zone_names)}")
+    out = {"point": full, "zones": list(table.zone_names),
+           "wall_time_s": result.get("wall_time_s"),
+           "run_from": "an earlier table's check (the DEM not run again)"}
+    kv = result.get("run_kernel_version", run_kernel_version)
+    if kv is not None:
+        out["run_kernel_version"] = kv
     return _compare(table, out, {k: result[k]["run"] for k in CHECK_FIELDS})
 
 
