@@ -16,18 +16,22 @@ FIELDS = (("se_quantiles_norm", (0, None, 1)),  # median SE_tn
           ("filling_local", (None,)))
 
 
-def held_back(table, zones, min_filling: float):
+def held_back(table, zones, min_filling: float, axes=None):
     """Error / bound of every held-back value in ``zones`` at fillings >= ``min_filling``,
-    and the largest relative error per field: (ratios, worst)."""
+    and the largest relative error per field: (ratios, worst). ``axes``: the axes whose
+    every other node is held back (default all); an axis of 3 nodes keeps 2, where the
+    lookup states no interpolation error, so its bounds are NaN."""
     ratios, worst = [], {}
     hs = table.node_sigma()
     names = list(table.axes)
     for a, name in enumerate(names):
+        if axes is not None and name not in axes:
+            continue
         keep = slice(None, None, 2)
         sl = tuple(keep if i == a else slice(None) for i in range(len(names)))
-        axes = dict(table.axes)
-        axes[name] = axes[name][keep]
-        coarse = T.Table(axes=axes, zone_names=table.zone_names,
+        kept = dict(table.axes)
+        kept[name] = kept[name][keep]
+        coarse = T.Table(axes=kept, zone_names=table.zone_names,
                          data={k: v[sl] for k, v in table.data.items()},
                          refs={k: v[sl] for k, v in table.refs.items()})
         for idx in np.ndindex(*table.shape):
@@ -42,5 +46,8 @@ def held_back(table, zones, min_filling: float):
                 err = np.abs(lk.values[k][sel] - want)
                 bound = lk.error[k][sel] + 2.0 * np.hypot(lk.sigma[k][sel], hs[k][idx][sel])
                 ratios.extend((err / bound).tolist())
-                worst[k] = max(worst.get(k, 0.0), float(np.max(err / want)))
+                with np.errstate(divide="ignore", invalid="ignore"):
+                    rel = err / want  # NaN where a zone holds no collisions
+                if np.isfinite(rel).any():
+                    worst[k] = max(worst.get(k, 0.0), float(np.nanmax(rel)))
     return np.array(ratios), worst
