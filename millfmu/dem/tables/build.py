@@ -247,12 +247,20 @@ def _run_dask(spec, builder, points, todo, done, workers, scheduler):
         if scheduler is not None:
             client = stack.enter_context(Client(scheduler))
         else:
-            cluster = stack.enter_context(LocalCluster(
-                n_workers=min(workers or os.cpu_count() or 1, len(todo)),
-                threads_per_worker=1, processes=True, host="127.0.0.1",
-                dashboard_address=None))
+            import dask
+
+            # worker-saturation 1.0: a worker holds only the task it runs, the others wait
+            # at the scheduler in todo's order (costliest first); with the default 1.1 a
+            # worker also holds the next one, which waits behind a long point while the
+            # other workers run cheaper ones
+            with dask.config.set({"distributed.scheduler.worker-saturation": 1.0}):
+                cluster = stack.enter_context(LocalCluster(
+                    n_workers=min(workers or os.cpu_count() or 1, len(todo)),
+                    threads_per_worker=1, processes=True, host="127.0.0.1",
+                    dashboard_address=None))
             client = stack.enter_context(Client(cluster))
-        # the scheduler starts mapped tasks in the order given (todo: costliest first)
+        # the scheduler starts mapped tasks in the order given (todo: costliest first); an
+        # existing cluster (scheduler) keeps that order where its worker-saturation is 1.0
         futs = client.map(builder, [spec.scene] * len(todo), [points[i] for i in todo],
                           pure=False)
         where = {f.key: i for i, f in zip(todo, futs)}
