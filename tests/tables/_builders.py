@@ -145,22 +145,9 @@ class CostedBuilder:
 
     def __call__(self, scene: dict, point: dict) -> dict:
         with open(scene["count_file"], "a") as fh:
-            fh.write(f"{point['tip_speed_m_s']} {point['filling']}\n")
+            fh.write(f"{point['tip_speed_m_s']} {point['filling']} {os.getpid()}\n")
         return analytic_builder(dict(scene, count_file=None), point)
 
     def relative_cost(self, scene: dict, point: dict) -> float:
         return float(point["filling"])
 
-
-class SlowFirstBuilder(CostedBuilder):
-    """The costed builder whose costliest point (filling 0.9 at the lowest tip speed) takes
-    ``slow_s`` seconds and the others 0.05 s: with more than one worker, a worker that holds
-    a second task behind the slow one would start it late."""
-
-    builder_id = "tests.slow-first"
-
-    def __call__(self, scene: dict, point: dict) -> dict:
-        out = super().__call__(scene, point)
-        slow = point["filling"] == 0.9 and point["tip_speed_m_s"] == scene["slow_at_m_s"]
-        time.sleep(float(scene["slow_s"]) if slow else 0.05)
-        return out
