@@ -384,6 +384,9 @@ def recheck(table: Table, result: dict, run_kernel_version: str | None = None) -
     the entry unless the check was itself carried over and names its run's version.
     Raises OutsideGridError where this table does not cover the point."""
     full = {k: float(v) for k, v in result["point"].items()}
+    # a one-at-a-time axis the check's point leaves out is at its reference (as check_point
+    # fills it), e.g. a check recorded before the table had that axis
+    full.update({k: float(v) for k, v in table.one_at_a_time_ref.items() if k not in full})
     if set(full) != set(table.axes) | set(table.one_at_a_time):
         raise TableError(f"recheck: the check's point names {sorted(full)}; the table's axes "
                          f"are {sorted(set(table.axes) | set(table.one_at_a_time))}")
