@@ -319,7 +319,7 @@ def _verify(args) -> int:
 def _check(args) -> int:
     from millfmu.dem import tables as T
     from millfmu.dem.scene import DemSceneError
-    from millfmu.dem.tables.build import check_point, record_check
+    from millfmu.dem.tables.build import check_point
 
     point = {axis: getattr(args, f"at_{axis}") for _, (axis, _) in GRID_OPTIONS.items()
              if getattr(args, f"at_{axis}") is not None}
@@ -338,19 +338,29 @@ def _check(args) -> int:
         return 2
     _print_check(args.table, res)
     if args.write:
-        # read again: another check may have recorded its point while this one ran
-        table = T.read_table_ref(args.table)
-        table.manifest = record_check(table, res)
-        npz, man = table.export(T.table_ref_prefix(args.table))
-        print(f"recorded in {man}")
+        _record(args.table, [res])
     return 0
+
+
+def _record(name: str, results: list) -> None:
+    """Record check results in the manifest of table ``name`` and write its files again."""
+    from millfmu.dem import tables as T
+    from millfmu.dem.tables.build import record_check
+
+    # read again: another check may have recorded its point while this one ran
+    table = T.read_table_ref(name)
+    for res in results:
+        table.manifest = record_check(table, res)
+    npz, man = table.export(T.table_ref_prefix(name))
+    print(f"recorded {len(results)} checks in {man}" if len(results) > 1 else
+          f"recorded in {man}")
 
 
 def _recheck(args) -> int:
     """``tables check TABLE --from OLD.json``: the checks recorded in OLD.json compared with
     TABLE's lookup, without running the DEM (:func:`~millfmu.dem.tables.build.recheck`)."""
     from millfmu.dem import tables as T
-    from millfmu.dem.tables.build import recheck, record_check
+    from millfmu.dem.tables.build import recheck
 
     try:
         old = json.loads(Path(args.from_manifest).read_text())
@@ -376,11 +386,7 @@ def _recheck(args) -> int:
     for res in results:
         _print_check(args.table, res)
     if args.write:
-        table = T.read_table_ref(args.table)
-        for res in results:
-            table.manifest = record_check(table, res)
-        npz, man = table.export(T.table_ref_prefix(args.table))
-        print(f"recorded {len(results)} checks in {man}")
+        _record(args.table, results)
     return 0
 
 

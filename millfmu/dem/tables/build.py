@@ -338,6 +338,18 @@ def check_point(table: Table, point: dict, builder: Callable) -> dict:
     if "scene" not in table.manifest:
         raise TableError("check: the table's manifest names no scene to run")
     spec = table.spec()
+    full = _full_point(table, point)
+    table.lookup(full)  # outside the table: OutsideGridError, before the run
+    t0 = time.perf_counter()
+    run = builder(spec.scene, full)
+    wall = time.perf_counter() - t0
+    out = {"point": full, "zones": list(table.zone_names), "wall_time_s": round(wall, 1)}
+    return _compare(table, out, _check_fields(run))
+
+
+def _full_point(table: Table, point: dict) -> dict:
+    """``point`` with every axis of the table: grid axes left out take the scene's value
+    (or the axis's only node), one-at-a-time axes left out their reference."""
     known = set(table.axes) | set(table.one_at_a_time)
     unknown = sorted(set(point) - known)
     if unknown:
@@ -345,15 +357,10 @@ def check_point(table: Table, point: dict, builder: Callable) -> dict:
     full = {}
     for name, ax in table.axes.items():
         full[name] = float(point[name]) if name in point else (
-            float(ax[0]) if len(ax) == 1 else spec.scene_value(name))
+            float(ax[0]) if len(ax) == 1 else table.spec().scene_value(name))
     refs = {k: float(v) for k, v in table.one_at_a_time_ref.items()}
     full.update({k: float(point.get(k, v)) for k, v in refs.items()})
-    table.lookup(full)  # outside the table: OutsideGridError, before the run
-    t0 = time.perf_counter()
-    run = builder(spec.scene, full)
-    wall = time.perf_counter() - t0
-    out = {"point": full, "zones": list(table.zone_names), "wall_time_s": round(wall, 1)}
-    return _compare(table, out, _check_fields(run))
+    return full
 
 
 def _compare(table: Table, out: dict, want: dict) -> dict:
@@ -383,13 +390,9 @@ def recheck(table: Table, result: dict, run_kernel_version: str | None = None) -
     ``run_kernel_version``: the DEM kernel version the run had (the old table's), kept in
     the entry unless the check was itself carried over and names its run's version.
     Raises OutsideGridError where this table does not cover the point."""
-    full = {k: float(v) for k, v in result["point"].items()}
-    # a one-at-a-time axis the check's point leaves out is at its reference (as check_point
-    # fills it), e.g. a check recorded before the table had that axis
-    full.update({k: float(v) for k, v in table.one_at_a_time_ref.items() if k not in full})
-    if set(full) != set(table.axes) | set(table.one_at_a_time):
-        raise TableError(f"recheck: the check's point names {sorted(full)}; the table's axes "
-                         f"are {sorted(set(table.axes) | set(table.one_at_a_time))}")
+    # axes the check's point leaves out (e.g. one the table did not have when the check was
+    # recorded) are filled as check_point fills them
+    full = _full_point(table, result["point"])
     if list(result.get("zones", ())) != list(table.zone_names):
         raise TableError(f"recheck: the check's zones {result.get('zones')} are not the "
                          f"table's {list(table.zone_names)}")
