@@ -85,6 +85,49 @@ class PointStore:
             return False
 
 
+    def seed(self, table: Table) -> int:
+        """Put the points a finished table holds (its grid and one-at-a-time points, as the
+        builder returned them: :func:`unstack`) into the store where it has none; returns how
+        many were added. Their keys are those of the table's own specification (builder,
+        kernel version, scene at the point), so a build of another grid over the same scene
+        and kernel finds them and runs only what is missing; a table of another kernel adds
+        points no current build asks for."""
+        if not self.reuse:
+            return 0
+        spec = table.spec()
+        added = 0
+        for point, result in unstack(spec, table):
+            if self.get(spec, point) is None and self.put(spec, point, result):
+                added += 1
+        return added
+
+
+def unstack(spec: TableSpec, table: Table) -> list:
+    """(point, result) per point of ``spec`` from a table built by it: the inverse of
+    :func:`assemble` (FIELDS, zone names, references, and the recording drift where kept;
+    the run's wall time is not kept in a table)."""
+    zn = list(table.zone_names)
+
+    def one(t: Table, idx) -> dict:
+        r = {k: np.asarray(t.data[k][idx]) for k in FIELDS}
+        r["zone_names"] = zn
+        r.update({k: float(t.refs[k][idx]) for k in ("e_ref_J", "omega_rad_s", "n_gb_per_m3")})
+        if "recording_drift" in t.data:
+            d = np.asarray(t.data["recording_drift"][idx])
+            r["drift"] = {f: d[j] for j, f in enumerate(DRIFT_FIELDS)}
+        return r
+
+    out = []
+    shape = spec.shape
+    for i, point in enumerate(spec.grid_points()):
+        out.append((point, one(table, np.unravel_index(i, shape))))
+    for name, vals in spec.one_at_a_time.items():
+        side = table.one_at_a_time[name]
+        for j, v in enumerate(vals):
+            out.append((spec.point_along(name, v), one(side, (j,))))
+    return out
+
+
 def _plain(obj):
     """A builder's result as JSON values (arrays as nested lists, NaN kept as NaN)."""
     if isinstance(obj, dict):

@@ -98,8 +98,26 @@ def load_cached(spec: TableSpec, cache_dir=None) -> Table | None:
         return None
 
 
+def seed_tables(spec: TableSpec) -> list:
+    """The shipped tables whose points a build of ``spec`` can reuse: same builder, kernel
+    version and DEM scene (a point's key holds the scene at the point, so only equal scenes
+    share points). Read without the DEM; a table that cannot be read is skipped."""
+    from .table import SHIPPED_TABLES, read_table_ref
+
+    out = []
+    for name in SHIPPED_TABLES:
+        try:
+            t = read_table_ref(name)
+            other = t.spec()
+        except (TableError, OSError):
+            continue
+        if (other.builder_id, other.kernel_version, other.scene) == (spec.builder_id, spec.kernel_version, spec.scene):
+            out.append(t)
+    return out
+
+
 def get_table(spec: TableSpec, builder: Callable, cache_dir=None, force: bool = False,
-              log: Callable[[str], None] | None = None, **run_kw) -> Table:
+              log: Callable[[str], None] | None = None, seed_from=(), **run_kw) -> Table:
     """The table of ``spec``: from the cache if its entry verifies, else built and cached.
 
     Concurrent callers serialize on ``<cache>/<key>.lock`` (fcntl.flock); the second finds
@@ -107,8 +125,11 @@ def get_table(spec: TableSpec, builder: Callable, cache_dir=None, force: bool = 
     renamed into place, so readers see either no entry or a complete one; an entry that
     fails verification is replaced. Finished grid points are kept in ``<cache>/points``
     (:class:`~.build.PointStore`): a build that was cut off, or a damaged entry, is
-    completed from them, running only the points that are missing. ``force`` rebuilds even
-    a good entry and runs every point again.
+    completed from them, running only the points that are missing. Before a build the store
+    is seeded with the points of ``seed_from`` (tables, e.g. the one being extended) and of
+    the shipped tables of the same DEM scene and kernel (:func:`seed_tables`), so that a new
+    operating point costs its own runs only. ``force`` rebuilds even a good entry and runs
+    every point again.
     """
     root = resolve_cache_dir(cache_dir)
     key = spec.key()
@@ -128,7 +149,11 @@ def get_table(spec: TableSpec, builder: Callable, cache_dir=None, force: bool = 
                 read_table(final, expect_key=key, expect_kernel=spec.kernel_version)
             except TableError as e:
                 log(f"rebuilding cache entry {key[:12]}: {e}")
-        run_kw.setdefault("point_store", PointStore(root / POINTS_DIR, reuse=not force))
+        store = run_kw.setdefault("point_store", PointStore(root / POINTS_DIR, reuse=not force))
+        if store is not None and store.reuse:
+            seeded = sum(store.seed(t) for t in (*seed_from, *seed_tables(spec)))
+            if seeded and log is not None:
+                log(f"point store: {seeded} point(s) taken from finished tables")
         table = build_table(spec, builder, **run_kw)
         tmp = Path(tempfile.mkdtemp(prefix=f".tmp-{key[:16]}-", dir=root))
         try:

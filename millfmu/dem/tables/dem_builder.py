@@ -184,4 +184,4 @@ def rebuild_including(table: Table, point: dict, builder: Callable | None = None
         kv = old.kernel_version
     spec = TableSpec(scene=old.scene, grid=grid, kernel_version=kv,
                      builder_id=builder_id_of(builder), one_at_a_time=oat)
-    return get_table(spec, builder, cache_dir=cache_dir, progress=progress, **run_kw)
+    return get_table(spec, builder, cache_dir=cache_dir, progress=progress, seed_from=(table,), **run_kw)
