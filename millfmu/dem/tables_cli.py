@@ -41,13 +41,14 @@ RUN_OPTIONS = {
     "--initial-rotation": ("run", "initial_rotation", "beads and coupled fluid start turning "
                            "at this fraction of the stirrer's angular velocity [-]"),
 }
-#: The command that rebuilds the shipped default table (from the repository root); the
-#: table's manifest records it as ``rebuild_command``.
+#: The command that rebuilds the default scene's shipped table, the coupled one (from the
+#: repository root); the table's manifest records it as ``rebuild_command``.
 REBUILD_DEFAULT = (
-    "millfmu tables build --scene disc_slice --tip-speed 6,8,10,12,14 "
-    "--filling 0.5,0.6,0.7,0.8,0.9 --sector-deg 10 --spin-up 0.05 --record 0.1 "
-    "--sample-every 0.005 --no-gravity --fluid prescribed --export "
-    "millfmu/data/default_table")
+    "millfmu tables build --scene disc_slice --tip-speed 6,10,14 --filling "
+    "0.5,0.6,0.7,0.8,0.9 --bead-diameter 0.0005,0.0008,0.0012 --bead-density "
+    "2510,6040 --one-at-a-time bead-diameter,bead-density --sector-deg 10 --spin-up "
+    "1.5 --record 0.4 --sample-every 0.01 --initial-rotation 0.1 --no-gravity "
+    "--fluid coupled --export millfmu/data/coupled_table")
 
 
 def _floats(text: str) -> list:
@@ -115,7 +116,7 @@ def register(subparsers) -> argparse.ArgumentParser:
                    "grid points run in parallel, all cores when serial)")
     b.add_argument("--force", action="store_true", help="rebuild even a good cache entry")
     b.add_argument("--export", metavar="PREFIX", help="also write PREFIX.npz and "
-                   "PREFIX.json (e.g. millfmu/data/default_table)")
+                   "PREFIX.json (e.g. millfmu/data/coupled_table)")
     b.add_argument("--builder", metavar="MODULE:NAME", help="builder callable instead of "
                    "the DEM: NAME(scene_dict, point) -> fields (alternative simulators)")
     b.add_argument("--no-progress", action="store_true", help="no progress bar")

@@ -669,26 +669,31 @@ def _table_of(arrs: dict, axes: dict, zone_names: tuple) -> Table:
                  refs={k[4:]: v for k, v in arrs.items() if k.startswith("ref_")})
 
 
-# ---- shipped default table -----------------------------------------------------------------
-DEFAULT_TABLE_NPZ = "default_table.npz"
-DEFAULT_TABLE_MANIFEST = "default_table.json"
+# ---- shipped tables -------------------------------------------------------------------------
+#: The table of the embedded default scene: ``table = "default"`` names it too.
+DEFAULT_TABLE = "coupled"
+DEFAULT_TABLE_NPZ = f"{DEFAULT_TABLE}_table.npz"
+DEFAULT_TABLE_MANIFEST = f"{DEFAULT_TABLE}_table.json"
 
 
 def default_table_paths() -> tuple[Path, Path]:
-    """Paths of the shipped default table (millfmu/data/default_table.npz, .json)."""
+    """Paths of the default scene's shipped table (millfmu/data/coupled_table.npz, .json)."""
     base = Path(importlib.util.find_spec("millfmu").origin).parent / "data"
     return base / DEFAULT_TABLE_NPZ, base / DEFAULT_TABLE_MANIFEST
 
 
-#: Tables shipped beside the default one, by the name a scene gives (``table = NAME``):
+#: Tables shipped with millfmu, by the name a scene gives (``table = NAME``):
 #: millfmu/data/NAME_table.npz and .json. ``coupled``: the disc slice with the coupled
-#: fluid (tip speed x filling, bead diameter and density one at a time; README "Tables").
-SHIPPED_TABLES = ("accelerator", "coupled")
+#: fluid (tip speed x filling, bead diameter and density one at a time), the default
+#: scene's; ``prescribed``: the same slice with a prescribed swirl instead of the liquid
+#: (bead speeds 2-3.5 times seed 001's; kept for comparison); ``accelerator``: the
+#: accelerator slice (README "Tables").
+SHIPPED_TABLES = ("accelerator", "coupled", "prescribed")
 
 
 def read_table_ref(ref: str) -> Table:
-    """The table a scene names: "default" (the shipped one), a name in SHIPPED_TABLES
-    (millfmu/data/NAME_table.*), or PREFIX of PREFIX.npz/PREFIX.json."""
+    """The table a scene names: "default" (the default scene's, :data:`DEFAULT_TABLE`), a
+    name in SHIPPED_TABLES (millfmu/data/NAME_table.*), or PREFIX of PREFIX.npz/PREFIX.json."""
     if ref == "default":
         return read_default_table()
     prefix = str(table_ref_prefix(ref))
@@ -706,8 +711,8 @@ def table_ref_prefix(ref: str) -> Path:
 
 
 def read_default_table() -> Table:
-    """The shipped default table, verified (checksums, key, shapes; its kernel version is
-    recorded in its manifest and not required to match the installed DEM)."""
+    """The default scene's shipped table, verified (checksums, key, shapes; its kernel version
+    is recorded in its manifest and not required to match the installed DEM)."""
     npz, man = default_table_paths()
     if not npz.exists():
         raise TableError(f"default table {npz.name}: not shipped in this installation")
