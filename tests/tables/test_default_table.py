@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 from millfmu.dem import tables as T
-from millfmu.dem.tables_cli import REBUILD_DEFAULT
+from millfmu.dem.tables.table import REBUILD_DEFAULT
 from tests.tables._heldback import held_back
 
 

@@ -37,7 +37,7 @@ from millfmu.dem.fluid.solver import FluidProperties, FluidSolver
 
 
 class CfdDem:
-    """Couples a :class:`millfmu.dem.sim.DemSimulation` to a fluid on ``grid``."""
+    """Couples a :class:`millfmu.dem.engine.sim.DemSimulation` to a fluid on ``grid``."""
 
     def __init__(self, sim, grid, fluid: FluidProperties, settings: CouplingSettings,
                  omega_rad_s: float):

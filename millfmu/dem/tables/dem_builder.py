@@ -11,7 +11,7 @@ from __future__ import annotations
 import math
 import tempfile
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Callable
 
@@ -46,7 +46,7 @@ def rebin_density(dem_edges_J: np.ndarray, density_per_decade: np.ndarray,
 
 
 def normalize_stats(stats, scene) -> dict:
-    """Per-point table fields from DEM statistics (:class:`millfmu.dem.stats.DemStats`) of
+    """Per-point table fields from DEM statistics (:class:`millfmu.dem.analysis.stats.DemStats`) of
     a run of ``scene`` (:class:`millfmu.dem.scene.DemScene`, placement 'filling')."""
     d, rho = scene.bead_diameter_m, scene.material.density_kg_m3
     eref = e_ref_J(d, rho, scene.tip_speed_m_s)
@@ -79,9 +79,13 @@ def normalize_stats(stats, scene) -> dict:
 class DemBuilder:
     """Builder of one grid point: runs millfmu's DEM (:func:`millfmu.dem.run.run_scene`) on
     the scene with the point's values and returns the normalized fields. ``threads``: numba
-    threads per run (1 when grid points run in parallel)."""
+    threads per run (1 when grid points run in parallel). ``work_precision``: what the
+    table's manifest states as its work-precision entry (see
+    :func:`~.spec.manifest_for`), handed in by the caller: the tables CLI gives the study's
+    ``manifest_entry``."""
 
     threads: int | None = None
+    work_precision: object = field(default=None, compare=False)
     builder_id = DEM_BUILDER_ID
 
     def __call__(self, scene: dict, point: dict) -> dict:
@@ -178,7 +182,8 @@ def rebuild_including(table: Table, point: dict, builder: Callable | None = None
 
     grid, oat = extended(old.grid), extended(old.one_at_a_time)
     if builder is None:
-        builder = DemBuilder()
+        # The extended table has the same DEM settings: it keeps the old one's entry.
+        builder = DemBuilder(work_precision=table.manifest.get("work_precision"))
         kv = dem_kernel_version()
     else:
         kv = old.kernel_version

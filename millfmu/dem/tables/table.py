@@ -444,7 +444,8 @@ class Table:
             spec = TableSpec(scene=old.scene, grid={k: list(v) for k, v in axes.items()},
                              kernel_version=old.kernel_version, builder_id=old.builder_id,
                              one_at_a_time=old.one_at_a_time)
-            sub.manifest = manifest_for(spec, sub, {"slice_of": self.manifest.get("key")})
+            sub.manifest = manifest_for(spec, sub, {"slice_of": self.manifest.get("key")},
+                                        work_precision=self.manifest.get("work_precision"))
         return sub
 
     def export(self, prefix) -> tuple[Path, Path]:
@@ -672,6 +673,13 @@ def _table_of(arrs: dict, axes: dict, zone_names: tuple) -> Table:
 # ---- shipped default table -----------------------------------------------------------------
 DEFAULT_TABLE_NPZ = "default_table.npz"
 DEFAULT_TABLE_MANIFEST = "default_table.json"
+#: The command that rebuilds the shipped default table (from the repository root); the
+#: table's manifest records it as ``rebuild_command``.
+REBUILD_DEFAULT = (
+    "millfmu tables build --scene disc_slice --tip-speed 6,8,10,12,14 "
+    "--filling 0.5,0.6,0.7,0.8,0.9 --sector-deg 10 --spin-up 0.05 --record 0.1 "
+    "--sample-every 0.005 --no-gravity --fluid prescribed --export "
+    "millfmu/data/default_table")
 
 
 def default_table_paths() -> tuple[Path, Path]:
@@ -682,7 +690,7 @@ def default_table_paths() -> tuple[Path, Path]:
 
 #: Tables shipped beside the default one, by the name a scene gives (``table = NAME``):
 #: millfmu/data/NAME_table.npz and .json. ``coupled``: the disc slice with the coupled
-#: fluid (tip speed x filling, bead diameter and density one at a time; README "Tables").
+#: fluid (tip speed x filling, bead diameter and density one at a time; docs/tables.md).
 SHIPPED_TABLES = ("accelerator", "coupled")
 
 
