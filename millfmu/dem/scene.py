@@ -29,6 +29,7 @@ else:  # pragma: no cover
 from millfmu.dem.coupling.settings import CouplingSettings
 from millfmu.dem.engine.params import BeadMaterial
 from millfmu.dem.engine.sim import FluidSettings
+from millfmu.dem.mills.accelerator import SevSpec
 from millfmu.dem.mills.geometry import MillGeometry
 from millfmu.dem.mills.zones import ZoneSpec
 
@@ -283,8 +284,6 @@ def scene_from_dict(d: dict, default_name: str = "scene") -> DemScene:
     if len(grav) != 3:
         raise DemSceneError(f"run.gravity_m_s2 = {grav!r}: must be a list of 3 numbers")
     if kind == "accelerator_slice":
-        from millfmu.dem.mills.accelerator import SevSpec
-
         for k in zones:
             if k not in ("sev_z1", "sev_z2", "sev_x3"):
                 raise DemSceneError(f"zones.{k}: unknown key for accelerator_slice; allowed: "

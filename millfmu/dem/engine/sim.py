@@ -65,6 +65,7 @@ class DemSimulation:
                  fluid: FluidSettings | None = None, skin_m: float | None = None,
                  max_neighbours: int = 24, velocities_m_s=None, threads: int | None = None,
                  sort_every_steps: int | None = None, spins_rad_s=None, device: str = "cpu"):
+        # numba and the kernels load when a simulation is built, not with a scene file.
         import numba
 
         from millfmu.dem.engine import kernels as K
@@ -187,7 +188,7 @@ class DemSimulation:
             raise ValueError(f"device = 'gpu': the GPU stepper does not turn vanes "
                              f"(vane_count = {geometry.vane_count}); use device 'cpu'")
         if device == "gpu":
-            from millfmu.dem.engine.gpu import GpuStepper
+            from millfmu.dem.engine.gpu import GpuStepper  # numba.cuda only for the GPU
 
             self.sort_every_steps = 0
             self._gpu = GpuStepper(self, max_neighbours)  # builds and computes f, t

@@ -17,6 +17,8 @@ from typing import Callable
 
 import numpy as np
 
+from ..run import run_scene
+from ..scene import load_scene_dict, scene_from_dict
 from .cache import dem_kernel_version, get_table
 from .spec import (COMPONENTS, DEM_BUILDER_ID, DRIFT_FIELDS, QUANTILE_NAMES, TableError,
                    TableSpec, builder_id_of, e_ref_J, n_gb_per_m3, norm_log10_edges,
@@ -89,9 +91,6 @@ class DemBuilder:
     builder_id = DEM_BUILDER_ID
 
     def __call__(self, scene: dict, point: dict) -> dict:
-        from ..run import run_scene
-        from ..scene import scene_from_dict
-
         s = scene_from_dict(scene_at_point(scene, point))
         if s.placement != "filling":
             raise TableError(f"scene {s.name}: beads.placement = {s.placement!r}; tables "
@@ -112,8 +111,6 @@ class DemBuilder:
         DEM steps ((spin-up + recording) / dt). A build runs the costliest points first, so
         that a long point (small beads) does not start last and leave the other workers
         idle while it runs."""
-        from ..scene import scene_from_dict
-
         s = scene_from_dict(scene_at_point(scene, point))
         return s.filling / s.bead_diameter_m**3 * (s.spin_up_s + s.record_s) / s.dt_s
 
@@ -145,8 +142,6 @@ def dem_spec(scene_name_or_path: str, grid: dict, overrides: dict | None = None,
     (section -> {key: value}, e.g. {"run": {"spin_up_s": 0.05}}) merged in, validated;
     ``one_at_a_time``: axes varied one at a time from the scene's point
     (:class:`TableSpec`)."""
-    from ..scene import load_scene_dict
-
     d = load_scene_dict(scene_name_or_path)
     for sec, kv in (overrides or {}).items():
         d.setdefault(sec, {}).update(kv)
@@ -160,8 +155,6 @@ def dem_spec(scene_name_or_path: str, grid: dict, overrides: dict | None = None,
 
 
 def _validate_scene_dict(d: dict):
-    from ..scene import scene_from_dict
-
     scene_from_dict(d)
 
 
