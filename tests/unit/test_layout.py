@@ -227,8 +227,9 @@ def longest_chain(graph: dict[str, dict[str, bool]]) -> list[str]:
 ENGINE_AND_MODEL = ("millfmu.dem.engine", "millfmu.dem.fluid", "millfmu.dem.coupling",
                     "millfmu.dem.mills", "millfmu.dem.tables", "millfmu.dem.analysis",
                     "millfmu.kinetics", "millfmu.mill", "millfmu.scene")
-FORBIDDEN = ("millfmu.dem.studies", "millfmu.cli", "millfmu.dem.cli",
-             "millfmu.dem.tables.cli", "millfmu.report", "flowsheets", "fmu_build")
+FORBIDDEN = ("millfmu.dem.studies", "millfmu.studies", "millfmu.cli", "millfmu.dem.cli",
+             "millfmu.dem.tables.cli", "millfmu.rates", "millfmu.report", "flowsheets",
+             "fmu_build")
 
 
 def _under(mod: str, prefixes) -> bool:
