@@ -28,8 +28,12 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import millfmu
+from millfmu.dem.tables.table import read_table_ref
+from millfmu.mill import MillModel
+from millfmu.scene import default_scene_text, load_scene
 
 from . import fmi3_wrapper
+from .wrapper import choose_wrapper, fmi2_replacements
 
 #: Modules the FMU must never carry or import for a scene (heavy, and not needed by the
 #: kinetics; the DEM would be imported only by scenes that run it).
@@ -192,8 +196,6 @@ def _export_table_slice(scene, prefix: Path) -> list:
     sd = scene.kinetics.stress_distribution
     if scene.kinetics.model != "detailed" or sd.source != "table":
         return []
-    from millfmu.dem.tables.table import read_table_ref
-
     tab = read_table_ref(sd.table)
     fixed = {"bead_diameter_m": scene.beads.diameter_m, "bead_density_kg_m3": scene.beads.density_kg_per_m3, "viscosity_pa_s": scene.suspension.viscosity_Pa_s}
     bounds = {k: (v, v) for k, v in fixed.items() if k in tab.axes}
@@ -203,10 +205,6 @@ def _export_table_slice(scene, prefix: Path) -> list:
 def build_fmu(scene_path: str | Path | None, out: str | Path, fmi_version: int = 2, log=None) -> BuildResult:
     """Build the FMU for a scene file (None: the embedded default scene) into ``out`` (.fmu):
     FMI 2.0 with pythonfmu (the default) or, with ``fmi_version=3``, FMI 3.0 with pythonfmu3."""
-    from millfmu.scene import default_scene_text, load_scene
-
-    from .wrapper import choose_wrapper, fmi2_replacements
-
     fmi_version = check_fmi_version(fmi_version)
     if fmi_version == 3:
         from pythonfmu3 import FmuBuilder
@@ -218,8 +216,6 @@ def build_fmu(scene_path: str | Path | None, out: str | Path, fmi_version: int =
     out = Path(out)
     if out.suffix != ".fmu":
         raise ValueError(f"output {out}: must end in .fmu")
-    from millfmu.mill import MillModel
-
     scene = load_scene(scene_path)  # SceneError -> the caller reports it
     # The model itself refuses what the file alone does not show (a damaged DEM table, a
     # feed outside the grid): refused here with the same message, before anything is built.

@@ -21,7 +21,7 @@ for _var in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
 #: optionally, ``register_bench(bench_subparsers)`` for ``millfmu bench ...``. They are
 #: imported only to register their parsers; heavy imports (numba, pythonfmu) stay inside
 #: their handlers.
-PLUGINS = ("millfmu.dem.cli", "millfmu.dem.tables_cli", "fmu_build.cli", "flowsheets.cli", "millfmu.rates",
+PLUGINS = ("millfmu.dem.cli", "millfmu.dem.tables.cli", "fmu_build.cli", "flowsheets.cli", "millfmu.rates",
            "millfmu.report", "millfmu.calibration")
 
 
@@ -78,7 +78,7 @@ def _cmd_scene_keys(args) -> int:
 
 
 def _cmd_bench_pbm(args) -> int:
-    from .bench import bench_pbm
+    from .studies.pbm_integrators import bench_pbm
 
     bench_pbm(classes=args.classes, hours=args.hours, repeats=args.repeats, tanks=args.tanks, dense=not args.no_dense)
     return 0

@@ -103,10 +103,10 @@ def build_material(s: Scene):
 
 def _rebuild_hint(ref: str) -> str:
     if ref == "default":
-        try:
-            from .dem.tables_cli import REBUILD_DEFAULT
-        except ImportError:  # inside an FMU, which carries no command line
-            return "reinstall millfmu or rebuild the default table with `millfmu tables build ... --export millfmu/data/coupled_table`"
+        # Imported here as the table reader is (see _stress_source): a scene without a table
+        # never imports the tables.
+        from .dem.tables.table import REBUILD_DEFAULT
+
         return f"reinstall millfmu, or rebuild it (from the repository root) with `{REBUILD_DEFAULT}`"
     return (f"rebuild it with `millfmu tables build ... --export {ref}` (the command is the rebuild_command "
             f"of an intact copy of {ref}.json), or name another table")

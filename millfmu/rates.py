@@ -17,7 +17,7 @@ Along the detailed model's stress-energy source, each point says what it rests o
 - a DEM table along an axis it does not vary (bead diameter and density of the default
   table): the table's similarity scaling, energies over E_ref = pi/12 d^3 rho v_t^2 and
   collision frequencies over omega n_gb held at the table's values ("table, similarity
-  assumed"), whose error the README measures (bead density: energies within 10 %,
+  assumed"), whose error docs/rates-and-calibration.md measures (bead density: energies within 10 %,
   frequencies 21-31 % lower at 6040 kg/m3; bead diameter 1.2 mm: energies 1.1-1.8 times,
   frequencies 0.65-1.13 times);
 - the solids mass fraction is not a table axis: the DEM has no product particles, so only

@@ -20,6 +20,7 @@ from pathlib import Path
 
 import numpy as np
 
+from . import __version__
 from .mill import MillModel
 from .scene import Scene, scene_to_dict
 
@@ -179,8 +180,6 @@ def provenance(scene: Scene, model: MillModel, wall_s: float | None = None) -> d
     stress-energy table's identity and stated error at the final operating point, wall time."""
     import platform
 
-    from . import __version__
-
     prov = {
         "scene": scene_to_dict(scene),
         "millfmu_version": __version__,
@@ -203,7 +202,7 @@ def provenance(scene: Scene, model: MillModel, wall_s: float | None = None) -> d
                 v, b = sel(lk.values[name]), sel(lk.bound(name))
                 return [float(x) if np.isfinite(x) else None for x in np.where(np.abs(v) > 0, b / np.where(np.abs(v) > 0, np.abs(v), 1.0), np.nan)]
 
-            from .dem.tables import COMPONENTS
+            from .dem.tables import COMPONENTS  # only where a scene reads a table
 
             ci = COMPONENTS.index(src.component)
             ident["stated_error"] = {"point": lk.point, "zones": list(table.zone_names),

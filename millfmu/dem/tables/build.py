@@ -25,8 +25,9 @@ from typing import Callable
 import numpy as np
 
 from .files import canonical_json, sha256_bytes, write_synced
-from .spec import DRIFT_FIELDS, FIELDS, FORMAT_VERSION, TableError, TableSpec, scene_at_point
-from .table import Table
+from .spec import (COMPONENTS, DRIFT_FIELDS, FIELDS, FORMAT_VERSION, QUANTILE_NAMES, TableError,
+                   TableSpec, scene_at_point)
+from .table import FIXED_AXIS_RTOL, Table
 
 
 class PointStore:
@@ -351,8 +352,6 @@ CHECK_FIELDS = ("speed_over_tip_speed", "filling_local", "collision_frequency_no
 
 
 def _check_fields(values: dict) -> dict:
-    from .spec import COMPONENTS, QUANTILE_NAMES
-
     out = {k: np.asarray(values[k], float) for k in CHECK_FIELDS[:-1]}
     q = np.asarray(values["se_quantiles_norm"], float)
     out["se_tn_q50_norm"] = q[COMPONENTS.index("tn"), :, QUANTILE_NAMES.index("q50")]
@@ -452,8 +451,7 @@ def record_check(table: Table, result: dict) -> dict:
     """The table's manifest with ``result`` (:func:`check_point`) among its checks:
     ``separability_check`` where a one-at-a-time axis is off its reference, else
     ``interpolation_check``; a check at the same point is replaced."""
-    from .table import FIXED_AXIS_RTOL  # the lookup's rule for "at the reference"
-
+    # FIXED_AXIS_RTOL: the lookup's rule for "at the reference".
     off = any(not math.isclose(result["point"][k], v, rel_tol=FIXED_AXIS_RTOL)
               for k, v in table.one_at_a_time_ref.items())
     key = "separability_check" if off else "interpolation_check"

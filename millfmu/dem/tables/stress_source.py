@@ -17,6 +17,7 @@ from typing import Callable
 
 import numpy as np
 
+from ...kinetics.stress_distribution import Zone
 from .spec import AXES, COMPONENTS, TableError, norm_log10_edges
 from .table import EXTRAPOLABLE_AXES, FIXED_AXIS_RTOL, Lookup, OutsideGridError, Table
 
@@ -127,8 +128,6 @@ class TableStressSource:
                 "se_median": np.nan_to_num(e) + e_wp}
 
     def zones(self, op):
-        from ...kinetics.stress_distribution import Zone
-
         names = self.table.zone_names
         U = norm_log10_edges()
         if not op.tip_speed_m_per_s > 0.0:

@@ -41,15 +41,6 @@ RUN_OPTIONS = {
     "--initial-rotation": ("run", "initial_rotation", "beads and coupled fluid start turning "
                            "at this fraction of the stirrer's angular velocity [-]"),
 }
-#: The command that rebuilds the default scene's shipped table, the coupled one (from the
-#: repository root); the table's manifest records it as ``rebuild_command``.
-REBUILD_DEFAULT = (
-    "millfmu tables build --scene disc_slice --tip-speed 6,10,14 --filling "
-    "0.5,0.6,0.7,0.8,0.9 --bead-diameter 0.0005,0.0008,0.0012 --bead-density "
-    "2510,6040 --one-at-a-time bead-diameter,bead-density --sector-deg 10 --spin-up "
-    "1.5 --record 0.4 --sample-every 0.01 --initial-rotation 0.1 --no-gravity "
-    "--fluid coupled --export millfmu/data/coupled_table")
-
 
 def _floats(text: str) -> list:
     try:
@@ -163,11 +154,12 @@ def register(subparsers) -> argparse.ArgumentParser:
 
 
 def _load_builder(text: str | None, threads):
+    from millfmu.dem.studies.work_precision import manifest_entry
     from millfmu.dem.tables.dem_builder import DemBuilder
     from millfmu.dem.tables.spec import TableError
 
     if not text:
-        return DemBuilder(threads=threads)
+        return DemBuilder(threads=threads, work_precision=manifest_entry)
     mod, _, name = text.partition(":")
     try:
         return getattr(importlib.import_module(mod), name)
@@ -421,7 +413,7 @@ def _clear(args) -> int:
 
 
 def main(argv=None) -> int:
-    """Run ``tables`` subcommands on their own (``python -m millfmu.dem.tables_cli``)."""
+    """Run ``tables`` subcommands on their own (``python -m millfmu.dem.tables.cli``)."""
     ap = argparse.ArgumentParser(prog="millfmu")
     register(ap.add_subparsers(dest="command"))
     args = ap.parse_args(argv)

@@ -19,10 +19,10 @@ import numpy as np
 from scipy.integrate import solve_ivp
 from scipy.linalg import expm
 
-from .kinetics.grid import SizeGrid
-from .kinetics import pbm
-from .mill import MillModel
-from .scene import load_scene
+from ..kinetics.grid import SizeGrid
+from ..kinetics import pbm
+from ..mill import MillModel
+from ..scene import load_scene
 
 #: Accuracy target: max over output times and classes of |m - m_exact| / total mass [-].
 ACCURACY_TARGET = 1e-6
@@ -50,7 +50,7 @@ def bench_tanks(n_tanks=50, dt_s=1.0, repeats=3, dense=True, stiff=False, out=pr
     over 10 steps relative to the total mass."""
     import tomllib
 
-    from .scene import default_scene_text, scene_from_dict
+    from ..scene import default_scene_text, scene_from_dict
 
     d = tomllib.loads(default_scene_text())
     d["operation"] = {"mode": "continuous", "n_tanks": n_tanks, "feed_mass_flow_kg_per_s": 1e-3}
@@ -213,7 +213,7 @@ def _case_operators(case: str):
     of a study case (:data:`INTEGRATOR_CASES`)."""
     import tomllib
 
-    from .scene import default_scene_text, scene_from_dict
+    from ..scene import default_scene_text, scene_from_dict
 
     d = tomllib.loads(default_scene_text())
     mats = []
