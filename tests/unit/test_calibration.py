@@ -18,24 +18,16 @@ YEAST, LIMESTONE = cal.SHIPPED
 TIMES = (60, 300, 900, 1800, 3600, 7200, 14400, 28800)
 
 
-def synthetic_sizes(scene, times, noise, seed=1) -> str:
-    """x10/x50/x90 of the model itself at ``times`` with multiplicative log-normal noise."""
+def synthetic(scene, times, noise, columns=cal.SIZE_COLUMNS, seed=1) -> str:
+    """The model's own ``columns`` at ``times`` with multiplicative log-normal noise (a
+    fraction capped at 1)."""
     rng = np.random.default_rng(seed)
-    m, prev, lines = MillModel(scene), 0.0, ["t_s,x10_m,x50_m,x90_m"]
+    m, prev, lines = MillModel(scene), 0.0, ["t_s," + ",".join(columns)]
     for t in times:
         out = m.step(t - prev)
         prev = t
-        lines.append(f"{t}," + ",".join(f"{out[k] * math.exp(noise * rng.standard_normal()):.9e}" for k in cal.SIZE_COLUMNS))
-    return "\n".join(lines) + "\n"
-
-
-def synthetic_disrupted(scene, times, noise, seed=2) -> str:
-    rng = np.random.default_rng(seed)
-    m, prev, lines = MillModel(scene), 0.0, ["t_s,disrupted_fraction"]
-    for t in times:
-        out = m.step(t - prev)
-        prev = t
-        lines.append(f"{t},{min(1.0, out['disrupted_fraction'] * math.exp(noise * rng.standard_normal())):.9f}")
+        vals = [out[k] * math.exp(noise * rng.standard_normal()) for k in columns]
+        lines.append(f"{t}," + ",".join(f"{min(v, 1.0) if k == 'disrupted_fraction' else v:.9e}" for k, v in zip(columns, vals)))
     return "\n".join(lines) + "\n"
 
 
@@ -65,21 +57,21 @@ def test_recovers_threshold_and_f_mat_with_intervals_that_shrink_with_the_noise(
     keys = ["material.x_w_min_J_m_per_kg", "material.f_mat_kg_per_J_m"]
     true = cal.with_values(base, {keys[0]: 0.01, keys[1]: 30.0})
     start = cal.with_values(base, {keys[0]: 0.001, keys[1]: 3.0})
-    _shrinks(true, start, keys, lambda s, e: synthetic_sizes(s, TIMES, e))
+    _shrinks(true, start, keys, lambda s, e: synthetic(s, TIMES, e))
 
 
 def test_recovers_energy_transfer():
     base = cal.example_scene("yeast_disruption_detailed.toml")
     true = cal.with_values(base, {"kinetics.energy_transfer": 0.3})
     start = cal.with_values(base, {"kinetics.energy_transfer": 0.03})
-    _shrinks(true, start, ["kinetics.energy_transfer"], lambda s, e: synthetic_disrupted(s, (30, 60, 120, 240, 480, 900), e))
+    _shrinks(true, start, ["kinetics.energy_transfer"], lambda s, e: synthetic(s, (30, 60, 120, 240, 480, 900), e, ("disrupted_fraction",), seed=2))
 
 
 def test_recovers_stress_frequency_factor():
     base = cal.example_scene("limestone_simple.toml")
     true = cal.with_values(base, {"mill.stress_frequency_factor": 2.0})
     start = cal.with_values(base, {"mill.stress_frequency_factor": 0.2})
-    _shrinks(true, start, ["mill.stress_frequency_factor"], lambda s, e: synthetic_sizes(s, TIMES[:4], e))
+    _shrinks(true, start, ["mill.stress_frequency_factor"], lambda s, e: synthetic(s, TIMES[:4], e))
 
 
 def test_one_value_cannot_pin_two_constants():
