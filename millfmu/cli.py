@@ -58,8 +58,8 @@ def _cmd_run(args) -> int:
         lo, hi = band["outputs"][key]
         print(f"prediction band at t = {band['t_s']:g} s from the table's stated error: {key} {records[-1][key] * f:.4g}{unit} "
               f"in [{lo * f:.4g}, {hi * f:.4g}]{unit} (zones' collision frequency +-"
-              f"{', '.join(f'{v:.0%}' for v in band['collision_frequency_relative_error'])}, median energy +-"
-              f"{', '.join(f'{v:.0%}' for v in band['se_median_relative_error'])})")
+              f"{', '.join('-' if v is None else f'{v:.0%}' for v in band['collision_frequency_relative_error'])}, median energy +-"
+              f"{', '.join('-' if v is None else f'{v:.0%}' for v in band['se_median_relative_error'])})")
     m_err = abs(records[-1]["total_mass_kg"] - (model.m0_kg + model.fed_kg)) / max(model.m0_kg + model.fed_kg, 1e-300)
     print(f"mass balance: relative residual {m_err:.2e}; simulated {scene.run.t_end_s:g} s in {wall:.3g} s wall")
     print("wrote " + ", ".join(str(f) for f in files))

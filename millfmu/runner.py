@@ -157,8 +157,8 @@ def prediction_band(scene: Scene, multiple: float = 1.0) -> dict | None:
         "multiple": multiple,
         "outputs": band,
         "zones": err["zones"],
-        "collision_frequency_relative_error": [float(v) for v in err["collision_frequency"]],
-        "se_median_relative_error": [float(v) for v in err["se_median"]],
+        "collision_frequency_relative_error": [float(v) if np.isfinite(v) else None for v in err["collision_frequency"]],
+        "se_median_relative_error": [float(v) if np.isfinite(v) else None for v in err["se_median"]],
         "method": ("two runs with every zone's collision frequency and median stress energy at the edges of the table's "
                    "stated relative error b, factors (1 + b)^-1 and (1 + b); b = interpolation error + 2 sigma of the DEM "
                    "sampling at the last operating point + the work-precision expected error (recording, spin-up, sector, "
@@ -197,17 +197,15 @@ def provenance(scene: Scene, model: MillModel, wall_s: float | None = None) -> d
                  "grid": m.get("grid"), "resolution": m.get("resolution"), "rebuild_command": m.get("rebuild_command")}
         lk = getattr(src, "last_lookup", None)
         if lk is not None:
-            # Stated error (interpolation + 2 sigma of the DEM sampling) relative to the value, per zone.
-            def rel(name, sel=lambda a: a):
-                v, b = sel(lk.values[name]), sel(lk.bound(name))
-                return [float(x) if np.isfinite(x) else None for x in np.where(np.abs(v) > 0, b / np.where(np.abs(v) > 0, np.abs(v), 1.0), np.nan)]
+            # Stated relative error per zone, as the prediction band uses it (None: no collisions).
+            err = src.relative_error(lk)
 
-            from .dem.tables import COMPONENTS  # only where a scene reads a table
+            def plain(a):
+                return [float(x) if np.isfinite(x) else None for x in a]
 
-            ci = COMPONENTS.index(src.component)
-            ident["stated_error"] = {"point": lk.point, "zones": list(table.zone_names),
-                                     "collision_frequency_relative": rel("collision_frequency_norm"),
-                                     "se_median_relative": rel("se_quantiles_norm", lambda a: a[ci, :, 1]),
+            ident["stated_error"] = {"point": lk.point, "zones": err["zones"],
+                                     "collision_frequency_relative": plain(err["collision_frequency"]),
+                                     "se_median_relative": plain(err["se_median"]),
                                      "notes": list(getattr(src, "last_notes", []))}
         prov["table"] = ident
     return prov

@@ -109,23 +109,23 @@ class TableStressSource:
         (interpolation error + 2 sigma of the DEM sampling, :meth:`Lookup.bound`) plus the
         table's work-precision expected error (recording, spin-up, sector, step, coupling;
         the manifest's ``work_precision.choice.expected_error``, SE_tn's median standing for
-        the ``total`` component's), summed. The local filling's error acts on the kinetics
-        only through the collision frequency, which is bounded itself."""
+        the ``total`` component's), summed; NaN in a zone without collisions. The local
+        filling's error acts on the kinetics only through the collision frequency, which is
+        bounded itself."""
         lk = lk if lk is not None else self.last_lookup
         names = self.table.zone_names
         ci = COMPONENTS.index(self.component)
 
         def rel(v, b):
             v, b = np.abs(np.asarray(v, float)), np.asarray(b, float)
-            return np.where(v > 0.0, b / np.where(v > 0.0, v, 1.0), 0.0)
+            return np.where(v > 0.0, b / np.where(v > 0.0, v, 1.0), np.nan)
 
         f = rel(lk.values["collision_frequency_norm"], lk.bound("collision_frequency_norm"))
         e = rel(lk.values["se_quantiles_norm"][ci, :, 1], lk.bound("se_quantiles_norm")[ci, :, 1])
         wp = ((self.table.manifest.get("work_precision") or {}).get("choice") or {}).get("expected_error") or {}
         f_wp = np.array([float((wp.get("collision_frequency") or {}).get(n, 0.0)) for n in names])
         e_wp = np.array([float((wp.get("se_tn_q50") or {}).get(n, 0.0)) for n in names])
-        return {"zones": list(names), "collision_frequency": np.nan_to_num(f) + f_wp,
-                "se_median": np.nan_to_num(e) + e_wp}
+        return {"zones": list(names), "collision_frequency": f + f_wp, "se_median": e + e_wp}
 
     def zones(self, op):
         names = self.table.zone_names
@@ -159,8 +159,9 @@ class TableStressSource:
         m = float(self.error_multiple)
         if m:
             err = self.relative_error(lk)
-            f_fac = (1.0 + abs(m) * err["collision_frequency"]) ** np.sign(m)
-            e_fac = (1.0 + abs(m) * err["se_median"]) ** np.sign(m)
+            # A zone without collisions has no rate to move.
+            f_fac = (1.0 + abs(m) * np.nan_to_num(err["collision_frequency"])) ** np.sign(m)
+            e_fac = (1.0 + abs(m) * np.nan_to_num(err["se_median"])) ** np.sign(m)
         else:
             f_fac = e_fac = np.ones(len(names))
         out = []
