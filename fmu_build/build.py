@@ -27,6 +27,11 @@ import zipfile
 from dataclasses import dataclass
 from pathlib import Path
 
+if sys.version_info >= (3, 11):
+    import tomllib
+else:  # pragma: no cover
+    import tomli as tomllib
+
 import millfmu
 from millfmu.dem.tables.table import read_table_ref
 from millfmu.mill import MillModel
@@ -55,7 +60,7 @@ from millfmu.scene import load_scene
 from millfmu.mill import MillModel
 importlib.import_module(sys.argv[2])  # the adapter itself
 scene = load_scene(sys.argv[1])
-model = MillModel(scene)
+model = MillModel(scene, no_dem=True)  # as in the FMU: no DEM
 model.step(scene.run.dt_s)
 mods = sorted(m for m in sys.modules if m == "millfmu" or m.startswith("millfmu."))
 files = {m: sys.modules[m].__file__ for m in mods}
@@ -186,8 +191,25 @@ def _slug(text: str) -> str:
     return (s or "scene")[:40]
 
 
-def _export_table_slice(scene, prefix: Path) -> list:
-    """For a scene whose detailed model reads a DEM table: write the slice it needs.
+def covering_table(scene, model):
+    """The DEM table the FMU of ``scene`` carries (None when the scene reads none): the
+    scene's table, or, where the scene allows on-demand builds (on_outside = 'build') and
+    its operating point lies outside that table, the table built (or found in the cache) to
+    cover it, here at build time with the scene's on_stale policy, the cost said first. An
+    FMU carries no DEM: inside it on_outside = 'build' acts as 'refuse'
+    (:class:`millfmu.mill.MillModel` ``no_dem``), so no master's doStep ever starts a DEM run."""
+    sd = scene.kinetics.stress_distribution
+    if scene.kinetics.model != "detailed" or sd.source != "table":
+        return None
+    src = model.source
+    if sd.on_outside == "build":
+        src.cover(model.operating_point(model.inputs))
+    return src.table
+
+
+def _export_table_slice(scene, prefix: Path, table=None) -> list:
+    """For a scene whose detailed model reads a DEM table: write the slice it needs of
+    ``table`` (default: the scene's table; :func:`covering_table`).
 
     Tip speed and filling are FMU variables (input, tunable parameter), so their whole range
     is kept; the axes the scene fixes (bead diameter and density, viscosity) are cut to the
@@ -196,7 +218,7 @@ def _export_table_slice(scene, prefix: Path) -> list:
     sd = scene.kinetics.stress_distribution
     if scene.kinetics.model != "detailed" or sd.source != "table":
         return []
-    tab = read_table_ref(sd.table)
+    tab = table if table is not None else read_table_ref(sd.table)
     fixed = {"bead_diameter_m": scene.beads.diameter_m, "bead_density_kg_m3": scene.beads.density_kg_per_m3, "viscosity_pa_s": scene.suspension.viscosity_Pa_s}
     bounds = {k: (v, v) for k, v in fixed.items() if k in tab.axes}
     return list((tab.subset(bounds) if bounds else tab).export(prefix))
@@ -219,7 +241,10 @@ def build_fmu(scene_path: str | Path | None, out: str | Path, fmi_version: int =
     scene = load_scene(scene_path)  # SceneError -> the caller reports it
     # The model itself refuses what the file alone does not show (a damaged DEM table, a
     # feed outside the grid): refused here with the same message, before anything is built.
-    MillModel(scene)
+    model = MillModel(scene)
+    # A scene that allows on-demand builds gets the table that covers its point now: the
+    # FMU carries it and never runs the DEM.
+    table = covering_table(scene, model)
     scene_text = Path(scene_path).read_text() if scene_path is not None else default_scene_text()
     pkg_root = Path(millfmu.__file__).parent
 
@@ -227,7 +252,16 @@ def build_fmu(scene_path: str | Path | None, out: str | Path, fmi_version: int =
         tmp = Path(tmp)
         scene_file = tmp / "scene.toml"
         scene_file.write_text(scene_text)
-        modules = _needed_modules(scene_file, fmi_version)
+        stage = tmp / "stage"
+        table_files = _export_table_slice(scene, stage / TABLE_PREFIX, table)
+        probe_file = scene_file
+        if table_files:
+            # The probe reads the carried slice, as the FMU does.
+            d = tomllib.loads(scene_text)
+            d.setdefault("kinetics", {}).setdefault("stress_distribution", {})["table"] = str(stage / TABLE_PREFIX)
+            probe_file = tmp / "probe_scene.toml"
+            probe_file.write_text(toml_text(d))
+        modules = _needed_modules(probe_file, fmi_version)
         rel = sorted(Path(f).resolve().relative_to(pkg_root.resolve()) for f in modules.values())
         # Scenes resolve left-out keys from the embedded default scene, in the FMU too.
         rel.append(Path("data") / "default_scene.toml")
@@ -241,13 +275,11 @@ def build_fmu(scene_path: str | Path | None, out: str | Path, fmi_version: int =
             h.update(str(r).encode() + b"\0" + src + b"\0")
         code_hash = h.hexdigest()[:12]
         package = f"_millfmu_{code_hash}"
-        stage = tmp / "stage"
         for r in rel:
             dst = stage / package / r
             dst.parent.mkdir(parents=True, exist_ok=True)
             shutil.copy2(pkg_root / r, dst)
         shutil.copy2(scene_file, stage / "scene.toml")
-        table_files = _export_table_slice(scene, stage / TABLE_PREFIX)
         full_hash = hashlib.sha256((code_hash + "\0" + scene_text).encode()).hexdigest()[:8]
         ident = f"Mill_{_slug(scene.scene.name)}_{full_hash}"
         script = stage / f"{ident}.py"

@@ -31,6 +31,8 @@ def _cmd_run(args) -> int:
     from .scene import load_scene
 
     scene = load_scene(args.scene)  # SceneError -> exit 2 before anything is written
+    if args.on_stale is not None:
+        scene = with_on_stale(scene, args.on_stale)
     check_out_dir(args.out)  # OutputError -> exit 2 before running
     for w in MillModel(scene).warnings:  # the data's warnings before a long run, not after
         print(f"millfmu: warning: {w}", file=sys.stderr)
@@ -66,6 +68,14 @@ def _cmd_run(args) -> int:
     return 0
 
 
+def with_on_stale(scene, policy: str):
+    """The scene with kinetics.stress_distribution.on_stale = ``policy`` (the --on-stale flag)."""
+    from dataclasses import replace
+
+    k = scene.kinetics
+    return replace(scene, kinetics=replace(k, stress_distribution=replace(k.stress_distribution, on_stale=policy)))
+
+
 def _cmd_scene_keys(args) -> int:
     from .scene import default_scene_text, iter_keys
 
@@ -94,6 +104,10 @@ def build_parser() -> argparse.ArgumentParser:
     r.add_argument("--out", default="out", help="output folder for result.json, psd.csv and plots (default: ./out)")
     r.add_argument("--no-plots", action="store_true", help="skip the PNG plots")
     r.add_argument("-q", "--quiet", action="store_true", help="no progress bar")
+    r.add_argument("--on-stale", choices=("refuse", "rebuild", "accept"), default=None,
+                   help="a table built on demand (on_outside = 'build') whose DEM kernel version is not the installed DEM's: "
+                        "refuse, rebuild every point, or accept its points and run only the new ones "
+                        "(default: the scene's kinetics.stress_distribution.on_stale)")
     r.set_defaults(func=_cmd_run)
 
     k = sub.add_parser("scene-keys", help="list every scene key with unit, default and allowed values")

@@ -89,7 +89,7 @@ class MillSlave(Fmi2Slave):
         self._warned_below_grid = False
         self._scene_dict = read_scene_dict(self.resources)
         scene = scene_from_dict(self._scene_dict, SCENE_FILE)
-        self.model = MillModel(scene)
+        self.model = MillModel(scene, no_dem=True)  # an FMU carries no DEM: it never builds a table
         self._overrides: dict = {}
         self._config_error: str | None = None
         self._initialized = False

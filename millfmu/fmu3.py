@@ -42,7 +42,7 @@ class MillSlave3(Fmi3Base):
         super().__init__(**kwargs)
         self._scene_dict = read_scene_dict(self.resources)
         scene = scene_from_dict(self._scene_dict, SCENE_FILE)
-        self.model = MillModel(scene)
+        self.model = MillModel(scene, no_dem=True)  # an FMU carries no DEM: it never builds a table
         self._base_scene = scene
         self._overrides: dict = {}
         n = self.model.grid.n

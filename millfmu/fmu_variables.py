@@ -129,11 +129,13 @@ def read_scene_dict(resources: str) -> dict:
 
 def model_with(scene_dict: dict, over: dict) -> MillModel:
     """The model of the scene ``scene_dict`` with ``over`` {(section, key): value} applied;
-    SceneError naming the scene key when the scene (or its DEM table) refuses a value."""
+    SceneError naming the scene key when the scene (or its DEM table) refuses a value. The
+    model runs without the DEM (``no_dem``): a point outside the carried table is refused,
+    never built."""
     d = copy.deepcopy(scene_dict)
     for (sec, key), x in over.items():
         d.setdefault(sec, {})[key] = x
-    return MillModel(scene_from_dict(d, SCENE_FILE))
+    return MillModel(scene_from_dict(d, SCENE_FILE), no_dem=True)
 
 
 def plain(x):

@@ -39,6 +39,13 @@ TABLE_SCENE_KEYS = {"tip_speed_m_s": "mill.tip_speed_m_per_s", "filling": "mill.
                     "viscosity_pa_s": "suspension.viscosity_Pa_s"}
 
 
+#: What an FMU adds to a refusal of a point outside its table where the scene asks for
+#: on-demand builds (on_outside = 'build'): an FMU carries no DEM.
+NO_DEM_NOTE = ("; an FMU carries no DEM, so on_outside = 'build' acts as 'refuse' here: it "
+               "carries the table that millfmu build-fmu built for the scene's operating point "
+               "(build the FMU again from a scene at the new point to carry a table that covers it)")
+
+
 class StepError(RuntimeError):
     """A step would give non-finite or negative masses. The state is unchanged."""
 
@@ -160,12 +167,16 @@ class MillModel:
     capture = 'psd' (rates depend on the state), the adaptive integrator is used.
     """
 
-    def __init__(self, scene: Scene, grid: kgrid.SizeGrid | None = None, table_error_multiple: float = 0.0):
+    def __init__(self, scene: Scene, grid: kgrid.SizeGrid | None = None, table_error_multiple: float = 0.0,
+                 no_dem: bool = False):
         """``table_error_multiple``: for a detailed model on a stress-energy table, put every
         zone's collision frequency and energies at this signed multiple of the table's stated
         error (+1: the upper edge of the prediction band, more breakage; -1: the lower; the
-        table source's ``relative_error`` says what the error holds)."""
+        table source's ``relative_error`` says what the error holds). ``no_dem``: the model
+        runs where no DEM can run (an FMU): a table scene's on_outside = 'build' acts as
+        'refuse', and its refusals say so."""
         self.scene = scene
+        self.no_dem = bool(no_dem)
         self.table_error_multiple = float(table_error_multiple)
         g = scene.grid
         self.grid = grid or kgrid.SizeGrid.geometric(g.x_min_m, g.x_max_m, g.classes_per_octave)
@@ -209,8 +220,11 @@ class MillModel:
                 raise SceneError("kinetics.stress_distribution.table", sd.table, f"cannot be used: {e}; {_rebuild_hint(sd.table)}",
                                  self.scene.scene.name) from None
             self.warnings.extend(recording_warnings(table.manifest))
-            return TableStressSource(table, component=sd.component, similar_axes=tuple(sd.similar_axes), on_outside=sd.on_outside,
-                                     error_multiple=self.table_error_multiple)
+            on_outside, note = sd.on_outside, ""
+            if self.no_dem and on_outside == "build":
+                on_outside, note = "refuse", NO_DEM_NOTE
+            return TableStressSource(table, component=sd.component, similar_axes=tuple(sd.similar_axes), on_outside=on_outside,
+                                     on_stale=sd.on_stale, outside_note=note, error_multiple=self.table_error_multiple)
         return LogNormalStressSource(sd.median_fraction, sd.sigma_ln, sd.collision_factor)
 
     def _check_source_scene(self):
@@ -227,6 +241,17 @@ class MillModel:
             if getattr(e, "axis", None) not in TABLE_SCENE_KEYS:
                 raise
             raise SceneError(TABLE_SCENE_KEYS[e.axis], e.value, e.allowed, s.scene.name) from None
+        if getattr(self.source, "on_outside", None) == "build":
+            # Said before anything runs: an on-demand build would not reuse the table's points.
+            line = self.source.stale_line(self.source.point_of(self.operating_point(self.inputs_of_scene())))
+            if line is not None:
+                self.warnings.append(f"on-demand builds: {line}")
+
+    def inputs_of_scene(self) -> dict:
+        """The scene's own operating inputs (tip speed, filling, solids)."""
+        s = self.scene
+        return {"tip_speed_m_per_s": s.mill.tip_speed_m_per_s, "bead_filling": s.mill.bead_filling,
+                "solids_mass_fraction": s.suspension.solids_mass_fraction}
 
     def _check_source_inputs(self, inputs: dict):
         """InputError for inputs the stress-energy table refuses (see :meth:`check_inputs`)."""

@@ -35,8 +35,10 @@ from millfmu.dem.mills.zones import ZoneSpec
 
 SCENE_DIR = Path(__file__).parent / "scenes"
 KINDS = ("annulus", "disc_slice", "accelerator_slice")
-#: rotor speeds of seed 002 are 800-1400 rpm (and 400 rpm in its section 3.2)
-ACCELERATOR_RPM_RANGE = (400.0, 1600.0)
+#: rotor speeds of seed 002 are 800-1400 rpm (and 400 rpm in its section 3.2); the ranges
+#: of each kind live in millfmu.dem.limits, which reads them without the engine
+from millfmu.dem.limits import (ACCELERATOR_FILLING, ACCELERATOR_RPM_RANGE,  # noqa: E402
+                                DISC_SLICE_FILLING, DISC_SLICE_TIP_SPEED_M_S)
 FLUID_MODES = ("coupled", "prescribed", "none")
 
 
@@ -143,11 +145,13 @@ def _positive(name: str, v: float):
 
 def _check_ranges(s: DemScene):
     if s.kind == "disc_slice":
-        if not 6.0 <= s.tip_speed_m_s <= 14.0:
-            raise DemSceneError(f"mill.tip_speed_m_s = {s.tip_speed_m_s!r}: allowed 6 to 14 "
+        lo, hi = DISC_SLICE_TIP_SPEED_M_S
+        if not lo <= s.tip_speed_m_s <= hi:
+            raise DemSceneError(f"mill.tip_speed_m_s = {s.tip_speed_m_s!r}: allowed {lo:g} to {hi:g} "
                                 f"m/s for disc_slice (the range of seed 001)")
-        if s.filling is None or not 0.5 <= s.filling <= 0.9:
-            raise DemSceneError(f"beads.filling = {s.filling!r}: allowed 0.5 to 0.9 for "
+        lo, hi = DISC_SLICE_FILLING
+        if s.filling is None or not lo <= s.filling <= hi:
+            raise DemSceneError(f"beads.filling = {s.filling!r}: allowed {lo:g} to {hi:g} for "
                                 f"disc_slice (the range of seed 001)")
     elif s.kind == "accelerator_slice":
         lo, hi = ACCELERATOR_RPM_RANGE
@@ -156,8 +160,9 @@ def _check_ranges(s: DemScene):
                 f"mill.rotor_speed_rpm = {s.rotor_speed_rpm:.6g}: allowed {lo:g} to {hi:g} "
                 f"rpm for accelerator_slice (seed 002: 800-1400; tip speed "
                 f"{s.tip_speed_m_s:.4g} m/s)")
-        if s.filling is None or not 0.5 <= s.filling <= 0.9:
-            raise DemSceneError(f"beads.filling = {s.filling!r}: allowed 0.5 to 0.9 for "
+        flo, fhi = ACCELERATOR_FILLING
+        if s.filling is None or not flo <= s.filling <= fhi:
+            raise DemSceneError(f"beads.filling = {s.filling!r}: allowed {flo:g} to {fhi:g} for "
                                 f"accelerator_slice (seed 002: 0.6-0.9)")
     else:
         _positive("mill.tip_speed_m_s", s.tip_speed_m_s)

@@ -151,3 +151,26 @@ class CostedBuilder:
     def relative_cost(self, scene: dict, point: dict) -> float:
         return float(point["filling"])
 
+
+
+class FakeDemBuilder:
+    """The analytic builder standing in for the DEM: it has the DEM's builder id, so that a
+    build applies the installed DEM kernel version (monkeypatch
+    ``millfmu.dem.tables.cache.dem_kernel_version``), a relative cost (filling x tip speed)
+    and a recorded wall time of 2 s per cost unit, so that estimates are exact. Each call is
+    appended to ``events`` (("build", point)), beside whatever a test logs there."""
+
+    builder_id = T.DEM_BUILDER_ID
+    seconds_per_cost = 2.0
+
+    def __init__(self, events=None):
+        self.events = events if events is not None else []
+
+    def __call__(self, scene: dict, point: dict) -> dict:
+        self.events.append(("build", dict(point)))
+        out = analytic_builder(scene, point)
+        out["wall_time_s"] = self.seconds_per_cost * self.relative_cost(scene, point)
+        return out
+
+    def relative_cost(self, scene: dict, point: dict) -> float:
+        return float(point.get("filling", 0.8)) * float(point.get("tip_speed_m_s", 10.0))

@@ -204,10 +204,95 @@ def order_by_cost(spec: TableSpec, builder: Callable, points: list, todo: list) 
     return sorted(todo, key=lambda i: -c[i])  # stable: grid order among equal costs
 
 
+def duration(s: float | None) -> str:
+    """Seconds in words: '40 s', '12 min', '4.5 h' ('unknown' for None)."""
+    if s is None:
+        return "unknown"
+    if s < 90:
+        return f"{s:.0f} s"
+    if s < 5400:
+        return f"{s / 60:.0f} min"
+    return f"{s / 3600:.1f} h"
+
+
+class BuildProgress:
+    """Where a build stands, in words: points done of the total, the share of the build's
+    cost that the running point(s) hold, and an estimated time left.
+
+    ``costs``: the builder's relative cost of each point to run (index -> cost; None where
+    the builder gives none: then no share and no time). Seconds per cost unit come from the
+    points finished in this build (their ``wall_time_s`` where the builder records it, else
+    the time since they started), before the first one from ``seconds_per_cost`` (e.g. the
+    manifest of the table being extended, :func:`~.on_demand.seconds_per_cost`). The time
+    left is that of the points not finished, less what the running ones have run, shared by
+    ``workers`` but never less than the longest one left: max(sum / workers, largest).
+    ``clock``: seconds (a test's fake clock)."""
+
+    def __init__(self, total: int, done: int, costs: dict | None, seconds_per_cost=None,
+                 workers: int = 1, clock: Callable[[], float] = time.monotonic):
+        self.total, self.done = int(total), int(done)
+        self.costs = dict(costs) if costs is not None else None
+        self.prior = seconds_per_cost
+        self.workers = max(1, int(workers))
+        self.clock = clock
+        self.running: dict = {}  # index -> start time
+        self.finished: set = set()
+        self._cost_done = 0.0
+        self._wall_done = 0.0
+
+    def start(self, i):
+        self.running[i] = self.clock()
+
+    def finish(self, i, wall_s: float | None = None):
+        t0 = self.running.pop(i, None)
+        if wall_s is None and t0 is not None:
+            wall_s = self.clock() - t0
+        self.finished.add(i)
+        self.done += 1
+        if self.costs is not None and wall_s is not None and self.costs.get(i, 0.0) > 0.0:
+            self._cost_done += self.costs[i]
+            self._wall_done += float(wall_s)
+
+    def seconds_per_cost(self) -> float | None:
+        if self._cost_done > 0.0:
+            return self._wall_done / self._cost_done
+        return self.prior
+
+    def share(self, i) -> float | None:
+        """Point i's share of the build's cost (the points this build runs)."""
+        if self.costs is None:
+            return None
+        total = sum(self.costs.values())
+        return self.costs[i] / total if total > 0 else None
+
+    def eta_s(self) -> float | None:
+        spc = self.seconds_per_cost()
+        if self.costs is None or spc is None:
+            return None
+        now = self.clock()
+        left = [max(0.0, c * spc - (now - self.running[i] if i in self.running else 0.0))
+                for i, c in self.costs.items() if i not in self.finished]
+        if not left:
+            return 0.0
+        return max(sum(left) / min(self.workers, len(left)), max(left))
+
+    def text(self) -> str:
+        out = f"{self.done}/{self.total} points"
+        if self.running and self.costs is not None:
+            sh = sum(self.share(i) or 0.0 for i in self.running)
+            n = len(self.running)
+            out += (f", running {n} point{'s' if n > 1 else ''} of {sh:.0%} of the build's "
+                    f"cost")
+        eta = self.eta_s()
+        if eta is not None:
+            out += f", about {duration(eta)} left"
+        return out
+
+
 def run_points(spec: TableSpec, builder: Callable, executor: str = "processes",
                workers: int | None = None, scheduler: str | None = None,
                progress: bool = True, point_store: PointStore | None = None,
-               stored: list | None = None) -> list[dict]:
+               stored: list | None = None, seconds_per_cost: float | None = None) -> list[dict]:
     """Evaluate ``builder(scene, point)`` at every grid point; results in grid order.
 
     executor: ``serial``; ``processes`` (a local process pool of ``workers`` processes,
@@ -216,7 +301,9 @@ def run_points(spec: TableSpec, builder: Callable, executor: str = "processes",
     ``tcp://host:8786``, when given). A tqdm bar counts finished grid points.
     ``point_store``: points found there are not run again, and each point is put there as
     soon as it finishes (so that a build cut off resumes); ``stored``: what
-    :func:`stored_results` gave, when the caller has read the store already.
+    :func:`stored_results` gave, when the caller has read the store already. The bar says
+    what :class:`BuildProgress` says (share of the cost running, time left; before the
+    first point finishes from ``seconds_per_cost``, where given).
     """
     points = spec.points()
     if executor not in ("serial", "processes", "dask"):
@@ -225,6 +312,21 @@ def run_points(spec: TableSpec, builder: Callable, executor: str = "processes",
     todo = order_by_cost(spec, builder, points,
                          [i for i, r in enumerate(results) if r is None])
     bar = None
+    cost = getattr(builder, "relative_cost", None)
+    n_workers = 1 if (executor == "serial" and scheduler is None) else \
+        max(1, min(workers or os.cpu_count() or 1, len(todo) or 1))
+    prog = BuildProgress(len(points), len(points) - len(todo),
+                         {i: float(cost(spec.scene, points[i])) for i in todo} if cost else None,
+                         seconds_per_cost, n_workers)
+    queue = list(todo)  # not started, in the order the executors start them
+
+    def started(k=1):
+        for _ in range(k):
+            if queue:
+                prog.start(queue.pop(0))
+        if bar is not None:
+            bar.set_postfix_str(prog.text(), refresh=True)
+
     if progress:
         from tqdm import tqdm
         bar = tqdm(total=len(points), initial=len(points) - len(todo), unit="point",
@@ -243,15 +345,20 @@ def run_points(spec: TableSpec, builder: Callable, executor: str = "processes",
         results[i] = r
         if point_store is not None:
             point_store.put(spec, points[i], r)
+        w = r.get("wall_time_s") if isinstance(r, dict) else None
+        prog.finish(i, float(w) if isinstance(w, (int, float)) else None)
         if bar is not None:
             bar.update(1)
+        started(1)  # a worker took the next point
 
     try:
         if not todo:
             pass
         elif scheduler is not None or executor == "dask":
+            started(n_workers)
             _run_dask(spec, builder, points, todo, done, workers, scheduler)
         elif executor == "serial" or len(todo) == 1:
+            started(1)
             for i in todo:
                 done(i, lambda: builder(spec.scene, points[i]))
                 if errors:
@@ -265,6 +372,7 @@ def run_points(spec: TableSpec, builder: Callable, executor: str = "processes",
             with ProcessPoolExecutor(max_workers=n,
                                      mp_context=multiprocessing.get_context("spawn")) as pool:
                 futs = {pool.submit(builder, spec.scene, points[i]): i for i in todo}
+                started(n)
                 for f in as_completed(futs):
                     done(futs[f], f.result)
     finally:

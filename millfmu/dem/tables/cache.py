@@ -148,7 +148,8 @@ def seed_tables(spec: TableSpec) -> list:
 
 
 def get_table(spec: TableSpec, builder: Callable, cache_dir=None, force: bool = False,
-              log: Callable[[str], None] | None = None, seed_from=(), **run_kw) -> Table:
+              log: Callable[[str], None] | None = None, seed_from=(),
+              manifest_extra: dict | None = None, **run_kw) -> Table:
     """The table of ``spec``: from the cache if its entry verifies, else built and cached.
 
     Concurrent callers serialize on ``<cache>/<key>.lock`` (fcntl.flock); the second finds
@@ -160,7 +161,7 @@ def get_table(spec: TableSpec, builder: Callable, cache_dir=None, force: bool = 
     is seeded with the points of ``seed_from`` (tables, e.g. the one being extended) and of
     the shipped tables of the same DEM scene and kernel (:func:`seed_tables`), so that a new
     operating point costs its own runs only. ``force`` rebuilds even a good entry and runs
-    every point again.
+    every point again. ``manifest_extra``: entries added to the new table's manifest.
     """
     root = resolve_cache_dir(cache_dir)
     key = spec.key()
@@ -188,7 +189,7 @@ def get_table(spec: TableSpec, builder: Callable, cache_dir=None, force: bool = 
         table = build_table(spec, builder, **run_kw)
         tmp = Path(tempfile.mkdtemp(prefix=f".tmp-{key[:16]}-", dir=root))
         try:
-            table.save(tmp, manifest_for(spec, table,
+            table.save(tmp, manifest_for(spec, table, extra=manifest_extra or None,
                                          work_precision=getattr(builder, "work_precision", None)))
             if final.exists():
                 trash = Path(tempfile.mkdtemp(prefix=f".old-{key[:16]}-", dir=root))

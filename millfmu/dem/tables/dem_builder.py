@@ -9,6 +9,7 @@ The DEM (and numba) loads only inside :class:`DemBuilder` calls, not on import.
 from __future__ import annotations
 
 import math
+import sys
 import tempfile
 import time
 from dataclasses import dataclass, field
@@ -159,27 +160,56 @@ def _validate_scene_dict(d: dict):
 
 
 def rebuild_including(table: Table, point: dict, builder: Callable | None = None,
-                      cache_dir=None, progress: bool = True, **run_kw) -> Table:
+                      cache_dir=None, progress: bool = True, on_stale: str = "refuse",
+                      log: Callable[[str], None] | None = None, **run_kw) -> Table:
     """Build (or find in the cache) a table like ``table`` whose grid also covers ``point``:
     each axis (grid or one-at-a-time) whose value lies outside gets that value as a new end
-    node. Only the points not in the cache's point store are run. ``builder``: default the DEM
-    (:class:`DemBuilder`, with the installed kernel version)."""
-    old = table.spec()
+    node. Only the points not in the cache's point store are run (the table's own points
+    and those of the shipped tables of the same scene and kernel are put there first).
+    ``builder``: default the DEM (:class:`DemBuilder`).
 
-    def extended(axes):
-        out = {}
-        for ax, vals in axes.items():
-            x = float(point[ax])
-            out[ax] = sorted(set(vals) | ({x} if not vals[0] <= x <= vals[-1] else set()))
-        return out
+    Before anything runs, one line (``log``, default stderr) says what the build runs and
+    costs; where the installed DEM's kernel version is not the table's, ``on_stale``
+    decides (:mod:`.on_demand`): 'refuse' raises :class:`~.on_demand.StaleTableError`
+    naming the cost of the full rebuild, 'rebuild' runs every point with the installed
+    DEM, 'accept' keeps the table's points and runs only the new ones."""
+    from . import on_demand as od
 
-    grid, oat = extended(old.grid), extended(old.one_at_a_time)
+    if log is None:
+        def log(msg):
+            print(f"millfmu: {msg}", file=sys.stderr, flush=True)
     if builder is None:
         # The extended table has the same DEM settings: it keeps the old one's entry.
-        builder = DemBuilder(work_precision=table.manifest.get("work_precision"))
-        kv = dem_kernel_version()
-    else:
-        kv = old.kernel_version
-    spec = TableSpec(scene=old.scene, grid=grid, kernel_version=kv,
-                     builder_id=builder_id_of(builder), one_at_a_time=oat)
-    return get_table(spec, builder, cache_dir=cache_dir, progress=progress, seed_from=(table,), **run_kw)
+        builder = od.default_builder(table)
+    workers = run_kw.get("workers") or (1 if run_kw.get("executor") == "serial" else None)
+    old_v = table.spec().kernel_version
+    new_v = od.installed_kernel_version(table)
+    if new_v != old_v:
+        line = od.stale_line(table, point, on_stale, builder, cache_dir, workers)
+        log(line)
+        if on_stale == "refuse":
+            raise od.StaleTableError(line)
+    kv = old_v if on_stale == "accept" else new_v
+    pl = od.plan(table, point, builder, kv, cache_dir, workers)
+    extra = {}
+    if kv != new_v:
+        extra["on_demand"] = {
+            "kernel_accepted": "the points of the table extended ran with the kernel version "
+                               "of this table; the points run for the extension with the "
+                               "installed DEM's (on_stale = 'accept')",
+            "installed_kernel_version": new_v, "points_run_with_installed": pl.todo}
+    name = (table.manifest.get("scene") or {}).get("name", "?")
+    if pl.todo:
+        log(f"table {name}: building a table that covers {_point_text(table, point)}: {pl.line()}")
+    run_kw.setdefault("seconds_per_cost", pl.seconds_per_cost)
+    return get_table(pl.spec, builder, cache_dir=cache_dir, progress=progress, seed_from=(table,),
+                     manifest_extra=extra, **run_kw)
+
+
+def _point_text(table: Table, point: dict) -> str:
+    spec = table.spec()
+    out = []
+    for ax, vals in (*spec.grid.items(), *spec.one_at_a_time.items()):
+        if ax in point and not vals[0] <= float(point[ax]) <= vals[-1]:
+            out.append(f"{ax} = {float(point[ax]):g}")
+    return ", ".join(out) or "the point"

@@ -7,7 +7,9 @@ impact energy that compresses a particle caught between two beads, the quantity 
 stress-energy concept (Kwade) and the distribution seed 001 reports; the shear and
 rotational parts mostly rub rather than break. ``total`` can be chosen instead.
 
-Part of what an FMU carries: the DEM builder loads only for ``on_outside='build'``.
+Part of what an FMU carries: the DEM builder loads only for ``on_outside='build'``, which an
+FMU turns into ``'refuse'`` (it carries no DEM: ``build-fmu`` builds the table that covers
+the scene's operating point, and the FMU carries that).
 """
 
 from __future__ import annotations
@@ -20,6 +22,10 @@ import numpy as np
 from ...kinetics.stress_distribution import Zone
 from .spec import AXES, COMPONENTS, TableError, norm_log10_edges
 from .table import EXTRAPOLABLE_AXES, FIXED_AXIS_RTOL, Lookup, OutsideGridError, Table
+
+#: What an on-demand build does where the table's DEM kernel version is not the installed
+#: DEM's (kinetics.stress_distribution.on_stale).
+STALE_POLICIES = ("refuse", "rebuild", "accept")
 
 
 @dataclass
@@ -43,7 +49,14 @@ class TableStressSource:
     A point outside the grid raises :class:`OutsideGridError` unless
     ``on_outside='build'``: then ``rebuild(table, point)`` (default
     :func:`~millfmu.dem.tables.dem_builder.rebuild_including` with the DEM) builds and
-    caches a table whose grid covers the point, progress shown.
+    caches a table whose grid covers the point, progress shown. Such a point is checked up
+    front (:meth:`check`, when the model is made): one the table's DEM scene cannot run
+    (:mod:`millfmu.dem.limits`) is refused naming both ranges, and where the installed DEM's
+    kernel version differs from the table's, ``on_stale`` decides: ``'refuse'`` (the
+    point is refused, naming the cost of the full rebuild), ``'rebuild'`` (every point
+    again with the installed DEM) or ``'accept'`` (the table's points as they are, only the
+    new ones run; :mod:`.on_demand`). ``outside_note``: words added to every refusal of a
+    point outside the grid (an FMU says that it carries no DEM).
     At tip speed 0 (stirrer at rest) there are no collisions: zones with zero rate.
     """
 
@@ -52,6 +65,8 @@ class TableStressSource:
     similar_axes: tuple = ()
     on_outside: str = "refuse"
     rebuild: Callable | None = None  # (table, point) -> Table covering the point
+    on_stale: str = "refuse"
+    outside_note: str = ""
     #: Signed multiple m of the stated error the zones are put at (:meth:`relative_error`):
     #: every zone's collision rate and energies times (1 + |m| b)^sign(m), b its relative
     #: bound. 0: the table's values; +1 / -1: the upper / lower edge of the prediction band.
@@ -64,6 +79,8 @@ class TableStressSource:
             raise TableError(f"component = {self.component!r}: allowed {list(COMPONENTS)}")
         if self.on_outside not in ("refuse", "build"):
             raise TableError(f"on_outside = {self.on_outside!r}: allowed 'refuse', 'build'")
+        if self.on_stale not in STALE_POLICIES:
+            raise TableError(f"on_stale = {self.on_stale!r}: allowed {', '.join(map(repr, STALE_POLICIES))}")
         self.similar_axes = tuple(self.similar_axes)
         for ax in self.similar_axes:
             if ax not in EXTRAPOLABLE_AXES:
@@ -93,15 +110,74 @@ class TableStressSource:
     def check(self, op):
         """Raise :class:`OutsideGridError` if :meth:`zones` would refuse ``op`` (a point
         outside the grid with ``on_outside='refuse'``); cheap: the axes' bounds only, by
-        the same rules as the lookup (:meth:`Table.axis_value`), no interpolation."""
+        the same rules as the lookup (:meth:`Table.axis_value`), no interpolation. With
+        ``on_outside='build'`` a point outside the grid is refused where the build could
+        not run: outside what the table's DEM scene accepts (both ranges named), or, with
+        ``on_stale='refuse'``, where the installed DEM kernel is not the table's (the cost
+        of the full rebuild named). Neither check loads the DEM engine."""
         self._check_fixed_axes(op)
-        if self.on_outside == "build":
-            return
         for ax, x in self.point_of(op).items():
             if ax == "tip_speed_m_s" and not x > 0.0:
                 continue  # the stirrer at rest: no collisions, nothing to look up
             t = self.table.one_at_a_time.get(ax, self.table)
-            t.axis_value(ax, x, self.similar_axes)
+            try:
+                t.axis_value(ax, x, self.similar_axes)
+            except OutsideGridError as e:
+                if self.on_outside != "build":
+                    if self.outside_note:
+                        raise OutsideGridError(e.axis, e.value, e.lo, e.hi, note=self.outside_note) from None
+                    raise
+                self._check_buildable(e)
+
+    def _check_buildable(self, e: OutsideGridError):
+        """For on_outside='build': refuse the point of ``e`` where no build can cover it."""
+        from ..limits import outside_dem  # numbers only: no DEM engine, no numba
+
+        why = outside_dem(self.table.manifest.get("scene") or {}, e.axis, e.value)
+        if why is not None:
+            raise OutsideGridError(e.axis, e.value, e.lo, e.hi,
+                                   note=f"; {why}, so on_outside = 'build' cannot cover it") from None
+        if self.on_stale == "refuse":
+            line = self.stale_line({**self._any_point(), e.axis: e.value})
+            if line is not None:
+                raise OutsideGridError(e.axis, e.value, e.lo, e.hi, note=f"; on_outside = 'build': {line}") from None
+
+    def _any_point(self) -> dict:
+        """The table's anchor or first grid point (the axes a stale line's cost needs)."""
+        p = {ax: float(v[0]) for ax, v in self.table.axes.items()}
+        p.update({ax: float(v) for ax, v in self.table.one_at_a_time_ref.items()})
+        return p
+
+    def stale_line(self, point: dict) -> str | None:
+        """One line where the installed DEM's kernel version is not the table's (what a build
+        covering ``point`` would cost under each policy), else None; for DEM tables only."""
+        from .on_demand import stale_line  # the builder's side: not carried by an FMU
+
+        return stale_line(self.table, point, self.on_stale)
+
+    def cover(self, op):
+        """Make the table cover ``op`` (with ``on_outside='build'``: build it now, see
+        :meth:`zones`; a no-op where the grid covers it). ``build-fmu`` calls it so that the
+        FMU carries the table its scene needs."""
+        if not op.tip_speed_m_per_s > 0.0:
+            return
+        point = self.point_of(op)
+        try:
+            self.table.lookup(point, self.similar_axes)
+        except OutsideGridError:
+            if self.on_outside != "build":
+                raise
+            self._extend(point)
+
+    def _extend(self, point: dict):
+        rebuild = self.rebuild
+        if rebuild is None:
+            # Imported here: the builder (cache, grid runs, DEM) stays out of FMUs.
+            from functools import partial
+
+            from .dem_builder import rebuild_including
+            rebuild = partial(rebuild_including, on_stale=self.on_stale)
+        self.table = rebuild(self.table, point)
 
     def relative_error(self, lk: Lookup | None = None) -> dict:
         """The stated relative error per zone at a lookup (default: the last): for the
@@ -139,14 +215,12 @@ class TableStressSource:
         point = self.point_of(op)
         try:
             lk = self.table.lookup(point, self.similar_axes)
-        except OutsideGridError:
+        except OutsideGridError as e:
             if self.on_outside != "build":
+                if self.outside_note:
+                    raise OutsideGridError(e.axis, e.value, e.lo, e.hi, note=self.outside_note) from None
                 raise
-            rebuild = self.rebuild
-            if rebuild is None:
-                # Imported here: the builder (cache, grid runs, DEM) stays out of FMUs.
-                from .dem_builder import rebuild_including as rebuild
-            self.table = rebuild(self.table, point)
+            self._extend(point)
             lk = self.table.lookup(point, self.similar_axes)
         self.last_lookup = lk
         self.last_notes = notes + lk.notes

@@ -1,0 +1,185 @@
+"""Tables regenerated on demand: before a table is extended to cover a new operating point
+(:func:`~.dem_builder.rebuild_including`), what the build will run and cost, said in one
+line before anything runs, and what to do where the installed DEM is not the one that
+built the table (its kernel version differs: the code changed since).
+
+Costs come from the builder's ``relative_cost(scene, point)`` (bead count times steps for
+the DEM) in seconds: the table's manifest records what its points took
+(``points_wall_time_s``), which calibrates seconds per cost unit.
+
+Policies where the kernel versions differ (``kinetics.stress_distribution.on_stale``,
+``millfmu run --on-stale``): ``refuse`` (nothing runs; the line names the cost of the full
+rebuild and the other two choices), ``rebuild`` (every point again with the installed DEM:
+the table's points belong to another kernel and are not reused) and ``accept`` (the table's
+points are kept as they are and only the new points run, with the installed DEM; the new
+table keeps the old kernel version, and its manifest says which points ran with which).
+
+Imports no numba (the DEM loads in the builder's processes).
+"""
+
+from __future__ import annotations
+
+import os
+from dataclasses import dataclass
+from . import cache as _cache
+from .build import PointStore, duration, stored_results
+from .spec import DEM_BUILDER_ID, TableError, TableSpec, builder_id_of
+from .table import Table
+
+#: The policies where the installed DEM's kernel version is not the table's.
+STALE_POLICIES = ("refuse", "rebuild", "accept")
+
+
+class StaleTableError(TableError):
+    """An on-demand build refused because the table was built by another DEM kernel
+    (on_stale = 'refuse'); the message says what a rebuild costs and the choices."""
+
+
+def extended_axes(spec: TableSpec, point: dict) -> tuple[dict, dict]:
+    """(grid, one-at-a-time axes) of ``spec`` with each value of ``point`` that lies outside
+    its axis added as a new end node."""
+
+    def extended(axes):
+        out = {}
+        for ax, vals in axes.items():
+            if ax not in point:
+                out[ax] = list(vals)
+                continue
+            x = float(point[ax])
+            out[ax] = sorted(set(vals) | ({x} if not vals[0] <= x <= vals[-1] else set()))
+        return out
+
+    return extended(spec.grid), extended(spec.one_at_a_time)
+
+
+def installed_kernel_version(table: Table) -> str:
+    """The kernel version a build of ``table``'s kind would run with: the installed DEM's
+    (:func:`~.cache.dem_kernel_version`) for a DEM table, else the table's own (another
+    builder has no DEM kernel)."""
+    if table.manifest.get("builder", table.spec().builder_id) == DEM_BUILDER_ID:
+        return _cache.dem_kernel_version()
+    return table.spec().kernel_version
+
+
+def default_builder(table: Table):
+    """The DEM as builder, with the table's work-precision entry (loads no numba)."""
+    from .dem_builder import DemBuilder
+
+    return DemBuilder(work_precision=table.manifest.get("work_precision"))
+
+
+def seconds_per_cost(table: Table, builder) -> float | None:
+    """Seconds per unit of ``builder.relative_cost`` from what the table's points took
+    (manifest ``points_wall_time_s`` over the summed cost of its points); None where the
+    table or the builder does not say."""
+    wall = table.manifest.get("points_wall_time_s")
+    cost = getattr(builder, "relative_cost", None)
+    if not isinstance(wall, (int, float)) or not wall > 0 or cost is None:
+        return None
+    spec = table.spec()
+    costs = relative_costs(builder, spec.scene, spec.points())
+    total = sum(costs) if costs is not None else 0.0
+    return float(wall) / total if total > 0 else None
+
+
+def relative_costs(builder, scene: dict, points: list) -> list | None:
+    """``builder.relative_cost`` of each point; None where the builder has no estimate or
+    cannot make one for this scene (e.g. the DEM's for a scene that is not a DEM scene)."""
+    cost = getattr(builder, "relative_cost", None)
+    if cost is None:
+        return None
+    try:
+        return [float(cost(scene, p)) for p in points]
+    except (ValueError, KeyError, TypeError):
+        return None
+
+
+@dataclass
+class Plan:
+    """What an on-demand build will do: the spec it builds, its points, those that run
+    (``todo``, each with its relative cost where the builder estimates one), and the
+    seconds per cost unit (None where unknown)."""
+
+    spec: TableSpec
+    points: list
+    todo: list
+    costs: list | None
+    seconds_per_cost: float | None
+    workers: int = 1
+
+    def cpu_s(self, costs=None) -> float | None:
+        costs = self.costs if costs is None else costs
+        if costs is None or self.seconds_per_cost is None:
+            return None
+        return sum(costs) * self.seconds_per_cost
+
+    def wall_s(self) -> float | None:
+        """Wall time on ``workers`` processes: at least the costliest point, at most the sum."""
+        cpu = self.cpu_s()
+        if cpu is None or not self.costs:
+            return cpu
+        return max(cpu / max(1, min(self.workers, len(self.costs))),
+                   max(self.costs) * self.seconds_per_cost)
+
+    def line(self) -> str:
+        n, m = len(self.points), len(self.todo)
+        cost = (f" (about {duration(self.cpu_s())} of CPU, {duration(self.wall_s())} on "
+                f"{self.workers} worker{'s' if self.workers != 1 else ''})"
+                if self.cpu_s() is not None else "")
+        return f"{n} points, {n - m} already built, {m} to run{cost}"
+
+
+def plan(table: Table, point: dict, builder, kernel_version: str, cache_dir=None,
+         workers: int | None = None) -> Plan:
+    """The plan of a build of ``table`` extended to ``point`` with ``kernel_version``:
+    the point store seeded as the build will seed it (the table itself and the shipped
+    tables of the same scene and kernel), so that ``todo`` is what will run."""
+    old = table.spec()
+    grid, oat = extended_axes(old, point)
+    spec = TableSpec(scene=old.scene, grid=grid, kernel_version=kernel_version,
+                     builder_id=builder_id_of(builder), one_at_a_time=oat)
+    store = PointStore(_cache.resolve_cache_dir(cache_dir) / _cache.POINTS_DIR)
+    have = [r is not None for r in stored_results(spec, store)]
+    if not all(have):
+        seeds = [t for t in (table, *_cache.seed_tables(spec)) if t.spec().kernel_version == kernel_version]
+        if seeds:
+            # What the build will find: the seeded points (no file is written for this).
+            known = {_key(store, t.spec(), p) for t in seeds for p in t.spec().points()}
+            have = [h or _key(store, spec, p) in known for h, p in zip(have, spec.points())]
+    points = spec.points()
+    todo = [p for p, h in zip(points, have) if not h]
+    costs = relative_costs(builder, spec.scene, todo)
+    return Plan(spec, points, todo, costs, seconds_per_cost(table, builder),
+                workers or os.cpu_count() or 1)
+
+
+def _key(store: PointStore, spec: TableSpec, p: dict) -> str:
+    return store.key(spec, p)
+
+
+def stale_line(table: Table, point: dict, policy: str, builder=None, cache_dir=None,
+               workers: int | None = None) -> str | None:
+    """One line where the installed DEM kernel is not the one that built ``table``: the two
+    versions, what rebuilding the table extended to ``point`` costs, and what ``policy``
+    does; None where the versions agree (or the table is not a DEM table)."""
+    if policy not in STALE_POLICIES:
+        raise TableError(f"on_stale = {policy!r}: allowed {', '.join(map(repr, STALE_POLICIES))}")
+    old_v = table.spec().kernel_version
+    new_v = installed_kernel_version(table)
+    if new_v == old_v:
+        return None
+    builder = builder if builder is not None else default_builder(table)
+    full = plan(table, point, builder, new_v, cache_dir, workers)
+    name = (table.manifest.get("scene") or {}).get("name", "?")
+    head = (f"table {name} {table.manifest.get('key', '')[:10]} was built by DEM kernel "
+            f"{old_v[:19]}..., the installed DEM is {new_v[:19]}...: a build that extends it runs "
+            f"{full.line()}")
+    if policy == "refuse":
+        return (head + "; such a build is refused (on_stale = 'refuse'): set kinetics.stress_distribution."
+                "on_stale = 'rebuild' (or millfmu run --on-stale rebuild) to run them, or "
+                "'accept' to keep the table's points and run only the new ones")
+    if policy == "rebuild":
+        return head + "; on_stale = 'rebuild': rebuilding"
+    kept = plan(table, point, builder, old_v, cache_dir, workers)
+    return (head + f"; on_stale = 'accept': the table's points are kept as they are, "
+            f"{kept.line()} with the installed DEM")
