@@ -97,7 +97,7 @@ class MillSlave(Fmi2Slave):
         self.n_classes = n
         self._base_scene = scene
         # type(self): pythonfmu's __init__ set the instance's description to None.
-        self._model_description = model_description_text(type(self).description, scene, n)
+        self._model_description = model_description_text(type(self).description, scene, n, getattr(self.model.source, "table", None))
         run = scene.run
         self.default_experiment = DefaultExperiment(start_time=0.0, stop_time=run.t_end_s, step_size=run.dt_s)
 

@@ -46,7 +46,7 @@ class MillSlave3(Fmi3Base):
         self._base_scene = scene
         self._overrides: dict = {}
         n = self.model.grid.n
-        self._model_description = model_description_text(self.description, scene, n)
+        self._model_description = model_description_text(self.description, scene, n, getattr(self.model.source, "table", None))
         self.default_experiment = DefaultExperiment(start_time=0.0, stop_time=scene.run.t_end_s, step_size=scene.run.dt_s)
 
         # One description of the variables (millfmu.fmu_variables) serves FMI 2.0 and 3.0;

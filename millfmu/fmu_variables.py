@@ -149,13 +149,17 @@ def plain(x):
     return x
 
 
-def model_description_text(base: str, scene, n_classes: int) -> str:
-    """The FMU's description: what it is, the scene, the stress-energy table it carries and
-    what the scene's constants were fitted to (``scene.calibration``). Shared by FMI 2 and 3."""
+def model_description_text(base: str, scene, n_classes: int, table=None) -> str:
+    """The FMU's description: what it is, the scene, the stress-energy table it carries
+    (``table``: the model's, identified by its manifest) and what the scene's constants were
+    fitted to (``scene.calibration``). Shared by FMI 2 and 3."""
     text = f"{base}; scene {scene.scene.name!r}, {scene.operation.mode}, {scene.kinetics.model} model, {n_classes} size classes"
-    sd = scene.kinetics.stress_distribution
-    if scene.kinetics.model == "detailed" and sd.source == "table":
-        text += f"; stress energies from the DEM table {sd.table!r} (component {sd.component})"
+    if table is not None:
+        m = table.manifest
+        dem = m.get("scene") or {}
+        fluid = (dem.get("fluid") or {}).get("mode", "?")
+        text += (f"; stress energies from the DEM table {str(m.get('key', '?'))[:12]} ({dem.get('name', '?')}, fluid {fluid}, "
+                 f"component {scene.kinetics.stress_distribution.component})")
     if scene.scene.calibration:
         text += f"; calibration: {scene.scene.calibration}"
     return text

@@ -243,9 +243,23 @@ class MillModel:
             raise SceneError(TABLE_SCENE_KEYS[e.axis], e.value, e.allowed, s.scene.name) from None
         if getattr(self.source, "on_outside", None) == "build":
             # Said before anything runs: an on-demand build would not reuse the table's points.
-            line = self.source.stale_line(self.source.point_of(self.operating_point(self.inputs_of_scene())))
+            op = self.operating_point(self.inputs_of_scene())
+            line = self.source.stale_line(self.source.point_of(op))
             if line is not None:
                 self.warnings.append(f"on-demand builds: {line}")
+
+    def cover_scene_point(self):
+        """With ``on_outside = 'build'``: build the table for the scene's own operating point
+        now (before a run) instead of inside its first step, so that a point the DEM cannot
+        build (beads that do not fit the cell, a run that fails) is a SceneError naming the
+        reason. A no-op for other sources and where the table covers the point."""
+        if getattr(self.source, "on_outside", None) != "build":
+            return
+        try:
+            self.source.cover(self.operating_point(self.inputs_of_scene()))
+        except ValueError as e:  # TableError, DemSceneError: the build's reasons
+            raise SceneError("kinetics.stress_distribution.on_outside", "build",
+                             f"the table could not be extended to the scene's operating point: {e}", self.scene.scene.name) from None
 
     def inputs_of_scene(self) -> dict:
         """The scene's own operating inputs (tip speed, filling, solids)."""

@@ -29,7 +29,24 @@ def test_carries_table_slice_and_reader_only(table_fmu):
     with zipfile.ZipFile(fmu) as z:
         z.extract("resources/table.npz", fmu.parent)
         z.extract("resources/table.json", fmu.parent)
-    read_table(npz=fmu.parent / "resources/table.npz", manifest_path=fmu.parent / "resources/table.json")  # verifies checksums
+    t = read_table(npz=fmu.parent / "resources/table.npz", manifest_path=fmu.parent / "resources/table.json")  # verifies checksums
+    # the default scene's table is the coupled DEM-CFD one: the FMU carries a slice of it
+    from millfmu.dem.tables import read_table_ref
+
+    coupled = read_table_ref("coupled").manifest["key"]
+    assert t.manifest.get("slice_of", t.manifest["key"]) == coupled  # the whole table where the scene fixes no axis
+    assert t.manifest["scene"]["fluid"]["mode"] == "coupled"
+
+
+def test_description_names_the_table_and_the_stand_in_calibration(table_fmu):
+    _, fmu = table_fmu
+    from fmpy import read_model_description
+
+    text = read_model_description(str(fmu)).description
+    from millfmu.dem.tables import read_table_ref
+
+    key = read_table_ref("coupled").manifest["key"][:12]
+    assert f"DEM table {key} (disc_slice, fluid coupled" in text and "STAND-IN" in text and "f_mat_kg_per_J_m" in text
 
 
 def test_runs_without_millfmu_and_matches_model(table_fmu):

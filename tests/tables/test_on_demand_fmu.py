@@ -67,3 +67,21 @@ def test_build_fmu_carries_the_table_that_covers_the_scene(tmp_path, monkeypatch
     fmu_model = MillModel(scene_from_dict(d), no_dem=True)
     assert list(fmu_model.source.table.axes["tip_speed_m_s"]) == [6.0, 10.0, 14.0, 16.0]
     fmu_model.step(1.0)
+
+
+def test_a_point_the_dem_cannot_build_is_refused_before_the_run(monkeypatch):
+    """With on_outside = 'build' the scene's own point is built before a run
+    (cover_scene_point, which millfmu run and millfmu.run call), so a build that fails (e.g.
+    1.4 mm beads that do not fit the table's 10-degree cell) is a SceneError naming
+    on_outside and the reason, never an error inside the first step."""
+    import millfmu.dem.tables.dem_builder as db
+    from millfmu.dem.tables.spec import TableError
+
+    def failing(table, point, **k):
+        raise TableError(f"grid point {point}: GeometryError: the cell holds at most 1159 beads")
+
+    monkeypatch.setattr(db, "rebuild_including", failing)
+    with pytest.raises(SceneError) as e:
+        MillModel(_coupled(beads={"diameter_m": 1.4e-3})).cover_scene_point()
+    assert e.value.key == "kinetics.stress_distribution.on_outside"
+    assert "could not be extended" in str(e.value) and "GeometryError" in str(e.value)
