@@ -61,3 +61,26 @@ def test_refining_the_coupled_table_reuses_its_points(tmp_path):
     assert store.seed(t) == 18 and store.seed(t) == 0
     found = stored_results(new, store)
     assert sum(r is not None for r in found) == 18 and len(found) == 28
+
+
+def test_the_progress_line_counts_down_while_a_point_runs(tmp_path, monkeypatch, capsys):
+    """The time left is refreshed between finished points (a point can run for an hour)."""
+    import millfmu.dem.tables.build as B
+
+    monkeypatch.setattr(B, "PROGRESS_REFRESH_S", 0.05)
+
+    class Slow:
+        def relative_cost(self, scene, point):
+            return 1.0
+
+        def __call__(self, scene, point):
+            import time
+
+            time.sleep(0.4)
+            return analytic_builder(scene, point)
+
+    s = spec(grid={"tip_speed_m_s": [6.0, 10.0]})
+    B.run_points(s, Slow(), executor="serial", progress=True, seconds_per_cost=10.0)
+    err = capsys.readouterr().err
+    lefts = [line for line in err.replace("\r", "\n").splitlines() if "left" in line]
+    assert len(lefts) >= 10  # refreshed while the points ran (measured 21), not only when one finished (6)

@@ -289,6 +289,10 @@ class BuildProgress:
         return out
 
 
+#: Seconds between refreshes of a build's progress line while points run [s].
+PROGRESS_REFRESH_S = 10.0
+
+
 def run_points(spec: TableSpec, builder: Callable, executor: str = "processes",
                workers: int | None = None, scheduler: str | None = None,
                progress: bool = True, point_store: PointStore | None = None,
@@ -327,10 +331,21 @@ def run_points(spec: TableSpec, builder: Callable, executor: str = "processes",
         if bar is not None:
             bar.set_postfix_str(prog.text(), refresh=True)
 
+    ticking = None
     if progress:
+        import threading
+
         from tqdm import tqdm
         bar = tqdm(total=len(points), initial=len(points) - len(todo), unit="point",
                    desc=f"table {spec.key()[:10]}")
+        # A point can run for an hour: the time left counts down between finished points.
+        ticking = threading.Event()
+
+        def tick():
+            while not ticking.wait(PROGRESS_REFRESH_S):
+                bar.set_postfix_str(prog.text(), refresh=True)
+
+        threading.Thread(target=tick, daemon=True).start()
 
     errors = []
 
@@ -376,6 +391,8 @@ def run_points(spec: TableSpec, builder: Callable, executor: str = "processes",
                 for f in as_completed(futs):
                     done(futs[f], f.result)
     finally:
+        if ticking is not None:
+            ticking.set()
         if bar is not None:
             bar.close()
     if errors:
