@@ -1,9 +1,11 @@
 """Run a scene over time and write result.json, psd.csv and PNG plots.
 
-Files are first written to a temporary folder next to the target and moved into place
-only when all of them are complete, so an interrupted or failed run leaves no
-half-written results; result files of an earlier run in the folder that this run does not
-write (e.g. its plots, with --no-plots) are removed then, so a folder never mixes runs.
+Files are first written to a complete result folder next to the target (hidden,
+``.millfmu-<pid>-new-*``) and switched in with one atomic rename (an exchange of the two
+folders where Linux offers it), so an interrupted or killed run leaves the old complete set
+or the new one, never a mix; result files of an earlier run that this run does not write
+(e.g. its plots, with --no-plots) go with the old folder; other files there are kept.
+Temporary folders of killed runs are removed by the next run.
 result.json carries the run's provenance: the resolved scene (every key), millfmu, Python
 and numpy versions, the stress-energy table's identity and stated error, the wall time.
 """
@@ -15,6 +17,7 @@ import json
 import math
 import os
 import shutil
+import sys
 import tempfile
 from pathlib import Path
 
@@ -35,23 +38,156 @@ class OutputError(ValueError):
         super().__init__(f"--out {self.path}: {why}")
 
 
+#: Hidden temporary folders of a run beside ``--out``: ``.millfmu-<pid>-new-<name>`` holds the
+#: new results until they are switched in, ``.millfmu-<pid>-old-<name>`` the replaced ones
+#: until they are removed. Those of a process that no longer runs are removed by the next
+#: run in that folder (an ``old`` one whose folder is missing is renamed back first).
+TEMP_PREFIX = ".millfmu-"
+#: Called between the steps of switching results in (a test stops the process there).
+_switch_hook = None
+
+
+def _existing_ancestor(p: Path) -> Path:
+    p = Path(os.path.abspath(p))
+    while not p.exists() and p != p.parent:
+        p = p.parent
+    return p
+
+
 def check_out_dir(out_dir) -> Path:
     """OutputError unless ``out_dir`` is (or can become) a folder this process can write
-    into: checked by making and removing a temporary folder beside it before a run."""
+    into and beside which it can make its temporary folder: checked by making and removing a
+    probe folder in the nearest existing folder. Creates nothing."""
     out = Path(out_dir)
     if out.exists() and not out.is_dir():
         raise OutputError(out, "exists and is not a folder; give a folder (new or from an earlier run)")
-    parent = out.parent
+    if Path(os.path.abspath(out)) == Path(os.path.abspath(out)).parent:
+        raise OutputError(out, "is the file system's root; give a folder below it")
+    base = _existing_ancestor(out.parent)
+    if not base.is_dir():
+        raise OutputError(out, f"cannot write there ({base} is not a folder); give a writable folder")
     try:
-        parent.mkdir(parents=True, exist_ok=True)
-        probe = Path(tempfile.mkdtemp(prefix=".millfmu-probe-", dir=parent))
+        probe = Path(tempfile.mkdtemp(prefix=TEMP_PREFIX + "probe-", dir=base))
         probe.rmdir()
         if out.is_dir():
-            probe = Path(tempfile.mkdtemp(prefix=".millfmu-probe-", dir=out))
+            probe = Path(tempfile.mkdtemp(prefix=TEMP_PREFIX + "probe-", dir=out))
             probe.rmdir()
     except OSError as e:
-        raise OutputError(out, f"cannot write there ({e.strerror or e}); give a writable folder") from None
+        where = "" if base == Path(os.path.abspath(out)) else (
+            f"; the results are first written into a hidden folder {TEMP_PREFIX}* in {base} beside it and switched in with one rename")
+        raise OutputError(out, f"cannot write there ({e.strerror or e}: {base}{where}); give a writable folder") from None
     return out
+
+
+def _pid_alive(pid: int) -> bool:
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except OSError:
+        return True
+    return True
+
+
+def clean_leftovers(parent: Path) -> list[Path]:
+    """Remove the temporary folders a killed run left in ``parent``; an ``old`` folder whose
+    result folder is missing (killed between the two renames of the fallback switch) is
+    renamed back. Returns what was removed or restored."""
+    done = []
+    try:
+        entries = list(Path(parent).iterdir())
+    except OSError:
+        return done
+    for p in entries:
+        name = p.name
+        if not name.startswith(TEMP_PREFIX) or not p.is_dir() or p.is_symlink():
+            continue
+        pid, _, rest = name[len(TEMP_PREFIX):].partition("-")
+        if not pid.isdigit() or int(pid) == os.getpid() or _pid_alive(int(pid)):
+            continue
+        kind, _, target = rest.partition("-")
+        if kind == "old" and target and not (p.parent / target).exists():
+            try:
+                os.rename(p, p.parent / target)
+                done.append(p.parent / target)
+                continue
+            except OSError:
+                pass
+        shutil.rmtree(p, ignore_errors=True)
+        done.append(p)
+    return done
+
+
+def _exchange(a: Path, b: Path) -> bool:
+    """Swap two folders with one atomic rename (Linux renameat2 RENAME_EXCHANGE); False where
+    the system or file system cannot."""
+    if not sys.platform.startswith("linux"):
+        return False
+    try:
+        import ctypes
+
+        libc = ctypes.CDLL(None, use_errno=True)
+        fn = libc.renameat2
+    except (OSError, AttributeError):
+        return False
+    fn.argtypes = [ctypes.c_int, ctypes.c_char_p, ctypes.c_int, ctypes.c_char_p, ctypes.c_uint]
+    at_fdcwd, rename_exchange = -100, 2
+    return fn(at_fdcwd, os.fsencode(a), at_fdcwd, os.fsencode(b), rename_exchange) == 0
+
+
+def _hook(stage: str):
+    if _switch_hook is not None:
+        _switch_hook(stage)
+
+
+def _switch_in(tmp: Path, out: Path) -> None:
+    """Make the complete result folder ``tmp`` the folder ``out``: the folder holds the old
+    complete set or the new one, never a mix. Files of ``out`` that are not results (notes
+    of the user) are carried over (hard links) first. Where ``out`` holds sub-folders, or
+    is or contains the working folder, it is kept and the files are replaced one by one
+    under a marker ``.millfmu-incomplete`` that the next run reports."""
+    if not out.exists():
+        os.rename(tmp, out)
+        return
+    entries = list(out.iterdir())
+    cwd = Path(os.getcwd()).resolve()
+    whole = all(e.is_file() and not e.is_symlink() for e in entries) and not (cwd == out.resolve() or out.resolve() in cwd.parents)
+    if whole:
+        for e in entries:
+            if e.name in RESULT_FILES or e.name == MARKER or (tmp / e.name).exists():
+                continue
+            try:
+                os.link(e, tmp / e.name)
+            except OSError:
+                shutil.copy2(e, tmp / e.name)
+        _hook("carried")
+        if _exchange(tmp, out):  # tmp now holds the old results
+            _hook("switched")
+            shutil.rmtree(tmp, ignore_errors=True)
+            return
+        old = out.parent / f"{TEMP_PREFIX}{os.getpid()}-old-{out.name}"
+        os.rename(out, old)
+        _hook("moved-away")
+        os.rename(tmp, out)
+        _hook("switched")
+        shutil.rmtree(old, ignore_errors=True)
+        return
+    marker = out / MARKER
+    marker.write_text("a run of millfmu was moving its results into this folder and did not finish: "
+                      "the result files here may come from two runs\n")
+    new = {f.name for f in tmp.iterdir()}
+    for f in sorted(tmp.iterdir()):
+        os.replace(f, out / f.name)
+        _hook("file")
+    for name in RESULT_FILES:
+        if name not in new:
+            (out / name).unlink(missing_ok=True)
+    marker.unlink()
+    shutil.rmtree(tmp, ignore_errors=True)
+
+
+#: Left in a result folder holding sub-folders while files are replaced one by one.
+MARKER = ".millfmu-incomplete"
 
 #: Scalars written per output time to result.json, with their units.
 RESULT_KEYS = {
@@ -185,7 +321,12 @@ def write_results(out_dir: str | Path, scene: Scene, model: MillModel, records, 
 
     Result files of an earlier run there that this run does not write are removed."""
     out = check_out_dir(out_dir)
-    tmp = Path(tempfile.mkdtemp(prefix=".millfmu-", dir=out.parent))
+    out.parent.mkdir(parents=True, exist_ok=True)
+    clean_leftovers(out.parent)
+    if (out / MARKER).exists():
+        print(f"millfmu: warning: --out {out}: an earlier run was stopped while it replaced the result files one by one "
+              "(the folder holds sub-folders); this run replaces them all", file=sys.stderr)
+    tmp = Path(tempfile.mkdtemp(prefix=f"{TEMP_PREFIX}{os.getpid()}-new-", dir=out.parent))
     try:
         op = model.operating_point(model.inputs)
         result = {
@@ -215,14 +356,8 @@ def write_results(out_dir: str | Path, scene: Scene, model: MillModel, records, 
                 w.writerow([repr(rec["t_s"])] + [f"{v:.12g}" for v in q])
         if plots:
             _plots(tmp, model, records, psds)
-        out.mkdir(parents=True, exist_ok=True)
-        written = []
-        for f in sorted(tmp.iterdir()):
-            os.replace(f, out / f.name)
-            written.append(out / f.name)
-        for name in RESULT_FILES:
-            if not (tmp / name).exists() and (out / name) not in written:
-                (out / name).unlink(missing_ok=True)
+        written = [out / f.name for f in sorted(tmp.iterdir())]
+        _switch_in(tmp, out)
         return written
     finally:
         shutil.rmtree(tmp, ignore_errors=True)
