@@ -18,6 +18,7 @@ from __future__ import annotations
 
 import hashlib
 import json
+import os
 import re
 import shutil
 import subprocess
@@ -30,6 +31,7 @@ from pathlib import Path
 import millfmu
 
 from . import fmi3_wrapper
+from .leftovers import clean, tag, temp_dir
 
 #: Modules the FMU must never carry or import for a scene (heavy, and not needed by the
 #: kinetics; the DEM would be imported only by scenes that run it).
@@ -118,23 +120,51 @@ def check_fmi_version(fmi_version) -> int:
 
 
 def write_fmu(built: Path, out: Path, replace: dict | None = None):
-    """Copy the FMU pythonfmu wrote to ``out`` (atomically), deflated (the FMI standard allows
-    it; pythonfmu stores), without compiled Python files; ``replace`` {name: bytes, or None to
-    drop}: entries to replace, add or drop."""
+    """Copy the FMU pythonfmu wrote to ``out`` (atomically: a hidden ``.X.fmu.<pid>_part``
+    renamed at the end; those of killed builds, and ``X.fmu.part`` of older versions, are
+    removed first), deflated (the FMI standard allows it; pythonfmu stores), without
+    compiled Python files; ``replace`` {name: bytes, or None to drop}: entries to replace,
+    add or drop."""
     replace = dict(replace or {})
     out.parent.mkdir(parents=True, exist_ok=True)
-    part = out.with_name(out.name + ".part")
-    with zipfile.ZipFile(built) as zin, zipfile.ZipFile(part, "w", zipfile.ZIP_DEFLATED) as zout:
-        for info in zin.infolist():
-            if "__pycache__" in info.filename or info.filename.endswith(".pyc"):
-                continue
-            data = replace.pop(info.filename, zin.read(info)) if info.filename in replace else zin.read(info)
-            if data is not None:
-                zout.writestr(info.filename, data, compress_type=zipfile.ZIP_DEFLATED)
-        for name, data in sorted(replace.items()):
-            if data is not None:
-                zout.writestr(name, data, compress_type=zipfile.ZIP_DEFLATED)
-    part.replace(out)
+    clean(out.parent, f".{out.name}.")
+    out.with_name(out.name + ".part").unlink(missing_ok=True)
+    part = out.with_name(tag(f".{out.name}.") + "part")
+    try:
+        with zipfile.ZipFile(built) as zin, zipfile.ZipFile(part, "w", zipfile.ZIP_DEFLATED) as zout:
+            for info in zin.infolist():
+                if "__pycache__" in info.filename or info.filename.endswith(".pyc"):
+                    continue
+                data = replace.pop(info.filename, zin.read(info)) if info.filename in replace else zin.read(info)
+                if data is not None:
+                    zout.writestr(info.filename, data, compress_type=zipfile.ZIP_DEFLATED)
+            for name, data in sorted(replace.items()):
+                if data is not None:
+                    zout.writestr(name, data, compress_type=zipfile.ZIP_DEFLATED)
+        part.replace(out)
+    finally:
+        part.unlink(missing_ok=True)
+
+
+def check_output(out: Path) -> Path:
+    """OutputError (exit 2) unless ``out`` ends in .fmu and can be written: not a folder, and
+    its nearest existing folder takes a new file. Creates nothing."""
+    from millfmu.runner import OutputError, _existing_ancestor
+
+    if out.suffix != ".fmu":
+        raise OutputError(out, "must end in .fmu", option="-o")
+    if out.is_dir():
+        raise OutputError(out, "is a folder; give a file name ending in .fmu", option="-o")
+    base = _existing_ancestor(out.parent)
+    try:
+        if not base.is_dir():
+            raise NotADirectoryError(20, "Not a directory")
+        fd, probe = tempfile.mkstemp(prefix=tag(f".{out.name}.") + "probe", dir=base)
+        os.close(fd)
+        os.unlink(probe)
+    except OSError as e:
+        raise OutputError(out, f"cannot write there ({e.strerror or e}: {base}); give a writable place for the FMU", option="-o") from None
+    return out
 
 
 def _needed_modules(scene_path: Path, fmi_version: int = 2) -> dict:
@@ -208,6 +238,7 @@ def build_fmu(scene_path: str | Path | None, out: str | Path, fmi_version: int =
     from .wrapper import choose_wrapper, fmi2_replacements
 
     fmi_version = check_fmi_version(fmi_version)
+    out = check_output(Path(out))  # before any compiling: OutputError -> exit 2
     if fmi_version == 3:
         from pythonfmu3 import FmuBuilder
 
@@ -215,9 +246,6 @@ def build_fmu(scene_path: str | Path | None, out: str | Path, fmi_version: int =
     else:
         from pythonfmu import FmuBuilder
 
-    out = Path(out)
-    if out.suffix != ".fmu":
-        raise ValueError(f"output {out}: must end in .fmu")
     from millfmu.mill import MillModel
 
     scene = load_scene(scene_path)  # SceneError -> the caller reports it
@@ -227,7 +255,7 @@ def build_fmu(scene_path: str | Path | None, out: str | Path, fmi_version: int =
     scene_text = Path(scene_path).read_text() if scene_path is not None else default_scene_text()
     pkg_root = Path(millfmu.__file__).parent
 
-    with tempfile.TemporaryDirectory(prefix="millfmu_fmu_") as tmp:
+    with temp_dir("millfmu_fmu_") as tmp:
         tmp = Path(tmp)
         scene_file = tmp / "scene.toml"
         scene_file.write_text(scene_text)
@@ -255,7 +283,7 @@ def build_fmu(scene_path: str | Path | None, out: str | Path, fmi_version: int =
         full_hash = hashlib.sha256((code_hash + "\0" + scene_text).encode()).hexdigest()[:8]
         ident = f"Mill_{_slug(scene.scene.name)}_{full_hash}"
         script = stage / f"{ident}.py"
-        wrapper = choose_wrapper() if fmi_version == 2 else None
+        wrapper = choose_wrapper(progress=log) if fmi_version == 2 else None
         script.write_text((SCRIPT3 if fmi_version == 3 else SCRIPT).format(scene=scene.scene.name, package=package, ident=ident,
                                                                            stock=wrapper is None))
         dest = tmp / "fmu"

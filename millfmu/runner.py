@@ -33,9 +33,9 @@ RESULT_FILES = ("result.json", "psd.csv", "psd.png", "sizes.png")
 class OutputError(ValueError):
     """The output folder cannot take the results: names the option, the path and why."""
 
-    def __init__(self, path, why: str):
+    def __init__(self, path, why: str, option: str = "--out"):
         self.path = str(path)
-        super().__init__(f"--out {self.path}: {why}")
+        super().__init__(f"{option} {self.path}: {why}")
 
 
 #: Hidden temporary folders of a run beside ``--out``: ``.millfmu-<pid>-new-<name>`` holds the
