@@ -739,13 +739,45 @@ def default_table_paths() -> tuple[Path, Path]:
 SHIPPED_TABLES = ("accelerator", "coupled")
 
 
+#: Tables read by read_table_ref, by their files' identity (path, size, mtime, inode): every
+#: model (every FMU instance) of a process shares one read-only copy instead of reading,
+#: verifying and allocating it again (which also fragmented the heap: RSS grew per instance).
+_READ_CACHE: dict = {}
+
+
+def _file_id(path: Path) -> tuple:
+    st = Path(path).stat()
+    return str(Path(path).resolve()), st.st_size, st.st_mtime_ns, st.st_ino
+
+
+def _read_cached(npz: Path, man: Path) -> Table:
+    try:
+        key = (_file_id(npz), _file_id(man))
+    except OSError:  # missing: read_table names the file
+        return read_table(npz=npz, manifest_path=man)
+    t = _READ_CACHE.get(key)
+    if t is None:
+        t = read_table(npz=npz, manifest_path=man)
+        for tab in (t, *t.one_at_a_time.values()):
+            for arr in (*tab.data.values(), *tab.refs.values(), *tab.axes.values()):
+                arr.flags.writeable = False
+        if len(_READ_CACHE) >= 8:
+            _READ_CACHE.pop(next(iter(_READ_CACHE)))
+        _READ_CACHE[key] = t
+    return t
+
+
 def read_table_ref(ref: str) -> Table:
     """The table a scene names: "default" (the shipped one), a name in SHIPPED_TABLES
-    (millfmu/data/NAME_table.*), or PREFIX of PREFIX.npz/PREFIX.json."""
+    (millfmu/data/NAME_table.*), or PREFIX of PREFIX.npz/PREFIX.json. Read once per
+    process and files (shared, arrays read-only)."""
     if ref == "default":
-        return read_default_table()
+        npz, man = default_table_paths()
+        if not npz.exists():
+            return read_default_table()  # names what is missing
+        return _read_cached(npz, man)
     prefix = str(table_ref_prefix(ref))
-    return read_table(npz=prefix + ".npz", manifest_path=prefix + ".json")
+    return _read_cached(Path(prefix + ".npz"), Path(prefix + ".json"))
 
 
 def table_ref_prefix(ref: str) -> Path:
