@@ -369,57 +369,102 @@ def _plots(folder: Path, model: MillModel, records, psds):
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
+    for name, fig in (("psd.png", psd_figure(model, records, psds)), ("sizes.png", sizes_figure(model, records))):
+        fig.savefig(folder / name, dpi=110)
+        plt.close(fig)
+
+
+def _what_psd(model: MillModel) -> str:
+    """What the size distribution of a run describes."""
+    if model.scene.operation.mode == "continuous":
+        n = model.scene.operation.n_tanks
+        return f"product at the mill outlet ({'the last of ' + str(n) + ' tanks' if n > 1 else 'one stirred tank'})"
+    return "mill content (batch)"
+
+
+def _legend_right(ax, **kw):
+    """A legend beside the axes (right), never over the curves."""
+    return ax.legend(loc="upper left", bbox_to_anchor=(1.02, 1.0), borderaxespad=0.0, fontsize=8, **kw)
+
+
+#: Legend of the markers at the grid's lower edge in psd.png.
+BELOW_LABEL = "mass fraction below the grid (marker at its lower edge)"
+
+
+def psd_figure(model: MillModel, records, psds):
+    """Q3 and q3,lg of up to 8 output times; the mass below the grid as a marker at the
+    grid's lower edge (a fraction, not a density)."""
+    import matplotlib.pyplot as plt
+
     e = model.grid.edges_m
     t = np.array([r["t_s"] for r in records])
     idx = np.unique(np.linspace(0, len(records) - 1, min(8, len(records))).round().astype(int))
     cmap = plt.get_cmap("viridis")
-    fig, (a1, a2) = plt.subplots(1, 2, figsize=(11, 4.2))
+    fig, (a1, a2) = plt.subplots(1, 2, figsize=(12.5, 4.6))
     for k, i in enumerate(idx):
         c = cmap(k / max(1, len(idx) - 1))
         q3 = psds[i]  # at every edge: q3[0] is the mass below the grid
         a1.semilogx(e * 1e6, q3, color=c, label=f"t = {t[i]:g} s")
         dens = np.diff(q3) / np.diff(np.log10(e))
-        a2.semilogx(model.grid.x_m * 1e6, dens, color=c)
+        a2.semilogx(model.grid.x_m * 1e6, dens, color=c, label=f"t = {t[i]:g} s")
         if q3[0] > 0.0:
-            a2.plot([e[0] * 1e6], [q3[0]], "v", color=c, ms=5)
+            a2.plot([e[0] * 1e6], [q3[0]], "v", color=c, ms=5, label=BELOW_LABEL)
+    a1.axvline(e[0] * 1e6, color="0.6", lw=0.8, label=f"grid's lower edge ({e[0] * 1e6:.3g} \u00b5m)")
     b = psds[idx[-1]][0]
-    a1.axvline(e[0] * 1e6, color="0.6", lw=0.8)
-    a1.text(e[0] * 1e6, 0.98, f" below grid at t = {t[idx[-1]]:g} s: {b:.2%}", fontsize=8, va="top")
-    a2.set_title("v: mass fraction below the grid (not per decade)", fontsize=8)
-    a1.set_xlabel("particle size x [µm]")
-    a1.set_ylabel("Q3 [-]")
+    a1.set_title(f"cumulative; below the grid at t = {t[idx[-1]]:g} s: {b:.2%}", fontsize=9)
+    a2.set_title("density per decade (\u25bc: below-grid fraction, not per decade)", fontsize=9)
+    a1.set_xlabel("particle size x [\u00b5m]")
+    a1.set_ylabel("Q3 [-]  (mass fraction below x)")
     a1.grid(True, which="both", alpha=0.3)
-    a1.legend(fontsize=8)
-    a2.set_xlabel("particle size x [µm]")
+    a2.set_xlabel("particle size x [\u00b5m]")
     a2.set_ylabel("q3,lg [-]  (mass density per decade)")
     a2.grid(True, which="both", alpha=0.3)
-    fig.suptitle(f"{model.scene.scene.name}: size distribution over time")
+    # One legend serves both panels: the right panel's lines are the left's output times.
+    h1, l1 = a1.get_legend_handles_labels()
+    h2, l2 = a2.get_legend_handles_labels()
+    first_marker = [(h, lab) for h, lab in zip(h2, l2) if lab == BELOW_LABEL][:1]
+    hs, ls = h1 + [h for h, _ in first_marker], l1 + [lab for _, lab in first_marker]
+    _legend_right(a2, handles=hs, labels=ls, title="output time")
+    fig.suptitle(f"{model.scene.scene.name}: size distribution of the {_what_psd(model)}")
     fig.tight_layout()
-    fig.savefig(folder / "psd.png", dpi=110)
-    plt.close(fig)
+    return fig
 
-    fig, ax = plt.subplots(figsize=(6.5, 4.2))
-    for key, lab in (("x10_m", "x10"), ("x50_m", "x50"), ("x90_m", "x90")):
-        ax.plot(t / 60.0, [r[key] * 1e6 for r in records], label=lab)
-    ax.set_yscale("log")
-    ax.set_xlabel("time [min]")
-    ax.set_ylabel("characteristic size [µm]")
-    ax.grid(True, which="both", alpha=0.3)
-    if any(r.get("below_grid_fraction", 0.0) > 0.0 for r in records):
-        ax.plot([], [], "k:", label="below grid (right axis)")
-        axb = ax.twinx()
-        axb.plot(t / 60.0, [r["below_grid_fraction"] for r in records], "k:")
-        axb.set_ylabel("mass fraction below the grid [-]")
-    ax.legend()
+
+def sizes_figure(model: MillModel, records):
+    """x10, x50, x90 over time [s]; below them, each in its own panel with its own scale, the
+    disrupted fraction (yeast) and the mass fraction below the size grid (when any)."""
+    import matplotlib.pyplot as plt
+
+    t = np.array([r["t_s"] for r in records])
+    panels = ["sizes"]
     if "disrupted_fraction" in records[0]:
-        ax2 = ax.twinx()
-        ax2.plot(t / 60.0, [r["disrupted_fraction"] for r in records], "k--", label="disrupted")
-        ax2.set_ylabel("disrupted fraction [-]")
-        ax2.set_ylim(0, 1)
-    fig.suptitle(f"{model.scene.scene.name}: characteristic sizes")
+        panels.append("disrupted")
+    if any(r.get("below_grid_fraction", 0.0) > 0.0 for r in records):
+        panels.append("below")
+    heights = [2.2] + [1.0] * (len(panels) - 1)
+    fig, axes = plt.subplots(len(panels), 1, figsize=(8.5, 3.2 + 1.5 * (len(panels) - 1)), sharex=True,
+                             gridspec_kw={"height_ratios": heights}, squeeze=False)
+    axes = axes[:, 0]
+    for ax, what in zip(axes, panels):
+        if what == "sizes":
+            for key, lab in (("x10_m", "x10"), ("x50_m", "x50"), ("x90_m", "x90")):
+                ax.plot(t, [r[key] * 1e6 for r in records], label=lab)
+            ax.set_yscale("log")
+            ax.set_ylabel("size [\u00b5m]")
+        elif what == "disrupted":
+            ax.plot(t, [r["disrupted_fraction"] for r in records], "k--", label="disrupted cells")
+            ax.set_ylim(0, 1)
+            ax.set_ylabel("fraction [-]")
+        else:
+            ax.plot(t, [100.0 * r["below_grid_fraction"] for r in records], "k:", label="mass below the size grid")
+            ax.set_ylim(bottom=0)
+            ax.set_ylabel("below grid [%]")
+        ax.grid(True, which="both", alpha=0.3)
+        _legend_right(ax)
+    axes[-1].set_xlabel("time t [s]")
+    fig.suptitle(f"{model.scene.scene.name}: characteristic sizes of the {_what_psd(model)}", fontsize=11)
     fig.tight_layout()
-    fig.savefig(folder / "sizes.png", dpi=110)
-    plt.close(fig)
+    return fig
 
 
 def summary_table(records, rows: int = 8) -> str:
