@@ -439,6 +439,17 @@ def load_scene(path: str | Path | None = None) -> Scene:
     return scene_from_dict(d, source)
 
 
+def example_path(name: str) -> Path:
+    """Path of a shipped example scene (millfmu/data/examples/NAME, ``.toml`` optional),
+    wherever the package is installed; SceneError listing the examples for another name."""
+    base = resources.files(__name__.rpartition(".")[0] + ".data").joinpath("examples")
+    names = sorted(p.name for p in base.iterdir() if p.name.endswith(".toml"))
+    file = name if name.endswith(".toml") else name + ".toml"
+    if file not in names:
+        raise SceneError("(example)", name, "not a shipped example; the examples: " + ", ".join(names), "example_path")
+    return Path(str(base.joinpath(file)))
+
+
 def default_scene_text() -> str:
     """The embedded default scene (TOML). Read relative to this package, so that a copy of
     the package under another name (inside an FMU) reads its own."""
