@@ -754,8 +754,13 @@ def plot(res, path, title=None) -> None:
     wp = bool(res.get("spin_up") or res.get("variants"))
     dr = res.get("drift")
     n = 2 + wp + bool(dr)
-    fig, ax = plt.subplots(1, n, figsize=(5.4 * n, 4.6), squeeze=False)
-    ax = ax[0]
+    # At most two panels a row: four in one row are too small to read in a report.
+    rows_, cols = (n + 1) // 2, min(n, 2)
+    fig, ax = plt.subplots(rows_, cols, figsize=(6.6 * cols, 4.9 * rows_), squeeze=False)
+    ax = list(ax.ravel())
+    for extra in ax[n:]:
+        extra.set_visible(False)
+    ax = ax[:n]
     rows = res["recording"]
     t = np.array([r["record_s"] for r in rows])
     for a, s, label in ((ax[0], "se_tn_q50", "median SE_tn"),
