@@ -141,10 +141,11 @@ def process_section(out: Path, quick: bool, log=print) -> str:
     a1.set(xlabel="time t [s]", ylabel="size [\u00b5m]", yscale="log", title="characteristic sizes against time")
     a2.set(xlabel="specific energy E_m [kJ/kg]", ylabel="size [\u00b5m]", yscale="log", xscale="log",
            title="against the specific energy put in")
-    from matplotlib.ticker import LogLocator, NullFormatter
+    from matplotlib.ticker import FuncFormatter
 
-    a2.xaxis.set_major_locator(LogLocator(base=10))
-    a2.xaxis.set_minor_formatter(NullFormatter())  # labels at the decades only: no overlap
+    # Labels at 1, 2 and 5 of each decade only: the default labels every minor tick, overlapping.
+    a2.xaxis.set_minor_formatter(FuncFormatter(lambda v, _: f"{v:g}" if f"{v:.0e}"[0] in "25" else ""))
+    a2.xaxis.set_major_formatter(FuncFormatter(lambda v, _: f"{v:g}"))
     for a in (a1, a2):
         a.grid(alpha=0.3, which="both")
         a.legend(loc="upper left", bbox_to_anchor=(1.02, 1.0), borderaxespad=0.0, fontsize=8)
