@@ -2,6 +2,7 @@
 reproduces a run (case 8)."""
 
 import json
+from pathlib import Path
 import subprocess
 import sys
 
@@ -169,3 +170,27 @@ def test_a_refused_or_interrupted_run_creates_no_folder(tmp_path, short):
     f.write_text("x")
     assert _run(short, "--out", f / "deep" / "sub").returncode == 2
     assert sorted(p.name for p in tmp_path.iterdir()) == ["bad.toml", "file", "short.toml"]
+
+
+def test_a_parent_that_takes_no_new_folder_is_refused_saying_where_the_temporary_folder_goes(tmp_path, monkeypatch):
+    """An --out folder that exists and is writable in a parent that is not (mode 555; made
+    here by refusing folders in the parent, since root may write anywhere)."""
+    import tempfile
+
+    from millfmu import runner
+
+    out = tmp_path / "out"
+    out.mkdir()
+    real = tempfile.mkdtemp
+
+    def mkdtemp(prefix="", dir=None):
+        if dir is not None and Path(dir) == tmp_path:
+            raise PermissionError(13, "Permission denied")
+        return real(prefix=prefix, dir=dir)
+
+    monkeypatch.setattr(runner.tempfile, "mkdtemp", mkdtemp)
+    with pytest.raises(runner.OutputError) as e:
+        runner.check_out_dir(out)
+    msg = str(e.value)
+    assert f"--out {out}" in msg and "Permission denied" in msg
+    assert f"hidden folder .millfmu-* in {tmp_path}" in msg and "one rename" in msg
