@@ -19,6 +19,9 @@ import tempfile
 from pathlib import Path
 
 import millfmu
+from fmu_build import fmi3_wrapper
+from fmu_build.build import BUILD_OPTIONS, check_fmi_version, write_fmu
+from fmu_build.wrapper import choose_wrapper, fmi2_replacements
 
 HERE = Path(__file__).resolve().parent
 _MILLFMU = Path(millfmu.__file__).resolve().parent
@@ -98,9 +101,6 @@ def unit_identifier(kind: str, instance: str, cfg: dict, fmi_version: int = 2) -
 
 def build_unit_fmu(kind: str, instance: str, cfg: dict, out: str | Path, fmi_version: int = 2, log=None) -> Path:
     """Build the FMU of one unit: ``cfg`` is the content of unit.json (kind, edges_m, params, ...)."""
-    from fmu_build import fmi3_wrapper
-    from fmu_build.build import BUILD_OPTIONS, check_fmi_version, write_fmu
-
     fmi_version = check_fmi_version(fmi_version)
     if fmi_version == 3:
         from pythonfmu3 import FmuBuilder
@@ -108,8 +108,6 @@ def build_unit_fmu(kind: str, instance: str, cfg: dict, out: str | Path, fmi_ver
         fmi3_wrapper.wrapper_library(log)  # first: what it needs may be missing here (WrapperError)
     else:
         from pythonfmu import FmuBuilder
-
-    from fmu_build.wrapper import choose_wrapper, fmi2_replacements
 
     if kind not in CLASS_NAMES:
         raise ValueError(f"unit kind {kind!r}: allowed {', '.join(CLASS_NAMES)}")

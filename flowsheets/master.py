@@ -34,6 +34,11 @@ from pathlib import Path
 
 import numpy as np
 
+import fmu_build.build as fb
+from fmu_build.build import build_fmu, check_fmi_version, toml_text
+import millfmu
+
+from .build import build_unit_fmu, code_hash
 from .spec import Flowsheet, FlowsheetError, shared_grid, unit_configs
 
 #: Per unit type: the output holding its solids holdup [kg] (units without holdup absent).
@@ -48,9 +53,6 @@ class MasterError(RuntimeError):
 # building
 # ---------------------------------------------------------------------------------------
 def _mill_code_hash() -> str:
-    import fmu_build.build as fb
-    import millfmu
-
     h = hashlib.sha256()
     for root in (Path(millfmu.__file__).resolve().parent, Path(fb.__file__).resolve().parent):
         for f in sorted(root.rglob("*.py")):
@@ -70,10 +72,6 @@ def _reuse(path: Path, folders) -> bool:
 def build_fmus(fs: Flowsheet, fmu_dir: Path, log=print, reuse=(), fmi_version: int = 2) -> dict:
     """Build (or reuse, by content hash, from ``fmu_dir`` or one of the ``reuse`` folders,
     copying it into ``fmu_dir``) the FMU of every unit, all of one FMI version: name -> path."""
-    from fmu_build.build import build_fmu, check_fmi_version, toml_text
-
-    from .build import build_unit_fmu, code_hash
-
     fmi_version = check_fmi_version(fmi_version)
     tag = "" if fmi_version == 2 else f"fmi{fmi_version}_"
     fmu_dir = Path(fmu_dir)

@@ -45,6 +45,10 @@ else:  # pragma: no cover
 
 import numpy as np
 
+from millfmu.kinetics.grid import SizeGrid
+from millfmu.mill import psd_fractions
+from millfmu.scene import SceneError, default_scene_text, scene_from_dict
+
 ALGORITHMS = ("jacobi", "gauss-seidel")
 UNIT_TYPES = ("mill", "feed", "tank", "classifier", "pi")
 _NAME = re.compile(r"^[A-Za-z_][A-Za-z0-9_]*$")
@@ -200,8 +204,6 @@ def parse_connection(line: str, key: str, source: str) -> tuple:
 
 
 def _check_psd_table(v, key, source):
-    from millfmu.scene import SceneError, scene_from_dict
-
     if not isinstance(v, dict):
         raise FlowsheetError(key, v, "must be a size distribution table (kind = 'lognormal', 'rrsb', 'monodisperse' or 'table', with its keys)", source)
     try:
@@ -226,8 +228,6 @@ def load_flowsheet(path) -> Flowsheet:
 
 
 def flowsheet_from_dict(d: dict, source: str = "flowsheet", base_dir: Path | None = None) -> Flowsheet:
-    from millfmu.scene import SceneError, default_scene_text, scene_from_dict
-
     allowed_top = {"connections", "products", "flowsheet", "units"}
     for k in d:
         if k not in allowed_top:
@@ -354,17 +354,12 @@ def flowsheet_from_dict(d: dict, source: str = "flowsheet", base_dir: Path | Non
 
 
 def shared_grid(fs: Flowsheet):
-    from millfmu.kinetics.grid import SizeGrid
-
     g = fs.mill_scene["grid"]
     return SizeGrid.geometric(g["x_min_m"], g["x_max_m"], g["classes_per_octave"])
 
 
 def psd_from_table(grid, table: dict | None, mill_scene: dict) -> np.ndarray:
     """Class mass fractions on ``grid`` of a scene size distribution table (None: the mill's feed)."""
-    from millfmu.mill import psd_fractions
-    from millfmu.scene import scene_from_dict
-
     t = mill_scene["feed"] if table is None else {k: v for k, v in table.items() if k != "t_s"}
     return psd_fractions(grid, scene_from_dict({"feed": t}).feed)
 

@@ -18,7 +18,9 @@ import zipfile
 from pathlib import Path
 from xml.etree.ElementTree import Element, SubElement, indent, tostring
 
+from .master import build_fmus, expand_connections
 from .spec import Flowsheet
+from .unit_vars import unit_exponents
 
 NS = {
     "ssd": "http://ssp-standard.org/SSP1/SystemStructureDescription",
@@ -68,8 +70,6 @@ def ssd_xml(fs: Flowsheet, mds: dict, sources: dict, links) -> bytes:
                                                            "endElement": lk.dst, "endConnector": lk.dst_var})
     # Units: SSP wants the unit definitions of the connectors' units at the top level.
     units = SubElement(root, _q("ssd", "Units"))
-    from .unit_vars import unit_exponents
-
     mill_units = {"kg/m3": {"kg": 1, "m": -3}, "J": {"kg": 1, "m": 2, "s": -2}, "1/s": {"s": -1}, "W": {"kg": 1, "m": 2, "s": -3},
                   "J/kg": {"m": 2, "s": -2}, "Pa.s": {"kg": 1, "m": -1, "s": -1}}
     for name in sorted(used_units):
@@ -90,8 +90,6 @@ def ssd_xml(fs: Flowsheet, mds: dict, sources: dict, links) -> bytes:
 def export_ssp(fs: Flowsheet, out: Path, fmu_dir: Path | None = None, log=print) -> Path:
     """Build the units' FMUs (or reuse them from ``fmu_dir``) and write the .ssp archive ``out``."""
     from fmpy import read_model_description
-
-    from .master import build_fmus, expand_connections
 
     out = Path(out)
     with tempfile.TemporaryDirectory(prefix="flowsheet_ssp_") as tmp:

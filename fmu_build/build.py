@@ -29,9 +29,13 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import millfmu
+from millfmu.dem.tables.table import read_table_ref
+from millfmu.mill import MillModel
+from millfmu.scene import default_scene_text, load_scene
 
 from . import fmi3_wrapper
 from .leftovers import clean, tag, temp_dir
+from .wrapper import choose_wrapper, fmi2_replacements
 
 #: Modules the FMU must never carry or import for a scene (heavy, and not needed by the
 #: kinetics; the DEM would be imported only by scenes that run it).
@@ -229,8 +233,6 @@ def _export_table_slice(scene, prefix: Path) -> list:
     sd = scene.kinetics.stress_distribution
     if scene.kinetics.model != "detailed" or sd.source != "table":
         return []
-    from millfmu.dem.tables.table import read_table_ref
-
     tab = read_table_ref(sd.table)
     fixed = {"bead_diameter_m": scene.beads.diameter_m, "bead_density_kg_m3": scene.beads.density_kg_per_m3, "viscosity_pa_s": scene.suspension.viscosity_Pa_s}
     bounds = {k: (v, v) for k, v in fixed.items() if k in tab.axes}
@@ -240,10 +242,6 @@ def _export_table_slice(scene, prefix: Path) -> list:
 def build_fmu(scene_path: str | Path | None, out: str | Path, fmi_version: int = 2, log=None) -> BuildResult:
     """Build the FMU for a scene file (None: the embedded default scene) into ``out`` (.fmu):
     FMI 2.0 with pythonfmu (the default) or, with ``fmi_version=3``, FMI 3.0 with pythonfmu3."""
-    from millfmu.scene import default_scene_text, load_scene
-
-    from .wrapper import choose_wrapper, fmi2_replacements
-
     fmi_version = check_fmi_version(fmi_version)
     out = check_output(Path(out))  # before any compiling: OutputError -> exit 2
     if fmi_version == 3:
@@ -252,8 +250,6 @@ def build_fmu(scene_path: str | Path | None, out: str | Path, fmi_version: int =
         fmi3_wrapper.wrapper_library(log)  # first: what it needs may be missing here (WrapperError)
     else:
         from pythonfmu import FmuBuilder
-
-    from millfmu.mill import MillModel
 
     scene = load_scene(scene_path)  # SceneError -> the caller reports it
     # The model itself refuses what the file alone does not show (a damaged DEM table, a

@@ -49,7 +49,7 @@ def _cmd_host_env(args) -> int:
 
 
 def _cmd_bench_fmu(args) -> int:
-    from .bench import bench_fmu
+    from .step_cost import bench_fmu
 
     from .fmi3_wrapper import WrapperError
 

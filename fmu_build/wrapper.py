@@ -21,7 +21,7 @@ The wrapper that pythonfmu 0.7.0 ships has these faults, each seen with the mill
    handlers); this is the abort hosts saw at exit.
 
 Measured (``python -m fmu_build.exit_study``, 200 processes each loading three mill FMUs
-in fmpy, stepping, freeing them and exiting normally): see the README, "FMU".
+in fmpy, stepping, freeing them and exiting normally): see docs/fmu.md.
 
 pythonfmu 0.7.0's sdist carries no C++ sources, and its wrapper differs from 0.6.9's only
 in ``SetupExperiment`` passing stop time and tolerance on to Python (which 0.7.0's

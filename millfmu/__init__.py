@@ -20,8 +20,11 @@ The Python API (names are imported on first use, so importing the package stays 
 - :class:`MillModel` (``step(dt_s, **inputs) -> outputs``, ``get_state``/``set_state``);
 - :func:`run` -> :class:`Result` (series as arrays, the Q3 table, warnings, provenance,
   ``plot``, ``write``);
+- :func:`calibrate` -> :class:`Calibration`: fit scene constants to measured batch data
+  (a CSV file), with 95 % intervals;
 - errors: :class:`SceneError` (bad scene value: ``key``, ``value``, ``allowed``),
-  :class:`InputError` (bad step input), :class:`StepError`.
+  :class:`InputError` (bad step input), :class:`StepError`,
+  :class:`CalibrationError` (data that cannot pin the constants asked for).
 """
 
 __version__ = "0.1.0"
@@ -31,6 +34,7 @@ _API = {
     "load_scene": "api", "run": "api", "Result": "api",
     "MillModel": "mill", "InputError": "mill", "StepError": "mill",
     "Scene": "scene", "SceneError": "scene", "default_scene_text": "scene", "example_path": "scene",
+    "calibrate": "calibration", "Calibration": "calibration", "CalibrationError": "calibration",
 }
 __all__ = ["__version__", *_API]
 

@@ -10,8 +10,9 @@ from pathlib import Path
 import numpy as np
 
 from .mill import MillModel
-from .runner import RESULT_KEYS, provenance, run_warnings, simulate, write_results
-from .scene import Scene, SceneError, load_scene as _load_scene_file, scene_from_dict
+from .runner import RESULT_KEYS, _plots, provenance, run_warnings, simulate, write_results
+from .scene import (Scene, SceneError, load_scene as _load_scene_file, scene_from_dict,
+                    scene_to_dict)
 
 if sys.version_info >= (3, 11):
     import tomllib
@@ -59,8 +60,6 @@ def load_scene(source: str | Path | dict | Scene | None = None, overrides: dict 
     and what is allowed.
     """
     if isinstance(source, Scene):
-        from .scene import scene_to_dict
-
         d, where = scene_to_dict(source), "scene"
     elif isinstance(source, dict):
         d, where = source, "scene"
@@ -126,8 +125,6 @@ class Result:
     def plot(self, folder: str | Path) -> list:
         """Write the plots (psd.png: Q3 and q3 over size at up to 8 times; sizes.png:
         x10/x50/x90 over time) into ``folder``; returns their paths."""
-        from .runner import _plots
-
         folder = Path(folder)
         folder.mkdir(parents=True, exist_ok=True)
         _plots(folder, self.model, self._records, list(self.q3))

@@ -21,13 +21,13 @@ for _var in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
 #: optionally, ``register_bench(bench_subparsers)`` for ``millfmu bench ...``. They are
 #: imported only to register their parsers; heavy imports (numba, pythonfmu) stay inside
 #: their handlers.
-PLUGINS = ("millfmu.dem.cli", "millfmu.dem.tables_cli", "fmu_build.cli", "flowsheets.cli", "millfmu.rates",
-           "millfmu.report")
+PLUGINS = ("millfmu.dem.cli", "millfmu.dem.tables.cli", "fmu_build.cli", "flowsheets.cli", "millfmu.rates",
+           "millfmu.report", "millfmu.calibration")
 
 
 def _cmd_run(args) -> int:
     from .mill import MillModel
-    from .runner import check_out_dir, run_warnings, simulate, summary_table, write_results
+    from .runner import check_out_dir, prediction_band, run_warnings, simulate, summary_table, write_results
     from .scene import load_scene
 
     scene = load_scene(args.scene)  # SceneError -> exit 2 before anything is written
@@ -39,7 +39,8 @@ def _cmd_run(args) -> int:
     wall = time.perf_counter() - t0
     for w in run_warnings(model, records)[len(model.warnings):]:
         print(f"millfmu: warning: {w}", file=sys.stderr)
-    files = write_results(args.out, scene, model, records, psds, plots=not args.no_plots, wall_s=wall)
+    band = prediction_band(scene)
+    files = write_results(args.out, scene, model, records, psds, plots=not args.no_plots, wall_s=wall, band=band)
     op = model.operating_point(model.inputs)
     print(f"scene: {scene.scene.name}  ({scene.operation.mode}, {scene.material.model}, {scene.kinetics.model} model, {model.grid.n} classes)")
     print(f"eta_eff = {op.eta_eff_Pa_s:.4g} Pa s, Re = {op.reynolds:.4g}, SE = {op.se_beads_J:.4g} J, SE_P = {op.se_product_J:.4g} J")
@@ -52,6 +53,13 @@ def _cmd_run(args) -> int:
         for note in getattr(model.source, "last_notes", []):
             print(f"  note: {note}")
     print(summary_table(records))
+    if band is not None:
+        key, f, unit = ("disrupted_fraction", 1.0, "") if "disrupted_fraction" in band["outputs"] else ("x50_m", 1e6, " um")
+        lo, hi = band["outputs"][key]
+        print(f"prediction band at t = {band['t_s']:g} s from the table's stated error: {key} {records[-1][key] * f:.4g}{unit} "
+              f"in [{lo * f:.4g}, {hi * f:.4g}]{unit} (zones' collision frequency +-"
+              f"{', '.join('-' if v is None else f'{v:.0%}' for v in band['collision_frequency_relative_error'])}, median energy +-"
+              f"{', '.join('-' if v is None else f'{v:.0%}' for v in band['se_median_relative_error'])})")
     m_err = abs(records[-1]["total_mass_kg"] - (model.m0_kg + model.fed_kg)) / max(model.m0_kg + model.fed_kg, 1e-300)
     print(f"mass balance: relative residual {m_err:.2e}; simulated {scene.run.t_end_s:g} s in {wall:.3g} s wall")
     print("wrote " + ", ".join(str(f) for f in files))
@@ -70,7 +78,7 @@ def _cmd_scene_keys(args) -> int:
 
 
 def _cmd_bench_pbm(args) -> int:
-    from .bench import bench_pbm
+    from .studies.pbm_integrators import bench_pbm
 
     bench_pbm(classes=args.classes, hours=args.hours, repeats=args.repeats, tanks=args.tanks, dense=not args.no_dense)
     return 0

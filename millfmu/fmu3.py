@@ -27,7 +27,7 @@ import numpy as np
 from pythonfmu3 import DefaultExperiment
 
 from .fmi3_slave import Fmi3Base
-from .fmu_variables import CLASS_COUNT, SCENE_FILE, UNITS, model_with, plain, read_scene_dict, variables
+from .fmu_variables import CLASS_COUNT, SCENE_FILE, UNITS, model_description_text, model_with, plain, read_scene_dict, variables
 from .mill import InputError, MillModel, StepError
 from .scene import SceneError, scene_from_dict
 
@@ -46,7 +46,7 @@ class MillSlave3(Fmi3Base):
         self._base_scene = scene
         self._overrides: dict = {}
         n = self.model.grid.n
-        self._model_description = f"{self.description}; scene {scene.scene.name!r}, {scene.operation.mode}, {scene.kinetics.model} model, {n} size classes"
+        self._model_description = model_description_text(self.description, scene, n)
         self.default_experiment = DefaultExperiment(start_time=0.0, stop_time=scene.run.t_end_s, step_size=scene.run.dt_s)
 
         # One description of the variables (millfmu.fmu_variables) serves FMI 2.0 and 3.0;

@@ -145,3 +145,15 @@ def plain(x):
     if isinstance(x, (list, tuple)):
         return [plain(v) for v in x]
     return x
+
+
+def model_description_text(base: str, scene, n_classes: int) -> str:
+    """The FMU's description: what it is, the scene, the stress-energy table it carries and
+    what the scene's constants were fitted to (``scene.calibration``). Shared by FMI 2 and 3."""
+    text = f"{base}; scene {scene.scene.name!r}, {scene.operation.mode}, {scene.kinetics.model} model, {n_classes} size classes"
+    sd = scene.kinetics.stress_distribution
+    if scene.kinetics.model == "detailed" and sd.source == "table":
+        text += f"; stress energies from the DEM table {sd.table!r} (component {sd.component})"
+    if scene.scene.calibration:
+        text += f"; calibration: {scene.scene.calibration}"
+    return text

@@ -103,10 +103,10 @@ def build_material(s: Scene):
 
 def _rebuild_hint(ref: str) -> str:
     if ref == "default":
-        try:
-            from .dem.tables_cli import REBUILD_DEFAULT
-        except ImportError:  # inside an FMU, which carries no command line
-            return "reinstall millfmu or rebuild the default table with `millfmu tables build ... --export millfmu/data/default_table`"
+        # Imported here as the table reader is (see _stress_source): a scene without a table
+        # never imports the tables.
+        from .dem.tables.table import REBUILD_DEFAULT
+
         return f"reinstall millfmu, or rebuild it (from the repository root) with `{REBUILD_DEFAULT}`"
     return (f"rebuild it with `millfmu tables build ... --export {ref}` (the command is the rebuild_command "
             f"of an intact copy of {ref}.json), or name another table")
@@ -160,8 +160,13 @@ class MillModel:
     capture = 'psd' (rates depend on the state), the adaptive integrator is used.
     """
 
-    def __init__(self, scene: Scene, grid: kgrid.SizeGrid | None = None):
+    def __init__(self, scene: Scene, grid: kgrid.SizeGrid | None = None, table_error_multiple: float = 0.0):
+        """``table_error_multiple``: for a detailed model on a stress-energy table, put every
+        zone's collision frequency and energies at this signed multiple of the table's stated
+        error (+1: the upper edge of the prediction band, more breakage; -1: the lower; the
+        table source's ``relative_error`` says what the error holds)."""
         self.scene = scene
+        self.table_error_multiple = float(table_error_multiple)
         g = scene.grid
         self.grid = grid or kgrid.SizeGrid.geometric(g.x_min_m, g.x_max_m, g.classes_per_octave)
         self.material = build_material(scene)
@@ -204,7 +209,8 @@ class MillModel:
                 raise SceneError("kinetics.stress_distribution.table", sd.table, f"cannot be used: {e}; {_rebuild_hint(sd.table)}",
                                  self.scene.scene.name) from None
             self.warnings.extend(recording_warnings(table.manifest))
-            return TableStressSource(table, component=sd.component, similar_axes=tuple(sd.similar_axes), on_outside=sd.on_outside)
+            return TableStressSource(table, component=sd.component, similar_axes=tuple(sd.similar_axes), on_outside=sd.on_outside,
+                                     error_multiple=self.table_error_multiple)
         return LogNormalStressSource(sd.median_fraction, sd.sigma_ln, sd.collision_factor)
 
     def _check_source_scene(self):

@@ -17,7 +17,7 @@ Along the detailed model's stress-energy source, each point says what it rests o
 - a DEM table along an axis it does not vary (bead diameter and density of the default
   table): the table's similarity scaling, energies over E_ref = pi/12 d^3 rho v_t^2 and
   collision frequencies over omega n_gb held at the table's values ("table, similarity
-  assumed"), whose error the README measures (bead density: energies within 10 %,
+  assumed"), whose error docs/rates-and-calibration.md measures (bead density: energies within 10 %,
   frequencies 21-31 % lower at 6040 kg/m3; bead diameter 1.2 mm: energies 1.1-1.8 times,
   frequencies 0.65-1.13 times);
 - the solids mass fraction is not a table axis: the DEM has no product particles, so only
@@ -43,7 +43,7 @@ import os
 import re
 import sys
 import tempfile
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 import numpy as np
@@ -73,7 +73,7 @@ MODELS = ("simple", "detailed")
 #: column names its unit (``_m``, ``_per_s``, ``_J``) or is dimensionless (``_over_ref``, p_*).
 CSV_COLUMNS = ("scene", "material", "parameter", "value", "value_unit", "value_over_ref", "model", "source", "quantity",
                "x_m", "rate_per_s", "rate_over_ref", "sf_per_s", "sf_over_ref", "p_break", "p_cap", "se_J",
-               "se_over_ref", "se_product_J", "note")
+               "se_over_ref", "se_product_J", "rate_band_low_per_s", "rate_band_high_per_s", "note")
 
 
 @dataclass
@@ -92,6 +92,10 @@ class Curve:
     se_product_J: np.ndarray
     sources: list
     notes: list
+    #: Detailed model on a table: per quantity (lower, upper) rates [1/s] with every zone's
+    #: collision frequency and median energy at the edges of the table's stated error
+    #: (:func:`millfmu.runner.prediction_band`); empty otherwise.
+    band: dict = field(default_factory=dict)
 
 
 @dataclass
@@ -144,7 +148,10 @@ class RatesResult:
                         "p_break": _g(rate / sf[k] if sf[k] > 0 else math.nan),
                         "p_cap": _g(c.p_cap[q][k]) if q in c.p_cap else "",
                         "se_J": _g(c.se_J[k]), "se_over_ref": _g(c.se_J[k] / c.se_J[i_ref]),
-                        "se_product_J": _g(c.se_product_J[k]), "note": c.notes[k],
+                        "se_product_J": _g(c.se_product_J[k]),
+                        "rate_band_low_per_s": _g(c.band[q][0][k]) if q in c.band else "",
+                        "rate_band_high_per_s": _g(c.band[q][1][k]) if q in c.band else "",
+                        "note": c.notes[k],
                     }
 
 
@@ -272,10 +279,12 @@ def _check_value(parameter, v, scene):
         raise SceneError(f"--values {parameter}", v, f"must lie in ({lo:g}, {hi:g}) {PARAMETERS[parameter][1]}", "millfmu rates")
 
 
-def compute(scene, name: str | None = None, sizes_m=None, values: dict | None = None) -> RatesResult:
+def compute(scene, name: str | None = None, sizes_m=None, values: dict | None = None, detailed_scene=None) -> RatesResult:
     """Rates of both models along every parameter for ``scene`` (its operating point is the
     reference). ``sizes_m``: sizes of S(x) [m] (default: feed x10/x50/x90, cells: x50);
-    ``values``: parameter -> values to use instead of :data:`DEFAULT_VALUES`."""
+    ``values``: parameter -> values to use instead of :data:`DEFAULT_VALUES`;
+    ``detailed_scene``: the detailed model's own scene at the same point (a calibrated pair
+    whose material constants differ), else ``scene`` with the detailed model."""
     from .kinetics import rates as krates
     from .kinetics import stress as kstress
     from .mill import MillModel, psd_fractions
@@ -288,7 +297,7 @@ def compute(scene, name: str | None = None, sizes_m=None, values: dict | None = 
     from .calibration import with_model
 
     simple = MillModel(with_model(scene, "simple"))
-    detailed_models, coverage, desc = _detailed_models(scene, MillModel)
+    detailed_models, coverage, desc = _detailed_models(scene if detailed_scene is None else detailed_scene, MillModel)
     op_ref = simple.operating_point(simple.inputs)
     reference = {p: float(getattr(op_ref, PARAMETERS[p][4])) for p in PARAMETERS}
     sizes = tuple(float(x) for x in (sizes_m if sizes_m is not None else _default_sizes(scene, simple)))
@@ -316,7 +325,7 @@ def compute(scene, name: str | None = None, sizes_m=None, values: dict | None = 
             sf_q = {q: np.full(n, math.nan) for q in quantities}
             pcap_q = {q: np.full(n, math.nan) for q in quantities if q != "disruption_rate"}
             se, sep = np.empty(n), np.empty(n)
-            sources, notes = [], []
+            sources, notes, band_q = [], [], {}
             for k, v in enumerate(vals):
                 op = replace(op_ref, **{field: float(v)})
                 se[k], sep[k] = op.se_beads_J, op.se_product_J
@@ -327,7 +336,7 @@ def compute(scene, name: str | None = None, sizes_m=None, values: dict | None = 
                     s_nodes = krates.selection_per_s(model_name, m.material, op, m.operator.nodes_m, None, src) if is_cells else None
                     coll = None if model_name == "simple" else _collision_rate(src, op)
                 except ValueError as e:  # a table that refuses the point (outside its grid)
-                    sources.append(label)
+                    sources.append("refused")
                     notes.append(f"refused: {e}")
                     continue
                 sf_x = op.stress_frequency_per_s(x, None, coll)
@@ -341,8 +350,23 @@ def compute(scene, name: str | None = None, sizes_m=None, values: dict | None = 
                     sf_q["disruption_rate"][k] = float(w_feed @ m.operator.class_rates(sf_nodes))
                 sources.append(label)
                 notes.append("; ".join(getattr(src, "last_notes", []) or []) if model_name == "detailed" else "")
-            curves[(p, model_name)] = Curve(p, model_name, vals, rates_q, sf_q, pcap_q, se, sep, sources, notes)
-    constants = {"k_c": scene.mill.stress_frequency_factor, "energy_transfer": scene.kinetics.energy_transfer}
+                if model_name == "detailed" and hasattr(src, "error_multiple"):
+                    for j, sign in enumerate((-1.0, 1.0)):
+                        src.error_multiple = sign
+                        try:
+                            sb_x = krates.selection_per_s(model_name, m.material, op, x, None, src)
+                            if is_cells:
+                                sb_nodes = krates.selection_per_s(model_name, m.material, op, m.operator.nodes_m, None, src)
+                        finally:
+                            src.error_multiple = 0.0
+                        for i, xs in enumerate(sizes):
+                            band_q.setdefault(_size_key(xs), (np.full(n, math.nan), np.full(n, math.nan)))[j][k] = sb_x[i]
+                        if is_cells:
+                            band_q.setdefault("disruption_rate", (np.full(n, math.nan), np.full(n, math.nan)))[j][k] = \
+                                float(w_feed @ m.operator.class_rates(sb_nodes))
+            curves[(p, model_name)] = Curve(p, model_name, vals, rates_q, sf_q, pcap_q, se, sep, sources, notes, band_q)
+    constants = {"k_c": scene.mill.stress_frequency_factor,
+                 "energy_transfer": (detailed_scene or scene).kinetics.energy_transfer}
     return RatesResult(name or scene.scene.name, scene, reference, sizes, quantities, curves, constants, desc)
 
 
@@ -430,6 +454,11 @@ def plot(result: RatesResult, path):
                 rel = result.relative(p, m, q)
                 xv = cur.values * scale
                 ax.plot(xv, rel, style, color=c, label=f"{m}, {_qlabel(q)}")
+                if m == "detailed" and q in cur.band:
+                    ref = cur.rates[q][result.reference_index(p)]
+                    if ref > 0.0:
+                        ax.fill_between(xv, cur.band[q][0] / ref, cur.band[q][1] / ref, color=c, alpha=0.15, lw=0,
+                                        label=f"detailed, {_qlabel(q)}: table's stated error")
                 if m == "detailed":
                     sim = np.array(["similarity" in s for s in cur.sources])
                     ax.plot(xv[~sim], rel[~sim], "s", color=c, ms=4)
@@ -438,7 +467,9 @@ def plot(result: RatesResult, path):
                     ax.plot(xv, rel, "o", color=c, ms=3)
         ax.axvline(result.reference[p] * scale, color="0.6", lw=0.8, ls=":")
         ax.axhline(1.0, color="0.8", lw=0.6)
-        shown = np.concatenate([result.relative(p, m, q) for q in qs for m in MODELS])
+        shown = np.concatenate([result.relative(p, m, q) for q in qs for m in MODELS]
+                               + [b / r[result.reference_index(p)] for q in qs for b in result.curve(p, "detailed").band.get(q, ())
+                                  for r in (result.curve(p, "detailed").rates[q],) if r[result.reference_index(p)] > 0.0])
         shown = shown[np.isfinite(shown) & (shown > 0.0)]
         if shown.size and shown.max() / shown.min() > 10.0:  # a decade or more: log scale
             ax.set_yscale("log")
@@ -502,11 +533,13 @@ def write(out_dir, results: list, calibration: list | None = None, plots: bool =
     if calibration:
         buf = io.StringIO()
         cols = ("material", "quantity", "t_s", "datum", "simple", "detailed", "k_c", "k_c_fit", "energy_transfer",
-                "energy_transfer_fit", "source")
+                "detailed_key", "detailed_constant", "detailed_constant_fit", "detailed_ci95_low", "detailed_ci95_high",
+                "detailed_data", "source")
         w = csv.DictWriter(buf, fieldnames=cols, lineterminator="\n", extrasaction="ignore")
         w.writeheader()
         for c in calibration:
-            w.writerow(c)
+            ci = c.get("detailed_constant_ci95") or [None, None]
+            w.writerow({**c, "detailed_ci95_low": ci[0], "detailed_ci95_high": ci[1]})
         put("calibration.csv", buf.getvalue().encode())
     return written
 
@@ -534,11 +567,11 @@ def _cmd_rates(args) -> int:
 
     values = _parse_values(args.values)
     if args.scene:
-        jobs = [(None, load_scene(s)) for s in args.scene]  # SceneError -> exit 2 before anything runs
+        jobs = [(None, load_scene(s), None) for s in args.scene]  # SceneError -> exit 2 before anything runs
     else:
-        jobs = [(pair.material, pair.scenes()[0]) for pair in cal.SHIPPED]
+        jobs = [(pair.material, *pair.scenes()) for pair in cal.SHIPPED]
     check_out_dir(args.out)
-    results = [compute(scene, name=name, sizes_m=args.sizes, values=values) for name, scene in jobs]
+    results = [compute(scene, name=name, sizes_m=args.sizes, values=values, detailed_scene=det) for name, scene, det in jobs]
     calibration = None
     if not args.scene:
         calibration = [cal.check(pair) for pair in cal.SHIPPED]
@@ -548,13 +581,16 @@ def _cmd_rates(args) -> int:
             print(f"  detailed model along {PARAMETERS[p][0]}: {d}")
         print()
     if calibration:
-        print("calibration (each model's constant fitted at its reference point to the datum):")
+        print("calibration at each pair's reference point (stand-in data, not measurements): the simple model's k_c fitted "
+              "to the datum, the detailed model's material constant to the stand-in curve with eta_E = 1:")
         for c in calibration:
             unit = "um" if c["quantity"] == "x50_m" else ""
             f = 1e6 if unit else 1.0
+            ci = c["detailed_constant_ci95"]
             print(f"  {c['material']:9s} {c['quantity']} after {c['t_s']:g} s: datum {c['datum'] * f:.4g}{unit}, "
                   f"simple {c['simple'] * f:.4g}{unit} (k_c = {c['k_c']:g}, fit {c['k_c_fit']:.4g}), "
-                  f"detailed {c['detailed'] * f:.4g}{unit} (eta_E = {c['energy_transfer']:g}, fit {c['energy_transfer_fit']:.4g})")
+                  f"detailed {c['detailed'] * f:.4g}{unit} ({c['detailed_key']} = {c['detailed_constant']:g}, fit "
+                  f"{c['detailed_constant_fit']:.4g}" + (f", 95 % [{ci[0]:.3g}, {ci[1]:.3g}]" if ci else "") + ")")
     files = write(args.out, results, calibration, plots=not args.no_plots)
     print("wrote " + ", ".join(str(f) for f in files))
     return 0

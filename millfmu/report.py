@@ -2,18 +2,18 @@
 
 Sections (each with its measured orders, the machine it ran on and the date):
 
-1. population-balance integrators (:func:`millfmu.bench.integrator_study`): the exact step,
+1. population-balance integrators (:func:`millfmu.studies.pbm_integrators.integrator_study`): the exact step,
    the adaptive exponential integrator, scipy's BDF and truncated Taylor steps (Dyssol's
    crusher unit) on a smooth and a stiff case;
 2. the co-simulation communication step of flowsheet (a), ``circuit.toml``
    (:func:`flowsheets.wp.work_precision`);
-3. the DEM work-precision (:mod:`millfmu.dem.work_precision`): a recording-length study run
+3. the DEM work-precision (:mod:`millfmu.dem.studies.work_precision`): a recording-length study run
    now (``--quick``: one short coupled run) or the full study's runs (``--dem-runs DIR``,
    made by ``millfmu dem work-precision run``), and the full study shipped with millfmu.
 
 The page (``report.html``) has no external CSS or scripts; its PNG images are written
 beside it and referenced by relative name. ``--quick`` finishes in minutes (for CI); the
-full report repeats the README's studies (tens of minutes without the DEM runs, which take
+full report repeats the studies of docs/performance.md (tens of minutes without the DEM runs, which take
 hours on one core and are made only when ``--dem-runs`` names a folder to make them in).
 """
 
@@ -23,12 +23,13 @@ import html
 import json
 import math
 import os
-import platform
 import shutil
 import sys
 import tempfile
 import time
 from pathlib import Path
+
+from .machine import machine
 
 #: The page's sections: id -> title (the test checks that each is present).
 SECTIONS = {
@@ -52,25 +53,6 @@ img { max-width: 100%; border: 1px solid #ddd; }
 pre { background: #f6f6f6; padding: 0.6em; font-size: 0.8em; overflow-x: auto; }
 .meta { color: #555; font-size: 0.85em; }
 """
-
-
-def machine() -> dict:
-    """Platform, CPU count, load, Python, numpy, scipy (numba where installed), date."""
-    import numpy
-    import scipy
-
-    m = dict(platform=platform.platform(), processor=platform.processor() or platform.machine(),
-             cpus=os.cpu_count(), python=platform.python_version(), numpy=numpy.__version__,
-             scipy=scipy.__version__, date_utc=time.strftime("%Y-%m-%d %H:%M:%SZ", time.gmtime()))
-    try:
-        import importlib.metadata as md
-
-        m["numba"] = md.version("numba")
-    except Exception:  # not installed: the DEM section says so
-        pass
-    if hasattr(os, "getloadavg"):
-        m["load_average_1min"] = round(os.getloadavg()[0], 2)
-    return m
 
 
 def _esc(x) -> str:
@@ -180,7 +162,7 @@ def _what_psd_text(model) -> str:
 # --- 2. population balance --------------------------------------------------------------
 
 def pbm_section(out: Path, quick: bool, log=print) -> str:
-    from .bench import INTEGRATOR_CASES, integrator_study
+    from .studies.pbm_integrators import INTEGRATOR_CASES, integrator_study
 
     t0 = time.perf_counter()
     res = integrator_study(quick=quick, out=log)
@@ -312,7 +294,7 @@ def cosim_section(out: Path, quick: bool, log=print) -> str:
 # --- 4. DEM -----------------------------------------------------------------------------
 
 def _dem_tables(res) -> str:
-    from millfmu.dem import work_precision as W
+    from millfmu.dem.studies import work_precision as W
 
     head = ["setting", "run time [CPU s]"] + [f"{c}: relative error [%] (largest in {', '.join(W.TARGET_ZONES)})"
                                       for c in W.COLUMNS]
@@ -329,7 +311,7 @@ def _dem_tables(res) -> str:
 
 
 def dem_section(out: Path, quick: bool, dem_runs=None, log=print) -> str:
-    from millfmu.dem import work_precision as W
+    from millfmu.dem.studies import work_precision as W
 
     parts = [f'<h2 id="dem">4. {SECTIONS["dem"]}</h2>',
              "<p>Coupled disc slice at 10 m/s, 80 % filling, 10 degree sector, no gravity "
@@ -442,7 +424,7 @@ def _cmd_report(args) -> int:
 
 
 def _cmd_bench_integrators(args) -> int:
-    from .bench import integrator_study
+    from .studies.pbm_integrators import integrator_study
 
     integrator_study(quick=args.quick)
     return 0

@@ -23,6 +23,7 @@ from pathlib import Path
 
 import numpy as np
 
+from . import __version__
 from .mill import MillModel
 from .scene import Scene, scene_to_dict
 
@@ -220,9 +221,10 @@ def tip_speed_at(scene: Scene, t_s: float) -> float:
     return float(np.interp(t_s, ts, vs))
 
 
-def simulate(scene: Scene, progress: bool = True):
-    """Run the scene; returns (model, records, psd rows) with one record per output time."""
-    model = MillModel(scene)
+def simulate(scene: Scene, progress: bool = True, table_error_multiple: float = 0.0):
+    """Run the scene; returns (model, records, psd rows) with one record per output time.
+    ``table_error_multiple``: see :class:`MillModel` (the prediction band's edges)."""
+    model = MillModel(scene, table_error_multiple=table_error_multiple)
     r = scene.run
     n_steps = int(math.ceil(r.t_end_s / r.dt_s - 1e-9))
     every = max(1, int(round(r.output_interval_s / r.dt_s)))
@@ -266,6 +268,40 @@ def simulate(scene: Scene, progress: bool = True):
     return model, records, psds
 
 
+#: Outputs whose prediction band result.json states, at the end of a run.
+BAND_KEYS = ("x10_m", "x50_m", "x90_m", "disrupted_fraction")
+
+
+def prediction_band(scene: Scene, multiple: float = 1.0) -> dict | None:
+    """The band of the end-of-run outputs that the stress-energy table's stated error spans,
+    or None for a scene without a table. Two more runs of the scene with every zone's
+    collision frequency and median stress energy at the edges of ``multiple`` times their
+    stated relative error b (factors (1 + b)^-1 and 1 + b: the lower edge breaks least, the
+    upper most; the breakage rates grow with both, so these runs bound the box of zone
+    statistics; :meth:`TableStressSource.relative_error` says what b holds)."""
+    if scene.kinetics.model != "detailed" or scene.kinetics.stress_distribution.source != "table":
+        return None
+    ends = {}
+    for sign in (-1.0, 1.0):
+        model, records, _ = simulate(scene, progress=False, table_error_multiple=sign * multiple)
+        ends[sign] = (records[-1], model.source.relative_error())
+    lo, hi = ends[-1.0][0], ends[1.0][0]
+    err = ends[1.0][1]
+    band = {k: sorted((lo[k], hi[k])) for k in BAND_KEYS if k in lo}
+    return {
+        "t_s": lo["t_s"],
+        "multiple": multiple,
+        "outputs": band,
+        "zones": err["zones"],
+        "collision_frequency_relative_error": [float(v) if np.isfinite(v) else None for v in err["collision_frequency"]],
+        "se_median_relative_error": [float(v) if np.isfinite(v) else None for v in err["se_median"]],
+        "method": ("two runs with every zone's collision frequency and median stress energy at the edges of the table's "
+                   "stated relative error b, factors (1 + b)^-1 and (1 + b); b = interpolation error + 2 sigma of the DEM "
+                   "sampling at the last operating point + the work-precision expected error (recording, spin-up, sector, "
+                   "step, coupling), per zone"),
+    }
+
+
 def run_warnings(model: MillModel, records) -> list:
     """The model's warnings about its data, and those about the outputs (below-grid mass) at
     the output time where that mass is largest."""
@@ -279,8 +315,6 @@ def provenance(scene: Scene, model: MillModel, wall_s: float | None = None) -> d
     """What reproduces a run: the resolved scene (every key with its value), versions, the
     stress-energy table's identity and stated error at the final operating point, wall time."""
     import platform
-
-    from . import __version__
 
     prov = {
         "scene": scene_to_dict(scene),
@@ -299,28 +333,30 @@ def provenance(scene: Scene, model: MillModel, wall_s: float | None = None) -> d
                  "grid": m.get("grid"), "resolution": m.get("resolution"), "rebuild_command": m.get("rebuild_command")}
         lk = getattr(src, "last_lookup", None)
         if lk is not None:
-            # Stated error (interpolation + 2 sigma of the DEM sampling) relative to the value, per zone.
-            def rel(name, sel=lambda a: a):
-                v, b = sel(lk.values[name]), sel(lk.bound(name))
-                return [float(x) if np.isfinite(x) else None for x in np.where(np.abs(v) > 0, b / np.where(np.abs(v) > 0, np.abs(v), 1.0), np.nan)]
+            # Stated relative error per zone, as the prediction band uses it (None: no collisions).
+            err = src.relative_error(lk)
 
-            from .dem.tables import COMPONENTS
+            def plain(a):
+                return [float(x) if np.isfinite(x) else None for x in a]
 
-            ci = COMPONENTS.index(src.component)
-            ident["stated_error"] = {"point": lk.point, "zones": list(table.zone_names),
-                                     "collision_frequency_relative": rel("collision_frequency_norm"),
-                                     "se_median_relative": rel("se_quantiles_norm", lambda a: a[ci, :, 1]),
+            ident["stated_error"] = {"point": lk.point, "zones": err["zones"],
+                                     "collision_frequency_relative": plain(err["collision_frequency"]),
+                                     "se_median_relative": plain(err["se_median"]),
                                      "notes": list(getattr(src, "last_notes", []))}
         prov["table"] = ident
     return prov
 
 
 def write_results(out_dir: str | Path, scene: Scene, model: MillModel, records, psds, plots: bool = True,
-                  wall_s: float | None = None) -> list[Path]:
+                  wall_s: float | None = None, band: dict | None = None) -> list[Path]:
     """Write result.json, psd.csv and PNG plots into out_dir atomically; returns the paths.
+    ``band``: the prediction band (:func:`prediction_band`; computed here when None and the
+    scene reads a table).
 
     Result files of an earlier run there that this run does not write are removed."""
     out = check_out_dir(out_dir)
+    if band is None:
+        band = prediction_band(scene)
     out.parent.mkdir(parents=True, exist_ok=True)
     clean_leftovers(out.parent)
     if (out / MARKER).exists():
@@ -344,6 +380,7 @@ def write_results(out_dir: str | Path, scene: Scene, model: MillModel, records, 
             },
             "units": {k: v for k, v in RESULT_KEYS.items()},
             "outputs": records,
+            "prediction_band": band,
             "warnings": run_warnings(model, records),
             "provenance": provenance(scene, model, wall_s),
         }

@@ -53,6 +53,7 @@ def _f(default=MISSING, *, unit="", lo=None, hi=None, lo_open=False, hi_open=Fal
 class SceneInfo:
     name: str = _f("unnamed", doc="name of the scene")
     description: str = _f("", doc="free text")
+    calibration: str = _f("", doc="what the scene's fitted constants were fitted to (data and whether they are measured or a stand-in, values with 95 % intervals); written by millfmu calibrate; carried into a run's provenance and the FMU's description")
 
 
 @dataclass(frozen=True)
@@ -114,7 +115,7 @@ class Material:
 @dataclass(frozen=True)
 class StressDistribution:
     source: str = _f("lognormal", choices=("lognormal", "table"), doc="stress-energy source of the detailed model: log-normal, or a DEM table")
-    table: str = _f("default", doc="table: 'default' (shipped millfmu/data/default_table), a shipped table by name ('coupled', 'accelerator': millfmu/data/NAME_table) or PREFIX of PREFIX.npz/PREFIX.json")
+    table: str = _f("coupled", doc="table: a shipped table by name ('coupled': the coupled DEM-CFD disc slice, the default scene's; 'prescribed': the disc slice with a prescribed swirl, for comparison; 'accelerator'; millfmu/data/NAME_table; 'default' names the default scene's) or PREFIX of PREFIX.npz/PREFIX.json")
     component: str = _f("tn", choices=("tn", "total"), doc="table: stress-energy component (tn: normal impact energy)")
     similar_axes: list = _f([], choices=("tip_speed_m_s", "bead_diameter_m", "bead_density_kg_m3", "viscosity_pa_s"), doc="table: axes along which similarity is assumed: an axis the table does not vary (bead_diameter_m, bead_density_kg_m3, viscosity_pa_s) may differ from the table's value, and a value outside the grid (also tip_speed_m_s) uses the nearest edge's dimensionless fields")
     on_outside: str = _f("refuse", choices=("refuse", "build"), doc="table: operating point outside the grid: refuse, or build a covering table with the DEM")
@@ -388,7 +389,13 @@ def resolve_dict(d: dict) -> dict:
     of defaults: a key missing from both has its listed default, ``millfmu scene-keys``)."""
     if not isinstance(d, dict):
         raise SceneError("(scene)", d, "must be a table of sections")
-    return _merged(_default_dict(), d)
+    out = _merged(_default_dict(), d)
+    # The default scene's calibration record describes its own material and kinetics: a
+    # scene that sets its own, without a record of its own, has none.
+    own = d.get("scene") if isinstance(d.get("scene"), dict) else {}
+    if "calibration" not in own and (d.get("material") or d.get("kinetics") or "stress_frequency_factor" in (d.get("mill") or {})):
+        out.setdefault("scene", {})["calibration"] = ""
+    return out
 
 
 def scene_from_dict(d: dict, source: str = "scene") -> Scene:

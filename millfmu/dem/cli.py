@@ -124,8 +124,8 @@ def register(subparsers) -> argparse.ArgumentParser:
 def _work_precision(args) -> int:
     from pathlib import Path
 
-    from millfmu.dem import work_precision as W
-    from millfmu.dem.compare import CompareError
+    from millfmu.dem.analysis.compare import CompareError
+    from millfmu.dem.studies import work_precision as W
 
     out = Path(args.out)
     try:
@@ -152,7 +152,7 @@ def _work_precision(args) -> int:
 
 
 def _compare(args) -> int:
-    from millfmu.dem.compare import CompareError, markdown
+    from millfmu.dem.analysis.compare import CompareError, markdown
 
     try:
         print(markdown(args.runs))
@@ -163,7 +163,7 @@ def _compare(args) -> int:
 
 
 def _seed001(args) -> int:
-    from millfmu.dem import seed001
+    from millfmu.dem.studies import seed001
 
     if args.action == "run":
         fluids = [f.strip() for f in args.fluid.split(",") if f.strip()]
@@ -178,7 +178,7 @@ def _seed001(args) -> int:
 
 
 def _seed002(args) -> int:
-    from millfmu.dem import seed002
+    from millfmu.dem.studies import seed002
 
     if args.action == "run":
         seed002.run_campaign(args.out, threads=args.threads)
@@ -231,7 +231,7 @@ def _run(args) -> int:
 
 
 def _bench(args) -> int:
-    from millfmu.dem import bench as B
+    from millfmu.dem.studies import bench as B
 
     steps = args.steps or B.BENCH_STEPS
     cores = tuple(args.cores or (1, 2))
@@ -245,7 +245,7 @@ def _bench(args) -> int:
                    devices=(args.device,) if args.device else ("cpu", "gpu"))
     out = {"runs": [dict(r.__dict__, rate=r.rate) for r in runs]}
     if args.coupled:
-        from millfmu.dem.coupling.bench import run_coupled_bench
+        from millfmu.dem.studies.coupled_bench import run_coupled_bench
 
         c = out["coupled"] = run_coupled_bench(steps=steps, threads=max(cores)).as_dict()
         print(f"coupled row (disc_slice 10 m/s, 80 %, 10 deg, {c['beads']} beads, "

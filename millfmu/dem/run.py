@@ -1,7 +1,7 @@
 """Run a DEM scene: spin-up, recording, zone statistics and output files.
 
 Outputs in the output folder:
-- ``stats.json``: :class:`millfmu.dem.stats.DemStats` (plain JSON), with the fluid model
+- ``stats.json``: :class:`millfmu.dem.analysis.stats.DemStats` (plain JSON), with the fluid model
   named in ``fluid_model`` and, in ``flow``, the mean-flow structure (see
   :func:`flow_summary`): torque and power split into fluid shear and bead contacts and the
   power number (coupled fluid), the angular-momentum budget, vortices of the mean flow,
@@ -38,11 +38,18 @@ from pathlib import Path
 
 import numpy as np
 
-from millfmu.dem.geometry import (bead_count_for_filling, place_beads,
-                                  simple_cubic_annulus)
+from millfmu.dem.analysis import flow_structure as FS
+from millfmu.dem.analysis import plots
+from millfmu.dem.analysis.stats import DemStats, compute_stats
+from millfmu.dem.coupling.cfd_dem import CfdDem
+from millfmu.dem.engine.sim import DemSimulation
+from millfmu.dem.fluid.grid import mill_grid
+from millfmu.dem.fluid.solver import FluidProperties
+from millfmu.dem.mills import accelerator as A
+from millfmu.dem.mills import zones_for
+from millfmu.dem.mills.geometry import (bead_count_for_filling, place_beads,
+                                        simple_cubic_annulus)
 from millfmu.dem.scene import DemScene
-from millfmu.dem.stats import DemStats, compute_stats
-from millfmu.dem.zones import zones_for
 
 #: Initial turbulence of the coupled fluid (the stirrer starts from rest): k = (0.02 v_t)^2,
 #: epsilon from a 1 mm mixing length; k-epsilon forgets it within a few stirrer turns.
@@ -63,8 +70,6 @@ def initial_positions(scene: DemScene) -> np.ndarray:
 
 def make_simulation(scene: DemScene, threads: int | None = None):
     """The DEM of ``scene`` and, for the coupled fluid, its :class:`CfdDem` (else None)."""
-    from millfmu.dem.sim import DemSimulation
-
     x0 = initial_positions(scene)
     v0 = None
     if scene.initial_rotation:
@@ -75,10 +80,6 @@ def make_simulation(scene: DemScene, threads: int | None = None):
                         fluid=scene.fluid, threads=threads, velocities_m_s=v0)
     cpl = None
     if scene.fluid_mode == "coupled":
-        from millfmu.dem.coupling.cfd_dem import CfdDem
-        from millfmu.dem.fluid.grid import mill_grid
-        from millfmu.dem.fluid.solver import FluidProperties
-
         c = scene.coupling
         grid = mill_grid(scene.geometry, c.cell_m, n_theta=c.n_theta)
         cpl = CfdDem(sim, grid, FluidProperties(scene.fluid.density_kg_m3,
@@ -109,7 +110,7 @@ def run_scene(scene: DemScene, out_dir, progress: bool = True, threads: int | No
     fluid, spin-up, recording and sampling interval are rounded up to whole coupling
     intervals. ``contacts``: also write ``contacts.npz`` (:func:`write_contacts`).
     """
-    from millfmu.dem import kernels as K
+    from millfmu.dem.engine import kernels as K  # numba: compiled when a run is made
 
     EV_COLS = dict(type=K.EV_TYPE, x=K.EV_X, y=K.EV_Y, z=K.EV_Z, setn=K.EV_SETN,
                    sets=K.EV_SETS, serot=K.EV_SEROT)
@@ -189,9 +190,9 @@ def run_scene(scene: DemScene, out_dir, progress: bool = True, threads: int | No
         "fluid: " + scene.fluid_description,
         "spin-up excluded from all statistics; samples and contacts from the recording "
         "window only",
-        ("zones SEV_1-4 from seed 002 figure 4 (see millfmu.dem.accelerator)"
+        ("zones SEV_1-4 from seed 002 figure 4 (see millfmu.dem.mills.accelerator)"
          if scene.kind == "accelerator_slice" else
-         "zones V1-V4 as read from seed 001 Figure 2 (see millfmu.dem.zones)"),
+         "zones V1-V4 as read from seed 001 Figure 2 (see millfmu.dem.mills.zones)"),
         "stirrer torque and power scaled from the simulated sector to the full circle; "
         "per axial period of the cell",
     ]
@@ -246,8 +247,6 @@ def run_scene(scene: DemScene, out_dir, progress: bool = True, threads: int | No
     _write_histograms(out / "se_histograms.csv", stats)
     np.savetxt(out / "kinetic_energy.csv", np.column_stack([ke_t, ke]), delimiter=",",
                header="t_s,kinetic_energy_j", comments="")
-    from millfmu.dem import plots
-
     plots.write_maps(out, scene, ev, EV_COLS)
     if scene.kind == "accelerator_slice":
         plots.write_seed002_maps(out, scene, ev, EV_COLS)
@@ -271,8 +270,6 @@ def accelerator_summary(scene, sim, zones, ev, ev_cols, record_s, sx, sv, fields
     """Seed 002's quantities of an accelerator slice (plain JSON data, SI units): SI, SN_g,
     SE_cs, SE_ts,sum / SE_cs,sum per zone and in total, SE_net and the efficiency; bead
     speed over tip speed against Z'/R and X'/L (figures 3 and 4); the rotor's pumped flow."""
-    from millfmu.dem import accelerator as A
-
     out = A.stress_quantities(ev, ev_cols, zones, record_s, scene.bead_diameter_m,
                               scene.material.density_kg_m3, sim.n, scene.tip_speed_m_s,
                               scene.omega_rad_s)
@@ -301,9 +298,7 @@ def _finite(obj):
 
 
 def _zeta_of_grid(grid, geometry):
-    from millfmu.dem.flow_structure import fold_zeta
-
-    return fold_zeta(grid.z_centres_m, geometry.disc_z_m, geometry.height_m)
+    return FS.fold_zeta(grid.z_centres_m, geometry.disc_z_m, geometry.height_m)
 
 
 def _budget_reading(sim, cpl) -> dict:
@@ -319,8 +314,6 @@ def _budget_reading(sim, cpl) -> dict:
 def flow_summary(scene, sim, cpl, sx, sv, torques, budget0, fields, substeps) -> dict:
     """Mean-flow structure of the recording (plain JSON data; SI units, full circle per
     axial period where a torque or power is given)."""
-    from millfmu.dem import flow_structure as FS
-
     g = scene.geometry
     frac = g.sector_fraction
     n_steps = sum(t[0] for t in torques)
@@ -424,15 +417,11 @@ def flow_summary(scene, sim, cpl, sx, sv, torques, budget0, fields, substeps) ->
 
 def _section_bead_fields(scene, sim, cpl, sx, sv, fields) -> dict:
     """Time-mean bead fields of the axial section on the fluid's bins (or 0.75 mm)."""
-    from millfmu.dem import flow_structure as FS
-
     g = scene.geometry
     if fields is not None:
         r_edges = cpl.grid.r_faces_m
         zeta_c = fields["zeta_m"]
     else:
-        from millfmu.dem.fluid.grid import mill_grid
-
         gr = mill_grid(g, 0.75e-3)
         r_edges = gr.r_faces_m
         zeta_c = _zeta_of_grid(gr, g)
@@ -466,7 +455,7 @@ def write_contacts(path: Path, events, chunk_steps, zones, t0_s: float, dt_s: fl
                    c_type: int, c_xyz, c_setn: int, c_setotal) -> None:
     """Bead-bead contacts of the recording, per recording chunk (one sampling interval):
     ``zone`` (index into ``zone_names``, -1 outside every zone), ``chunk`` (index of the
-    chunk), ``se_tn_j`` and ``se_total_j`` [J] (as in :mod:`millfmu.dem.stats`);
+    chunk), ``se_tn_j`` and ``se_total_j`` [J] (as in :mod:`millfmu.dem.analysis.stats`);
     ``chunk_start_s`` and ``chunk_s`` [s] per chunk; ``zone_names``, ``zone_volumes_m3``.
     ``events``: the recorded contact rows per chunk; ``chunk_steps``: DEM steps per chunk."""
     zone, chunk, setn, setot = [], [], [], []

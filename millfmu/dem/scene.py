@@ -1,7 +1,7 @@
 """DEM scene files (TOML) -> validated, typed DemScene in SI units.
 
 A scene names its geometry kind (``annulus``, ``disc_slice`` or ``accelerator_slice``,
-:mod:`millfmu.dem.accelerator`) and gives the mill,
+:mod:`millfmu.dem.mills.accelerator`) and gives the mill,
 bead, fluid, run and zone parameters; every key carries its unit in its name. The shipped
 scenes live next to this module in ``scenes/``. Errors name the key, the value and what
 is allowed.
@@ -9,7 +9,7 @@ is allowed.
 The fluid is chosen by ``[fluid] mode``: ``coupled`` (the liquid solved on a grid and
 coupled both ways, :mod:`millfmu.dem.coupling`; options in ``[fluid.coupled]``),
 ``prescribed`` (Koch-Hill drag towards the prescribed swirl of
-:func:`millfmu.dem.kernels.swirl_velocity`), or ``none``. A scene without ``mode`` (files
+:func:`millfmu.dem.engine.kernels.swirl_velocity`), or ``none``. A scene without ``mode`` (files
 written before the coupled fluid) means ``prescribed``, or ``none`` with the old
 ``enabled = false``.
 """
@@ -27,10 +27,11 @@ else:  # pragma: no cover
     import tomli as tomllib
 
 from millfmu.dem.coupling.settings import CouplingSettings
-from millfmu.dem.geometry import MillGeometry
-from millfmu.dem.params import BeadMaterial
-from millfmu.dem.sim import FluidSettings
-from millfmu.dem.zones import ZoneSpec
+from millfmu.dem.engine.params import BeadMaterial
+from millfmu.dem.engine.sim import FluidSettings
+from millfmu.dem.mills.accelerator import SevSpec
+from millfmu.dem.mills.geometry import MillGeometry
+from millfmu.dem.mills.zones import ZoneSpec
 
 SCENE_DIR = Path(__file__).parent / "scenes"
 KINDS = ("annulus", "disc_slice", "accelerator_slice")
@@ -65,7 +66,7 @@ class DemScene:
     record_s: float
     sample_every_s: float
     seed: int
-    zones: ZoneSpec  # accelerator_slice: millfmu.dem.accelerator.SevSpec
+    zones: ZoneSpec  # accelerator_slice: millfmu.dem.mills.accelerator.SevSpec
     map_bins_r: int
     map_bins_z: int
     # beads and coupled fluid start turning at this fraction of the stirrer's angular
@@ -106,7 +107,7 @@ class DemScene:
         if self.fluid_mode == "prescribed":
             return ("prescribed swirl flow (no CFD coupling): azimuthal fluid velocity between "
                     "the rotating stirrer and the fixed chamber wall as documented in "
-                    "millfmu.dem.kernels.swirl_velocity; no radial/axial circulation")
+                    "millfmu.dem.engine.kernels.swirl_velocity; no radial/axial circulation")
         c = self.coupling
         return (f"coupled CFD-DEM: volume-averaged Navier-Stokes model {c.model}, "
                 f"turbulence {c.turbulence}, Koch-Hill drag, cylindrical grid of "
@@ -283,8 +284,6 @@ def scene_from_dict(d: dict, default_name: str = "scene") -> DemScene:
     if len(grav) != 3:
         raise DemSceneError(f"run.gravity_m_s2 = {grav!r}: must be a list of 3 numbers")
     if kind == "accelerator_slice":
-        from millfmu.dem.accelerator import SevSpec
-
         for k in zones:
             if k not in ("sev_z1", "sev_z2", "sev_x3"):
                 raise DemSceneError(f"zones.{k}: unknown key for accelerator_slice; allowed: "

@@ -12,10 +12,10 @@ import math
 import numpy as np
 import pytest
 
-from millfmu.dem import kernels as K
-from millfmu.dem.geometry import MillGeometry, place_beads
-from millfmu.dem.params import BeadMaterial, bead_mass_kg, hertz_contact_time_s
-from millfmu.dem.sim import DemSimulation, FluidSettings
+from millfmu.dem.engine import kernels as K
+from millfmu.dem.engine.params import BeadMaterial, bead_mass_kg, hertz_contact_time_s
+from millfmu.dem.engine.sim import DemSimulation, FluidSettings
+from millfmu.dem.mills.geometry import MillGeometry, place_beads
 
 R = 0.4e-3  # bead radius [m]
 ANNULUS = MillGeometry(shaft_radius_m=0.015, chamber_radius_m=0.019, height_m=0.004)

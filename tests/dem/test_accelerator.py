@@ -8,10 +8,10 @@ import math
 import numpy as np
 import pytest
 
-from millfmu.dem import accelerator as A
-from millfmu.dem.geometry import GeometryError, MillGeometry, bead_count_for_filling
+from millfmu.dem.mills import accelerator as A
+from millfmu.dem.mills import zones_for
+from millfmu.dem.mills.geometry import GeometryError, MillGeometry, bead_count_for_filling
 from millfmu.dem.scene import DemSceneError, load_scene, load_scene_dict, scene_from_dict
-from millfmu.dem.zones import zones_for
 
 MM = 1e-3
 
@@ -48,8 +48,8 @@ def test_rotor_volume_and_walls_agree_with_the_kernels():
     """Shroud and vane volumes by hand; the kernels' wall distances (walls 2 and 3) equal
     the numpy geometry's at random points."""
     pytest.importorskip("numba")
-    from millfmu.dem import kernels as K
-    from millfmu.dem.sim import DemSimulation
+    from millfmu.dem.engine import kernels as K
+    from millfmu.dem.engine.sim import DemSimulation
 
     s = load_scene("accelerator_slice")
     g = s.geometry
@@ -249,7 +249,7 @@ def test_short_coupled_run_has_the_papers_quantities(tmp_path):
     """A short coupled run through the CLI: SEV zones, seed 002's quantities with their
     units, maps, and the budget closing."""
     pytest.importorskip("numba")
-    from millfmu.dem.stats import DemStats
+    from millfmu.dem.analysis.stats import DemStats
 
     out = tmp_path / "acc"
     a = _parser().parse_args(["dem", "run", "accelerator_slice", "--out", str(out),
@@ -281,7 +281,7 @@ def test_short_coupled_run_has_the_papers_quantities(tmp_path):
 
 def _fake_stats(rpm, fill, eff):
     """stats.json content with every seed 002 statement holding."""
-    from millfmu.dem.seed002 import ZONE_NAMES
+    from millfmu.dem.studies.seed002 import ZONE_NAMES
 
     speed = {"SEV_1": 0.3, "SEV_2": 0.4, "SEV_3": 0.6, "SEV_4": 0.55}
     filling = {"SEV_1": 0.9, "SEV_2": 0.7, "SEV_3": 0.5, "SEV_4": 0.8}
@@ -299,7 +299,7 @@ def _fake_stats(rpm, fill, eff):
 
 
 def test_seed002_table_gives_verdicts_from_the_runs(tmp_path):
-    from millfmu.dem import seed002 as S
+    from millfmu.dem.studies import seed002 as S
 
     def write(case, st):
         d = S.case_dir(tmp_path, *case)
@@ -327,7 +327,7 @@ def test_campaign_table_from_short_runs(tmp_path, monkeypatch):
     """The seed 002 campaign's runs at 80 % make a table over the rotor speeds that reads,
     verifies and is refused when a run's protocol differs."""
     pytest.importorskip("numba")
-    from millfmu.dem import seed002 as S
+    from millfmu.dem.studies import seed002 as S
     from millfmu.dem.tables import read_table
     from millfmu.dem.tables.spec import TableError
 

@@ -13,11 +13,11 @@ from millfmu.dem.coupling import exchange_kernels as EK  # noqa: E402
 from millfmu.dem.coupling import projection as PJ  # noqa: E402
 from millfmu.dem.coupling.cfd_dem import CfdDem  # noqa: E402
 from millfmu.dem.coupling.settings import CouplingSettings  # noqa: E402
+from millfmu.dem.engine.params import BeadMaterial, koch_hill_f0_f3  # noqa: E402
+from millfmu.dem.engine.sim import DemSimulation, FluidSettings  # noqa: E402
 from millfmu.dem.fluid.grid import mill_grid  # noqa: E402
 from millfmu.dem.fluid.solver import FluidProperties, FluidSolver  # noqa: E402
-from millfmu.dem.geometry import MillGeometry, fcc_sites  # noqa: E402
-from millfmu.dem.params import BeadMaterial, koch_hill_f0_f3  # noqa: E402
-from millfmu.dem.sim import DemSimulation, FluidSettings  # noqa: E402
+from millfmu.dem.mills.geometry import MillGeometry, fcc_sites  # noqa: E402
 
 D = 0.8e-3
 RHO_F, MU_F = 998.2, 1.002e-3

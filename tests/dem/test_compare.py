@@ -4,7 +4,7 @@ import json
 
 import pytest
 
-from millfmu.dem import compare as C
+from millfmu.dem.analysis import compare as C
 
 
 def _stats(speed_v1, freq):

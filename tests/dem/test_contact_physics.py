@@ -9,8 +9,8 @@ import math
 import numpy as np
 import pytest
 
-from millfmu.dem.geometry import MillGeometry
-from millfmu.dem.params import BeadMaterial, bead_mass_kg, hertz_contact_time_s
+from millfmu.dem.engine.params import BeadMaterial, bead_mass_kg, hertz_contact_time_s
+from millfmu.dem.mills.geometry import MillGeometry
 
 pytest.importorskip("numba")
 
@@ -20,7 +20,7 @@ GEOM = MillGeometry(shaft_radius_m=0.015, chamber_radius_m=0.045, height_m=0.004
 
 def _pair(material, v_rel, dt, normal=(1.0, 0.0, 0.0), gap=0.05e-3):
     """Two beads approaching along `normal` with relative velocity v_rel (3,) [m/s]."""
-    from millfmu.dem.sim import DemSimulation
+    from millfmu.dem.engine.sim import DemSimulation
 
     n = np.asarray(normal, float)
     n /= np.linalg.norm(n)
@@ -65,7 +65,7 @@ def test_recorded_energy_is_half_mstar_vn2_of_approach():
     normal = np.array([1.0, 0.3, 0.2])
     sim = _pair(mat, v_rel, 5e-7, normal=normal, gap=0.02e-3)
     st = sim.run(400, record=True)
-    from millfmu.dem import kernels as K
+    from millfmu.dem.engine import kernels as K
 
     bb = st.events[st.events[:, K.EV_TYPE] == 0]
     assert bb.shape[0] == 1  # counted once, at its first overlap
@@ -181,12 +181,12 @@ def test_oblique_impact_sticking_matches_no_slip_solution(nu):
 
 
 def test_elastic_frictionless_energy_conserved():
-    from millfmu.dem.sim import DemSimulation
+    from millfmu.dem.engine.sim import DemSimulation
 
     mat = BeadMaterial(restitution=1.0, friction=0.0, rolling_friction=0.0)
     geom = MillGeometry(shaft_radius_m=0.015, chamber_radius_m=0.019, height_m=0.004)
     rng = np.random.default_rng(3)
-    from millfmu.dem.geometry import place_beads
+    from millfmu.dem.mills.geometry import place_beads
 
     x = place_beads(geom, 60, R, seed=2)
     v = rng.normal(0.0, 0.15, size=(60, 3))
@@ -206,8 +206,8 @@ def test_elastic_frictionless_energy_conserved():
 def test_collision_across_the_sector_boundary_matches_interior_collision():
     """Rotational periodicity: a head-on collision through the boundary ray of a 45 degree
     sector gives the rebound of the same collision inside the cell, and is recorded once."""
-    from millfmu.dem import kernels as K
-    from millfmu.dem.sim import DemSimulation
+    from millfmu.dem.engine import kernels as K
+    from millfmu.dem.engine.sim import DemSimulation
 
     mat = BeadMaterial(restitution=0.9, friction=0.3, rolling_friction=0.0)
     geom = MillGeometry(shaft_radius_m=0.015, chamber_radius_m=0.045, height_m=0.004,
@@ -241,8 +241,8 @@ def test_collision_across_the_sector_boundary_matches_interior_collision():
 
 
 def test_neighbour_list_overflow_is_handled_without_changing_results():
-    from millfmu.dem.geometry import place_beads
-    from millfmu.dem.sim import DemSimulation
+    from millfmu.dem.engine.sim import DemSimulation
+    from millfmu.dem.mills.geometry import place_beads
 
     mat = BeadMaterial()
     geom = MillGeometry(shaft_radius_m=0.015, chamber_radius_m=0.019, height_m=0.004)
@@ -265,8 +265,8 @@ def test_lists_overflowing_within_a_run_change_no_result():
     """A neighbour build inside run() that finds the spare lists too small stops the
     stepping loop, enlarges them and closes the step: same trajectory and contacts as a run
     with room to spare."""
-    from millfmu.dem.geometry import place_beads
-    from millfmu.dem.sim import DemSimulation
+    from millfmu.dem.engine.sim import DemSimulation
+    from millfmu.dem.mills.geometry import place_beads
 
     mat = BeadMaterial()
     geom = MillGeometry(shaft_radius_m=0.015, chamber_radius_m=0.019, height_m=0.004)
@@ -292,8 +292,8 @@ def test_lists_overflowing_within_a_run_change_no_result():
 def test_bead_reordering_keeps_the_dynamics():
     """Sorting beads along the cell grid (memory locality) only renames them: the same
     run with and without reordering agrees bead by bead (up to summation order)."""
-    from millfmu.dem.geometry import place_beads
-    from millfmu.dem.sim import DemSimulation
+    from millfmu.dem.engine.sim import DemSimulation
+    from millfmu.dem.mills.geometry import place_beads
 
     mat = BeadMaterial()
     geom = MillGeometry(shaft_radius_m=0.015, chamber_radius_m=0.019, height_m=0.004)
@@ -318,7 +318,7 @@ def test_bead_reordering_keeps_the_dynamics():
 def _forces_once(sim):
     """One call of the force kernel on a copy of the contact state: (F [N], T [N m]) on
     every bead."""
-    from millfmu.dem import kernels as K
+    from millfmu.dem.engine import kernels as K
 
     psh, pfl, shw, flw = sim.psh.copy(), sim.pfl.copy(), sim.shw.copy(), sim.flw.copy()
     K.compute_forces(sim.x, sim.v, sim.w, sim.fb, sim.tb, sim.rad, sim.mass, sim.inertia,
@@ -333,8 +333,8 @@ def test_equal_beads_shortcut_gives_the_general_forces_bit_for_bit():
     """With one radius and mass for all beads the force loop takes R* and m* computed once;
     making one bead with no neighbour a little larger sends every pair through the
     general formulas, and the other beads' forces and torques are the same bit for bit."""
-    from millfmu.dem.geometry import place_beads
-    from millfmu.dem.sim import DemSimulation
+    from millfmu.dem.engine.sim import DemSimulation
+    from millfmu.dem.mills.geometry import place_beads
 
     geom = MillGeometry(shaft_radius_m=0.015, chamber_radius_m=0.019, height_m=0.004)
     x = place_beads(geom, 700, R, seed=5)
@@ -363,7 +363,7 @@ def test_history_frame_from_the_separation_equals_the_one_from_the_normal():
     (s.d)^2 / |d|^2 (no root); against the direct projection on the unit normal, for a
     history lying in a previous tangent plane turned by up to 0.1 rad: agreement to
     round-off."""
-    from millfmu.dem import kernels as K
+    from millfmu.dem.engine import kernels as K
 
     rng = np.random.default_rng(11)
     for _ in range(200):
@@ -388,9 +388,9 @@ def test_wall_contacts_are_recorded_at_the_bead_and_counted_in_its_zone():
     gap beyond the rim (zone V2): each contact is recorded once, at the bead's centre at
     its first overlap (the contact point lies inside the wall, and at the edge would not
     tell the bead's side), so that it lands in the bead's zone."""
-    from millfmu.dem import kernels as K
-    from millfmu.dem.sim import DemSimulation
-    from millfmu.dem.zones import Zones
+    from millfmu.dem.engine import kernels as K
+    from millfmu.dem.engine.sim import DemSimulation
+    from millfmu.dem.mills.zones import Zones
 
     geom = MillGeometry(shaft_radius_m=0.015, chamber_radius_m=0.045, height_m=0.028,
                         disc_radius_m=0.036, disc_thickness_m=0.008)
@@ -425,9 +425,9 @@ def test_half_lists_hold_every_pair_within_the_cutoff_once(every, height):
     beads sorted along the cells (the build skips cells of lower beads only) and without;
     with three axial cells (the stencil's columns searched as one run of cells) and with
     six (runs split where the stencil wraps axially)."""
-    from millfmu.dem import kernels as K
-    from millfmu.dem.geometry import place_beads
-    from millfmu.dem.sim import DemSimulation
+    from millfmu.dem.engine import kernels as K
+    from millfmu.dem.engine.sim import DemSimulation
+    from millfmu.dem.mills.geometry import place_beads
 
     geom = MillGeometry(shaft_radius_m=0.015, chamber_radius_m=0.024, height_m=height,
                         sector_deg=30.0)
@@ -470,8 +470,8 @@ def test_half_lists_hold_every_pair_within_the_cutoff_once(every, height):
 def test_koch_hill_drag_on_a_resting_bead(eps):
     """Force on a bead at rest in the prescribed Couette swirl: V_p beta U_f with beta from
     the REFERENCE's Koch-Hill formulas (and Stokes' 3 pi mu d U in the dilute limit)."""
-    from millfmu.dem import kernels as K
-    from millfmu.dem.sim import DemSimulation, FluidSettings
+    from millfmu.dem.engine import kernels as K
+    from millfmu.dem.engine.sim import DemSimulation, FluidSettings
 
     mu, rho = 1.002e-3, 998.2
     fl = FluidSettings(density_kg_m3=rho, viscosity_pa_s=mu, lubrication=False,
@@ -526,7 +526,7 @@ def test_contact_carried_across_a_sector_wrap_equals_one_away_from_the_boundary(
     boundary ray in the middle of a sticking-sliding contact; its spring must be carried
     to the image pair (rotated with the bead), so that the contact evolves exactly as the
     same contact placed 20 degrees into the sector."""
-    from millfmu.dem.sim import DemSimulation
+    from millfmu.dem.engine.sim import DemSimulation
 
     mat = BeadMaterial(restitution=0.9, friction=0.5, rolling_friction=0.0)
     out = []

@@ -10,19 +10,19 @@ import sys
 import numpy as np
 import pytest
 
-from millfmu.dem.geometry import (GeometryError, MillGeometry, bead_count_for_filling,
-                                  place_beads, simple_cubic_annulus)
+from millfmu.dem.analysis.stats import DemStats, energy_distribution, se_bin_edges_j
+from millfmu.dem.mills.geometry import (GeometryError, MillGeometry, bead_count_for_filling,
+                                        place_beads, simple_cubic_annulus)
+from millfmu.dem.mills.zones import Zones, ZoneSpec
 from millfmu.dem.scene import DemSceneError, load_scene, scene_from_dict
-from millfmu.dem.stats import DemStats, energy_distribution, se_bin_edges_j
-from millfmu.dem.zones import Zones, ZoneSpec
 
 PM1 = MillGeometry(shaft_radius_m=0.015, chamber_radius_m=0.045, height_m=0.028,
                    disc_radius_m=0.036, disc_thickness_m=0.008)
 
 
 def test_import_is_numba_free():
-    code = ("import sys, millfmu.dem, millfmu.dem.cli, millfmu.dem.scene, millfmu.dem.stats,"
-            " millfmu.dem.run, millfmu.dem.zones, millfmu.dem.bench;"
+    code = ("import sys, millfmu.dem, millfmu.dem.cli, millfmu.dem.scene, millfmu.dem.analysis.stats,"
+            " millfmu.dem.run, millfmu.dem.mills.zones, millfmu.dem.studies.bench;"
             " print('numba' in sys.modules)")
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
                          check=True)

@@ -5,7 +5,7 @@ import json
 
 import pytest
 
-from millfmu.dem import seed001
+from millfmu.dem.studies import seed001
 
 
 def fake_stats(vt, fill, speeds=(0.13, 0.095, 0.085, 0.10), layer=0.22, secondary=None):
@@ -61,7 +61,7 @@ def test_deviation_table_names_what_is_missed(tmp_path):
 @pytest.mark.bench
 def test_coupled_bench_row_prints_its_ratio():
     pytest.importorskip("numba")
-    from millfmu.dem.coupling.bench import run_coupled_bench
+    from millfmu.dem.studies.coupled_bench import run_coupled_bench
 
     r = run_coupled_bench(steps=200, repeats=1)
     print(r.as_dict())

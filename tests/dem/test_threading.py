@@ -11,9 +11,9 @@ pytest.importorskip("numba")
 
 CODE = r"""
 import numpy as np, numba
-from millfmu.dem.geometry import MillGeometry, place_beads
-from millfmu.dem.params import BeadMaterial
-from millfmu.dem.sim import DemSimulation
+from millfmu.dem.mills.geometry import MillGeometry, place_beads
+from millfmu.dem.engine.params import BeadMaterial
+from millfmu.dem.engine.sim import DemSimulation
 geom = MillGeometry(shaft_radius_m=0.015, chamber_radius_m=0.019, height_m=0.004)
 x = place_beads(geom, 700, 0.4e-3, seed=5)
 sim = DemSimulation(geom, BeadMaterial(), x, 0.4e-3, 300.0, 5e-6, threads=2)
@@ -53,9 +53,9 @@ POOL_AFTER_DEM = r"""
 import os, sys
 sys.path.insert(0, os.getcwd())
 import numba
-from millfmu.dem.geometry import MillGeometry, place_beads
-from millfmu.dem.params import BeadMaterial
-from millfmu.dem.sim import DemSimulation
+from millfmu.dem.mills.geometry import MillGeometry, place_beads
+from millfmu.dem.engine.params import BeadMaterial
+from millfmu.dem.engine.sim import DemSimulation
 from millfmu.dem import tables as T
 from tests.tables._builders import dem_threads_builder
 geom = MillGeometry(shaft_radius_m=0.015, chamber_radius_m=0.019, height_m=0.004)

@@ -1,4 +1,4 @@
-"""DEM work-precision (millfmu.dem.work_precision): the batch-means error of a recording of
+"""DEM work-precision (millfmu.dem.studies.work_precision): the batch-means error of a recording of
 length T against closed-form sampling statistics, and on a short coupled run."""
 
 import json
@@ -7,7 +7,7 @@ import math
 import numpy as np
 import pytest
 
-from millfmu.dem import work_precision as W
+from millfmu.dem.studies import work_precision as W
 
 
 def _fake_run(path, rate_per_chunk=400.0, n_chunks=200, chunk_s=0.01, seed=3, t0_s=1.0):

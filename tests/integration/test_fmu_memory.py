@@ -74,7 +74,7 @@ def _growth(python, fmu, cwd, cycles=150):
 def test_instances_leave_no_more_behind_than_a_trivial_fmu(tmp_path, fmi_version):
     if fmi_version == 3:
         need_fmi3()
-    from fmu_build.bench import _floor
+    from fmu_build.step_cost import _floor
 
     mill = build(None, tmp_path / f"mill{fmi_version}.fmu", fmi_version=fmi_version)
     floor = _floor(tmp_path, fmi_version, 100, 114, 14)

@@ -83,7 +83,8 @@ def test_one_occupied_class(scene_dict):
 
 def test_only_finest_class_occupied(scene_dict):
     """What breaks in the finest class leaves the grid: it goes below the grid, nowhere else."""
-    m = MillModel(make_scene(scene_dict, feed={"kind": "monodisperse", "x_m": 0.101e-6}, kinetics={"model": "simple"}))
+    m = MillModel(make_scene(scene_dict, feed={"kind": "monodisperse", "x_m": 0.101e-6}, kinetics={"model": "simple"},
+                             grid={"x_min_m": 0.1e-6}))
     y0 = m.y.copy()
     m.step(1000.0)
     changed = np.flatnonzero(m.y != y0)

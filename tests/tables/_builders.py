@@ -126,9 +126,9 @@ def separable_spec(anchor_filling=0.7, **kw):
 def dem_threads_builder(scene: dict, point: dict) -> dict:
     """:func:`analytic_builder` after a few steps of a small DEM on two threads, so that a
     process pool's worker runs the DEM's parallel kernels."""
-    from millfmu.dem.geometry import MillGeometry, place_beads
-    from millfmu.dem.params import BeadMaterial
-    from millfmu.dem.sim import DemSimulation
+    from millfmu.dem.engine.params import BeadMaterial
+    from millfmu.dem.engine.sim import DemSimulation
+    from millfmu.dem.mills.geometry import MillGeometry, place_beads
 
     geom = MillGeometry(shaft_radius_m=0.015, chamber_radius_m=0.019, height_m=0.004)
     x = place_beads(geom, 300, 0.4e-3, seed=5)

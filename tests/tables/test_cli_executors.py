@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from millfmu.dem import tables as T
-from millfmu.dem import tables_cli
+from millfmu.dem.tables import cli as tables_cli
 from tests.tables import _builders
 from tests.tables._builders import analytic_builder, spec
 

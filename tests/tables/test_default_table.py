@@ -1,5 +1,6 @@
-"""The shipped default table verifies, states its resolution and rebuild command, and the
-detailed model runs on it through the one stress-energy interface."""
+"""The shipped prescribed-swirl table (the default scene's until it moved to the coupled
+table; kept for comparison as ``table = "prescribed"``) verifies, states its resolution and
+rebuild command, and the detailed model runs on it through the one stress-energy interface."""
 
 from __future__ import annotations
 
@@ -7,23 +8,23 @@ import numpy as np
 import pytest
 
 from millfmu.dem import tables as T
-from millfmu.dem.tables_cli import REBUILD_DEFAULT
 from tests.tables._heldback import held_back
 
 
 @pytest.fixture(scope="module")
 def table():
-    return T.read_default_table()
+    return T.read_table_ref("prescribed")
 
 
 def test_default_table_verifies(table, tmp_path):
-    npz, man = T.default_table_paths()
+    prefix = T.table_ref_prefix("prescribed")
+    npz, man = prefix.with_suffix(".npz"), prefix.with_suffix(".json")
     assert npz.stat().st_size + man.stat().st_size < 5e6
     m = table.manifest
     assert m["builder"] == T.DemBuilder.builder_id
     assert m["scene"]["name"] == "disc_slice" and m["scene"]["kind"] == "disc_slice"
     assert m["resolution"]["shape"] == list(table.shape)
-    assert m["rebuild_command"] == REBUILD_DEFAULT
+    assert m["rebuild_command"].endswith("--fluid prescribed --export millfmu/data/prescribed_table")
     assert table.zone_names == ("V1", "V2", "V3", "V4")
     assert np.all(table.data["collision_count"].sum(axis=-1) > 1000)
     # a copy with one flipped byte is detected
@@ -35,10 +36,10 @@ def test_default_table_verifies(table, tmp_path):
 
 
 def test_detailed_model_runs_on_the_default_table(table):
+    from millfmu.api import load_scene
     from millfmu.mill import MillModel
-    from millfmu.scene import load_scene
 
-    model = MillModel(load_scene())  # the embedded default scene reads the default table
+    model = MillModel(load_scene(overrides={"kinetics.stress_distribution.table": "prescribed"}))
     src = model.source
     assert isinstance(src, T.TableStressSource)
     np.testing.assert_array_equal(src.table.data["se_density"], table.data["se_density"])
@@ -96,10 +97,10 @@ def test_interpolation_within_stated_error_on_held_back_points(table):
 
 
 def test_model_refuses_inputs_outside_the_table_and_extrapolates_tip_speed(table):
+    from millfmu.api import load_scene
     from millfmu.mill import InputError, MillModel
-    from millfmu.scene import load_scene
 
-    m = MillModel(load_scene())
+    m = MillModel(load_scene(overrides={"kinetics.stress_distribution.table": "prescribed"}))
     y0 = m.y.copy()
     with pytest.raises(InputError, match=r"input bead_filling = 0.45: outside the "
                        r"stress-energy table's grid; allowed 0.5 to 0.9"):

@@ -35,7 +35,7 @@ def test_reading_module_imports_no_numba_dem_or_builder(module):
     loaded = json.loads(r.stdout)
     assert module in loaded
     assert not any(m.split(".")[0] == "numba" for m in loaded)
-    assert not {"millfmu.dem.sim", "millfmu.dem.kernels", "millfmu.dem.run"} & set(loaded)
+    assert not {"millfmu.dem.engine.sim", "millfmu.dem.engine.kernels", "millfmu.dem.run"} & set(loaded)
     bad = [m for m in loaded if m not in ALLOWED and any(m == f or m.startswith(f + ".") for f in FORBIDDEN)]
     assert not bad, bad
 

@@ -55,14 +55,14 @@ def test_damaged_table_is_refused_by_run_and_build_fmu_naming_file_and_fix(tmp_p
 
 def test_damaged_default_table_names_the_rebuild_command(monkeypatch, tmp_path, scene_dict):
     npz, man = T.default_table_paths()
-    shutil.copy(npz, tmp_path / "default_table.npz")
-    shutil.copy(man, tmp_path / "default_table.json")
-    _flip(tmp_path / "default_table.npz", 2000)
-    monkeypatch.setattr(table_module, "default_table_paths", lambda: (tmp_path / "default_table.npz", tmp_path / "default_table.json"))
+    shutil.copy(npz, tmp_path / "coupled_table.npz")
+    shutil.copy(man, tmp_path / "coupled_table.json")
+    _flip(tmp_path / "coupled_table.npz", 2000)
+    monkeypatch.setattr(table_module, "default_table_paths", lambda: (tmp_path / "coupled_table.npz", tmp_path / "coupled_table.json"))
     with pytest.raises(SceneError) as e:
-        MillModel(make_scene(scene_dict))
-    assert "default_table.npz" in str(e.value) and "corrupted" in str(e.value)
-    assert "--export millfmu/data/default_table" in str(e.value)
+        MillModel(make_scene(scene_dict, kinetics={"stress_distribution": {"table": "default"}}))
+    assert "coupled_table.npz" in str(e.value) and "corrupted" in str(e.value)
+    assert "--export millfmu/data/coupled_table" in str(e.value)
 
 
 def test_edited_export_manifest_fails_verify(tmp_path, exported):

@@ -4,7 +4,7 @@ mass conservation, and its stability limit against the exact step."""
 import numpy as np
 from scipy.linalg import expm
 
-from millfmu.bench import _order, taylor_step
+from millfmu.studies.pbm_integrators import _order, taylor_step
 
 
 def _operator(n=6, rate=1.0):

@@ -27,12 +27,14 @@ MINERAL_SIZES = (10e-6, 60e-6, 150e-6)
 
 @pytest.fixture(scope="module")
 def limestone():
-    return mrates.compute(LIMESTONE.scenes()[0], "limestone", sizes_m=MINERAL_SIZES)
+    simple, detailed = LIMESTONE.scenes()
+    return mrates.compute(simple, "limestone", sizes_m=MINERAL_SIZES, detailed_scene=detailed)
 
 
 @pytest.fixture(scope="module")
 def yeast():
-    return mrates.compute(YEAST.scenes()[0], "yeast")
+    simple, detailed = YEAST.scenes()
+    return mrates.compute(simple, "yeast", detailed_scene=detailed)
 
 
 def _kwade_sf(scene, x, v_t, d, rho_l_w, filling):
@@ -120,14 +122,21 @@ def test_detailed_model_moves_with_the_simple_one_for_tip_speed_and_bead_density
 
 
 def test_points_the_table_does_not_resolve_are_labelled_or_refused(limestone):
-    # bead diameter and density: the default table holds 0.8 mm glass only -> similarity, labelled per point
+    # bead diameter and density: the coupled table varies them one at a time (0.5-1.2 mm,
+    # 2510-6040 kg/m3) around its anchor; inside, the grid's fields are scaled (separability,
+    # noted per point); a bead diameter beyond them is refused, left empty, never faked
     for p in ("bead_diameter", "bead_density"):
         c = limestone.curve(p, "detailed")
         i = limestone.reference_index(p)
-        assert c.sources[i] == "table"
-        assert all(s == "table, similarity assumed" for k, s in enumerate(c.sources) if k != i)
-        assert all("similarity assumed" in n for k, n in enumerate(c.notes) if k != i)
-        assert "similarity assumed" in limestone.source_description[p]
+        assert c.sources[i] == "table" and "separability assumed" in limestone.source_description[p]
+        for k, v in enumerate(c.values):
+            if k == i:
+                continue
+            if p == "bead_diameter" and v < 0.5e-3:
+                assert c.sources[k] == "refused" and c.notes[k].startswith("refused")
+                assert all(math.isnan(r[k]) for r in c.rates.values())
+            else:
+                assert c.sources[k] == "table" and "scaled" in c.notes[k], (p, v, c.notes[k])
     assert set(limestone.curve("tip_speed", "detailed").sources) == {"table"}
     # a filling outside the table's grid (0.5-0.9) is not an extrapolable axis: refused, left empty
     scene = LIMESTONE.scenes()[1]

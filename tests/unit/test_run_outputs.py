@@ -76,7 +76,7 @@ def test_result_json_reproduces_its_run(tmp_path, short):
     assert prov["millfmu_version"] == millfmu.__version__ and prov["numpy_version"] == np.__version__
     assert prov["python_version"].count(".") == 2 and prov["wall_time_s"] > 0.0
     t = prov["table"]
-    assert t["ref"] == "default" and len(t["key"]) == 64 and len(t["files"]["table.npz"]["sha256"]) == 64
+    assert t["ref"] == "coupled" and len(t["key"]) == 64 and len(t["files"]["table.npz"]["sha256"]) == 64
     assert set(t["stated_error"]["zones"]) == {"V1", "V2", "V3", "V4"}
     assert all(0.0 < e < 1.0 for e in t["stated_error"]["collision_frequency_relative"])
     # Every scene key is there, and the resolved scene alone gives the same outputs.

@@ -32,7 +32,7 @@ def test_default_scene_loads_in_si():
         ("feed", {"kind": "table", "sizes_m": [1e-6, 2e-6], "Q3": [0.5, 0.9]}, "feed.Q3", "end at 1"),
         ("feed", {"kind": "table", "sizes_m": [2e-6, 1e-6], "Q3": [0.5, 1.0]}, "feed.sizes_m", "ascending"),
         ("run", {"dt_s": 10000.0}, "run.dt_s", "t_end_s"),
-        ("grid", {"x_max_m": 0.1e-6}, "grid.x_max_m", "x_min_m"),
+        ("grid", {"x_max_m": 0.01e-6}, "grid.x_max_m", "x_min_m"),
     ],
 )
 def test_bad_values_name_key_value_allowed(scene_dict, section, values, key, words):

@@ -37,10 +37,11 @@ from millfmu.dem.fluid.solver import FluidProperties, FluidSolver
 
 
 class CfdDem:
-    """Couples a :class:`millfmu.dem.sim.DemSimulation` to a fluid on ``grid``."""
+    """Couples a :class:`millfmu.dem.engine.sim.DemSimulation` to a fluid on ``grid``."""
 
     def __init__(self, sim, grid, fluid: FluidProperties, settings: CouplingSettings,
                  omega_rad_s: float):
+        # numba kernels: compiled when a coupled run is built, not with a scene file.
         from millfmu.dem.coupling import exchange_kernels as EK
         from millfmu.dem.coupling import projection as PJ
         from millfmu.dem.coupling.projection import Projector

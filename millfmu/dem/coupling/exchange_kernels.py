@@ -13,9 +13,9 @@ import math
 
 from numba import prange
 
-from millfmu.dem._jit import device, kernel, serial
 from millfmu.dem.coupling.koch_hill2001 import STIFF_RATIO, beta
 from millfmu.dem.coupling.projection import stencil_one
+from millfmu.dem.engine._jit import device, kernel, serial
 
 NQ = 6
 

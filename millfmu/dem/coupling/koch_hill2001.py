@@ -9,13 +9,13 @@ beta = 18 mu eps F / d^2 [kg/(m3 s)]; drag on the bead V_p beta (u - v) ("model 
 Koch, D. L. & Hill, R. J. (2001), Annu. Rev. Fluid Mech. 33, 619-647.
 
 The same law with a constant void fraction drives the prescribed swirl
-(:func:`millfmu.dem.kernels.koch_hill_beta` with F0, F3 from
-:func:`millfmu.dem.params.koch_hill_f0_f3`); here eps varies per bead.
+(:func:`millfmu.dem.engine.kernels.koch_hill_beta` with F0, F3 from
+:func:`millfmu.dem.engine.params.koch_hill_f0_f3`); here eps varies per bead.
 """
 
 import math
 
-from millfmu.dem._jit import device, serial
+from millfmu.dem.engine._jit import device, serial
 
 
 @device

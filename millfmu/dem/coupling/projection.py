@@ -32,7 +32,7 @@ import math
 import numpy as np
 from numba import prange
 
-from millfmu.dem._jit import device, kernel, serial
+from millfmu.dem.engine._jit import device, kernel, serial
 from millfmu.dem.fluid.grid import FLUID
 
 

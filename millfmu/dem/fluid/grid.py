@@ -150,7 +150,7 @@ def _axial_cells(lengths, cell_m):
 
 def mill_grid(geometry, cell_m: float = 0.75e-3, n_theta: int = 1,
               walls_z: bool = False, shaft_rotates: bool = True) -> CylGrid:
-    """Grid of a :class:`millfmu.dem.geometry.MillGeometry` (annulus or disc slice) with
+    """Grid of a :class:`millfmu.dem.mills.geometry.MillGeometry` (annulus or disc slice) with
     cells of about ``cell_m`` [m]: the disc's tip radius and faces lie on cell faces, the
     radial spacing is uniform between shaft and disc tip and between tip and chamber; the
     theta range is the geometry's sector. ``walls_z`` closes the axial period with a

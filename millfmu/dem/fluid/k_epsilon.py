@@ -20,7 +20,7 @@ equations use the same nu_w at their wall edges (:func:`millfmu.dem.fluid.vans_k
 
 import math
 
-from millfmu.dem._jit import serial
+from millfmu.dem.engine._jit import serial
 from millfmu.dem.fluid.vans_kernels import (C_MU, E_LOG, KAPPA, YPLUS_LAM, tvd_flux)
 
 C_1 = 1.44

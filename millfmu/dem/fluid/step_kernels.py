@@ -9,7 +9,7 @@ Arrays travel in tuples (see :class:`millfmu.dem.fluid.solver.FluidSolver`): F, 
 and what the beads impose; W, work arrays; K, the int8 node kinds and cell kinds.
 """
 
-from millfmu.dem._jit import serial
+from millfmu.dem.engine._jit import serial
 from millfmu.dem.fluid import k_epsilon as KE
 from millfmu.dem.fluid import vans_kernels as VK
 

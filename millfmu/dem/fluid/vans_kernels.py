@@ -39,7 +39,7 @@ e_tz[i, j, k] = a tau_theta_z at (r_c[i], theta_{j+1/2}, z_{k+1/2}).
 
 import math
 
-from millfmu.dem._jit import device, serial
+from millfmu.dem.engine._jit import device, serial
 
 KAPPA = 0.41  # von Karman constant (Launder & Spalding 1974)
 E_LOG = 9.8  # log-law constant E

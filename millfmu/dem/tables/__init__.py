@@ -40,7 +40,8 @@ _EXPORTS = {
         "canonical_json", "manifest_digest", "sha256_bytes", "sha256_file"), "files"),
     **dict.fromkeys((
         "DEFAULT_TABLE_MANIFEST", "DEFAULT_TABLE_NPZ", "ERROR_SAFETY", "EXTRAPOLABLE_AXES",
-        "FIXED_AXIS_RTOL", "Lookup", "ONE_AT_A_TIME_PREFIX", "OutsideGridError", "Table",
+        "FIXED_AXIS_RTOL", "Lookup", "ONE_AT_A_TIME_PREFIX", "OutsideGridError", "REBUILD_DEFAULT",
+        "Table",
         "SHIPPED_TABLES", "default_table_paths", "shift_log_density",
         "read_default_table", "read_table", "read_table_ref", "table_ref_prefix"), "table"),
     "TableStressSource": "stress_source",
@@ -48,8 +49,9 @@ _EXPORTS = {
                      "order_by_cost", "record_check", "run_points", "stationarity_summary"),
                     "build"),
     **dict.fromkeys((
-        "KERNEL_MODULES", "POINTS_DIR", "cache_entries", "clear_cache", "default_cache_dir",
-        "dem_kernel_version", "entry_dir", "get_table", "load_cached", "resolve_cache_dir"),
+        "KERNEL_MODULES", "POINTS_DIR", "SAME_DEM_AS", "cache_entries", "clear_cache",
+        "default_cache_dir", "dem_kernel_version", "entry_dir", "get_table",
+        "kernel_source_hash", "load_cached", "resolve_cache_dir"),
         "cache"),
     **dict.fromkeys((
         "DemBuilder", "dem_spec", "normalize_stats", "rebin_density", "rebuild_including",

@@ -25,8 +25,9 @@ from typing import Callable
 import numpy as np
 
 from .files import canonical_json, sha256_bytes, write_synced
-from .spec import DRIFT_FIELDS, FIELDS, FORMAT_VERSION, TableError, TableSpec, scene_at_point
-from .table import Table
+from .spec import (COMPONENTS, DRIFT_FIELDS, FIELDS, FORMAT_VERSION, QUANTILE_NAMES, TableError,
+                   TableSpec, scene_at_point)
+from .table import FIXED_AXIS_RTOL, Table
 
 
 class PointStore:
@@ -83,6 +84,49 @@ class PointStore:
             warnings.warn(f"point store {self.folder}: point {point} not kept ({e}); the "
                           f"build goes on, a resume would run it again", stacklevel=2)
             return False
+
+
+    def seed(self, table: Table) -> int:
+        """Put the points a finished table holds (its grid and one-at-a-time points, as the
+        builder returned them: :func:`unstack`) into the store where it has none; returns how
+        many were added. Their keys are those of the table's own specification (builder,
+        kernel version, scene at the point), so a build of another grid over the same scene
+        and kernel finds them and runs only what is missing; a table of another kernel adds
+        points no current build asks for."""
+        if not self.reuse:
+            return 0
+        spec = table.spec()
+        added = 0
+        for point, result in unstack(spec, table):
+            if self.get(spec, point) is None and self.put(spec, point, result):
+                added += 1
+        return added
+
+
+def unstack(spec: TableSpec, table: Table) -> list:
+    """(point, result) per point of ``spec`` from a table built by it: the inverse of
+    :func:`assemble` (FIELDS, zone names, references, and the recording drift where kept;
+    the run's wall time is not kept in a table)."""
+    zn = list(table.zone_names)
+
+    def one(t: Table, idx) -> dict:
+        r = {k: np.asarray(t.data[k][idx]) for k in FIELDS}
+        r["zone_names"] = zn
+        r.update({k: float(t.refs[k][idx]) for k in ("e_ref_J", "omega_rad_s", "n_gb_per_m3")})
+        if "recording_drift" in t.data:
+            d = np.asarray(t.data["recording_drift"][idx])
+            r["drift"] = {f: d[j] for j, f in enumerate(DRIFT_FIELDS)}
+        return r
+
+    out = []
+    shape = spec.shape
+    for i, point in enumerate(spec.grid_points()):
+        out.append((point, one(table, np.unravel_index(i, shape))))
+    for name, vals in spec.one_at_a_time.items():
+        side = table.one_at_a_time[name]
+        for j, v in enumerate(vals):
+            out.append((spec.point_along(name, v), one(side, (j,))))
+    return out
 
 
 def _plain(obj):
@@ -308,8 +352,6 @@ CHECK_FIELDS = ("speed_over_tip_speed", "filling_local", "collision_frequency_no
 
 
 def _check_fields(values: dict) -> dict:
-    from .spec import COMPONENTS, QUANTILE_NAMES
-
     out = {k: np.asarray(values[k], float) for k in CHECK_FIELDS[:-1]}
     q = np.asarray(values["se_quantiles_norm"], float)
     out["se_tn_q50_norm"] = q[COMPONENTS.index("tn"), :, QUANTILE_NAMES.index("q50")]
@@ -409,8 +451,7 @@ def record_check(table: Table, result: dict) -> dict:
     """The table's manifest with ``result`` (:func:`check_point`) among its checks:
     ``separability_check`` where a one-at-a-time axis is off its reference, else
     ``interpolation_check``; a check at the same point is replaced."""
-    from .table import FIXED_AXIS_RTOL  # the lookup's rule for "at the reference"
-
+    # FIXED_AXIS_RTOL: the lookup's rule for "at the reference".
     off = any(not math.isclose(result["point"][k], v, rel_tol=FIXED_AXIS_RTOL)
               for k, v in table.one_at_a_time_ref.items())
     key = "separability_check" if off else "interpolation_check"

@@ -33,13 +33,37 @@ from .table import Table, read_table
 
 #: Modules whose source decides the DEM's numbers: contact laws and integration (kernels,
 #: sim), the coupled fluid (fluid, coupling), the run loop (run) and what is measured
-#: (stats, zones). Their source hash is the kernel version.
-KERNEL_MODULES = ("millfmu.dem.kernels", "millfmu.dem.sim", "millfmu.dem.stats",
-                  "millfmu.dem.zones", "millfmu.dem.run", "millfmu.dem.fluid.grid",
-                  "millfmu.dem.fluid.vans_kernels", "millfmu.dem.fluid.k_epsilon",
-                  "millfmu.dem.fluid.pressure", "millfmu.dem.fluid.solver",
-                  "millfmu.dem.coupling.projection", "millfmu.dem.coupling.koch_hill2001",
-                  "millfmu.dem.coupling.cfd_dem", "millfmu.dem.coupling.settings")
+#: (stats, zones). Their source hash is the kernel version. Label -> module: the hash takes
+#: each module's label, its name before the DEM was laid out by role (engine, mills,
+#: analysis), so that where a module stands is not part of the version.
+KERNEL_MODULES = {
+    "millfmu.dem.kernels": "millfmu.dem.engine.kernels",
+    "millfmu.dem.sim": "millfmu.dem.engine.sim",
+    "millfmu.dem.stats": "millfmu.dem.analysis.stats",
+    "millfmu.dem.zones": "millfmu.dem.mills.zones",
+    "millfmu.dem.run": "millfmu.dem.run",
+    "millfmu.dem.fluid.grid": "millfmu.dem.fluid.grid",
+    "millfmu.dem.fluid.vans_kernels": "millfmu.dem.fluid.vans_kernels",
+    "millfmu.dem.fluid.k_epsilon": "millfmu.dem.fluid.k_epsilon",
+    "millfmu.dem.fluid.pressure": "millfmu.dem.fluid.pressure",
+    "millfmu.dem.fluid.solver": "millfmu.dem.fluid.solver",
+    "millfmu.dem.coupling.projection": "millfmu.dem.coupling.projection",
+    "millfmu.dem.coupling.koch_hill2001": "millfmu.dem.coupling.koch_hill2001",
+    "millfmu.dem.coupling.cfd_dem": "millfmu.dem.coupling.cfd_dem",
+    "millfmu.dem.coupling.settings": "millfmu.dem.coupling.settings",
+}
+
+#: Source hash -> the kernel version it stands for, where sources changed without changing
+#: what the DEM computes. The layout by role changed these modules' import lines (the new
+#: names; numba-free modules imported at the top, the numba kernels' imports commented)
+#: and the module names in their docstrings, and moved ``zones_for`` from zones.py to
+#: :mod:`millfmu.dem.mills` (zones.py and accelerator.py imported each other); the shipped
+#: tables, built before, record the version of the sources before, which stays the
+#: version. Any other change of these sources gives a new hash, and a new version.
+SAME_DEM_AS = {
+    "sha256:4e5f649d8459bddd50a7ec059ace6b44106bac1745e88635e4f565af91d91452":
+        "sha256:cc5c174862c188a675fdb35932f269eb61ae82876e3d110866af2b7a62b0d3bd",
+}
 
 
 #: Folder of the cache that holds finished grid points (:class:`PointStore`).
@@ -47,13 +71,20 @@ POINTS_DIR = "points"
 
 
 def dem_kernel_version() -> str:
-    """sha256 over the source files of :data:`KERNEL_MODULES` (read, not imported: no numba)."""
+    """sha256 over the labels and source files of :data:`KERNEL_MODULES` (read, not
+    imported: no numba), or the version that :data:`SAME_DEM_AS` gives for it."""
+    h = kernel_source_hash()
+    return SAME_DEM_AS.get(h, h)
+
+
+def kernel_source_hash() -> str:
+    """sha256 over the labels and source files of :data:`KERNEL_MODULES`."""
     h = hashlib.sha256()
-    for mod in KERNEL_MODULES:
+    for label, mod in KERNEL_MODULES.items():
         spec = importlib.util.find_spec(mod)
         if spec is None or spec.origin is None:
             raise TableError(f"DEM kernel version: module {mod} not found")
-        h.update(mod.encode() + b"\0" + Path(spec.origin).read_bytes() + b"\0")
+        h.update(label.encode() + b"\0" + Path(spec.origin).read_bytes() + b"\0")
     return "sha256:" + h.hexdigest()
 
 
@@ -98,8 +129,26 @@ def load_cached(spec: TableSpec, cache_dir=None) -> Table | None:
         return None
 
 
+def seed_tables(spec: TableSpec) -> list:
+    """The shipped tables whose points a build of ``spec`` can reuse: same builder, kernel
+    version and DEM scene (a point's key holds the scene at the point, so only equal scenes
+    share points). Read without the DEM; a table that cannot be read is skipped."""
+    from .table import SHIPPED_TABLES, read_table_ref
+
+    out = []
+    for name in SHIPPED_TABLES:
+        try:
+            t = read_table_ref(name)
+            other = t.spec()
+        except (TableError, OSError):
+            continue
+        if (other.builder_id, other.kernel_version, other.scene) == (spec.builder_id, spec.kernel_version, spec.scene):
+            out.append(t)
+    return out
+
+
 def get_table(spec: TableSpec, builder: Callable, cache_dir=None, force: bool = False,
-              log: Callable[[str], None] | None = None, **run_kw) -> Table:
+              log: Callable[[str], None] | None = None, seed_from=(), **run_kw) -> Table:
     """The table of ``spec``: from the cache if its entry verifies, else built and cached.
 
     Concurrent callers serialize on ``<cache>/<key>.lock`` (fcntl.flock); the second finds
@@ -107,8 +156,11 @@ def get_table(spec: TableSpec, builder: Callable, cache_dir=None, force: bool = 
     renamed into place, so readers see either no entry or a complete one; an entry that
     fails verification is replaced. Finished grid points are kept in ``<cache>/points``
     (:class:`~.build.PointStore`): a build that was cut off, or a damaged entry, is
-    completed from them, running only the points that are missing. ``force`` rebuilds even
-    a good entry and runs every point again.
+    completed from them, running only the points that are missing. Before a build the store
+    is seeded with the points of ``seed_from`` (tables, e.g. the one being extended) and of
+    the shipped tables of the same DEM scene and kernel (:func:`seed_tables`), so that a new
+    operating point costs its own runs only. ``force`` rebuilds even a good entry and runs
+    every point again.
     """
     root = resolve_cache_dir(cache_dir)
     key = spec.key()
@@ -128,11 +180,16 @@ def get_table(spec: TableSpec, builder: Callable, cache_dir=None, force: bool = 
                 read_table(final, expect_key=key, expect_kernel=spec.kernel_version)
             except TableError as e:
                 log(f"rebuilding cache entry {key[:12]}: {e}")
-        run_kw.setdefault("point_store", PointStore(root / POINTS_DIR, reuse=not force))
+        store = run_kw.setdefault("point_store", PointStore(root / POINTS_DIR, reuse=not force))
+        if store is not None and store.reuse:
+            seeded = sum(store.seed(t) for t in (*seed_from, *seed_tables(spec)))
+            if seeded and log is not None:
+                log(f"point store: {seeded} point(s) taken from finished tables")
         table = build_table(spec, builder, **run_kw)
         tmp = Path(tempfile.mkdtemp(prefix=f".tmp-{key[:16]}-", dir=root))
         try:
-            table.save(tmp, manifest_for(spec, table))
+            table.save(tmp, manifest_for(spec, table,
+                                         work_precision=getattr(builder, "work_precision", None)))
             if final.exists():
                 trash = Path(tempfile.mkdtemp(prefix=f".old-{key[:16]}-", dir=root))
                 os.rename(final, trash / "entry")

@@ -11,12 +11,14 @@ from __future__ import annotations
 import math
 import tempfile
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Callable
 
 import numpy as np
 
+from ..run import run_scene
+from ..scene import load_scene_dict, scene_from_dict
 from .cache import dem_kernel_version, get_table
 from .spec import (COMPONENTS, DEM_BUILDER_ID, DRIFT_FIELDS, QUANTILE_NAMES, TableError,
                    TableSpec, builder_id_of, e_ref_J, n_gb_per_m3, norm_log10_edges,
@@ -46,7 +48,7 @@ def rebin_density(dem_edges_J: np.ndarray, density_per_decade: np.ndarray,
 
 
 def normalize_stats(stats, scene) -> dict:
-    """Per-point table fields from DEM statistics (:class:`millfmu.dem.stats.DemStats`) of
+    """Per-point table fields from DEM statistics (:class:`millfmu.dem.analysis.stats.DemStats`) of
     a run of ``scene`` (:class:`millfmu.dem.scene.DemScene`, placement 'filling')."""
     d, rho = scene.bead_diameter_m, scene.material.density_kg_m3
     eref = e_ref_J(d, rho, scene.tip_speed_m_s)
@@ -79,15 +81,16 @@ def normalize_stats(stats, scene) -> dict:
 class DemBuilder:
     """Builder of one grid point: runs millfmu's DEM (:func:`millfmu.dem.run.run_scene`) on
     the scene with the point's values and returns the normalized fields. ``threads``: numba
-    threads per run (1 when grid points run in parallel)."""
+    threads per run (1 when grid points run in parallel). ``work_precision``: what the
+    table's manifest states as its work-precision entry (see
+    :func:`~.spec.manifest_for`), handed in by the caller: the tables CLI gives the study's
+    ``manifest_entry``."""
 
     threads: int | None = None
+    work_precision: object = field(default=None, compare=False)
     builder_id = DEM_BUILDER_ID
 
     def __call__(self, scene: dict, point: dict) -> dict:
-        from ..run import run_scene
-        from ..scene import scene_from_dict
-
         s = scene_from_dict(scene_at_point(scene, point))
         if s.placement != "filling":
             raise TableError(f"scene {s.name}: beads.placement = {s.placement!r}; tables "
@@ -108,8 +111,6 @@ class DemBuilder:
         DEM steps ((spin-up + recording) / dt). A build runs the costliest points first, so
         that a long point (small beads) does not start last and leave the other workers
         idle while it runs."""
-        from ..scene import scene_from_dict
-
         s = scene_from_dict(scene_at_point(scene, point))
         return s.filling / s.bead_diameter_m**3 * (s.spin_up_s + s.record_s) / s.dt_s
 
@@ -141,8 +142,6 @@ def dem_spec(scene_name_or_path: str, grid: dict, overrides: dict | None = None,
     (section -> {key: value}, e.g. {"run": {"spin_up_s": 0.05}}) merged in, validated;
     ``one_at_a_time``: axes varied one at a time from the scene's point
     (:class:`TableSpec`)."""
-    from ..scene import load_scene_dict
-
     d = load_scene_dict(scene_name_or_path)
     for sec, kv in (overrides or {}).items():
         d.setdefault(sec, {}).update(kv)
@@ -156,8 +155,6 @@ def dem_spec(scene_name_or_path: str, grid: dict, overrides: dict | None = None,
 
 
 def _validate_scene_dict(d: dict):
-    from ..scene import scene_from_dict
-
     scene_from_dict(d)
 
 
@@ -178,10 +175,11 @@ def rebuild_including(table: Table, point: dict, builder: Callable | None = None
 
     grid, oat = extended(old.grid), extended(old.one_at_a_time)
     if builder is None:
-        builder = DemBuilder()
+        # The extended table has the same DEM settings: it keeps the old one's entry.
+        builder = DemBuilder(work_precision=table.manifest.get("work_precision"))
         kv = dem_kernel_version()
     else:
         kv = old.kernel_version
     spec = TableSpec(scene=old.scene, grid=grid, kernel_version=kv,
                      builder_id=builder_id_of(builder), one_at_a_time=oat)
-    return get_table(spec, builder, cache_dir=cache_dir, progress=progress, **run_kw)
+    return get_table(spec, builder, cache_dir=cache_dir, progress=progress, seed_from=(table,), **run_kw)

@@ -4,7 +4,7 @@ the normalized energy bins (the file format), the normalization by E_ref and ome
 with what a table's manifest states (:func:`manifest_for`, :func:`resolution_of`).
 
 A table holds, for a grid of operating points, what the detailed breakage model needs from
-the DEM, per zone (V1-V4 of :mod:`millfmu.dem.zones`):
+the DEM, per zone (V1-V4 of :mod:`millfmu.dem.mills.zones`):
 
 - ``volume_fraction`` [-]: zone volume over the bead-accessible cell volume;
 - ``filling_local`` [-]: time-averaged local bead filling (seed 001 eq. 2);
@@ -58,7 +58,7 @@ COMPONENTS = ("tn", "ts", "total")
 QUANTILE_NAMES = ("q10", "q50", "q90")
 # Normalized energy bins, log10(SE / E_ref): DEM energies span 1e-20 to 1 J (seed 001) and
 # E_ref of 0.1-3 mm beads at 1-20 m/s lies between 1e-9 and 1e-1 J, so -16..2 holds what the
-# DEM bins hold with room; 5 bins per decade as in millfmu.dem.stats.
+# DEM bins hold with room; 5 bins per decade as in millfmu.dem.analysis.stats.
 NORM_LOG10_MIN = -16.0
 NORM_LOG10_MAX = 2.0
 NORM_BINS_PER_DECADE = 5
@@ -240,16 +240,23 @@ def scene_at_point(scene: dict, point: dict) -> dict:
     return d
 
 
-def manifest_for(spec: TableSpec, table: Table, extra: dict | None = None) -> dict:
+def manifest_for(spec: TableSpec, table: Table, extra: dict | None = None,
+                 work_precision=None) -> dict:
     """The manifest of a table built from ``spec``: the key content, key, creation
-    time, resolution, build wall time and stationarity, and ``extra``."""
+    time, resolution, (for a DEM table) the work-precision entry, build wall time and
+    stationarity, and ``extra``.
+
+    ``work_precision``: the entry itself, or a function of the ``dem`` part of the
+    resolution that gives it (the work-precision study's ``manifest_entry``), handed in by
+    whoever builds the table; None when none is handed in. The tables never import the
+    study (a campaign that uses them)."""
     m = dict(spec.key_content())
     m["key"] = spec.key()
     m["created_utc"] = time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime())
     m["resolution"] = resolution_of(spec)
     if "dem" in m["resolution"]:
-        from ..work_precision import manifest_entry  # build time only; FMUs never build
-        m["work_precision"] = manifest_entry(m["resolution"]["dem"])
+        m["work_precision"] = (work_precision(m["resolution"]["dem"]) if callable(work_precision)
+                               else work_precision)
     m["build_wall_time_s"] = table.manifest.get("build_wall_time_s")
     for k in ("points_run", "points_reused", "points_wall_time_s"):
         if k in table.manifest:
@@ -267,7 +274,7 @@ def manifest_for(spec: TableSpec, table: Table, extra: dict | None = None) -> di
 #: ``millfmu dem run disc_slice --windows``); seed 001 (coupled CFD) analyses after 2 s.
 STEADY_SPIN_UP_S = 1.0
 #: Spin-up [s] after which the coupled disc slice at 10 m/s and 80 % is stationary (measured
-#: by the DEM work-precision study, README: bead speeds settle by 0.7 s from rest, but the
+#: by the DEM work-precision study, docs/validation-seed001.md: bead speeds settle by 0.7 s from rest, but the
 #: zone fillings, collision frequencies and V2's SE_tn quantiles keep changing until about
 #: 1.5 s; after 1.0 s they are still 8-18 % off in V2-V4).
 COUPLED_SPIN_UP_S = 1.5

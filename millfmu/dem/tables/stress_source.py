@@ -17,6 +17,7 @@ from typing import Callable
 
 import numpy as np
 
+from ...kinetics.stress_distribution import Zone
 from .spec import AXES, COMPONENTS, TableError, norm_log10_edges
 from .table import EXTRAPOLABLE_AXES, FIXED_AXIS_RTOL, Lookup, OutsideGridError, Table
 
@@ -51,6 +52,10 @@ class TableStressSource:
     similar_axes: tuple = ()
     on_outside: str = "refuse"
     rebuild: Callable | None = None  # (table, point) -> Table covering the point
+    #: Signed multiple m of the stated error the zones are put at (:meth:`relative_error`):
+    #: every zone's collision rate and energies times (1 + |m| b)^sign(m), b its relative
+    #: bound. 0: the table's values; +1 / -1: the upper / lower edge of the prediction band.
+    error_multiple: float = 0.0
     last_lookup: Lookup | None = None
     last_notes: list = field(default_factory=list)
 
@@ -98,9 +103,31 @@ class TableStressSource:
             t = self.table.one_at_a_time.get(ax, self.table)
             t.axis_value(ax, x, self.similar_axes)
 
-    def zones(self, op):
-        from ...kinetics.stress_distribution import Zone
+    def relative_error(self, lk: Lookup | None = None) -> dict:
+        """The stated relative error per zone at a lookup (default: the last): for the
+        collision frequency and the median stress energy of ``component``, the lookup's bound
+        (interpolation error + 2 sigma of the DEM sampling, :meth:`Lookup.bound`) plus the
+        table's work-precision expected error (recording, spin-up, sector, step, coupling;
+        the manifest's ``work_precision.choice.expected_error``, SE_tn's median standing for
+        the ``total`` component's), summed; NaN in a zone without collisions. The local
+        filling's error acts on the kinetics only through the collision frequency, which is
+        bounded itself."""
+        lk = lk if lk is not None else self.last_lookup
+        names = self.table.zone_names
+        ci = COMPONENTS.index(self.component)
 
+        def rel(v, b):
+            v, b = np.abs(np.asarray(v, float)), np.asarray(b, float)
+            return np.where(v > 0.0, b / np.where(v > 0.0, v, 1.0), np.nan)
+
+        f = rel(lk.values["collision_frequency_norm"], lk.bound("collision_frequency_norm"))
+        e = rel(lk.values["se_quantiles_norm"][ci, :, 1], lk.bound("se_quantiles_norm")[ci, :, 1])
+        wp = ((self.table.manifest.get("work_precision") or {}).get("choice") or {}).get("expected_error") or {}
+        f_wp = np.array([float((wp.get("collision_frequency") or {}).get(n, 0.0)) for n in names])
+        e_wp = np.array([float((wp.get("se_tn_q50") or {}).get(n, 0.0)) for n in names])
+        return {"zones": list(names), "collision_frequency": f + f_wp, "se_median": e + e_wp}
+
+    def zones(self, op):
         names = self.table.zone_names
         U = norm_log10_edges()
         if not op.tip_speed_m_per_s > 0.0:
@@ -129,16 +156,24 @@ class TableStressSource:
         ci = COMPONENTS.index(self.component)
         vf = lk.values["volume_fraction"]
         vf = vf / vf.sum()
+        m = float(self.error_multiple)
+        if m:
+            err = self.relative_error(lk)
+            # A zone without collisions has no rate to move.
+            f_fac = (1.0 + abs(m) * np.nan_to_num(err["collision_frequency"])) ** np.sign(m)
+            e_fac = (1.0 + abs(m) * np.nan_to_num(err["se_median"])) ** np.sign(m)
+        else:
+            f_fac = e_fac = np.ones(len(names))
         out = []
         for k, n in enumerate(names):
             w = np.clip(lk.values["se_density"][ci, k], 0.0, None) * np.diff(U)
-            rate = max(float(lk.values["collision_frequency_norm"][k]), 0.0) * scale
+            rate = max(float(lk.values["collision_frequency_norm"][k]), 0.0) * scale * float(f_fac[k])
             if w.sum() <= 0.0:
                 # No recorded collisions here: no rate, and a placeholder bin at the bottom.
                 w = np.zeros_like(w)
                 w[0] = 1.0
                 rate = 0.0
-            out.append(Zone(n, float(vf[k]), rate, edges, w / w.sum()))
+            out.append(Zone(n, float(vf[k]), rate, edges * float(e_fac[k]), w / w.sum()))
         return out
 
     def _volume_fractions(self):

@@ -452,7 +452,8 @@ class Table:
             spec = TableSpec(scene=old.scene, grid={k: list(v) for k, v in axes.items()},
                              kernel_version=old.kernel_version, builder_id=old.builder_id,
                              one_at_a_time=old.one_at_a_time)
-            sub.manifest = manifest_for(spec, sub, {"slice_of": self.manifest.get("key")})
+            sub.manifest = manifest_for(spec, sub, {"slice_of": self.manifest.get("key")},
+                                        work_precision=self.manifest.get("work_precision"))
         return sub
 
     def export(self, prefix) -> tuple[Path, Path]:
@@ -571,7 +572,7 @@ def read_table(folder=None, *, npz=None, manifest_path=None, expect_key: str | N
     """Read and verify a table; raise TableError saying what is wrong.
 
     Either ``folder`` (a cache entry: table.npz, manifest.json, manifest.json.sha256) or
-    ``npz`` and ``manifest_path`` (a shipped table such as millfmu/data/default_table.*).
+    ``npz`` and ``manifest_path`` (a shipped table such as millfmu/data/coupled_table.*).
     Checks: manifest checksum (when its .sha256 file exists, always in cache entries),
     format version, key = sha256 of the manifest's key content (and = ``expect_key``),
     kernel version (= ``expect_kernel`` when given), the table file's size and sha256, the
@@ -722,21 +723,34 @@ def _table_of(arrs: dict, axes: dict, zone_names: tuple) -> Table:
                  refs={k[4:]: v for k, v in arrs.items() if k.startswith("ref_")})
 
 
-# ---- shipped default table -----------------------------------------------------------------
-DEFAULT_TABLE_NPZ = "default_table.npz"
-DEFAULT_TABLE_MANIFEST = "default_table.json"
+# ---- shipped tables -------------------------------------------------------------------------
+#: The table of the embedded default scene: ``table = "default"`` names it too.
+DEFAULT_TABLE = "coupled"
+DEFAULT_TABLE_NPZ = f"{DEFAULT_TABLE}_table.npz"
+DEFAULT_TABLE_MANIFEST = f"{DEFAULT_TABLE}_table.json"
+#: The command that rebuilds the default scene's shipped table, the coupled one (from the
+#: repository root); the table's manifest records it as ``rebuild_command``.
+REBUILD_DEFAULT = (
+    "millfmu tables build --scene disc_slice --tip-speed 6,10,14 --filling "
+    "0.5,0.6,0.7,0.8,0.9 --bead-diameter 0.0005,0.0008,0.0012 --bead-density "
+    "2510,6040 --one-at-a-time bead-diameter,bead-density --sector-deg 10 --spin-up "
+    "1.5 --record 0.4 --sample-every 0.01 --initial-rotation 0.1 --no-gravity "
+    "--fluid coupled --export millfmu/data/coupled_table")
 
 
 def default_table_paths() -> tuple[Path, Path]:
-    """Paths of the shipped default table (millfmu/data/default_table.npz, .json)."""
+    """Paths of the default scene's shipped table (millfmu/data/coupled_table.npz, .json)."""
     base = Path(importlib.util.find_spec("millfmu").origin).parent / "data"
     return base / DEFAULT_TABLE_NPZ, base / DEFAULT_TABLE_MANIFEST
 
 
-#: Tables shipped beside the default one, by the name a scene gives (``table = NAME``):
+#: Tables shipped with millfmu, by the name a scene gives (``table = NAME``):
 #: millfmu/data/NAME_table.npz and .json. ``coupled``: the disc slice with the coupled
-#: fluid (tip speed x filling, bead diameter and density one at a time; README "Tables").
-SHIPPED_TABLES = ("accelerator", "coupled")
+#: fluid (tip speed x filling, bead diameter and density one at a time), the default
+#: scene's; ``prescribed``: the same slice with a prescribed swirl instead of the liquid
+#: (bead speeds 2-3.5 times seed 001's; kept for comparison); ``accelerator``: the
+#: accelerator slice (docs/tables.md).
+SHIPPED_TABLES = ("accelerator", "coupled", "prescribed")
 
 
 #: Tables read by read_table_ref, by their files' identity (path, size, mtime, inode): every
@@ -768,9 +782,9 @@ def _read_cached(npz: Path, man: Path) -> Table:
 
 
 def read_table_ref(ref: str) -> Table:
-    """The table a scene names: "default" (the shipped one), a name in SHIPPED_TABLES
-    (millfmu/data/NAME_table.*), or PREFIX of PREFIX.npz/PREFIX.json. Read once per
-    process and files (shared, arrays read-only)."""
+    """The table a scene names: "default" (the default scene's, :data:`DEFAULT_TABLE`), a
+    name in SHIPPED_TABLES (millfmu/data/NAME_table.*), or PREFIX of PREFIX.npz/PREFIX.json.
+    Read once per process and files (shared, arrays read-only)."""
     if ref == "default":
         npz, man = default_table_paths()
         if not npz.exists():
@@ -791,8 +805,8 @@ def table_ref_prefix(ref: str) -> Path:
 
 
 def read_default_table() -> Table:
-    """The shipped default table, verified (checksums, key, shapes; its kernel version is
-    recorded in its manifest and not required to match the installed DEM)."""
+    """The default scene's shipped table, verified (checksums, key, shapes; its kernel version
+    is recorded in its manifest and not required to match the installed DEM)."""
     npz, man = default_table_paths()
     if not npz.exists():
         raise TableError(f"default table {npz.name}: not shipped in this installation")

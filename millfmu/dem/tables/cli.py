@@ -41,14 +41,6 @@ RUN_OPTIONS = {
     "--initial-rotation": ("run", "initial_rotation", "beads and coupled fluid start turning "
                            "at this fraction of the stirrer's angular velocity [-]"),
 }
-#: The command that rebuilds the shipped default table (from the repository root); the
-#: table's manifest records it as ``rebuild_command``.
-REBUILD_DEFAULT = (
-    "millfmu tables build --scene disc_slice --tip-speed 6,8,10,12,14 "
-    "--filling 0.5,0.6,0.7,0.8,0.9 --sector-deg 10 --spin-up 0.05 --record 0.1 "
-    "--sample-every 0.005 --no-gravity --fluid prescribed --export "
-    "millfmu/data/default_table")
-
 
 def _floats(text: str) -> list:
     try:
@@ -115,7 +107,7 @@ def register(subparsers) -> argparse.ArgumentParser:
                    "grid points run in parallel, all cores when serial)")
     b.add_argument("--force", action="store_true", help="rebuild even a good cache entry")
     b.add_argument("--export", metavar="PREFIX", help="also write PREFIX.npz and "
-                   "PREFIX.json (e.g. millfmu/data/default_table)")
+                   "PREFIX.json (e.g. millfmu/data/coupled_table)")
     b.add_argument("--builder", metavar="MODULE:NAME", help="builder callable instead of "
                    "the DEM: NAME(scene_dict, point) -> fields (alternative simulators)")
     b.add_argument("--no-progress", action="store_true", help="no progress bar")
@@ -162,11 +154,12 @@ def register(subparsers) -> argparse.ArgumentParser:
 
 
 def _load_builder(text: str | None, threads):
+    from millfmu.dem.studies.work_precision import manifest_entry
     from millfmu.dem.tables.dem_builder import DemBuilder
     from millfmu.dem.tables.spec import TableError
 
     if not text:
-        return DemBuilder(threads=threads)
+        return DemBuilder(threads=threads, work_precision=manifest_entry)
     mod, _, name = text.partition(":")
     try:
         return getattr(importlib.import_module(mod), name)
@@ -420,7 +413,7 @@ def _clear(args) -> int:
 
 
 def main(argv=None) -> int:
-    """Run ``tables`` subcommands on their own (``python -m millfmu.dem.tables_cli``)."""
+    """Run ``tables`` subcommands on their own (``python -m millfmu.dem.tables.cli``)."""
     ap = argparse.ArgumentParser(prog="millfmu")
     register(ap.add_subparsers(dest="command"))
     args = ap.parse_args(argv)

@@ -9,7 +9,7 @@ so that a sector is convex and no narrower than a right angle).
 - ``disc_slice``: the PM-1 slice of seed 001 (section 2.1): shaft 15 mm, one full disc of
   radius 36 mm and thickness 8 mm centred at z = 0, chamber 45 mm, axial period
   D + b = 28 mm (disc spacing D = 20 mm between disc faces).
-- ``accelerator_slice``: a rotor with a channel (:mod:`millfmu.dem.accelerator`): the disc's
+- ``accelerator_slice``: a rotor with a channel (:mod:`millfmu.dem.mills.accelerator`): the disc's
   slab becomes two shrouds (``eye_radius_m`` ... disc radius) around a channel of height
   ``channel_height_m`` that holds ``vane_count`` radial vanes from the shaft to the rim.
 """

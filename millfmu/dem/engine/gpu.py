@@ -1,9 +1,9 @@
 """numba.cuda path of the bead DEM: ``DemSimulation(..., device="gpu")``.
 
-The same model as the CPU kernels (:mod:`millfmu.dem.kernels`): the contact law, the wall
+The same model as the CPU kernels (:mod:`millfmu.dem.engine.kernels`): the contact law, the wall
 geometry, the body forces (gravity, held fluid force, drag), the lubrication force, the
 recorded contact energies and the periodic wrap are the CPU's device functions compiled
-for CUDA from their Python source (:func:`millfmu.dem._jit.gpu_device`). What differs is
+for CUDA from their Python source (:func:`millfmu.dem.engine._jit.gpu_device`). What differs is
 the bookkeeping, which follows the GPU:
 
 - one thread per bead; half neighbour lists as on the CPU (each pair once, in the row of
@@ -33,8 +33,8 @@ import math
 import numpy as np
 from numba import cuda
 
-from millfmu.dem import kernels as K
-from millfmu.dem._jit import gpu_device, gpu_kernel
+from millfmu.dem.engine import kernels as K
+from millfmu.dem.engine._jit import gpu_device, gpu_kernel
 
 axial_image = gpu_device(K.axial_image)
 hertz_mindlin = gpu_device(K.hertz_mindlin)
@@ -133,7 +133,7 @@ def g_build(x, count, cells, lo0, lo1, cs, ncx, ncy, ncz, cut2, prm, wrapk, nb_o
             nnb_o, sh_o, fl_o, nb, img, nnb, sh, fl, xref, flags):
     """Half neighbour list of bead i within sqrt(cut2) [m] into slots nb[:, i] (partners
     j > i, image code s: the partner is bead j rotated by s sectors), histories and
-    flags carried over from the old lists as in :func:`millfmu.dem.kernels.build_nlist`;
+    flags carried over from the old lists as in :func:`millfmu.dem.engine.kernels.build_nlist`;
     F_NEED receives the longest row. Resets the displacement reference."""
     i = cuda.grid(1)
     if i >= x.shape[0]:
@@ -217,7 +217,7 @@ def g_forces(x, v, w, f, t, rad, mass, inertia, nb, img, nnb, sh, fl, shw, flw, 
     reactions on its partners (atomic adds into f, t, which g_zero cleared); the torques
     on the stirrer and the chamber wall are added to acc[0], acc[1] [N m]; new contacts
     go to evbuf (row from the counter flags[F_EVENTS]). As
-    :func:`millfmu.dem.kernels.compute_forces`, with one thread per bead."""
+    :func:`millfmu.dem.engine.kernels.compute_forces`, with one thread per bead."""
     i = cuda.grid(1)
     if i >= x.shape[0]:
         return
@@ -375,7 +375,7 @@ def g_forces(x, v, w, f, t, rad, mass, inertia, nb, img, nnb, sh, fl, shw, flw, 
 
 
 class GpuStepper:
-    """Owns the device copies of a :class:`millfmu.dem.sim.DemSimulation`'s state and
+    """Owns the device copies of a :class:`millfmu.dem.engine.sim.DemSimulation`'s state and
     advances them; the simulation's host arrays (x, v, w, f, t) are refreshed after every
     run() call, its held force fext is uploaded before each."""
 

@@ -1,7 +1,7 @@
 """Numba kernels of the bead DEM: neighbour lists, contact forces, walls, drag, integration.
 
 Everything here works on plain arrays in SI units (m, kg, s, N, rad). The Python side
-(:mod:`millfmu.dem.sim`) owns the arrays and calls :func:`advance`.
+(:mod:`millfmu.dem.engine.sim`) owns the arrays and calls :func:`advance`.
 
 Conventions
 - The mill axis is z. The stirrer (shaft and discs) rotates about +z with angular
@@ -36,7 +36,7 @@ import math
 import numpy as np
 from numba import prange
 
-from millfmu.dem._jit import contact, device, kernel, serial
+from millfmu.dem.engine._jit import contact, device, kernel, serial
 
 # ---- layout of the parameter vector prm (float64) -------------------------------------
 P_DT = 0  # time step [s]
@@ -68,7 +68,7 @@ P_RHOF = 25  # fluid density [kg/m3]
 P_SKIN = 26  # neighbour-list skin [m]
 P_KH_F0 = 27  # Koch-Hill F0 at the drag law's void fraction [-]
 P_KH_F3 = 28  # Koch-Hill F3 at the drag law's void fraction [-]
-# rotor with channels (accelerator rotors, :mod:`millfmu.dem.accelerator`): two shroud
+# rotor with channels (accelerator rotors, :mod:`millfmu.dem.mills.accelerator`): two shroud
 # slabs r_eye..R at |z - z_disc| in [h_ch / 2, b / 2] around a channel of height h_ch that
 # holds n_vane radial vanes (r_sh..R, thickness t_vane, |z - z_disc| <= h_ch / 2)
 P_REYE = 29  # inner radius of the rotor's slabs [m] (the disc: the shaft radius)
@@ -249,7 +249,7 @@ def koch_hill_beta(d, eps, mu_f, rho_f, urel, f0, f3):
 
     d: bead diameter [m]; eps: void fraction [-]; mu_f [Pa s]; rho_f [kg/m3];
     urel: |U_f - U_p| [m/s]; f0, f3: the void-fraction terms F0, F3 of
-    :func:`millfmu.dem.params.koch_hill_f0_f3`. Drag on a bead = V_p beta (U_f - U_p).
+    :func:`millfmu.dem.engine.params.koch_hill_f0_f3`. Drag on a bead = V_p beta (U_f - U_p).
     """
     re = d * eps * urel * rho_f / mu_f
     ff = eps * (f0 + 0.5 * f3 * re)

@@ -57,7 +57,7 @@ serial = numba.njit(**FLAGS)
 
 
 def gpu_kernel(fn):
-    """numba.cuda kernel (the GPU path, millfmu.dem.gpu). numba.cuda is imported only here,
+    """numba.cuda kernel (the GPU path, millfmu.dem.engine.gpu). numba.cuda is imported only here,
     when the GPU path is used; NUMBA_ENABLE_CUDASIM=1 runs the kernels on the CPU."""
     from numba import cuda
 

@@ -25,7 +25,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from millfmu.dem.geometry import MillGeometry
+from millfmu.dem.mills.geometry import MillGeometry
 
 
 class ZoneError(ValueError):
@@ -112,13 +112,3 @@ class Zones:
         v3 = pi * (rc ** 2 - r3 ** 2) * (L - b - 2 * w1)
         v4 = pi * (r3 ** 2 - rs ** 2) * (L - b) - pi * (r3 ** 2 - r1 ** 2) * 2 * w1
         return f * np.array([v1, v2, v3, v4])
-
-
-def zones_for(scene):
-    """The zone set of a DemScene's mill family: SEV_1-4 (accelerator_slice,
-    :class:`millfmu.dem.accelerator.SevZones`), V1-V4 (disc_slice) or the annulus."""
-    if scene.kind == "accelerator_slice":
-        from millfmu.dem.accelerator import SevZones
-
-        return SevZones(scene.geometry, scene.zones)
-    return Zones(scene.geometry, scene.zones)

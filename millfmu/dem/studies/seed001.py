@@ -17,7 +17,7 @@ from pathlib import Path
 
 import numpy as np
 
-from millfmu.dem.compare import chamber_collision_density, zone
+from millfmu.dem.analysis.compare import chamber_collision_density, zone
 
 #: (tip speed [m/s], filling [-]) of seed 001's cases used here
 CASES = ((10.0, 0.8), (6.0, 0.8), (14.0, 0.8), (6.0, 0.5), (6.0, 0.9), (8.0, 0.8),
@@ -36,7 +36,7 @@ COUPLED_INITIAL_ROTATION = 0.1
 #: after 25 stirrer revolutions (0.565 s) zone bead speeds were settled (windows within
 #: 3 %) but beads still moved from V1 to V2 (V2's collision density rose 12 % over the
 #: recording); after 1.0 s, windows of 0.1 s agree within 2 % in zone speeds and within
-#: 6 % in zone collision densities, without a trend (see the README).
+#: 6 % in zone collision densities, without a trend (see docs/validation-seed001.md).
 COUPLED_SPIN_UP_S = 1.0
 PRESCRIBED_SPIN_UP_S = 0.3
 #: recording [s] (three windows of WINDOW_S for the stationarity check)
@@ -46,7 +46,7 @@ WINDOW_S = 0.1
 
 def run_campaign(out_dir, fluids=("coupled", "prescribed"), sector_deg: float = 10.0,
                  cases=CASES, threads=None, progress=True):
-    """Run the cases that have no stats.json yet, the protocol of the README's table:
+    """Run the cases that have no stats.json yet, the protocol of the table in docs/validation-seed001.md:
     no gravity, 10 degree sector, coupled runs started at COUPLED_INITIAL_ROTATION and spun
     up for COUPLED_SPIN_UP_S (27-62 stirrer revolutions at 6-14 m/s); RECORD_S of recording
     in windows of WINDOW_S; samples every 0.01 s."""
@@ -80,9 +80,9 @@ def _load(out_dir, fluid, vt, fill):
 
 def _recount_vortices(d: Path, st: dict):
     """Vortex census from the saved section fields (fluid_fields.npz, bead_fields.npz) with
-    the current rule of :mod:`millfmu.dem.flow_structure`, so that runs made before a change
+    the current rule of :mod:`millfmu.dem.analysis.flow_structure`, so that runs made before a change
     of the rule are counted alike."""
-    from millfmu.dem import flow_structure as FS
+    from millfmu.dem.analysis import flow_structure as FS
     from millfmu.dem.scene import load_scene
 
     g = load_scene("disc_slice").geometry
@@ -119,14 +119,14 @@ TABLE_NOTE = ("prescribed swirl: the shipped default table (10 degree sector, 0.
 
 
 def prescribed_from_table(vt: float, fill: float, table=None) -> dict | None:
-    """Zone statistics of the prescribed-swirl DEM at a grid point of the shipped default
-    table, in the form of a run's stats.json (zones only; energies, frequencies and powers
+    """Zone statistics of the prescribed-swirl DEM at a grid point of the shipped
+    prescribed-swirl table (millfmu/data/prescribed_table.*), in the form of a run's stats.json (zones only; energies, frequencies and powers
     scaled back from the table's normalisation). None off the grid."""
     from millfmu.dem.tables.table import read_table
 
     if table is None:
-        d = Path(__file__).resolve().parent.parent / "data"
-        table = read_table(npz=d / "default_table.npz", manifest_path=d / "default_table.json")
+        d = Path(__file__).resolve().parents[2] / "data"  # millfmu/data
+        table = read_table(npz=d / "prescribed_table.npz", manifest_path=d / "prescribed_table.json")
     ax = table.axes
     try:
         i = int(np.flatnonzero(np.isclose(ax["tip_speed_m_s"], vt))[0])

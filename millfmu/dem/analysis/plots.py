@@ -114,7 +114,7 @@ def write_seed002_maps(out: Path, scene, events: np.ndarray, cols: dict):
     """Seed 002's maps in the axial section (its figures 12-15): stress intensity SI, stress
     number SN_g, collision stress energy SE_cs = SI SN_g and its components SE_tn, SE_ts per
     volume and time, with the paper's definitions (bead mass and moment of inertia, see
-    :mod:`millfmu.dem.accelerator`)."""
+    :mod:`millfmu.dem.mills.accelerator`)."""
     import matplotlib
 
     matplotlib.use("Agg")

@@ -11,8 +11,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from millfmu.dem.geometry import MillGeometry
-from millfmu.dem.params import BeadMaterial, koch_hill_f0_f3
+from millfmu.dem.engine.params import BeadMaterial, koch_hill_f0_f3
+from millfmu.dem.mills.geometry import MillGeometry
 
 
 @dataclass(frozen=True)
@@ -54,7 +54,7 @@ class DemSimulation:
     sort_every_steps: reorder the beads along the cell grid every so many steps (memory
     locality; None: 200 for 2000 beads or more, else never); spins_rad_s (n, 3) initial
     angular velocities [rad/s] (None: at rest); device: "cpu" (numba threads) or "gpu"
-    (numba.cuda, :mod:`millfmu.dem.gpu`: same model; beads are not reordered; the host
+    (numba.cuda, :mod:`millfmu.dem.engine.gpu`: same model; beads are not reordered; the host
     arrays x, v, w, f, t are refreshed after each run() call and fext is read before it;
     rad and mass are read once, here). After a reorder, row k of the bead arrays holds
     the bead ``ids[k]`` of the initial order.
@@ -65,9 +65,10 @@ class DemSimulation:
                  fluid: FluidSettings | None = None, skin_m: float | None = None,
                  max_neighbours: int = 24, velocities_m_s=None, threads: int | None = None,
                  sort_every_steps: int | None = None, spins_rad_s=None, device: str = "cpu"):
+        # numba and the kernels load when a simulation is built, not with a scene file.
         import numba
 
-        from millfmu.dem import kernels as K
+        from millfmu.dem.engine import kernels as K
 
         self.K = K
         self.geometry = geometry
@@ -187,7 +188,7 @@ class DemSimulation:
             raise ValueError(f"device = 'gpu': the GPU stepper does not turn vanes "
                              f"(vane_count = {geometry.vane_count}); use device 'cpu'")
         if device == "gpu":
-            from millfmu.dem.gpu import GpuStepper
+            from millfmu.dem.engine.gpu import GpuStepper  # numba.cuda only for the GPU
 
             self.sort_every_steps = 0
             self._gpu = GpuStepper(self, max_neighbours)  # builds and computes f, t

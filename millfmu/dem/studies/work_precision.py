@@ -1,7 +1,7 @@
 """DEM work-precision: the error of the tabulated statistics against run time.
 
 At one operating point of the coupled disc slice (10 m/s, 80 % filling, 10 degree sector,
-no gravity; seed 001's protocol of :mod:`millfmu.dem.seed001`) this measures how far each
+no gravity; seed 001's protocol of :mod:`millfmu.dem.studies.seed001`) this measures how far each
 statistic a stress-energy table holds (per zone: quantiles of SE_tn, collision frequency,
 local filling, collision power) lies from a long reference run, as a function of
 
@@ -45,9 +45,9 @@ from pathlib import Path
 
 import numpy as np
 
-from millfmu.dem.compare import ZONES, load_run
-from millfmu.dem.seed001 import COUPLED_INITIAL_ROTATION, COUPLED_SPIN_UP_S, RECORD_S
-from millfmu.report import machine  # where a study ran: one description for every study
+from millfmu.dem.analysis.compare import ZONES, load_run
+from millfmu.dem.studies.seed001 import COUPLED_INITIAL_ROTATION, COUPLED_SPIN_UP_S, RECORD_S
+from millfmu.machine import machine
 
 #: The operating point (``DemScene.with_overrides`` keys): seed 001's 10 m/s, 80 % case in
 #: the coupled slice with the seed001 protocol's start.
@@ -70,7 +70,7 @@ SPIN_UPS_S = (0.2, 0.35, 0.5, 0.565, 0.75, 1.0, 1.25, 1.5)
 #: Separate runs: name -> (overrides of the long run's scene, coupling steps or None,
 #: spin-up [s], what changes). dt variants keep the coupling interval (5e-5 s); the sector
 #: run is 3 times the beads, so it spins up for 25 stirrer revolutions (0.565 s) as the
-#: README's sector check did, and is compared with the 10 degree window of the same times.
+#: sector check of docs/validation-seed001.md did, and is compared with the 10 degree window of the same times.
 VARIANTS = {
     "coupling_2.5e-5": (dict(), 5, COUPLED_SPIN_UP_S, "coupling interval 2.5e-5 s (5 steps)"),
     "coupling_1e-4": (dict(), 20, COUPLED_SPIN_UP_S, "coupling interval 1e-4 s (20 steps)"),
@@ -837,7 +837,7 @@ def analyse_quick(run_dir) -> dict:
 
 #: The study's summary and data shipped with millfmu (``table --export``), which table
 #: manifests quote and ``millfmu report`` shows.
-SUMMARY_PATH = Path(__file__).resolve().parent.parent / "data" / "dem_work_precision.json"
+SUMMARY_PATH = Path(__file__).resolve().parents[2] / "data" / "dem_work_precision.json"
 RUN_COMMAND = ("millfmu dem work-precision run --out DIR && "
                "millfmu dem work-precision table --out DIR")
 

@@ -36,8 +36,8 @@ from pathlib import Path
 
 import numpy as np
 
-from millfmu.dem.geometry import MillGeometry, place_beads
-from millfmu.dem.params import BeadMaterial
+from millfmu.dem.engine.params import BeadMaterial
+from millfmu.dem.mills.geometry import MillGeometry, place_beads
 
 BENCH_DIAMETER_M = 0.8e-3
 BENCH_TIP_SPEED_M_S = 8.0
@@ -149,7 +149,7 @@ def contact_stats(x, radius_m: float, geometry: MillGeometry = BENCH_GEOMETRY) -
 
 def make_bed(recipe: BedRecipe = BED, threads: int | None = None, out=None) -> Bed:
     """Make the bench bed with millfmu's DEM (see the module docstring)."""
-    from millfmu.dem.sim import DemSimulation
+    from millfmu.dem.engine.sim import DemSimulation
 
     g = BENCH_GEOMETRY
     r1 = 0.5 * BENCH_DIAMETER_M
@@ -275,7 +275,7 @@ def run_ours(path, threads: int, steps: int = BENCH_STEPS, device: str = "cpu",
     (LAMMPS and LIGGGHTS record none)."""
     import numba
 
-    from millfmu.dem.sim import DemSimulation
+    from millfmu.dem.engine.sim import DemSimulation
 
     bed = read_data(path)
     kw = dict(velocities_m_s=bed.v, spins_rad_s=bed.w, skin_m=BENCH_SKIN_M, threads=threads)
@@ -311,8 +311,8 @@ def run_gpu_million(steps: int = BENCH_STEPS) -> RunResult:
     lattice with random velocities of 0.5 m/s (seed 1), shaft at 8 m/s, on the GPU: the
     throughput at a size where a GPU is full. A loose start (the CPU bed is too costly
     to make at this size); its contacts form during the run."""
-    from millfmu.dem.geometry import simple_cubic_annulus
-    from millfmu.dem.sim import DemSimulation
+    from millfmu.dem.engine.sim import DemSimulation
+    from millfmu.dem.mills.geometry import simple_cubic_annulus
 
     h = MILLION_LAYERS * MILLION_SPACING_M
     geom = MillGeometry(shaft_radius_m=15e-3, chamber_radius_m=45e-3, height_m=h)
@@ -501,12 +501,12 @@ PHASES = ("neighbour build: wrap, cell binning", "neighbour build: lists", "forc
 
 def profile(path, threads: int, steps: int = BENCH_STEPS, out=print) -> dict:
     """Where millfmu.dem's stepping time goes on the bed: the steps of
-    :func:`millfmu.dem.kernels.advance` driven one kernel at a time from Python, each timed
+    :func:`millfmu.dem.engine.kernels.advance` driven one kernel at a time from Python, each timed
     (wall clock and process CPU time [s]; on a shared machine the CPU time of a 1-thread
     profile is the steadier figure). Returns {phase: (wall, cpu)} plus 'total', 'builds'."""
     import numba
 
-    from millfmu.dem.sim import DemSimulation
+    from millfmu.dem.engine.sim import DemSimulation
 
     bed = read_data(path)
     numba.set_num_threads(threads)
@@ -522,7 +522,7 @@ def profile_sim(sim, steps: int, out=print) -> dict:
     simulation advances (recording contacts, which are discarded)."""
     import numba
 
-    from millfmu.dem import kernels as K
+    from millfmu.dem.engine import kernels as K
 
     numba.set_num_threads(sim.threads)
     s = sim

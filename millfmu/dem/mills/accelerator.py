@@ -9,7 +9,7 @@ chamber wall and flow inwards between the rotors (seed 002 section 3.1: "a certa
 of vacuum is formed at the entrance of each rotor close to the shaft; under the action of
 the high-pressure flow at the exit of the rotor, the grinding beads are moved in a state
 of acceleration from the chamber wall to the stirrer shaft"). In the DEM the shrouds and
-vanes are walls (:mod:`millfmu.dem.kernels`, walls 2 and 3); in the coupled liquid the
+vanes are walls (:mod:`millfmu.dem.engine.kernels`, walls 2 and 3); in the coupled liquid the
 shrouds are rotor cells and the channel is a driven zone whose swirl the vanes hold at the
 rotor's speed (:class:`millfmu.dem.fluid.solver.FluidSolver`). The geometry's dimensions
 and what each is derived from are in the shipped scene ``accelerator_slice.toml``.
@@ -47,7 +47,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from millfmu.dem.geometry import MillGeometry
+from millfmu.dem.mills.geometry import MillGeometry
+from millfmu.dem.mills.zones import ZoneError
 
 ZONE_NAMES = ("SEV_1", "SEV_2", "SEV_3", "SEV_4")
 
@@ -68,14 +69,12 @@ class SevSpec:
 
 
 class SevZones:
-    """SEV_1-4 of an accelerator slice: the interface of :class:`millfmu.dem.zones.Zones`
+    """SEV_1-4 of an accelerator slice: the interface of :class:`millfmu.dem.mills.zones.Zones`
     (names, classify, volumes_m3)."""
 
     names = ZONE_NAMES
 
     def __init__(self, geometry: MillGeometry, spec: SevSpec = SevSpec()):
-        from millfmu.dem.zones import ZoneError
-
         if not geometry.has_channel:
             raise ZoneError("SEV zones need an accelerator rotor (a disc with a channel)")
         if not 0.0 < spec.z1 < spec.z2 < 1.0 or not 0.0 < spec.x3 < 1.0:

@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
 # The DEM bench against LAMMPS and LIGGGHTS on the same cores, in one run:
-# `millfmu dem bench` (dense sheared bed, see millfmu/dem/bench.py) with Debian's `lammps`
+# `millfmu dem bench` (dense sheared bed, see millfmu/dem/studies/bench.py) with Debian's `lammps`
 # and `liggghts` installed first where missing (apt-get; needs root or sudo) and OpenMPI's
 # mpirun, which both use.
 #

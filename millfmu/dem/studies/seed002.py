@@ -15,7 +15,7 @@ from pathlib import Path
 
 import numpy as np
 
-from millfmu.dem.accelerator import ZONE_NAMES
+from millfmu.dem.mills.accelerator import ZONE_NAMES
 
 #: (rotor speed [rpm], filling [-]) of seed 002's cases
 SPEEDS = (800.0, 1000.0, 1200.0, 1400.0)
@@ -66,7 +66,7 @@ def run_campaign(out_dir, cases=CASES, threads=None, progress=True):
 
 #: Builder id of a table assembled from the campaign's runs (not the DemBuilder: the runs'
 #: windows are WINDOW_S long, not the halves of the recording, and they keep their outputs)
-CAMPAIGN_BUILDER_ID = "millfmu.dem.seed002.campaign_runs"
+CAMPAIGN_BUILDER_ID = "millfmu.dem.studies.seed002.campaign_runs"
 
 
 def protocol_overrides(sector_deg: float | None = None) -> dict:
@@ -82,14 +82,15 @@ def export_table(out_dir, prefix, filling: float = 0.8):
     """The stress-energy table of the campaign's runs at ``filling`` over the rotor speeds
     (tip-speed axis), written to PREFIX.npz / PREFIX.json with a manifest that names the
     runs, the protocol and the commands that rebuild it. Returns the Table."""
+    from millfmu.dem.analysis.stats import DemStats
     from millfmu.dem.scene import scene_from_dict
-    from millfmu.dem.stats import DemStats
+    from millfmu.dem.scene import load_scene_dict
+    from millfmu.dem.studies.work_precision import manifest_entry
     from millfmu.dem.tables.build import assemble, stationarity_summary
     from millfmu.dem.tables.cache import dem_kernel_version
     from millfmu.dem.tables.dem_builder import normalize_stats, recording_drift
     from millfmu.dem.tables.spec import (TableError, TableSpec, manifest_for,
                                          scene_at_point)
-    from millfmu.dem.scene import load_scene_dict
 
     base = load_scene_dict("accelerator_slice")
     for sec, kv in protocol_overrides().items():
@@ -133,7 +134,8 @@ def export_table(out_dir, prefix, filling: float = 0.8):
     table.manifest = manifest_for(spec, table, {
         "resolution": res,
         "rebuild_command": (f"millfmu dem seed002 run --out DIR && millfmu dem seed002 "
-                            f"table --out DIR --export-table {prefix}")})
+                            f"table --out DIR --export-table {prefix}")},
+        work_precision=manifest_entry)
     table.export(prefix)
     return table
 

@@ -1,0 +1,291 @@
+"""The package's import structure, read from the source with ``ast``.
+
+Guards the layout rules of the architecture: imports run downwards only (a study, a CLI
+or a report may import the engine and the model, never the other way round), and there
+is no import circle of more than two modules nor one that crosses packages.
+
+Run as a script (``python tests/unit/test_layout.py``) it prints the figures: module
+count, import circles, imports from a lower layer to a higher one, longest import chain.
+"""
+
+from __future__ import annotations
+
+import ast
+import sys
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[2]
+PACKAGES = ("millfmu", "fmu_build", "flowsheets")
+
+
+def _module_name(path: Path) -> str:
+    parts = list(path.relative_to(ROOT).with_suffix("").parts)
+    if parts[-1] == "__init__":
+        parts = parts[:-1]
+    return ".".join(parts)
+
+
+def modules() -> dict[str, Path]:
+    """Every module of the three packages, by dotted name."""
+    out = {}
+    for pkg in PACKAGES:
+        for path in sorted((ROOT / pkg).rglob("*.py")):
+            out[_module_name(path)] = path
+    return out
+
+
+def _resolve(name: str, known: dict[str, Path]) -> str | None:
+    """The longest known module that ``name`` is or lies in (a.b.func -> a.b)."""
+    while name:
+        if name in known:
+            return name
+        name = name.rpartition(".")[0]
+    return None
+
+
+def imports(known: dict[str, Path] | None = None) -> dict[str, dict[str, bool]]:
+    """module -> {imported module: True if at module level}; module- and function-level
+    imports alike, relative ones resolved; only modules of the three packages."""
+    known = modules() if known is None else known
+    graph: dict[str, dict[str, bool]] = {}
+    for mod, path in known.items():
+        is_pkg = path.name == "__init__.py"
+        package = mod if is_pkg else mod.rpartition(".")[0]
+        tree = ast.parse(path.read_text(encoding="utf-8"), str(path))
+        top_level = {id(n) for n in tree.body}
+        # Imports under a top-level `if`/`try` still run at import time (not those of an
+        # `if __name__ == "__main__":` block); those under `if TYPE_CHECKING:` never run.
+        never: set[int] = set()
+        for node in tree.body:
+            if isinstance(node, ast.If) and "TYPE_CHECKING" in ast.unparse(node.test):
+                never |= {id(n) for n in ast.walk(node)}
+            elif isinstance(node, ast.If) and "__main__" in ast.unparse(node.test):
+                continue
+            elif isinstance(node, (ast.If, ast.Try)):
+                top_level |= {id(n) for n in ast.walk(node)}
+        edges: dict[str, bool] = {}
+        for node in ast.walk(tree):
+            if id(node) in never:
+                continue
+            deps = []
+            if isinstance(node, ast.Import):
+                deps = [_resolve(a.name, known) for a in node.names]
+            elif isinstance(node, ast.ImportFrom):
+                if node.level:
+                    base = package.split(".")
+                    base = base[: len(base) - (node.level - 1)]
+                    stem = ".".join(base + ([node.module] if node.module else []))
+                else:
+                    stem = node.module or ""
+                # `from pkg import sub` imports the submodule pkg.sub; `from mod import
+                # name` imports mod.
+                deps = [f"{stem}.{a.name}" if f"{stem}.{a.name}" in known
+                        else _resolve(stem, known) for a in node.names]
+            for dep in deps:
+                if dep is None or dep == mod:
+                    continue
+                edges[dep] = edges.get(dep, False) or id(node) in top_level
+        graph[mod] = edges
+    return graph
+
+
+_PACKAGE_NAMES = {
+    _module_name(p.parent)
+    for pkg in PACKAGES
+    for p in (ROOT / pkg).rglob("__init__.py")
+}
+
+
+def _package(mod: str) -> str:
+    """The package a module belongs to (a package belongs to itself): millfmu.dem.X.a and
+    millfmu.Y lie in different packages, as do millfmu.dem.a and millfmu.dem.X.b."""
+    return mod if mod in _PACKAGE_NAMES else mod.rpartition(".")[0]
+
+
+# Layers, lowest first. A module's layer is that of the longest prefix listed.
+LAYERS = {
+    # 0: the PBM kinetics; the DEM engine, its fluid, coupling and mills; neutral helpers
+    "millfmu.kinetics": 0, "millfmu.dem": 0, "millfmu.dem.engine": 0, "millfmu.dem.fluid": 0,
+    "millfmu.dem.coupling": 0, "millfmu.dem.mills": 0, "millfmu.fmi_xml": 0,
+    "millfmu.machine": 0,
+    # 1: DEM scenes, runs, analysis, tables
+    "millfmu.dem.scene": 1, "millfmu.dem.run": 1, "millfmu.dem.analysis": 1,
+    "millfmu.dem.tables": 1,
+    # 2: the model: scene, MillModel, calibration, runner and the FMU adapters
+    "millfmu": 2,
+    # 3: FMU building and flowsheets
+    "fmu_build": 3, "flowsheets": 3,
+    # 4: studies, benchmarks, the report
+    "millfmu.dem.studies": 4, "millfmu.studies": 4, "millfmu.report": 4,
+    "fmu_build.step_cost": 4, "fmu_build.exit_study": 4, "flowsheets.wp": 4,
+    # 5: command-line modules
+    "millfmu.cli": 5, "millfmu.dem.cli": 5, "millfmu.dem.tables.cli": 5, "fmu_build.cli": 5,
+    "flowsheets.cli": 5, "millfmu.rates": 5,  # millfmu.rates: the `millfmu rates` command
+}
+#: The names before millfmu.dem was laid out by role, so that the script measures an older
+#: tree too (``python tests/unit/test_layout.py`` there).
+LAYERS_BEFORE = {
+    "millfmu.dem._jit": 0, "millfmu.dem.kernels": 0, "millfmu.dem.sim": 0,
+    "millfmu.dem.gpu": 0, "millfmu.dem.params": 0, "millfmu.dem.geometry": 0,
+    "millfmu.dem.accelerator": 0, "millfmu.dem.zones": 0,
+    "millfmu.dem.stats": 1, "millfmu.dem.flow_structure": 1, "millfmu.dem.compare": 1,
+    "millfmu.dem.plots": 1,
+    "millfmu.dem.seed001": 4, "millfmu.dem.seed002": 4, "millfmu.dem.work_precision": 4,
+    "millfmu.dem.bench": 4, "millfmu.dem.coupling.bench": 4, "millfmu.bench": 4,
+    "fmu_build.bench": 4,
+    "millfmu.dem.tables_cli": 5,
+}
+LAYER_NAMES = ("engine/kinetics", "dem scene/run/analysis/tables", "model",
+               "fmu_build/flowsheets", "studies/report", "cli")
+
+
+def layer(mod: str) -> int:
+    name = mod
+    while name:
+        if name in LAYERS_BEFORE:
+            return LAYERS_BEFORE[name]
+        if name in LAYERS:
+            return LAYERS[name]
+        name = name.rpartition(".")[0]
+    raise KeyError(mod)
+
+
+def strongly_connected(graph: dict[str, dict[str, bool]]) -> list[list[str]]:
+    """Tarjan's strongly connected components of more than one module."""
+    index: dict[str, int] = {}
+    low: dict[str, int] = {}
+    stack: list[str] = []
+    on: set[str] = set()
+    out: list[list[str]] = []
+    counter = [0]
+    sys.setrecursionlimit(max(10000, sys.getrecursionlimit()))
+
+    def visit(v: str) -> None:
+        index[v] = low[v] = counter[0]
+        counter[0] += 1
+        stack.append(v)
+        on.add(v)
+        for w in graph.get(v, {}):
+            if w not in index:
+                visit(w)
+                low[v] = min(low[v], low[w])
+            elif w in on:
+                low[v] = min(low[v], index[w])
+        if low[v] == index[v]:
+            comp = []
+            while True:
+                w = stack.pop()
+                on.discard(w)
+                comp.append(w)
+                if w == v:
+                    break
+            if len(comp) > 1:
+                out.append(sorted(comp))
+
+    for v in sorted(graph):
+        if v not in index:
+            visit(v)
+    return sorted(out, key=len, reverse=True)
+
+
+def upward(graph: dict[str, dict[str, bool]]) -> list[tuple[str, str, bool]]:
+    """Imports from a lower layer to a higher one: (importer, imported, module level)."""
+    return sorted((m, d, top) for m, deps in graph.items() for d, top in deps.items()
+                  if layer(d) > layer(m))
+
+
+def longest_chain(graph: dict[str, dict[str, bool]]) -> list[str]:
+    """The longest simple import chain, over the graph with circles condensed (each
+    circle counts once) and a package's import of its own submodules left out."""
+    comps = strongly_connected(graph)
+    rep = {m: m for m in graph}
+    for c in comps:
+        for m in c:
+            rep[m] = c[0]
+    dag: dict[str, set[str]] = {}
+    for m, deps in graph.items():
+        for d in deps:
+            if rep[m] != rep[d] and not d.startswith(m + "."):
+                dag.setdefault(rep[m], set()).add(rep[d])
+    memo: dict[str, list[str]] = {}
+
+    def chain(v: str) -> list[str]:
+        if v not in memo:
+            best: list[str] = []
+            for w in sorted(dag.get(v, ())):
+                c = chain(w)
+                if len(c) > len(best):
+                    best = c
+            memo[v] = [v] + best
+        return memo[v]
+
+    return max((chain(v) for v in sorted(set(rep.values()))), key=len)
+
+
+# The engine and the model: none of these may import a study, a CLI, the report, the
+# FMU builder or the flowsheets.
+ENGINE_AND_MODEL = ("millfmu.dem.engine", "millfmu.dem.fluid", "millfmu.dem.coupling",
+                    "millfmu.dem.mills", "millfmu.dem.tables", "millfmu.dem.analysis",
+                    "millfmu.kinetics", "millfmu.mill", "millfmu.scene")
+FORBIDDEN = ("millfmu.dem.studies", "millfmu.studies", "millfmu.cli", "millfmu.dem.cli",
+             "millfmu.dem.tables.cli", "millfmu.rates", "millfmu.report", "flowsheets",
+             "fmu_build")
+
+
+def _under(mod: str, prefixes) -> bool:
+    return any(mod == p or mod.startswith(p + ".") for p in prefixes)
+
+
+def test_no_import_circle_over_two_modules_nor_across_packages():
+    graph = imports()
+    for comp in strongly_connected(graph):
+        assert len(comp) <= 2, f"import circle of {len(comp)} modules: {comp}"
+        assert len({_package(m) for m in comp}) == 1, f"import circle across packages: {comp}"
+
+
+def test_engine_and_model_import_no_study_cli_report_or_builder():
+    graph = imports()
+    bad = [(m, d) for m, deps in graph.items() if _under(m, ENGINE_AND_MODEL)
+           and not _under(m, ("millfmu.dem.tables.cli",))
+           for d in deps if _under(d, FORBIDDEN)]
+    assert not bad, bad
+
+
+def test_at_most_two_imports_run_upwards():
+    # Each allowed one is named here with its reason.
+    allowed = {
+    }
+    up = [(m, d) for m, d, _ in upward(imports())]
+    assert set(up) <= set(allowed), sorted(set(up) - set(allowed))
+    assert len(allowed) <= 2
+
+
+def test_every_module_has_a_layer():
+    for mod in modules():
+        layer(mod)
+
+
+def report() -> None:
+    known = modules()
+    graph = imports(known)
+    print(f"modules: {len(known)}")
+    comps = strongly_connected(graph)
+    print(f"import circles: {len(comps)} (sizes {[len(c) for c in comps]})")
+    for c in comps:
+        print(f"  {len(c)}: {', '.join(c)}")
+    up = upward(graph)
+    print(f"lower-to-higher imports: {len(up)}")
+    for m, d, top in up:
+        print(f"  {m} [{LAYER_NAMES[layer(m)]}] -> {d} [{LAYER_NAMES[layer(d)]}]"
+              f" ({'module level' if top else 'in a function'})")
+    chain = longest_chain(graph)
+    print(f"longest import chain: {len(chain)} modules (circles condensed)")
+    print("  " + " -> ".join(chain))
+    top = {m: {d: t for d, t in deps.items() if t} for m, deps in graph.items()}
+    chain = longest_chain(top)
+    print(f"longest chain of module-level imports: {len(chain)} modules (circles condensed)")
+    print("  " + " -> ".join(chain))
+
+
+if __name__ == "__main__":
+    report()

@@ -1,0 +1,70 @@
+"""The prediction band: the stress-energy table's stated error carried into the outputs
+(millfmu.runner.prediction_band, result.json's prediction_band, `millfmu rates`' band)."""
+
+import json
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+
+import millfmu
+from millfmu.mill import MillModel
+from millfmu.runner import prediction_band, simulate
+
+
+@pytest.fixture(scope="module")
+def default_band():
+    return prediction_band(millfmu.load_scene())
+
+
+def test_band_brackets_the_run_and_comes_from_the_stated_error(default_band):
+    scene = millfmu.load_scene()
+    _, records, _ = simulate(scene, progress=False)
+    b = default_band
+    assert b["t_s"] == records[-1]["t_s"] == scene.run.t_end_s
+    for k in ("x10_m", "x50_m", "x90_m"):
+        lo, hi = b["outputs"][k]
+        assert lo < records[-1][k] < hi, k
+    # per zone: the lookup's bound plus the work-precision expected error, all positive
+    assert b["zones"] == ["V1", "V2", "V3", "V4"]
+    assert all(0.0 < e < 1.0 for e in b["collision_frequency_relative_error"] + b["se_median_relative_error"])
+
+
+def test_widening_the_stated_error_widens_the_band(default_band):
+    wide = prediction_band(millfmu.load_scene(), multiple=2.0)
+    for k in ("x10_m", "x50_m", "x90_m"):
+        (lo1, hi1), (lo2, hi2) = default_band["outputs"][k], wide["outputs"][k]
+        assert lo2 < lo1 and hi2 > hi1, k
+
+
+def test_zone_statistics_move_by_their_stated_error():
+    scene = millfmu.load_scene()
+    base, up, down = (MillModel(scene, table_error_multiple=m) for m in (0.0, 1.0, -1.0))
+    op = base.operating_point(base.inputs)
+    z0, zu, zd = (m.source.zones(op) for m in (base, up, down))
+    err = base.source.relative_error()
+    for k in range(4):
+        f = err["collision_frequency"][k]
+        assert zu[k].collision_rate_per_m3_s == pytest.approx(z0[k].collision_rate_per_m3_s * (1 + f), rel=1e-12)
+        assert zd[k].collision_rate_per_m3_s == pytest.approx(z0[k].collision_rate_per_m3_s / (1 + f), rel=1e-12)
+        np.testing.assert_allclose(zu[k].energy_J, z0[k].energy_J * (1 + err["se_median"][k]), rtol=1e-12)
+
+
+def test_a_scene_without_a_table_has_no_band():
+    assert prediction_band(millfmu.load_scene(overrides={"kinetics.model": "simple"})) is None
+
+
+def test_result_json_carries_the_band_and_the_calibration_record(tmp_path):
+    r = subprocess.run([sys.executable, "-m", "millfmu.cli", "run", "-q", "--no-plots", "--out", str(tmp_path)],
+                       capture_output=True, text=True)
+    assert r.returncode == 0, r.stderr
+    assert "prediction band at t = 1800 s" in r.stdout
+    res = json.loads((tmp_path / "result.json").read_text())
+    lo, hi = res["prediction_band"]["outputs"]["x50_m"]
+    assert lo < res["outputs"][-1]["x50_m"] < hi
+    prov = res["provenance"]
+    assert "STAND-IN" in prov["scene"]["scene"]["calibration"] and "f_mat_kg_per_J_m" in prov["scene"]["scene"]["calibration"]
+    from millfmu.dem.tables import read_table_ref
+
+    assert prov["table"]["ref"] == "coupled" and prov["table"]["key"] == read_table_ref("coupled").manifest["key"]
