@@ -24,7 +24,7 @@ def _cmd_build_fmu(args) -> int:
         print(f"millfmu build-fmu: error: {e}", file=sys.stderr)
         return 1
     except (RuntimeError, ValueError) as e:
-        if type(e).__name__ in ("SceneError", "InputError"):
+        if type(e).__name__ in ("SceneError", "InputError", "OutputError"):
             raise  # the main command reports these with exit status 2
         print(f"millfmu build-fmu: error: {e}", file=sys.stderr)
         return 1

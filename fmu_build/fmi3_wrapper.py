@@ -204,7 +204,9 @@ def wrapper_library(log=None) -> Path:
                            "(install this Python's development headers, Debian: apt-get install python3-dev)")
     cxx = _compiler()
     lib.parent.mkdir(parents=True, exist_ok=True)
-    with tempfile.TemporaryDirectory(prefix="fmi3_wrapper_", dir=lib.parent) as tmp:
+    from .leftovers import temp_dir
+
+    with temp_dir("fmi3_wrapper_", dir=lib.parent) as tmp:
         src = Path(tmp) / "pythonfmu-export"
         for rel, text in texts.items():
             (src / rel).parent.mkdir(parents=True, exist_ok=True)

@@ -175,28 +175,45 @@ def _cmake() -> str | None:
     return shutil.which("cmake") or shutil.which("cmake", path=str(Path(sys.executable).parent))
 
 
-def build_wrapper(dest: Path) -> Path:
-    """Fetch, fix and build the wrapper into ``dest`` (a file); RuntimeError saying what failed."""
+def build_wrapper(dest: Path, progress=None) -> Path:
+    """Fetch, fix and build the wrapper into ``dest`` (a file); RuntimeError saying what
+    failed. ``progress(text)``, when given, hears each step (about 40 s in all, once)."""
+    from .leftovers import clean, tag, temp_dir
+
+    say = progress or (lambda text: None)
     cmake = _cmake()
     if cmake is None:
         raise RuntimeError("no cmake found")
     if not any(shutil.which(c) for c in ("c++", "g++", "clang++")):
         raise RuntimeError("no C++ compiler (c++, g++, clang++) on PATH")
-    with tempfile.TemporaryDirectory(prefix="millfmu-wrapper-") as tmp:
+    say(f"building pythonfmu's C++ wrapper with millfmu's fixes (once, about 40 s; cached in {dest.parent})")
+    with temp_dir("millfmu-wrapper-") as tmp:
         tmp = Path(tmp)
+        say("  1/3 fetching pythonfmu's sources (pip download)")
         export = _fetch_sources(tmp)
         apply_edits(export)
         build = tmp / "build"
         include = sysconfig.get_paths()["include"]
+        say("  2/3 configuring (cmake)")
         _run([cmake, "-S", str(export), "-B", str(build), "-DCMAKE_BUILD_TYPE=Release",
               f"-DPython3_EXECUTABLE={sys.executable}", f"-DPython3_INCLUDE_DIR={include}"])
+        say("  3/3 compiling (cmake --build)")
         _run([cmake, "--build", str(build), "-j", "2"])
         (lib,) = export.parent.glob("resources/binaries/*/libpythonfmu-export.so")
         dest.parent.mkdir(parents=True, exist_ok=True)
-        part = dest.with_name(dest.name + ".part")
-        shutil.copy2(lib, part)
-        part.replace(dest)
+        clean(dest.parent, f".{dest.name}.")
+        part = dest.with_name(tag(f".{dest.name}.") + "part")
+        try:
+            shutil.copy2(lib, part)
+            part.replace(dest)
+        finally:
+            part.unlink(missing_ok=True)
+    say("  done")
     return dest
+
+
+#: Told each step of a first build of the wrapper (set by choose_wrapper's progress).
+_progress = None
 
 
 @functools.lru_cache(maxsize=None)
@@ -218,7 +235,7 @@ def fixed_wrapper() -> tuple[Path | None, str]:
     if dest.exists():
         return dest, ""
     try:
-        return build_wrapper(dest), ""
+        return build_wrapper(dest, _progress), ""
     except (RuntimeError, OSError, ValueError, subprocess.SubprocessError) as e:
         return None, str(e)
 
@@ -226,10 +243,16 @@ def fixed_wrapper() -> tuple[Path | None, str]:
 _WARNED: set = set()
 
 
-def choose_wrapper(log=None) -> Path | None:
+def choose_wrapper(log=None, progress=None) -> Path | None:
     """The fixed wrapper, or None (pythonfmu's own kept) with a warning through ``log``
-    (default: stderr, once per process) saying why and what the FMU then cannot do."""
-    path, why = fixed_wrapper()
+    (default: stderr, once per process) saying why and what the FMU then cannot do.
+    ``progress(text)`` hears the steps of a first build of the wrapper."""
+    global _progress
+    _progress = progress
+    try:
+        path, why = fixed_wrapper()
+    finally:
+        _progress = None
     if path is None and (log is not None or why not in _WARNED):
         _WARNED.add(why)
         msg = (f"warning: pythonfmu's own C++ wrapper kept ({why}): a Python exception in the FMU "

@@ -16,7 +16,7 @@ The Python API (names are imported on first use, so importing the package stays 
 >>> model = millfmu.MillModel(scene)   # step by step: model.step(dt_s, tip_speed_m_per_s=...)
 
 - :func:`load_scene` (file, TOML text, dict or the embedded default; dotted-key overrides),
-  :class:`Scene`, :func:`default_scene_text`;
+  :class:`Scene`, :func:`default_scene_text`, :func:`example_path` (a shipped example's file);
 - :class:`MillModel` (``step(dt_s, **inputs) -> outputs``, ``get_state``/``set_state``);
 - :func:`run` -> :class:`Result` (series as arrays, the Q3 table, warnings, provenance,
   ``plot``, ``write``);
@@ -33,7 +33,7 @@ __version__ = "0.1.0"
 _API = {
     "load_scene": "api", "run": "api", "Result": "api",
     "MillModel": "mill", "InputError": "mill", "StepError": "mill",
-    "Scene": "scene", "SceneError": "scene", "default_scene_text": "scene",
+    "Scene": "scene", "SceneError": "scene", "default_scene_text": "scene", "example_path": "scene",
     "calibrate": "calibration", "Calibration": "calibration", "CalibrationError": "calibration",
 }
 __all__ = ["__version__", *_API]

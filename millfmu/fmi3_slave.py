@@ -15,6 +15,7 @@ carry it.
 from __future__ import annotations
 
 import ctypes
+import hashlib
 import json
 import traceback
 from xml.etree.ElementTree import Element
@@ -201,12 +202,30 @@ class Fmi3Base(Fmi3Slave):
         self._config_error = state["config_error"]
         self._initialized = bool(state["initialized"])
 
+    @staticmethod
+    def _digest(state) -> str:
+        return hashlib.sha256(json.dumps(state, sort_keys=True, separators=(",", ":")).encode()).hexdigest()
+
+    @classmethod
+    def _fmu_state_to_bytes(cls, state) -> bytes:
+        """JSON of the state with its sha256 (see :meth:`_fmu_state_from_bytes`)."""
+        return json.dumps({"sha256": cls._digest(state), "state": state}, separators=(",", ":")).encode("utf-8")
+
     @classmethod
     def _fmu_state_from_bytes(cls, state: bytes):
+        """The state in ``state``; refused (fmi3Error, the instance unchanged) when it is not
+        JSON or its sha256 does not match its content (one changed digit is still JSON)."""
         try:
-            return json.loads(state.decode("utf-8"))
-        except ValueError as e:  # UnicodeDecodeError and JSONDecodeError are ValueErrors
-            raise FmiCallError(f"fmi3DeserializeFMUState: {len(state)} bytes that are not a serialized state of this FMU ({e})") from None
+            blob = json.loads(bytes(state).decode("utf-8"))
+            inner = blob["state"]
+            digest = blob["sha256"]
+        except (ValueError, KeyError, TypeError) as e:  # UnicodeDecodeError and JSONDecodeError are ValueErrors
+            raise FmiCallError(f"fmi3DeserializeFMUState: {len(state)} bytes that are not a serialized state of this FMU "
+                               f"({type(e).__name__}: {e})") from None
+        if digest != cls._digest(inner):
+            raise FmiCallError(f"fmi3DeserializeFMUState: {len(state)} bytes refused: the state's sha256 does not match its "
+                               "content (damaged or edited); nothing changed")
+        return inner
 
     # ---- model description -------------------------------------------------------------
     def register_used_units(self, exponents):

@@ -64,6 +64,11 @@ STATE_FORMAT = "millfmu-fmu-state/1"
 TIME_RTOL = 1e-9
 
 
+#: The slave class of each FMU script by model identifier (see fmu_build.build.SCRIPT): the
+#: script runs at every fmi2Instantiate, and this keeps it to one class per process.
+SCRIPT_CLASSES: dict = {}
+
+
 class FMUCallError(RuntimeError):
     """An FMI call refused with fmi2Error (under the fixed wrapper); the instance is intact."""
 

@@ -69,7 +69,9 @@ DEFAULT_VALUES = {
 }
 SOLIDS_FACTORS = (0.5, 1.0, 1.5, 2.0)
 MODELS = ("simple", "detailed")
-CSV_COLUMNS = ("scene", "material", "parameter", "unit", "value", "value_over_ref", "model", "source", "quantity",
+#: ``value`` is in ``value_unit`` (the parameter's unit: m/s, m, kg/m3, 1); every other
+#: column names its unit (``_m``, ``_per_s``, ``_J``) or is dimensionless (``_over_ref``, p_*).
+CSV_COLUMNS = ("scene", "material", "parameter", "value", "value_unit", "value_over_ref", "model", "source", "quantity",
                "x_m", "rate_per_s", "rate_over_ref", "sf_per_s", "sf_over_ref", "p_break", "p_cap", "se_J",
                "se_over_ref", "se_product_J", "rate_band_low_per_s", "rate_band_high_per_s", "note")
 
@@ -137,7 +139,7 @@ class RatesResult:
                 for k, v in enumerate(c.values):
                     rate = c.rates[q][k]
                     yield {
-                        "scene": self.name, "material": material, "parameter": p, "unit": unit,
+                        "scene": self.name, "material": material, "parameter": p, "value_unit": unit,
                         "value": _g(v), "value_over_ref": _g(v / self.reference[p]), "model": model,
                         "source": c.sources[k], "quantity": "disruption_rate" if q == "disruption_rate" else "S(x)",
                         "x_m": "" if q == "disruption_rate" else _g(float(q.split("=")[1])),

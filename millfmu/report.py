@@ -33,6 +33,7 @@ from .machine import machine
 
 #: The page's sections: id -> title (the test checks that each is present).
 SECTIONS = {
+    "process": "Process: grinding in the default scene",
     "pbm": "Population-balance integrators",
     "cosim": "Co-simulation communication step",
     "dem": "DEM work-precision",
@@ -74,13 +75,91 @@ def _meta(m: dict, wall_s: float | None = None) -> str:
     return f'<p class="meta">{_esc(s)}</p>'
 
 
-def _fmt(v, spec=".2e"):
-    if v is None or (isinstance(v, float) and not math.isfinite(v)):
-        return "n/a" if v is None else str(v)
+#: A table cell whose number is not finite or larger than this (a relative error, a mass
+#: over the total mass, an order) shows "diverged": the method blew up, the digits mean nothing.
+DIVERGED_ABOVE = 1e3
+
+
+def _fmt(v, spec=".2e", limit=DIVERGED_ABOVE):
+    """A number for a table cell: "n/a" for None, "diverged" where it is inf, nan or beyond
+    ``limit`` in size (None: no limit)."""
+    if v is None:
+        return "n/a"
+    v = float(v)
+    if not math.isfinite(v) or (limit is not None and abs(v) > limit):
+        return "diverged"
     return format(v, spec)
 
 
-# --- 1. population balance --------------------------------------------------------------
+# --- 1. the process ---------------------------------------------------------------------
+
+def process_section(out: Path, quick: bool, log=print) -> str:
+    """The embedded default scene run now: its size distribution over time, x50 against time
+    and against the specific energy, and a table of the run."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    import numpy as np
+
+    from .runner import psd_figure, simulate
+    from .scene import load_scene
+
+    scene = load_scene(None)
+    t0 = time.perf_counter()
+    model, records, psds = simulate(scene, progress=False)
+    wall = time.perf_counter() - t0
+    fig = psd_figure(model, records, psds)
+    fig.savefig(out / "process_psd.png", dpi=80)
+    plt.close(fig)
+    t = np.array([r["t_s"] for r in records])
+    e_m = np.array([r["specific_energy_J_per_kg"] for r in records]) / 1e3
+    fig, (a1, a2) = plt.subplots(1, 2, figsize=(12.5, 4.4))
+    for key, lab, ls in (("x10_m", "x10", ":"), ("x50_m", "x50", "-"), ("x90_m", "x90", "--")):
+        x = np.array([r[key] for r in records]) * 1e6
+        a1.plot(t, x, ls, color="C0", label=lab)
+        pos = e_m > 0.0  # t = 0 has none: a log axis starts at the first output time
+        a2.plot(e_m[pos], x[pos], ls, color="C1", label=lab)
+    a1.set(xlabel="time t [s]", ylabel="size [\u00b5m]", yscale="log", title="characteristic sizes against time")
+    a2.set(xlabel="specific energy E_m [kJ/kg]", ylabel="size [\u00b5m]", yscale="log", xscale="log",
+           title="against the specific energy put in")
+    from matplotlib.ticker import FuncFormatter
+
+    # Labels at 1, 2 and 5 of each decade only: the default labels every minor tick, overlapping.
+    a2.xaxis.set_minor_formatter(FuncFormatter(lambda v, _: f"{v:g}" if f"{v:.0e}"[0] in "25" else ""))
+    a2.xaxis.set_major_formatter(FuncFormatter(lambda v, _: f"{v:g}"))
+    for a in (a1, a2):
+        a.grid(alpha=0.3, which="both")
+        a.legend(loc="upper left", bbox_to_anchor=(1.02, 1.0), borderaxespad=0.0, fontsize=8)
+    fig.suptitle(f"{scene.scene.name}: grinding progress", fontsize=11)
+    fig.tight_layout()
+    fig.savefig(out / "process_sizes.png", dpi=80)
+    plt.close(fig)
+    idx = np.unique(np.linspace(0, len(records) - 1, min(8, len(records))).round().astype(int))
+    rows = [[f"{records[i]['t_s']:g}", _fmt(records[i]["x10_m"] * 1e6, ".3g", None), _fmt(records[i]["x50_m"] * 1e6, ".3g", None),
+             _fmt(records[i]["x90_m"] * 1e6, ".3g", None), _fmt(e_m[i], ".3g", None),
+             _fmt(records[i].get("power_W"), ".3g", None), _fmt(100.0 * records[i].get("below_grid_fraction", 0.0), ".2f", None)]
+            for i in idx]
+    s = scene
+    return "\n".join([
+        f'<h2 id="process">1. {SECTIONS["process"]}</h2>', _meta(machine(), wall),
+        f"<p>The embedded default scene ({_esc(s.scene.name)}: {_esc(s.operation.mode)}, {_esc(s.material.model)}, "
+        f"{_esc(s.kinetics.model)} stress model, tip speed {s.mill.tip_speed_m_per_s:g} m/s, bead filling "
+        f"{100 * s.mill.bead_filling:g} %, {model.grid.n} size classes), run now for {s.run.t_end_s:g} s of grinding "
+        f"({_esc(_what_psd_text(model))}).</p>",
+        '<img src="process_psd.png" alt="size distribution over time">',
+        '<img src="process_sizes.png" alt="x10, x50, x90 against time and specific energy">',
+        _table(["time [s]", "x10 [\u00b5m]", "x50 [\u00b5m]", "x90 [\u00b5m]", "specific energy [kJ/kg]", "power [W]",
+                "below the size grid [%]"], rows)])
+
+
+def _what_psd_text(model) -> str:
+    from .runner import _what_psd
+
+    return _what_psd(model)
+
+
+# --- 2. population balance --------------------------------------------------------------
 
 def pbm_section(out: Path, quick: bool, log=print) -> str:
     from .studies.pbm_integrators import INTEGRATOR_CASES, integrator_study
@@ -90,7 +169,7 @@ def pbm_section(out: Path, quick: bool, log=print) -> str:
     wall = time.perf_counter() - t0
     _plot_pbm(res, out / "pbm_integrators.png")
     (out / "pbm_integrators.json").write_text(json.dumps(res, indent=1, default=float))
-    parts = [f'<h2 id="pbm">1. {SECTIONS["pbm"]}</h2>', _meta(machine(), wall),
+    parts = [f'<h2 id="pbm">2. {SECTIONS["pbm"]}</h2>', _meta(machine(), wall),
              "<p>Batch grinding whose breakage operator swings between two operating points, "
              "A(t) = (1 - th) A_lo + th A_hi, th = (1 + sin(2 pi t / P)) / 2; the two operators "
              "do not commute. Reference: the exact step (matrix exponential with the operator "
@@ -113,14 +192,14 @@ def pbm_section(out: Path, quick: bool, log=print) -> str:
         parts.append(f"<h3>{_esc(case)} case: {r['states']} states, largest rate "
                      f"{r['max_rate_per_s']:.3g} 1/s, period {c['period_s']:g} s, "
                      f"{r['t_end_s']:g} s simulated</h3>")
-        parts.append(_table(["method", "measured order"], [[k, _order_cell(k, v)]
-                                                          for k, v in r["orders"].items()]))
+        parts.append(_table(["method", "measured order [-]"], [[k, _order_cell(k, v)]
+                                                              for k, v in r["orders"].items()]))
         parts.append(_table(
-            ["method", "steps", "rtol", "error", "run time [s]", "smallest mass / total",
-             "h x largest rate"],
+            ["method", "steps [-]", "rtol [-]", "error [-] (of total mass)", "run time [s]",
+             "smallest mass [-] (of total)", "h x largest rate [-]"],
             [[x["method"], x["steps"], _fmt(x.get("rtol"), ".0e"), _fmt(x["error"]),
-              _fmt(x["wall_s"], ".3g"), _fmt(x["min_mass"], ".1e"),
-              _fmt(x.get("h_times_max_rate"), ".2g")] for x in r["rows"]]))
+              _fmt(x["wall_s"], ".3g", None), _fmt(x["min_mass"], ".1e"),
+              _fmt(x.get("h_times_max_rate"), ".2g", None)] for x in r["rows"]]))
         parts.append(f"<p>Reference: {r['reference_steps']} exact steps "
                      f"({r['reference_wall_s']:.1f} s), estimated error "
                      f"{r['reference_error']:.1e}.</p>")
@@ -141,7 +220,7 @@ def _plot_pbm(res, path):
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    fig, ax = plt.subplots(2, len(res), figsize=(6.5 * len(res), 9), squeeze=False)
+    fig, ax = plt.subplots(2, len(res), figsize=(8.0 * len(res), 9), squeeze=False)
     for j, (case, r) in enumerate(res.items()):
         gone = []
         for k, (name, order) in enumerate(r["orders"].items()):
@@ -159,20 +238,19 @@ def _plot_pbm(res, path):
                             color=f"C{k}", label=lab)
         ax[0, j].set(xlabel="run time [s]", ylabel="error / total mass", title=f"{case}: work-precision")
         for a in ax[:, j]:
-            if gone:
-                a.text(0.02, 0.02, f"{', '.join(gone)}: diverged at every step tried",
-                       transform=a.transAxes, fontsize=8)
+            if gone:  # in the legend, beside the axes: a text inside could cover points
+                a.plot([], [], " ", label=f"{', '.join(gone)}: diverged at every step tried")
         ax[1, j].set(xlabel="step size [s] (mean for adaptive)", ylabel="error / total mass",
                      title=f"{case}: error against step")
         for a in ax[:, j]:
             a.grid(alpha=0.3, which="both")
-            a.legend(fontsize=7)
+            a.legend(fontsize=7, loc="upper left", bbox_to_anchor=(1.01, 1.0), borderaxespad=0.0)
     fig.tight_layout()
     fig.savefig(path, dpi=80)
     plt.close(fig)
 
 
-# --- 2. co-simulation -------------------------------------------------------------------
+# --- 3. co-simulation -------------------------------------------------------------------
 
 def cosim_section(out: Path, quick: bool, log=print) -> str:
     import flowsheets
@@ -194,37 +272,38 @@ def cosim_section(out: Path, quick: bool, log=print) -> str:
         (out / "cosim_wp.json").write_text(json.dumps(wp, indent=1))
     wall = time.perf_counter() - t0
     pairs = [r.get("order_to_previous") for r in wp["rows"] if r.get("order_to_previous") is not None]
-    parts = [f'<h2 id="cosim">2. {SECTIONS["cosim"]}</h2>', _meta(machine(), wall),
+    unit = "m" if wp["variable"].endswith(("x10", "x50", "x90")) else "-"
+    parts = [f'<h2 id="cosim">3. {SECTIONS["cosim"]}</h2>', _meta(machine(), wall),
              f"<p>Flowsheet {_esc(fs.name)} ({_esc(name)}, {fs.t_end_s:g} s simulated, "
              f"{_esc(fs.algorithm)}, fmpy master): error of {_esc(wp['variable'])} against a "
              f"run with step {ref:g} s, max over the common output times; wall time of the "
              f"master's run. Measured order (least squares over all steps): "
-             f"{wp['order']:.2f} for the max error, {wp['order_at_end']:.2f} for the error at "
+             f"{_fmt(wp['order'], '.2f')} for the max error, {_fmt(wp['order_at_end'], '.2f')} for the error at "
              f"the end; between neighbouring steps: "
              f"{', '.join(_fmt(p, '.2f') for p in pairs)}.</p>",
              '<img src="cosim_wp.png" alt="co-simulation step: error against run time">',
-             _table(["step [s]", "steps", "max error", "relative", "order to previous",
-                     "error at end", "wall [s]", "mass residual"],
-                    [[f"{r['step_s']:g}", r["steps"], _fmt(r["error"]), _fmt(r["relative_error"]),
-                      _fmt(r.get("order_to_previous"), ".2f"), _fmt(r["error_end"]),
-                      _fmt(r["wall_s"], ".3g"), _fmt(r["mass_residual"], ".1e")] for r in wp["rows"]]),
+             _table(["step [s]", "steps [-]", f"max error [{unit}]", "relative error [-]", "order to previous [-]",
+                     f"error at end [{unit}]", "wall time [s]", "mass residual [-] (relative)"],
+                    [[f"{r['step_s']:g}", r["steps"], _fmt(r["error"], ".2e", None), _fmt(r["relative_error"]),
+                      _fmt(r.get("order_to_previous"), ".2f"), _fmt(r["error_end"], ".2e", None),
+                      _fmt(r["wall_s"], ".3g", None), _fmt(r["mass_residual"], ".1e")] for r in wp["rows"]]),
              f"<pre>{_esc(table)}</pre>"]
     return "\n".join(parts)
 
 
-# --- 3. DEM -----------------------------------------------------------------------------
+# --- 4. DEM -----------------------------------------------------------------------------
 
 def _dem_tables(res) -> str:
     from millfmu.dem.studies import work_precision as W
 
-    head = ["setting", "run time [CPU s]"] + [f"{c} (largest in {', '.join(W.TARGET_ZONES)})"
+    head = ["setting", "run time [CPU s]"] + [f"{c}: relative error [%] (largest in {', '.join(W.TARGET_ZONES)})"
                                       for c in W.COLUMNS]
     parts = [_table(head, W.table_rows(res))]
     sl = W.slopes(res)
-    parts.append(_table(["statistic", "measured order: slope of log error against log T "
-                         "(median over zones)", "range over zones",
-                         "independent contacts: slope", "measured / independent contacts"],
-                        [[k, f"{v['median']:.2f}", f"{v['min']:.2f} ... {v['max']:.2f}",
+    parts.append(_table(["statistic", "measured order [-]: slope of log error against log T "
+                         "(median over zones)", "range over zones [-]",
+                         "independent contacts: slope [-]", "measured / independent contacts [-]"],
+                        [[k, _fmt(v['median'], ".2f"), f"{_fmt(v['min'], '.2f')} ... {_fmt(v['max'], '.2f')}",
                           _fmt(v.get("predicted_slope"), ".2f"), _fmt(v.get("inflation"), ".1f")]
                          for k, v in sl.items()]))
     parts.append(f"<p>{_esc(W.summary_text(res))}</p>")
@@ -234,7 +313,7 @@ def _dem_tables(res) -> str:
 def dem_section(out: Path, quick: bool, dem_runs=None, log=print) -> str:
     from millfmu.dem.studies import work_precision as W
 
-    parts = [f'<h2 id="dem">3. {SECTIONS["dem"]}</h2>',
+    parts = [f'<h2 id="dem">4. {SECTIONS["dem"]}</h2>',
              "<p>Coupled disc slice at 10 m/s, 80 % filling, 10 degree sector, no gravity "
              "(seed 001's protocol). Error of each tabulated statistic (per zone: SE_tn "
              "quantiles, collision frequency, local filling, collision power) against a long "
@@ -313,7 +392,7 @@ def build_report(out_dir, quick: bool = False, dem_runs=None, log=print) -> list
     start = machine()
     tmp = Path(tempfile.mkdtemp(prefix=".millfmu-report-", dir=out.parent))
     try:
-        body = [pbm_section(tmp, quick, log), cosim_section(tmp, quick, log),
+        body = [process_section(tmp, quick, log), pbm_section(tmp, quick, log), cosim_section(tmp, quick, log),
                 dem_section(tmp, quick, dem_runs, log)]
         wall = time.perf_counter() - t0
         page = ["<!DOCTYPE html>", '<html lang="en"><head><meta charset="utf-8">',

@@ -1,9 +1,11 @@
 """Run a scene over time and write result.json, psd.csv and PNG plots.
 
-Files are first written to a temporary folder next to the target and moved into place
-only when all of them are complete, so an interrupted or failed run leaves no
-half-written results; result files of an earlier run in the folder that this run does not
-write (e.g. its plots, with --no-plots) are removed then, so a folder never mixes runs.
+Files are first written to a complete result folder next to the target (hidden,
+``.millfmu-<pid>-new-*``) and switched in with one atomic rename (an exchange of the two
+folders where Linux offers it), so an interrupted or killed run leaves the old complete set
+or the new one, never a mix; result files of an earlier run that this run does not write
+(e.g. its plots, with --no-plots) go with the old folder; other files there are kept.
+Temporary folders of killed runs are removed by the next run.
 result.json carries the run's provenance: the resolved scene (every key), millfmu, Python
 and numpy versions, the stress-energy table's identity and stated error, the wall time.
 """
@@ -15,6 +17,7 @@ import json
 import math
 import os
 import shutil
+import sys
 import tempfile
 from pathlib import Path
 
@@ -31,28 +34,161 @@ RESULT_FILES = ("result.json", "psd.csv", "psd.png", "sizes.png")
 class OutputError(ValueError):
     """The output folder cannot take the results: names the option, the path and why."""
 
-    def __init__(self, path, why: str):
+    def __init__(self, path, why: str, option: str = "--out"):
         self.path = str(path)
-        super().__init__(f"--out {self.path}: {why}")
+        super().__init__(f"{option} {self.path}: {why}")
+
+
+#: Hidden temporary folders of a run beside ``--out``: ``.millfmu-<pid>-new-<name>`` holds the
+#: new results until they are switched in, ``.millfmu-<pid>-old-<name>`` the replaced ones
+#: until they are removed. Those of a process that no longer runs are removed by the next
+#: run in that folder (an ``old`` one whose folder is missing is renamed back first).
+TEMP_PREFIX = ".millfmu-"
+#: Called between the steps of switching results in (a test stops the process there).
+_switch_hook = None
+
+
+def _existing_ancestor(p: Path) -> Path:
+    p = Path(os.path.abspath(p))
+    while not p.exists() and p != p.parent:
+        p = p.parent
+    return p
 
 
 def check_out_dir(out_dir) -> Path:
     """OutputError unless ``out_dir`` is (or can become) a folder this process can write
-    into: checked by making and removing a temporary folder beside it before a run."""
+    into and beside which it can make its temporary folder: checked by making and removing a
+    probe folder in the nearest existing folder. Creates nothing."""
     out = Path(out_dir)
     if out.exists() and not out.is_dir():
         raise OutputError(out, "exists and is not a folder; give a folder (new or from an earlier run)")
-    parent = out.parent
+    if Path(os.path.abspath(out)) == Path(os.path.abspath(out)).parent:
+        raise OutputError(out, "is the file system's root; give a folder below it")
+    base = _existing_ancestor(out.parent)
+    if not base.is_dir():
+        raise OutputError(out, f"cannot write there ({base} is not a folder); give a writable folder")
     try:
-        parent.mkdir(parents=True, exist_ok=True)
-        probe = Path(tempfile.mkdtemp(prefix=".millfmu-probe-", dir=parent))
+        probe = Path(tempfile.mkdtemp(prefix=TEMP_PREFIX + "probe-", dir=base))
         probe.rmdir()
         if out.is_dir():
-            probe = Path(tempfile.mkdtemp(prefix=".millfmu-probe-", dir=out))
+            probe = Path(tempfile.mkdtemp(prefix=TEMP_PREFIX + "probe-", dir=out))
             probe.rmdir()
     except OSError as e:
-        raise OutputError(out, f"cannot write there ({e.strerror or e}); give a writable folder") from None
+        where = "" if base == Path(os.path.abspath(out)) else (
+            f"; the results are first written into a hidden folder {TEMP_PREFIX}* in {base} beside it and switched in with one rename")
+        raise OutputError(out, f"cannot write there ({e.strerror or e}: {base}{where}); give a writable folder") from None
     return out
+
+
+def _pid_alive(pid: int) -> bool:
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except OSError:
+        return True
+    return True
+
+
+def clean_leftovers(parent: Path) -> list[Path]:
+    """Remove the temporary folders a killed run left in ``parent``; an ``old`` folder whose
+    result folder is missing (killed between the two renames of the fallback switch) is
+    renamed back. Returns what was removed or restored."""
+    done = []
+    try:
+        entries = list(Path(parent).iterdir())
+    except OSError:
+        return done
+    for p in entries:
+        name = p.name
+        if not name.startswith(TEMP_PREFIX) or not p.is_dir() or p.is_symlink():
+            continue
+        pid, _, rest = name[len(TEMP_PREFIX):].partition("-")
+        if not pid.isdigit() or int(pid) == os.getpid() or _pid_alive(int(pid)):
+            continue
+        kind, _, target = rest.partition("-")
+        if kind == "old" and target and not (p.parent / target).exists():
+            try:
+                os.rename(p, p.parent / target)
+                done.append(p.parent / target)
+                continue
+            except OSError:
+                pass
+        shutil.rmtree(p, ignore_errors=True)
+        done.append(p)
+    return done
+
+
+def _exchange(a: Path, b: Path) -> bool:
+    """Swap two folders with one atomic rename (Linux renameat2 RENAME_EXCHANGE); False where
+    the system or file system cannot."""
+    if not sys.platform.startswith("linux"):
+        return False
+    try:
+        import ctypes
+
+        libc = ctypes.CDLL(None, use_errno=True)
+        fn = libc.renameat2
+    except (OSError, AttributeError):
+        return False
+    fn.argtypes = [ctypes.c_int, ctypes.c_char_p, ctypes.c_int, ctypes.c_char_p, ctypes.c_uint]
+    at_fdcwd, rename_exchange = -100, 2
+    return fn(at_fdcwd, os.fsencode(a), at_fdcwd, os.fsencode(b), rename_exchange) == 0
+
+
+def _hook(stage: str):
+    if _switch_hook is not None:
+        _switch_hook(stage)
+
+
+def _switch_in(tmp: Path, out: Path) -> None:
+    """Make the complete result folder ``tmp`` the folder ``out``: the folder holds the old
+    complete set or the new one, never a mix. Files of ``out`` that are not results (notes
+    of the user) are carried over (hard links) first. Where ``out`` holds sub-folders, or
+    is or contains the working folder, it is kept and the files are replaced one by one
+    under a marker ``.millfmu-incomplete`` that the next run reports."""
+    if not out.exists():
+        os.rename(tmp, out)
+        return
+    entries = list(out.iterdir())
+    cwd = Path(os.getcwd()).resolve()
+    whole = all(e.is_file() and not e.is_symlink() for e in entries) and not (cwd == out.resolve() or out.resolve() in cwd.parents)
+    if whole:
+        for e in entries:
+            if e.name in RESULT_FILES or e.name == MARKER or (tmp / e.name).exists():
+                continue
+            try:
+                os.link(e, tmp / e.name)
+            except OSError:
+                shutil.copy2(e, tmp / e.name)
+        _hook("carried")
+        if _exchange(tmp, out):  # tmp now holds the old results
+            _hook("switched")
+            shutil.rmtree(tmp, ignore_errors=True)
+            return
+        old = out.parent / f"{TEMP_PREFIX}{os.getpid()}-old-{out.name}"
+        os.rename(out, old)
+        _hook("moved-away")
+        os.rename(tmp, out)
+        _hook("switched")
+        shutil.rmtree(old, ignore_errors=True)
+        return
+    marker = out / MARKER
+    marker.write_text("a run of millfmu was moving its results into this folder and did not finish: "
+                      "the result files here may come from two runs\n")
+    new = {f.name for f in tmp.iterdir()}
+    for f in sorted(tmp.iterdir()):
+        os.replace(f, out / f.name)
+        _hook("file")
+    for name in RESULT_FILES:
+        if name not in new:
+            (out / name).unlink(missing_ok=True)
+    marker.unlink()
+    shutil.rmtree(tmp, ignore_errors=True)
+
+
+#: Left in a result folder holding sub-folders while files are replaced one by one.
+MARKER = ".millfmu-incomplete"
 
 #: Scalars written per output time to result.json, with their units.
 RESULT_KEYS = {
@@ -221,7 +357,12 @@ def write_results(out_dir: str | Path, scene: Scene, model: MillModel, records, 
     out = check_out_dir(out_dir)
     if band is None:
         band = prediction_band(scene)
-    tmp = Path(tempfile.mkdtemp(prefix=".millfmu-", dir=out.parent))
+    out.parent.mkdir(parents=True, exist_ok=True)
+    clean_leftovers(out.parent)
+    if (out / MARKER).exists():
+        print(f"millfmu: warning: --out {out}: an earlier run was stopped while it replaced the result files one by one "
+              "(the folder holds sub-folders); this run replaces them all", file=sys.stderr)
+    tmp = Path(tempfile.mkdtemp(prefix=f"{TEMP_PREFIX}{os.getpid()}-new-", dir=out.parent))
     try:
         op = model.operating_point(model.inputs)
         result = {
@@ -252,14 +393,8 @@ def write_results(out_dir: str | Path, scene: Scene, model: MillModel, records, 
                 w.writerow([repr(rec["t_s"])] + [f"{v:.12g}" for v in q])
         if plots:
             _plots(tmp, model, records, psds)
-        out.mkdir(parents=True, exist_ok=True)
-        written = []
-        for f in sorted(tmp.iterdir()):
-            os.replace(f, out / f.name)
-            written.append(out / f.name)
-        for name in RESULT_FILES:
-            if not (tmp / name).exists() and (out / name) not in written:
-                (out / name).unlink(missing_ok=True)
+        written = [out / f.name for f in sorted(tmp.iterdir())]
+        _switch_in(tmp, out)
         return written
     finally:
         shutil.rmtree(tmp, ignore_errors=True)
@@ -271,57 +406,102 @@ def _plots(folder: Path, model: MillModel, records, psds):
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
+    for name, fig in (("psd.png", psd_figure(model, records, psds)), ("sizes.png", sizes_figure(model, records))):
+        fig.savefig(folder / name, dpi=110)
+        plt.close(fig)
+
+
+def _what_psd(model: MillModel) -> str:
+    """What the size distribution of a run describes."""
+    if model.scene.operation.mode == "continuous":
+        n = model.scene.operation.n_tanks
+        return f"product at the mill outlet ({'the last of ' + str(n) + ' tanks' if n > 1 else 'one stirred tank'})"
+    return "mill content (batch)"
+
+
+def _legend_right(ax, **kw):
+    """A legend beside the axes (right), never over the curves."""
+    return ax.legend(loc="upper left", bbox_to_anchor=(1.02, 1.0), borderaxespad=0.0, fontsize=8, **kw)
+
+
+#: Legend of the markers at the grid's lower edge in psd.png.
+BELOW_LABEL = "mass fraction below the grid (marker at its lower edge)"
+
+
+def psd_figure(model: MillModel, records, psds):
+    """Q3 and q3,lg of up to 8 output times; the mass below the grid as a marker at the
+    grid's lower edge (a fraction, not a density)."""
+    import matplotlib.pyplot as plt
+
     e = model.grid.edges_m
     t = np.array([r["t_s"] for r in records])
     idx = np.unique(np.linspace(0, len(records) - 1, min(8, len(records))).round().astype(int))
     cmap = plt.get_cmap("viridis")
-    fig, (a1, a2) = plt.subplots(1, 2, figsize=(11, 4.2))
+    fig, (a1, a2) = plt.subplots(1, 2, figsize=(12.5, 4.6))
     for k, i in enumerate(idx):
         c = cmap(k / max(1, len(idx) - 1))
         q3 = psds[i]  # at every edge: q3[0] is the mass below the grid
         a1.semilogx(e * 1e6, q3, color=c, label=f"t = {t[i]:g} s")
         dens = np.diff(q3) / np.diff(np.log10(e))
-        a2.semilogx(model.grid.x_m * 1e6, dens, color=c)
+        a2.semilogx(model.grid.x_m * 1e6, dens, color=c, label=f"t = {t[i]:g} s")
         if q3[0] > 0.0:
-            a2.plot([e[0] * 1e6], [q3[0]], "v", color=c, ms=5)
+            a2.plot([e[0] * 1e6], [q3[0]], "v", color=c, ms=5, label=BELOW_LABEL)
+    a1.axvline(e[0] * 1e6, color="0.6", lw=0.8, label=f"grid's lower edge ({e[0] * 1e6:.3g} \u00b5m)")
     b = psds[idx[-1]][0]
-    a1.axvline(e[0] * 1e6, color="0.6", lw=0.8)
-    a1.text(e[0] * 1e6, 0.98, f" below grid at t = {t[idx[-1]]:g} s: {b:.2%}", fontsize=8, va="top")
-    a2.set_title("v: mass fraction below the grid (not per decade)", fontsize=8)
-    a1.set_xlabel("particle size x [µm]")
-    a1.set_ylabel("Q3 [-]")
+    a1.set_title(f"cumulative; below the grid at t = {t[idx[-1]]:g} s: {b:.2%}", fontsize=9)
+    a2.set_title("density per decade (\u25bc: below-grid fraction, not per decade)", fontsize=9)
+    a1.set_xlabel("particle size x [\u00b5m]")
+    a1.set_ylabel("Q3 [-]  (mass fraction below x)")
     a1.grid(True, which="both", alpha=0.3)
-    a1.legend(fontsize=8)
-    a2.set_xlabel("particle size x [µm]")
+    a2.set_xlabel("particle size x [\u00b5m]")
     a2.set_ylabel("q3,lg [-]  (mass density per decade)")
     a2.grid(True, which="both", alpha=0.3)
-    fig.suptitle(f"{model.scene.scene.name}: size distribution over time")
+    # One legend serves both panels: the right panel's lines are the left's output times.
+    h1, l1 = a1.get_legend_handles_labels()
+    h2, l2 = a2.get_legend_handles_labels()
+    first_marker = [(h, lab) for h, lab in zip(h2, l2) if lab == BELOW_LABEL][:1]
+    hs, ls = h1 + [h for h, _ in first_marker], l1 + [lab for _, lab in first_marker]
+    _legend_right(a2, handles=hs, labels=ls, title="output time")
+    fig.suptitle(f"{model.scene.scene.name}: size distribution of the {_what_psd(model)}")
     fig.tight_layout()
-    fig.savefig(folder / "psd.png", dpi=110)
-    plt.close(fig)
+    return fig
 
-    fig, ax = plt.subplots(figsize=(6.5, 4.2))
-    for key, lab in (("x10_m", "x10"), ("x50_m", "x50"), ("x90_m", "x90")):
-        ax.plot(t / 60.0, [r[key] * 1e6 for r in records], label=lab)
-    ax.set_yscale("log")
-    ax.set_xlabel("time [min]")
-    ax.set_ylabel("characteristic size [µm]")
-    ax.grid(True, which="both", alpha=0.3)
-    if any(r.get("below_grid_fraction", 0.0) > 0.0 for r in records):
-        ax.plot([], [], "k:", label="below grid (right axis)")
-        axb = ax.twinx()
-        axb.plot(t / 60.0, [r["below_grid_fraction"] for r in records], "k:")
-        axb.set_ylabel("mass fraction below the grid [-]")
-    ax.legend()
+
+def sizes_figure(model: MillModel, records):
+    """x10, x50, x90 over time [s]; below them, each in its own panel with its own scale, the
+    disrupted fraction (yeast) and the mass fraction below the size grid (when any)."""
+    import matplotlib.pyplot as plt
+
+    t = np.array([r["t_s"] for r in records])
+    panels = ["sizes"]
     if "disrupted_fraction" in records[0]:
-        ax2 = ax.twinx()
-        ax2.plot(t / 60.0, [r["disrupted_fraction"] for r in records], "k--", label="disrupted")
-        ax2.set_ylabel("disrupted fraction [-]")
-        ax2.set_ylim(0, 1)
-    fig.suptitle(f"{model.scene.scene.name}: characteristic sizes")
+        panels.append("disrupted")
+    if any(r.get("below_grid_fraction", 0.0) > 0.0 for r in records):
+        panels.append("below")
+    heights = [2.2] + [1.0] * (len(panels) - 1)
+    fig, axes = plt.subplots(len(panels), 1, figsize=(8.5, 3.2 + 1.5 * (len(panels) - 1)), sharex=True,
+                             gridspec_kw={"height_ratios": heights}, squeeze=False)
+    axes = axes[:, 0]
+    for ax, what in zip(axes, panels):
+        if what == "sizes":
+            for key, lab in (("x10_m", "x10"), ("x50_m", "x50"), ("x90_m", "x90")):
+                ax.plot(t, [r[key] * 1e6 for r in records], label=lab)
+            ax.set_yscale("log")
+            ax.set_ylabel("size [\u00b5m]")
+        elif what == "disrupted":
+            ax.plot(t, [r["disrupted_fraction"] for r in records], "k--", label="disrupted cells")
+            ax.set_ylim(0, 1)
+            ax.set_ylabel("fraction [-]")
+        else:
+            ax.plot(t, [100.0 * r["below_grid_fraction"] for r in records], "k:", label="mass below the size grid")
+            ax.set_ylim(bottom=0)
+            ax.set_ylabel("below grid [%]")
+        ax.grid(True, which="both", alpha=0.3)
+        _legend_right(ax)
+    axes[-1].set_xlabel("time t [s]")
+    fig.suptitle(f"{model.scene.scene.name}: characteristic sizes of the {_what_psd(model)}", fontsize=11)
     fig.tight_layout()
-    fig.savefig(folder / "sizes.png", dpi=110)
-    plt.close(fig)
+    return fig
 
 
 def summary_table(records, rows: int = 8) -> str:

@@ -117,7 +117,7 @@ class StressDistribution:
     source: str = _f("lognormal", choices=("lognormal", "table"), doc="stress-energy source of the detailed model: log-normal, or a DEM table")
     table: str = _f("coupled", doc="table: a shipped table by name ('coupled': the coupled DEM-CFD disc slice, the default scene's; 'prescribed': the disc slice with a prescribed swirl, for comparison; 'accelerator'; millfmu/data/NAME_table; 'default' names the default scene's) or PREFIX of PREFIX.npz/PREFIX.json")
     component: str = _f("tn", choices=("tn", "total"), doc="table: stress-energy component (tn: normal impact energy)")
-    similar_axes: list = _f([], doc="table: axes along which similarity is assumed: an axis the table does not vary (bead_diameter_m, bead_density_kg_m3, viscosity_pa_s) may differ from the table's value, and a value outside the grid (also tip_speed_m_s) uses the nearest edge's dimensionless fields")
+    similar_axes: list = _f([], choices=("tip_speed_m_s", "bead_diameter_m", "bead_density_kg_m3", "viscosity_pa_s"), doc="table: axes along which similarity is assumed: an axis the table does not vary (bead_diameter_m, bead_density_kg_m3, viscosity_pa_s) may differ from the table's value, and a value outside the grid (also tip_speed_m_s) uses the nearest edge's dimensionless fields")
     on_outside: str = _f("refuse", choices=("refuse", "build"), doc="table: operating point outside the grid: refuse, or build a covering table with the DEM (only the missing points run; a point the table's DEM scene cannot run is refused when the scene is loaded; an FMU carries the table build-fmu built and refuses outside it)")
     on_stale: str = _f("refuse", choices=("refuse", "rebuild", "accept"), doc="table, on_outside = 'build': where the installed DEM's kernel version is not the table's (the code changed since it was built): refuse the build (the message names the cost of the full rebuild), rebuild every point with the installed DEM, or accept the table's points as they are and run only the new ones (millfmu run --on-stale overrides)")
     median_fraction: float = _f(0.01, lo=0.0, hi=1.0, lo_open=True, doc="lognormal: median collision energy over SE")
@@ -227,7 +227,10 @@ def _check_value(key, v, ftype, md, source):
         return v
     elif ftype in ("list", list):
         if not isinstance(v, list):
-            raise SceneError(key, v, "must be a list", source)
+            raise SceneError(key, v, "must be a list" + (" of " + _describe(md)[len("one of "):] if md["choices"] else ""), source)
+        for i, item in enumerate(v):
+            if md["choices"] and item not in md["choices"]:
+                raise SceneError(f"{key}[{i}]", item, "not an allowed entry; allowed: " + ", ".join(repr(c) for c in md["choices"]), source)
         return v
     lo, hi = md["lo"], md["hi"]
     if lo is not None and (v < lo or (md["lo_open"] and v == lo)):
@@ -304,6 +307,8 @@ def _cross_check(s: Scene, source: str):
         raise SceneError("kinetics.model", s.kinetics.model, "must be 'none' for material.model = 'austin' (rates straight from the scene)", source)
     if s.material.model != "austin" and s.kinetics.model == "none":
         raise SceneError("kinetics.model", s.kinetics.model, f"must be 'simple' or 'detailed' for material.model = {s.material.model!r}; 'none' needs material.model = 'austin'", source)
+    if s.material.model == "austin":
+        _check_austin_selection(s, source)
     c_v = s.mill.bead_filling * (1.0 - s.mill.bead_porosity)
     if c_v >= PHI_MAX_RCP:
         raise SceneError("mill.bead_filling", s.mill.bead_filling, f"with bead_porosity {s.mill.bead_porosity:g} gives a bead volume fraction {c_v:.3f}; must stay below {PHI_MAX_RCP} (random close packing)", source)
@@ -322,6 +327,35 @@ def _cross_check(s: Scene, source: str):
         ok = len(prof) >= 1 and all(isinstance(p, list) and len(p) == 2 and all(isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v) for v in p) for p in prof)
         if not ok or any(b[0] <= a[0] for a, b in zip(prof, prof[1:])) or any(p[1] < 0 or p[1] > 40 for p in prof):
             raise SceneError("run.tip_speed_profile", prof, "must be [[t_s, v_t_m_per_s], ...] with ascending times and 0 <= v_t <= 40 m/s", source)
+
+
+#: Largest selection rate an Austin scene may reach on its size grid [1/s]: a class broken
+#: in 1e-20 s is broken at once; above it (tried up to 1e40) the step's exponential loses
+#: the masses to overflow and round-off (non-finite or negative).
+S_MAX_PER_S = 1e20
+
+
+def _check_austin_selection(s: Scene, source: str):
+    """Austin's S = a (x/x0)^alpha / (1 + (x/mu)^Lambda) over the size grid (taken in
+    logarithms, so that no value overflows here) must stay finite and below S_MAX_PER_S."""
+    sel = s.material.selection
+    if sel.a_per_s == 0.0:
+        return
+    lo, hi = math.log(s.grid.x_min_m), math.log(s.grid.x_max_m)
+    worst, at = -INF, s.grid.x_min_m
+    for k in range(201):
+        lx = lo + (hi - lo) * k / 200
+        ls = math.log(sel.a_per_s) + sel.alpha * (lx - math.log(sel.x0_m))
+        if math.isfinite(sel.mu_m) and sel.Lambda > 0.0:
+            z = sel.Lambda * (lx - math.log(sel.mu_m))
+            ls -= z + math.log1p(math.exp(-z)) if z > 0 else math.log1p(math.exp(z))
+        if ls > worst:
+            worst, at = ls, math.exp(lx)
+    if worst > math.log(S_MAX_PER_S):
+        raise SceneError("material.selection.a_per_s", sel.a_per_s,
+                         f"with x0_m = {sel.x0_m:g} m and alpha = {sel.alpha:g} gives S = 10^{worst / math.log(10):.1f} 1/s at "
+                         f"x = {at:.3g} m on the size grid ({s.grid.x_min_m:g} ... {s.grid.x_max_m:g} m); S must stay below "
+                         f"{S_MAX_PER_S:g} 1/s (a class broken in 1e-20 s): lower a_per_s or alpha, or raise x0_m", source)
 
 
 #: Sections taken whole, not key by key, when a scene gives them with another ``kind`` than
@@ -396,14 +430,32 @@ def load_scene(path: str | Path | None = None) -> Scene:
         p = Path(path)
         source = str(p)
         try:
-            text = p.read_text()
+            raw = p.read_bytes()
         except OSError as e:
             raise SceneError("(file)", str(p), f"cannot be read: {e.strerror or e}", source) from None
+        try:
+            text = raw.decode("utf-8")
+        except UnicodeDecodeError as e:
+            line = raw.count(b"\n", 0, e.start) + 1
+            raise SceneError("(encoding)", raw[e.start:e.start + 4].hex(" "),
+                             f"the file must be UTF-8 text (TOML); byte offset {e.start} (line {line}) is not UTF-8 "
+                             f"({e.reason}); save it as UTF-8", source) from None
     try:
         d = tomllib.loads(text)
     except tomllib.TOMLDecodeError as e:
         raise SceneError("(syntax)", str(e), "the file must be valid TOML", source) from None
     return scene_from_dict(d, source)
+
+
+def example_path(name: str) -> Path:
+    """Path of a shipped example scene (millfmu/data/examples/NAME, ``.toml`` optional),
+    wherever the package is installed; SceneError listing the examples for another name."""
+    base = resources.files(__name__.rpartition(".")[0] + ".data").joinpath("examples")
+    names = sorted(p.name for p in base.iterdir() if p.name.endswith(".toml"))
+    file = name if name.endswith(".toml") else name + ".toml"
+    if file not in names:
+        raise SceneError("(example)", name, "not a shipped example; the examples: " + ", ".join(names), "example_path")
+    return Path(str(base.joinpath(file)))
 
 
 def default_scene_text() -> str:

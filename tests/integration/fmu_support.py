@@ -87,7 +87,8 @@ def isolated_python(where: Path) -> str:
         (site / "host_packages.pth").write_text(purelib + "\n")
     py = str(env_dir / "bin" / "python")
     r = subprocess.run([py, "-c", "import importlib.util as u; print(u.find_spec('millfmu') is None, u.find_spec('fmpy') is not None)"],
-                       capture_output=True, text=True, cwd=str(where))
+                       capture_output=True, text=True, cwd=str(where),
+                       env={k: v for k, v in os.environ.items() if k not in ("PYTHONPATH", "PYTHONHOME")})
     assert r.stdout.split() == ["True", "True"], (r.stdout, r.stderr)
     return py
 

@@ -314,6 +314,10 @@ path = {str(work["fmus"]["continuous"])!r}
 f = open_fmu(path, "f")
 ref = open_fmu(path, "ref")
 vr = f.vr
+# A serialized state with one digit changed is still valid JSON: its sha256 refuses it.
+blob = bytes(f.serializeFMUState(f.getFMUState()))
+i = blob.index(b'"values":[') + len(b'"values":[')
+edited = blob[:i] + (b"7" if blob[i:i + 1] != b"7" else b"8") + blob[i + 1:]
 calls = {{
     "set output": (f.setFloat64, [vr["x50"]], [1.0]),
     "set fixed parameter": (f.setFloat64, [vr["bead_diameter"]], [1e-3]),
@@ -324,6 +328,7 @@ calls = {{
     "get array with too few values": (f.getFloat64, [vr["psd"]], 3),
     "change the class count": (f.setUInt64, [vr["n_classes"]], [7]),
     "deserialize garbage": (f.deserializeFMUState, b"not a state"),
+    "deserialize an edited state": (f.deserializeFMUState, edited),
 }}
 out = {{}}
 for what, (fn, *args) in calls.items():
@@ -354,6 +359,7 @@ done({{"calls": out, "same_n": same_n, "equal": rf == rr, "n": n_read, "fatal": 
         "get array with too few values": f"nValues = 3, but the value references name {n} values",
         "change the class count": f"n_classes = 7 refused: this FMU's size grid has {n} classes",
         "deserialize garbage": "fmi3DeserializeFMUState: 11 bytes that are not a serialized state of this FMU",
+        "deserialize an edited state": "the state's sha256 does not match its content",
         "state of another FMU": "is not a state of this FMU",
     }
     for what, text in expect.items():

@@ -101,3 +101,51 @@ def test_table_from_a_short_recording_warns(tmp_path, scene_dict):
     assert r.returncode == 0 and "warning: stress-energy table" in r.stderr and "0.004 s" in r.stderr
     res = json.loads((tmp_path / "out" / "result.json").read_text())
     assert any("0.004 s" in w for w in res["warnings"])
+
+
+# ---- issue 27: table contents are validated on read ----------------------------------------
+def _edit(t, field, value, where=(0, 0, 0)):
+    import numpy as np
+
+    a = np.array(t.data[field], float)
+    a[where + (0,) * (a.ndim - len(where))] = value
+    t.data[field] = a
+
+
+def _integral_off(t):
+    import numpy as np
+
+    d = np.array(t.data["se_density"], float)
+    d[0, 0, 0, 0, :] *= 1.5
+    t.data["se_density"] = d
+
+
+@pytest.mark.parametrize("edit, words", [
+    (lambda t: _edit(t, "collision_frequency_norm", float("nan")), "collision_frequency_norm holds a non-finite value"),
+    (lambda t: _edit(t, "collision_frequency_norm", float("inf")), "collision_frequency_norm holds a non-finite value"),
+    (lambda t: _edit(t, "collision_frequency_norm", 1e300), "collision_frequency_norm holds a value beyond"),
+    (lambda t: _edit(t, "collision_frequency_norm", -2.0), "collision_frequency_norm holds a value below 0"),
+    (lambda t: _edit(t, "se_density", -0.5), "se_density holds a value below 0"),
+    (lambda t: _edit(t, "se_quantiles_norm", float("inf")), "se_quantiles_norm holds an infinite value"),
+    (lambda t: _edit(t, "volume_fraction", 1e300), "volume_fraction holds a value beyond"),
+    (_integral_off, "integrates to"),
+])
+def test_a_rechecksummed_table_with_impossible_values_is_refused_by_name_with_the_rebuild_command(tmp_path, edit, words,
+                                                                                                  monkeypatch):
+    t = T.read_default_table()
+    edit(t)
+    prefix = tmp_path / "edited"
+    with monkeypatch.context() as m:
+        m.setattr(table_module, "_check_values", lambda t, where: None)  # export reads its files back
+        t.export(prefix)  # checksums of the edited content: only the values can tell
+    scene = _scene_file(tmp_path, prefix)
+    r = subprocess.run([sys.executable, "-m", "millfmu.cli", "run", str(scene), "--out", str(tmp_path / "out")],
+                       capture_output=True, text=True)
+    assert r.returncode == 2 and "Traceback" not in r.stderr, r.stderr
+    assert words in r.stderr and "kinetics.stress_distribution.table" in r.stderr and "tables build" in r.stderr, r.stderr
+    assert not (tmp_path / "out").exists()
+
+
+def test_the_shipped_tables_pass_the_value_checks():
+    for ref in ("default", "coupled", "accelerator"):
+        T.read_table_ref(ref).check_values(ref)

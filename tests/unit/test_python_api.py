@@ -15,10 +15,7 @@ def test_readme_python_example_runs(tmp_path, monkeypatch, capsys):
     text = (ROOT / "README.md").read_text()
     m = re.search(r"<!-- python-api-example -->\s*```python\n(.*?)```", text, re.S)
     assert m, "README lost its Python API example"
-    monkeypatch.chdir(tmp_path)
-    (tmp_path / "millfmu" / "data" / "examples").mkdir(parents=True)
-    src = ROOT / "millfmu" / "data" / "examples" / "limestone_continuous.toml"
-    (tmp_path / "millfmu" / "data" / "examples" / src.name).write_text(src.read_text())
+    monkeypatch.chdir(tmp_path)  # outside the repository: the example names no relative path
     exec(compile(m.group(1), "README.md", "exec"), {"__name__": "readme"})
     out = capsys.readouterr().out
     assert "x50 " in out and "holdup" in out and "mill.bead_filling 1.2" in out
@@ -66,3 +63,12 @@ def test_run_result_series_q3_and_write(tmp_path):
     model = millfmu.MillModel(r.scene)
     with pytest.raises(millfmu.InputError, match="tip_speed_m_per_s"):
         model.step(1.0, tip_speed_m_per_s=float("nan"))
+
+
+def test_example_path_finds_the_shipped_examples_from_anywhere(tmp_path, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    p = millfmu.example_path("limestone_continuous")
+    assert p.is_absolute() and p.name == "limestone_continuous.toml" and p.is_file()
+    with pytest.raises(millfmu.SceneError) as e:
+        millfmu.example_path("nonsense")
+    assert "accelerator_detailed.toml" in str(e.value)

@@ -170,6 +170,10 @@ def test_rates_command_writes_csv_json_png(tmp_path, capsys):
     name = mrates._safe(scene.scene.name)
     rows = list(csv.DictReader((tmp_path / "out" / f"rates_{name}.csv").open()))
     assert set(rows[0]) == set(mrates.CSV_COLUMNS)
+    # The value's unit stands beside it (issue 27): every row names it.
+    header = next(csv.reader((tmp_path / "out" / f"rates_{name}.csv").open()))
+    assert header[header.index("value") + 1] == "value_unit"
+    assert {(r["parameter"], r["value_unit"]) for r in rows} == {(p, v[1]) for p, v in mrates.PARAMETERS.items()}
     assert {r["parameter"] for r in rows} == set(mrates.PARAMETERS)
     assert {r["quantity"] for r in rows} == {"S(x)", "disruption_rate"}
     ref = [r for r in rows if r["parameter"] == "tip_speed" and r["value"] == "8" and r["quantity"] == "disruption_rate"]

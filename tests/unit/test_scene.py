@@ -86,3 +86,65 @@ def test_cli_run_default_writes_results(tmp_path):
     lines = (out / "psd.csv").read_text().splitlines()
     assert len(lines) == len(recs) + 1
     assert "x50" in r.stdout
+
+
+# ---- issue 27: refusals naming the file, key, value and what is allowed -------------------
+def _cli(capsys, *args):
+    from millfmu.cli import main
+
+    code = main([str(a) for a in args])
+    return code, capsys.readouterr().err
+
+
+def test_a_scene_file_that_is_not_utf8_is_refused_naming_the_file_and_byte_offset(tmp_path, capsys):
+    p = tmp_path / "latin1.toml"
+    p.write_bytes("[scene]\nname = \"Mühle\"\n".encode("latin-1"))
+    with pytest.raises(SceneError) as e:
+        load_scene(p)
+    assert str(p) in str(e.value) and "byte offset 17" in str(e.value) and "UTF-8" in str(e.value)
+    code, err = _cli(capsys, "run", "-q", p, "--out", tmp_path / "out")
+    assert code == 2 and "byte offset 17 (line 2)" in err and "Traceback" not in err
+    assert not (tmp_path / "out").exists()
+
+
+def test_an_unknown_similar_axis_is_refused_by_load_scene_listing_the_allowed_axes(tmp_path, capsys):
+    p = tmp_path / "axes.toml"
+    p.write_text('[kinetics.stress_distribution]\nsimilar_axes = ["tip_speed_m_s", "nonsense_axis"]\n')
+    with pytest.raises(SceneError) as e:
+        load_scene(p)
+    msg = str(e.value)
+    assert "kinetics.stress_distribution.similar_axes[1] = 'nonsense_axis'" in msg
+    for ax in ("tip_speed_m_s", "bead_diameter_m", "bead_density_kg_m3", "viscosity_pa_s"):
+        assert ax in msg
+    code, err = _cli(capsys, "run", "-q", p, "--out", tmp_path / "out")
+    assert code == 2 and "nonsense_axis" in err
+
+
+def test_similar_axes_allowed_by_the_scene_are_those_the_table_extends():
+    from millfmu.dem.tables.table import EXTRAPOLABLE_AXES
+    from millfmu.scene import StressDistribution
+    from dataclasses import fields
+
+    md = next(f.metadata for f in fields(StressDistribution) if f.name == "similar_axes")
+    assert tuple(md["choices"]) == tuple(EXTRAPOLABLE_AXES)
+
+
+@pytest.mark.parametrize("sel", [{"a_per_s": 1e300}, {"x0_m": 1e-300}, {"alpha": 20.0, "x0_m": 1e-9}, {"alpha": -10.0},
+                                 {"a_per_s": 1e300, "x0_m": 1e-300, "alpha": 20.0}])
+def test_austin_selection_that_cannot_be_computed_is_refused_naming_the_keys(tmp_path, capsys, sel):
+    lines = "\n".join(f"{k} = {v!r}" for k, v in sel.items())
+    p = tmp_path / "austin.toml"
+    p.write_text(f'[material]\nmodel = "austin"\n[material.selection]\n{lines}\n[kinetics]\nmodel = "none"\n')
+    code, err = _cli(capsys, "run", "-q", p, "--out", tmp_path / "out")
+    assert code == 2 and "Traceback" not in err, err
+    assert "material.selection.a_per_s" in err and "x0_m" in err and "alpha" in err and "must stay below 1e+20 1/s" in err
+
+
+def test_austin_selection_up_to_the_limit_runs():
+    from millfmu.mill import MillModel
+    from millfmu.scene import scene_from_dict
+
+    m = MillModel(scene_from_dict({"material": {"model": "austin", "selection": {"a_per_s": 1e20, "x0_m": 200e-6, "alpha": 4.85}},
+                                   "kinetics": {"model": "none"}}, "t"))
+    for h in (1e-3, 1.0, 1000.0):
+        m.step(h)

@@ -754,8 +754,13 @@ def plot(res, path, title=None) -> None:
     wp = bool(res.get("spin_up") or res.get("variants"))
     dr = res.get("drift")
     n = 2 + wp + bool(dr)
-    fig, ax = plt.subplots(1, n, figsize=(5.4 * n, 4.6), squeeze=False)
-    ax = ax[0]
+    # At most two panels a row: four in one row are too small to read in a report.
+    rows_, cols = (n + 1) // 2, min(n, 2)
+    fig, ax = plt.subplots(rows_, cols, figsize=(7.6 * cols, 4.9 * rows_), squeeze=False)
+    ax = list(ax.ravel())
+    for extra in ax[n:]:
+        extra.set_visible(False)
+    ax = ax[:n]
     rows = res["recording"]
     t = np.array([r["record_s"] for r in rows])
     for a, s, label in ((ax[0], "se_tn_q50", "median SE_tn"),
@@ -772,7 +777,7 @@ def plot(res, path, title=None) -> None:
                      * np.sqrt(t[0] / t), "k:", lw=1.5, label="T^-1/2")
         a.set(xlabel="recording length T [s]", ylabel="relative error (batch means)",
               title=f"{label}: measured (o), independent contacts (--)")
-        a.legend(fontsize=7)
+        a.legend(fontsize=7, loc="upper left", bbox_to_anchor=(1.01, 1.0), borderaxespad=0.0)  # beside the curves
     if title:
         fig.suptitle(title)
     if wp:
@@ -800,7 +805,7 @@ def plot(res, path, title=None) -> None:
         a.axvspan(w[0], w[1], color="0.9")
         a.set(xlabel="t [s] (block centre)", ylabel="relative to the reference window [%]",
               title=f"the long run in blocks of {dr['block_s']:g} s (grey: reference)")
-        a.legend(fontsize=6, ncol=2)
+        a.legend(fontsize=6, loc="upper left", bbox_to_anchor=(1.01, 1.0), borderaxespad=0.0)
     for a in ax:
         a.grid(alpha=0.3, which="both")
     fig.tight_layout(rect=(0, 0, 1, 0.94) if title else None)

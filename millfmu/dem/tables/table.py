@@ -129,6 +129,14 @@ class Table:
                                  f"{list(side.axes)} and zones {side.zone_names}")
             side.check_shapes()
 
+    def check_values(self, where: str = "table"):
+        """Raise TableError unless the contents are what a DEM run gives: finite (nan only
+        where a zone had no collisions), non-negative, normalized fields below NORM_MAX,
+        positive references, energy densities integrating to 1; one-at-a-time tables too."""
+        _check_values(self, where)
+        for name, side in self.one_at_a_time.items():
+            _check_values(side, f"{where} (one-at-a-time axis {name})")
+
     # -- lookup
     def axis_value(self, name: str, x: float, similar=()) -> tuple:
         """The value a lookup uses on axis ``name`` for ``x``, and a note (or None); raises
@@ -661,7 +669,52 @@ def read_table(folder=None, *, npz=None, manifest_path=None, expect_key: str | N
             raise TableError(f"{npz}: anchor {t.anchor} differs from the manifest scene's "
                              f"{spec.anchor()}")
     t.check_shapes()
+    t.check_values(str(npz))
     return t
+
+
+#: Largest value a normalized (dimensionless) field of a table may hold: the shipped tables'
+#: largest is 30 (collision frequency over omega n_gb); 1e6 leaves room and keeps products
+#: of them finite.
+NORM_MAX = 1e6
+
+
+def _check_field(where: str, name: str, v: np.ndarray, nan_ok=False, lo=0.0, hi=NORM_MAX, lo_tol=1e-12):
+    v = np.asarray(v, float)
+    bad = np.isinf(v) | (np.isnan(v) if not nan_ok else False)
+    why = "a non-finite value (inf or nan)" if nan_ok is False else "an infinite value"
+    if not bad.any():
+        w = np.nan_to_num(v, nan=lo if lo is not None else 0.0)
+        if lo is not None and (w < lo - lo_tol).any():
+            bad, why = w < lo - lo_tol, f"a value below {lo:g}"
+        elif hi is not None and (np.abs(w) > hi).any():
+            bad, why = np.abs(w) > hi, f"a value beyond {hi:g}"
+    if bad.any():
+        i = tuple(int(k) for k in np.argwhere(bad)[0])
+        raise TableError(f"{where}: field {name} holds {why} ({float(v[i])!r} at index {i}): not values a DEM "
+                         f"run gives; the table's contents are refused (damaged or edited)")
+
+
+def _check_values(t: "Table", where: str):
+    d = t.data
+    for k in ZONE_FIELDS:
+        hi = {"volume_fraction": 1.0 + 1e-9, "filling_local": 2.0, "collision_count": 1e15}.get(k, NORM_MAX)
+        _check_field(where, k, d[k], hi=hi)
+    _check_field(where, "se_density", d["se_density"])
+    _check_field(where, "se_quantiles_norm", d["se_quantiles_norm"], nan_ok=True)  # nan: a zone without collisions
+    if "recording_drift" in d:
+        _check_field(where, "recording_drift", d["recording_drift"], nan_ok=True, lo=-NORM_MAX)
+    for k, v in t.refs.items():
+        _check_field(where, f"ref_{k}", v, lo=0.0, hi=1e30)
+        if not (np.asarray(v) > 0).all():
+            raise TableError(f"{where}: reference {k} must be positive; the table's contents are refused (damaged or edited)")
+    # Each density of SE over log10 bins integrates to 1 (0 in a zone without collisions).
+    integral = (np.asarray(d["se_density"], float) * np.diff(norm_log10_edges())).sum(-1)
+    off = ~(np.isclose(integral, 1.0, rtol=0, atol=1e-6) | np.isclose(integral, 0.0, rtol=0, atol=1e-12))
+    if off.any():
+        i = tuple(int(k) for k in np.argwhere(off)[0])
+        raise TableError(f"{where}: field se_density at index {i} integrates to {integral[i]!r}, not 1: "
+                         f"the table's contents are refused (damaged or edited)")
 
 
 def _table_of(arrs: dict, axes: dict, zone_names: tuple) -> Table:
@@ -700,13 +753,45 @@ def default_table_paths() -> tuple[Path, Path]:
 SHIPPED_TABLES = ("accelerator", "coupled", "prescribed")
 
 
+#: Tables read by read_table_ref, by their files' identity (path, size, mtime, inode): every
+#: model (every FMU instance) of a process shares one read-only copy instead of reading,
+#: verifying and allocating it again (which also fragmented the heap: RSS grew per instance).
+_READ_CACHE: dict = {}
+
+
+def _file_id(path: Path) -> tuple:
+    st = Path(path).stat()
+    return str(Path(path).resolve()), st.st_size, st.st_mtime_ns, st.st_ino
+
+
+def _read_cached(npz: Path, man: Path) -> Table:
+    try:
+        key = (_file_id(npz), _file_id(man))
+    except OSError:  # missing: read_table names the file
+        return read_table(npz=npz, manifest_path=man)
+    t = _READ_CACHE.get(key)
+    if t is None:
+        t = read_table(npz=npz, manifest_path=man)
+        for tab in (t, *t.one_at_a_time.values()):
+            for arr in (*tab.data.values(), *tab.refs.values(), *tab.axes.values()):
+                arr.flags.writeable = False
+        if len(_READ_CACHE) >= 8:
+            _READ_CACHE.pop(next(iter(_READ_CACHE)))
+        _READ_CACHE[key] = t
+    return t
+
+
 def read_table_ref(ref: str) -> Table:
     """The table a scene names: "default" (the default scene's, :data:`DEFAULT_TABLE`), a
-    name in SHIPPED_TABLES (millfmu/data/NAME_table.*), or PREFIX of PREFIX.npz/PREFIX.json."""
+    name in SHIPPED_TABLES (millfmu/data/NAME_table.*), or PREFIX of PREFIX.npz/PREFIX.json.
+    Read once per process and files (shared, arrays read-only)."""
     if ref == "default":
-        return read_default_table()
+        npz, man = default_table_paths()
+        if not npz.exists():
+            return read_default_table()  # names what is missing
+        return _read_cached(npz, man)
     prefix = str(table_ref_prefix(ref))
-    return read_table(npz=prefix + ".npz", manifest_path=prefix + ".json")
+    return _read_cached(Path(prefix + ".npz"), Path(prefix + ".json"))
 
 
 def table_ref_prefix(ref: str) -> Path:

@@ -1,0 +1,104 @@
+"""FMU instances leave nothing behind (issue 27): 250 cycles of instantiate, 10 steps, free
+grow the host's memory no more than a trivial FMU of the same library does (within 2 kB per
+cycle), and the FMI 2.0 script's class is made once per process, not once per instance."""
+
+from __future__ import annotations
+
+import json
+import subprocess
+
+import pytest
+
+from .fmu_support import ROOT, build, isolated_python, need_fmi3
+
+pytest.importorskip("fmpy")
+
+#: Run in a fresh interpreter without millfmu: RSS growth per cycle [kB] in four windows after
+#: 200 warm-up cycles (a leak grows in every window; the heap's settling does not: the least
+#: is compared), and how many slave classes of the FMU's model identifier exist.
+CYCLES = r'''
+import gc, json, sys
+from fmpy import extract, read_model_description
+path, cycles = sys.argv[1], int(sys.argv[2])
+md = read_model_description(path)
+v3 = md.fmiVersion.startswith("3")
+if v3:
+    from fmpy.fmi3 import FMU3Slave as S
+else:
+    from fmpy.fmi2 import FMU2Slave as S
+f = S(guid=md.guid, unzipDirectory=extract(path), modelIdentifier=md.coSimulation.modelIdentifier, instanceName="x")
+def rss():
+    with open("/proc/self/status") as fh:
+        return next(int(line.split()[1]) for line in fh if line.startswith("VmRSS"))
+def cycle():
+    f.instantiate()
+    if v3:
+        f.enterInitializationMode(startTime=0.0)
+    else:
+        f.setupExperiment(startTime=0.0); f.enterInitializationMode()
+    f.exitInitializationMode()
+    t = 0.0
+    for k in range(10):
+        f.doStep(t, 1.0); t += 1.0
+    f.terminate(); f.freeInstance()
+for _ in range(200):  # the heap settles (fragmentation, first-use caches) within a few hundred
+    cycle()
+windows = []
+for w in range(4):
+    gc.collect(); r0 = rss()
+    for _ in range(cycles):
+        cycle()
+    gc.collect(); windows.append((rss() - r0) / cycles)
+ident = md.coSimulation.modelIdentifier
+n_classes = sum(1 for o in gc.get_objects() if isinstance(o, type) and o.__name__ == ident)
+print("RESULT " + json.dumps({"kB_per_cycle": min(windows), "windows": windows, "classes": n_classes}), flush=True)
+# Out without the interpreter's finalization: after many FMI 3.0 instances it aborts in about
+# 1 of 10 runs ("corrupted double-linked list", with the code before this test's fixes too),
+# a fault of its own, not what this test measures.
+import os
+os._exit(0)
+'''
+
+
+def _growth(python, fmu, cwd, cycles=150):
+    import os
+
+    env = {k: v for k, v in os.environ.items() if k not in ("PYTHONPATH", "PYTHONHOME")}
+    r = subprocess.run([python, "-c", CYCLES, str(fmu), str(cycles)], capture_output=True, text=True, cwd=str(cwd), env=env, timeout=600)
+    assert r.returncode == 0, r.stderr[-3000:]
+    line = [ln for ln in r.stdout.splitlines() if ln.startswith("RESULT ")][-1]
+    return json.loads(line[len("RESULT "):])
+
+
+@pytest.mark.parametrize("fmi_version", [2, 3])
+def test_instances_leave_no_more_behind_than_a_trivial_fmu(tmp_path, fmi_version):
+    if fmi_version == 3:
+        need_fmi3()
+    from fmu_build.step_cost import _floor
+
+    mill = build(None, tmp_path / f"mill{fmi_version}.fmu", fmi_version=fmi_version)
+    floor = _floor(tmp_path, fmi_version, 100, 114, 14)
+    python = isolated_python(tmp_path)
+    m, t = _growth(python, mill, tmp_path), _growth(python, floor, tmp_path)
+    print(f"FMI {fmi_version}: RSS growth per cycle (least of 4 windows of 150 cycles): mill {m['kB_per_cycle']:.2f} kB "
+          f"{m['windows']}, trivial FMU {t['kB_per_cycle']:.2f} kB {t['windows']}")
+    assert m["kB_per_cycle"] <= t["kB_per_cycle"] + 2.0, (m, t)
+    if fmi_version == 2:
+        assert m["classes"] == 1, m  # the script's class, made once
+
+
+def test_models_of_a_process_share_one_read_only_table(scene_dict):
+    """Each FMU instance builds a MillModel; the table it reads is read once per process and
+    files (re-reading, verifying and allocating it per instance made the heap grow)."""
+    import numpy as np
+
+    from millfmu.mill import MillModel
+    from tests.conftest import make_scene
+
+    a, b = MillModel(make_scene(scene_dict)), MillModel(make_scene(scene_dict))
+    if a.source is None or not hasattr(a.source, "table"):
+        pytest.skip("the default scene reads no table")
+    assert a.source.table is b.source.table
+    arr = next(iter(a.source.table.data.values()))
+    with pytest.raises(ValueError):
+        arr[(0,) * arr.ndim] = np.nan
