@@ -135,6 +135,15 @@ def process_section(out: Path, quick: bool, log=print) -> str:
     fig.tight_layout()
     fig.savefig(out / "process_sizes.png", dpi=80)
     plt.close(fig)
+    zone_html = _zone_map(out, model)
+    from .runner import prediction_band
+
+    band = prediction_band(scene)
+    if band is not None and "x50_m" in band["outputs"]:
+        lo, hi = band["outputs"]["x50_m"]
+        zone_html = (f"<p>Prediction band from the stress-energy table's stated error: x50 after {band['t_s']:g} s "
+                     f"{records[-1]['x50_m'] * 1e6:.3g} \u00b5m in [{lo * 1e6:.3g}, {hi * 1e6:.3g}] \u00b5m (two runs with every "
+                     f"zone's collision rate and median energy at the edges of its stated error).</p>") + zone_html
     idx = np.unique(np.linspace(0, len(records) - 1, min(8, len(records))).round().astype(int))
     rows = [[f"{records[i]['t_s']:g}", _fmt(records[i]["x10_m"] * 1e6, ".3g", None), _fmt(records[i]["x50_m"] * 1e6, ".3g", None),
              _fmt(records[i]["x90_m"] * 1e6, ".3g", None), _fmt(e_m[i], ".3g", None),
@@ -150,7 +159,69 @@ def process_section(out: Path, quick: bool, log=print) -> str:
         '<img src="process_psd.png" alt="size distribution over time">',
         '<img src="process_sizes.png" alt="x10, x50, x90 against time and specific energy">',
         _table(["time [s]", "x10 [\u00b5m]", "x50 [\u00b5m]", "x90 [\u00b5m]", "specific energy [kJ/kg]", "power [W]",
-                "below the size grid [%]"], rows)])
+                "below the size grid [%]"], rows), zone_html])
+
+
+def _zone_map(out: Path, model) -> str:
+    """The zones V1-V4 of the DEM slice behind the default scene's table, drawn on a half
+    section of the mill (radius against axial position) and coloured with the table's
+    collision rate and median stress energy there at the scene's operating point, with
+    their stated relative error; '' for a model without a DEM table."""
+    src = model.source
+    table = getattr(src, "table", None)
+    if table is None or (table.manifest.get("scene") or {}).get("kind") != "disc_slice":
+        return ""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    import numpy as np
+    from matplotlib.colors import LogNorm
+
+    from .dem.mills.zones import Zones
+    from .dem.scene import scene_from_dict
+
+    dem = scene_from_dict(table.manifest["scene"])
+    zones = Zones(dem.geometry, dem.zones)
+    g = dem.geometry
+    op = model.operating_point(model.inputs)
+    zs = src.zones(op)
+    err = src.relative_error()
+    r = np.linspace(g.shaft_radius_m, g.chamber_radius_m, 300)
+    z = np.linspace(g.disc_z_m - 0.5 * g.height_m, g.disc_z_m + 0.5 * g.height_m, 300)
+    rr, zz = np.meshgrid(r, z)
+    zid = zones.classify(np.column_stack([rr.ravel(), np.zeros(rr.size), zz.ravel()])).reshape(rr.shape)
+    fields = (("collision rate [1/(m3 s)]", np.array([q.collision_rate_per_m3_s for q in zs]), err["collision_frequency"]),
+              ("median stress energy SE [J]", np.array([q.median_energy_J for q in zs]), err["se_median"]))
+    fig, axes = plt.subplots(1, 2, figsize=(12.5, 4.6))
+    for ax, (label, vals, rel) in zip(axes, fields):
+        img = np.where(zid >= 0, vals[np.clip(zid, 0, None)], np.nan)
+        ok = vals[vals > 0]
+        m = ax.pcolormesh(zz * 1e3, rr * 1e3, img, shading="auto", cmap="viridis",
+                          norm=LogNorm(ok.min(), ok.max()) if ok.size and ok.max() > ok.min() else None)
+        disc = (np.abs(zz - g.disc_z_m) < 0.5 * g.disc_thickness_m) & (rr < g.disc_radius_m)
+        ax.contourf(zz * 1e3, rr * 1e3, disc.astype(float), levels=[0.5, 1.5], colors=["0.55"])
+        for k, name in enumerate(zones.names):
+            # labelled on one side of the disc (the zones are mirror images about it)
+            sel = (zid == k) & (zz > g.disc_z_m + 0.5 * g.disc_thickness_m)
+            if sel.any():
+                e = rel[k]
+                ax.text(float(np.median(zz[sel])) * 1e3, float(np.median(rr[sel])) * 1e3,
+                        f"{name}\n{vals[k]:.2g}" + (f"\n\u00b1{e:.0%}" if np.isfinite(e) else ""),
+                        ha="center", va="center", fontsize=8, color="white",
+                        bbox=dict(boxstyle="round,pad=0.2", fc="black", alpha=0.45, lw=0))
+        ax.set(xlabel="axial position z [mm] (disc in grey)", ylabel="radius r [mm]", title=label)
+        fig.colorbar(m, ax=ax, shrink=0.9)
+    fig.suptitle(f"DEM zones of the default scene's table at {op.tip_speed_m_per_s:g} m/s and {100 * model.inputs['bead_filling']:g} % "
+                 f"filling (component {src.component}; \u00b1: stated relative error)", fontsize=10)
+    fig.tight_layout()
+    fig.savefig(out / "process_zones.png", dpi=80)
+    plt.close(fig)
+    return ("<p>Where the stresses come from: the table's zones on a half section of the mill (one disc, "
+            "axially periodic), each with its collision rate and the median of its stress energies at the scene's "
+            "operating point and their stated relative error (interpolation and DEM sampling at the point, plus the "
+            "table's work-precision error), which the run's prediction band carries.</p>"
+            '<img src="process_zones.png" alt="zone map of collision rate and median stress energy">')
 
 
 def _what_psd_text(model) -> str:
