@@ -9,15 +9,7 @@ import shutil
 import tempfile
 from pathlib import Path
 
-
-def _alive(pid: int) -> bool:
-    try:
-        os.kill(pid, 0)
-    except ProcessLookupError:
-        return False
-    except OSError:
-        return True
-    return True
+from millfmu.runner import pid_alive
 
 
 def tag(prefix: str) -> str:
@@ -36,7 +28,7 @@ def clean(folder: str | Path, prefix: str) -> list[Path]:
         if not p.name.startswith(prefix):
             continue
         pid = p.name[len(prefix):].split("_", 1)[0]
-        if not pid.isdigit() or int(pid) == os.getpid() or _alive(int(pid)):
+        if not pid.isdigit() or int(pid) == os.getpid() or pid_alive(int(pid)):
             continue
         if p.is_dir() and not p.is_symlink():
             shutil.rmtree(p, ignore_errors=True)

@@ -315,7 +315,7 @@ def compute(scene, name: str | None = None, sizes_m=None, values: dict | None = 
     w_feed = psd_fractions(simple.grid, scene.feed)
 
     curves = {}
-    for p, (_label, _unit, _sec, _key, field, _tax) in PARAMETERS.items():
+    for p, (_label, _unit, _sec, _key, op_field, _tax) in PARAMETERS.items():
         vals = _values(p, reference[p], values.get(p))
         for model_name in MODELS:
             m = simple if model_name == "simple" else detailed_models[p]
@@ -327,7 +327,7 @@ def compute(scene, name: str | None = None, sizes_m=None, values: dict | None = 
             se, sep = np.empty(n), np.empty(n)
             sources, notes, band_q = [], [], {}
             for k, v in enumerate(vals):
-                op = replace(op_ref, **{field: float(v)})
+                op = replace(op_ref, **{op_field: float(v)})
                 se[k], sep[k] = op.se_beads_J, op.se_product_J
                 label = "Kwade: SE_P per stress, SF = k_c omega n_gb P_cap / (n_p (1 - c_v))" if model_name == "simple" \
                     else coverage[p].label(float(v))

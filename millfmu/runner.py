@@ -80,7 +80,8 @@ def check_out_dir(out_dir) -> Path:
     return out
 
 
-def _pid_alive(pid: int) -> bool:
+def pid_alive(pid: int) -> bool:
+    """Whether a process of this id runs (one of another user counts as running)."""
     try:
         os.kill(pid, 0)
     except ProcessLookupError:
@@ -104,7 +105,7 @@ def clean_leftovers(parent: Path) -> list[Path]:
         if not name.startswith(TEMP_PREFIX) or not p.is_dir() or p.is_symlink():
             continue
         pid, _, rest = name[len(TEMP_PREFIX):].partition("-")
-        if not pid.isdigit() or int(pid) == os.getpid() or _pid_alive(int(pid)):
+        if not pid.isdigit() or int(pid) == os.getpid() or pid_alive(int(pid)):
             continue
         kind, _, target = rest.partition("-")
         if kind == "old" and target and not (p.parent / target).exists():

@@ -22,7 +22,7 @@ from ..run import run_scene
 from ..scene import load_scene_dict, scene_from_dict
 from .cache import dem_kernel_version, get_table
 from .spec import (COMPONENTS, DEM_BUILDER_ID, DRIFT_FIELDS, QUANTILE_NAMES, TableError,
-                   TableSpec, builder_id_of, e_ref_J, n_gb_per_m3, norm_log10_edges,
+                   TableSpec, e_ref_J, n_gb_per_m3, norm_log10_edges,
                    scene_at_point)
 from .table import Table
 
