@@ -36,7 +36,7 @@ else:  # pragma: no cover
 import millfmu
 from millfmu.dem.tables.table import read_table_ref
 from millfmu.mill import MillModel
-from millfmu.scene import default_scene_text, load_scene
+from millfmu.scene import default_scene_text, load_scene, toml_text
 
 from . import fmi3_wrapper
 from .leftovers import clean, tag, temp_dir
@@ -193,34 +193,6 @@ def _needed_modules(scene_path: Path, fmi_version: int = 2) -> dict:
     if bad:
         raise RuntimeError(f"the scene's model imports {', '.join(bad)}, which an FMU must not carry")
     return info["modules"]
-
-
-def toml_text(d: dict) -> str:
-    """TOML text of a scene dict (tables, numbers, strings, booleans, lists of numbers)."""
-
-    def val(v):
-        if isinstance(v, bool):
-            return "true" if v else "false"
-        if isinstance(v, str):
-            return json.dumps(v)
-        if isinstance(v, float) and v in (float("inf"), float("-inf")):
-            return "inf" if v > 0 else "-inf"
-        if isinstance(v, list):
-            return "[" + ", ".join(val(x) for x in v) + "]"
-        return repr(v)
-
-    lines: list = []
-
-    def table(prefix, t):
-        if prefix:
-            lines.append(f"[{prefix}]")
-        lines.extend(f"{k} = {val(v)}" for k, v in t.items() if not isinstance(v, dict))
-        for k, v in t.items():
-            if isinstance(v, dict):
-                table(f"{prefix}.{k}" if prefix else k, v)
-
-    table("", d)
-    return "\n".join(lines) + "\n"
 
 
 def _slug(text: str) -> str:

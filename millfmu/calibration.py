@@ -46,7 +46,7 @@ from pathlib import Path
 import numpy as np
 
 from .mill import MillModel, StepError
-from .scene import Scene, load_scene, scene_to_dict
+from .scene import Scene, load_scene, scene_to_dict, toml_text, toml_value
 
 
 class CalibrationError(ValueError):
@@ -533,14 +533,14 @@ def set_toml_values(text: str, values: dict) -> str:
         m = _LINE.match(ln)
         if m and f"{section}.{m.group(2)}" in todo:
             v = todo.pop(f"{section}.{m.group(2)}")
-            lines[i] = f"{m.group(1)}{m.group(2)}{m.group(3)}{_toml_value(v)}{m.group(5)}"
+            lines[i] = f"{m.group(1)}{m.group(2)}{m.group(3)}{toml_value(v)}{m.group(5)}"
     for key, v in todo.items():
         sec, name = key.rsplit(".", 1)
         idx = next((i for i, ln in enumerate(lines) if (h := _HEADER.match(ln)) and h.group(1) == sec), None)
         if idx is None:
-            lines += ["", f"[{sec}]", f"{name} = {_toml_value(v)}"]
+            lines += ["", f"[{sec}]", f"{name} = {toml_value(v)}"]
         else:
-            lines.insert(idx + 1, f"{name} = {_toml_value(v)}")
+            lines.insert(idx + 1, f"{name} = {toml_value(v)}")
     return "\n".join(lines) + "\n"
 
 
@@ -553,34 +553,7 @@ def _scene_text(scene: Scene, scene_path) -> str:
         return default_scene_text()
     if scene_path is not None:
         return Path(scene_path).read_text(encoding="utf-8")
-    return _to_toml(scene_to_dict(scene))
-
-
-def _toml_value(v) -> str:
-    if isinstance(v, bool):
-        return "true" if v else "false"
-    if isinstance(v, (int, float)):
-        return repr(v)
-    if isinstance(v, str):
-        return json.dumps(v)
-    if isinstance(v, (list, tuple)):
-        return "[" + ", ".join(_toml_value(x) for x in v) + "]"
-    raise TypeError(type(v))
-
-
-def _to_toml(d: dict, prefix: str = "") -> str:
-    """A scene dict as TOML (scalars first, then sub-tables)."""
-    out = []
-    scal = {k: v for k, v in d.items() if not isinstance(v, dict)}
-    if prefix and scal:
-        out.append(f"[{prefix}]")
-    out += [f"{k} = {_toml_value(v)}" for k, v in scal.items()]
-    for k, v in d.items():
-        if isinstance(v, dict):
-            if out:
-                out.append("")
-            out.append(_to_toml(v, f"{prefix}.{k}" if prefix else k).rstrip("\n"))
-    return "\n".join(out) + "\n"
+    return toml_text(scene_to_dict(scene))
 
 
 def write(cal: Calibration, out_dir, scene_path=None) -> list:

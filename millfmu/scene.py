@@ -9,6 +9,7 @@ and what is allowed. ``millfmu scene-keys`` lists every key with unit, default a
 from __future__ import annotations
 
 import copy
+import json
 import math
 import sys
 from dataclasses import MISSING, dataclass, field, fields, is_dataclass
@@ -480,3 +481,32 @@ def iter_keys(cls=Scene, prefix="", default_obj=MISSING):
         default = value
         allowed = _describe(md) if f.type in ("float", "int", float, int) or md["choices"] else str(f.type)
         yield key, md.get("unit", ""), default, allowed, md.get("doc", "")
+
+
+def toml_value(v) -> str:
+    """A scene value as TOML (numbers, strings, booleans, infinities, lists of them)."""
+    if isinstance(v, bool):
+        return "true" if v else "false"
+    if isinstance(v, str):
+        return json.dumps(v)
+    if isinstance(v, float) and v in (float("inf"), float("-inf")):
+        return "inf" if v > 0 else "-inf"
+    if isinstance(v, (list, tuple)):
+        return "[" + ", ".join(toml_value(x) for x in v) + "]"
+    return repr(v)
+
+
+def toml_text(d: dict) -> str:
+    """TOML text of a scene dict (tables, numbers, strings, booleans, lists of numbers)."""
+    lines: list = []
+
+    def table(prefix, t):
+        if prefix:
+            lines.append(f"[{prefix}]")
+        lines.extend(f"{k} = {toml_value(v)}" for k, v in t.items() if not isinstance(v, dict))
+        for k, v in t.items():
+            if isinstance(v, dict):
+                table(f"{prefix}.{k}" if prefix else k, v)
+
+    table("", d)
+    return "\n".join(lines) + "\n"
