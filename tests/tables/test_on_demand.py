@@ -84,3 +84,26 @@ def test_the_progress_line_counts_down_while_a_point_runs(tmp_path, monkeypatch,
     err = capsys.readouterr().err
     lefts = [line for line in err.replace("\r", "\n").splitlines() if "left" in line]
     assert len(lefts) >= 10  # refreshed while the points ran (measured 21), not only when one finished (6)
+
+
+def test_a_build_over_a_finished_table_knows_its_seconds_per_cost(tmp_path, monkeypatch):
+    """The time left of a build that extends a finished table (a refine command, an
+    on-demand point) starts from what that table's points took, before its own first point."""
+    import millfmu.dem.tables.cache as C
+    from tests.tables._builders import FakeDemBuilder
+
+    monkeypatch.setattr(C, "dem_kernel_version", lambda: "k")
+    small = T.TableSpec(scene={"name": "analytic"}, grid={"tip_speed_m_s": [6.0, 10.0]}, kernel_version="k",
+                        builder_id=T.DEM_BUILDER_ID)
+    done = T.get_table(small, FakeDemBuilder(), cache_dir=tmp_path / "a", executor="serial", progress=False)
+    seen, real = {}, C.build_table
+
+    def capture(spec, builder, **kw):
+        seen.update(kw)
+        return real(spec, builder, **kw)
+
+    monkeypatch.setattr(C, "build_table", capture)
+    big = T.TableSpec(scene={"name": "analytic"}, grid={"tip_speed_m_s": [6.0, 10.0, 14.0]}, kernel_version="k",
+                      builder_id=T.DEM_BUILDER_ID)
+    T.get_table(big, FakeDemBuilder(), cache_dir=tmp_path / "b", executor="serial", progress=False, seed_from=(done,))
+    assert seen["seconds_per_cost"] == FakeDemBuilder.seconds_per_cost

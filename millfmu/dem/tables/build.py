@@ -215,6 +215,32 @@ def duration(s: float | None) -> str:
     return f"{s / 3600:.1f} h"
 
 
+def seconds_per_cost(table: Table, builder) -> float | None:
+    """Seconds per unit of ``builder.relative_cost`` from what the table's points took
+    (manifest ``points_wall_time_s`` over the summed cost of its points); None where the
+    table or the builder does not say."""
+    wall = table.manifest.get("points_wall_time_s")
+    cost = getattr(builder, "relative_cost", None)
+    if not isinstance(wall, (int, float)) or not wall > 0 or cost is None:
+        return None
+    spec = table.spec()
+    costs = relative_costs(builder, spec.scene, spec.points())
+    total = sum(costs) if costs is not None else 0.0
+    return float(wall) / total if total > 0 else None
+
+
+def relative_costs(builder, scene: dict, points: list) -> list | None:
+    """``builder.relative_cost`` of each point; None where the builder has no estimate or
+    cannot make one for this scene (e.g. the DEM's for a scene that is not a DEM scene)."""
+    cost = getattr(builder, "relative_cost", None)
+    if cost is None:
+        return None
+    try:
+        return [float(cost(scene, p)) for p in points]
+    except (ValueError, KeyError, TypeError):
+        return None
+
+
 class BuildProgress:
     """Where a build stands, in words: points done of the total, the share of the build's
     cost that the running point(s) hold, and an estimated time left.

@@ -25,7 +25,7 @@ import time
 from pathlib import Path
 from typing import Callable
 
-from .build import PointStore, build_table
+from .build import PointStore, build_table, seconds_per_cost
 from .files import fsync_dir
 from .spec import DEM_BUILDER_ID, FORMAT_VERSION, TableError, TableSpec, manifest_for
 from .table import Table, read_table
@@ -183,9 +183,16 @@ def get_table(spec: TableSpec, builder: Callable, cache_dir=None, force: bool = 
                 log(f"rebuilding cache entry {key[:12]}: {e}")
         store = run_kw.setdefault("point_store", PointStore(root / POINTS_DIR, reuse=not force))
         if store is not None and store.reuse:
-            seeded = sum(store.seed(t) for t in (*seed_from, *seed_tables(spec)))
+            seeds = (*seed_from, *seed_tables(spec))
+            seeded = sum(store.seed(t) for t in seeds)
             if seeded and log is not None:
                 log(f"point store: {seeded} point(s) taken from finished tables")
+            if "seconds_per_cost" not in run_kw:
+                # the time left of a build over a finished table's scene and kernel, from the
+                # time its points took (before this build's first point finishes)
+                spc = [x for x in (seconds_per_cost(t, builder) for t in seeds) if x is not None]
+                if spc:
+                    run_kw["seconds_per_cost"] = spc[0]
         table = build_table(spec, builder, **run_kw)
         tmp = Path(tempfile.mkdtemp(prefix=f".tmp-{key[:16]}-", dir=root))
         try:

@@ -22,7 +22,7 @@ from __future__ import annotations
 import os
 from dataclasses import dataclass
 from . import cache as _cache
-from .build import PointStore, duration, stored_results
+from .build import PointStore, duration, relative_costs, seconds_per_cost, stored_results
 from .spec import DEM_BUILDER_ID, TableError, TableSpec, builder_id_of
 from .table import Table
 
@@ -66,32 +66,6 @@ def default_builder(table: Table):
     from .dem_builder import DemBuilder
 
     return DemBuilder(work_precision=table.manifest.get("work_precision"))
-
-
-def seconds_per_cost(table: Table, builder) -> float | None:
-    """Seconds per unit of ``builder.relative_cost`` from what the table's points took
-    (manifest ``points_wall_time_s`` over the summed cost of its points); None where the
-    table or the builder does not say."""
-    wall = table.manifest.get("points_wall_time_s")
-    cost = getattr(builder, "relative_cost", None)
-    if not isinstance(wall, (int, float)) or not wall > 0 or cost is None:
-        return None
-    spec = table.spec()
-    costs = relative_costs(builder, spec.scene, spec.points())
-    total = sum(costs) if costs is not None else 0.0
-    return float(wall) / total if total > 0 else None
-
-
-def relative_costs(builder, scene: dict, points: list) -> list | None:
-    """``builder.relative_cost`` of each point; None where the builder has no estimate or
-    cannot make one for this scene (e.g. the DEM's for a scene that is not a DEM scene)."""
-    cost = getattr(builder, "relative_cost", None)
-    if cost is None:
-        return None
-    try:
-        return [float(cost(scene, p)) for p in points]
-    except (ValueError, KeyError, TypeError):
-        return None
 
 
 @dataclass
