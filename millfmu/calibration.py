@@ -45,7 +45,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .mill import MillModel, StepError
+from .mill import MillModel, StepError, q3_at_edges
 from .scene import Scene, load_scene, scene_to_dict, toml_text, toml_value
 
 
@@ -249,8 +249,7 @@ class _Predictor:
         for t, col, x, _v in self.data.rows:
             out = at[t]
             if col == "Q3":
-                q3 = np.concatenate(([out["below_grid_fraction"]], out["below_grid_fraction"] + np.cumsum(out["psd"])))
-                res.append(float(np.interp(math.log(x), e, q3)))
+                res.append(float(np.interp(math.log(x), e, q3_at_edges(out))))
             else:
                 if col not in out:
                     raise CalibrationError(f"{self.data.source}: scene {scene.scene.name!r} has no output {col}")

@@ -97,6 +97,12 @@ def check_psd_on_grid(grid: kgrid.SizeGrid, p: PSD, key: str, source: str) -> fl
     return below
 
 
+def q3_at_edges(out: dict) -> np.ndarray:
+    """Q3 [-] at every class edge from a step's outputs, the lowest edge's being the mass
+    below the grid (the psd's finest class already holds that mass)."""
+    return np.concatenate(([out["below_grid_fraction"]], np.cumsum(out["psd"])))
+
+
 def build_material(s: Scene):
     m = s.material
     brk = materials.AustinBreakage(m.breakage.phi, m.breakage.gamma, m.breakage.beta)

@@ -24,7 +24,7 @@ from pathlib import Path
 import numpy as np
 
 from . import __version__
-from .mill import MillModel
+from .mill import MillModel, q3_at_edges
 from .scene import Scene, scene_to_dict
 
 #: Every file a run writes into its output folder (the plots only with plots on).
@@ -235,7 +235,7 @@ def simulate(scene: Scene, progress: bool = True, table_error_multiple: float = 
         values = {**out, "total_mass_kg": model.total_mass_kg()}
         records.append({k: float(values[k]) for k in RESULT_KEYS if k in values})
         # Q3 at every edge, the lowest one included (the mass below the grid).
-        psds.append(np.concatenate(([out["below_grid_fraction"]], np.cumsum(out["psd"]))))
+        psds.append(q3_at_edges(out))
 
     profile = bool(r.tip_speed_profile)
     if profile:
