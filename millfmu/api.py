@@ -140,7 +140,6 @@ def run(scene: Scene | str | Path | dict | None = None, overrides: dict | None =
     run.t_end_s at run.dt_s steps, recording every run.output_interval_s; returns a :class:`Result`."""
     if not isinstance(scene, Scene) or overrides:
         scene = load_scene(scene, overrides)
-    MillModel(scene).cover_scene_point()  # an on-demand table build refused as a SceneError, not in a step
     t0 = time.perf_counter()
     model, records, psds = simulate(scene, progress=progress)
     wall = time.perf_counter() - t0

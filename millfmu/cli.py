@@ -34,10 +34,8 @@ def _cmd_run(args) -> int:
     if args.on_stale is not None:
         scene = with_on_stale(scene, args.on_stale)
     check_out_dir(args.out)  # OutputError -> exit 2 before running
-    first = MillModel(scene)
-    for w in first.warnings:  # the data's warnings before a long run, not after
+    for w in MillModel(scene).warnings:  # the data's warnings before a long run, not after
         print(f"millfmu: warning: {w}", file=sys.stderr)
-    first.cover_scene_point()  # an on-demand build before the run (SceneError -> exit 2)
     t0 = time.perf_counter()
     model, records, psds = simulate(scene, progress=not args.quiet)
     wall = time.perf_counter() - t0

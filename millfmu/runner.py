@@ -226,6 +226,7 @@ def simulate(scene: Scene, progress: bool = True, table_error_multiple: float = 
     """Run the scene; returns (model, records, psd rows) with one record per output time.
     ``table_error_multiple``: see :class:`MillModel` (the prediction band's edges)."""
     model = MillModel(scene, table_error_multiple=table_error_multiple)
+    model.cover_scene_point()  # an on-demand table build before the first step (SceneError if it cannot be built)
     r = scene.run
     n_steps = int(math.ceil(r.t_end_s / r.dt_s - 1e-9))
     every = max(1, int(round(r.output_interval_s / r.dt_s)))

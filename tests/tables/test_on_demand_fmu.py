@@ -71,7 +71,7 @@ def test_build_fmu_carries_the_table_that_covers_the_scene(tmp_path, monkeypatch
 
 def test_a_point_the_dem_cannot_build_is_refused_before_the_run(monkeypatch):
     """With on_outside = 'build' the scene's own point is built before a run
-    (cover_scene_point, which millfmu run and millfmu.run call), so a build that fails (e.g.
+    (cover_scene_point, which every run's simulate calls first), so a build that fails (e.g.
     1.4 mm beads that do not fit the table's 10-degree cell) is a SceneError naming
     on_outside and the reason, never an error inside the first step."""
     import millfmu.dem.tables.dem_builder as db
