@@ -127,6 +127,15 @@ class RatesResult:
         with np.errstate(divide="ignore", invalid="ignore"):
             return r / ref if ref > 0.0 else np.full_like(r, math.nan)
 
+    def band_relative(self, parameter: str, quantity: str) -> tuple:
+        """The detailed model's band (lower, upper) over its rate at the reference point [-],
+        or () without a band or a reference rate."""
+        c = self.curve(parameter, "detailed")
+        ref = c.rates[quantity][self.reference_index(parameter)]
+        if quantity not in c.band or not ref > 0.0:
+            return ()
+        return tuple(b / ref for b in c.band[quantity])
+
     def rows(self):
         """CSV rows (dicts keyed by :data:`CSV_COLUMNS`)."""
         material = self.scene.material.model
@@ -285,7 +294,6 @@ def compute(scene, name: str | None = None, sizes_m=None, values: dict | None = 
     ``values``: parameter -> values to use instead of :data:`DEFAULT_VALUES`;
     ``detailed_scene``: the detailed model's own scene at the same point (a calibrated pair
     whose material constants differ), else ``scene`` with the detailed model."""
-    from .kinetics import rates as krates
     from .kinetics import stress as kstress
     from .mill import MillModel, psd_fractions
     from .scene import SceneError
@@ -332,8 +340,7 @@ def compute(scene, name: str | None = None, sizes_m=None, values: dict | None = 
                 label = "Kwade: SE_P per stress, SF = k_c omega n_gb P_cap / (n_p (1 - c_v))" if model_name == "simple" \
                     else coverage[p].label(float(v))
                 try:
-                    s_x = krates.selection_per_s(model_name, m.material, op, x, None, src)
-                    s_nodes = krates.selection_per_s(model_name, m.material, op, m.operator.nodes_m, None, src) if is_cells else None
+                    rate = _rates_at(model_name, m, op, x, sizes, w_feed if is_cells else None)
                     coll = None if model_name == "simple" else _collision_rate(src, op)
                 except ValueError as e:  # a table that refuses the point (outside its grid)
                     sources.append("refused")
@@ -343,31 +350,41 @@ def compute(scene, name: str | None = None, sizes_m=None, values: dict | None = 
                 p_cap = kstress.capture_probability(op.class_number_concentration_per_m3(x), kstress.active_volume_m3(x, op.d_gb_m))
                 for i, xs in enumerate(sizes):
                     q = _size_key(xs)
-                    rates_q[q][k], sf_q[q][k], pcap_q[q][k] = s_x[i], sf_x[i], p_cap[i]
+                    sf_q[q][k], pcap_q[q][k] = sf_x[i], p_cap[i]
                 if is_cells:
                     sf_nodes = op.stress_frequency_per_s(m.operator.nodes_m, None, coll)
-                    rates_q["disruption_rate"][k] = float(w_feed @ m.operator.class_rates(s_nodes))
                     sf_q["disruption_rate"][k] = float(w_feed @ m.operator.class_rates(sf_nodes))
+                for q, r in rate.items():
+                    rates_q[q][k] = r
                 sources.append(label)
                 notes.append("; ".join(getattr(src, "last_notes", []) or []) if model_name == "detailed" else "")
                 if model_name == "detailed" and hasattr(src, "error_multiple"):
+                    # the band: every zone at the lower and the upper edge of its stated error
                     for j, sign in enumerate((-1.0, 1.0)):
                         src.error_multiple = sign
                         try:
-                            sb_x = krates.selection_per_s(model_name, m.material, op, x, None, src)
-                            if is_cells:
-                                sb_nodes = krates.selection_per_s(model_name, m.material, op, m.operator.nodes_m, None, src)
+                            edge = _rates_at(model_name, m, op, x, sizes, w_feed if is_cells else None)
                         finally:
                             src.error_multiple = 0.0
-                        for i, xs in enumerate(sizes):
-                            band_q.setdefault(_size_key(xs), (np.full(n, math.nan), np.full(n, math.nan)))[j][k] = sb_x[i]
-                        if is_cells:
-                            band_q.setdefault("disruption_rate", (np.full(n, math.nan), np.full(n, math.nan)))[j][k] = \
-                                float(w_feed @ m.operator.class_rates(sb_nodes))
+                        for q, r in edge.items():
+                            band_q.setdefault(q, (np.full(n, math.nan), np.full(n, math.nan)))[j][k] = r
             curves[(p, model_name)] = Curve(p, model_name, vals, rates_q, sf_q, pcap_q, se, sep, sources, notes, band_q)
     constants = {"k_c": scene.mill.stress_frequency_factor,
                  "energy_transfer": (detailed_scene or scene).kinetics.energy_transfer}
     return RatesResult(name or scene.scene.name, scene, reference, sizes, quantities, curves, constants, desc)
+
+
+def _rates_at(model_name, m, op, x, sizes, w_feed) -> dict:
+    """The model's rate per quantity [1/s] at ``op`` with its source as it stands: S at each
+    size of ``sizes`` (nodes ``x``), and with ``w_feed`` (cells) the feed's disruption rate."""
+    from .kinetics import rates as krates
+
+    s_x = krates.selection_per_s(model_name, m.material, op, x, None, m.source)
+    out = {_size_key(xs): s_x[i] for i, xs in enumerate(sizes)}
+    if w_feed is not None:
+        s_nodes = krates.selection_per_s(model_name, m.material, op, m.operator.nodes_m, None, m.source)
+        out["disruption_rate"] = float(w_feed @ m.operator.class_rates(s_nodes))
+    return out
 
 
 def _collision_rate(source, op) -> float:
@@ -454,11 +471,9 @@ def plot(result: RatesResult, path):
                 rel = result.relative(p, m, q)
                 xv = cur.values * scale
                 ax.plot(xv, rel, style, color=c, label=f"{m}, {_qlabel(q)}")
-                if m == "detailed" and q in cur.band:
-                    ref = cur.rates[q][result.reference_index(p)]
-                    if ref > 0.0:
-                        ax.fill_between(xv, cur.band[q][0] / ref, cur.band[q][1] / ref, color=c, alpha=0.15, lw=0,
-                                        label=f"detailed, {_qlabel(q)}: table's stated error")
+                band = result.band_relative(p, q) if m == "detailed" else ()
+                if band:
+                    ax.fill_between(xv, *band, color=c, alpha=0.15, lw=0, label=f"detailed, {_qlabel(q)}: table's stated error")
                 if m == "detailed":
                     sim = np.array(["similarity" in s for s in cur.sources])
                     ax.plot(xv[~sim], rel[~sim], "s", color=c, ms=4)
@@ -468,8 +483,7 @@ def plot(result: RatesResult, path):
         ax.axvline(result.reference[p] * scale, color="0.6", lw=0.8, ls=":")
         ax.axhline(1.0, color="0.8", lw=0.6)
         shown = np.concatenate([result.relative(p, m, q) for q in qs for m in MODELS]
-                               + [b / r[result.reference_index(p)] for q in qs for b in result.curve(p, "detailed").band.get(q, ())
-                                  for r in (result.curve(p, "detailed").rates[q],) if r[result.reference_index(p)] > 0.0])
+                               + [b for q in qs for b in result.band_relative(p, q)])
         shown = shown[np.isfinite(shown) & (shown > 0.0)]
         if shown.size and shown.max() / shown.min() > 10.0:  # a decade or more: log scale
             ax.set_yscale("log")
