@@ -45,6 +45,7 @@ from pathlib import Path
 
 import numpy as np
 
+from .api import load_scene as load_any
 from .mill import MillModel, StepError, q3_at_edges
 from .scene import Scene, load_scene, scene_to_dict, toml_text, toml_value
 
@@ -213,9 +214,7 @@ def _check_scene(scene: Scene):
 
 def with_values(scene: Scene, values: dict) -> Scene:
     """The scene with dotted keys set to ``values`` (validated as a scene file is)."""
-    from .api import load_scene as _load
-
-    return _load(scene, overrides={k: float(v) for k, v in values.items()})
+    return load_any(scene, overrides={k: float(v) for k, v in values.items()})
 
 
 class _Predictor:
@@ -378,9 +377,7 @@ def calibrate(scene, data, fit, start: dict | None = None, progress=None) -> Cal
     from scipy.optimize import least_squares
 
     if not isinstance(scene, Scene):
-        from .api import load_scene as _load
-
-        scene = _load(scene)
+        scene = load_any(scene)
     if not isinstance(data, Data):
         data = parse_data(data, "data") if isinstance(data, str) and "\n" in data else read_data(data)
     keys = _resolve_fit(scene, fit)
@@ -438,7 +435,7 @@ def calibrate(scene, data, fit, start: dict | None = None, progress=None) -> Cal
     notes = []
     if data.feed_rows:
         notes.append(f"{data.feed_rows} row(s) at t_s = 0 describe the feed (the scene's) and were not fitted")
-    sd = corr = None
+    sd = corr = tq = None
     if dof > 0:
         s2 = float(r @ r) / dof
         cov = s2 * np.linalg.inv(J.T @ J)
@@ -461,10 +458,7 @@ def calibrate(scene, data, fit, start: dict | None = None, progress=None) -> Cal
         notes.append("as many values as constants: the exact solution, no interval (no residual degree of freedom)")
     fitted = {}
     for j, k in enumerate(keys):
-        ci = None
-        if sd is not None:
-            tq = float(stats.t.ppf(0.975, dof))
-            ci = (math.exp(x[j] - tq * sd[j]), math.exp(x[j] + tq * sd[j]))
+        ci = None if sd is None else (math.exp(x[j] - tq * sd[j]), math.exp(x[j] + tq * sd[j]))
         fitted[k] = Fitted(k, FITTABLE[k].unit, math.exp(x[j]), math.exp(x0[j]), ci, None if sd is None else float(sd[j]))
     model_values = pred.values(scene_at(x))
     unit = "ln(x_model / x_data)" if data.kind == "sizes" else ("Q3_model - Q3_data" if data.kind == "q3" else
@@ -570,7 +564,7 @@ def write(cal: Calibration, out_dir, scene_path=None) -> list:
         head += f"#   {k} = {c.value:.6g} {c.unit}, 95 % interval {ci}\n"
     text = head + set_toml_values(_scene_text(cal.scene, scene_path),
                                   {**{k: c.value for k, c in cal.constants.items()}, "scene.calibration": cal.record()})
-    check = load_scene_text(text)
+    check = load_any(text)
     for k, c in cal.constants.items():
         if _get(check, k) != c.value:  # pragma: no cover - set_toml_values is tested
             raise CalibrationError(f"calibrated.toml: {k} did not take the fitted value")
@@ -586,12 +580,6 @@ def write(cal: Calibration, out_dir, scene_path=None) -> list:
         return written
     finally:
         shutil.rmtree(tmp, ignore_errors=True)
-
-
-def load_scene_text(text: str) -> Scene:
-    from .api import load_scene as _load
-
-    return _load(text)
 
 
 # ---- seed 000's one-datum calibration ---------------------------------------------------------
