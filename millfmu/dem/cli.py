@@ -46,6 +46,9 @@ def register(subparsers) -> argparse.ArgumentParser:
     r.add_argument("--initial-rotation", type=float, dest="initial_rotation", metavar="F",
                    help="beads and coupled fluid start turning at this fraction of the "
                         "stirrer's angular velocity (default 0: from rest)")
+    r.add_argument("--primed", type=float, dest="primed_s", metavar="S",
+                   help="coupled fluid: run the bead-free liquid for S seconds first and "
+                        "start the beads with its velocity (primed start; default 0)")
     r.add_argument("--threads", type=int, help="numba threads (default: all cores)")
     r.add_argument("--windows", type=float, dest="window_s", metavar="S",
                    help="also write windows.csv: zone statistics of consecutive recording "
@@ -91,6 +94,16 @@ def register(subparsers) -> argparse.ArgumentParser:
     s2.add_argument("action", choices=("run", "table"), help="run the cases (skipping those "
                     "done) or print the table from their results")
     s2.add_argument("--out", required=True, help="folder of the case runs")
+    s2.add_argument("--method", choices=("physical", "paper"), default="physical",
+                    help="run: physical (the slice's own coupling, every contact event "
+                         "counted) or paper (seed 002's numerics: discrete phase model, CFD "
+                         "step 0.01 s, contacts counted at 20 frames per second)")
+    s2.add_argument("--primed", action="store_true", help="run: start the beads in the "
+                    "bead-free liquid's circulation (primed start) instead of from rest")
+    s2.add_argument("--case", action="append", metavar="RPM:FILLING", help="run only this "
+                    "case (e.g. 1200:0.8; repeatable; default all seven)")
+    s2.add_argument("--compare", action="append", metavar="LABEL=DIR", help="table: also "
+                    "this campaign as a column (repeatable), beside --out's")
     s2.add_argument("--threads", type=int, help="numba threads (default: all cores)")
     s2.add_argument("--export-table", metavar="PREFIX", help="also write the stress-energy "
                     "table of the 80 %% runs over the rotor speeds to PREFIX.npz/.json (e.g. "
@@ -180,9 +193,21 @@ def _seed001(args) -> int:
 def _seed002(args) -> int:
     from millfmu.dem.studies import seed002
 
-    if args.action == "run":
-        seed002.run_campaign(args.out, threads=args.threads)
-    print(seed002.markdown(seed002.deviation_rows(args.out)))
+    cases = seed002.CASES
+    try:
+        if args.case:
+            cases = tuple(_case(c) for c in args.case)
+        cols = [(_label(args.out), args.out)] + [_compare_col(c) for c in args.compare or ()]
+        if args.action == "run":
+            seed002.run_campaign(args.out, cases=cases, threads=args.threads,
+                                 method=args.method, primed=args.primed)
+        if len(cols) == 1:
+            print(seed002.markdown(seed002.deviation_rows(args.out)))
+        else:
+            print(seed002.markdown_columns(seed002.deviation_table(cols)))
+    except ValueError as e:
+        print(f"millfmu dem seed002: {e}", file=sys.stderr)
+        return 2
     if args.export_table:
         from millfmu.dem.tables.spec import TableError
 
@@ -196,6 +221,35 @@ def _seed002(args) -> int:
     return 0
 
 
+def _case(text: str) -> tuple:
+    """'1200:0.8' -> (1200.0, 0.8), one of seed 002's cases."""
+    from millfmu.dem.studies import seed002
+
+    try:
+        rpm, fill = (float(x) for x in text.split(":"))
+    except ValueError:
+        raise ValueError(f"--case {text!r}: write RPM:FILLING, e.g. 1200:0.8") from None
+    for c in seed002.CASES:
+        if abs(c[0] - rpm) < 1e-9 and abs(c[1] - fill) < 1e-9:
+            return c
+    raise ValueError(f"--case {text!r}: not one of seed 002's cases "
+                     f"{[f'{n:g}:{f:g}' for n, f in seed002.CASES]}")
+
+
+def _label(folder) -> str:
+    from millfmu.dem.studies import seed002
+
+    c = seed002.campaign_of(folder)
+    return c["method"] + (", primed" if c.get("primed") else "")
+
+
+def _compare_col(text: str) -> tuple:
+    label, sep, folder = text.partition("=")
+    if not sep or not label or not folder:
+        raise ValueError(f"--compare {text!r}: write LABEL=DIR")
+    return label, folder
+
+
 def _run(args) -> int:
     from millfmu.dem.scene import DemSceneError, load_scene
 
@@ -203,7 +257,8 @@ def _run(args) -> int:
         scene = load_scene(args.scene)
         over = {k: getattr(args, k) for k in ("tip_speed_m_s", "filling", "sector_deg",
                                               "spin_up_s", "record_s", "sample_every_s",
-                                              "dt_s", "fluid_mode", "initial_rotation")}
+                                              "dt_s", "fluid_mode", "initial_rotation",
+                                              "primed_s")}
         if args.no_gravity:
             over["gravity_m_s2"] = (0.0, 0.0, 0.0)
         if args.rotor_speed_rpm is not None:

@@ -39,7 +39,7 @@ from pathlib import Path
 import numpy as np
 
 from millfmu.dem.analysis import flow_structure as FS
-from millfmu.dem.analysis import plots
+from millfmu.dem.analysis import plots, snapshots
 from millfmu.dem.analysis.stats import DemStats, compute_stats
 from millfmu.dem.coupling.cfd_dem import CfdDem
 from millfmu.dem.engine.sim import DemSimulation
@@ -54,6 +54,8 @@ from millfmu.dem.scene import DemScene
 #: Initial turbulence of the coupled fluid (the stirrer starts from rest): k = (0.02 v_t)^2,
 #: epsilon from a 1 mm mixing length; k-epsilon forgets it within a few stirrer turns.
 INITIAL_TURBULENCE_INTENSITY = 0.02
+#: seed 002 saved positions, velocities and contacts 20 times per second [s]
+PAPER_FRAME_INTERVAL_S = 0.05
 INITIAL_MIXING_LENGTH_M = 1e-3
 
 
@@ -82,14 +84,20 @@ def make_simulation(scene: DemScene, threads: int | None = None):
     if scene.fluid_mode == "coupled":
         c = scene.coupling
         grid = mill_grid(scene.geometry, c.cell_m, n_theta=c.n_theta)
-        cpl = CfdDem(sim, grid, FluidProperties(scene.fluid.density_kg_m3,
-                                                scene.fluid.viscosity_pa_s), c,
-                     scene.omega_rad_s)
+        if c.scheme == "dpm":
+            from millfmu.dem.coupling.dpm import DiscretePhaseCoupling as coupling
+        else:
+            coupling = CfdDem
+        cpl = coupling(sim, grid, FluidProperties(scene.fluid.density_kg_m3,
+                                                  scene.fluid.viscosity_pa_s), c,
+                       scene.omega_rad_s)
         if c.turbulence == "k_epsilon":
             cpl.solver.init_turbulence((INITIAL_TURBULENCE_INTENSITY * scene.tip_speed_m_s) ** 2,
                                        INITIAL_MIXING_LENGTH_M)
         if scene.initial_rotation:
             cpl.solver.init_solid_body(scene.initial_rotation)
+        cpl.prime(scene.primed_s)
+        cpl.liquid_changed()
     return sim, cpl
 
 
@@ -120,7 +128,7 @@ def run_scene(scene: DemScene, out_dir, progress: bool = True, threads: int | No
     sim, cpl = make_simulation(scene, threads)
     zones = zones_for(scene)
     dt = scene.dt_s
-    unit = cpl.settings.steps if cpl is not None else 1
+    unit = cpl.unit_steps if cpl is not None else 1
 
     def whole(t_s, at_least=0):
         return max(at_least, unit * int(math.ceil(round(t_s / dt, 6) / unit)))
@@ -139,6 +147,8 @@ def run_scene(scene: DemScene, out_dir, progress: bool = True, threads: int | No
     sx, sv = [], []
     events = []
     torques = []
+    # accelerator slices: the contacts present at every sample, for seed 002's counting
+    frames = [] if scene.kind == "accelerator_slice" else None
     dropped = builds = 0
     fluid_acc = {}
     fluid_samples = 0
@@ -173,6 +183,8 @@ def run_scene(scene: DemScene, out_dir, progress: bool = True, threads: int | No
             dropped += sum(st.dropped_events for st in sts)
             sx.append(sim.x.copy())
             sv.append(sim.v.copy())
+            if frames is not None:
+                frames.append(snapshots.frame_of(sim))
             if cpl is not None:
                 for name, a in cpl.section_fields().items():
                     fluid_acc[name] = fluid_acc.get(name, 0.0) + a
@@ -228,7 +240,7 @@ def run_scene(scene: DemScene, out_dir, progress: bool = True, threads: int | No
     bead_fields = flow.pop("_bead_fields", None)
     if scene.kind == "accelerator_slice":
         flow["seed002"] = accelerator_summary(scene, sim, zones, ev, EV_COLS, stats.record_s,
-                                              sx, sv, fields)
+                                              sx, sv, fields, frames, every * dt)
     stats.flow = _finite(flow)
     if window_s is not None:
         per = max(1, int(round(window_s / (every * dt))))
@@ -266,13 +278,25 @@ def run_scene(scene: DemScene, out_dir, progress: bool = True, threads: int | No
     return stats
 
 
-def accelerator_summary(scene, sim, zones, ev, ev_cols, record_s, sx, sv, fields) -> dict:
+def accelerator_summary(scene, sim, zones, ev, ev_cols, record_s, sx, sv, fields,
+                        frames=None, frame_interval_s=None) -> dict:
     """Seed 002's quantities of an accelerator slice (plain JSON data, SI units): SI, SN_g,
-    SE_cs, SE_ts,sum / SE_cs,sum per zone and in total, SE_net and the efficiency; bead
-    speed over tip speed against Z'/R and X'/L (figures 3 and 4); the rotor's pumped flow."""
-    out = A.stress_quantities(ev, ev_cols, zones, record_s, scene.bead_diameter_m,
-                              scene.material.density_kg_m3, sim.n, scene.tip_speed_m_s,
-                              scene.omega_rad_s)
+    SE_cs, SE_ts,sum / SE_cs,sum per zone and in total, SE_net and the efficiency, counted
+    from every contact event (at the top level) and from the contacts present at the
+    samples (``snapshots``: one frame every ``frame_interval_s`` [s]; and
+    ``snapshots_20_per_s``, seed 002's frame rate, where the samples are a whole fraction
+    of 0.05 s apart); bead speed over tip speed against Z'/R and X'/L (figures 3 and 4);
+    the rotor's pumped flow."""
+    args = (scene.bead_diameter_m, scene.material.density_kg_m3, sim.n, scene.tip_speed_m_s,
+            scene.omega_rad_s)
+    out = A.stress_quantities(ev, ev_cols, zones, record_s, *args)
+    if frames:
+        out["snapshots"] = A.snapshot_stress_quantities(frames, frame_interval_s, zones,
+                                                        *args)
+        sub = snapshots.every_kth(frames, frame_interval_s, PAPER_FRAME_INTERVAL_S)
+        if sub is not None:
+            out["snapshots_20_per_s"] = A.snapshot_stress_quantities(sub[0], sub[1], zones,
+                                                                     *args)
     out["rotor_speed_rpm"] = scene.rotor_speed_rpm
     out["radial_speed_profile"] = A.radial_speed_profile(sx, sv, scene.geometry,
                                                          scene.tip_speed_m_s)

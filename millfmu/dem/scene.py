@@ -40,6 +40,10 @@ KINDS = ("annulus", "disc_slice", "accelerator_slice")
 from millfmu.dem.limits import (ACCELERATOR_FILLING, ACCELERATOR_RPM_RANGE,  # noqa: E402
                                 DISC_SLICE_FILLING, DISC_SLICE_TIP_SPEED_M_S)
 FLUID_MODES = ("coupled", "prescribed", "none")
+#: coupling schemes of the coupled fluid ([fluid.coupled] scheme): volume-averaged
+#: Navier-Stokes (millfmu.dem.coupling.cfd_dem) or a dilute discrete phase model
+#: (millfmu.dem.coupling.dpm)
+COUPLING_SCHEMES = ("vans", "dpm")
 
 
 class DemSceneError(ValueError):
@@ -74,6 +78,9 @@ class DemScene:
     # beads and coupled fluid start turning at this fraction of the stirrer's angular
     # velocity [-] (0: from rest); shortens the spin-up, the windows check decides
     initial_rotation: float = 0.0
+    # coupled fluid: the liquid runs alone (bead-free) for this time [s] before the beads
+    # are put in with its velocity at their centres (0: no primed start)
+    primed_s: float = 0.0
 
     @property
     def omega_rad_s(self) -> float:
@@ -89,7 +96,8 @@ class DemScene:
 
     def with_overrides(self, **kw) -> "DemScene":
         """Copy with run-time overrides (tip_speed_m_s, filling, sector_deg, spin_up_s,
-        record_s, dt_s, fluid_mode, initial_rotation); validated like file values."""
+        record_s, dt_s, fluid_mode, initial_rotation, primed_s); validated like file
+        values."""
         geo = self.geometry
         if kw.get("sector_deg") is not None:
             geo = _geometry_or_error(replace, geo, sector_deg=float(kw.pop("sector_deg")))
@@ -111,6 +119,13 @@ class DemScene:
                     "the rotating stirrer and the fixed chamber wall as documented in "
                     "millfmu.dem.engine.kernels.swirl_velocity; no radial/axial circulation")
         c = self.coupling
+        if c.scheme == "dpm":
+            return (f"coupled CFD-DEM, dilute discrete phase model (dpm): no void fraction in "
+                    f"the liquid, Schiller-Naumann drag only, updated every {c.steps} DEM "
+                    f"steps ({c.steps * self.dt_s:.3g} s) in the liquid's field frozen over "
+                    f"the CFD step and exchange interval of {c.cfd_step_s:g} s; turbulence "
+                    f"{c.turbulence}, cylindrical grid of ~{c.cell_m * 1e3:g} mm cells, "
+                    f"{c.n_theta} theta cell(s)")
         return (f"coupled CFD-DEM: volume-averaged Navier-Stokes model {c.model}, "
                 f"turbulence {c.turbulence}, Koch-Hill drag, cylindrical grid of "
                 f"~{c.cell_m * 1e3:g} mm cells, {c.n_theta} theta cell(s), coupling every "
@@ -174,6 +189,12 @@ def _check_ranges(s: DemScene):
     if not 0.0 <= s.initial_rotation <= 1.0:
         raise DemSceneError(f"run.initial_rotation = {s.initial_rotation!r}: allowed 0 to 1 "
                             f"(a fraction of the stirrer's angular velocity)")
+    if not 0.0 <= s.primed_s <= 10.0:
+        raise DemSceneError(f"run.primed_s = {s.primed_s!r}: allowed 0 to 10 s (bead-free "
+                            f"liquid time before the beads are put in)")
+    if s.primed_s > 0.0 and s.fluid_mode != "coupled":
+        raise DemSceneError(f"run.primed_s = {s.primed_s!r}: a primed start needs the coupled "
+                            f"fluid (fluid.mode = 'coupled', not {s.fluid_mode!r})")
     m = s.material
     if not 0.0 < m.restitution <= 1.0:
         raise DemSceneError(f"beads.restitution = {m.restitution!r}: allowed 0 < e <= 1")
@@ -332,6 +353,7 @@ def scene_from_dict(d: dict, default_name: str = "scene") -> DemScene:
         sample_every_s=_get(run, "sample_every_s", "run", f, 0.02),
         seed=_get(run, "seed", "run", int, 1), zones=zs,
         initial_rotation=_get(run, "initial_rotation", "run", f, 0.0),
+        primed_s=_get(run, "primed_s", "run", f, 0.0),
         map_bins_r=_get(output, "map_bins_r", "output", int, 30),
         map_bins_z=_get(output, "map_bins_z", "output", int, 28))
     _check_ranges(s)
@@ -343,7 +365,7 @@ _FLUID_KEYS = {"mode", "enabled", "density_kg_m3", "viscosity_pa_s", "drag", "lu
                "swirl_layer_m", "void_fraction", "coupled"}
 _COUPLED_KEYS = {"vans_model": str, "turbulence": str, "coupling_steps": int, "cell_m": float,
                  "n_theta": int, "smoothing_diameters": float, "eps_min": float,
-                 "cfl": float}
+                 "cfl": float, "scheme": str, "cfd_step_s": float}
 
 
 def _fluid_from_dict(fluid: dict, dia: float):
@@ -401,7 +423,17 @@ def _coupling_from_dict(c: dict) -> CouplingSettings:
         smoothing_diameters=(kw["smoothing_diameters"] if kw["smoothing_diameters"]
                              is not None else d.smoothing_diameters),
         eps_min=kw["eps_min"] if kw["eps_min"] is not None else d.eps_min,
-        cfl=kw["cfl"] if kw["cfl"] is not None else d.cfl)
+        cfl=kw["cfl"] if kw["cfl"] is not None else d.cfl,
+        scheme=kw["scheme"] if kw["scheme"] is not None else d.scheme,
+        cfd_step_s=kw["cfd_step_s"] if kw["cfd_step_s"] is not None else d.cfd_step_s)
+    if out.scheme not in COUPLING_SCHEMES:
+        raise DemSceneError(f"fluid.coupled.scheme = {out.scheme!r}: allowed "
+                            f"{list(COUPLING_SCHEMES)}")
+    _positive("fluid.coupled.cfd_step_s", out.cfd_step_s)
+    if out.scheme == "dpm" and kw["vans_model"] is not None:
+        raise DemSceneError(f"fluid.coupled.vans_model = {out.model!r} with scheme 'dpm': "
+                            f"the discrete phase model has no volume-averaged equations "
+                            f"(drag only); leave out vans_model")
     if out.model not in ("A", "B"):
         raise DemSceneError(f"fluid.coupled.vans_model = {out.model!r}: allowed 'A', 'B'")
     if out.turbulence not in ("k_epsilon", "laminar"):

@@ -269,6 +269,15 @@ def test_short_coupled_run_has_the_papers_quantities(tmp_path):
     assert 0 < tot["ts_share"] < 1 and 0 < tot["efficiency"] < 1
     assert sum(z["contacts"] for z in q["zones"].values()) == stats.counts["bead_bead"]
     assert "kg" in q["definitions"]["SE_net"] or "W" in q["definitions"]["SE_net"]
+    # both countings, each named: every event, and the contacts present at the 2 samples
+    assert q["counting"].startswith("every contact event")
+    snap = q["snapshots"]
+    assert snap["frames"] == 2 and snap["frame_interval_s"] == pytest.approx(1e-3)
+    assert snap["total"]["SE_net_w"] == pytest.approx(tot["SE_net_w"])
+    assert snap["total"]["SN_g_per_m3_s"] == pytest.approx(
+        sum(z["contacts"] for z in snap["zones"].values()) /
+        (sum(z["volume_m3"] for z in snap["zones"].values()) * 2e-3))
+    assert "snapshots_20_per_s" not in q  # no sample falls on 0.05 s
     # (a 4 ms run from rest; the campaign's 1.5 s runs close to 1.4e-4 or better)
     assert abs(stats.flow["angular_momentum_budget"]["closure_rel"]) < 5e-3
     assert len(q["radial_speed_profile"]["speed_over_tip_speed"]) == 20

@@ -149,6 +149,57 @@ class CfdDem:
         self.axial_impulse_to_beads_ns += fs * self.interval_s
         self.intervals += 1
 
+    def prime(self, duration_s: float, chunk_s: float = 1e-3) -> None:
+        """Primed start: advance the liquid alone for ``duration_s`` [s] (no beads: void
+        fraction 1, no drag; the rotor pumping the bead-free liquid), then give every bead
+        the liquid's velocity at its centre, so that a run starts from the bead-free
+        circulation instead of assuming that it forms. The liquid keeps its velocities; its
+        void fractions are then the beads' (no momentum moved by their arrival)."""
+        if duration_s <= 0.0:
+            return
+        sim, g, s = self.sim, self.grid, self.solver
+        ones = [np.ones(g.shape), np.ones(s.ur.shape), np.ones(g.shape), np.ones(g.shape)]
+        none = [np.zeros(s.ur.shape), np.zeros(g.shape), np.zeros(g.shape)]
+        s.set_beads(*ones, none, [a.copy() for a in none], chunk_s)
+        n = max(1, int(np.ceil(duration_s / chunk_s - 1e-9)))
+        for _ in range(n):
+            s.eps_c_old[:] = s.eps_c
+            s.advance(duration_s / n)
+        # bead velocities from the liquid's (smoothed) cell velocities at their centres
+        self.EK.nodes_to_cell_values(s.ur, s.ut, s.uz, none[0], none[1], none[2], s.kr,
+                                     s.kt, s.kz, g.solid, self._cellv)
+        self.projector.smooth_values(self._cellv, ncols=3)
+        nr, nt, nz = g.shape
+        r = np.zeros(sim.n)
+        self.PJ.bead_stencils(sim.x, self.projector.rc, self.projector.rtab,
+                              self.projector.rh, g.dtheta_rad, nt, g.dz_m, nz, g.height_m,
+                              g.solid, self._idx, self._w, r)
+        u = np.zeros((sim.n, 3))
+        self.PJ.gather(self._idx, self._w, np.ascontiguousarray(self._cellv[:3]), u)
+        inv = np.where(r > 0.0, 1.0 / np.where(r > 0.0, r, 1.0), 0.0)
+        c, sn = sim.x[:, 0] * inv, sim.x[:, 1] * inv
+        sim.v[:, 0] = c * u[:, 0] - sn * u[:, 1]
+        sim.v[:, 1] = sn * u[:, 0] + c * u[:, 1]
+        sim.v[:, 2] = u[:, 2]
+        sim.per_bead["fluid_at_bead"][:, 0:3] = u
+        # the beads' void fractions without rescaling the liquid's velocities
+        self._deposit_and_split(self._eps_cells)
+        e = self._eps
+        s.eps_c[:] = e[0]
+        s.eps_c_old[:] = e[0]
+        s.eps_r[:], s.eps_t[:], s.eps_z[:] = e[1], e[2], e[3]
+        self._eps_cells[:] = e[0].ravel()
+        self.primed_s = float(duration_s)
+
+    def liquid_changed(self):
+        """The liquid's fields were set from outside (initial conditions): nothing to do
+        here, the next exchange reads them."""
+
+    @property
+    def unit_steps(self) -> int:
+        """DEM steps that runs are made of: the coupling interval."""
+        return self.settings.steps
+
     def run(self, nsteps: int, record: bool = False):
         """Advance the coupled system by ``nsteps`` DEM steps (a whole number of coupling
         intervals); returns the list of the DEM's StepStats, one per interval."""

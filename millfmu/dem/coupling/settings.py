@@ -18,3 +18,9 @@ class CouplingSettings:
     smoothing_diameters: float = 1.0  # Helmholtz smoothing length in bead diameters
     eps_min: float = 0.35  # lower clip of the void fraction
     cfl: float = 0.4
+    # "vans": volume-averaged Navier-Stokes (CfdDem; the void fraction in the liquid, the
+    # drag held over each coupling interval); "dpm": a dilute discrete phase model
+    # (millfmu.dem.coupling.dpm: no void fraction, Schiller-Naumann drag updated every
+    # ``steps`` DEM steps in the liquid's field frozen over a CFD step of ``cfd_step_s``)
+    scheme: str = "vans"
+    cfd_step_s: float = 0.01  # dpm: CFD step and exchange interval [s] (seed 002: 0.01)

@@ -38,6 +38,12 @@ contacts recorded at their first overlap:
 - SE_net = (6 / pi) m_g,total v_r^2 n (1 + Y_p / Y_g)^-1 [W] (eq. 2, after Kwade 2003)
   with the media mass m_g,total of the full mill slice, and the efficiency
   SE_cs,sum / SE_net.
+
+Two countings of the contacts, each named in the result (``counting``): every contact
+event once at its first overlap (:func:`stress_quantities`), and the contacts present at
+frames taken at a set rate (:func:`snapshot_stress_quantities`), as a post-processor of
+saved frames counts them (seed 002 saved 20 frames per second); see
+:mod:`millfmu.dem.analysis.snapshots`.
 """
 
 from __future__ import annotations
@@ -156,21 +162,57 @@ def stress_quantities(events: np.ndarray, ev_cols: dict, zones, record_s: float,
                       tip_speed_m_s: float, omega_rad_s: float,
                       modulus_ratio: float = PRODUCT_OVER_BEAD_MODULUS) -> dict:
     """Seed 002's SI, SN_g, SE_cs, SE_ts,sum / SE_cs,sum per zone and in total, SE_net and
-    the efficiency (plain JSON data, SI units). ``events``: recorded contacts (columns
-    ev_cols: type, x, y, z, setn, serot, mstar_ratio optional) over ``record_s`` [s] in the
-    simulated sector; powers are scaled to the full circle (per axial period)."""
-    frac = zones.g.sector_fraction
+    the efficiency (plain JSON data, SI units), every bead-bead contact counted once at its
+    first overlap. ``events``: recorded contacts (columns ev_cols: type, x, y, z, setn,
+    serot) over ``record_s`` [s] in the simulated sector; powers are scaled to the full
+    circle (per axial period)."""
     m_g = bead_mass_kg(bead_diameter_m, bead_density_kg_m3)
     i_g = bead_inertia_kgm2(bead_diameter_m, bead_density_kg_m3)
     bb = events[:, ev_cols["type"]] == 0 if events.size else np.zeros(0, bool)
     ev = events[bb] if events.size else np.zeros((0, max(ev_cols.values()) + 1))
     pos = ev[:, [ev_cols["x"], ev_cols["y"], ev_cols["z"]]]
-    zid = zones.classify(pos) if ev.size else np.zeros(0, np.int64)
     # recorded with m* = m_g / 2 and I* = I_g / 2 (equal beads): the paper's use m_g, I_g
-    m_star = 0.5 * m_g
-    i_star = 0.5 * i_g
-    se_tn = ev[:, ev_cols["setn"]] * (m_g / m_star)
-    se_ts = ev[:, ev_cols["serot"]] * (i_g / i_star)
+    se_tn = ev[:, ev_cols["setn"]] * 2.0
+    se_ts = ev[:, ev_cols["serot"]] * 2.0
+    out = _quantities(pos, se_tn, se_ts, zones, record_s, n_beads * m_g, tip_speed_m_s,
+                      omega_rad_s, modulus_ratio)
+    out["counting"] = "every contact event, counted once at its first overlap"
+    return out
+
+
+def snapshot_stress_quantities(frames, interval_s: float, zones, bead_diameter_m: float,
+                               bead_density_kg_m3: float, n_beads: int,
+                               tip_speed_m_s: float, omega_rad_s: float,
+                               modulus_ratio: float = PRODUCT_OVER_BEAD_MODULUS) -> dict:
+    """The quantities of :func:`stress_quantities` from the contacts present at frames
+    taken every ``interval_s`` [s] (:class:`millfmu.dem.analysis.snapshots.Frame`), as a
+    post-processor of saved frames counts them (seed 002: 20 frames per second): SN_g is
+    the contacts present summed over the frames per zone volume and recording time
+    (len(frames) x interval_s), energies from each contact's relative velocity and spin at
+    the frame."""
+    m_g = bead_mass_kg(bead_diameter_m, bead_density_kg_m3)
+    i_g = bead_inertia_kgm2(bead_diameter_m, bead_density_kg_m3)
+    frames = list(frames)
+    pos = np.concatenate([f.point_m for f in frames]) if frames else np.zeros((0, 3))
+    vn2 = np.concatenate([f.vn2_m2_s2 for f in frames]) if frames else np.zeros(0)
+    wr2 = np.concatenate([f.wrel2_rad2_s2 for f in frames]) if frames else np.zeros(0)
+    out = _quantities(pos, 0.5 * m_g * vn2, 0.5 * i_g * wr2, zones,
+                      len(frames) * interval_s, n_beads * m_g, tip_speed_m_s, omega_rad_s,
+                      modulus_ratio)
+    out["counting"] = (f"contacts present at {len(frames)} frames, one every "
+                       f"{interval_s:g} s ({1.0 / interval_s:g} per second)")
+    out["frames"] = len(frames)
+    out["frame_interval_s"] = interval_s
+    return out
+
+
+def _quantities(pos, se_tn, se_ts, zones, record_s, media_mass_sector_kg, tip_speed_m_s,
+                omega_rad_s, modulus_ratio) -> dict:
+    """Per-zone and total quantities of bead-bead contacts at ``pos`` [m] with the paper's
+    energies ``se_tn``, ``se_ts`` [J] over ``record_s`` [s]; media mass of the simulated
+    sector [kg]."""
+    frac = zones.g.sector_fraction
+    zid = zones.classify(pos) if pos.size else np.zeros(0, np.int64)
     vols = zones.volumes_m3()
     out = {"zones": {}, "definitions": dict(
         SE_tn="1/2 m_g v_tn,rel^2 [J], m_g the bead mass",
@@ -202,7 +244,7 @@ def stress_quantities(events: np.ndarray, ev_cols: dict, zones, record_s: float,
         tot_cs += cs_sum
         tot_ts += ts_sum
         tot_tn += tn / record_s / frac if record_s > 0 else 0.0
-    media = n_beads * m_g / frac
+    media = media_mass_sector_kg / frac
     n_rev = omega_rad_s / (2.0 * math.pi)
     se_net = net_stress_energy_w(media, tip_speed_m_s, n_rev, modulus_ratio)
     out["total"] = dict(SE_cs_sum_w=tot_cs, SE_ts_sum_w=tot_ts, SE_tn_sum_w=tot_tn,
