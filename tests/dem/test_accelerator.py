@@ -356,3 +356,39 @@ def test_campaign_table_from_short_runs(tmp_path, monkeypatch):
     monkeypatch.setattr(S, "SPIN_UP_S", 2e-3)
     with pytest.raises(TableError, match="not the protocol"):
         S.export_table(tmp_path, tmp_path / "again")
+
+
+def test_seed002_columns_by_method_and_counting(tmp_path):
+    """A campaign of the paper's method is read with its snapshot counts; two campaigns
+    side by side give one row per statement with each one's verdict, and the verdict over
+    all; a folder holds one campaign."""
+    from millfmu.dem.studies import seed002 as S
+
+    phys, paper = tmp_path / "phys", tmp_path / "paper"
+    for folder, eff_events in ((phys, 0.03), (paper, 0.03)):
+        for case in S.CASES:
+            st = _fake_stats(*case, eff_events)
+            q = st["flow"]["seed002"]
+            snap = json.loads(json.dumps({k: q[k] for k in ("zones", "total")}))
+            snap["total"]["efficiency"] = 0.004 if case == (1000.0, 0.8) else 0.003
+            q["snapshots_20_per_s"] = snap
+            d = S.case_dir(folder, *case)
+            d.mkdir(parents=True)
+            (d / "stats.json").write_text(json.dumps(st))
+    (paper / "campaign.json").write_text(json.dumps({"method": "paper", "primed": False}))
+    assert S.campaign_of(phys) == {"method": "physical", "primed": False}
+    eff = [r for r in S.deviation_rows(paper) if r["statement"].startswith("efficiency")][0]
+    assert eff["verdict"].startswith("matches") and "0.003" in eff["ours"]
+    eff = [r for r in S.deviation_rows(phys) if r["statement"].startswith("efficiency")][0]
+    assert eff["verdict"].startswith("missed")
+    rows = S.deviation_table([("physical", phys), ("paper", paper)])
+    e = [r for r in rows if r["statement"].startswith("efficiency")][0]
+    assert e["verdict"] == "matches under paper"
+    assert e["cells"]["physical"]["verdict"].startswith("missed")
+    md = S.markdown_columns(rows)
+    assert md.splitlines()[0].count("|") == 6 and len(md.splitlines()) == 14
+    with pytest.raises(ValueError, match="holds a campaign of"):
+        S.run_campaign(paper, cases=(), method="physical")
+    with pytest.raises(ValueError, match="counting = 'frames'"):
+        S.counted(json.loads((S.case_dir(paper, 1200.0, 0.8) / "stats.json").read_text()),
+                  "frames")

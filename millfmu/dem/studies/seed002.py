@@ -40,28 +40,75 @@ def case_dir(out_dir, rpm: float, filling: float) -> Path:
     return Path(out_dir) / f"n{rpm:g}_f{round(filling * 100)}"
 
 
-def scene_for(rpm: float, filling: float, sector_deg: float | None = None):
-    """The accelerator slice at ``rpm`` [1/min] and ``filling`` [-] with the protocol."""
-    from millfmu.dem.scene import load_scene
+#: How a campaign computes and counts (``seed002 run --method``):
+#: - ``physical``: the accelerator slice's own coupling (volume-averaged liquid, model B,
+#:   exchange every 5e-5 s); contacts counted at every event;
+#: - ``paper``: seed 002's numerics: a dilute discrete phase model (no void fraction,
+#:   drag only, CFD step 0.01 s; :mod:`millfmu.dem.coupling.dpm`); contacts counted at its
+#:   20 frames per second (``flow.seed002.snapshots``).
+METHODS = {"physical": dict(scheme="vans", counting="events"),
+           "paper": dict(scheme="dpm", counting="snapshots")}
+#: seed 002's CFD step [s]
+PAPER_CFD_STEP_S = 0.01
+#: primed start: bead-free liquid time before the beads go in [s] (at 1200 rpm the rotor's
+#: bead-free throughflow changed by less than 0.05 % from 0.15 to 0.4 s)
+PRIMED_S = 0.3
 
-    base = load_scene("accelerator_slice")
+
+def scene_for(rpm: float, filling: float, sector_deg: float | None = None,
+              method: str = "physical", primed: bool = False):
+    """The accelerator slice at ``rpm`` [1/min] and ``filling`` [-] with the protocol,
+    computed by ``method`` (:data:`METHODS`), with a primed start or from rest."""
+    from millfmu.dem.scene import load_scene_dict, scene_from_dict
+
+    if method not in METHODS:
+        raise ValueError(f"method = {method!r}: allowed {list(METHODS)}")
+    d = load_scene_dict("accelerator_slice")
+    if METHODS[method]["scheme"] == "dpm":
+        c = d["fluid"].setdefault("coupled", {})
+        c.pop("vans_model", None)
+        c.update(scheme="dpm", cfd_step_s=PAPER_CFD_STEP_S)
+    base = scene_from_dict(d)
     tip = rpm * 2.0 * math.pi / 60.0 * base.geometry.disc_radius_m
     sector_deg = SECTOR_DEG if sector_deg is None else sector_deg
     return base.with_overrides(tip_speed_m_s=tip, filling=filling, sector_deg=sector_deg,
                                gravity_m_s2=(0.0, 0.0, 0.0), spin_up_s=SPIN_UP_S,
-                               record_s=RECORD_S, sample_every_s=SAMPLE_S)
+                               record_s=RECORD_S, sample_every_s=SAMPLE_S,
+                               primed_s=PRIMED_S if primed else 0.0)
 
 
-def run_campaign(out_dir, cases=CASES, threads=None, progress=True):
-    """Run the cases that have no stats.json yet (the protocol above)."""
+def campaign_of(out_dir) -> dict:
+    """The method and start of the campaign in ``out_dir`` (``campaign.json``; a folder
+    without one holds a campaign of the physical method from rest, made before the file)."""
+    p = Path(out_dir) / "campaign.json"
+    if not p.exists():
+        return {"method": "physical", "primed": False}
+    return json.loads(p.read_text())
+
+
+def run_campaign(out_dir, cases=CASES, threads=None, progress=True, method="physical",
+                 primed=False):
+    """Run the cases that have no stats.json yet (the protocol above), by ``method``;
+    a folder holds one campaign: another method or start there is refused."""
     from millfmu.dem.run import run_scene
 
+    if method not in METHODS:
+        raise ValueError(f"method = {method!r}: allowed {list(METHODS)}")
+    out = Path(out_dir)
+    want = {"method": method, "primed": bool(primed)}
+    if (out / "campaign.json").exists() or any(out.glob("n*_f*/stats.json")):
+        have = campaign_of(out)
+        if have != want:
+            raise ValueError(f"{out}: holds a campaign of {have}, not {want}; use another "
+                             f"folder")
+    out.mkdir(parents=True, exist_ok=True)
+    (out / "campaign.json").write_text(json.dumps(want))
     for rpm, fill in cases:
         d = case_dir(out_dir, rpm, fill)
         if (d / "stats.json").exists():
             continue
-        run_scene(scene_for(rpm, fill), d, progress=progress, threads=threads,
-                  window_s=WINDOW_S)
+        run_scene(scene_for(rpm, fill, method=method, primed=primed), d, progress=progress,
+                  threads=threads, window_s=WINDOW_S)
 
 
 #: Builder id of a table assembled from the campaign's runs (not the DemBuilder: the runs'
@@ -161,6 +208,22 @@ def _q(st):
     return st["flow"]["seed002"]
 
 
+def counted(st, counting: str) -> dict:
+    """Seed 002's stress quantities of a run's stats (dict) by ``counting``: ``events``
+    (every contact event) or ``snapshots`` (the contacts present at 20 frames per second,
+    else at the run's samples)."""
+    q = _q(st)
+    if counting == "events":
+        return q
+    if counting != "snapshots":
+        raise ValueError(f"counting = {counting!r}: allowed 'events', 'snapshots'")
+    snap = q.get("snapshots_20_per_s") or q.get("snapshots")
+    if snap is None:
+        raise ValueError("a run without snapshot counts (made before they were recorded); "
+                         "run it again")
+    return snap
+
+
 def _order(vals: dict) -> str:
     """'max SEV_1, min SEV_3' of a dict zone -> value."""
     ok = {k: v for k, v in vals.items() if v is not None}
@@ -186,9 +249,16 @@ def _peak_text(st) -> str:
                                 "no beads beyond Z'/R 0.85")
 
 
-def deviation_rows(out_dir) -> list[dict]:
-    """One dict per statement of seed 002: statement, paper, ours, verdict."""
+def deviation_rows(out_dir, counting: str | None = None) -> list[dict]:
+    """One dict per statement of seed 002: statement, paper, ours, verdict. ``counting``:
+    the stress quantities from every contact event (``events``) or from the contacts
+    present at frames (``snapshots``: 20 per second where recorded); default that of the
+    campaign's method (:data:`METHODS`)."""
     runs = {k: _load(out_dir, *k) for k in CASES}
+    counting = counting or METHODS[campaign_of(out_dir)["method"]]["counting"]
+
+    def cq(st):
+        return counted(st, counting)
     at80 = [(n, 0.8) for n in SPEEDS]
     at1200 = [(1200.0, f) for f in FILLINGS]
     rows = []
@@ -211,7 +281,7 @@ def deviation_rows(out_dir) -> list[dict]:
         return {z: _zone(st, z)[field] for z in ZONE_NAMES}
 
     def q_vals(st, field):
-        return {z: _q(st)["zones"][z][field] for z in ZONE_NAMES}
+        return {z: cq(st)["zones"][z][field] for z in ZONE_NAMES}
 
     add("highest bead speed near the shaft: Z'/R of the fastest bin (0 wall, 1 shaft) and "
         "speed near the shaft (Z'/R > 0.85) over speed at the wall (Z'/R < 0.15) (section "
@@ -248,28 +318,29 @@ def deviation_rows(out_dir) -> list[dict]:
         "figure 13)", "max SEV_1, min SEV_3", lambda st: _order(q_vals(st, "SN_g_per_m3_s")),
         list(CASES), lambda got, vals: all(g == "max SEV_1, min SEV_3" for g in got))
     add("total SN_g rising with filling at 1200 rpm (section 3.4) [1/(m3 s)]", "rising",
-        lambda st: _q(st)["total"]["SN_g_per_m3_s"], at1200,
+        lambda st: cq(st)["total"]["SN_g_per_m3_s"], at1200,
         lambda got, vals: len(got) == len(at1200) and all(np.diff(got) > 0))
     add("collision stress energy SE_cs peaks in SEV_1 in all cases (section 3.4, figure 14)",
         "max SEV_1", lambda st: _order(q_vals(st, "SE_cs_w_per_m3")), list(CASES),
         lambda got, vals: all(g.startswith("max SEV_1") for g in got))
     add("SE_cs follows SN_g more than SI: spread over the zones of log10 SN_g against log10 "
         "SI (standard deviations; section 3.4)", "SN_g's spread larger",
-        lambda st: "SN_g {:.2f}, SI {:.2f}".format(*_spreads(st)), list(CASES),
-        lambda got, vals: all(_spreads(runs[k])[0] > _spreads(runs[k])[1] for k, _ in vals))
+        lambda st: "SN_g {:.2f}, SI {:.2f}".format(*_spreads(cq(st))), list(CASES),
+        lambda got, vals: all(_spreads(cq(runs[k]))[0] > _spreads(cq(runs[k]))[1]
+                                  for k, _ in vals))
     add("SE_ts about an order of magnitude above SE_tn (section 3.4, figure 15): SE_ts,sum "
         "/ SE_tn,sum", "about 10",
-        lambda st: _q(st)["total"]["SE_ts_sum_w"] / max(_q(st)["total"]["SE_tn_sum_w"],
+        lambda st: cq(st)["total"]["SE_ts_sum_w"] / max(cq(st)["total"]["SE_tn_sum_w"],
                                                         1e-300),
         list(CASES), lambda got, vals: all(10 ** 0.5 <= g <= 10 ** 1.5 for g in got),
         "within half a decade of 10")
     add("SE_ts,sum / SE_cs,sum above 80 % in every case (section 3.4, figure 16)", "> 0.8",
-        lambda st: _q(st)["total"]["ts_share"], list(CASES),
+        lambda st: cq(st)["total"]["ts_share"], list(CASES),
         lambda got, vals: all(g > 0.8 for g in got))
     add("efficiency SE_cs,sum / SE_net at most 0.45 % (section 3.5, figure 17)", "<= 0.0045",
-        lambda st: _q(st)["total"]["efficiency"], list(CASES),
+        lambda st: cq(st)["total"]["efficiency"], list(CASES),
         lambda got, vals: all(g <= 0.0045 for g in got))
-    eff = {k: _q(runs[k])["total"]["efficiency"] for k in CASES if runs.get(k) is not None}
+    eff = {k: cq(runs[k])["total"]["efficiency"] for k in CASES if runs.get(k) is not None}
     best_fill = max((k for k in at1200 if k in eff), key=eff.get, default=None)
     best_rpm = max((k for k in at80 if k in eff), key=eff.get, default=None)
     if best_fill is not None and best_rpm is not None:
@@ -282,9 +353,10 @@ def deviation_rows(out_dir) -> list[dict]:
     return rows
 
 
-def _spreads(st):
-    """Standard deviation over the zones of log10 SN_g and of log10 SI."""
-    z = _q(st)["zones"]
+def _spreads(q):
+    """Standard deviation over the zones of log10 SN_g and of log10 SI of the counted
+    quantities q (:func:`counted`)."""
+    z = q["zones"]
     sn = [math.log10(z[k]["SN_g_per_m3_s"]) for k in ZONE_NAMES if z[k]["SN_g_per_m3_s"]]
     si = [math.log10(z[k]["SI_j"]) for k in ZONE_NAMES if z[k]["SI_j"]]
     return float(np.std(sn)), float(np.std(si))
@@ -294,4 +366,42 @@ def markdown(rows) -> str:
     lines = ["| seed 002 statement | paper | ours (coupled) | verdict |", "|---|---|---|---|"]
     for r in rows:
         lines.append(f"| {r['statement']} | {r['paper']} | {r['ours']} | {r['verdict']} |")
+    return "\n".join(lines)
+
+
+def deviation_table(columns) -> list[dict]:
+    """Seed 002's statements against several campaigns: ``columns`` a list of (label,
+    folder[, counting]). One dict per statement: statement, paper, ``cells`` (label ->
+    {ours, verdict}) and ``verdict``: the labels under which it matches, or missed."""
+    out, order = {}, []
+    for col in columns:
+        label, folder = col[0], col[1]
+        counting = col[2] if len(col) > 2 else None
+        for r in deviation_rows(folder, counting):
+            key = r["statement"]
+            if key not in out:
+                out[key] = dict(statement=key, paper=r["paper"], cells={})
+                order.append(key)
+            out[key]["cells"][label] = dict(ours=r["ours"], verdict=r["verdict"])
+    rows = []
+    for key in order:
+        r = out[key]
+        for col in columns:
+            r["cells"].setdefault(col[0], dict(ours="not run", verdict="not run"))
+        ok = [lab for lab, c in r["cells"].items() if c["verdict"].startswith("matches")]
+        r["verdict"] = ("matches under " + ", ".join(ok)) if ok else "missed under all"
+        rows.append(r)
+    return rows
+
+
+def markdown_columns(rows) -> str:
+    """The table of :func:`deviation_table`: one column per campaign (its verdict, then
+    what it gave), and the verdict over all."""
+    labels = list(rows[0]["cells"]) if rows else []
+    lines = ["| seed 002 statement | paper | " + " | ".join(labels) + " | verdict |",
+             "|---" * (3 + len(labels)) + "|"]
+    for r in rows:
+        cells = [f"{c['verdict']}: {c['ours']}" for c in r["cells"].values()]
+        lines.append(f"| {r['statement']} | {r['paper']} | " + " | ".join(cells) +
+                     f" | {r['verdict']} |")
     return "\n".join(lines)
