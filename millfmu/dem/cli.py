@@ -94,10 +94,12 @@ def register(subparsers) -> argparse.ArgumentParser:
     s2.add_argument("action", choices=("run", "table"), help="run the cases (skipping those "
                     "done) or print the table from their results")
     s2.add_argument("--out", required=True, help="folder of the case runs")
-    s2.add_argument("--method", choices=("physical", "paper"), default="physical",
+    s2.add_argument("--method", choices=("physical", "paper", "physical-A"),
+                    default="physical",
                     help="run: physical (the slice's own coupling, every contact event "
-                         "counted) or paper (seed 002's numerics: discrete phase model, CFD "
-                         "step 0.01 s, contacts counted at 20 frames per second)")
+                         "counted), paper (seed 002's numerics: discrete phase model, CFD "
+                         "step 0.01 s, contacts counted at 20 frames per second) or "
+                         "physical-A (physical with model A's pressure-gradient force)")
     s2.add_argument("--primed", action="store_true", help="run: start the beads in the "
                     "bead-free liquid's circulation (primed start) instead of from rest")
     s2.add_argument("--case", action="append", metavar="RPM:FILLING", help="run only this "

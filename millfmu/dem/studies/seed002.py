@@ -45,9 +45,13 @@ def case_dir(out_dir, rpm: float, filling: float) -> Path:
 #:   exchange every 5e-5 s); contacts counted at every event;
 #: - ``paper``: seed 002's numerics: a dilute discrete phase model (no void fraction,
 #:   drag only, CFD step 0.01 s; :mod:`millfmu.dem.coupling.dpm`); contacts counted at its
-#:   20 frames per second (``flow.seed002.snapshots``).
+#:   20 frames per second (``flow.seed002.snapshots``);
+#: - ``physical-A``: as ``physical`` with model A (the beads feel the liquid's pressure
+#:   gradient: the swirl's radial pressure gradient pushes them inwards with rho_f / rho_b
+#:   of their centrifugal force, which model B leaves out).
 METHODS = {"physical": dict(scheme="vans", counting="events"),
-           "paper": dict(scheme="dpm", counting="snapshots")}
+           "paper": dict(scheme="dpm", counting="snapshots"),
+           "physical-A": dict(scheme="vans", model="A", counting="events")}
 #: seed 002's CFD step [s]
 PAPER_CFD_STEP_S = 0.01
 #: primed start: bead-free liquid time before the beads go in [s] (at 1200 rpm the rotor's
@@ -64,10 +68,12 @@ def scene_for(rpm: float, filling: float, sector_deg: float | None = None,
     if method not in METHODS:
         raise ValueError(f"method = {method!r}: allowed {list(METHODS)}")
     d = load_scene_dict("accelerator_slice")
+    c = d["fluid"].setdefault("coupled", {})
     if METHODS[method]["scheme"] == "dpm":
-        c = d["fluid"].setdefault("coupled", {})
         c.pop("vans_model", None)
         c.update(scheme="dpm", cfd_step_s=PAPER_CFD_STEP_S)
+    elif "model" in METHODS[method]:
+        c["vans_model"] = METHODS[method]["model"]
     base = scene_from_dict(d)
     tip = rpm * 2.0 * math.pi / 60.0 * base.geometry.disc_radius_m
     sector_deg = SECTOR_DEG if sector_deg is None else sector_deg
