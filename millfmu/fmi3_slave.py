@@ -26,6 +26,14 @@ from pythonfmu3 import Dimension, Fmi3Causality, Fmi3Initial, Fmi3Slave, Fmi3Sta
 STATE_FORMAT = "millfmu-fmi3-state-1"
 
 
+
+
+def _fixed_class_count(value):
+    """Setter of the class count: never called (set_uint64 checks the value and refuses a
+    change); given so that pythonfmu3 makes none that holds the instance (a reference
+    cycle that kept every freed instance until the collector's next full pass)."""
+    raise FmiCallError(f"the class count is fixed when the FMU is built (got {value})")
+
 class FmiCallError(Exception):
     """An illegal call: the FMU answers fmi3Error with this message and changes nothing."""
 
@@ -70,7 +78,7 @@ class Fmi3Base(Fmi3Slave):
         self._vr_n = len(self.vars)
         self.register_variable(UInt64(name, causality=Fmi3Causality.structuralParameter, variability=Fmi3Variability.fixed,
                                       initial=Fmi3Initial.exact, start=self.n_classes, description=description,
-                                      getter=lambda: self.n_classes))
+                                      getter=lambda n=self.n_classes: n, setter=_fixed_class_count))
         return self._vr_n
 
     def declare(self, name: str, unit: str, causality: str, variability: str, description: str, start, array: bool = False) -> int:
@@ -85,10 +93,12 @@ class Fmi3Base(Fmi3Slave):
         if causality in ("input", "parameter"):
             self._settable[vr] = "input" if causality == "input" else variability
         initial = {"parameter": Fmi3Initial.exact, "output": Fmi3Initial.calculated}.get(causality)
+        # the getter holds the value list, not self (no reference cycle: see millfmu.fmu)
+        v = self._v
         self.register_variable(Float64(
             name, causality=getattr(Fmi3Causality, causality), variability=getattr(Fmi3Variability, variability), initial=initial,
             description=description, unit=unit, dimensions=[Dimension(valueReference=str(self._vr_n))] if array else [],
-            getter=(lambda: self._v[s]) if array else (lambda: self._v[s.start])))
+            getter=(lambda: v[s]) if array else (lambda: v[s.start])))
         self._unit_of[name] = unit
         return vr
 
@@ -198,7 +208,7 @@ class Fmi3Base(Fmi3Slave):
         if len(state["values"]) != len(self._v):
             raise ValueError(f"{len(state['values'])} values, this FMU has {len(self._v)}")
         self._restore(state)
-        self._v = [float(x) for x in state["values"]]
+        self._v[:] = [float(x) for x in state["values"]]  # in place: the getters hold it
         self._config_error = state["config_error"]
         self._initialized = bool(state["initialized"])
 
