@@ -149,12 +149,16 @@ def recording_warnings(manifest: dict) -> list:
     return out
 
 
+#: Q3 levels of the outputs x10, x50, x90
+_QUANTILES = np.array([0.1, 0.5, 0.9])
+
 @dataclass(frozen=True)
 class _Frozen:
     """What an exact step needs for one set of frozen inputs and step size."""
 
     op: rates.OperatingPoint
     propagator: pbm.SeriesPropagator
+    numbers: dict  # the operating point's scalars (MillModel._op_numbers), looked up once
 
 
 class MillModel:
@@ -207,6 +211,7 @@ class MillModel:
         self._rate_cache = pbm.LRUCache(64)  # breakage operators by operating point
         self._num_cache = pbm.LRUCache(256)  # scalars by operating point
         self._log_nodes = np.log(self.operator.nodes_m.ravel())
+        self._log_edges = np.log(self.grid.edges_m)
         self.reset()
 
     def _stress_source(self, sd):
@@ -402,8 +407,9 @@ class MillModel:
         return pbm.TanksInSeries(a, self.n_tanks, d, n_in=self.grid.n, order=self.operator.upper_order), u, op
 
     def _frozen_step(self, inputs, h):
-        series, _, op = self._system(inputs)
-        return _Frozen(op, series.propagator(h))
+        with np.errstate(all="ignore"):  # extreme rates: a non-finite step is refused by name
+            series, _, op = self._system(inputs)
+            return _Frozen(op, series.propagator(h), self._op_numbers(op))
 
     # ---- inputs ---------------------------------------------------------------------------
     def check_inputs(self, given: dict) -> dict:
@@ -466,11 +472,15 @@ class MillModel:
         end_inputs = self.check_inputs({**inputs, **(inputs_end or {})}) if inputs_end else None
         adaptive = self.capture_from_psd or end_inputs is not None or self.scene.run.integrator == "adaptive"
         try:
-            with np.errstate(all="ignore"):  # a non-finite result is refused below, by name
-                y_new, op, op_end = self._advance(h, new_inputs, end_inputs, adaptive)
+            if adaptive:
+                with np.errstate(all="ignore"):  # a non-finite result is refused below, by name
+                    y_new, op, op_end, num, num_end = self._advance(h, new_inputs, end_inputs, adaptive)
+            else:  # the propagator's build silences its own warnings; applying it is one product
+                y_new, op, op_end, num, num_end = self._advance(h, new_inputs, end_inputs, adaptive)
         except (ValueError, ArithmeticError, RuntimeError, np.linalg.LinAlgError) as e:
             raise StepError(f"step of {h} s at t = {self.t_s} s failed ({type(e).__name__}: {e})") from None
-        if not np.all(np.isfinite(y_new)) or np.any(y_new < 0.0):
+        # min is NaN where an entry is; the sum is not finite where one is infinite
+        if not (y_new.min() >= 0.0 and math.isfinite(y_new.sum())):
             raise StepError(f"step of {h} s at t = {self.t_s} s gave non-finite or negative masses")
         out_kg = float(y_new[0] - self.y[0])
         # Fed mass: the feed rate is linear over the step when ramped (as integrated above).
@@ -478,8 +488,8 @@ class MillModel:
         fed = 0.5 * (float(new_inputs["feed_mass_flow_kg_per_s"]) + float(mdot_end)) * h
         # Power and stress number with the operating point held over the step (trapezoid
         # between start and end for ramps).
-        p_mean = 0.5 * (self._op_numbers(op)["power_W"] + self._op_numbers(op_end)["power_W"])
-        outs = self._outputs(y_new, op_end, end_inputs or new_inputs, dt_s=h, out_kg=out_kg)
+        p_mean = 0.5 * (num["power_W"] + num_end["power_W"])
+        outs = self._outputs(y_new, op_end, end_inputs or new_inputs, dt_s=h, out_kg=out_kg, num=num_end)
         sf_mean = 0.5 * (self._last["sf_per_s"] + outs["sf_per_s"]) if adaptive else outs["sf_per_s"]
         # Commit.
         self.y = y_new
@@ -495,7 +505,8 @@ class MillModel:
         return outs
 
     def _advance(self, h, new_inputs, end_inputs, adaptive):
-        """(state after a step of h seconds, operating point at its start, at its end); commits nothing."""
+        """(state after a step of h seconds, operating point at its start, at its end, and
+        their scalars); commits nothing."""
         if adaptive:
             op = self.operating_point(new_inputs)
 
@@ -513,6 +524,7 @@ class MillModel:
             rtol = self.scene.run.rtol
             y_new, _ = pbm.adaptive_exponential_step(self.y, self.t_s, h, system, rtol=rtol, atol=rtol * 1e-6 * max(self.y.sum(), 1e-300))
             op_end = self.operating_point(end_inputs or new_inputs)
+            return y_new, op, op_end, self._op_numbers(op), self._op_numbers(op_end)
         else:
             # Everything that depends only on the frozen inputs and h is built once.
             key = (new_inputs["tip_speed_m_per_s"], new_inputs["solids_mass_fraction"], new_inputs["bead_filling"], new_inputs["feed_mass_flow_kg_per_s"], h)
@@ -520,8 +532,7 @@ class MillModel:
             op = frozen.op
             u = new_inputs["feed_mass_flow_kg_per_s"] * new_inputs["psd_in"] if self.continuous else None
             y_new = frozen.propagator.apply(self.y, u)
-            op_end = op
-        return y_new, op, op_end
+            return y_new, op, op, frozen.numbers, frozen.numbers
 
     def _specific_energy(self) -> float:
         """Stirrer energy per mass of solids treated [J/kg]: E / (initial holdup + solids fed)."""
@@ -529,7 +540,7 @@ class MillModel:
         return self.energy_J / m if m > 0.0 else 0.0
 
     # ---- outputs --------------------------------------------------------------------------
-    def _outputs(self, y, op, inputs, dt_s, out_kg) -> dict:
+    def _outputs(self, y, op, inputs, dt_s, out_kg, num=None) -> dict:
         n, m = self.grid.n, self._m
         tanks = y[1:].reshape(self.n_tanks, m)  # tank N first
         content = tanks.sum(axis=0)
@@ -544,8 +555,8 @@ class MillModel:
         psd = per_class / tot if tot > 0.0 else np.zeros(n)
         below = float(dist[-1]) / tot if tot > 0.0 else 0.0
         holdup = float(content.sum())
-        x10, x50, x90 = kgrid.characteristic_sizes_m(self.grid, psd, (0.1, 0.5, 0.9), below) if tot > 0 else (math.nan,) * 3
-        num = self._op_numbers(op)
+        x10, x50, x90 = kgrid.sizes_at_log_edges(self._log_edges, psd, _QUANTILES, below) if tot > 0 else (math.nan,) * 3
+        num = num if num is not None else self._op_numbers(op)
         if math.isfinite(x50):
             sf_nodes = num["sf_nodes"] if num["sf_nodes"] is not None else self._sf_nodes(op, y).ravel()
             sf = float(np.interp(math.log(x50), self._log_nodes, sf_nodes))

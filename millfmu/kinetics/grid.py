@@ -146,14 +146,28 @@ def characteristic_sizes_m(grid: SizeGrid, fractions: np.ndarray, qs, below: flo
     """Sizes [m] at which Q3 reaches each of ``qs``; same rules as :func:`characteristic_size_m`,
     except that Q3 at the lowest edge is ``below``, the part of the finest class's fraction
     that lies below the grid: a size whose Q3 is within it is reported as the lowest edge."""
+    return sizes_at_log_edges(np.log(grid.edges_m), fractions, np.asarray(qs, dtype=float), below)
+
+
+def sizes_at_log_edges(log_edges: np.ndarray, fractions: np.ndarray, q: np.ndarray, below: float = 0.0) -> tuple:
+    """:func:`characteristic_sizes_m` with the grid's ln(edges) given (the stepping path
+    computes them once): sizes [m] at the Q3 levels ``q`` (an array)."""
     cum = np.cumsum(fractions)
     total = cum[-1]
     if not total > 0.0:
-        return tuple(math.nan for _ in qs)
-    cum = np.concatenate(([min(max(below, 0.0), cum[0])], cum)) / total
-    q = np.asarray(qs, dtype=float)
-    k = np.clip(np.searchsorted(cum, q, side="left"), 1, len(cum) - 1)
-    c0, c1 = cum[k - 1], cum[k]
-    le = np.log(grid.edges_m)
-    f = np.clip(np.where(c1 > c0, (q - c0) / np.where(c1 > c0, c1 - c0, 1.0), 0.0), 0.0, 1.0)
-    return tuple(np.exp(le[k - 1] + f * (le[k] - le[k - 1])).tolist())
+        return tuple(math.nan for _ in q)
+    n = cum.size
+    b = min(max(below, 0.0), cum[0]) / total  # Q3 at the lowest edge
+    cn = cum / total  # Q3 at the upper edges
+    k = np.searchsorted(cn, q, side="left") + 1
+    expo = []
+    for qi, ki in zip(q.tolist(), k.tolist()):
+        if qi <= b:
+            ki = 1
+        ki = min(ki, n)
+        c0 = b if ki == 1 else cn[ki - 2]
+        c1 = cn[ki - 1]
+        f = min(max((qi - c0) / (c1 - c0), 0.0), 1.0) if c1 > c0 else 0.0
+        l0 = log_edges[ki - 1]
+        expo.append(l0 + f * (log_edges[ki] - l0))
+    return tuple(np.exp(expo).tolist())
