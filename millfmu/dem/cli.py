@@ -204,7 +204,7 @@ def _seed002(args) -> int:
             seed002.run_campaign(args.out, cases=cases, threads=args.threads,
                                  method=args.method, primed=args.primed)
         if len(cols) == 1:
-            print(seed002.markdown(seed002.deviation_rows(args.out)))
+            print(seed002.markdown(seed002.deviation_rows(args.out), f"ours ({cols[0][0]})"))
         else:
             print(seed002.markdown_columns(seed002.deviation_table(cols)))
     except ValueError as e:
