@@ -387,6 +387,15 @@ def test_seed002_columns_by_method_and_counting(tmp_path):
     assert e["cells"]["physical"]["verdict"].startswith("missed")
     md = S.markdown_columns(rows)
     assert md.splitlines()[0].count("|") == 6 and len(md.splitlines()) == 14
+    # a variant run at one point is judged on it; statements across cases are not
+    one = tmp_path / "primed"
+    d = S.case_dir(one, 1200.0, 0.8)
+    d.mkdir(parents=True)
+    (d / "stats.json").write_text((S.case_dir(paper, 1200.0, 0.8) / "stats.json").read_text())
+    (one / "campaign.json").write_text(json.dumps({"method": "paper", "primed": True}))
+    rows = {r["statement"][:30]: r for r in S.deviation_table([("paper", paper), ("primed", one)])}
+    assert rows["efficiency SE_cs,sum / SE_net "]["cells"]["primed"]["verdict"] == "matches at 1200 rpm 80 %"
+    assert rows["total SN_g rising with filling"]["cells"]["primed"]["verdict"].startswith("incomplete")
     with pytest.raises(ValueError, match="holds a campaign of"):
         S.run_campaign(paper, cases=(), method="physical")
     with pytest.raises(ValueError, match="counting = 'frames'"):
