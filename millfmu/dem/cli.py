@@ -193,6 +193,7 @@ def _seed001(args) -> int:
 
 
 def _seed002(args) -> int:
+    from millfmu.dem.run import DemRunError
     from millfmu.dem.studies import seed002
 
     cases = seed002.CASES
@@ -207,7 +208,7 @@ def _seed002(args) -> int:
             print(seed002.markdown(seed002.deviation_rows(args.out), f"ours ({cols[0][0]})"))
         else:
             print(seed002.markdown_columns(seed002.deviation_table(cols)))
-    except ValueError as e:
+    except (ValueError, DemRunError) as e:
         print(f"millfmu dem seed002: {e}", file=sys.stderr)
         return 2
     if args.export_table:
@@ -279,8 +280,14 @@ def _run(args) -> int:
     if args.window_s is not None and not args.window_s > 0.0:
         print(f"millfmu dem run: --windows = {args.window_s!r}: must be > 0 s", file=sys.stderr)
         return 2
-    stats = run_scene(scene, args.out, progress=not args.no_progress, threads=args.threads,
-                      window_s=args.window_s)
+    from millfmu.dem.run import DemRunError
+
+    try:
+        stats = run_scene(scene, args.out, progress=not args.no_progress, threads=args.threads,
+                          window_s=args.window_s)
+    except DemRunError as e:
+        print(f"millfmu dem run: {e}", file=sys.stderr)
+        return 2
     print(summary_table(stats))
     print(f"fluid: {stats.fluid_model}")
     print(f"wrote {args.out}/stats.json, se_histograms.csv, kinetic_energy.csv, map_*.png")

@@ -56,6 +56,24 @@ from millfmu.dem.scene import DemScene
 INITIAL_TURBULENCE_INTENSITY = 0.02
 #: seed 002 saved positions, velocities and contacts 20 times per second [s]
 PAPER_FRAME_INTERVAL_S = 0.05
+#: a bead this many times faster than the stirrer's tip means the run has become unstable
+#: (beads driven by the stirrer stay below about twice its tip speed)
+UNSTABLE_SPEED_FACTOR = 20.0
+
+
+class DemRunError(RuntimeError):
+    """A run that cannot go on: the beads' motion became unstable. Nothing was written."""
+
+
+def _instability(sim, scene) -> str | None:
+    """Why the beads' state is not a physical one (None where it is)."""
+    if not (np.isfinite(sim.x).all() and np.isfinite(sim.v).all()):
+        return "non-finite bead positions or velocities"
+    vmax = float(np.sqrt(np.einsum("ij,ij->i", sim.v, sim.v).max())) if sim.n else 0.0
+    if vmax > UNSTABLE_SPEED_FACTOR * scene.tip_speed_m_s:
+        return (f"a bead at {vmax:.3g} m/s, {vmax / scene.tip_speed_m_s:.0f} times the tip speed "
+                f"{scene.tip_speed_m_s:.3g} m/s")
+    return None
 INITIAL_MIXING_LENGTH_M = 1e-3
 
 
@@ -162,9 +180,20 @@ def run_scene(scene: DemScene, out_dir, progress: bool = True, threads: int | No
         ke.append(et + er)
 
     def advance(k, record):
-        if cpl is None:
-            return [sim.run(k, record=record)]
-        return cpl.run(k, record=record)
+        t0 = sim.step_count * dt
+        try:
+            out = [sim.run(k, record=record)] if cpl is None else cpl.run(k, record=record)
+        except MemoryError:
+            # the neighbour lists of beads thrown far apart or onto each other outgrow memory
+            why = _instability(sim, scene) or "the neighbour lists outgrew the memory"
+            raise DemRunError(f"{scene.name}: the run became unstable between t = {t0:.4g} and "
+                              f"{t0 + k * dt:.4g} s ({why}); fluid: {scene.fluid_description}; "
+                              f"nothing written") from None
+        why = _instability(sim, scene)
+        if why is not None:
+            raise DemRunError(f"{scene.name}: the run became unstable by t = {t0 + k * dt:.4g} s "
+                              f"({why}); fluid: {scene.fluid_description}; nothing written")
+        return out
 
     sample()
     done = 0

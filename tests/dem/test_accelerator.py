@@ -422,3 +422,33 @@ def test_model_a_runs_in_the_rotor():
     gp = float(np.abs(sim.per_bead["fluid_at_bead"][:, 3:6]).max())
     print(f"model A: vmax {vmax:.2f} m/s (rim {sc.tip_speed_m_s:.2f}), |grad p| {gp:.3g} Pa/m")
     assert vmax < 1.2 * sc.tip_speed_m_s
+
+
+@pytest.mark.parametrize("failure", ["memory", "speed"])
+def test_an_unstable_run_stops_by_name_and_writes_nothing(tmp_path, monkeypatch, capsys, failure):
+    """A run whose beads fly apart (model A's late blow-up in this rotor ran the neighbour
+    lists out of memory inside the DEM) ends with exit 2 naming the time, the cause and the
+    fluid, not a MemoryError traceback; no statistics are written."""
+    pytest.importorskip("numba")
+    from millfmu.dem.engine.sim import DemSimulation
+
+    real = DemSimulation.run
+
+    def broken(self, nsteps, record=False):
+        st = real(self, nsteps, record=record)
+        if self.step_count >= 4:
+            if failure == "memory":
+                raise MemoryError("Allocation failed (probably too large).")
+            self.v[0] = [0.0, 0.0, 500.0]
+        return st
+
+    monkeypatch.setattr(DemSimulation, "run", broken)
+    out = tmp_path / "acc"
+    a = _parser().parse_args(["dem", "run", "accelerator_slice", "--out", str(out), "--sector-deg", "30",
+                              "--filling", "0.6", "--spin-up", "2e-3", "--record", "2e-3",
+                              "--sample-every", "1e-3", "--no-progress", "--threads", "1"])
+    assert a.func(a) == 2
+    err = capsys.readouterr().err
+    assert "became unstable" in err and "nothing written" in err and "Traceback" not in err
+    assert ("outgrew the memory" in err) if failure == "memory" else ("times the tip speed" in err)
+    assert not (out / "stats.json").exists()

@@ -179,7 +179,7 @@ def write_speed_profiles(path: Path, seed002: dict):
     ap = seed002["axial_speed_profile"]
     b.plot(ap["x_over_l"], [np.nan if v is None else v for v in ap["speed_over_tip_speed"]],
            "o-")
-    b.set_xlabel("X'/L (0: between rotors, 1: rotor mid-plane), beside the shaft")
+    b.set_xlabel("X'/L (0: between rotors, 1: rotor mid-plane)\nin the inner zones (SEV_3, SEV_4)")
     fig.suptitle(f"{seed002['rotor_speed_rpm']:.0f} rpm", fontsize=9)
     fig.tight_layout()
     fig.savefig(path, dpi=110)
