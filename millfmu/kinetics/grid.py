@@ -152,22 +152,21 @@ def characteristic_sizes_m(grid: SizeGrid, fractions: np.ndarray, qs, below: flo
 def sizes_at_log_edges(log_edges: np.ndarray, fractions: np.ndarray, q: np.ndarray, below: float = 0.0) -> tuple:
     """:func:`characteristic_sizes_m` with the grid's ln(edges) given (the stepping path
     computes them once): sizes [m] at the Q3 levels ``q`` (an array)."""
-    cum = np.cumsum(fractions)
+    cum = fractions.cumsum() if isinstance(fractions, np.ndarray) else np.cumsum(fractions)
     total = cum[-1]
     if not total > 0.0:
         return tuple(math.nan for _ in q)
     n = cum.size
-    b = min(max(below, 0.0), cum[0]) / total  # Q3 at the lowest edge
     cn = cum / total  # Q3 at the upper edges
-    k = np.searchsorted(cn, q, side="left") + 1
+    b = min(max(below, 0.0), cum.item(0)) / total.item()  # Q3 at the lowest edge
+    k = cn.searchsorted(q, side="left")
     expo = []
+    # Python floats from here (item): the same IEEE arithmetic as numpy's scalars, faster
     for qi, ki in zip(q.tolist(), k.tolist()):
-        if qi <= b:
-            ki = 1
-        ki = min(ki, n)
-        c0 = b if ki == 1 else cn[ki - 2]
-        c1 = cn[ki - 1]
+        ki = 1 if qi <= b else min(ki + 1, n)
+        c0 = b if ki == 1 else cn.item(ki - 2)
+        c1 = cn.item(ki - 1)
         f = min(max((qi - c0) / (c1 - c0), 0.0), 1.0) if c1 > c0 else 0.0
-        l0 = log_edges[ki - 1]
-        expo.append(l0 + f * (log_edges[ki] - l0))
+        l0 = log_edges.item(ki - 1)
+        expo.append(l0 + f * (log_edges.item(ki) - l0))
     return tuple(np.exp(expo).tolist())
