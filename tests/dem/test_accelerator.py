@@ -452,3 +452,20 @@ def test_an_unstable_run_stops_by_name_and_writes_nothing(tmp_path, monkeypatch,
     assert "became unstable" in err and "nothing written" in err and "Traceback" not in err
     assert ("outgrew the memory" in err) if failure == "memory" else ("times the tip speed" in err)
     assert not (out / "stats.json").exists()
+
+
+def test_seed002_cli_refuses_bad_cases_and_mixed_campaigns(tmp_path, capsys):
+    """--case names one of the paper's cases; a folder keeps the campaign it holds; a
+    comparison column needs LABEL=DIR: each refused with exit 2 and the reason."""
+    for args, want in ((["--case", "1200"], "write RPM:FILLING"),
+                       (["--case", "1100:0.8"], "not one of seed 002's cases"),
+                       (["--compare", "nolabel"], "write LABEL=DIR")):
+        a = _parser().parse_args(["dem", "seed002", "table", "--out", str(tmp_path / "x")] + args)
+        assert a.func(a) == 2
+        assert want in capsys.readouterr().err
+    (tmp_path / "p").mkdir()
+    (tmp_path / "p" / "campaign.json").write_text(json.dumps({"method": "paper", "primed": False}))
+    a = _parser().parse_args(["dem", "seed002", "run", "--out", str(tmp_path / "p"), "--method", "physical",
+                              "--case", "1200:0.8"])
+    assert a.func(a) == 2
+    assert "holds a campaign of" in capsys.readouterr().err
