@@ -156,3 +156,23 @@ def test_scene_chooses_the_scheme_by_name_and_refuses_what_does_not_fit():
     c["cfd_step_s"] = -1.0
     with pytest.raises(DemSceneError, match="cfd_step_s"):
         scene_from_dict(d)
+
+
+def test_dem_run_primed_from_the_command_line(tmp_path, capsys):
+    """`dem run --primed S` runs the bead-free liquid first; with a prescribed fluid it is
+    refused by name (exit 2), nothing run."""
+    import argparse
+
+    from millfmu.dem.cli import register
+
+    p = argparse.ArgumentParser()
+    register(p.add_subparsers())
+    base = ["dem", "run", "accelerator_slice", "--sector-deg", "30", "--filling", "0.6", "--spin-up", "1e-3",
+            "--record", "1e-3", "--sample-every", "1e-3", "--no-progress", "--threads", "1", "--primed", "0.01"]
+    a = p.parse_args(base + ["--out", str(tmp_path / "ok")])
+    assert a.func(a) == 0
+    assert (tmp_path / "ok" / "stats.json").exists()
+    a = p.parse_args(base + ["--out", str(tmp_path / "no"), "--fluid", "prescribed"])
+    assert a.func(a) == 2
+    assert "a primed start needs the coupled fluid" in capsys.readouterr().err
+    assert not (tmp_path / "no").exists()
