@@ -422,12 +422,10 @@ class MillModel:
             # A value equal to the current one passed this check when it was set (a host
             # passes every input at every step): nothing to check again.
             if k == "psd_in":
-                if isinstance(v, np.ndarray) and v.shape == cur.shape and v.dtype == cur.dtype and np.array_equal(v, cur):
-                    continue
-            elif type(v) is float and v == cur:
+                if not (isinstance(v, np.ndarray) and v.shape == cur.shape and v.dtype == cur.dtype and np.array_equal(v, cur)):
+                    new[k] = kgrid.checked_fractions(k, v, self.grid.n, InputError, PSD_SUM_TOL)
                 continue
-            if k == "psd_in":
-                new[k] = kgrid.checked_fractions(k, v, self.grid.n, InputError, PSD_SUM_TOL)
+            if type(v) is float and v == cur:
                 continue
             try:
                 x = float(v)
