@@ -102,6 +102,9 @@ def register(subparsers) -> argparse.ArgumentParser:
                          "physical-A (physical with model A's pressure-gradient force)")
     s2.add_argument("--primed", action="store_true", help="run: start the beads in the "
                     "bead-free liquid's circulation (primed start) instead of from rest")
+    s2.add_argument("--baffles", action="store_true", help="run: with stationary baffles "
+                    "on the chamber wall between the rotors (seed002.BAFFLES; the liquid in "
+                    "12 theta cells per 60 degrees)")
     s2.add_argument("--case", action="append", metavar="RPM:FILLING", help="run only this "
                     "case (e.g. 1200:0.8; repeatable; default all seven)")
     s2.add_argument("--compare", action="append", metavar="LABEL=DIR", help="table: also "
@@ -203,7 +206,8 @@ def _seed002(args) -> int:
         cols = [(_label(args.out), args.out)] + [_compare_col(c) for c in args.compare or ()]
         if args.action == "run":
             seed002.run_campaign(args.out, cases=cases, threads=args.threads,
-                                 method=args.method, primed=args.primed)
+                                 method=args.method, primed=args.primed,
+                                 baffles=args.baffles)
         if len(cols) == 1:
             print(seed002.markdown(seed002.deviation_rows(args.out), f"ours ({cols[0][0]})"))
         else:
@@ -243,7 +247,8 @@ def _label(folder) -> str:
     from millfmu.dem.studies import seed002
 
     c = seed002.campaign_of(folder)
-    return c["method"] + (", primed" if c.get("primed") else "")
+    return c["method"] + (", primed" if c.get("primed") else "") + \
+        (", baffles" if c.get("baffles") else "")
 
 
 def _compare_col(text: str) -> tuple:

@@ -353,6 +353,10 @@ def accelerator_summary(scene, sim, zones, ev, ev_cols, record_s, sx, sv, fields
                                                        z_min=scene.zones.z2)
     q = A.rotor_throughflow_m3_s(fields, scene.geometry)
     out["rotor_throughflow_m3_s"] = q
+    out["return_leg"] = A.return_leg(
+        sx, sv, scene.geometry, scene.omega_rad_s, scene.bead_diameter_m,
+        scene.material.density_kg_m3,
+        scene.fluid.density_kg_m3 if scene.fluid is not None else 0.0, fields)
     return out
 
 
@@ -595,6 +599,15 @@ def summary_table(stats: DemStats) -> str:
                      f"{(t['ts_share'] or float('nan')):.3f}, SE_net {t['SE_net_w']:.4g} W, "
                      f"efficiency {(t['efficiency'] or float('nan')):.3%}; rotor pumps "
                      f"{(a['rotor_throughflow_m3_s'] or float('nan')) * 6e4:.4g} L/min")
+        rl = a.get("return_leg") or {}
+        if rl.get("k_beads") is not None:
+            kl = rl["k_liquid"] if rl["k_liquid"] is not None else float("nan")
+            lines.append(
+                f"return leg (between the rotors): beads swirl at k = {rl['k_beads']:.3f} of "
+                f"the rotor, liquid at {kl:.3f}; "
+                f"solids fraction {rl['solids_fraction']:.3f}; weight over rotor head R = "
+                f"{rl['R']:.3g} (a bead circulation needs R < 1, i.e. k < "
+                f"{(rl['k_for_R_1'] or float('nan')):.3f})")
     if fl.get("first_bead_layer_angular_velocity_ratio") is not None:
         vf = fl.get("vortices_fluid")
         lines.append("first bead layer at the disc: angular velocity "

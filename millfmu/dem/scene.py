@@ -96,9 +96,12 @@ class DemScene:
 
     def with_overrides(self, **kw) -> "DemScene":
         """Copy with run-time overrides (tip_speed_m_s, filling, sector_deg, spin_up_s,
-        record_s, dt_s, fluid_mode, initial_rotation, primed_s); validated like file
-        values."""
+        record_s, dt_s, fluid_mode, initial_rotation, primed_s; ``baffles``: a dict of the
+        [mill] baffle keys, BAFFLE_KEYS); validated like file values."""
         geo = self.geometry
+        if kw.get("baffles") is not None:
+            geo = _with_baffles(geo, kw["baffles"], "baffles")
+        kw.pop("baffles", None)
         if kw.get("sector_deg") is not None:
             geo = _geometry_or_error(replace, geo, sector_deg=float(kw.pop("sector_deg")))
         kw.pop("sector_deg", None)
@@ -131,6 +134,24 @@ class DemScene:
                 f"~{c.cell_m * 1e3:g} mm cells, {c.n_theta} theta cell(s), coupling every "
                 f"{c.steps} DEM steps ({c.steps * self.dt_s:.3g} s), CFD step the coupling "
                 f"interval or the part of it that CFL {c.cfl:g} allows")
+
+
+#: the [mill] keys of stationary baffles between the rotors (all or none; see
+#: :class:`millfmu.dem.mills.geometry.MillGeometry`)
+BAFFLE_KEYS = ("baffle_count", "baffle_thickness_m", "baffle_inner_radius_m",
+               "baffle_height_m", "baffle_angle_deg")
+
+
+def _with_baffles(geo, d: dict, path: str):
+    """``geo`` with the stationary baffles of ``d`` (keys BAFFLE_KEYS; all but the angle
+    required), validated."""
+    for k in d:
+        if k not in BAFFLE_KEYS:
+            raise DemSceneError(f"{path}.{k}: unknown baffle key; allowed: {list(BAFFLE_KEYS)}")
+    kw = {k: _get(d, k, path, int if k == "baffle_count" else float,
+                  required=k != "baffle_angle_deg")
+          for k in BAFFLE_KEYS if k != "baffle_angle_deg" or k in d}
+    return _geometry_or_error(replace, geo, **kw)
 
 
 def _geometry_or_error(fn, *a, **kw):
@@ -276,6 +297,8 @@ def scene_from_dict(d: dict, default_name: str = "scene") -> DemScene:
     else:
         h = _get(mill, "height_m", "mill", f, 0.004)
         geo = _geometry_or_error(MillGeometry, rsh, rch, h, 0.0, 0.0, 0.0, sector)
+    if any(k in mill for k in BAFFLE_KEYS):
+        geo = _with_baffles(geo, {k: mill[k] for k in BAFFLE_KEYS if k in mill}, "mill")
     dia = _get(beads, "diameter_m", "beads", f, 0.8e-3)
     _positive("beads.diameter_m", dia)
     mat = BeadMaterial(

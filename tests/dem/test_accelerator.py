@@ -376,7 +376,7 @@ def test_seed002_columns_by_method_and_counting(tmp_path):
             d.mkdir(parents=True)
             (d / "stats.json").write_text(json.dumps(st))
     (paper / "campaign.json").write_text(json.dumps({"method": "paper", "primed": False}))
-    assert S.campaign_of(phys) == {"method": "physical", "primed": False}
+    assert S.campaign_of(phys) == {"method": "physical", "primed": False, "baffles": False}
     eff = [r for r in S.deviation_rows(paper) if r["statement"].startswith("efficiency")][0]
     assert eff["verdict"].startswith("matches") and "0.003" in eff["ours"]
     eff = [r for r in S.deviation_rows(phys) if r["statement"].startswith("efficiency")][0]

@@ -84,7 +84,8 @@ class DemStats:
     # shear and bead contacts, power number, angular-momentum budget, vortices, swirl
     # profiles between the discs; see millfmu.dem.run
     flow: dict = field(default_factory=dict)
-    # bead-wall impacts per wall that had any (shaft, chamber, disc or shrouds, vanes):
+    # bead-wall impacts per wall that had any (shaft, chamber, disc or shrouds, vanes,
+    # baffles):
     # contacts, rate_per_s_cell (in the simulated cell [1/s]) and quantiles q50, q90, q99
     # and the largest value of SE_tn = 1/2 m v_n^2 and SE_ts = 1/2 m |v_t|^2 [J] at the
     # first overlap, v relative to the wall's surface and m the bead's mass (between two
@@ -111,8 +112,8 @@ class DemStats:
 
 
 #: wall names by the contact record's type - 1 (kernel wall ids: 0 shaft, 1 chamber,
-#: 2 disc or the accelerator's shrouds, 3 vanes)
-WALL_NAMES = ("shaft", "chamber", "disc", "vanes")
+#: 2 disc or the accelerator's shrouds, 3 vanes, 4 stationary baffles)
+WALL_NAMES = ("shaft", "chamber", "disc", "vanes", "baffles")
 
 
 def _tail(se_j: np.ndarray) -> dict:

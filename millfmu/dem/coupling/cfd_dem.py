@@ -30,6 +30,8 @@ nodes, whose equation is in angular-momentum form).
 
 from __future__ import annotations
 
+import warnings
+
 import numpy as np
 
 from millfmu.dem.coupling.settings import CouplingSettings
@@ -235,7 +237,9 @@ class CfdDem:
         for name, a in (("eps", s.eps_c), ("u_r", ur), ("u_theta", ut), ("u_z", uz),
                         ("flux_z", fz), ("nu_t", s.nu_t), ("k", s.k)):
             b = np.where(solid, np.nan, a)
-            with np.errstate(invalid="ignore"):
+            with np.errstate(invalid="ignore"), warnings.catch_warnings():
+                # rows solid in every theta cell (the shrouds) stay NaN, as with one cell
+                warnings.simplefilter("ignore", RuntimeWarning)
                 out[name] = np.nanmean(b, axis=1) if b.shape[1] > 1 else b[:, 0, :]
         return out
 

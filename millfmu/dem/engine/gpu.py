@@ -42,7 +42,8 @@ history_frame_pair = gpu_device(K.history_frame_pair)
 pair_response = gpu_device(K.pair_response, hertz_mindlin=hertz_mindlin)
 wall_response = gpu_device(K.wall_response, hertz_mindlin=hertz_mindlin,
                            history_frame=gpu_device(K.history_frame),
-                           wall_gap=gpu_device(K.wall_gap))
+                           wall_gap=gpu_device(K.wall_gap,
+                                               baffle_gap=gpu_device(K.baffle_gap)))
 body_force = gpu_device(K.body_force, swirl_velocity=gpu_device(K.swirl_velocity),
                         koch_hill_beta=gpu_device(K.koch_hill_beta))
 lubrication_force = gpu_device(K.lubrication_force)
@@ -365,7 +366,7 @@ def g_forces(x, v, w, f, t, rad, mass, inertia, nb, img, nnb, sh, fl, shw, flw, 
         tx += tix
         ty += tiy
         tz += tiz
-        cuda.atomic.add(acc, 0 if q != 1 else 1, twall)
+        cuda.atomic.add(acc, 0 if q != 1 and q != 4 else 1, twall)
     cuda.atomic.add(f, (i, 0), fx)
     cuda.atomic.add(f, (i, 1), fy)
     cuda.atomic.add(f, (i, 2), fz)

@@ -76,11 +76,18 @@ P_HCH = 30  # channel height between the shrouds [m]; 0: a solid disc
 P_NVANE = 31  # number of vanes over the full circle; 0: none
 P_TVANE = 32  # vane thickness [m]
 P_ROTANG = 33  # rotor angle [rad] at the positions' time (first vane at this angle)
-N_PRM = 34
+# stationary baffles (:class:`millfmu.dem.mills.geometry.MillGeometry`): n_baf radial plates
+# on the chamber wall, r_baf..r_ch, thickness t_baf, |z - z_disc - L_z / 2| <= h_baf / 2
+P_NBAF = 34  # number of baffles over the full circle; 0: none
+P_TBAF = 35  # baffle thickness [m]
+P_RBAF = 36  # inner radius of the baffles [m]
+P_HBAF = 37  # axial height of the baffles [m]
+P_ABAF = 38  # angle of the first baffle [rad]
+N_PRM = 39
 
 # wall ids: 0 shaft (rotating), 1 chamber (fixed), 2 disc or shrouds (rotating), 3 vanes
-# (rotating)
-NWALL = 4
+# (rotating), 4 baffles (fixed)
+NWALL = 5
 
 # ---- layout of a recorded contact (float64 row) -------------------------------------
 EV_TYPE = 0  # 0 bead-bead, 1 + wall id for bead-wall
@@ -277,6 +284,8 @@ def wall_gap(x, y, z, rad, w, prm):
     if rd <= 0.0:
         return 1.0, 1.0, 0.0, 0.0, False
     lz = prm[P_LZ]
+    if w == 4:
+        return baffle_gap(x, y, z, rad, r, prm)
     zr = z - prm[P_ZDISC]
     zr -= lz * math.floor(zr / lz + 0.5)
     hb = 0.5 * prm[P_BDISC]
@@ -328,6 +337,38 @@ def wall_gap(x, y, z, rad, w, prm):
     return -(hh - abs(zr - zmid)), 0.0, 0.0, sgn, True
 
 
+@device
+def baffle_gap(x, y, z, rad, r, prm):
+    """:func:`wall_gap` for the nearest stationary baffle (wall 4): a plate from r_baf to
+    the chamber wall along its radial mid-line at angle a, thickness t_baf, axial height
+    h_baf centred half a period from the rotor's mid-plane; r = |(x, y)| [m]."""
+    nb = prm[P_NBAF]
+    if nb <= 0.0 or r - prm[P_RBAF] < -rad:
+        return 1.0, 1.0, 0.0, 0.0, False
+    lz = prm[P_LZ]
+    zb = z - prm[P_ZDISC] - 0.5 * lz
+    zb -= lz * math.floor(zb / lz + 0.5)
+    hh = 0.5 * prm[P_HBAF]
+    if abs(zb) - hh > rad:
+        return 1.0, 1.0, 0.0, 0.0, False
+    pitch = 2.0 * math.pi / nb
+    a0 = prm[P_ABAF]
+    ang = a0 + pitch * math.floor((math.atan2(y, x) - a0) / pitch + 0.5)
+    ca = math.cos(ang)
+    sa = math.sin(ang)
+    s = x * ca + y * sa  # along the baffle
+    t = -x * sa + y * ca  # across it
+    ht = 0.5 * prm[P_TBAF]
+    ds = s - min(max(s, prm[P_RBAF]), prm[P_RCH])
+    dt_ = t - min(max(t, -ht), ht)
+    dz = zb - min(max(zb, -hh), hh)
+    d = math.sqrt(ds * ds + dt_ * dt_ + dz * dz)
+    if d > 1e-300:
+        return d, (ds * ca - dt_ * sa) / d, (ds * sa + dt_ * ca) / d, dz / d, True
+    sgn = 1.0 if t >= 0.0 else -1.0  # centre inside the plate: out through its face
+    return -(ht - abs(t)), -sgn * sa, sgn * ca, 0.0, True
+
+
 @contact
 def axial_image(dz, lz):
     """Axial separation dz [m] reduced to the nearest periodic image (|dz| <= lz / 2 for
@@ -363,7 +404,8 @@ def pair_response(nx, ny, nz, delta, vrx, vry, vrz, wix, wiy, wiz, wjx, wjy, wjz
 def wall_response(xi, yi, zi, vix, viy, viz, wix, wiy, wiz, ri, mi, q, s0, s1, s2, prm,
                   ystar, gstar, beta, mu, mur, dt):
     """Contact of a bead (centre x [m], velocity v [m/s], spin w [rad/s]) with wall q
-    (:func:`wall_gap`; the shaft and the disc turn at prm[P_OMEGA], the chamber stands):
+    (:func:`wall_gap`; the shaft, disc and vanes turn at prm[P_OMEGA], the chamber and the
+    baffles stand):
     Hertz-Mindlin with R* = ri, m* = mi against the wall's surface velocity at the
     contact point p = x - ri n. Returns (touching, v - v_wall, n, wall spin about z [rad/s],
     force [N] and torque [N m] on the bead, new history [m], torque about +z on the
@@ -375,7 +417,7 @@ def wall_response(xi, yi, zi, vix, viy, viz, wix, wiy, wiz, ri, mi, q, s0, s1, s
                 0.0, 0.0, 0.0)
     px = xi - ri * nx
     py = yi - ri * ny
-    om = prm[P_OMEGA] if q != 1 else 0.0  # shaft and disc turn with the stirrer
+    om = prm[P_OMEGA] if q != 1 and q != 4 else 0.0  # chamber and baffles stand
     vrx = vix + om * py
     vry = viy - om * px
     sdn, sm0, sm1 = history_frame(s0, s1, s2, nx, ny, nz)
@@ -777,7 +819,7 @@ def compute_forces(x, v, w, fb, tb, rad, mass, inertia, pst, nnb, pj, pim, psh, 
 
     New contacts (first overlap) go to evc[c, k, :] (layout EV_*) when record is true;
     torq[c, 0] receives the torque [N m] about +z that chunk c's beads exert on the stirrer
-    (shaft and disc), torq[c, 1] the torque on the fixed chamber wall.
+    (shaft and disc), torq[c, 1] the torque on the fixed chamber wall and baffles.
 
     fext[i] = (F_r [N], T_z [N m], F_z [N]) is a force held over the call (the coupled
     fluid's drag and pressure force, in cylindrical components at the bead's current
@@ -802,6 +844,8 @@ def compute_forces(x, v, w, fb, tb, rad, mass, inertia, pst, nnb, pj, pim, psh, 
     rdisc = prm[P_RDISC]
     has_disc = rdisc > 0.0
     hdisc = 0.5 * prm[P_BDISC]
+    has_baffles = prm[P_NBAF] > 0.0
+    rbaf = prm[P_RBAF]
     zdisc = prm[P_ZDISC]
     # Equal beads (one radius and mass, as in most mill runs): R*, m* and the partner's
     # radius are the same for every pair, computed once, as the general formulas give
@@ -938,6 +982,8 @@ def compute_forces(x, v, w, fb, tb, rad, mass, inertia, pst, nnb, pj, pim, psh, 
                 zd = zi - zdisc
                 zd -= lz * math.floor(zd / lz + 0.5)
                 near = abs(zd) - hdisc <= ri and rxy - rdisc <= ri
+            if not near and has_baffles:
+                near = rxy - rbaf >= -ri
             if not near:
                 for q in range(NWALL):
                     if flw[i, q] != 0:
@@ -977,7 +1023,7 @@ def compute_forces(x, v, w, fb, tb, rad, mass, inertia, pst, nnb, pj, pim, psh, 
                 tx += tix
                 ty += tiy
                 tz += tiz
-                if q != 1:
+                if q != 1 and q != 4:
                     tq += twall
                 else:
                     tqc += twall

@@ -37,7 +37,7 @@ class StepStats:
     steps: int
     events: np.ndarray  # (n, EV_NF) rows, layout kernels.EV_*; step column made global
     torque_sum_nm_steps: float  # sum over steps of the torque beads exert on the stirrer
-    chamber_torque_sum_nm_steps: float  # the same for the fixed chamber wall
+    chamber_torque_sum_nm_steps: float  # the same for the fixed chamber wall and baffles
     dropped_events: int
     neighbour_builds: int
     extra: dict = field(default_factory=dict)
@@ -146,6 +146,11 @@ class DemSimulation:
         prm[K.P_NVANE] = geometry.vane_count
         prm[K.P_TVANE] = geometry.vane_thickness_m
         prm[K.P_ROTANG] = 0.0
+        prm[K.P_NBAF] = geometry.baffle_count
+        prm[K.P_TBAF] = geometry.baffle_thickness_m
+        prm[K.P_RBAF] = geometry.baffle_inner_radius_m
+        prm[K.P_HBAF] = geometry.baffle_height_m
+        prm[K.P_ABAF] = math.radians(geometry.baffle_angle_deg)
         prm[K.P_SKIN] = self.skin_m
         self.prm = prm
         # chunks of beads, each with its own force buffer: a fixed number for a given bead

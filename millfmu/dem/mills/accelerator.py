@@ -110,8 +110,8 @@ class SevZones:
 
     def volumes_m3(self) -> np.ndarray:
         """Open volume of each zone in the simulated sector [m3]: the ring and axial band of
-        the zone, less the shrouds' and vanes' parts in it (exact: annular slabs and plates
-        of constant thickness)."""
+        the zone, less the shrouds', vanes' and baffles' parts in it (annular slabs and
+        plates of constant thickness, as MillGeometry.free_volume_m3 counts them)."""
         g = self.g
         s = self.spec
         span = g.chamber_radius_m - g.shaft_radius_m
@@ -137,6 +137,10 @@ class SevZones:
             if g.vane_count:
                 v -= g.vane_count * g.vane_thickness_m * \
                     overlap(rr, (g.shaft_radius_m, g.disc_radius_m)) * 2.0 * overlap(zz, (0.0, hc))
+            if g.has_baffles:  # half a period from the rotor's mid-plane, |z| near L/2
+                v -= g.baffle_count * g.baffle_thickness_m * \
+                    overlap(rr, (g.baffle_inner_radius_m, g.chamber_radius_m)) * 2.0 * \
+                    overlap(zz, (half - 0.5 * g.baffle_height_m, half))
             out.append(v)
         return np.array(out) * g.sector_fraction
 
@@ -302,6 +306,82 @@ def axial_speed_profile(sample_x, sample_v, geometry: MillGeometry, tip_speed_m_
 
     c, p, n = _speed_profile(sample_x, sample_v, x_over_l, tip_speed_m_s, bins)
     return dict(x_over_l=c, speed_over_tip_speed=p, samples=n)
+
+
+def return_leg(sample_x, sample_v, geometry: MillGeometry, omega_rad_s: float,
+               bead_diameter_m: float, bead_density_kg_m3: float, fluid_density_kg_m3: float,
+               fields: dict | None = None) -> dict:
+    """The return leg of the rotor's circulation: beads and liquid between two rotors
+    (|z - z_disc| > b/2) from the eye r_1 to the chamber wall r_w, where the beads thrown
+    out at the rim would have to flow back in to the eye (plain JSON data, SI units).
+
+    - ``k_beads``: the beads' mean swirl over the rotor's at their radius, mean of
+      v_theta / (omega r) over the samples [-]; ``k_liquid`` the same for the liquid
+      (volume-weighted over the fluid cells of the section fields, theta-averaged);
+    - ``solids_fraction``: bead volume over the open volume of that region [-];
+    - ``R``: the buoyant weight of such a return leg over the rotor's head (the shared
+      analysis of the slice), phi (rho_b - rho_f) k^2 (r_w^2 - r_1^2) /
+      (rho_f (r_2^2 - r_1^2)) with phi the solids fraction, k = k_beads and r_2 the rim:
+      a circulation of the beads needs R < 1;
+    - ``k_beads_profile``: k_beads in five equal radial bins from r_1 to r_w."""
+    g = geometry
+    r1, rw, r2 = g.eye_radius_m, g.chamber_radius_m, g.disc_radius_m
+    hb = 0.5 * g.disc_thickness_m
+    v_bead = math.pi / 6.0 * bead_diameter_m ** 3
+    edges = np.linspace(r1, rw, 6)
+    ks = []
+    acc = np.zeros(5)
+    cnt = np.zeros(5)
+    counts = []
+    for xs, vs in zip(sample_x, sample_v):
+        xs = np.asarray(xs, float)
+        vs = np.asarray(vs, float)
+        r = np.hypot(xs[:, 0], xs[:, 1])
+        zr = xs[:, 2] - g.disc_z_m
+        zr -= g.height_m * np.floor(zr / g.height_m + 0.5)
+        m = (r >= r1) & (r < rw) & (np.abs(zr) > hb)
+        counts.append(int(m.sum()))
+        if not m.any():
+            continue
+        vt = (-xs[m, 1] * vs[m, 0] + xs[m, 0] * vs[m, 1]) / r[m]
+        k = vt / (omega_rad_s * r[m])
+        ks.append(k)
+        b = np.clip(np.searchsorted(edges, r[m], side="right") - 1, 0, 4)
+        np.add.at(acc, b, k)
+        np.add.at(cnt, b, 1.0)
+    k_beads = float(np.concatenate(ks).mean()) if ks else None
+    # open volume of the region in the simulated sector: the ring between the rotors, less
+    # the baffles there
+    vol = math.pi * (rw ** 2 - r1 ** 2) * (g.height_m - 2.0 * hb)
+    if g.has_baffles:
+        vol -= g.baffle_volume_m3() * (rw - max(r1, g.baffle_inner_radius_m)) / \
+            (rw - g.baffle_inner_radius_m)
+    vol *= g.sector_fraction
+    phi = float(np.mean(counts)) * v_bead / vol if counts else None
+    k_liq = None
+    if fields is not None and "u_theta" in fields:
+        rr = np.asarray(fields["r_m"])
+        zeta = np.asarray(fields["zeta_m"])
+        ut = np.asarray(fields["u_theta"])
+        sel = ((rr >= r1) & (rr < rw))[:, None] & (np.abs(zeta) > hb)[None, :] & \
+            np.isfinite(ut)
+        if sel.any():
+            w = np.broadcast_to(rr[:, None], ut.shape)[sel]
+            k_liq = float(np.sum(ut[sel] / (omega_rad_s * w) * w) / np.sum(w))
+    rb, rf = bead_density_kg_m3, fluid_density_kg_m3
+    big_r = (phi * (rb - rf) * k_beads ** 2 * (rw ** 2 - r1 ** 2) / (rf * (r2 ** 2 - r1 ** 2))
+             if k_beads is not None and phi is not None else None)
+    with np.errstate(invalid="ignore"):
+        prof = acc / cnt
+    return dict(
+        region="between two rotors (|z - z_disc| > half the rotor's thickness), eye radius "
+               "to chamber wall",
+        k_beads=k_beads, k_liquid=k_liq, solids_fraction=phi, R=big_r,
+        k_for_R_1=(math.sqrt(rf * (r2 ** 2 - r1 ** 2) / (phi * (rb - rf) * (rw ** 2 - r1 ** 2)))
+                   if phi else None),
+        k_beads_profile=dict(r_m=list(np.round(0.5 * (edges[1:] + edges[:-1]), 6)),
+                             k=[None if not np.isfinite(p) else round(float(p), 6)
+                                for p in prof]))
 
 
 def rotor_throughflow_m3_s(fields: dict, geometry: MillGeometry) -> float | None:

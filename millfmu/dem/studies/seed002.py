@@ -59,10 +59,25 @@ PAPER_CFD_STEP_S = 0.01
 PRIMED_S = 0.3
 
 
+#: stationary baffles between the rotors (``seed002 run --baffles``), pin-mill style: one
+#: radial plate per 60 degrees on the chamber wall, 2 mm thick (2.5 bead diameters), from
+#: the wall in to r = 16 mm (2 mm outside the eye, so the eye stays free: Z'/R 0.7, the
+#: smooth zone's edge), 4 mm high in the 7 mm gap between two rotors (1.5 mm, about two
+#: bead diameters, to either rotor's face); at 32.5 degrees, the centre of a theta column
+#: of the liquid. Assumed: seed 002's mill has none; they test whether a slower return leg
+#: (R < 1) lets the beads circulate.
+BAFFLES = dict(baffle_count=6, baffle_thickness_m=0.002, baffle_inner_radius_m=0.016,
+               baffle_height_m=0.004, baffle_angle_deg=32.5)
+#: theta cells of the liquid per 60 degrees with baffles: 5-degree columns, the baffle's
+#: 1.4 mm (r = 16 mm) to 2.6 mm (wall) wide, about the plate's 2 mm
+BAFFLE_THETA_CELLS_PER_60_DEG = 12
+
+
 def scene_for(rpm: float, filling: float, sector_deg: float | None = None,
-              method: str = "physical", primed: bool = False):
+              method: str = "physical", primed: bool = False, baffles: bool = False):
     """The accelerator slice at ``rpm`` [1/min] and ``filling`` [-] with the protocol,
-    computed by ``method`` (:data:`METHODS`), with a primed start or from rest."""
+    computed by ``method`` (:data:`METHODS`), with a primed start or from rest, with the
+    stationary :data:`BAFFLES` or without."""
     from millfmu.dem.scene import load_scene_dict, scene_from_dict
 
     if method not in METHODS:
@@ -74,9 +89,13 @@ def scene_for(rpm: float, filling: float, sector_deg: float | None = None,
         c.update(scheme="dpm", cfd_step_s=PAPER_CFD_STEP_S)
     elif "model" in METHODS[method]:
         c["vans_model"] = METHODS[method]["model"]
+    sector_deg = SECTOR_DEG if sector_deg is None else sector_deg
+    if baffles:
+        d["mill"].update(BAFFLES)
+        d["mill"]["sector_deg"] = sector_deg
+        c["n_theta"] = int(round(BAFFLE_THETA_CELLS_PER_60_DEG * sector_deg / 60.0))
     base = scene_from_dict(d)
     tip = rpm * 2.0 * math.pi / 60.0 * base.geometry.disc_radius_m
-    sector_deg = SECTOR_DEG if sector_deg is None else sector_deg
     return base.with_overrides(tip_speed_m_s=tip, filling=filling, sector_deg=sector_deg,
                                gravity_m_s2=(0.0, 0.0, 0.0), spin_up_s=SPIN_UP_S,
                                record_s=RECORD_S, sample_every_s=SAMPLE_S,
@@ -84,16 +103,18 @@ def scene_for(rpm: float, filling: float, sector_deg: float | None = None,
 
 
 def campaign_of(out_dir) -> dict:
-    """The method and start of the campaign in ``out_dir`` (``campaign.json``; a folder
-    without one holds a campaign of the physical method from rest, made before the file)."""
+    """The method, start and baffles of the campaign in ``out_dir`` (``campaign.json``; a
+    folder without one holds a campaign of the physical method from rest, made before the
+    file)."""
     p = Path(out_dir) / "campaign.json"
-    if not p.exists():
-        return {"method": "physical", "primed": False}
-    return json.loads(p.read_text())
+    have = {"method": "physical", "primed": False, "baffles": False}
+    if p.exists():
+        have.update(json.loads(p.read_text()))  # made before baffles: none
+    return have
 
 
 def run_campaign(out_dir, cases=CASES, threads=None, progress=True, method="physical",
-                 primed=False):
+                 primed=False, baffles=False):
     """Run the cases that have no stats.json yet (the protocol above), by ``method``;
     a folder holds one campaign: another method or start there is refused."""
     from millfmu.dem.run import run_scene
@@ -101,7 +122,7 @@ def run_campaign(out_dir, cases=CASES, threads=None, progress=True, method="phys
     if method not in METHODS:
         raise ValueError(f"method = {method!r}: allowed {list(METHODS)}")
     out = Path(out_dir)
-    want = {"method": method, "primed": bool(primed)}
+    want = {"method": method, "primed": bool(primed), "baffles": bool(baffles)}
     if (out / "campaign.json").exists() or any(out.glob("n*_f*/stats.json")):
         have = campaign_of(out)
         if have != want:
@@ -113,7 +134,8 @@ def run_campaign(out_dir, cases=CASES, threads=None, progress=True, method="phys
         d = case_dir(out_dir, rpm, fill)
         if (d / "stats.json").exists():
             continue
-        run_scene(scene_for(rpm, fill, method=method, primed=primed), d, progress=progress,
+        run_scene(scene_for(rpm, fill, method=method, primed=primed, baffles=baffles), d,
+                  progress=progress,
                   threads=threads, window_s=WINDOW_S)
 
 

@@ -1,0 +1,233 @@
+"""Stationary baffles between the rotors of a slice (pin-mill style counter-elements):
+geometry, wall distances against the kernels, volumes, the liquid's stationary cells, a
+bead's rebound from a standing plate, the scene's refusals."""
+
+import math
+
+import numpy as np
+import pytest
+
+from millfmu.dem.mills import zones_for
+from millfmu.dem.mills.geometry import (GeometryError, MillGeometry, bead_count_for_filling,
+                                      place_beads)
+from millfmu.dem.scene import DemSceneError, load_scene
+
+MM = 1e-3
+#: seed 002's study baffles (millfmu.dem.studies.seed002.BAFFLES), written out so that a
+#: change there does not pass unnoticed
+BAF = dict(baffle_count=6, baffle_thickness_m=0.002, baffle_inner_radius_m=0.016,
+           baffle_height_m=0.004, baffle_angle_deg=32.5)
+
+
+def _scene(**over):
+    return load_scene("accelerator_slice").with_overrides(baffles=dict(BAF, **over))
+
+
+def _at(g, s_m, t_m, zb_m, angle_deg=32.5):
+    """Point at s along the baffle's mid-line, t across it, zb from its axial mid-plane."""
+    a = math.radians(angle_deg)
+    return np.array([[s_m * math.cos(a) - t_m * math.sin(a),
+                      s_m * math.sin(a) + t_m * math.cos(a),
+                      g.disc_z_m + 0.5 * g.height_m + zb_m]])
+
+
+def test_study_baffles_are_the_ones_tested():
+    from millfmu.dem.studies import seed002
+
+    assert seed002.BAFFLES == BAF
+
+
+def test_baffle_distances_by_hand_and_in_the_kernels():
+    """Distances to the nearest plate at hand-made points (beside its face, above its top,
+    inside of its inner edge, on the next baffle's side of the sector's image), and the
+    kernels' wall 4 equal to the numpy geometry's at random points, with unit normals."""
+    pytest.importorskip("numba")
+    from millfmu.dem.engine import kernels as K
+    from millfmu.dem.engine.sim import DemSimulation
+
+    s = _scene()
+    g = s.geometry
+    assert g.has_baffles
+    cases = [((0.022, 3 * MM, 0.0), 2 * MM),            # beside the face: 3 - 1 mm
+             ((0.022, 0.0, 3 * MM), 1 * MM),            # above its top edge (2 mm high half)
+             ((0.013, 0.0, 0.0), 3 * MM),               # inside its inner edge at 16 mm
+             ((0.013, 1.5 * MM, 2.5 * MM), math.sqrt(3 ** 2 + 0.5 ** 2 + 0.5 ** 2) * MM)]
+    sim = DemSimulation(g, s.material, _at(g, 0.022, 5 * MM, 0.0), 0.4e-3, s.omega_rad_s,
+                        1e-5)
+    for (sm, tm, zm), want in cases:
+        p = _at(g, sm, tm, zm)
+        assert g.baffle_distance(p)[0] == pytest.approx(want, rel=1e-12)
+        d, nx, ny, nz, ok = K.wall_gap(p[0, 0], p[0, 1], p[0, 2], 0.4e-3, 4, sim.prm)
+        if want <= 0.4e-3 + 1e-12 or ok:
+            assert d == pytest.approx(want, rel=1e-12)
+    # the baffle 60 degrees on (the next pitch) is as near as this one
+    p = _at(g, 0.022, 3 * MM, 0.0, 32.5 + 60.0)
+    assert g.baffle_distance(p)[0] == pytest.approx(2 * MM, rel=1e-12)
+    rng = np.random.default_rng(11)
+    n = 3000
+    r = rng.uniform(0.0145, g.chamber_radius_m, n)
+    th = rng.uniform(0.0, math.radians(60.0), n)
+    z = g.disc_z_m + 0.5 * g.height_m + rng.uniform(-3 * MM, 3 * MM, n)
+    p = np.column_stack([r * np.cos(th), r * np.sin(th), z])
+    want = g.baffle_distance(p)
+    hits = 0
+    for i in range(n):
+        d, nx, ny, nz, ok = K.wall_gap(p[i, 0], p[i, 1], p[i, 2], 0.4e-3, 4, sim.prm)
+        if ok and d > 0:
+            hits += 1
+            assert d == pytest.approx(want[i], abs=1e-12)
+            assert nx * nx + ny * ny + nz * nz == pytest.approx(1.0)
+        elif not ok:  # the kernel's quick rejection: only beads out of reach
+            assert want[i] > 0.4e-3
+    assert hits > 500
+
+
+def test_baffle_volumes_zones_and_placement():
+    """Six 2 x 4 x 14 mm plates: 672 mm3 over the circle, off the free volume and off the
+    zones they lie in (the smooth and slow-acceleration zones' axial band); the zones still
+    tile the open chamber (a midpoint count with the plates cut out agrees); beads are
+    placed clear of the plates and fewer of them at the same filling."""
+    g0 = load_scene("accelerator_slice").geometry
+    s = _scene()
+    g = s.geometry
+    assert g.baffle_volume_m3() == pytest.approx(6 * 2 * 4 * 14 * MM ** 3)
+    assert g0.free_volume_m3() - g.free_volume_m3() == pytest.approx(
+        672 * MM ** 3 * g.sector_fraction, rel=1e-12)
+    z = zones_for(s)
+    v = z.volumes_m3()
+    assert v.sum() == pytest.approx(g.free_volume_m3(), rel=1e-12)
+    rng = np.random.default_rng(5)
+    n = 400_000
+    half = 0.5 * g.height_m
+    r = np.sqrt(rng.uniform(g.shaft_radius_m ** 2, g.chamber_radius_m ** 2, n))
+    th = rng.uniform(0.0, math.radians(g.sector_deg), n)
+    p = np.column_stack([r * np.cos(th), r * np.sin(th), rng.uniform(-half, half, n)])
+    keep = g.inside(p, 1e-12) & (g.vane_distance(p, 0.0) > 0.0) & (g.baffle_distance(p) > 0)
+    box = math.pi * (g.chamber_radius_m ** 2 - g.shaft_radius_m ** 2) * g.height_m * \
+        g.sector_fraction
+    mc = np.array([(keep & (z.classify(p) == k)).sum() for k in range(4)]) / n * box
+    assert mc == pytest.approx(v, rel=0.03)
+    # the plates lie in SEV_1 (r > 22.2 mm), SEV_2 and SEV_3 (X'/L < 0.4): those lose volume
+    v0 = zones_for(load_scene("accelerator_slice")).volumes_m3()
+    assert np.all(v[:3] < v0[:3]) and v[3] == pytest.approx(v0[3], rel=1e-12)
+    x = place_beads(g, 6000, 0.4e-3)
+    assert g.baffle_distance(x).min() >= 0.4e-3
+    assert bead_count_for_filling(g, 0.8, 0.8e-3) < bead_count_for_filling(g0, 0.8, 0.8e-3)
+
+
+def test_bad_baffles_are_refused_by_name():
+    with pytest.raises(DemSceneError, match="baffle pitches"):
+        _scene(baffle_count=4)  # 60 degrees hold 2/3 of a 90-degree pitch
+    with pytest.raises(DemSceneError, match="baffle_height_m.*gap between two rotors"):
+        _scene(baffle_height_m=0.007)
+    with pytest.raises(DemSceneError, match="baffle_inner_radius_m"):
+        _scene(baffle_inner_radius_m=0.031)
+    with pytest.raises(DemSceneError, match="baffle_thickness_m"):
+        _scene(baffle_thickness_m=0.01)
+    with pytest.raises(DemSceneError, match="baffles.baffle_height_m: missing"):
+        load_scene("accelerator_slice").with_overrides(
+            baffles={k: v for k, v in BAF.items() if k != "baffle_height_m"})
+    with pytest.raises(DemSceneError, match="baffles.pins: unknown baffle key"):
+        _scene(pins=3)
+    with pytest.raises(GeometryError, match="need a rotor"):
+        MillGeometry(0.01, 0.03, 0.013, **BAF)
+
+
+def test_liquid_holds_one_stationary_column_per_baffle():
+    """With 12 theta cells over 60 degrees the baffle is the column from 30 to 35 degrees,
+    every cell beyond r = 16 mm and within 2 mm of the mid-plane between the rotors
+    stationary (the plate's faces on cell faces); one theta cell cannot hold a baffle and
+    is refused by name."""
+    from millfmu.dem.fluid.grid import STATOR, GridError, mill_grid
+
+    g = _scene().geometry
+    gr = mill_grid(g, 5e-4, n_theta=12)
+    st = np.argwhere(gr.solid == STATOR)
+    assert set(st[:, 1]) == {6}
+    rc = gr.r_centres_m
+    assert np.any(np.isclose(gr.r_faces_m, 0.016))
+    zb = (np.arange(gr.n_z) + 0.5) * gr.dz_m - g.disc_z_m - 0.5 * g.height_m
+    zb -= g.height_m * np.floor(zb / g.height_m + 0.5)
+    want = int((rc > 0.016).sum()) * int((np.abs(zb) < 2 * MM).sum())
+    assert st.shape[0] == want
+    assert (np.abs(zb) < 2 * MM).sum() * gr.dz_m == pytest.approx(4 * MM)
+    for nt in (1, 3):
+        with pytest.raises(GridError, match=f"n_theta = {nt}: .*baffle"):
+            mill_grid(g, 5e-4, n_theta=nt)
+
+
+def test_a_bead_rebounds_from_the_standing_baffle():
+    """A bead flying at 1 m/s square onto a baffle while the rotor turns: it comes back at
+    about the restitution coefficient's 0.5 of its speed (Hertz with the restitution's
+    damping), along the plate's normal, the plate standing (no drag on it from the
+    rotor's speed: no tangential velocity appears); the impulse goes to the standing walls'
+    torque, none to the stirrer's."""
+    pytest.importorskip("numba")
+    from millfmu.dem.engine.sim import DemSimulation
+
+    s = _scene()
+    g = s.geometry
+    a = math.radians(32.5)
+    nrm = np.array([-math.sin(a), math.cos(a), 0.0])  # the plate's +t face normal
+    x0 = _at(g, 0.022, 1 * MM + 0.4e-3 + 0.02e-3, 0.0)
+    sim = DemSimulation(g, s.material, x0, 0.4e-3, s.omega_rad_s, 1e-6,
+                        velocities_m_s=-1.0 * nrm[None, :])
+    st = sim.run(600)
+    v = sim.v[0]
+    vn = v @ nrm
+    assert 0.45 < vn < 0.55
+    assert np.linalg.norm(v - vn * nrm) < 1e-9
+    m = math.pi / 6 * (0.8e-3) ** 3 * s.material.density_kg_m3
+    # angular impulse about z taken by the baffle: r x (m dv) at s = 22 mm
+    want = 0.022 * m * (vn + 1.0)
+    assert abs(st.chamber_torque_sum_nm_steps * 1e-6) == pytest.approx(want, rel=0.02)
+    assert st.torque_sum_nm_steps == 0.0
+
+
+def test_return_leg_swirl_and_weight_ratio_by_hand():
+    """Beads between the rotors turning at half the rotor's angular velocity, beads in the
+    rotor's band ignored: k = 0.5, its radial profile flat; the solids fraction their
+    volume over the region's open volume; R by the formula; the liquid's k from the
+    section fields."""
+    from millfmu.dem.mills.accelerator import return_leg
+
+    g = _scene().geometry
+    om = 125.0
+    rng = np.random.default_rng(2)
+    n = 500
+    r = rng.uniform(0.0141, 0.0299, n)
+    th = rng.uniform(0.0, math.radians(60.0), n)
+    zb = rng.uniform(-3.4 * MM, 3.4 * MM, n)  # between the rotors (the gap is 7 mm)
+    x = np.column_stack([r * np.cos(th), r * np.sin(th), g.disc_z_m + 0.5 * g.height_m + zb])
+    v = 0.5 * om * np.column_stack([-x[:, 1], x[:, 0], np.zeros(n)])
+    # beads in the rotor's own band, spinning with it, do not count
+    xr = x.copy()
+    xr[:, 2] = g.disc_z_m
+    fields = dict(r_m=np.array([0.012, 0.02, 0.025]), zeta_m=np.array([0.0, 5 * MM]),
+                  u_theta=np.array([[9.0, 9.0], [9.0, 0.3 * om * 0.02],
+                                    [9.0, 0.3 * om * 0.025]]))
+    out = return_leg([np.vstack([x, xr])], [np.vstack([v, 2.0 * v])], g, om, 0.8e-3, 6040.0,
+                     1050.0, fields)
+    assert out["k_beads"] == pytest.approx(0.5, rel=1e-12)
+    assert all(k == pytest.approx(0.5) for k in out["k_beads_profile"]["k"])
+    assert out["k_liquid"] == pytest.approx(0.3, rel=1e-12)
+    vol = (math.pi * (0.03 ** 2 - 0.014 ** 2) * 7 * MM - 672 * MM ** 3) / 6.0
+    phi = n * math.pi / 6 * (0.8e-3) ** 3 / vol
+    assert out["solids_fraction"] == pytest.approx(phi, rel=1e-12)
+    big_r = phi * (6040 - 1050) * 0.25 * (0.03 ** 2 - 0.014 ** 2) / \
+        (1050 * (0.0222 ** 2 - 0.014 ** 2))
+    assert out["R"] == pytest.approx(big_r, rel=1e-12)
+    assert out["k_for_R_1"] == pytest.approx(0.5 / math.sqrt(big_r), rel=1e-12)
+
+
+def test_seed002_baffled_campaign_is_its_own(tmp_path):
+    """``seed002 run --baffles``: the study's baffles with 12 theta cells per 60 degrees of
+    liquid, a campaign of its own (a folder of runs without baffles refuses it)."""
+    from millfmu.dem.studies import seed002 as S
+
+    sc = S.scene_for(1200.0, 0.8, baffles=True)
+    assert sc.geometry.has_baffles and sc.coupling.n_theta == 12
+    assert not S.scene_for(1200.0, 0.8).geometry.has_baffles
+    (tmp_path / "campaign.json").write_text('{"method": "physical", "primed": false}')
+    with pytest.raises(ValueError, match="holds a campaign of .*'baffles': False"):
+        S.run_campaign(tmp_path, cases=((1200.0, 0.8),), baffles=True)
