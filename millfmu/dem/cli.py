@@ -21,9 +21,16 @@ def register(subparsers) -> argparse.ArgumentParser:
     sub.required = True
 
     r = sub.add_parser("run", help="run a DEM scene and write statistics, histograms, maps")
-    r.add_argument("scene", help="shipped scene name (annulus, disc_slice, accelerator_slice) "
-                                 "or a .toml path")
-    r.add_argument("--out", required=True, help="output folder")
+    r.add_argument("scene", nargs="?", help="shipped scene name (annulus, disc_slice, "
+                                            "accelerator_slice) or a .toml path")
+    r.add_argument("--out", help="output folder (required unless --resume)")
+    r.add_argument("--checkpoint-every", type=float, dest="checkpoint_every_s", metavar="S",
+                   help="keep OUT/checkpoint.pkl, the run's whole state, written every S "
+                        "seconds of wall time (removed when the run ends), so that a stopped "
+                        "run goes on with --resume")
+    r.add_argument("--resume", metavar="DIR", help="go on with the stopped run in DIR from its "
+                   "checkpoint (its scene and options; --threads and --checkpoint-every may "
+                   "be given); the outputs are those of a run that was not stopped")
     r.add_argument("--tip-speed", type=float, dest="tip_speed_m_s", metavar="M_S",
                    help="stirrer tip speed [m/s] (overrides the scene)")
     r.add_argument("--rpm", type=float, dest="rotor_speed_rpm", metavar="RPM",
@@ -261,7 +268,11 @@ def _compare_col(text: str) -> tuple:
 def _run(args) -> int:
     from millfmu.dem.scene import DemSceneError, load_scene
 
+    if args.resume is not None:
+        return _resume(args)
     try:
+        if args.scene is None or args.out is None:
+            raise DemSceneError("a scene and --out are required (or --resume DIR)")
         scene = load_scene(args.scene)
         over = {k: getattr(args, k) for k in ("tip_speed_m_s", "filling", "sector_deg",
                                               "spin_up_s", "record_s", "sample_every_s",
@@ -280,7 +291,7 @@ def _run(args) -> int:
     except DemSceneError as e:
         print(f"millfmu dem run: {e}", file=sys.stderr)
         return 2
-    from millfmu.dem.run import run_scene, summary_table
+    from millfmu.dem.run import run_scene
 
     if args.window_s is not None and not args.window_s > 0.0:
         print(f"millfmu dem run: --windows = {args.window_s!r}: must be > 0 s", file=sys.stderr)
@@ -289,13 +300,42 @@ def _run(args) -> int:
 
     try:
         stats = run_scene(scene, args.out, progress=not args.no_progress, threads=args.threads,
-                          window_s=args.window_s)
+                          window_s=args.window_s, checkpoint_every_s=args.checkpoint_every_s)
     except DemRunError as e:
         print(f"millfmu dem run: {e}", file=sys.stderr)
         return 2
+    return _report(stats, args.out)
+
+
+def _resume(args) -> int:
+    """``dem run --resume DIR``: only the options that leave the results alone."""
+    from millfmu.dem.run import DemRunError, resume_run
+
+    fixed = [f"--{k.replace('_', '-')}" for k in (
+        "out", "tip_speed_m_s", "rotor_speed_rpm", "filling", "sector_deg", "fluid_mode",
+        "spin_up_s", "record_s", "sample_every_s", "dt_s", "initial_rotation", "primed_s",
+        "window_s") if getattr(args, k) is not None]
+    if args.scene is not None or args.no_gravity or fixed:
+        given = ([args.scene] if args.scene else []) + fixed + \
+            (["--no-gravity"] if args.no_gravity else [])
+        print(f"millfmu dem run: --resume {args.resume}: goes on with the stopped run's own "
+              f"scene and options; not allowed with {' '.join(given)}", file=sys.stderr)
+        return 2
+    try:
+        stats = resume_run(args.resume, progress=not args.no_progress, threads=args.threads,
+                           checkpoint_every_s=args.checkpoint_every_s)
+    except DemRunError as e:
+        print(f"millfmu dem run: {e}", file=sys.stderr)
+        return 2
+    return _report(stats, args.resume)
+
+
+def _report(stats, out) -> int:
+    from millfmu.dem.run import summary_table
+
     print(summary_table(stats))
     print(f"fluid: {stats.fluid_model}")
-    print(f"wrote {args.out}/stats.json, se_histograms.csv, kinetic_energy.csv, map_*.png")
+    print(f"wrote {out}/stats.json, se_histograms.csv, kinetic_energy.csv, map_*.png")
     return 0
 
 

@@ -27,13 +27,23 @@ Outputs in the output folder:
   figure 7), ``map_fluid_axial.png``, ``map_turbulent_viscosity.png``,
   ``map_void_fraction.png``, and for disc slices ``swirl_profile.png`` (fluid and beads
   between the discs at the disc radius, seed 001 figures 9 and 10).
+
+Checkpoints (``checkpoint_every_s``): while a run goes, ``checkpoint.pkl`` in the output
+folder holds its whole state (beads, contact histories, the liquid, what has been recorded
+so far), written anew (atomically) every so many seconds of wall time and removed once the
+outputs are written; :func:`resume_run` (``millfmu dem run --resume DIR``) goes on from it
+and gives the same outputs to the digit as the run that was not stopped.
 """
 
 from __future__ import annotations
 
+import importlib
 import json
 import math
+import os
+import pickle
 import time
+import types
 from pathlib import Path
 
 import numpy as np
@@ -128,8 +138,69 @@ def bead_angular_momentum_kgm2_s(sim) -> float:
                  (sim.inertia * sim.w[:, 2]).sum())
 
 
+#: the checkpoint file in a run's output folder
+CHECKPOINT = "checkpoint.pkl"
+#: layout of a checkpoint (a later layout refuses an older file by name)
+CHECKPOINT_FORMAT = 1
+
+
+class _Pickler(pickle.Pickler):
+    """Pickles the kernel modules the simulation objects keep as attributes by name."""
+
+    def reducer_override(self, obj):
+        if isinstance(obj, types.ModuleType):
+            return importlib.import_module, (obj.__name__,)
+        return NotImplemented
+
+
+def _write_checkpoint(path: Path, state: dict):
+    """Write ``state`` to ``path`` atomically: a stop while writing leaves the last one."""
+    tmp = path.with_name(path.name + ".tmp")
+    with open(tmp, "wb") as fh:
+        _Pickler(fh, protocol=pickle.HIGHEST_PROTOCOL).dump(state)
+    os.replace(tmp, path)
+
+
+def _kernel_version() -> str:
+    from millfmu.dem.tables.cache import kernel_source_hash
+
+    return kernel_source_hash()
+
+
+def resume_run(out_dir, progress: bool = True, threads: int | None = None,
+               checkpoint_every_s: float | None = None) -> DemStats:
+    """Go on with the run whose ``checkpoint.pkl`` is in ``out_dir`` (its scene, windows
+    and contacts option as it was started; ``threads`` may differ, the results do not
+    while the threads are no more than the beads' chunks); returns the statistics. Refused
+    by name (DemRunError) where there is no checkpoint, or one of another layout or made by
+    other DEM sources."""
+    path = Path(out_dir) / CHECKPOINT
+    if not path.exists():
+        raise DemRunError(f"{out_dir}: no {CHECKPOINT} to resume from (a run writes one with "
+                          f"checkpoint_every_s / --checkpoint-every)")
+    try:
+        with open(path, "rb") as fh:
+            state = pickle.load(fh)
+    except (OSError, pickle.UnpicklingError, EOFError, AttributeError, ImportError) as e:
+        raise DemRunError(f"{path}: not a readable checkpoint ({type(e).__name__}: {e})") \
+            from None
+    fmt = state.get("format") if isinstance(state, dict) else None
+    if fmt != CHECKPOINT_FORMAT:
+        raise DemRunError(f"{path}: checkpoint layout {fmt!r}; this version reads layout "
+                          f"{CHECKPOINT_FORMAT}")
+    if state["kernel_version"] != _kernel_version():
+        raise DemRunError(f"{path}: made by other DEM sources ({state['kernel_version']}); "
+                          f"these are {_kernel_version()}: run the scene again")
+    if threads is not None:
+        state["sim"].threads = int(threads)
+    return run_scene(state["scene"], out_dir, progress=progress, window_s=state["window_s"],
+                     contacts=state["contacts"], checkpoint_every_s=checkpoint_every_s,
+                     _state=state)
+
+
 def run_scene(scene: DemScene, out_dir, progress: bool = True, threads: int | None = None,
-              window_s: float | None = None, contacts: bool = False) -> DemStats:
+              window_s: float | None = None, contacts: bool = False,
+              checkpoint_every_s: float | None = None, _state: dict | None = None) -> DemStats:
     """Run ``scene`` and write its outputs to ``out_dir``; returns the statistics.
 
     ``window_s`` [s]: also cut the recording into consecutive windows of this length (a
@@ -137,15 +208,29 @@ def run_scene(scene: DemScene, out_dir, progress: bool = True, threads: int | No
     ``windows.csv``, to see whether the recorded state is stationary. With the coupled
     fluid, spin-up, recording and sampling interval are rounded up to whole coupling
     intervals. ``contacts``: also write ``contacts.npz`` (:func:`write_contacts`).
+    ``checkpoint_every_s`` [s of wall time]: keep ``checkpoint.pkl`` (module docstring)
+    written at the first sample after each such span; :func:`resume_run` goes on from it.
     """
     from millfmu.dem.engine import kernels as K  # numba: compiled when a run is made
 
     EV_COLS = dict(type=K.EV_TYPE, x=K.EV_X, y=K.EV_Y, z=K.EV_Z, setn=K.EV_SETN,
                    sets=K.EV_SETS, serot=K.EV_SEROT)
 
+    if checkpoint_every_s is not None and not checkpoint_every_s > 0.0:
+        raise DemRunError(f"checkpoint_every_s = {checkpoint_every_s!r}: must be > 0 s")
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
-    sim, cpl = make_simulation(scene, threads)
+    if _state is None:
+        sim, cpl = make_simulation(scene, threads)
+        if checkpoint_every_s is not None and sim.device != "cpu":
+            raise DemRunError("checkpoints are written for runs on the CPU only")
+    else:
+        sim, cpl = _state["sim"], _state["cpl"]
+        import numba
+
+        # a machine with fewer cores: fewer threads, the same chunks and results
+        sim.threads = min(sim.threads, numba.config.NUMBA_NUM_THREADS)
+        numba.set_num_threads(sim.threads)
     zones = zones_for(scene)
     dt = scene.dt_s
     unit = cpl.unit_steps if cpl is not None else 1
@@ -163,18 +248,20 @@ def run_scene(scene: DemScene, out_dir, progress: bool = True, threads: int | No
         bar = tqdm(total=total, unit="step", desc=f"dem {scene.name} ({sim.n} beads)",
                    smoothing=0.1, bar_format="{l_bar}{bar}| {n_fmt}/{total_fmt} "
                    "[{elapsed}<{remaining}, {rate_fmt}]")
-    ke_t, ke = [], []
-    sx, sv = [], []
-    events = []
-    torques = []
-    # accelerator slices: the contacts present at every sample, for seed 002's counting
-    frames = [] if scene.kind == "accelerator_slice" else None
-    dropped = builds = 0
-    fluid_acc = {}
-    fluid_samples = 0
-    substeps = []
-    budget0 = None
-    t_wall = time.perf_counter()
+    loop = _state["loop"] if _state is not None else dict(
+        done=0, ke_t=[], ke=[], sx=[], sv=[], events=[], torques=[],
+        # accelerator slices: the contacts present at every sample, for seed 002's counting
+        frames=[] if scene.kind == "accelerator_slice" else None,
+        dropped=0, builds=0, fluid_acc={}, fluid_samples=0, substeps=[], budget0=None,
+        wall_s=0.0)
+    ke_t, ke, sx, sv = loop["ke_t"], loop["ke"], loop["sx"], loop["sv"]
+    events, torques, frames = loop["events"], loop["torques"], loop["frames"]
+    dropped, builds = loop["dropped"], loop["builds"]
+    fluid_acc, fluid_samples = loop["fluid_acc"], loop["fluid_samples"]
+    substeps, budget0 = loop["substeps"], loop["budget0"]
+    t_wall = time.perf_counter() - loop["wall_s"]
+    t_check = time.perf_counter()
+    ckpt = out / CHECKPOINT
 
     def sample():
         et, er = sim.kinetic_energy_j()
@@ -214,8 +301,11 @@ def run_scene(scene: DemScene, out_dir, progress: bool = True, threads: int | No
                               f"{scene.fluid_description}; nothing written")
         return out
 
-    sample()
-    done = 0
+    done = loop["done"]
+    if _state is None:
+        sample()
+    elif bar is not None:
+        bar.update(done)
     while done < total:
         recording = done >= n_spin
         if recording and budget0 is None:
@@ -242,6 +332,15 @@ def run_scene(scene: DemScene, out_dir, progress: bool = True, threads: int | No
         sample()
         if bar is not None:
             bar.update(k)
+        if checkpoint_every_s is not None and done < total and \
+                time.perf_counter() - t_check >= checkpoint_every_s:
+            loop.update(done=done, dropped=dropped, builds=builds, fluid_acc=fluid_acc,
+                        fluid_samples=fluid_samples, budget0=budget0,
+                        wall_s=time.perf_counter() - t_wall)
+            _write_checkpoint(ckpt, dict(
+                format=CHECKPOINT_FORMAT, kernel_version=_kernel_version(), scene=scene,
+                window_s=window_s, contacts=contacts, sim=sim, cpl=cpl, loop=loop))
+            t_check = time.perf_counter()
     if bar is not None:
         bar.close()
     wall = time.perf_counter() - t_wall
@@ -323,6 +422,8 @@ def run_scene(scene: DemScene, out_dir, progress: bool = True, threads: int | No
     if "swirl_profile_at_disc_radius" in stats.flow:
         plots.write_swirl_profile(out / "swirl_profile.png", scene,
                                   stats.flow["swirl_profile_at_disc_radius"])
+    if ckpt.exists():  # the outputs are written: the run needs no resuming
+        ckpt.unlink()
     return stats
 
 

@@ -63,9 +63,21 @@ class PressureSolver:
         pinned = sp.csc_matrix((np.concatenate([v[keep], [1.0]]),
                                 (np.concatenate([r[keep], [0]]),
                                  np.concatenate([c[keep], [0]]))), shape=(self.n, self.n))
+        self._pinned = pinned
         self._lu = spla.splu(pinned, permc_spec="COLAMD")
         self.solves = 0
         self.last_residual = 0.0
+
+    def __getstate__(self):
+        # SuperLU cannot be pickled (a run's checkpoint): factorised again on loading, the
+        # same matrix by the same ordering, so the solves are the same to the bit
+        d = dict(self.__dict__)
+        d.pop("_lu")
+        return d
+
+    def __setstate__(self, d):
+        self.__dict__.update(d)
+        self._lu = spla.splu(self._pinned, permc_spec="COLAMD")
 
     def solve(self, b_cells: np.ndarray, check: bool = False) -> np.ndarray:
         """phi (cells, 0 in solids) with sum_f (A_f/h_f) (phi_nb - phi_c) = b_cells."""

@@ -1,0 +1,85 @@
+"""Checkpointed runs: a run stopped after a checkpoint and resumed gives the outputs of the
+run that was not stopped, to the digit; what cannot be resumed is refused by name."""
+
+import json
+
+import numpy as np
+import pytest
+
+pytest.importorskip("numba")
+
+from millfmu.dem import run as R  # noqa: E402
+from millfmu.cli import main  # noqa: E402
+from millfmu.dem.scene import load_scene  # noqa: E402
+
+
+def dem_main(argv):
+    return main(["dem"] + argv)
+
+
+class Stopped(Exception):
+    """Stands for the process being killed right after a checkpoint was written."""
+
+
+def _scene():
+    # coupled liquid, contacts recorded, frames counted: every part of a run's state
+    return load_scene("accelerator_slice").with_overrides(
+        sector_deg=30.0, spin_up_s=1e-3, record_s=1.5e-3, sample_every_s=5e-4)
+
+
+def _stats(folder):
+    d = json.loads((folder / "stats.json").read_text())
+    for k in ("wall_time_s", "particle_steps_per_s"):
+        d["counts"].pop(k)
+    return d
+
+
+def test_a_stopped_run_resumes_to_the_same_outputs(tmp_path, monkeypatch):
+    whole = tmp_path / "whole"
+    R.run_scene(_scene(), whole, progress=False, threads=1, window_s=5e-4)
+    parts = tmp_path / "parts"
+    write = R._write_checkpoint
+    calls = []
+
+    def write_then_stop(path, state):
+        write(path, state)
+        calls.append(path)
+        if len(calls) == 3:  # 3 of the 4 samples before the end (spin-up included)
+            raise Stopped
+
+    monkeypatch.setattr(R, "_write_checkpoint", write_then_stop)
+    with pytest.raises(Stopped):
+        R.run_scene(_scene(), parts, progress=False, threads=1, window_s=5e-4,
+                    checkpoint_every_s=1e-9)
+    assert (parts / R.CHECKPOINT).exists() and not (parts / "stats.json").exists()
+    monkeypatch.setattr(R, "_write_checkpoint", write)
+    # resumed from the command line, as a user would
+    assert dem_main(["run", "--resume", str(parts), "--no-progress"]) == 0
+    assert not (parts / R.CHECKPOINT).exists()
+    assert _stats(parts) == _stats(whole)
+    for f in ("fluid_fields.npz", "bead_samples.npz"):
+        a, b = np.load(whole / f), np.load(parts / f)
+        for k in a.files:
+            assert np.array_equal(a[k], b[k], equal_nan=True), (f, k)
+    assert (whole / "windows.csv").read_text() == (parts / "windows.csv").read_text()
+
+
+def test_what_cannot_be_resumed_is_refused_by_name(tmp_path, monkeypatch, capsys):
+    assert dem_main(["run", "--resume", str(tmp_path)]) == 2
+    assert "no checkpoint.pkl to resume from" in capsys.readouterr().err
+    assert dem_main(["run", "accelerator_slice", "--resume", str(tmp_path),
+                     "--filling", "0.7"]) == 2
+    assert "not allowed with accelerator_slice --filling" in capsys.readouterr().err
+    assert dem_main(["run", "--out", str(tmp_path)]) == 2
+    assert "a scene and --out are required" in capsys.readouterr().err
+    assert dem_main(["run", "accelerator_slice", "--out", str(tmp_path / "x"),
+                     "--checkpoint-every", "0"]) == 2
+    assert "checkpoint_every_s = 0.0: must be > 0 s" in capsys.readouterr().err
+    # a checkpoint of other DEM sources, and a broken file
+    R._write_checkpoint(tmp_path / R.CHECKPOINT, dict(format=R.CHECKPOINT_FORMAT,
+                                                      kernel_version="sha256:other"))
+    with pytest.raises(R.DemRunError, match="made by other DEM sources"):
+        R.resume_run(tmp_path)
+    (tmp_path / R.CHECKPOINT).write_bytes(b"not a pickle")
+    with pytest.raises(R.DemRunError, match="not a readable checkpoint"):
+        R.resume_run(tmp_path)
