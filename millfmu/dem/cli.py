@@ -56,6 +56,9 @@ def register(subparsers) -> argparse.ArgumentParser:
     r.add_argument("--primed", type=float, dest="primed_s", metavar="S",
                    help="coupled fluid: run the bead-free liquid for S seconds first and "
                         "start the beads with its velocity (primed start; default 0)")
+    r.add_argument("--theta-cells", type=int, dest="n_theta", metavar="N",
+                   help="coupled liquid: N theta cells over the sector (1: axisymmetric with "
+                        "swirl; a full circle with gravity wants 16 or more)")
     r.add_argument("--threads", type=int, help="numba threads (default: all cores)")
     r.add_argument("--windows", type=float, dest="window_s", metavar="S",
                    help="also write windows.csv: zone statistics of consecutive recording "
@@ -277,7 +280,7 @@ def _run(args) -> int:
         over = {k: getattr(args, k) for k in ("tip_speed_m_s", "filling", "sector_deg",
                                               "spin_up_s", "record_s", "sample_every_s",
                                               "dt_s", "fluid_mode", "initial_rotation",
-                                              "primed_s")}
+                                              "primed_s", "n_theta")}
         if args.no_gravity:
             over["gravity_m_s2"] = (0.0, 0.0, 0.0)
         if args.rotor_speed_rpm is not None:
@@ -311,10 +314,12 @@ def _resume(args) -> int:
     """``dem run --resume DIR``: only the options that leave the results alone."""
     from millfmu.dem.run import DemRunError, resume_run
 
-    fixed = [f"--{k.replace('_', '-')}" for k in (
-        "out", "tip_speed_m_s", "rotor_speed_rpm", "filling", "sector_deg", "fluid_mode",
-        "spin_up_s", "record_s", "sample_every_s", "dt_s", "initial_rotation", "primed_s",
-        "window_s") if getattr(args, k) is not None]
+    flags = dict(out="--out", tip_speed_m_s="--tip-speed", rotor_speed_rpm="--rpm",
+                 filling="--filling", sector_deg="--sector-deg", fluid_mode="--fluid",
+                 spin_up_s="--spin-up", record_s="--record", sample_every_s="--sample-every",
+                 dt_s="--dt", initial_rotation="--initial-rotation", primed_s="--primed",
+                 n_theta="--theta-cells", window_s="--windows")
+    fixed = [f for k, f in flags.items() if getattr(args, k) is not None]
     if args.scene is not None or args.no_gravity or fixed:
         given = ([args.scene] if args.scene else []) + fixed + \
             (["--no-gravity"] if args.no_gravity else [])

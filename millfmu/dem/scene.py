@@ -96,8 +96,9 @@ class DemScene:
 
     def with_overrides(self, **kw) -> "DemScene":
         """Copy with run-time overrides (tip_speed_m_s, filling, sector_deg, spin_up_s,
-        record_s, dt_s, fluid_mode, initial_rotation, primed_s; ``baffles``: a dict of the
-        [mill] baffle keys, BAFFLE_KEYS); validated like file values."""
+        record_s, dt_s, fluid_mode, initial_rotation, primed_s, n_theta: the coupled
+        liquid's theta cells; ``baffles``: a dict of the [mill] baffle keys, BAFFLE_KEYS);
+        validated like file values."""
         geo = self.geometry
         if kw.get("baffles") is not None:
             geo = _with_baffles(geo, kw["baffles"], "baffles")
@@ -106,9 +107,18 @@ class DemScene:
             geo = _geometry_or_error(replace, geo, sector_deg=float(kw.pop("sector_deg")))
         kw.pop("sector_deg", None)
         mode = kw.pop("fluid_mode", None)
+        n_theta = kw.pop("n_theta", None)
         new = replace(self, geometry=geo, **{k: v for k, v in kw.items() if v is not None})
         if mode is not None and mode != self.fluid_mode:
             new = _with_fluid_mode(new, mode)
+        if n_theta is not None:
+            if isinstance(n_theta, bool) or not isinstance(n_theta, int) or n_theta < 1:
+                raise DemSceneError(f"n_theta = {n_theta!r}: must be a whole number >= 1 "
+                                    f"(theta cells of the coupled liquid)")
+            if new.coupling is None:
+                raise DemSceneError(f"n_theta = {n_theta}: theta cells are the coupled "
+                                    f"liquid's; the fluid here is {new.fluid_mode!r}")
+            new = replace(new, coupling=replace(new.coupling, n_theta=n_theta))
         _check_ranges(new)
         return new
 

@@ -83,3 +83,16 @@ def test_what_cannot_be_resumed_is_refused_by_name(tmp_path, monkeypatch, capsys
     (tmp_path / R.CHECKPOINT).write_bytes(b"not a pickle")
     with pytest.raises(R.DemRunError, match="not a readable checkpoint"):
         R.resume_run(tmp_path)
+
+
+def test_theta_cells_override_and_its_refusals(capsys):
+    sc = load_scene("disc_slice").with_overrides(n_theta=32)
+    assert sc.coupling.n_theta == 32
+    from millfmu.dem.scene import DemSceneError
+
+    with pytest.raises(DemSceneError, match="n_theta = 0: must be a whole number >= 1"):
+        load_scene("disc_slice").with_overrides(n_theta=0)
+    with pytest.raises(DemSceneError, match="theta cells are the coupled liquid's"):
+        load_scene("disc_slice").with_overrides(fluid_mode="prescribed", n_theta=4)
+    assert dem_main(["run", "--resume", "x", "--theta-cells", "8"]) == 2
+    assert "not allowed with --theta-cells" in capsys.readouterr().err
