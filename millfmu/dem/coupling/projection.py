@@ -220,16 +220,21 @@ class Projector:
         return a
 
 
-@serial
+@kernel
 def diffuse(q, vol, ar, at, az, sweeps, totals, tmp, ncols):
     """``sweeps`` explicit diffusion steps on the first ``ncols`` fields of q
     (m, n_r, n_t, n_z) with the "+"-face coefficients ar, at, az [m3] (0 at walls and
     solids) and cell volumes vol (n_r,). totals: q holds extensive totals, the flux
     alpha (q_a/V_a - q_b/V_b) moves between a and b (sums conserved); else q holds intensive
-    values and each cell moves by sum alpha (q_b - q_a) / V_a (the transpose)."""
+    values and each cell moves by sum alpha (q_b - q_a) / V_a (the transpose).
+
+    The fields are independent: one thread per field, each field's sweeps in the same
+    order as one thread would make them (the same results on any thread count). With theta
+    cells this is the coupled step's largest part (the accelerator slice with 12 theta
+    cells: 59 % of a coupling interval on one thread, about 95 sweeps of 6 fields)."""
     nr, nt, nz = ar.shape
-    for _ in range(sweeps):
-        for c in range(ncols):
+    for c in prange(ncols):
+        for _ in range(sweeps):
             # tmp: densities (totals) or values at the start of the sweep; q accumulates
             for i in range(nr):
                 f = 1.0 / vol[i] if totals else 1.0
