@@ -37,13 +37,15 @@ from millfmu.dem.engine import kernels as K
 from millfmu.dem.engine._jit import gpu_device, gpu_kernel
 
 axial_image = gpu_device(K.axial_image)
+_plate_gap = gpu_device(K.plate_gap)
 hertz_mindlin = gpu_device(K.hertz_mindlin)
 history_frame_pair = gpu_device(K.history_frame_pair)
 pair_response = gpu_device(K.pair_response, hertz_mindlin=hertz_mindlin)
 wall_response = gpu_device(K.wall_response, hertz_mindlin=hertz_mindlin,
                            history_frame=gpu_device(K.history_frame),
-                           wall_gap=gpu_device(K.wall_gap,
-                                               baffle_gap=gpu_device(K.baffle_gap)))
+                           wall_gap=gpu_device(
+                               K.wall_gap, plate_gap=_plate_gap,
+                               baffle_gap=gpu_device(K.baffle_gap, plate_gap=_plate_gap)))
 body_force = gpu_device(K.body_force, swirl_velocity=gpu_device(K.swirl_velocity),
                         koch_hill_beta=gpu_device(K.koch_hill_beta))
 lubrication_force = gpu_device(K.lubrication_force)

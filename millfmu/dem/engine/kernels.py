@@ -294,23 +294,8 @@ def wall_gap(x, y, z, rad, w, prm):
         nv = prm[P_NVANE]
         if nv <= 0.0 or abs(zr) - hc > rad:
             return 1.0, 1.0, 0.0, 0.0, False
-        # nearest vane (radial plates: the nearest in angle is the nearest in distance)
-        pitch = 2.0 * math.pi / nv
-        a0 = prm[P_ROTANG]
-        ang = a0 + pitch * math.floor((math.atan2(y, x) - a0) / pitch + 0.5)
-        ca = math.cos(ang)
-        sa = math.sin(ang)
-        s = x * ca + y * sa  # along the vane
-        t = -x * sa + y * ca  # across it
-        ht = 0.5 * prm[P_TVANE]
-        ds = s - min(max(s, prm[P_RSH]), rd)
-        dt_ = t - min(max(t, -ht), ht)
-        dz = zr - min(max(zr, -hc), hc)
-        d = math.sqrt(ds * ds + dt_ * dt_ + dz * dz)
-        if d > 1e-300:
-            return d, (ds * ca - dt_ * sa) / d, (ds * sa + dt_ * ca) / d, dz / d, True
-        sgn = 1.0 if t >= 0.0 else -1.0  # centre inside the vane: out through its face
-        return -(ht - abs(t)), -sgn * sa, sgn * ca, 0.0, True
+        return plate_gap(x, y, zr, prm[P_ROTANG], 2.0 * math.pi / nv, prm[P_RSH], rd,
+                         0.5 * prm[P_TVANE], hc)
     # closest point of the disc (an annular slab r_in..R, |z| <= b/2) in the (r, z) plane,
     # or with a channel, of the nearer shroud (r_in..R, h_ch/2 <= |z| <= b/2)
     rin = max(prm[P_REYE], prm[P_RSH])
@@ -338,6 +323,28 @@ def wall_gap(x, y, z, rad, w, prm):
 
 
 @device
+def plate_gap(x, y, zp, a0, pitch, s_lo, s_hi, ht, hh):
+    """:func:`wall_gap` for the nearest of a row of radial plates (the vanes, the baffles):
+    the first at angle a0 [rad], one every ``pitch`` [rad], each from s_lo to s_hi [m]
+    along its radial mid-line, half thickness ht and half height hh [m] about its axial
+    mid-plane; zp [m] is the point's axial distance from that plane. For radial plates the
+    nearest in angle is the nearest in distance."""
+    ang = a0 + pitch * math.floor((math.atan2(y, x) - a0) / pitch + 0.5)
+    ca = math.cos(ang)
+    sa = math.sin(ang)
+    s = x * ca + y * sa  # along the plate
+    t = -x * sa + y * ca  # across it
+    ds = s - min(max(s, s_lo), s_hi)
+    dt_ = t - min(max(t, -ht), ht)
+    dz = zp - min(max(zp, -hh), hh)
+    d = math.sqrt(ds * ds + dt_ * dt_ + dz * dz)
+    if d > 1e-300:
+        return d, (ds * ca - dt_ * sa) / d, (ds * sa + dt_ * ca) / d, dz / d, True
+    sgn = 1.0 if t >= 0.0 else -1.0  # centre inside the plate: out through its face
+    return -(ht - abs(t)), -sgn * sa, sgn * ca, 0.0, True
+
+
+@device
 def baffle_gap(x, y, z, rad, r, prm):
     """:func:`wall_gap` for the nearest stationary baffle (wall 4): a plate from r_baf to
     the chamber wall along its radial mid-line at angle a, thickness t_baf, axial height
@@ -351,22 +358,8 @@ def baffle_gap(x, y, z, rad, r, prm):
     hh = 0.5 * prm[P_HBAF]
     if abs(zb) - hh > rad:
         return 1.0, 1.0, 0.0, 0.0, False
-    pitch = 2.0 * math.pi / nb
-    a0 = prm[P_ABAF]
-    ang = a0 + pitch * math.floor((math.atan2(y, x) - a0) / pitch + 0.5)
-    ca = math.cos(ang)
-    sa = math.sin(ang)
-    s = x * ca + y * sa  # along the baffle
-    t = -x * sa + y * ca  # across it
-    ht = 0.5 * prm[P_TBAF]
-    ds = s - min(max(s, prm[P_RBAF]), prm[P_RCH])
-    dt_ = t - min(max(t, -ht), ht)
-    dz = zb - min(max(zb, -hh), hh)
-    d = math.sqrt(ds * ds + dt_ * dt_ + dz * dz)
-    if d > 1e-300:
-        return d, (ds * ca - dt_ * sa) / d, (ds * sa + dt_ * ca) / d, dz / d, True
-    sgn = 1.0 if t >= 0.0 else -1.0  # centre inside the plate: out through its face
-    return -(ht - abs(t)), -sgn * sa, sgn * ca, 0.0, True
+    return plate_gap(x, y, zb, prm[P_ABAF], 2.0 * math.pi / nb, prm[P_RBAF], prm[P_RCH],
+                     0.5 * prm[P_TBAF], hh)
 
 
 @contact

@@ -209,18 +209,9 @@ class MillGeometry:
         ``rotor_angle_rad`` (the kernels' wall 3); inf without vanes."""
         if not self.vane_count:
             return np.full(p.shape[0], np.inf)
-        pitch = 2.0 * math.pi / self.vane_count
-        ang = rotor_angle_rad + pitch * np.floor(
-            (np.arctan2(p[:, 1], p[:, 0]) - rotor_angle_rad) / pitch + 0.5)
-        s = p[:, 0] * np.cos(ang) + p[:, 1] * np.sin(ang)
-        t = -p[:, 0] * np.sin(ang) + p[:, 1] * np.cos(ang)
-        zr = p[:, 2] - self.disc_z_m
-        zr -= self.height_m * np.floor(zr / self.height_m + 0.5)
-        ds = s - np.clip(s, self.shaft_radius_m, self.disc_radius_m)
-        dt = t - np.clip(t, -0.5 * self.vane_thickness_m, 0.5 * self.vane_thickness_m)
-        hc = 0.5 * self.channel_height_m
-        dz = zr - np.clip(zr, -hc, hc)
-        return np.sqrt(ds * ds + dt * dt + dz * dz)
+        return self._plate_distance(p, self.disc_z_m, rotor_angle_rad, self.vane_count,
+                                    self.shaft_radius_m, self.disc_radius_m,
+                                    self.vane_thickness_m, self.channel_height_m)
 
 
     def baffle_distance(self, p: np.ndarray) -> np.ndarray:
@@ -228,17 +219,25 @@ class MillGeometry:
         inf without baffles."""
         if not self.baffle_count:
             return np.full(p.shape[0], np.inf)
-        pitch = 2.0 * math.pi / self.baffle_count
-        a0 = math.radians(self.baffle_angle_deg)
-        ang = a0 + pitch * np.floor((np.arctan2(p[:, 1], p[:, 0]) - a0) / pitch + 0.5)
+        return self._plate_distance(p, self.disc_z_m + 0.5 * self.height_m,
+                                    math.radians(self.baffle_angle_deg), self.baffle_count,
+                                    self.baffle_inner_radius_m, self.chamber_radius_m,
+                                    self.baffle_thickness_m, self.baffle_height_m)
+
+    def _plate_distance(self, p, z_mid_m, a0_rad, count, s_lo_m, s_hi_m, thickness_m,
+                        height_m) -> np.ndarray:
+        """Distance [m] from points p (n, 3) to the nearest of ``count`` radial plates over
+        the circle, the first at a0, each from s_lo to s_hi along its mid-line, of the
+        given thickness and axial height about z_mid (axially periodic)."""
+        pitch = 2.0 * math.pi / count
+        ang = a0_rad + pitch * np.floor((np.arctan2(p[:, 1], p[:, 0]) - a0_rad) / pitch + 0.5)
         s = p[:, 0] * np.cos(ang) + p[:, 1] * np.sin(ang)
         t = -p[:, 0] * np.sin(ang) + p[:, 1] * np.cos(ang)
-        zb = p[:, 2] - self.disc_z_m - 0.5 * self.height_m
-        zb -= self.height_m * np.floor(zb / self.height_m + 0.5)
-        ds = s - np.clip(s, self.baffle_inner_radius_m, self.chamber_radius_m)
-        dt = t - np.clip(t, -0.5 * self.baffle_thickness_m, 0.5 * self.baffle_thickness_m)
-        hh = 0.5 * self.baffle_height_m
-        dz = zb - np.clip(zb, -hh, hh)
+        zp = p[:, 2] - z_mid_m
+        zp -= self.height_m * np.floor(zp / self.height_m + 0.5)
+        ds = s - np.clip(s, s_lo_m, s_hi_m)
+        dt = t - np.clip(t, -0.5 * thickness_m, 0.5 * thickness_m)
+        dz = zp - np.clip(zp, -0.5 * height_m, 0.5 * height_m)
         return np.sqrt(ds * ds + dt * dt + dz * dz)
 
 
