@@ -231,3 +231,22 @@ def test_seed002_baffled_campaign_is_its_own(tmp_path):
     (tmp_path / "campaign.json").write_text('{"method": "physical", "primed": false}')
     with pytest.raises(ValueError, match="holds a campaign of .*'baffles': False"):
         S.run_campaign(tmp_path, cases=((1200.0, 0.8),), baffles=True)
+
+
+def test_section_maps_outline_the_baffles():
+    """The maps average over the angle, so the baffles (one angle only) are drawn as two
+    hatched outlines at the ends of the axial period, from their inner radius to the wall."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    from millfmu.dem.analysis import plots
+
+    fig, ax = plt.subplots()
+    plots._zone_outline(ax, _scene())
+    hatched = [c for c in ax.collections if c.get_hatch() == "//"]
+    assert len(hatched) == 2
+    ys = np.concatenate([c.get_paths()[0].vertices[:, 1] for c in hatched])
+    assert ys.min() == pytest.approx(16.0) and ys.max() == pytest.approx(30.0)
+    plt.close(fig)

@@ -57,10 +57,28 @@ def _sev_outline(ax, scene):
         ax.plot([x, x], [g.shaft_radius_m * mm, r2], "w:", lw=1)
 
 
+def _baffle_outline(ax, g):
+    """Stationary baffles (a row of radial plates between the rotors: here, at both ends of
+    the axial period) drawn as hatched outlines: they stand in one angle only, so the
+    maps, averaged over the angle, have values there."""
+    mm = 1e3
+    half = 0.5 * g.height_m
+    for z0, z1 in ((-half, -half + 0.5 * g.baffle_height_m), (half - 0.5 * g.baffle_height_m,
+                                                             half)):
+        ax.fill_between([z0 * mm, z1 * mm], g.baffle_inner_radius_m * mm,
+                        g.chamber_radius_m * mm, facecolor="none", edgecolor="w",
+                        hatch="//", lw=0.8)
+    ax.text(0.0, g.chamber_radius_m * mm, "hatched: baffles (one per "
+            f"{360 / g.baffle_count:g} degrees)", color="w", fontsize=7, ha="center",
+            va="top")
+
+
 def _zone_outline(ax, scene):
     g = scene.geometry
     if not g.has_disc:
         return
+    if g.has_baffles:
+        _baffle_outline(ax, g)
     if g.has_channel:
         _sev_outline(ax, scene)
         return
