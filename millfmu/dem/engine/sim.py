@@ -57,14 +57,22 @@ class DemSimulation:
     (numba.cuda, :mod:`millfmu.dem.engine.gpu`: same model; beads are not reordered; the host
     arrays x, v, w, f, t are refreshed after each run() call and fext is read before it;
     rad and mass are read once, here). After a reorder, row k of the bead arrays holds
-    the bead ``ids[k]`` of the initial order.
+    the bead ``ids[k]`` of the initial order. tangential_history: how a contact's
+    tangential spring follows its turning contact plane, ``"rescaled"`` (projected onto
+    the plane, its length kept; the default, what every table was computed with) or
+    ``"projected"`` (projected only, as LAMMPS' gran/hertz/history and LIGGGHTS);
+    see :func:`millfmu.dem.engine.kernels.hertz_mindlin`.
     """
+
+    #: the names of ``tangential_history`` and their kernel codes (prm[P_THIST])
+    TANGENTIAL_HISTORIES = {"rescaled": 0.0, "projected": 1.0}
 
     def __init__(self, geometry: MillGeometry, material: BeadMaterial, positions_m,
                  radii_m, omega_rad_s: float, dt_s: float, gravity_m_s2=(0.0, 0.0, 0.0),
                  fluid: FluidSettings | None = None, skin_m: float | None = None,
                  max_neighbours: int = 24, velocities_m_s=None, threads: int | None = None,
-                 sort_every_steps: int | None = None, spins_rad_s=None, device: str = "cpu"):
+                 sort_every_steps: int | None = None, spins_rad_s=None, device: str = "cpu",
+                 tangential_history: str = "rescaled"):
         # numba and the kernels load when a simulation is built, not with a scene file.
         import numba
 
@@ -152,6 +160,11 @@ class DemSimulation:
         prm[K.P_HBAF] = geometry.baffle_height_m
         prm[K.P_ABAF] = math.radians(geometry.baffle_angle_deg)
         prm[K.P_SKIN] = self.skin_m
+        if tangential_history not in self.TANGENTIAL_HISTORIES:
+            raise ValueError(f"tangential_history = {tangential_history!r}: one of "
+                             f"{sorted(self.TANGENTIAL_HISTORIES)}")
+        self.tangential_history = tangential_history
+        prm[K.P_THIST] = self.TANGENTIAL_HISTORIES[tangential_history]
         self.prm = prm
         # chunks of beads, each with its own force buffer: a fixed number for a given bead
         # count (about 4096 beads each), so that results do not depend on the thread count
