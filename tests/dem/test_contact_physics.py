@@ -440,6 +440,35 @@ def test_tangential_history_rejects_unknown_names():
         DemSimulation(GEOM, BeadMaterial(), x, R, 0.0, 1e-7, tangential_history="lammps")
 
 
+def test_history_at_start_advanced_or_zero():
+    """Two beads built in contact (overlap delta along x) that slide past each other at u
+    along y: the default "advanced" start evaluates the initial forces with the spring
+    already at u dt (tangential force S_t u dt), "zero" (LAMMPS, LIGGGHTS) with none; the
+    first step adds u dt to either (closed form, no damping, far below the Coulomb
+    limit)."""
+    from millfmu.dem.engine.sim import DemSimulation
+
+    mat = BeadMaterial(restitution=1.0, friction=0.3, rolling_friction=0.0)
+    delta, u, dt = 5e-6, 0.01, 1e-7
+    c = np.array([0.030, 0.0, 0.002])
+    x = np.array([c + [(R - delta / 2), 0, 0], c - [(R - delta / 2), 0, 0]])
+    v = np.array([[0.0, u / 2, 0.0], [0.0, -u / 2, 0.0]])
+    st = 8.0 * mat.effective_shear_pa * math.sqrt(R / 2 * delta)
+    springs = {}
+    for start, n0 in (("advanced", 1), ("zero", 0)):
+        sim = DemSimulation(GEOM, mat, x, R, 0.0, dt, velocities_m_s=v,
+                            history_at_start=start)
+        k = sim.pst[0]
+        assert sim.psh[k] == pytest.approx([0.0, n0 * u * dt, 0.0], abs=1e-9 * u * dt)
+        assert sim.f[0, 1] == pytest.approx(-st * n0 * u * dt, abs=1e-9 * st * u * dt)
+        sim.run(1)
+        springs[start] = sim.psh[k, 1]
+        assert springs[start] == pytest.approx((n0 + 1) * u * dt, rel=1e-4)
+    assert springs["advanced"] - springs["zero"] == pytest.approx(u * dt, rel=1e-4)
+    with pytest.raises(ValueError, match="history_at_start"):
+        DemSimulation(GEOM, mat, x, R, 0.0, dt, history_at_start="none")
+
+
 def test_wall_contacts_are_recorded_at_the_bead_and_counted_in_its_zone():
     """A bead that hits the chamber wall, and one that hits the disc's outer edge from the
     gap beyond the rim (zone V2): each contact is recorded once, at the bead's centre at
