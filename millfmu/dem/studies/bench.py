@@ -513,9 +513,12 @@ def ke_table(best: dict, steps: int) -> list[str]:
     energies with a spread (standard deviation) of about 2 % (ours and LAMMPS alike).
     Besides, a file carries no tangential history: LAMMPS and LIGGGHTS start every
     contact of the file without one, while millfmu.dem's first force evaluation (at
-    construction) already adds one step of sliding to it; with LAMMPS' start millfmu.dem
-    gave 8 % less translational energy after 1000 steps on the bench bed. A flag says
-    where to look, not that a contact law differs."""
+    construction) already adds one step of sliding to it (DemSimulation's
+    history_at_start, "advanced" by default). On this bed that start alone made the
+    difference of issue 28: over four runs each (the file and three starts 1e-9 m off),
+    the translational energy after 1000 steps was 1.49e-4 J (sd 0.03e-4) with the
+    default start, 1.29e-4 J (sd 0.03e-4) with history_at_start="zero", and LAMMPS'
+    1.29e-4 J (sd 0.02e-4). A flag says where to look, not that a contact law differs."""
     refs = {}
     for name, r in best.items():
         if r.code in ("LAMMPS", "LIGGGHTS") and r.code not in refs:
