@@ -383,6 +383,92 @@ def test_history_frame_from_the_separation_equals_the_one_from_the_normal():
     assert K.history_frame_pair(0.0, 0.0, 0.0, *d, 1.0 / r2, 1.0) == (0.0, 0.0, 0.0)
 
 
+@pytest.mark.parametrize("contact", ["pair", "wall"])
+def test_tangential_history_rescaled_or_projected_when_the_contact_plane_turns(contact):
+    """A resting contact (no damping, no sliding) whose tangential spring s0 lies in the
+    tangent plane of the previous step, evaluated after its normal turned by phi in one
+    step: the default "rescaled" history keeps its length s0, the "projected" one (LAMMPS'
+    gran/hertz/history, LIGGGHTS) keeps s0 cos(phi); either way it lies in the new
+    tangent plane and the tangential force is S_t |s| with S_t = 8 G* sqrt(R* delta)
+    (closed form). Pair: bead 1 below bead 0, then swung about bead 0 in the x-z plane;
+    wall: a bead pressed into the chamber wall, then moved round the axis by phi."""
+    from millfmu.dem.engine.sim import DemSimulation
+
+    mat = BeadMaterial(restitution=1.0, friction=0.3, rolling_friction=0.0)
+    delta, s0, phi = 5e-6, 5e-7, 0.3
+    got = {}
+    for mode in ("rescaled", "projected"):
+        if contact == "pair":
+            d = 2 * R - delta
+            c = np.array([0.030, 0.0, 0.002])
+            x = np.array([c, c - d * np.array([0.0, 0.0, 1.0])])
+            sim = DemSimulation(GEOM, mat, x, R, 0.0, 1e-7, tangential_history=mode)
+            k = sim.pst[0]
+            assert sim.nnb[0] == 1 and np.all(sim.psh[k] == 0.0)
+            sim.psh[k] = (s0, 0.0, 0.0)  # in the plane normal to n = e_z
+            n = np.array([math.sin(phi), 0.0, math.cos(phi)])  # from bead 1 to bead 0
+            sim.x[1] = c - d * n
+            rstar = R / 2
+        else:
+            rc = GEOM.chamber_radius_m - R + delta
+            x = np.array([[rc, 0.0, 0.002]])
+            sim = DemSimulation(GEOM, mat, x, R, 0.0, 1e-7, tangential_history=mode)
+            assert sim.flw[0, 1] == 1 and np.all(sim.shw[0, 1] == 0.0)
+            sim.shw[0, 1] = (0.0, s0, 0.0)  # in the plane normal to n = -e_x
+            sim.x[0] = (rc * math.cos(phi), rc * math.sin(phi), 0.002)
+            n = np.array([-math.cos(phi), -math.sin(phi), 0.0])  # from the wall to the bead
+            rstar = R
+        sim._finish(record=False, kick=0.0)  # forces (and history) at the new positions
+        s = sim.psh[k].copy() if contact == "pair" else sim.shw[0, 1].copy()
+        f = sim.f[0]
+        ft = f - (f @ n) * n
+        st = 8.0 * mat.effective_shear_pa * math.sqrt(rstar * delta)
+        assert s @ n == pytest.approx(0.0, abs=1e-12 * s0)
+        assert np.linalg.norm(ft) == pytest.approx(st * np.linalg.norm(s), rel=1e-9)
+        assert f @ n == pytest.approx(4.0 / 3.0 * mat.effective_youngs_pa
+                                      * math.sqrt(rstar * delta) * delta, rel=1e-9)
+        got[mode] = np.linalg.norm(s)
+    assert got["rescaled"] == pytest.approx(s0, rel=1e-12)
+    assert got["projected"] == pytest.approx(s0 * math.cos(phi), rel=1e-12)
+
+
+def test_tangential_history_rejects_unknown_names():
+    from millfmu.dem.engine.sim import DemSimulation
+
+    x = np.array([[0.030, 0.0, 0.002]])
+    with pytest.raises(ValueError, match="tangential_history"):
+        DemSimulation(GEOM, BeadMaterial(), x, R, 0.0, 1e-7, tangential_history="lammps")
+
+
+def test_history_at_start_advanced_or_zero():
+    """Two beads built in contact (overlap delta along x) that slide past each other at u
+    along y: the default "advanced" start evaluates the initial forces with the spring
+    already at u dt (tangential force S_t u dt), "zero" (LAMMPS, LIGGGHTS) with none; the
+    first step adds u dt to either (closed form, no damping, far below the Coulomb
+    limit)."""
+    from millfmu.dem.engine.sim import DemSimulation
+
+    mat = BeadMaterial(restitution=1.0, friction=0.3, rolling_friction=0.0)
+    delta, u, dt = 5e-6, 0.01, 1e-7
+    c = np.array([0.030, 0.0, 0.002])
+    x = np.array([c + [(R - delta / 2), 0, 0], c - [(R - delta / 2), 0, 0]])
+    v = np.array([[0.0, u / 2, 0.0], [0.0, -u / 2, 0.0]])
+    st = 8.0 * mat.effective_shear_pa * math.sqrt(R / 2 * delta)
+    springs = {}
+    for start, n0 in (("advanced", 1), ("zero", 0)):
+        sim = DemSimulation(GEOM, mat, x, R, 0.0, dt, velocities_m_s=v,
+                            history_at_start=start)
+        k = sim.pst[0]
+        assert sim.psh[k] == pytest.approx([0.0, n0 * u * dt, 0.0], abs=1e-9 * u * dt)
+        assert sim.f[0, 1] == pytest.approx(-st * n0 * u * dt, abs=1e-9 * st * u * dt)
+        sim.run(1)
+        springs[start] = sim.psh[k, 1]
+        assert springs[start] == pytest.approx((n0 + 1) * u * dt, rel=1e-4)
+    assert springs["advanced"] - springs["zero"] == pytest.approx(u * dt, rel=1e-4)
+    with pytest.raises(ValueError, match="history_at_start"):
+        DemSimulation(GEOM, mat, x, R, 0.0, dt, history_at_start="none")
+
+
 def test_wall_contacts_are_recorded_at_the_bead_and_counted_in_its_zone():
     """A bead that hits the chamber wall, and one that hits the disc's outer edge from the
     gap beyond the rim (zone V2): each contact is recorded once, at the bead's centre at

@@ -37,6 +37,30 @@ def test_bench_lattice_has_the_issue_bead_count():
     assert r.min() >= 15.5e-3 and r.max() <= 44.5e-3
 
 
+def test_bench_ke_table_sets_the_references_beside_ours_and_flags_over_3_percent():
+    """The bench's kinetic-energy lines (no LAMMPS needed): each run's energies and their
+    differences from LAMMPS' and LIGGGHTS' in %, '!' above 3 %; the figures are the
+    bench's 1000-step energies of issue 28 (1 core each)."""
+    from millfmu.dem.studies import bench as B
+
+    def run(code, et, er):
+        return B.RunResult(code=code, cores=1, device="cpu", beads=52312, steps=1000,
+                           loop_s=10.0, ke_trans_j=et, ke_rot_j=er, coordination=5.5)
+
+    best = {"millfmu.dem 1 thr": run("millfmu.dem", 1.508e-4, 9.73e-5),
+            "LAMMPS 1 MPI": run("LAMMPS", 1.294e-4, 8.51e-5),
+            "LIGGGHTS 1 MPI": run("LIGGGHTS", 1.299e-4, 9.05e-5)}
+    lines = B.ke_table(best, 1000)
+    assert "after 1000 steps" in lines[0] and "3 %" in lines[0]
+    assert "vs LAMMPS" in lines[1] and "vs LIGGGHTS" in lines[1]
+    ours = next(x for x in lines if x.strip().startswith("millfmu.dem"))
+    assert "+16.5 %!" in ours and "+16.1 %!" in ours  # KE_trans against both
+    assert "+14.3 %!" in ours and "+7.5 %!" in ours  # KE_rot against both
+    lmp = next(x for x in lines if x.strip().startswith("LAMMPS"))
+    assert "-0.4 % " in lmp and "-6.0 %!" in lmp  # within 3 % and not, against LIGGGHTS
+    assert B.ke_table({"millfmu.dem 1 thr": best["millfmu.dem 1 thr"]}, 1000) == []
+
+
 def test_zone_volumes_partition_the_pm1_cell_and_follow_seed_order():
     z = Zones(PM1)
     v = z.volumes_m3()

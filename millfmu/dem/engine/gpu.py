@@ -235,6 +235,7 @@ def g_forces(x, v, w, f, t, rad, mass, inertia, nb, img, nnb, sh, fl, shw, flw, 
     hmin = prm[K.P_LUB_HMIN]
     lz = prm[K.P_LZ]
     sec = prm[K.P_SECTOR]
+    hproj = prm[K.P_THIST] != 0.0
     cs1 = math.cos(sec)
     sn1 = math.sin(sec)
     cap = evbuf.shape[0]
@@ -304,6 +305,8 @@ def g_forces(x, v, w, f, t, rad, mass, inertia, nb, img, nnb, sh, fl, shw, flw, 
             s1 = sh[k, i, 1]
             s2 = sh[k, i, 2]
             sdn, sm0, sm1 = history_frame_pair(s0, s1, s2, dx, dy, dz, ir2, ir)
+            if hproj:
+                sm1 = 0.0  # "projected": no rescaling
             (gx, gy, gz, tix, tiy, tiz, tjx, tjy, tjz, s0, s1,
              s2) = pair_response(nx, ny, nz, delta, vrx, vry, vrz, w[i, 0], w[i, 1], w[i, 2],
                                  wjx, wjy, w[j, 2], ri, rj, mstar, ri * rj / rsum, s0, s1,

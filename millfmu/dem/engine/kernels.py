@@ -83,7 +83,10 @@ P_TBAF = 35  # baffle thickness [m]
 P_RBAF = 36  # inner radius of the baffles [m]
 P_HBAF = 37  # axial height of the baffles [m]
 P_ABAF = 38  # angle of the first baffle [rad]
-N_PRM = 39
+# tangential history in a turning contact plane: 0 "rescaled" (projected, then its old
+# length restored), 1 "projected" (projected only); see hertz_mindlin
+P_THIST = 39
+N_PRM = 40
 
 # wall ids: 0 shaft (rotating), 1 chamber (fixed), 2 disc or shrouds (rotating), 3 vanes
 # (rotating), 4 baffles (fixed)
@@ -119,6 +122,18 @@ def hertz_mindlin(nx, ny, nz, delta, vrx, vry, vrz, wsx, wsy, wsz, wrx, wry, wrz
     :func:`history_frame` or :func:`history_frame_pair`.
     Returns the normal and tangential force on i [N], the rolling torque on i [N m],
     the updated history [m] and the elastic normal force k_n delta [N].
+
+    The history is first brought into the current tangent plane: its normal part is
+    removed and its old length restored (``"rescaled"``, prm[P_THIST] = 0, the default),
+    or, when the caller passes sm1 = 0 (``"projected"``, prm[P_THIST] = 1), its normal
+    part is removed only, as in LAMMPS' ``pair_style gran/hertz/history`` and
+    LIGGGHTS' ``tangential history``. The rescaled form is the objective one: a pair
+    that turns as a rigid body keeps its spring, where the projection shortens it by
+    the factor cos(turn) of each step (Luding, Granular Matter 10 (2008) 235, eq. 17;
+    LAMMPS' ``pair_style granular`` rescales for that reason). The two differ by terms
+    of second order in the turn per step, so they agree as dt -> 0. On the DEM bench
+    bed (1000 steps) the projected form changed the kinetic energy by about 1 %, within
+    the spread of runs that differ by 1e-9 m in the start.
     """
     sq = math.sqrt(rstar * delta)
     kn = 4.0 / 3.0 * ystar * sq
@@ -142,7 +157,8 @@ def hertz_mindlin(nx, ny, nz, delta, vrx, vry, vrz, wsx, wsy, wsz, wrx, wry, wrz
     vty = vry - vn * ny - cy
     vtz = vrz - vn * nz - cz
     # history: rotate the old spring into the current tangent plane, keep its length
-    # (the length ratio from the squared lengths: one root instead of two)
+    # (the length ratio from the squared lengths: one root instead of two); sm1 = 0:
+    # projected only
     s0 -= sdn * nx
     s1 -= sdn * ny
     s2 -= sdn * nz
@@ -414,6 +430,8 @@ def wall_response(xi, yi, zi, vix, viy, viz, wix, wiy, wiz, ri, mi, q, s0, s1, s
     vrx = vix + om * py
     vry = viy - om * px
     sdn, sm0, sm1 = history_frame(s0, s1, s2, nx, ny, nz)
+    if prm[P_THIST] != 0.0:
+        sm1 = 0.0  # "projected": no rescaling
     (fnx, fny, fnz, ftx, fty, ftz, mrx, mry, mrz, s0, s1, s2,
      fel) = hertz_mindlin(nx, ny, nz, delta, vrx, vry, viz, ri * wix, ri * wiy, ri * wiz,
                           wix, wiy, wiz - om, mi, ri, s0, s1, s2, sdn, sm0, sm1, ystar,
@@ -840,6 +858,7 @@ def compute_forces(x, v, w, fb, tb, rad, mass, inertia, pst, nnb, pj, pim, psh, 
     has_baffles = prm[P_NBAF] > 0.0
     rbaf = prm[P_RBAF]
     zdisc = prm[P_ZDISC]
+    hproj = prm[P_THIST] != 0.0
     # Equal beads (one radius and mass, as in most mill runs): R*, m* and the partner's
     # radius are the same for every pair, computed once, as the general formulas give
     # them; this saves the pair loop two divisions per contact and a load per pair.
@@ -938,6 +957,8 @@ def compute_forces(x, v, w, fb, tb, rad, mass, inertia, pst, nnb, pj, pim, psh, 
                     s1 = psh[k, 1]
                     s2 = psh[k, 2]
                     sdn, sm0, sm1 = history_frame_pair(s0, s1, s2, dx, dy, dz, ir2, ir)
+                    if hproj:
+                        sm1 = 0.0  # "projected": no rescaling
                     (gx, gy, gz, tix, tiy, tiz, tjx, tjy, tjz, s0, s1,
                      s2) = pair_response(nx, ny, nz, delta, vrx, vry, vrz, w[i, 0], w[i, 1],
                                          w[i, 2], wjx, wjy, w[j, 2], ri, rj, mstar, rstar, s0,
