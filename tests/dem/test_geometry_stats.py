@@ -165,8 +165,9 @@ def test_cli_registers_run_and_bench_and_rejects_bad_values(capsys, tmp_path):
     assert "tip_speed_m_s = 30.0" in capsys.readouterr().err
     a = p.parse_args(["dem", "bench", "--steps", "10"])
     assert callable(a.func)
-    with pytest.raises(SystemExit):
-        p.parse_args(["dem", "run", "disc_slice"])  # --out is required
+    a = p.parse_args(["dem", "run", "disc_slice"])  # --out is required (unless --resume)
+    assert a.func(a) == 2
+    assert "a scene and --out are required" in capsys.readouterr().err
 
 
 def test_disc_slice_short_run_gives_zone_statistics(tmp_path):

@@ -413,7 +413,12 @@ class GpuStepper:
         self.shw = d(np.zeros((n, K.NWALL, 3)))
         self.flw = d(np.zeros((n, K.NWALL), np.uint8))
         self.fext = d(sim.fext)
-        self.prm = d(sim.prm)
+        # the initial forces: with history_at_start "zero" no spring increment (dt 0 in the
+        # contact law), as on the CPU
+        p0 = sim.prm.copy()
+        if sim.history_at_start == "zero":
+            p0[K.P_DT] = 0.0
+        self.prm = d(p0)
         self.flags = d(np.zeros(N_FLAGS, np.int64))
         self.acc = d(np.zeros(2))
         self.evbuf = cuda.device_array((max(65536, 4 * n), K.EV_NF))
@@ -425,6 +430,7 @@ class GpuStepper:
         self._build(wrap=True)
         self._launch(g_zero, self.f, self.t)
         self._forces(record=False, step=0)
+        self.prm.copy_to_device(sim.prm)
         self.f.copy_to_host(sim.f)
         self.t.copy_to_host(sim.t)
 

@@ -512,13 +512,13 @@ def ke_table(best: dict, steps: int) -> list[str]:
     and runs from the same file that differ by 1e-9 m in the positions gave 1000-step
     energies with a spread (standard deviation) of about 2 % (ours and LAMMPS alike).
     Besides, a file carries no tangential history: LAMMPS and LIGGGHTS start every
-    contact of the file without one, while millfmu.dem's first force evaluation (at
-    construction) already adds one step of sliding to it (DemSimulation's
-    history_at_start, "advanced" by default). On this bed that start alone made the
-    difference of issue 28: over four runs each (the file and three starts 1e-9 m off),
-    the translational energy after 1000 steps was 1.49e-4 J (sd 0.03e-4) with the
-    default start, 1.29e-4 J (sd 0.03e-4) with history_at_start="zero", and LAMMPS'
-    1.29e-4 J (sd 0.02e-4). A flag says where to look, not that a contact law differs."""
+    contact of the file without one, as millfmu.dem does now (DemSimulation's
+    history_at_start "zero"); its earlier start ("advanced") added one step of sliding
+    to every spring at construction. On this bed that start alone made the +16 % of
+    issue 28: over four runs each (the file and three starts 1e-9 m off), the
+    translational energy after 1000 steps was 1.49e-4 J (sd 0.03e-4) with the earlier
+    start, 1.29e-4 J (sd 0.03e-4) with "zero", and LAMMPS' 1.29e-4 J (sd 0.02e-4). A flag
+    says where to look, not that a contact law differs."""
     refs = {}
     for name, r in best.items():
         if r.code in ("LAMMPS", "LIGGGHTS") and r.code not in refs:
