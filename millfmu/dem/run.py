@@ -219,6 +219,11 @@ def run_scene(scene: DemScene, out_dir, progress: bool = True, threads: int | No
     if checkpoint_every_s is not None and not checkpoint_every_s > 0.0:
         raise DemRunError(f"checkpoint_every_s = {checkpoint_every_s!r}: must be > 0 s")
     out = Path(out_dir)
+    if _state is None and (out / CHECKPOINT).exists():
+        # a new run would overwrite the stopped one's state at its first checkpoint
+        raise DemRunError(f"{out}: holds the checkpoint of a stopped run; go on with it "
+                          f"(resume_run, dem run --resume {out}) or remove "
+                          f"{out / CHECKPOINT} to start afresh")
     out.mkdir(parents=True, exist_ok=True)
     if _state is None:
         sim, cpl = make_simulation(scene, threads)

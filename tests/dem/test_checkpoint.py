@@ -52,6 +52,11 @@ def test_a_stopped_run_resumes_to_the_same_outputs(tmp_path, monkeypatch):
         R.run_scene(_scene(), parts, progress=False, threads=1, window_s=5e-4,
                     checkpoint_every_s=1e-9)
     assert (parts / R.CHECKPOINT).exists() and not (parts / "stats.json").exists()
+    # a new run into the folder would overwrite the stopped one: refused, nothing touched
+    before = (parts / R.CHECKPOINT).read_bytes()
+    with pytest.raises(R.DemRunError, match="holds the checkpoint of a stopped run"):
+        R.run_scene(_scene(), parts, progress=False, threads=1)
+    assert (parts / R.CHECKPOINT).read_bytes() == before
     monkeypatch.setattr(R, "_write_checkpoint", write)
     # resumed from the command line, as a user would
     assert dem_main(["run", "--resume", str(parts), "--no-progress"]) == 0
