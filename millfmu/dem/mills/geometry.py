@@ -86,16 +86,8 @@ class MillGeometry:
             if not self.channel_height_m or self.vane_count < 1:
                 raise GeometryError(f"vane_count = {self.vane_count!r}: vanes need a channel "
                                     f"(channel_height_m > 0) and a count >= 1")
-            pitch = 2.0 * math.pi * self.shaft_radius_m / self.vane_count
-            if not 0.0 < self.vane_thickness_m < 0.5 * pitch:
-                raise GeometryError(
-                    f"vane_thickness_m = {self.vane_thickness_m!r}: must be > 0 and below half "
-                    f"the vane pitch at the shaft ({0.5 * pitch:.3g} m)")
-            per = self.vane_count * self.sector_deg / 360.0
-            if abs(per - round(per)) > 1e-9:
-                raise GeometryError(
-                    f"sector_deg = {self.sector_deg!r}: must hold a whole number of vane "
-                    f"pitches (360 / {self.vane_count} degrees) to be periodic")
+            self._check_plates("vane", self.vane_count, self.vane_thickness_m,
+                               self.shaft_radius_m, "at the shaft")
         if self.baffle_count:
             self._check_baffles()
         k = 360.0 / self.sector_deg if self.sector_deg > 0 else 0.0
@@ -117,16 +109,23 @@ class MillGeometry:
             raise GeometryError(
                 f"baffle_height_m = {self.baffle_height_m!r}: must be > 0 and below the gap "
                 f"between two rotors ({gap:.4g} m), so that the rotors pass the baffles")
-        pitch = 2.0 * math.pi * self.baffle_inner_radius_m / self.baffle_count
-        if not 0.0 < self.baffle_thickness_m < 0.5 * pitch:
+        self._check_plates("baffle", self.baffle_count, self.baffle_thickness_m,
+                           self.baffle_inner_radius_m, "at their inner radius")
+
+    def _check_plates(self, name: str, count: int, thickness_m: float, radius_m: float,
+                      where: str):
+        """A row of ``count`` radial plates: thinner than half their pitch at ``radius_m``
+        (their innermost), and a whole number of pitches in the sector (periodic)."""
+        pitch = 2.0 * math.pi * radius_m / count
+        if not 0.0 < thickness_m < 0.5 * pitch:
             raise GeometryError(
-                f"baffle_thickness_m = {self.baffle_thickness_m!r}: must be > 0 and below half "
-                f"the baffle pitch at their inner radius ({0.5 * pitch:.3g} m)")
-        per = self.baffle_count * self.sector_deg / 360.0
+                f"{name}_thickness_m = {thickness_m!r}: must be > 0 and below half the {name} "
+                f"pitch {where} ({0.5 * pitch:.3g} m)")
+        per = count * self.sector_deg / 360.0
         if abs(per - round(per)) > 1e-9:
             raise GeometryError(
-                f"sector_deg = {self.sector_deg!r}: must hold a whole number of baffle "
-                f"pitches (360 / {self.baffle_count} degrees) to be periodic")
+                f"sector_deg = {self.sector_deg!r}: must hold a whole number of {name} "
+                f"pitches (360 / {count} degrees) to be periodic")
 
     @property
     def has_baffles(self) -> bool:
