@@ -267,6 +267,8 @@ def run_scene(scene: DemScene, out_dir, progress: bool = True, threads: int | No
     t_wall = time.perf_counter() - loop["wall_s"]
     t_check = time.perf_counter()
     ckpt = out / CHECKPOINT
+    # the sources this run was compiled from, not those on disk at a later checkpoint
+    version = _kernel_version() if checkpoint_every_s is not None else None
 
     def sample():
         et, er = sim.kinetic_energy_j()
@@ -343,7 +345,7 @@ def run_scene(scene: DemScene, out_dir, progress: bool = True, threads: int | No
                         fluid_samples=fluid_samples, budget0=budget0,
                         wall_s=time.perf_counter() - t_wall)
             _write_checkpoint(ckpt, dict(
-                format=CHECKPOINT_FORMAT, kernel_version=_kernel_version(), scene=scene,
+                format=CHECKPOINT_FORMAT, kernel_version=version, scene=scene,
                 window_s=window_s, contacts=contacts, sim=sim, cpl=cpl, loop=loop))
             t_check = time.perf_counter()
     if bar is not None:

@@ -37,11 +37,13 @@ from millfmu.dem.engine import kernels as K
 from millfmu.dem.engine._jit import gpu_device, gpu_kernel
 
 axial_image = gpu_device(K.axial_image)
+wall_stands = gpu_device(K.wall_stands)
 _plate_gap = gpu_device(K.plate_gap)
 hertz_mindlin = gpu_device(K.hertz_mindlin)
 history_frame_pair = gpu_device(K.history_frame_pair)
 pair_response = gpu_device(K.pair_response, hertz_mindlin=hertz_mindlin)
 wall_response = gpu_device(K.wall_response, hertz_mindlin=hertz_mindlin,
+                           wall_stands=wall_stands,
                            history_frame=gpu_device(K.history_frame),
                            wall_gap=gpu_device(
                                K.wall_gap, plate_gap=_plate_gap,
@@ -371,7 +373,7 @@ def g_forces(x, v, w, f, t, rad, mass, inertia, nb, img, nnb, sh, fl, shw, flw, 
         tx += tix
         ty += tiy
         tz += tiz
-        cuda.atomic.add(acc, 0 if q != 1 and q != 4 else 1, twall)
+        cuda.atomic.add(acc, 1 if wall_stands(q) else 0, twall)
     cuda.atomic.add(f, (i, 0), fx)
     cuda.atomic.add(f, (i, 1), fy)
     cuda.atomic.add(f, (i, 2), fz)

@@ -379,6 +379,13 @@ def baffle_gap(x, y, z, rad, r, prm):
 
 
 @contact
+def wall_stands(q):
+    """Whether wall q stands still (chamber 1, baffles 4); the others turn with the
+    stirrer at prm[P_OMEGA], and their torque is the stirrer's."""
+    return q == 1 or q == 4
+
+
+@contact
 def axial_image(dz, lz):
     """Axial separation dz [m] reduced to the nearest periodic image (|dz| <= lz / 2 for
     separations below 1.5 lz)."""
@@ -426,7 +433,7 @@ def wall_response(xi, yi, zi, vix, viy, viz, wix, wiy, wiz, ri, mi, q, s0, s1, s
                 0.0, 0.0, 0.0)
     px = xi - ri * nx
     py = yi - ri * ny
-    om = prm[P_OMEGA] if q != 1 and q != 4 else 0.0  # chamber and baffles stand
+    om = 0.0 if wall_stands(q) else prm[P_OMEGA]
     vrx = vix + om * py
     vry = viy - om * px
     sdn, sm0, sm1 = history_frame(s0, s1, s2, nx, ny, nz)
@@ -1037,10 +1044,10 @@ def compute_forces(x, v, w, fb, tb, rad, mass, inertia, pst, nnb, pj, pim, psh, 
                 tx += tix
                 ty += tiy
                 tz += tiz
-                if q != 1 and q != 4:
-                    tq += twall
-                else:
+                if wall_stands(q):
                     tqc += twall
+                else:
+                    tq += twall
             fb[c, i, 0] += fx
             fb[c, i, 1] += fy
             fb[c, i, 2] += fz

@@ -235,14 +235,12 @@ class DemSimulation:
         if self.sort_every_steps:
             self._sort()
         # forces of the initial state; contacts present now are not "new" later
+        # ("zero": the contact law uses dt only for the spring's increment, none at the start)
+        dt = self.prm[K.P_DT]
         if history_at_start == "zero":
-            # the contact law uses dt only for the spring's increment: none at the start
-            dt = self.prm[K.P_DT]
             self.prm[K.P_DT] = 0.0
-            self._finish(record=False, kick=0.0)
-            self.prm[K.P_DT] = dt
-        else:
-            self._finish(record=False, kick=0.0)
+        self._finish(record=False, kick=0.0)
+        self.prm[K.P_DT] = dt
 
     def register_per_bead(self, name: str, array: np.ndarray):
         """Keep ``array`` (first axis: beads, current row order) in ``per_bead[name]`` and

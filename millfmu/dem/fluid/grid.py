@@ -201,7 +201,7 @@ def mill_grid(geometry, cell_m: float = 0.75e-3, n_theta: int = 1,
         pts = [g.shaft_radius_m, g.disc_radius_m, g.chamber_radius_m]
     if g.has_channel:
         pts = [g.shaft_radius_m, g.eye_radius_m, g.disc_radius_m, g.chamber_radius_m]
-    baffles = getattr(g, "has_baffles", False)
+    baffles = g.has_baffles
     if baffles:
         _check_baffle_columns(g, n_theta)
         pts = sorted(set(pts) | {g.baffle_inner_radius_m})

@@ -212,7 +212,6 @@ class MillGeometry:
                                     self.shaft_radius_m, self.disc_radius_m,
                                     self.vane_thickness_m, self.channel_height_m)
 
-
     def baffle_distance(self, p: np.ndarray) -> np.ndarray:
         """Distance [m] from points p (n, 3) to the nearest baffle (the kernels' wall 4);
         inf without baffles."""
