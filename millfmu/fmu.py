@@ -49,7 +49,7 @@ from pythonfmu.enums import Fmi2Status
 
 from .fmi_xml import complete_model_description, get_reals
 # The variable tables live in fmu_variables (shared with the FMI 3.0 adapter); re-exported here.
-from .fmu_variables import (DISRUPTED, INPUTS, OUTPUTS, PARAMETERS, SCENE_FILE, TABLE_PREFIX, UNITS,  # noqa: F401
+from .fmu_variables import (DISRUPTED, HeldArray, INPUTS, OUTPUTS, PARAMETERS, SCENE_FILE, TABLE_PREFIX, UNITS,  # noqa: F401
                             model_description_text, model_with, plain as _plain, read_scene_dict, variables)
 from .mill import InputError, MillModel, StepError
 from .scene import SceneError, scene_from_dict
@@ -135,6 +135,7 @@ class MillSlave(Fmi2Slave):
         # One description of the variables (millfmu.fmu_variables) serves FMI 2.0 and 3.0;
         # here an array is n Reals name[1] ... name[n].
         self._vr_param, self._vr_in, self._psd_in_vr0 = {}, {}, None
+        self._psd_in = HeldArray()
         described = variables(self.model)
         for var in described:
             causality, variability = getattr(Fmi2Causality, var.causality), getattr(Fmi2Variability, var.variability)
@@ -248,7 +249,7 @@ class MillSlave(Fmi2Slave):
         inp["bead_filling"] = v[self._vr_param["bead_filling"]]
         if self._psd_in_vr0 is not None:
             a = self._psd_in_vr0
-            inp["psd_in"] = np.array(v[a : a + self.n_classes])
+            inp["psd_in"] = self._psd_in.array(v[a : a + self.n_classes])
         return inp
 
     def _fmi_name(self, model_name: str) -> str:

@@ -27,7 +27,7 @@ import numpy as np
 from pythonfmu3 import DefaultExperiment
 
 from .fmi3_slave import Fmi3Base
-from .fmu_variables import CLASS_COUNT, SCENE_FILE, UNITS, model_description_text, model_with, plain, read_scene_dict, variables
+from .fmu_variables import CLASS_COUNT, SCENE_FILE, HeldArray, UNITS, model_description_text, model_with, plain, read_scene_dict, variables
 from .mill import InputError, MillModel, StepError
 from .scene import SceneError, scene_from_dict
 
@@ -55,6 +55,7 @@ class MillSlave3(Fmi3Base):
         described = variables(self.model)
         self._scene_key = {}  # position in the value list -> (section, key)
         self._in = {}  # MillModel input name -> position (a slice for psd_in) in the value list
+        self._psd_in = HeldArray()
         for var in described:
             desc = var.description.format(i=f"i = 1..{n}") if var.size else var.description
             s = self._slices[self.declare(var.name, var.unit, var.causality, var.variability, desc, var.start, array=bool(var.size))]
@@ -79,7 +80,7 @@ class MillSlave3(Fmi3Base):
 
     def _inputs(self) -> dict:
         v = self._v
-        return {k: (np.array(v[at]) if isinstance(at, slice) else v[at]) for k, at in self._in.items()}
+        return {k: (self._psd_in.array(v[at]) if isinstance(at, slice) else v[at]) for k, at in self._in.items()}
 
     # ---- life cycle --------------------------------------------------------------------
     def _configure(self):

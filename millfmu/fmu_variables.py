@@ -21,6 +21,26 @@ else:  # pragma: no cover
 from .mill import PSD_SUM_TOL, MillModel
 from .scene import scene_from_dict
 
+class HeldArray:
+    """The array input a host sets value by value (psd_in): the same array object while
+    its values do not change, so that the model checks it only when they do (a host
+    passes every input at every step; comparing two lists is a fraction of building an
+    array and comparing it). The model never writes into an input array."""
+
+    def __init__(self):
+        self._values: list | None = None
+        self._array = None
+
+    def array(self, values: list):
+        """An array of ``values`` (a list of floats), the held one where they are equal."""
+        if values != self._values:
+            import numpy as np
+
+            self._array = np.array(values, dtype=float)
+            self._values = values
+        return self._array
+
+
 #: Name of the scene file in an FMU's resources folder.
 SCENE_FILE = "scene.toml"
 #: Prefix of the DEM table slice in the resources folder (detailed model with a table).

@@ -7,6 +7,7 @@ The CLI, the FMU and the flowsheets adapt this class; the physics lives in
 from __future__ import annotations
 
 import math
+from bisect import bisect_right
 from dataclasses import dataclass, replace
 
 import numpy as np
@@ -152,6 +153,18 @@ def recording_warnings(manifest: dict) -> list:
 #: Q3 levels of the outputs x10, x50, x90
 _QUANTILES = np.array([0.1, 0.5, 0.9])
 
+def _interp(x: float, xp: list, fp: list) -> float:
+    """np.interp(x, xp, fp) for one x over Python lists (xp increasing): fp's end values
+    outside xp, linear in between. A step needs one such value; numpy's call costs more
+    than the bisection."""
+    if x <= xp[0]:
+        return fp[0]
+    if x >= xp[-1]:
+        return fp[-1]
+    j = bisect_right(xp, x) - 1
+    return fp[j] + (fp[j + 1] - fp[j]) / (xp[j + 1] - xp[j]) * (x - xp[j])
+
+
 @dataclass(frozen=True)
 class _Frozen:
     """What an exact step needs for one set of frozen inputs and step size."""
@@ -211,7 +224,12 @@ class MillModel:
         self._rate_cache = pbm.LRUCache(64)  # breakage operators by operating point
         self._num_cache = pbm.LRUCache(256)  # scalars by operating point
         self._log_nodes = np.log(self.operator.nodes_m.ravel())
+        self._log_nodes_list = self._log_nodes.tolist()
         self._log_edges = np.log(self.grid.edges_m)
+        self._q3_sizes = kgrid.Q3Sizes(self._log_edges, _QUANTILES)  # x10, x50, x90 step after step
+        self._psd_in_checked = (None, None)  # (raw bytes, checked fractions) of the last psd_in checked
+        self._fed_step = (None, None, None)  # (frozen step, psd_in, the step's feed part [kg]); see _advance
+        self._adaptive = self.capture_from_psd or self.scene.run.integrator == "adaptive"  # rates change within a step
         self.reset()
 
     def _stress_source(self, sd):
@@ -339,6 +357,8 @@ class MillModel:
         y = np.array(state["y"], dtype=float)
         if y.shape != self.y.shape:
             raise ValueError(f"state vector has {y.shape[0]} entries; this model needs {self.y.shape[0]}")
+        if not (y.min() >= 0.0 and np.isfinite(y).all()):
+            raise ValueError("state vector: masses must be finite and >= 0 kg")
         self.t_s = float(state["t_s"])
         self.y = y
         self.energy_J = float(state["energy_J"])
@@ -422,8 +442,15 @@ class MillModel:
             # A value equal to the current one passed this check when it was set (a host
             # passes every input at every step): nothing to check again.
             if k == "psd_in":
-                if not (isinstance(v, np.ndarray) and v.shape == cur.shape and v.dtype == cur.dtype and np.array_equal(v, cur)):
-                    new[k] = kgrid.checked_fractions(k, v, self.grid.n, InputError, PSD_SUM_TOL)
+                # A host passes the same feed distribution at every step: the result of its
+                # check (the normalised fractions) is remembered by content.
+                raw = v.tobytes() if isinstance(v, np.ndarray) and v.dtype == np.float64 and v.shape == cur.shape else None
+                if raw is not None and raw == self._psd_in_checked[0]:
+                    new[k] = self._psd_in_checked[1]
+                    continue
+                new[k] = kgrid.checked_fractions(k, v, self.grid.n, InputError, PSD_SUM_TOL)
+                if raw is not None:
+                    self._psd_in_checked = (raw, new[k])
                 continue
             if type(v) is float and v == cur:
                 continue
@@ -474,9 +501,10 @@ class MillModel:
             raise InputError("dt_s", dt_s, "must be a number > 0 s") from None
         if not (math.isfinite(h) and 0.0 < h <= MAX_STEP_S):
             raise InputError("dt_s", dt_s, f"must be finite, > 0 s and <= {MAX_STEP_S:g} s")
-        new_inputs = self.check_inputs(inputs)
+        # no inputs given: the current ones, checked when they were set (never changed in place)
+        new_inputs = self.check_inputs(inputs) if inputs else self.inputs
         end_inputs = self.check_inputs({**inputs, **(inputs_end or {})}) if inputs_end else None
-        adaptive = self.capture_from_psd or end_inputs is not None or self.scene.run.integrator == "adaptive"
+        adaptive = self._adaptive or end_inputs is not None
         try:
             if adaptive:
                 with np.errstate(all="ignore"):  # a non-finite result is refused below, by name
@@ -485,10 +513,14 @@ class MillModel:
                 y_new, op, op_end, num, num_end = self._advance(h, new_inputs, end_inputs, adaptive)
         except (ValueError, ArithmeticError, RuntimeError, np.linalg.LinAlgError) as e:
             raise StepError(f"step of {h} s at t = {self.t_s} s failed ({type(e).__name__}: {e})") from None
-        # min is NaN where an entry is; the sum is not finite where one is infinite
-        if not (y_new.min() >= 0.0 and math.isfinite(y_new.sum())):
+        # min is NaN where an entry is; the sum is not finite where one is infinite. The
+        # frozen path needs neither: its propagator is checked finite and non-negative when
+        # built, the state (checked here and in set_state) and the feed are, and products
+        # and sums of finite non-negative numbers are finite and non-negative in floating
+        # point too.
+        if adaptive and not (y_new.min() >= 0.0 and math.isfinite(y_new.sum())):
             raise StepError(f"step of {h} s at t = {self.t_s} s gave non-finite or negative masses")
-        out_kg = float(y_new[0] - self.y[0])
+        out_kg = y_new.item(0) - self.y.item(0)
         # Fed mass: the feed rate is linear over the step when ramped (as integrated above).
         mdot_end = (end_inputs or new_inputs)["feed_mass_flow_kg_per_s"]
         fed = 0.5 * (float(new_inputs["feed_mass_flow_kg_per_s"]) + float(mdot_end)) * h
@@ -535,9 +567,21 @@ class MillModel:
             # Everything that depends only on the frozen inputs and h is built once.
             key = (new_inputs["tip_speed_m_per_s"], new_inputs["solids_mass_fraction"], new_inputs["bead_filling"], new_inputs["feed_mass_flow_kg_per_s"], h)
             frozen = self._cache.get(key, lambda: self._frozen_step(new_inputs, h))
+            if not frozen.propagator.finite:
+                raise ArithmeticError("the step's propagator is not finite (rates too extreme for this step)")
             op = frozen.op
-            u = new_inputs["feed_mass_flow_kg_per_s"] * new_inputs["psd_in"] if self.continuous else None
-            y_new = frozen.propagator.apply(self.y, u)
+            if self.continuous:
+                # The feed's part of the step, F u, is the same while the frozen inputs and
+                # the feed distribution (checked, hence held, array) are: kept for them.
+                psd_in = new_inputs["psd_in"]
+                fed = self._fed_step
+                if fed[0] is not frozen or fed[1] is not psd_in:
+                    u = new_inputs["feed_mass_flow_kg_per_s"] * psd_in
+                    fed = self._fed_step = (frozen, psd_in, frozen.propagator.apply(np.zeros_like(self.y), u))
+                y_new = frozen.propagator.apply(self.y)
+                y_new += fed[2]
+            else:
+                y_new = frozen.propagator.apply(self.y)
             return y_new, op, op, frozen.numbers, frozen.numbers
 
     def _specific_energy(self) -> float:
@@ -548,24 +592,33 @@ class MillModel:
     # ---- outputs --------------------------------------------------------------------------
     def _outputs(self, y, op, inputs, dt_s, out_kg, num=None) -> dict:
         n, m = self.grid.n, self._m
-        tanks = y[1:].reshape(self.n_tanks, m)  # tank N first
-        content = tanks.sum(axis=0)
-        last = tanks[0]
+        # State: outflow, then tank N (the outlet) first; one tank is the whole content.
+        content = y[1:] if self.n_tanks == 1 else y[1:].reshape(self.n_tanks, m).sum(axis=0)
         # Size distribution of the product (continuous: last tank = outlet) or mill content.
-        dist = last if self.continuous else content
+        dist = y[1 : 1 + m] if (self.continuous and self.n_tanks > 1) else content
         # The finest class of the psd output holds what lies below the grid (as psd_in does);
         # below_grid_fraction names that part.
-        per_class = dist[:n] + (dist[n : 2 * n] if self.material.inert_fragments else 0.0)
-        per_class[0] += dist[-1]
-        tot = float(per_class.sum())
-        psd = per_class / tot if tot > 0.0 else np.zeros(n)
-        below = float(dist[-1]) / tot if tot > 0.0 else 0.0
-        holdup = float(content.sum())
-        x10, x50, x90 = kgrid.sizes_at_log_edges(self._log_edges, psd, _QUANTILES, below) if tot > 0 else (math.nan,) * 3
+        per_class = dist[:n] + dist[n : 2 * n] if self.material.inert_fragments else dist[:n].copy()
+        below_kg = dist.item(-1)
+        per_class[0] += below_kg
+        # One cumulative sum serves the total, the fractions and the quantiles.
+        cum = per_class.cumsum()
+        tot = cum.item(-1)
+        if tot > 0.0:
+            psd = per_class / tot
+            below = below_kg / tot
+            x10, x50, x90 = self._q3_sizes.sizes(cum, below_kg)
+        else:
+            psd = np.zeros(n)
+            below = 0.0
+            x10 = x50 = x90 = math.nan
+        # the content's total is the distribution's unless it is the outlet tank's or
+        # fragments are kept apart
+        holdup = tot if (dist is content and not self.material.inert_fragments) else float(content.sum())
         num = num if num is not None else self._op_numbers(op)
         if math.isfinite(x50):
             sf_nodes = num["sf_nodes"] if num["sf_nodes"] is not None else self._sf_nodes(op, y).ravel()
-            sf = float(np.interp(math.log(x50), self._log_nodes, sf_nodes))
+            sf = _interp(math.log(x50), self._log_nodes_list, sf_nodes.tolist() if num["sf_nodes"] is None else num["sf_nodes_list"])
         else:
             sf = 0.0
         out = {
@@ -578,7 +631,7 @@ class MillModel:
             "holdup_kg": holdup,
             "product_mass_flow_kg_per_s": out_kg / dt_s if dt_s > 0 else 0.0,
             "feed_mass_flow_kg_per_s": float(inputs["feed_mass_flow_kg_per_s"]),
-            "outflow_total_kg": float(y[0]),
+            "outflow_total_kg": y.item(0),
             "se_beads_J": num["se_beads_J"],
             "se_product_J": num["se_product_J"],
             "sf_per_s": sf,
@@ -596,15 +649,20 @@ class MillModel:
 
     def _op_numbers(self, op) -> dict:
         """Scalars of an operating point (cached: the hot path recomputes nothing)."""
-        return self._num_cache.get(op, lambda: {
+        return self._num_cache.get(op, lambda: self._build_op_numbers(op))
+
+    def _build_op_numbers(self, op) -> dict:
+        # SF per node is state-independent unless capture = 'psd'.
+        sf = None if self.capture_from_psd else self._sf_nodes(op, None).ravel()
+        return {
             "se_beads_J": op.se_beads_J,
             "se_product_J": op.se_product_J,
             "power_W": self.power_W(op),
             "eta_eff_Pa_s": op.eta_eff_Pa_s,
             "reynolds": op.reynolds,
-            # SF per node is state-independent unless capture = 'psd'.
-            "sf_nodes": None if self.capture_from_psd else self._sf_nodes(op, None).ravel(),
-        })
+            "sf_nodes": sf,
+            "sf_nodes_list": None if sf is None else sf.tolist(),
+        }
 
     def _sf_nodes(self, op, y):
         if self.kinetics_model == "none":

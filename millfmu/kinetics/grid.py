@@ -150,23 +150,59 @@ def characteristic_sizes_m(grid: SizeGrid, fractions: np.ndarray, qs, below: flo
 
 
 def sizes_at_log_edges(log_edges: np.ndarray, fractions: np.ndarray, q: np.ndarray, below: float = 0.0) -> tuple:
-    """:func:`characteristic_sizes_m` with the grid's ln(edges) given (the stepping path
-    computes them once): sizes [m] at the Q3 levels ``q`` (an array)."""
-    cum = fractions.cumsum() if isinstance(fractions, np.ndarray) else np.cumsum(fractions)
-    total = cum[-1]
-    if not total > 0.0:
-        return tuple(math.nan for _ in q)
-    n = cum.size
-    cn = cum / total  # Q3 at the upper edges
-    b = min(max(below, 0.0), cum.item(0)) / total.item()  # Q3 at the lowest edge
-    k = cn.searchsorted(q, side="left")
-    expo = []
-    # Python floats from here (item): the same IEEE arithmetic as numpy's scalars, faster
-    for qi, ki in zip(q.tolist(), k.tolist()):
-        ki = 1 if qi <= b else min(ki + 1, n)
-        c0 = b if ki == 1 else cn.item(ki - 2)
-        c1 = cn.item(ki - 1)
-        f = min(max((qi - c0) / (c1 - c0), 0.0), 1.0) if c1 > c0 else 0.0
-        l0 = log_edges.item(ki - 1)
-        expo.append(l0 + f * (log_edges.item(ki) - l0))
-    return tuple(np.exp(expo).tolist())
+    """:func:`characteristic_sizes_m` with the grid's ln(edges) given: sizes [m] at the Q3
+    levels ``q`` (an array)."""
+    f = np.asarray(fractions, dtype=float)
+    return sizes_from_cumulative(np.asarray(log_edges).tolist(), f.cumsum(), np.asarray(q, dtype=float).tolist(), below)
+
+
+def sizes_from_cumulative(log_edges, cum: np.ndarray, q, below: float = 0.0) -> tuple:
+    """Sizes [m] at the Q3 levels ``q`` (a sequence) from the cumulative masses per class
+    ``cum`` (any unit, cum[-1] the total), interpolated linearly in ln(x) within a class;
+    ``log_edges`` the grid's ln(edges) (a sequence); ``below`` the part of the finest class
+    below the grid (same unit as cum). A level is reached in the first class whose upper
+    edge's Q3 reaches it. NaN for each level where the total is not positive."""
+    return Q3Sizes(log_edges, q).sizes(cum, below)
+
+
+class Q3Sizes:
+    """:func:`sizes_from_cumulative` at fixed levels, call after call (the model's step):
+    each level's class of the last call is tried first, two comparisons, since the sizes
+    move little from one step to the next; a bisection only where the level left it. The
+    same classes, hence the same sizes, as a bisection every time."""
+
+    def __init__(self, log_edges, q):
+        self.log_edges = [float(x) for x in log_edges]
+        self.q = tuple(float(x) for x in q)
+        self.k = [1] * len(self.q)  # last class (1-based) of each level
+
+    def sizes(self, cum: np.ndarray, below: float = 0.0) -> tuple:
+        """Sizes [m] at the levels for the cumulative masses ``cum`` (see
+        :func:`sizes_from_cumulative`)."""
+        total = cum.item(-1)
+        if not total > 0.0:
+            return tuple(math.nan for _ in self.q)
+        n = cum.size
+        le = self.log_edges
+        b = min(max(below, 0.0), cum.item(0))  # cumulative mass at the lowest edge
+        out = []
+        # Python floats (item): the same IEEE arithmetic as numpy's scalars, faster here
+        for i, qi in enumerate(self.q):
+            qt = qi * total
+            if qt <= b:
+                ki, c0, c1 = 1, b, cum.item(0)
+            else:
+                # class ki holds the level where its lower edge's Q3 is below it and its
+                # upper edge's reaches it
+                ki = self.k[i]
+                c0 = b if ki == 1 else cum.item(ki - 2)
+                c1 = cum.item(ki - 1)
+                if not c0 < qt <= c1:
+                    ki = min(int(cum.searchsorted(qt, side="left")) + 1, n)
+                    c0 = b if ki == 1 else cum.item(ki - 2)
+                    c1 = cum.item(ki - 1)
+                self.k[i] = ki
+            f = min(max((qt - c0) / (c1 - c0), 0.0), 1.0) if c1 > c0 else 0.0
+            l0 = le[ki - 1]
+            out.append(math.exp(l0 + f * (le[ki] - l0)))
+        return tuple(out)

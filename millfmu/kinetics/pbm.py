@@ -227,6 +227,18 @@ class SeriesPropagator:
         self.gamma = self.gamma_out = None
         if series.n_in:
             self.gamma, self.gamma_out = self._feed(a, n, d, h_s, series.n_in, series.order)
+        #: every entry finite (extreme rates can make expm's overflow; a step refuses them)
+        self.finite = bool(np.isfinite(self.e).all() and np.isfinite(self.p).all() and np.isfinite(self.tail).all()
+                           and (self.gamma is None or (np.isfinite(self.gamma).all() and np.isfinite(self.gamma_out).all())))
+        if n == 1:
+            # [[1, tail], [0, p0 e]] and [[gamma_out], [gamma_0]]: see apply
+            self._whole = np.zeros((m + 1, m + 1))
+            self._whole[0, 0] = 1.0
+            self._whole[0, 1:] = self.tail[0]
+            self._whole[1:, 1:] = self.p[0] * self.e
+            self._whole_feed = None
+            if self.gamma is not None:
+                self._whole_feed = np.concatenate((self.gamma_out[None, :], self.gamma[0]))
 
     def _feed(self, a, n, d, h_s, n_in, order):
         m = a.shape[0]
@@ -256,6 +268,14 @@ class SeriesPropagator:
     def apply(self, y: np.ndarray, u: np.ndarray | None = None) -> np.ndarray:
         """The state after the step from state ``y`` with feed ``u`` [kg/s per class]."""
         n, m = self.n_tanks, self.m
+        if n == 1:
+            # One tank (every batch mill): one product with the step's whole matrix, outflow
+            # row included, instead of the block layout's reshapes and sums, which cost more
+            # than the product itself at 100 classes.
+            y_new = self._whole @ y
+            if u is not None and self._whole_feed is not None:
+                y_new += self._whole_feed @ u
+            return y_new
         tanks = y[1:].reshape(n, m)[::-1]  # tank 1 first
         mixed = tanks.T @ self.toeplitz if n > 1 or self.p[0] != 1.0 else tanks.T
         new = self.e @ mixed  # (m, N), column i = tank i + 1

@@ -46,7 +46,8 @@ def test_stability_matrix(scene_dict, n_tanks, span, h):
 
 
 @pytest.mark.parametrize("inert", [False, True])
-@pytest.mark.parametrize("n_tanks,d,h", [(3, 0.0, 5.0), (7, 1e-9, 2.0), (12, 0.05, 30.0), (25, 40.0, 1e3), (40, 2.0, 1e-5)])
+@pytest.mark.parametrize("n_tanks,d,h", [(1, 0.0, 5.0), (1, 0.05, 30.0), (3, 0.0, 5.0), (7, 1e-9, 2.0), (12, 0.05, 30.0), (25, 40.0, 1e3),
+                                         (40, 2.0, 1e-5)])
 def test_block_propagator_equals_the_dense_exponential(n_tanks, d, h, inert):
     from millfmu.kinetics.grid import SizeGrid
 

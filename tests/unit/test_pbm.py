@@ -146,6 +146,51 @@ def test_bad_input_leaves_state_unchanged(scene_dict):
             m.step(h)
 
 
+def test_feed_distribution_changed_in_place_is_checked_again(scene_dict):
+    """The check of psd_in is remembered by content (a host passes the same array at every
+    step): an array the caller changes in place between steps is checked again, and the
+    normalised fractions follow its new content."""
+    m = MillModel(make_scene(scene_dict, operation={"mode": "continuous", "feed_mass_flow_kg_per_s": 1e-4}))
+    n = m.grid.n
+    feed = np.full(n, 1.0 / n)
+    m.step(1.0, psd_in=feed)
+    m.step(1.0, psd_in=feed)
+    feed[0] = -0.1
+    with pytest.raises(InputError, match=r"psd_in\[1\]"):
+        m.step(1.0, psd_in=feed)
+    feed[:] = 0.0
+    feed[-1] = 1.0
+    m.step(1.0, psd_in=feed)
+    assert m.inputs["psd_in"][-1] == 1.0 and m.inputs["psd_in"][:-1].sum() == 0.0
+
+
+def test_q3_sizes_step_after_step_equal_a_fresh_search():
+    """The step's quantile search starts from the last call's classes: over distributions
+    that drift, jump, and have empty classes and levels on class edges, it gives exactly
+    the sizes of a search from scratch."""
+    from millfmu.kinetics.grid import Q3Sizes, sizes_from_cumulative
+
+    grid = SizeGrid.geometric(1e-7, 1e-3, 30)
+    le = np.log(grid.edges_m)
+    q = (0.1, 0.5, 0.9)
+    walk = Q3Sizes(le, q)
+    rng = np.random.default_rng(3)
+    w = rng.random(30)
+    for i in range(300):
+        if i % 50 == 0:
+            w = rng.random(30) ** 8  # a jump
+        w = w * np.exp(0.05 * rng.normal(size=30))
+        if i % 7 == 0:
+            w[rng.integers(0, 30, 5)] = 0.0  # empty classes
+        if i % 11 == 0:
+            w = np.zeros(30)
+            w[[3, 4, 20]] = [0.1, 0.4, 0.5]  # levels exactly on class edges
+        cum = w.cumsum()
+        below = float(rng.random() * cum[0]) if i % 3 else 0.0
+        assert walk.sizes(cum, below) == sizes_from_cumulative(le, cum, q, below)
+    assert all(np.isnan(walk.sizes(np.zeros(30))))
+
+
 def test_characteristic_sizes_lognormal():
     grid = SizeGrid.geometric(1e-7, 1e-3, 16)
     w = fractions_from_q3(grid, q3_lognormal(grid.edges_m, 1e-5, 0.7))
