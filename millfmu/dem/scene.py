@@ -26,7 +26,7 @@ if sys.version_info >= (3, 11):
 else:  # pragma: no cover
     import tomli as tomllib
 
-from millfmu.dem.coupling.settings import CouplingSettings
+from millfmu.dem.coupling.settings import PRESSURE_GRADIENT_TIMINGS, CouplingSettings
 from millfmu.dem.engine.params import BeadMaterial
 from millfmu.dem.engine.sim import FluidSettings
 from millfmu.dem.mills.accelerator import SevSpec
@@ -139,7 +139,9 @@ class DemScene:
                     f"the CFD step and exchange interval of {c.cfd_step_s:g} s; turbulence "
                     f"{c.turbulence}, cylindrical grid of ~{c.cell_m * 1e3:g} mm cells, "
                     f"{c.n_theta} theta cell(s)")
-        return (f"coupled CFD-DEM: volume-averaged Navier-Stokes model {c.model}, "
+        timing = (" (pressure gradient of the interval just solved)"
+                  if c.model == "A" and c.pressure_gradient == "this_interval" else "")
+        return (f"coupled CFD-DEM: volume-averaged Navier-Stokes model {c.model}{timing}, "
                 f"turbulence {c.turbulence}, Koch-Hill drag, cylindrical grid of "
                 f"~{c.cell_m * 1e3:g} mm cells, {c.n_theta} theta cell(s), coupling every "
                 f"{c.steps} DEM steps ({c.steps * self.dt_s:.3g} s), CFD step the coupling "
@@ -398,7 +400,8 @@ _FLUID_KEYS = {"mode", "enabled", "density_kg_m3", "viscosity_pa_s", "drag", "lu
                "swirl_layer_m", "void_fraction", "coupled"}
 _COUPLED_KEYS = {"vans_model": str, "turbulence": str, "coupling_steps": int, "cell_m": float,
                  "n_theta": int, "smoothing_diameters": float, "eps_min": float,
-                 "cfl": float, "scheme": str, "cfd_step_s": float}
+                 "cfl": float, "scheme": str, "cfd_step_s": float,
+                 "pressure_gradient": str}
 
 
 def _fluid_from_dict(fluid: dict, dia: float):
@@ -458,7 +461,9 @@ def _coupling_from_dict(c: dict) -> CouplingSettings:
         eps_min=kw["eps_min"] if kw["eps_min"] is not None else d.eps_min,
         cfl=kw["cfl"] if kw["cfl"] is not None else d.cfl,
         scheme=kw["scheme"] if kw["scheme"] is not None else d.scheme,
-        cfd_step_s=kw["cfd_step_s"] if kw["cfd_step_s"] is not None else d.cfd_step_s)
+        cfd_step_s=kw["cfd_step_s"] if kw["cfd_step_s"] is not None else d.cfd_step_s,
+        pressure_gradient=(kw["pressure_gradient"] if kw["pressure_gradient"] is not None
+                           else d.pressure_gradient))
     if out.scheme not in COUPLING_SCHEMES:
         raise DemSceneError(f"fluid.coupled.scheme = {out.scheme!r}: allowed "
                             f"{list(COUPLING_SCHEMES)}")
@@ -467,6 +472,13 @@ def _coupling_from_dict(c: dict) -> CouplingSettings:
         raise DemSceneError(f"fluid.coupled.vans_model = {out.model!r} with scheme 'dpm': "
                             f"the discrete phase model has no volume-averaged equations "
                             f"(drag only); leave out vans_model")
+    if out.pressure_gradient not in PRESSURE_GRADIENT_TIMINGS:
+        raise DemSceneError(f"fluid.coupled.pressure_gradient = {out.pressure_gradient!r}: "
+                            f"allowed {list(PRESSURE_GRADIENT_TIMINGS)}")
+    if kw["pressure_gradient"] is not None and (out.scheme == "dpm" or out.model != "A"):
+        raise DemSceneError(f"fluid.coupled.pressure_gradient = {out.pressure_gradient!r}: "
+                            f"only model A (vans_model = 'A', scheme 'vans') gives the beads a "
+                            f"pressure-gradient force; leave it out")
     if out.model not in ("A", "B"):
         raise DemSceneError(f"fluid.coupled.vans_model = {out.model!r}: allowed 'A', 'B'")
     if out.turbulence not in ("k_epsilon", "laminar"):

@@ -424,6 +424,33 @@ def test_model_a_runs_in_the_rotor():
     assert vmax < 1.2 * sc.tip_speed_m_s
 
 
+def test_model_a_pressure_gradient_timing_is_chosen_by_name():
+    """[fluid.coupled] pressure_gradient names which interval's gradient model A's beads
+    take; the default stays the previous interval's, seed 002's physical-A method takes the
+    interval just solved; a wrong value, or the key with model B or the discrete phase
+    model (no pressure-gradient force on the beads), is refused by name."""
+    from millfmu.dem.studies import seed002 as S
+
+    d = load_scene_dict("accelerator_slice")
+    c = d["fluid"]["coupled"]
+    c["vans_model"] = "A"
+    assert scene_from_dict(d).coupling.pressure_gradient == "previous_interval"
+    c["pressure_gradient"] = "this_interval"
+    sc = scene_from_dict(d)
+    assert sc.coupling.pressure_gradient == "this_interval"
+    assert "pressure gradient of the interval just solved" in sc.fluid_description
+    assert S.scene_for(1200.0, 0.8, method="physical-A").coupling.pressure_gradient == \
+        "this_interval"
+    c["pressure_gradient"] = "next_interval"
+    with pytest.raises(DemSceneError, match=r"pressure_gradient = 'next_interval': allowed "
+                                            r"\['previous_interval', 'this_interval'\]"):
+        scene_from_dict(d)
+    c["pressure_gradient"] = "this_interval"
+    c["vans_model"] = "B"
+    with pytest.raises(DemSceneError, match="only model A"):
+        scene_from_dict(d)
+
+
 @pytest.mark.parametrize("failure", ["memory", "speed"])
 def test_an_unstable_run_stops_by_name_and_writes_nothing(tmp_path, monkeypatch, capsys, failure):
     """A run whose beads fly apart (model A's late blow-up in this rotor ran the neighbour

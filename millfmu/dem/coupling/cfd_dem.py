@@ -21,7 +21,9 @@ and coupling 5e-5 s):
 Conservation: the fluid's momentum sink sum_f (C_f u_f - D_f) equals the beads' gain
 sum_i c_i (u(x_i) - v_i) to round-off, because interpolation is the transpose of
 deposition (weights sum to one per bead) and both use the same interval-mean velocity; the
-pressure-gradient part uses the previous interval's gradient on both sides. In model A the
+pressure-gradient part uses the previous interval's gradient on both sides (with
+``pressure_gradient = "this_interval"`` the beads take this interval's, and the liquid its
+reaction one interval later: exact over a run up to the last interval's impulse). In model A the
 liquid's -eps grad p is written as -grad p + (1 - eps) grad p with the second term the
 deposited reaction of the beads' pressure force, so one pressure equation (coefficient 1)
 serves both models. Angular momentum is exchanged as torque (c_i r_i deposited on the theta
@@ -54,6 +56,8 @@ class CfdDem:
         self.grid = grid
         self.settings = settings
         self.model_b = settings.model == "B"
+        # model A: the beads take this interval's pressure gradient (settings.py)
+        self._gradient_now = settings.pressure_gradient == "this_interval"
         self.solver = FluidSolver(grid, fluid, omega_rad_s, settings.turbulence,
                                   settings.model, cfl=settings.cfl)
         d = 2.0 * float(sim.rad.max())
@@ -146,7 +150,8 @@ class CfdDem:
         self.projector.smooth_values(self._cellv, ncols=3)
         ts, fs = self.EK.bead_forces(self._idx, self._w, self._cellv, self._c, self._cyl,
                                      sim.rad, sim.per_bead["fluid_at_bead"],
-                                     0.0 if self.model_b else 1.0, s.body_z, sim.fext)
+                                     0.0 if self.model_b else 1.0, self._gradient_now,
+                                     s.body_z, sim.fext)
         self.angular_impulse_to_beads_nms += ts * self.interval_s
         self.axial_impulse_to_beads_ns += fs * self.interval_s
         self.intervals += 1

@@ -183,13 +183,14 @@ def nodes_to_cell_values(ur, ut, uz, gr, gt, gz, kr, kt, kz, solid, out):
 
 
 @kernel
-def bead_forces(idx, w, cellv, c, cyl, rad, fab, pf, body_z, fext):
+def bead_forces(idx, w, cellv, c, cyl, rad, fab, pf, now, body_z, fext):
     """Read the smoothed cell values back at each bead (fluid velocity and pressure
     gradient), set the force held over the next interval, fext = (F_r [N], T_z [N m],
     F_z [N]): drag c (u - v) with the fluid velocity of this interval, and in model A
     (pf = 1) the pressure-gradient force -V (grad p - G e_z) with the gradient of the last
-    interval (the one whose reaction the fluid was given); then store the new values in
-    fab. Returns the sums of T_z and F_z over the beads."""
+    interval (the one whose reaction the fluid was given; now = False) or of this interval
+    (now = True); then store the new values in fab. Returns the sums of T_z and F_z over
+    the beads."""
     tsum = 0.0
     fsum = 0.0
     for b in prange(idx.shape[0]):
@@ -212,9 +213,17 @@ def bead_forces(idx, w, cellv, c, cyl, rad, fab, pf, body_z, fext):
         d = 2.0 * rad[b]
         vol = math.pi / 6.0 * d * d * d
         r = cyl[b, 0]
-        fr = c[b] * (at0 - cyl[b, 1]) - pf * vol * fab[b, 3]
-        tz = r * (c[b] * (at1 - cyl[b, 2]) - pf * vol * fab[b, 4])
-        fz = c[b] * (at2 - cyl[b, 3]) - pf * vol * (fab[b, 5] - body_z)
+        if now:
+            g3 = at3
+            g4 = at4
+            g5 = at5
+        else:
+            g3 = fab[b, 3]
+            g4 = fab[b, 4]
+            g5 = fab[b, 5]
+        fr = c[b] * (at0 - cyl[b, 1]) - pf * vol * g3
+        tz = r * (c[b] * (at1 - cyl[b, 2]) - pf * vol * g4)
+        fz = c[b] * (at2 - cyl[b, 3]) - pf * vol * (g5 - body_z)
         fext[b, 0] = fr
         fext[b, 1] = tz
         fext[b, 2] = fz
