@@ -188,9 +188,13 @@ def resume_run(out_dir, progress: bool = True, threads: int | None = None,
     if fmt != CHECKPOINT_FORMAT:
         raise DemRunError(f"{path}: checkpoint layout {fmt!r}; this version reads layout "
                           f"{CHECKPOINT_FORMAT}")
-    if state["kernel_version"] != _kernel_version():
-        raise DemRunError(f"{path}: made by other DEM sources ({state['kernel_version']}); "
-                          f"these are {_kernel_version()}: run the scene again")
+    from millfmu.dem.tables.cache import SAME_DEM_AS
+
+    # sources that give the same results to the digit (SAME_DEM_AS) go on with the run
+    made, here = state["kernel_version"], _kernel_version()
+    if SAME_DEM_AS.get(made, made) != SAME_DEM_AS.get(here, here):
+        raise DemRunError(f"{path}: made by other DEM sources ({made}); "
+                          f"these are {here}: run the scene again")
     if threads is not None:
         state["sim"].threads = int(threads)
     return run_scene(state["scene"], out_dir, progress=progress, window_s=state["window_s"],

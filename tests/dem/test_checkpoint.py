@@ -58,6 +58,17 @@ def test_a_stopped_run_resumes_to_the_same_outputs(tmp_path, monkeypatch):
         R.run_scene(_scene(), parts, progress=False, threads=1)
     assert (parts / R.CHECKPOINT).read_bytes() == before
     monkeypatch.setattr(R, "_write_checkpoint", write)
+    # made by earlier sources that give the same results to the digit (SAME_DEM_AS): resumed
+    import pickle
+
+    from millfmu.dem.tables import cache
+
+    state = pickle.loads(before)
+    here = state["kernel_version"]
+    state["kernel_version"] = "sha256:earlier"
+    R._write_checkpoint(parts / R.CHECKPOINT, state)
+    same = {"sha256:earlier": "sha256:shipped", here: "sha256:shipped"}
+    monkeypatch.setattr(cache, "SAME_DEM_AS", same)
     # resumed from the command line, as a user would
     assert dem_main(["run", "--resume", str(parts), "--no-progress"]) == 0
     assert not (parts / R.CHECKPOINT).exists()
@@ -83,6 +94,12 @@ def test_what_cannot_be_resumed_is_refused_by_name(tmp_path, monkeypatch, capsys
     # a checkpoint of other DEM sources, and a broken file
     R._write_checkpoint(tmp_path / R.CHECKPOINT, dict(format=R.CHECKPOINT_FORMAT,
                                                       kernel_version="sha256:other"))
+    with pytest.raises(R.DemRunError, match="made by other DEM sources"):
+        R.resume_run(tmp_path)
+    from millfmu.dem.tables import cache
+
+    # sources mapped to another version than this one's are other sources
+    monkeypatch.setattr(cache, "SAME_DEM_AS", {"sha256:other": "sha256:older-release"})
     with pytest.raises(R.DemRunError, match="made by other DEM sources"):
         R.resume_run(tmp_path)
     (tmp_path / R.CHECKPOINT).write_bytes(b"not a pickle")
