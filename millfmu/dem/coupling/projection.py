@@ -85,15 +85,18 @@ def stencil_one(b, x, rc, rtab, rh, dth, nt, dz, nz, lz, solid, idx, w):
     k0 = int(k0f) % nz
     s = 0.0
     m = 0
+    # the wrapped neighbours once, not per corner (an integer modulo costs tens of cycles)
+    j1 = j0 + 1 if j0 + 1 < nt else 0
+    k1 = k0 + 1 if k0 + 1 < nz else 0
     for a in range(2):
         wa = fr if a else 1.0 - fr
         ia = i0 + a
         for bb in range(2):
             wb = ft if bb else 1.0 - ft
-            jb = (j0 + bb) % nt
+            jb = j1 if bb else j0
             for c in range(2):
                 wc = fz if c else 1.0 - fz
-                kc = (k0 + c) % nz
+                kc = k1 if c else k0
                 ww = wa * wb * wc
                 if solid[ia, jb, kc] != 0:
                     ww = 0.0
@@ -127,18 +130,22 @@ def bead_stencils(x, rc, rtab, rh, dth, nt, dz, nz, lz, solid, idx, w, r_out):
         r_out[b] = stencil_one(b, x, rc, rtab, rh, dth, nt, dz, nz, lz, solid, idx, w)
 
 
-@serial
+@kernel
 def deposit(idx, w, q, out):
-    """out[m, cell] = sum over beads of w q[bead, m] (totals per cell; out (m, ncells))."""
-    out[:, :] = 0.0
+    """out[m, cell] = sum over beads of w q[bead, m] (totals per cell; out (m, ncells)).
+    One thread per column m, each summing the beads in their order, as one thread would:
+    the same totals on any thread count."""
     nm = q.shape[1]
-    for b in range(idx.shape[0]):
-        for s in range(8):
-            ww = w[b, s]
-            if ww != 0.0:
-                c = idx[b, s]
-                for m in range(nm):
-                    out[m, c] += ww * q[b, m]
+    nb = idx.shape[0]
+    for m in prange(nm):
+        om = out[m]
+        om[:] = 0.0
+        for b in range(nb):
+            qq = q[b, m]
+            for s in range(8):
+                ww = w[b, s]
+                if ww != 0.0:
+                    om[idx[b, s]] += ww * qq
 
 
 @kernel

@@ -270,18 +270,10 @@ class FluidSolver:
         kd = (kd_r, kd_t, kd_z) [kg/(m3 s)] and sources sd [N/m3]. The node momenta
         eps u are kept (u rescaled by eps_old / eps_new): a change of the void fraction moves
         no momentum; the change per cell enters continuity as d(eps)/dt over the interval."""
-        for name, new in (("eps_r", eps_r), ("eps_t", eps_t), ("eps_z", eps_z)):
-            old = getattr(self, name)
-            u = {"eps_r": self.ur, "eps_t": self.ut, "eps_z": self.uz}[name]
-            u *= old / new
-            old[:] = new
-        self.eps_c_old[:] = self.eps_c
-        self.eps_c[:] = eps_c
-        self.kd_r[:], self.kd_t[:], self.kd_z[:] = kd
-        self.sd_r[:], self.sd_t[:], self.sd_z[:] = sd
+        self.SK.take_beads(self._F, self._K, self._driven, eps_c, eps_r, eps_t, eps_z,
+                           kd[0], kd[1], kd[2], sd[0], sd[1], sd[2], self.rc, self.rho,
+                           VANE_SLIP_TIME_S, self.omega)
         self.interval_s = float(interval_s)
-        self._theta_drag()
-        self._apply_fixed()
 
     # ---- stepping ---------------------------------------------------------------------
     def stable_dt(self) -> float:

@@ -75,7 +75,8 @@ KERNEL_MODULES = {
 #: and baffles' plates, the tangential history's form chosen by name ("rescaled", as
 #: before, by default) and a start without the spurious first increment of the springs
 #: (scenes start without contacts, so the same), and model A's pressure-gradient timing
-#: chosen by name (the previous interval's, as before, by default). A checkpoint made by
+#: chosen by name (the previous interval's, as before, by default), the liquid taking the
+#: beads' fields in one kernel, the deposit one thread per column. A checkpoint made by
 #: one of these sources resumes under another (run.resume_run). Any
 #: other change of these sources gives a new hash, and a new version.
 SAME_DEM_AS = {
@@ -84,6 +85,8 @@ SAME_DEM_AS = {
     "sha256:028e85988f93ae985f0b0c72fbde33da900d4bcc2fb1c7c492fc5100b4044ad9":
         "sha256:cc5c174862c188a675fdb35932f269eb61ae82876e3d110866af2b7a62b0d3bd",
     "sha256:f632de0f2869352b3cef8fd19ea903595299584da8a134ca8c02969fe849e5f0":
+        "sha256:cc5c174862c188a675fdb35932f269eb61ae82876e3d110866af2b7a62b0d3bd",
+    "sha256:b483f9ccb53f05e0eebedf29f14b124bbf437a79bd04435ca164748178624f0f":
         "sha256:cc5c174862c188a675fdb35932f269eb61ae82876e3d110866af2b7a62b0d3bd",
 }
 
