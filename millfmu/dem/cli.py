@@ -125,6 +125,14 @@ def register(subparsers) -> argparse.ArgumentParser:
                     "millfmu/data/accelerator_table)")
     s2.set_defaults(func=_seed002)
 
+    pg = sub.add_parser("progress", help="where a checkpointed run stands: time simulated and "
+                        "to go, its cost, and the bed at the checkpoint (angular velocity, "
+                        "first layer, circumferential distribution with gravity)")
+    pg.add_argument("run", metavar="RUN_DIR", help="folder of a run started with "
+                    "--checkpoint-every")
+    pg.add_argument("--json", action="store_true", help="print the figures as JSON")
+    pg.set_defaults(func=_progress)
+
     c = sub.add_parser("compare", help="key results of run folders side by side (sector, grid "
                                        "or run-length checks), relative to the first")
     c.add_argument("runs", nargs="+", metavar="RUN_DIR", help="folders written by 'dem run'")
@@ -308,6 +316,22 @@ def _run(args) -> int:
         print(f"millfmu dem run: {e}", file=sys.stderr)
         return 2
     return _report(stats, args.out)
+
+
+def _progress(args) -> int:
+    from millfmu.dem.analysis.progress import progress_lines, run_progress
+    from millfmu.dem.run import DemRunError
+
+    try:
+        p = run_progress(args.run)
+    except DemRunError as e:
+        print(f"millfmu dem progress: {e}", file=sys.stderr)
+        return 2
+    if args.json:
+        print(json.dumps(p, indent=1))
+    else:
+        print("\n".join(progress_lines(p)))
+    return 0
 
 
 def _resume(args) -> int:

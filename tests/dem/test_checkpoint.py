@@ -118,3 +118,52 @@ def test_theta_cells_override_and_its_refusals(capsys):
         load_scene("disc_slice").with_overrides(fluid_mode="prescribed", n_theta=4)
     assert dem_main(["run", "--resume", "x", "--theta-cells", "8"]) == 2
     assert "not allowed with --theta-cells" in capsys.readouterr().err
+
+
+def test_progress_of_a_stopped_run(tmp_path, monkeypatch, capsys):
+    """dem progress reads a stopped run's checkpoint: time simulated of the protocol's,
+    its cost, the bed's angular velocity; a folder without one is refused by name."""
+    write = R._write_checkpoint
+
+    def write_then_stop(path, state):
+        write(path, state)
+        raise Stopped
+
+    monkeypatch.setattr(R, "_write_checkpoint", write_then_stop)
+    with pytest.raises(Stopped):
+        R.run_scene(_scene(), tmp_path, progress=False, threads=1, checkpoint_every_s=1e-9)
+    assert dem_main(["progress", str(tmp_path)]) == 0
+    text = capsys.readouterr().out
+    assert "accelerator_slice" in text and "h per simulated second" in text
+    assert dem_main(["progress", str(tmp_path), "--json"]) == 0
+    p = json.loads(capsys.readouterr().out)
+    sc = _scene()
+    assert p["t_s"] == pytest.approx(sc.sample_every_s) and p["phase"] == "spin-up"
+    assert p["total_s"] == pytest.approx(sc.spin_up_s + sc.record_s)
+    assert p["beads"] > 0 and p["wall_s"] > 0 and p["particle_steps_per_s"] > 0
+    assert 0.0 < p["angular_velocity_over_stirrer"] < 1.5
+    # the accelerator has no disc faces; a sector without gravity no circumferential figures
+    assert "first_bead_layer_angular_velocity_ratio" not in p and "beads_per_bin" not in p
+    assert dem_main(["progress", str(tmp_path / "none")]) == 2
+    assert "no checkpoint.pkl" in capsys.readouterr().err
+
+
+def test_circumferential_distribution_hand_case():
+    """Gravity along -y, rotation about +z (counter-clockwise): the top is +y, azimuth
+    counted from it towards -x; the rising side (stirrer moving up) is x > 0."""
+    from millfmu.dem.analysis.progress import circumferential
+
+    deg = np.radians
+    # beads at azimuths (from +x, counter-clockwise): 3 at 100 (upper half, falling side),
+    # 1 at 200 (lower, falling), 2 at 300 (lower, rising), 2 at 20 (upper, rising)
+    ang = deg(np.array([100, 100, 100, 200, 300, 300, 20, 20], dtype=float))
+    x = np.column_stack([np.cos(ang), np.sin(ang), np.zeros(8)]) * 0.02
+    c = circumferential(x, (0.0, -9.81, 0.0), 360.0)
+    assert c["rising_over_falling_half"] == pytest.approx(4 / 4)
+    assert c["upper_over_lower_half"] == pytest.approx(5 / 3)
+    # from the top (90 deg) in the direction of rotation: 100 -> 10 deg (bin 0),
+    # 200 -> 110 (bin 3), 300 -> 210 (bin 7), 20 -> 290 (bin 9)
+    assert c["beads_per_bin"] == [3, 0, 0, 1, 0, 0, 0, 2, 0, 2, 0, 0]
+    assert c["largest_over_smallest_bin"] == 3.0  # empty bins count as one
+    assert circumferential(x, (0.0, 0.0, 0.0), 360.0) == {}
+    assert circumferential(x, (0.0, -9.81, 0.0), 60.0) == {}

@@ -1,0 +1,125 @@
+"""Where a checkpointed run stands (``millfmu dem progress DIR``): time simulated and to go,
+its cost so far, and the bed's state at the checkpoint, for runs too long to wait for their
+statistics (the full 360-degree slices).
+
+From the run's ``checkpoint.pkl`` (:mod:`millfmu.dem.run`), read only:
+
+- time simulated [s] of the protocol's spin-up + recording, wall time so far [s], cost per
+  simulated second [s/s], particle-steps per second, the checkpoint's size per bead [B];
+- the beads' mean angular velocity about the axis over the stirrer's (omega_i = v_perp / r);
+- disc slices: seed 001's first bead layer (centres within 0.75 d of a disc face, inside
+  the disc radius; section 3.2) at this instant, over the stirrer's angular velocity;
+- with gravity across the axis: the beads per 30 degrees of azimuth, counted from the top
+  (against gravity) in the direction of rotation, largest over smallest; the rising half
+  (where the stirrer's motion is upwards) over the falling half; the upper half over the
+  lower. A sector without gravity has none of these (rotational symmetry).
+
+One instant, not a time mean: a bed's state fluctuates by a few percent from one sample to
+the next (the run's statistics average over its recording).
+"""
+
+from __future__ import annotations
+
+import math
+import pickle
+from pathlib import Path
+
+import numpy as np
+
+#: azimuthal bins of the circumferential distribution [deg]
+AZIMUTH_BIN_DEG = 30.0
+
+
+def run_progress(out_dir) -> dict:
+    """The figures of the module docstring for the run whose checkpoint is in ``out_dir``;
+    raises DemRunError (by name) where there is none or it cannot be read."""
+    from millfmu.dem.analysis.flow_structure import first_layer_angular_velocity
+    from millfmu.dem.run import CHECKPOINT, CHECKPOINT_FORMAT, DemRunError
+
+    path = Path(out_dir) / CHECKPOINT
+    if not path.exists():
+        raise DemRunError(f"{out_dir}: no {CHECKPOINT} (a run writes one with "
+                          f"--checkpoint-every; a finished run leaves its stats.json instead)")
+    try:
+        with open(path, "rb") as fh:
+            state = pickle.load(fh)
+    except (OSError, pickle.UnpicklingError, EOFError, AttributeError, ImportError) as e:
+        raise DemRunError(f"{path}: not a readable checkpoint ({type(e).__name__}: {e})") \
+            from None
+    if not isinstance(state, dict) or state.get("format") != CHECKPOINT_FORMAT:
+        raise DemRunError(f"{path}: not a checkpoint of layout {CHECKPOINT_FORMAT}")
+    scene, sim, loop = state["scene"], state["sim"], state["loop"]
+    g = scene.geometry
+    dt = scene.dt_s
+    t_s = sim.step_count * dt
+    total_s = scene.spin_up_s + scene.record_s
+    wall_s = float(loop["wall_s"])
+    out = dict(scene=scene.name, beads=int(sim.n), sector_deg=g.sector_deg,
+               fluid=scene.fluid_description, t_s=t_s, total_s=total_s,
+               phase="recording" if t_s >= scene.spin_up_s else "spin-up",
+               wall_s=wall_s, wall_per_simulated_s=wall_s / t_s if t_s > 0 else math.nan,
+               wall_to_go_s=wall_s / t_s * max(total_s - t_s, 0.0) if t_s > 0 else math.nan,
+               particle_steps_per_s=sim.n * sim.step_count / wall_s if wall_s > 0 else math.nan,
+               checkpoint_bytes_per_bead=path.stat().st_size / sim.n,
+               kinetic_energy=dict(t_s=list(loop["ke_t"]), e_j=list(loop["ke"])))
+    omega = scene.tip_speed_m_s / (g.disc_radius_m or g.shaft_radius_m)
+    x, v = sim.x, sim.v
+    r = np.hypot(x[:, 0], x[:, 1])
+    om_i = (x[:, 0] * v[:, 1] - x[:, 1] * v[:, 0]) / np.maximum(r, 1e-300) ** 2
+    out["angular_velocity_over_stirrer"] = float(om_i.mean() / omega)
+    if g.has_disc and not g.has_channel:
+        d = scene.bead_diameter_m
+        ratio, n = first_layer_angular_velocity([x], [v], g, omega, 0.75 * d)
+        out["first_bead_layer_angular_velocity_ratio"] = ratio
+        out["first_bead_layer_beads"] = n
+    out.update(circumferential(x, scene.gravity_m_s2, g.sector_deg))
+    return out
+
+
+def circumferential(x, gravity_m_s2, sector_deg: float) -> dict:
+    """The circumferential distribution of the beads at positions ``x`` [m] (module
+    docstring); {} without gravity across the axis or in a sector."""
+    gx, gy = float(gravity_m_s2[0]), float(gravity_m_s2[1])
+    gn = math.hypot(gx, gy)
+    if gn == 0.0 or sector_deg < 360.0:
+        return {}
+    # azimuth from the top (the direction against gravity), positive with the rotation
+    # (+z, counter-clockwise seen from +z)
+    top = math.atan2(-gy, -gx)
+    phi = np.mod(np.arctan2(x[:, 1], x[:, 0]) - top, 2.0 * math.pi)
+    nb = int(round(360.0 / AZIMUTH_BIN_DEG))
+    counts = np.bincount(np.minimum((phi / (2.0 * math.pi) * nb).astype(int), nb - 1),
+                         minlength=nb)
+    # the stirrer moves upwards (against gravity) where (e_z x r) . (-g) > 0: past the top
+    # by 180-360 degrees in the direction of rotation
+    rising = np.sum(phi > math.pi)
+    upper = np.sum((phi < 0.5 * math.pi) | (phi > 1.5 * math.pi))
+    n = x.shape[0]
+    return dict(azimuth_bin_deg=AZIMUTH_BIN_DEG, beads_per_bin=counts.tolist(),
+                largest_over_smallest_bin=float(counts.max() / max(counts.min(), 1)),
+                rising_over_falling_half=float(rising / max(n - rising, 1)),
+                upper_over_lower_half=float(upper / max(n - upper, 1)))
+
+
+def progress_lines(p: dict) -> list[str]:
+    """Human-readable lines of :func:`run_progress`'s figures."""
+    h = 3600.0
+    out = [f"{p['scene']}: {p['beads']:,} beads, {p['sector_deg']:g} degrees; {p['fluid']}",
+           f"simulated {p['t_s']:.4g} s of {p['total_s']:.4g} s ({p['phase']}); wall time "
+           f"{p['wall_s'] / h:.2f} h, {p['wall_per_simulated_s'] / h:.2f} h per simulated "
+           f"second, about {p['wall_to_go_s'] / h:.1f} h to go at that rate",
+           f"{p['particle_steps_per_s'] / 1e6:.3g} M particle-steps/s; checkpoint "
+           f"{p['checkpoint_bytes_per_bead'] / 1e3:.2f} kB per bead",
+           f"beads' mean angular velocity / stirrer's: {p['angular_velocity_over_stirrer']:.3f}"]
+    if "first_bead_layer_angular_velocity_ratio" in p:
+        out.append(f"first bead layer (within 0.75 d of a disc face) / stirrer's: "
+                   f"{p['first_bead_layer_angular_velocity_ratio']:.3f} "
+                   f"({p['first_bead_layer_beads']:,} beads; seed 001: 0.20-0.26)")
+    if "beads_per_bin" in p:
+        out.append(f"beads per {p['azimuth_bin_deg']:g} degrees from the top in the direction "
+                   f"of rotation: {p['beads_per_bin']}; largest / smallest "
+                   f"{p['largest_over_smallest_bin']:.3f}, rising / falling half "
+                   f"{p['rising_over_falling_half']:.3f}, upper / lower half "
+                   f"{p['upper_over_lower_half']:.3f}")
+    out.append("(one instant at the checkpoint, not a time mean)")
+    return out
