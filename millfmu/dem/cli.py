@@ -83,6 +83,9 @@ def register(subparsers) -> argparse.ArgumentParser:
     b.add_argument("--regenerate-bed", action="store_true",
                    help="make the bed again (it is made once and cached)")
     b.add_argument("--json", action="store_true", help="also print every run as JSON")
+    b.add_argument("--bed", choices=("dense", "dilute", "both"), default="dense",
+                   help="the dense sheared bed (default), the dilute one (a granular gas: "
+                        "few contacts, frequent neighbour rebuilds) or both in turn")
     b.add_argument("--coupled", action="store_true",
                    help="also the coupled row: disc_slice with the coupled fluid against the "
                         "DEM alone on the same beads, alternating, best of 3 (on the largest "
@@ -373,14 +376,18 @@ def _bench(args) -> int:
 
     steps = args.steps or B.BENCH_STEPS
     cores = tuple(args.cores or (1, 2))
+    beds = ("dense", "dilute") if args.bed == "both" else (args.bed,)
     if args.profile:
-        path = B.bed_file(regenerate=args.regenerate_bed)
-        for nc in cores:
-            B.profile(path, nc, steps)
+        for bed in beds:
+            path = B.bed_file(B.BEDS[bed], regenerate=args.regenerate_bed)
+            for nc in cores:
+                B.profile(path, nc, steps)
         return 0
-    runs = B.bench(steps=steps, repeats=args.repeats or B.BENCH_REPEATS, cores=cores,
-                   others=not args.ours_only, regenerate=args.regenerate_bed,
-                   devices=(args.device,) if args.device else ("cpu", "gpu"))
+    runs = []
+    for bed in beds:
+        runs += B.bench(steps=steps, repeats=args.repeats or B.BENCH_REPEATS, cores=cores,
+                        others=not args.ours_only, regenerate=args.regenerate_bed,
+                        devices=(args.device,) if args.device else ("cpu", "gpu"), bed=bed)
     out = {"runs": [dict(r.__dict__, rate=r.rate) for r in runs]}
     if args.coupled:
         from millfmu.dem.studies.coupled_bench import run_coupled_bench

@@ -37,6 +37,31 @@ def test_bench_lattice_has_the_issue_bead_count():
     assert r.min() >= 15.5e-3 and r.max() <= 44.5e-3
 
 
+def test_bench_dilute_bed_is_a_granular_gas(tmp_path, monkeypatch):
+    """The bench's second bed (dem bench --bed dilute): made once like the dense one, a
+    gas of few contacts per bead (coordination below 0.5; the dense bed's is several),
+    moving beads; the dense bed keeps its file name (its recipe's key without the gas
+    speed); an unknown bed is refused by name."""
+    pytest.importorskip("numba")
+    from millfmu.dem.studies import bench as B
+
+    monkeypatch.setenv("MILLFMU_BENCH_DIR", str(tmp_path))
+    assert B.BED.key() != B.DILUTE_BED.key()
+    # the dense bed's key leaves the new field out, so its cached file keeps its name
+    rec = B.asdict(B.BED)
+    rec.pop("gas_speed_m_s")
+    want = dict(recipe=rec, geometry=B.asdict(B.BENCH_GEOMETRY), material=B.asdict(B.BENCH_MATERIAL),
+                diameter_m=B.BENCH_DIAMETER_M, tip_speed_m_s=B.BENCH_TIP_SPEED_M_S, dt_s=B.BENCH_DT_S)
+    assert B.BED.key() == B.hashlib.sha256(json.dumps(want, sort_keys=True).encode()).hexdigest()[:12]
+    path = B.bed_file(B.DILUTE_BED, threads=1, out=lambda s: None)
+    info = B.bed_info(path)
+    assert info["beads"] == B.read_data(path).x.shape[0] > 20000
+    assert 0.05 < info["coordination"] < 0.5
+    assert info["mean_speed_m_s"] > 0.05 and info["max_speed_m_s"] < 20.0
+    with pytest.raises(ValueError, match="bed = 'sparse': allowed"):
+        B.bench(bed="sparse")
+
+
 def test_bench_ke_table_sets_the_references_beside_ours_and_flags_over_3_percent():
     """The bench's kinetic-energy lines (no LAMMPS needed): each run's energies and their
     differences from LAMMPS' and LIGGGHTS' in %, '!' above 3 %; the figures are the

@@ -66,16 +66,31 @@ class BedRecipe:
     relax_stages: int = 5  # further stages at the final radius
     spin_up_steps: int = 4000  # 0.02 s with the shaft turning
     seed: int = 1
+    # dilute bed: random velocities of this rms speed [m/s] given after the growth (a
+    # granular gas); 0 for the dense bed (left out of the key, which names its file)
+    gas_speed_m_s: float = 0.0
 
     def key(self) -> str:
         """Content hash of the recipe and the scene: names the bed file."""
-        d = dict(recipe=asdict(self), geometry=asdict(BENCH_GEOMETRY),
+        rec = asdict(self)
+        if not self.gas_speed_m_s:
+            rec.pop("gas_speed_m_s")
+        d = dict(recipe=rec, geometry=asdict(BENCH_GEOMETRY),
                  material=asdict(BENCH_MATERIAL), diameter_m=BENCH_DIAMETER_M,
                  tip_speed_m_s=BENCH_TIP_SPEED_M_S, dt_s=BENCH_DT_S)
         return hashlib.sha256(json.dumps(d, sort_keys=True).encode()).hexdigest()[:12]
 
 
+#: the dense sheared bed (solid fraction 0.62, every bead in several contacts)
 BED = BedRecipe()
+#: the dilute bed: a fast granular gas at a solid fraction of 0.2 with 1 m/s random speeds
+#: besides the shaft's shear (few contacts per bead, the neighbour lists rebuilt every few
+#: tens of steps): the regime of seed 001's V1 and V4 zones and the accelerator's inner
+#: zones, where the rebuilds, not the contacts, cost most
+DILUTE_BED = BedRecipe(solid_fraction=0.3, grow_stages=4, relax_stages=1,
+                       spin_up_steps=2000, gas_speed_m_s=1.0)
+#: the beds by name (``dem bench --bed``)
+BEDS = {"dense": BED, "dilute": DILUTE_BED}
 
 
 # ---- the bed: LAMMPS data file -------------------------------------------------------------
@@ -168,8 +183,12 @@ def make_bed(recipe: BedRecipe = BED, threads: int | None = None, out=None) -> B
         grow.w[:] = 0.0
         if out:
             out(f"bed: stage {k + 1}/{stages} (radius {grow.rad[0] * 1e3:.4f} mm)")
+    v0 = None
+    if recipe.gas_speed_m_s:
+        rng = np.random.default_rng(recipe.seed)
+        v0 = rng.normal(0.0, recipe.gas_speed_m_s / math.sqrt(3.0), size=grow.x.shape)
     spin = DemSimulation(g, BENCH_MATERIAL, grow.x, r1, BENCH_OMEGA_RAD_S, BENCH_DT_S,
-                         threads=threads, skin_m=BENCH_SKIN_M)
+                         threads=threads, skin_m=BENCH_SKIN_M, velocities_m_s=v0)
     left = recipe.spin_up_steps
     while left > 0:
         k = min(1000, left)
@@ -204,7 +223,9 @@ def bed_file(recipe: BedRecipe = BED, regenerate: bool = False, threads=None,
     out(f"making the bench bed {path} (once; {recipe})")
     t0 = time.perf_counter()
     bed = make_bed(recipe, threads=threads, out=out)
-    write_data(path, bed, f"millfmu.dem bench bed {recipe.key()}: dense sheared annulus, "
+    kind = (f"dilute granular gas ({recipe.gas_speed_m_s:g} m/s)" if recipe.gas_speed_m_s
+            else "dense sheared")
+    write_data(path, bed, f"millfmu.dem bench bed {recipe.key()}: {kind} annulus, "
                           f"0.8 mm beads, shaft 8 m/s (SI units)")
     stats = contact_stats(bed.x, 0.5 * bed.diameter_m)
     speed = np.linalg.norm(bed.v, axis=1)
@@ -444,12 +465,14 @@ def _load() -> str:
 
 def bench(steps: int = BENCH_STEPS, repeats: int = BENCH_REPEATS, cores=(1, 2),
           others: bool = True, out=print, regenerate: bool = False,
-          devices=("cpu", "gpu")) -> list[RunResult]:
-    """Run every code on the bed, alternating (one run of each per round), ``repeats``
-    rounds; print each code's fastest run and the ratios. ``devices``: millfmu.dem's CPU
-    rows (with LAMMPS and LIGGGHTS) and its GPU rows (the bed and a million beads), the
-    latter only where a GPU is present. Returns all runs."""
-    path = bed_file(regenerate=regenerate, out=out)
+          devices=("cpu", "gpu"), bed: str = "dense") -> list[RunResult]:
+    """Run every code on the bed named ``bed`` (:data:`BEDS`), alternating (one run of each
+    per round), ``repeats`` rounds; print each code's fastest run and the ratios.
+    ``devices``: millfmu.dem's CPU rows (with LAMMPS and LIGGGHTS) and its GPU rows (the
+    bed and a million beads), the latter only where a GPU is present. Returns all runs."""
+    if bed not in BEDS:
+        raise ValueError(f"bed = {bed!r}: allowed {list(BEDS)}")
+    path = bed_file(BEDS[bed], regenerate=regenerate, out=out)
     info = bed_info(path)
     runners = []
     for nc in sorted(cores, reverse=True) if "cpu" in devices else ():
@@ -460,12 +483,14 @@ def bench(steps: int = BENCH_STEPS, repeats: int = BENCH_REPEATS, cores=(1, 2),
             runners.append((f"LIGGGHTS {nc} MPI", lambda nc=nc: run_liggghts(path, nc, steps)))
     if "gpu" in devices and gpu_available():
         runners.append(("millfmu.dem GPU", lambda: run_ours(path, 1, steps, device="gpu")))
-        runners.append(("millfmu.dem GPU 1e6", lambda: run_gpu_million(steps)))
+        if bed == "dense":
+            runners.append(("millfmu.dem GPU 1e6", lambda: run_gpu_million(steps)))
     elif "gpu" in devices:
         out("no CUDA GPU (numba.cuda.is_available() is False): no GPU rows")
     if not runners:
         return []
-    out(f"DEM bench: dense sheared bed, {info['beads']} beads (coordination "
+    out(f"DEM bench: {'dense sheared' if bed == 'dense' else 'dilute (granular gas)'} bed, "
+        f"{info['beads']} beads (coordination "
         f"{info['coordination']:.2f}, median overlap {info['overlap_median_m']:.3g} m), "
         f"{steps} steps of {BENCH_DT_S:g} s, skin {BENCH_SKIN_M:g} m; {repeats} rounds, "
         f"codes alternating; {_load()} at the start")
