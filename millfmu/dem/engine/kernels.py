@@ -882,10 +882,7 @@ def compute_forces(x, v, w, fb, tb, rad, mass, inertia, pst, nnb, pj, pim, psh, 
         ne = 0
         tq = 0.0
         tqc = 0.0
-        for i in range(cb[c], max(maxj[c], cb[c + 1] - 1) + 1):
-            for a in range(3):
-                fb[c, i, a] = 0.0
-                tb[c, i, a] = 0.0
+        # fb, tb arrive all zero: reduce_kick zeroes every entry it sums (see there)
         for i in range(cb[c], cb[c + 1]):
             xi = x[i, 0]
             yi = x[i, 1]
@@ -1064,7 +1061,10 @@ def reduce_kick(fb, tb, cb, maxj, f, t, v, w, x, inv_m, inv_i, kick, dt, drift, 
                 dmax):
     """f = sum of the chunks' force buffers (t likewise), then v += kick f/m,
     w += kick t/I and, with drift, x += dt v; dmax[c] receives the largest squared
-    displacement [m2] since the last neighbour build of chunk c's beads."""
+    displacement [m2] since the last neighbour build of chunk c's beads. f and t are
+    stored only without drift (a run's last step, finish_step): within a run the next step
+    needs the sums only for this kick, and the two arrays' stores were a quarter of this
+    memory-bound pass's traffic on the dilute bench bed."""
     nch = cb.shape[0] - 1
     for c in prange(nch):
         dm = 0.0
@@ -1089,12 +1089,21 @@ def reduce_kick(fb, tb, cb, maxj, f, t, v, w, x, inv_m, inv_i, kick, dt, drift, 
                     t0 += tb[c2, i, 0]
                     t1 += tb[c2, i, 1]
                     t2 += tb[c2, i, 2]
-            f[i, 0] = f0
-            f[i, 1] = f1
-            f[i, 2] = f2
-            t[i, 0] = t0
-            t[i, 1] = t1
-            t[i, 2] = t2
+                    # zeroed here, while in cache, for the next force evaluation
+                    # (compute_forces accumulates into them without a pass of its own)
+                    fb[c2, i, 0] = 0.0
+                    fb[c2, i, 1] = 0.0
+                    fb[c2, i, 2] = 0.0
+                    tb[c2, i, 0] = 0.0
+                    tb[c2, i, 1] = 0.0
+                    tb[c2, i, 2] = 0.0
+            if not drift:
+                f[i, 0] = f0
+                f[i, 1] = f1
+                f[i, 2] = f2
+                t[i, 0] = t0
+                t[i, 1] = t1
+                t[i, 2] = t2
             im = kick * inv_m[i]
             ii = kick * inv_i[i]
             v[i, 0] += f0 * im

@@ -76,7 +76,8 @@ KERNEL_MODULES = {
 #: before, by default) and a start without the spurious first increment of the springs
 #: (scenes start without contacts, so the same), and model A's pressure-gradient timing
 #: chosen by name (the previous interval's, as before, by default), the liquid taking the
-#: beads' fields in one kernel, the deposit one thread per column. A checkpoint made by
+#: beads' fields in one kernel, the deposit one thread per column, and the force buffers
+#: zeroed by the reduction that sums them (f, t stored at a run's end only). A checkpoint made by
 #: one of these sources resumes under another (run.resume_run). Any
 #: other change of these sources gives a new hash, and a new version.
 SAME_DEM_AS = {
@@ -87,6 +88,8 @@ SAME_DEM_AS = {
     "sha256:f632de0f2869352b3cef8fd19ea903595299584da8a134ca8c02969fe849e5f0":
         "sha256:cc5c174862c188a675fdb35932f269eb61ae82876e3d110866af2b7a62b0d3bd",
     "sha256:b483f9ccb53f05e0eebedf29f14b124bbf437a79bd04435ca164748178624f0f":
+        "sha256:cc5c174862c188a675fdb35932f269eb61ae82876e3d110866af2b7a62b0d3bd",
+    "sha256:67aca0eac7b6d50810ff548dc468ce3bcf434a96367e5b4e832e9f8723d62fd5":
         "sha256:cc5c174862c188a675fdb35932f269eb61ae82876e3d110866af2b7a62b0d3bd",
 }
 
