@@ -167,16 +167,12 @@ def _kernel_version() -> str:
     return kernel_source_hash()
 
 
-def resume_run(out_dir, progress: bool = True, threads: int | None = None,
-               checkpoint_every_s: float | None = None) -> DemStats:
-    """Go on with the run whose ``checkpoint.pkl`` is in ``out_dir`` (its scene, windows
-    and contacts option as it was started; ``threads`` may differ, the results do not
-    while the threads are no more than the beads' chunks); returns the statistics. Refused
-    by name (DemRunError) where there is no checkpoint, or one of another layout or made by
-    other DEM sources."""
+def load_checkpoint(out_dir) -> dict:
+    """The state in ``out_dir``'s checkpoint (see :func:`run_scene`); refused by name
+    (DemRunError) where there is none, it cannot be read, or it has another layout."""
     path = Path(out_dir) / CHECKPOINT
     if not path.exists():
-        raise DemRunError(f"{out_dir}: no {CHECKPOINT} to resume from (a run writes one with "
+        raise DemRunError(f"{out_dir}: no {CHECKPOINT} (a run writes one with "
                           f"checkpoint_every_s / --checkpoint-every)")
     try:
         with open(path, "rb") as fh:
@@ -188,6 +184,18 @@ def resume_run(out_dir, progress: bool = True, threads: int | None = None,
     if fmt != CHECKPOINT_FORMAT:
         raise DemRunError(f"{path}: checkpoint layout {fmt!r}; this version reads layout "
                           f"{CHECKPOINT_FORMAT}")
+    return state
+
+
+def resume_run(out_dir, progress: bool = True, threads: int | None = None,
+               checkpoint_every_s: float | None = None) -> DemStats:
+    """Go on with the run whose ``checkpoint.pkl`` is in ``out_dir`` (its scene, windows
+    and contacts option as it was started; ``threads`` may differ, the results do not
+    while the threads are no more than the beads' chunks); returns the statistics. Refused
+    by name (DemRunError) where there is no checkpoint, or one of another layout or made by
+    other DEM sources."""
+    state = load_checkpoint(out_dir)
+    path = Path(out_dir) / CHECKPOINT
     from millfmu.dem.tables.cache import SAME_DEM_AS
 
     # sources that give the same results to the digit (SAME_DEM_AS) go on with the run

@@ -82,7 +82,7 @@ def test_a_stopped_run_resumes_to_the_same_outputs(tmp_path, monkeypatch):
 
 def test_what_cannot_be_resumed_is_refused_by_name(tmp_path, monkeypatch, capsys):
     assert dem_main(["run", "--resume", str(tmp_path)]) == 2
-    assert "no checkpoint.pkl to resume from" in capsys.readouterr().err
+    assert "no checkpoint.pkl (a run writes one" in capsys.readouterr().err
     assert dem_main(["run", "accelerator_slice", "--resume", str(tmp_path),
                      "--filling", "0.7"]) == 2
     assert "not allowed with accelerator_slice --filling" in capsys.readouterr().err

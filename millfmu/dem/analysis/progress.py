@@ -21,7 +21,6 @@ the next (the run's statistics average over its recording).
 from __future__ import annotations
 
 import math
-import pickle
 from pathlib import Path
 
 import numpy as np
@@ -34,20 +33,10 @@ def run_progress(out_dir) -> dict:
     """The figures of the module docstring for the run whose checkpoint is in ``out_dir``;
     raises DemRunError (by name) where there is none or it cannot be read."""
     from millfmu.dem.analysis.flow_structure import first_layer_angular_velocity
-    from millfmu.dem.run import CHECKPOINT, CHECKPOINT_FORMAT, DemRunError
+    from millfmu.dem.run import CHECKPOINT, load_checkpoint
 
+    state = load_checkpoint(out_dir)
     path = Path(out_dir) / CHECKPOINT
-    if not path.exists():
-        raise DemRunError(f"{out_dir}: no {CHECKPOINT} (a run writes one with "
-                          f"--checkpoint-every; a finished run leaves its stats.json instead)")
-    try:
-        with open(path, "rb") as fh:
-            state = pickle.load(fh)
-    except (OSError, pickle.UnpicklingError, EOFError, AttributeError, ImportError) as e:
-        raise DemRunError(f"{path}: not a readable checkpoint ({type(e).__name__}: {e})") \
-            from None
-    if not isinstance(state, dict) or state.get("format") != CHECKPOINT_FORMAT:
-        raise DemRunError(f"{path}: not a checkpoint of layout {CHECKPOINT_FORMAT}")
     scene, sim, loop = state["scene"], state["sim"], state["loop"]
     g = scene.geometry
     dt = scene.dt_s
