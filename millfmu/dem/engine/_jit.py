@@ -13,6 +13,9 @@ Only the kernel modules import this file, and only when a DEM run is requested, 
   (contact law, pair and wall response), inlined into the loop by numba: as calls they
   made the force loop on the bench bed 28 % slower.
 - ``serial``: the same flags for serial drivers and bookkeeping (binning, wrapping).
+- ``inlined``: ``contact``'s inlining for the liquid's per-node and per-edge helpers
+  (gradients, edge viscosities, wall functions, fluxes): as calls returning tuples they
+  made the edge-stress kernel twice as slow.
 
 Threading layer: OpenMP (numba's ``omp`` layer), else ``workqueue``, unless
 NUMBA_THREADING_LAYER is set; OpenMP's idle threads wait passively (OMP_WAIT_POLICY=passive
@@ -53,6 +56,7 @@ FLAGS = dict(cache=True, nogil=True, fastmath=False, error_model="numpy",
 kernel = numba.njit(parallel=True, **FLAGS)
 device = numba.njit(inline="never", **FLAGS)
 contact = numba.njit(inline="always", **FLAGS)
+inlined = contact
 serial = numba.njit(**FLAGS)
 
 

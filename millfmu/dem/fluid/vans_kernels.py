@@ -39,7 +39,7 @@ e_tz[i, j, k] = a tau_theta_z at (r_c[i], theta_{j+1/2}, z_{k+1/2}).
 
 import math
 
-from millfmu.dem.engine._jit import device, serial
+from millfmu.dem.engine._jit import inlined, serial
 
 KAPPA = 0.41  # von Karman constant (Launder & Spalding 1974)
 E_LOG = 9.8  # log-law constant E
@@ -47,7 +47,7 @@ YPLUS_LAM = 11.225  # intersection of the linear and the log law, ln(E y+)/kappa
 C_MU = 0.09
 
 
-@device
+@inlined
 def wall_nu(nu, k, y, wallfn):
     """Kinematic viscosity [m2/s] that gives the wall shear stress over a fluid node at
     distance y [m] from a wall: nu in the laminar sublayer or without wall functions, else
@@ -62,7 +62,7 @@ def wall_nu(nu, k, y, wallfn):
     return nu * yp * KAPPA / math.log(E_LOG * yp)
 
 
-@device
+@inlined
 def grad2(ua, ub, ka, kb, ha, hb):
     """Gradient between node a and node b at distances ha, hb [m] from the point between
     them. A node inside a solid (kind 2) stands for the wall at that point: the gradient
@@ -77,7 +77,7 @@ def grad2(ua, ub, ka, kb, ha, hb):
     return (ub - ua) / (ha + hb), 0
 
 
-@device
+@inlined
 def tvd_flux(F, um, u0, u1, u2, okm, ok2):
     """Advective flux F * u_face [m3/s * (transported unit)] through the face between nodes
     0 and 1 with volumetric flux F (positive from 0 to 1): van Leer limited upwind value;
@@ -162,7 +162,7 @@ def normal_stresses(ur, ut, uz, em, solid, rf, rc, dr, dth, dz, trr, ttt, tzz, s
                 s2diag[i, j, k] = 2.0 * (srr * srr + stt * stt + szz * szz)
 
 
-@device
+@inlined
 def _edge_visc(em, epsc, kt, solid, i0, i1, j0, j1, k0, k1, nr, nt, nz):
     """Mean of em [Pa s] and of eps and k over the fluid cells among the (up to 4) cells
     (i0|i1, j0|j1, k0|k1) around an edge; indices outside 0..nr-1 in r are skipped."""

@@ -77,7 +77,9 @@ KERNEL_MODULES = {
 #: (scenes start without contacts, so the same), and model A's pressure-gradient timing
 #: chosen by name (the previous interval's, as before, by default), the liquid taking the
 #: beads' fields in one kernel, the deposit one thread per column, and the force buffers
-#: zeroed by the reduction that sums them (f, t stored at a run's end only). A checkpoint made by
+#: zeroed by the reduction that sums them (f, t stored at a run's end only), the liquid's
+#: per-edge helpers inlined (checked with numba's cache emptied: a cached kernel does not
+#: see a change in the helpers it calls from another file). A checkpoint made by
 #: one of these sources resumes under another (run.resume_run). Any
 #: other change of these sources gives a new hash, and a new version.
 SAME_DEM_AS = {
@@ -92,6 +94,8 @@ SAME_DEM_AS = {
     "sha256:67aca0eac7b6d50810ff548dc468ce3bcf434a96367e5b4e832e9f8723d62fd5":
         "sha256:cc5c174862c188a675fdb35932f269eb61ae82876e3d110866af2b7a62b0d3bd",
     "sha256:4ac8087367f9e1c93254e12ca4dfcf41ecbf54f0f1de3c275859a607890cf4c3":
+        "sha256:cc5c174862c188a675fdb35932f269eb61ae82876e3d110866af2b7a62b0d3bd",
+    "sha256:97dc65883fc041bfc0693d423f78d410ca358029a1eae46d45a8c8b5397272cc":
         "sha256:cc5c174862c188a675fdb35932f269eb61ae82876e3d110866af2b7a62b0d3bd",
 }
 
