@@ -15,12 +15,12 @@ from numba import prange
 
 from millfmu.dem.coupling.koch_hill2001 import STIFF_RATIO, beta
 from millfmu.dem.coupling.projection import stencil_one
-from millfmu.dem.engine._jit import device, kernel, serial
+from millfmu.dem.engine._jit import inlined, kernel, serial
 
 NQ = 6
 
 
-@device
+@inlined
 def split(kind_a, kind_b):
     """Shares of a cell's total for its two faces of a component, by their node kinds:
     half each when both are solved, all to the solved one next to a wall or solid."""

@@ -15,10 +15,10 @@ The same law with a constant void fraction drives the prescribed swirl
 
 import math
 
-from millfmu.dem.engine._jit import device, serial
+from millfmu.dem.engine._jit import inlined, serial
 
 
-@device
+@inlined
 def f0_f3(eps):
     """The void-fraction terms F0, F3 [-] at void fraction eps."""
     phi = 1.0 - eps
@@ -33,7 +33,7 @@ def f0_f3(eps):
     return f0, f3
 
 
-@device
+@inlined
 def beta(d, eps, mu, rho, urel):
     """beta [kg/(m3 s)] of a bead of diameter d [m] at void fraction eps [-] and relative
     speed urel [m/s] in a liquid of viscosity mu [Pa s] and density rho [kg/m3]."""

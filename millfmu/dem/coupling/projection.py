@@ -32,7 +32,7 @@ import math
 import numpy as np
 from numba import prange
 
-from millfmu.dem.engine._jit import device, kernel, serial
+from millfmu.dem.engine._jit import inlined, kernel, serial
 from millfmu.dem.fluid.grid import FLUID
 
 
@@ -47,7 +47,7 @@ def radial_table(rc):
     return tab.astype(np.int64), h
 
 
-@device
+@inlined
 def stencil_one(b, x, rc, rtab, rh, dth, nt, dz, nz, lz, solid, idx, w):
     """Trilinear stencil of bead b (see :func:`bead_stencils`); returns its r [m]. rtab, rh:
     :func:`radial_table` of rc."""

@@ -53,6 +53,10 @@ KERNEL_MODULES = {
     "millfmu.dem.coupling.settings": "millfmu.dem.coupling.settings",
     "millfmu.dem.coupling.dpm": "millfmu.dem.coupling.dpm",
     "millfmu.dem.coupling.schiller_naumann": "millfmu.dem.coupling.schiller_naumann",
+    # the coupled step's kernels and the one set of numba flags (fastmath, error model)
+    "millfmu.dem.coupling.exchange_kernels": "millfmu.dem.coupling.exchange_kernels",
+    "millfmu.dem.fluid.step_kernels": "millfmu.dem.fluid.step_kernels",
+    "millfmu.dem.engine._jit": "millfmu.dem.engine._jit",
 }
 
 #: Source hash -> the kernel version it stands for, where sources changed without changing
@@ -78,9 +82,11 @@ KERNEL_MODULES = {
 #: chosen by name (the previous interval's, as before, by default), the liquid taking the
 #: beads' fields in one kernel, the deposit one thread per column, and the force buffers
 #: zeroed by the reduction that sums them (f, t stored at a run's end only), the liquid's
-#: per-edge helpers inlined (checked with numba's cache emptied: a cached kernel does not
-#: see a change in the helpers it calls from another file). A checkpoint made by
-#: one of these sources resumes under another (run.resume_run). Any
+#: per-edge helpers and the exchange's per-bead helpers inlined (checked with numba's cache
+#: emptied: a cached kernel does not see a change in the helpers it calls from another
+#: file), and the coupled step's kernel modules and the numba flags counted in the hash
+#: (they were not). A checkpoint made by one of these sources resumes under another
+#: (run.resume_run). Any
 #: other change of these sources gives a new hash, and a new version.
 SAME_DEM_AS = {
     "sha256:4e5f649d8459bddd50a7ec059ace6b44106bac1745e88635e4f565af91d91452":
@@ -96,6 +102,10 @@ SAME_DEM_AS = {
     "sha256:4ac8087367f9e1c93254e12ca4dfcf41ecbf54f0f1de3c275859a607890cf4c3":
         "sha256:cc5c174862c188a675fdb35932f269eb61ae82876e3d110866af2b7a62b0d3bd",
     "sha256:97dc65883fc041bfc0693d423f78d410ca358029a1eae46d45a8c8b5397272cc":
+        "sha256:cc5c174862c188a675fdb35932f269eb61ae82876e3d110866af2b7a62b0d3bd",
+    "sha256:34bc597760eae87a00ea904b22f9b0b986db8ab1545f831173e8341684f37a89":
+        "sha256:cc5c174862c188a675fdb35932f269eb61ae82876e3d110866af2b7a62b0d3bd",
+    "sha256:1f26a6d8d9f7ce97b3606c5143fbc3d2ae445afd3b9e337557f8178eea4db22d":
         "sha256:cc5c174862c188a675fdb35932f269eb61ae82876e3d110866af2b7a62b0d3bd",
 }
 
