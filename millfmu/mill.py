@@ -229,6 +229,7 @@ class MillModel:
         self._q3_sizes = kgrid.Q3Sizes(self._log_edges, _QUANTILES)  # x10, x50, x90 step after step
         self._psd_in_checked = (None, None)  # (raw bytes, checked fractions) of the last psd_in checked
         self._fed_step = (None, None, None)  # (frozen step, psd_in, the step's feed part [kg]); see _advance
+        self._last_frozen = (None, None)  # (key, frozen step) of the last exact step
         self._adaptive = self.capture_from_psd or self.scene.run.integrator == "adaptive"  # rates change within a step
         self.reset()
 
@@ -566,7 +567,12 @@ class MillModel:
         else:
             # Everything that depends only on the frozen inputs and h is built once.
             key = (new_inputs["tip_speed_m_per_s"], new_inputs["solids_mass_fraction"], new_inputs["bead_filling"], new_inputs["feed_mass_flow_kg_per_s"], h)
-            frozen = self._cache.get(key, lambda: self._frozen_step(new_inputs, h))
+            last = self._last_frozen
+            if last[0] == key:  # the inputs and step of the step before (a host's usual case)
+                frozen = last[1]
+            else:
+                frozen = self._cache.get(key, lambda: self._frozen_step(new_inputs, h))
+                self._last_frozen = (key, frozen)
             if not frozen.propagator.finite:
                 raise ArithmeticError("the step's propagator is not finite (rates too extreme for this step)")
             op = frozen.op

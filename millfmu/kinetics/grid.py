@@ -184,25 +184,25 @@ class Q3Sizes:
             return tuple(math.nan for _ in self.q)
         n = cum.size
         le = self.log_edges
+        exp = math.exp
         b = min(max(below, 0.0), cum.item(0))  # cumulative mass at the lowest edge
         out = []
         # Python floats (item): the same IEEE arithmetic as numpy's scalars, faster here
         for i, qi in enumerate(self.q):
             qt = qi * total
-            if qt <= b:
-                ki, c0, c1 = 1, b, cum.item(0)
-            else:
-                # class ki holds the level where its lower edge's Q3 is below it and its
-                # upper edge's reaches it
-                ki = self.k[i]
+            if qt <= b:  # within the part below the grid: the lowest edge
+                out.append(exp(le[0]))
+                continue
+            # class ki holds the level where its lower edge's Q3 is below it and its upper
+            # edge's reaches it; then 0 < (qt - c0) / (c1 - c0) <= 1 needs no clamping
+            ki = self.k[i]
+            c0 = b if ki == 1 else cum.item(ki - 2)
+            c1 = cum.item(ki - 1)
+            if not c0 < qt <= c1:
+                ki = min(int(cum.searchsorted(qt, side="left")) + 1, n)
                 c0 = b if ki == 1 else cum.item(ki - 2)
                 c1 = cum.item(ki - 1)
-                if not c0 < qt <= c1:
-                    ki = min(int(cum.searchsorted(qt, side="left")) + 1, n)
-                    c0 = b if ki == 1 else cum.item(ki - 2)
-                    c1 = cum.item(ki - 1)
                 self.k[i] = ki
-            f = min(max((qt - c0) / (c1 - c0), 0.0), 1.0) if c1 > c0 else 0.0
             l0 = le[ki - 1]
-            out.append(math.exp(l0 + f * (le[ki] - l0)))
+            out.append(exp(l0 + (qt - c0) / (c1 - c0) * (le[ki] - l0)))
         return tuple(out)
