@@ -96,7 +96,8 @@ def progress_lines(p: dict) -> list[str]:
     out = [f"{p['scene']}: {p['beads']:,} beads, {p['sector_deg']:g} degrees; {p['fluid']}",
            f"simulated {p['t_s']:.4g} s of {p['total_s']:.4g} s ({p['phase']}); wall time "
            f"{p['wall_s'] / h:.2f} h, {p['wall_per_simulated_s'] / h:.2f} h per simulated "
-           f"second, about {p['wall_to_go_s'] / h:.1f} h to go at that rate",
+           f"second, about {p['wall_to_go_s'] / h:.1f} h to go at that rate (wall time "
+           f"since the start, including any time the process was stopped)",
            f"{p['particle_steps_per_s'] / 1e6:.3g} M particle-steps/s; checkpoint "
            f"{p['checkpoint_bytes_per_bead'] / 1e3:.2f} kB per bead",
            f"beads' mean angular velocity / stirrer's: {p['angular_velocity_over_stirrer']:.3f}"]
