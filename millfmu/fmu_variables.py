@@ -18,14 +18,17 @@ if sys.version_info >= (3, 11):
 else:  # pragma: no cover
     import tomli as tomllib
 
+import numpy as np
+
 from .mill import PSD_SUM_TOL, MillModel
 from .scene import scene_from_dict
 
+
 class HeldArray:
     """The array input a host sets value by value (psd_in): the same array object while
-    its values do not change, so that the model checks it only when they do (a host
-    passes every input at every step; comparing two lists is a fraction of building an
-    array and comparing it). The model never writes into an input array."""
+    its values do not change, built anew only when they do (a host passes every input at
+    every step; comparing two lists costs a fraction of building an array, and the model
+    remembers its check of a content). The model never writes into an input array."""
 
     def __init__(self):
         self._values: list | None = None
@@ -34,8 +37,6 @@ class HeldArray:
     def array(self, values: list):
         """An array of ``values`` (a list of floats), the held one where they are equal."""
         if values != self._values:
-            import numpy as np
-
             self._array = np.array(values, dtype=float)
             self._values = values
         return self._array
