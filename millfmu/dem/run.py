@@ -277,6 +277,12 @@ def run_scene(scene: DemScene, out_dir, progress: bool = True, threads: int | No
     fluid_acc, fluid_samples = loop["fluid_acc"], loop["fluid_samples"]
     substeps, budget0 = loop["substeps"], loop["budget0"]
     t_wall = time.perf_counter() - loop["wall_s"]
+    # CPU time of all threads, for the cost of a run that was stopped or shared the machine;
+    # counted from the step in cpu_from_step (a checkpoint of earlier sources has none: from
+    # the resume on)
+    if "cpu_s" not in loop:
+        loop.update(cpu_s=0.0, cpu_from_step=sim.step_count)
+    t_cpu = time.process_time() - loop["cpu_s"]
     t_check = time.perf_counter()
     ckpt = out / CHECKPOINT
     # the sources this run was compiled from, not those on disk at a later checkpoint
@@ -355,7 +361,8 @@ def run_scene(scene: DemScene, out_dir, progress: bool = True, threads: int | No
                 time.perf_counter() - t_check >= checkpoint_every_s:
             loop.update(done=done, dropped=dropped, builds=builds, fluid_acc=fluid_acc,
                         fluid_samples=fluid_samples, budget0=budget0,
-                        wall_s=time.perf_counter() - t_wall)
+                        wall_s=time.perf_counter() - t_wall,
+                        cpu_s=time.process_time() - t_cpu)
             _write_checkpoint(ckpt, dict(
                 format=CHECKPOINT_FORMAT, kernel_version=version, scene=scene,
                 window_s=window_s, contacts=contacts, sim=sim, cpl=cpl, loop=loop))

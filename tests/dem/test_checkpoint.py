@@ -141,6 +141,7 @@ def test_progress_of_a_stopped_run(tmp_path, monkeypatch, capsys):
     assert p["t_s"] == pytest.approx(sc.sample_every_s) and p["phase"] == "spin-up"
     assert p["total_s"] == pytest.approx(sc.spin_up_s + sc.record_s)
     assert p["beads"] > 0 and p["wall_s"] > 0 and p["particle_steps_per_s"] > 0
+    assert 0.0 < p["cpu_s"] and p["cpu_per_simulated_s"] == pytest.approx(p["cpu_s"] / p["t_s"])
     assert 0.0 < p["angular_velocity_over_stirrer"] < 1.5
     # the accelerator has no disc faces; a sector without gravity no circumferential figures
     assert "first_bead_layer_angular_velocity_ratio" not in p and "beads_per_bin" not in p

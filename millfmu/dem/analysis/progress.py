@@ -4,7 +4,8 @@ statistics (the full 360-degree slices).
 
 From the run's ``checkpoint.pkl`` (:mod:`millfmu.dem.run`), read only:
 
-- time simulated [s] of the protocol's spin-up + recording, wall time so far [s], cost per
+- time simulated [s] of the protocol's spin-up + recording, wall time so far [s] (with any
+  time the process was stopped), CPU time of all threads [s] (without it), both per
   simulated second [s/s], particle-steps per second, the checkpoint's size per bead [B];
 - the beads' mean angular velocity about the axis over the stirrer's (omega_i = v_perp / r);
 - disc slices: seed 001's first bead layer (centres within 0.75 d of a disc face, inside
@@ -49,6 +50,8 @@ def run_progress(out_dir) -> dict:
                wall_s=wall_s, wall_per_simulated_s=wall_s / t_s if t_s > 0 else math.nan,
                wall_to_go_s=wall_s / t_s * max(total_s - t_s, 0.0) if t_s > 0 else math.nan,
                particle_steps_per_s=sim.n * sim.step_count / wall_s if wall_s > 0 else math.nan,
+               cpu_s=loop.get("cpu_s"),
+               cpu_per_simulated_s=_cpu_per_simulated_s(loop, sim.step_count, dt),
                checkpoint_bytes_per_bead=path.stat().st_size / sim.n,
                kinetic_energy=dict(t_s=list(loop["ke_t"]), e_j=list(loop["ke"])))
     omega = scene.tip_speed_m_s / (g.disc_radius_m or g.shaft_radius_m)
@@ -63,6 +66,15 @@ def run_progress(out_dir) -> dict:
         out["first_bead_layer_beads"] = n
     out.update(circumferential(x, scene.gravity_m_s2, g.sector_deg))
     return out
+
+
+def _cpu_per_simulated_s(loop: dict, step_count: int, dt_s: float) -> float | None:
+    """CPU time of all threads per simulated second [s/s] over the steps it was counted
+    for (from loop's cpu_from_step), None where it was not recorded."""
+    if "cpu_s" not in loop:
+        return None
+    span = (step_count - loop.get("cpu_from_step", 0)) * dt_s
+    return loop["cpu_s"] / span if span > 0 else None
 
 
 def circumferential(x, gravity_m_s2, sector_deg: float) -> dict:
@@ -98,6 +110,9 @@ def progress_lines(p: dict) -> list[str]:
            f"{p['wall_s'] / h:.2f} h, {p['wall_per_simulated_s'] / h:.2f} h per simulated "
            f"second, about {p['wall_to_go_s'] / h:.1f} h to go at that rate (wall time "
            f"since the start, including any time the process was stopped)",
+           (f"CPU time (all threads) {p['cpu_per_simulated_s'] / h:.2f} h per simulated "
+            f"second" if p["cpu_per_simulated_s"] is not None else
+            "CPU time: not recorded (a checkpoint of earlier sources)"),
            f"{p['particle_steps_per_s'] / 1e6:.3g} M particle-steps/s; checkpoint "
            f"{p['checkpoint_bytes_per_bead'] / 1e3:.2f} kB per bead",
            f"beads' mean angular velocity / stirrer's: {p['angular_velocity_over_stirrer']:.3f}"]
