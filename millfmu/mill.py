@@ -223,10 +223,8 @@ class MillModel:
         self._cache = pbm.LRUCache(32)  # exact propagators by (inputs, h)
         self._rate_cache = pbm.LRUCache(64)  # breakage operators by operating point
         self._num_cache = pbm.LRUCache(256)  # scalars by operating point
-        self._log_nodes = np.log(self.operator.nodes_m.ravel())
-        self._log_nodes_list = self._log_nodes.tolist()
-        self._log_edges = np.log(self.grid.edges_m)
-        self._q3_sizes = kgrid.Q3Sizes(self._log_edges, _QUANTILES)  # x10, x50, x90 step after step
+        self._log_nodes = np.log(self.operator.nodes_m.ravel()).tolist()  # a list: see _interp
+        self._q3_sizes = kgrid.Q3Sizes(np.log(self.grid.edges_m), _QUANTILES)  # x10, x50, x90 step after step
         self._psd_in_checked = (None, None)  # (raw bytes, checked fractions) of the last psd_in checked
         self._fed_step = (None, None, None)  # (frozen step, psd_in, the step's feed part [kg]); see _advance
         self._last_frozen = (None, None)  # (key, frozen step) of the last exact step
@@ -623,8 +621,8 @@ class MillModel:
         holdup = tot if (dist is content and not self.material.inert_fragments) else float(content.sum())
         num = num if num is not None else self._op_numbers(op)
         if math.isfinite(x50):
-            sf_nodes = num["sf_nodes"] if num["sf_nodes"] is not None else self._sf_nodes(op, y).ravel()
-            sf = _interp(math.log(x50), self._log_nodes_list, sf_nodes.tolist() if num["sf_nodes"] is None else num["sf_nodes_list"])
+            sf_nodes = num["sf_nodes"] if num["sf_nodes"] is not None else self._sf_nodes(op, y).ravel().tolist()
+            sf = _interp(math.log(x50), self._log_nodes, sf_nodes)
         else:
             sf = 0.0
         out = {
@@ -655,20 +653,15 @@ class MillModel:
 
     def _op_numbers(self, op) -> dict:
         """Scalars of an operating point (cached: the hot path recomputes nothing)."""
-        return self._num_cache.get(op, lambda: self._build_op_numbers(op))
-
-    def _build_op_numbers(self, op) -> dict:
-        # SF per node is state-independent unless capture = 'psd'.
-        sf = None if self.capture_from_psd else self._sf_nodes(op, None).ravel()
-        return {
+        return self._num_cache.get(op, lambda: {
             "se_beads_J": op.se_beads_J,
             "se_product_J": op.se_product_J,
             "power_W": self.power_W(op),
             "eta_eff_Pa_s": op.eta_eff_Pa_s,
             "reynolds": op.reynolds,
-            "sf_nodes": sf,
-            "sf_nodes_list": None if sf is None else sf.tolist(),
-        }
+            # SF per node (a list: see _interp) is state-independent unless capture = 'psd'.
+            "sf_nodes": None if self.capture_from_psd else self._sf_nodes(op, None).ravel().tolist(),
+        })
 
     def _sf_nodes(self, op, y):
         if self.kinetics_model == "none":

@@ -146,14 +146,7 @@ def characteristic_sizes_m(grid: SizeGrid, fractions: np.ndarray, qs, below: flo
     """Sizes [m] at which Q3 reaches each of ``qs``; same rules as :func:`characteristic_size_m`,
     except that Q3 at the lowest edge is ``below``, the part of the finest class's fraction
     that lies below the grid: a size whose Q3 is within it is reported as the lowest edge."""
-    return sizes_at_log_edges(np.log(grid.edges_m), fractions, np.asarray(qs, dtype=float), below)
-
-
-def sizes_at_log_edges(log_edges: np.ndarray, fractions: np.ndarray, q: np.ndarray, below: float = 0.0) -> tuple:
-    """:func:`characteristic_sizes_m` with the grid's ln(edges) given: sizes [m] at the Q3
-    levels ``q`` (an array)."""
-    f = np.asarray(fractions, dtype=float)
-    return sizes_from_cumulative(np.asarray(log_edges).tolist(), f.cumsum(), np.asarray(q, dtype=float).tolist(), below)
+    return sizes_from_cumulative(np.log(grid.edges_m), np.asarray(fractions, dtype=float).cumsum(), qs, below)
 
 
 def sizes_from_cumulative(log_edges, cum: np.ndarray, q, below: float = 0.0) -> tuple:

@@ -236,21 +236,8 @@ class FluidSolver:
         self.om_shaft = self.omega if self.grid.shaft_rotates else 0.0
         self.fixed_t[:] = np.where(self._rot_t, self.omega * self.rc[:, None, None], 0.0)
         self.wall_om = self._wom_rot * self.omega
-        self._theta_drag()
-        self._apply_fixed()
-
-    def _theta_drag(self):
-        """kd_t_all, sd_t_all: the beads' theta drag plus the vanes' (driven cells):
-        K_v = eps rho / VANE_SLIP_TIME_S towards u_theta = omega r."""
-        kv = np.where(self._driven, self.eps_t * self.rho / VANE_SLIP_TIME_S, 0.0)
-        self.kd_t_all[:] = self.kd_t + kv
-        self.sd_t_all[:] = self.sd_t + kv * self.omega * self.rc[:, None, None]
-
-    def _apply_fixed(self):
-        self.ur[self.kr != 0] = 0.0
-        self.uz[self.kz != 0] = 0.0
-        m = self.kt != 0
-        self.ut[m] = self.fixed_t[m]
+        self.SK.theta_drag_and_fixed(self._F, self._K, self._driven, self.rc, self.rho,
+                                     VANE_SLIP_TIME_S, self.omega)
 
     def init_turbulence(self, k_m2_s2: float, length_m: float):
         """Uniform initial k [m2/s2] and epsilon = C_mu^(3/4) k^(3/2) / length [m2/s3]."""

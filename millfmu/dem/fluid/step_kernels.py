@@ -191,13 +191,11 @@ def stable_dt(ur, ut, uz, nu_t, rc, dr, dth, dz, nu, cfl):
 @serial
 def take_beads(F, K, driven, eps_c, eps_r, eps_t, eps_z, kd_r, kd_t, kd_z, sd_r, sd_t, sd_z,
                rc, rho, slip_s, omega):
-    """:meth:`millfmu.dem.fluid.solver.FluidSolver.set_beads` in one pass over the nodes
+    """:meth:`millfmu.dem.fluid.solver.FluidSolver.set_beads` in two passes over the nodes
     (some twenty numpy calls before, each a pass): velocities rescaled by eps_old / eps_new
-    (the node momenta kept), the new void fractions, drag coefficients and sources, the
-    theta drag of beads and vanes together (driven theta nodes: K_v = eps rho / slip_s
-    towards omega r), the fixed nodes' velocities. The same arithmetic, element by element,
-    as the numpy calls."""
-    kr, kt, kz = K[KR], K[KTH], K[KZ]
+    (the node momenta kept), the new void fractions, drag coefficients and sources; then
+    :func:`theta_drag_and_fixed`. The same arithmetic, element by element, as the numpy
+    calls."""
     ur, ut, uz = F[UR], F[UT], F[UZ]
     er, et, ez = F[EPSR], F[EPST], F[EPSZ]
     nr1, nt, nz = ur.shape
@@ -208,8 +206,6 @@ def take_beads(F, K, driven, eps_c, eps_r, eps_t, eps_z, kd_r, kd_t, kd_z, sd_r,
                 er[i, j, k] = eps_r[i, j, k]
                 F[KDR][i, j, k] = kd_r[i, j, k]
                 F[SDR][i, j, k] = sd_r[i, j, k]
-                if kr[i, j, k] != 0:
-                    ur[i, j, k] = 0.0
     for i in range(nr1 - 1):
         for j in range(nt):
             for k in range(nz):
@@ -223,11 +219,31 @@ def take_beads(F, K, driven, eps_c, eps_r, eps_t, eps_z, kd_r, kd_t, kd_z, sd_r,
                 F[KDZ][i, j, k] = kd_z[i, j, k]
                 F[SDT][i, j, k] = sd_t[i, j, k]
                 F[SDZ][i, j, k] = sd_z[i, j, k]
+    theta_drag_and_fixed(F, K, driven, rc, rho, slip_s, omega)
+
+
+@serial
+def theta_drag_and_fixed(F, K, driven, rc, rho, slip_s, omega):
+    """The theta drag of beads and vanes together, (KDTA, SDTA) = (KDT, SDT) + K_v (1, omega
+    r) with K_v = eps rho / slip_s at driven theta nodes (the vanes hold the swirl at omega
+    r), 0 elsewhere; then the fixed nodes' velocities (u_r, u_z 0, u_theta FIXT). After the
+    beads' fields (take_beads) and a new rotor speed (FluidSolver.set_omega)."""
+    kr, kt, kz = K[KR], K[KTH], K[KZ]
+    ur, ut, uz = F[UR], F[UT], F[UZ]
+    et = F[EPST]
+    nr1, nt, nz = ur.shape
+    for i in range(nr1):
+        for j in range(nt):
+            for k in range(nz):
+                if kr[i, j, k] != 0:
+                    ur[i, j, k] = 0.0
+    for i in range(nr1 - 1):
+        for j in range(nt):
+            for k in range(nz):
                 kv = et[i, j, k] * rho / slip_s if driven[i, j, k] else 0.0
-                F[KDTA][i, j, k] = kd_t[i, j, k] + kv
-                F[SDTA][i, j, k] = sd_t[i, j, k] + kv * omega * rc[i]
+                F[KDTA][i, j, k] = F[KDT][i, j, k] + kv
+                F[SDTA][i, j, k] = F[SDT][i, j, k] + kv * omega * rc[i]
                 if kz[i, j, k] != 0:
                     uz[i, j, k] = 0.0
                 if kt[i, j, k] != 0:
                     ut[i, j, k] = F[FIXT][i, j, k]
-

@@ -80,7 +80,8 @@ KERNEL_MODULES = {
 #: before, by default) and a start without the spurious first increment of the springs
 #: (scenes start without contacts, so the same), and model A's pressure-gradient timing
 #: chosen by name (the previous interval's, as before, by default), the liquid taking the
-#: beads' fields in one kernel, the deposit one thread per column, and the force buffers
+#: beads' fields in one kernel (whose theta drag and fixed nodes a new rotor speed shares),
+#: the deposit one thread per column, and the force buffers
 #: zeroed by the reduction that sums them (f, t stored at a run's end only), the liquid's
 #: per-edge helpers and the exchange's per-bead helpers inlined (checked with numba's cache
 #: emptied: a cached kernel does not see a change in the helpers it calls from another
@@ -108,6 +109,8 @@ SAME_DEM_AS = {
     "sha256:1f26a6d8d9f7ce97b3606c5143fbc3d2ae445afd3b9e337557f8178eea4db22d":
         "sha256:cc5c174862c188a675fdb35932f269eb61ae82876e3d110866af2b7a62b0d3bd",
     "sha256:fd656f5742f3053fc067f26f665e049b94646bea8e2a0c97ce58c5f3e8077676":
+        "sha256:cc5c174862c188a675fdb35932f269eb61ae82876e3d110866af2b7a62b0d3bd",
+    "sha256:440c9e86aca0bd2dc3fa7c9f3c760c44ae5b50b1ee8d53ef97d67317ced8684e":
         "sha256:cc5c174862c188a675fdb35932f269eb61ae82876e3d110866af2b7a62b0d3bd",
 }
 
