@@ -19,9 +19,9 @@ Only the kernel modules import this file, and only when a DEM run is requested, 
   times slower and the beads' deposit pass 1.6 times.
 
 Threading layer: OpenMP (numba's ``omp`` layer), else ``workqueue``, unless
-NUMBA_THREADING_LAYER is set; OpenMP's idle threads wait passively (OMP_WAIT_POLICY=passive
-unless set). Measured on the DEM bench bed (1000 steps, shared 2-core machine, M
-particle-steps/s):
+NUMBA_THREADING_LAYER is set; OpenMP's idle threads spin briefly, then sleep
+(GOMP_SPINCOUNT=1000 unless it or OMP_WAIT_POLICY is set). Measured on the DEM bench bed
+(1000 steps, shared 2-core machine, M particle-steps/s):
 - TBB, which numba picks by default where libtbb is installed (numba 0.68, libtbb
   2021/2022), keeps about 7 kB per parallel launch and makes every launch slower than the
   one before: a DEM run launches two or three per step, so its cost grew with the square
@@ -32,7 +32,18 @@ particle-steps/s):
 - OpenMP with its default active waiting (threads spin after a launch): 7.7-8.3 for one
   run, but 2.2 each for two runs side by side, since the spinning takes the other run's
   core.
-- OpenMP with passive waiting: 7.5 for one run and 4.4 each for two, the best of both.
+- OpenMP with passive waiting: 7.5 for one run and 4.4 each for two. A sleeping thread
+  takes about 45 us to wake on this (virtual) machine, against 1.2 us for a spinning one
+  (an empty 2-thread launch): nothing on a bed of 52 k beads (a step of about 6 ms), but a
+  10-degree disc_slice sector of 6,536 beads takes about 0.4 ms per step, two launches.
+- OpenMP spinning 1000 times before it sleeps (tens of microseconds) on that sector, 2
+  threads, 200 steps after the start: DEM 15.5 M particle-steps/s against 13.1 passive,
+  coupled 10.8 against 9.4; 2000 steps later, with more contacts per step, 11.3 against
+  10.2 and 9.2 against 9.0 (the host's noise is of that size); the bench beds of 25 and 52 k
+  beads: no difference beyond the noise. Two such runs side by side (four threads on two
+  cores) 7.4 each against 8.3 passive (3000 spins: 6.0; 30000: 1.7). One run per machine is
+  the usual case, and a build's workers run one thread each, so the short spin is the
+  default; OMP_WAIT_POLICY=passive restores sleeping at once.
 - One thread per process (the tables' builds) runs no team, so the layers do not differ.
 GNU OpenMP is not fork safe: a process that has run a parallel kernel must not fork a
 child that runs one (numba stops such a child). The tables' process pool therefore spawns
@@ -48,8 +59,12 @@ if "NUMBA_THREADING_LAYER" not in os.environ:
     # numba wants all three named; workqueue always loads, so TBB is never reached
     numba.config.THREADING_LAYER_PRIORITY = ["omp", "workqueue", "tbb"]
     numba.config.THREADING_LAYER = "default"
-# read by the OpenMP runtime when it loads, at the first parallel launch
-os.environ.setdefault("OMP_WAIT_POLICY", "passive")
+# read by the OpenMP runtime when it loads, at the first parallel launch: idle threads spin
+# SPIN_COUNT times (GNU OpenMP, tens of microseconds), then sleep; either variable set by
+# the user wins
+SPIN_COUNT = 1000
+if "OMP_WAIT_POLICY" not in os.environ and "GOMP_SPINCOUNT" not in os.environ:
+    os.environ["GOMP_SPINCOUNT"] = str(SPIN_COUNT)
 
 FLAGS = dict(cache=True, nogil=True, fastmath=False, error_model="numpy",
              boundscheck=False)

@@ -403,6 +403,18 @@ class DemSimulation:
 
         K = self.K
         numba.set_num_threads(self.threads)
+        # every parallel loop of a DEM step runs over the chunks, whose work differs (their
+        # pairs and wall contacts): hand them out one at a time
+        # as threads come free instead of numba's equal static blocks (dilute bench bed on
+        # 2 threads: 26.5 M particle-steps/s against 23.8); the results do not change,
+        # since each chunk sums into its own buffer. Set per call, as numba keeps it per
+        # calling thread, and restored after, for the coupled liquid's loops over cells.
+        with numba.parallel_chunksize(1):
+            return self._run_cpu(nsteps, record)
+
+    def _run_cpu(self, nsteps: int, record: bool) -> StepStats:
+        """run() on the CPU (numba's thread count and chunk size set by the caller)."""
+        K = self.K
         if self.sort_every_steps and self.step_count - self._last_sort >= self.sort_every_steps:
             self._sort()
         done = 0

@@ -599,9 +599,15 @@ def profile_sim(sim, steps: int, out=print) -> dict:
     simulation advances (recording contacts, which are discarded)."""
     import numba
 
+    numba.set_num_threads(sim.threads)
+    # as DemSimulation.run: chunks handed out one at a time
+    with numba.parallel_chunksize(1):
+        return _profile_sim(sim, steps, out)
+
+
+def _profile_sim(sim, steps, out):
     from millfmu.dem.engine import kernels as K
 
-    numba.set_num_threads(sim.threads)
     s = sim
     tm = {k: np.zeros(2) for k in PHASES}
 
