@@ -27,7 +27,8 @@ def register(subparsers) -> argparse.ArgumentParser:
     r.add_argument("--checkpoint-every", type=float, dest="checkpoint_every_s", metavar="S",
                    help="keep OUT/checkpoint.pkl, the run's whole state, written every S "
                         "seconds of wall time (removed when the run ends), so that a stopped "
-                        "run goes on with --resume")
+                        "run goes on with --resume (which keeps the interval the run was "
+                        "started with unless given)")
     r.add_argument("--resume", metavar="DIR", help="go on with the stopped run in DIR from its "
                    "checkpoint (its scene and options; --threads and --checkpoint-every may "
                    "be given); the outputs are those of a run that was not stopped")

@@ -142,6 +142,9 @@ def bead_angular_momentum_kgm2_s(sim) -> float:
 CHECKPOINT = "checkpoint.pkl"
 #: layout of a checkpoint (a later layout refuses an older file by name)
 CHECKPOINT_FORMAT = 1
+#: [s of wall time] checkpoint interval of a resumed run whose checkpoint does not record
+#: the one it was started with (made by earlier sources)
+RESUME_CHECKPOINT_EVERY_S = 600.0
 
 
 class _Pickler(pickle.Pickler):
@@ -191,9 +194,12 @@ def resume_run(out_dir, progress: bool = True, threads: int | None = None,
                checkpoint_every_s: float | None = None) -> DemStats:
     """Go on with the run whose ``checkpoint.pkl`` is in ``out_dir`` (its scene, windows
     and contacts option as it was started; ``threads`` may differ, the results do not
-    while the threads are no more than the beads' chunks); returns the statistics. Refused
-    by name (DemRunError) where there is no checkpoint, or one of another layout or made by
-    other DEM sources."""
+    while the threads are no more than the beads' chunks); returns the statistics. It goes
+    on writing checkpoints every ``checkpoint_every_s`` [s of wall time], by default the
+    interval the run was started with (RESUME_CHECKPOINT_EVERY_S for a checkpoint of
+    earlier sources, which did not record it): a resumed run that wrote none lost all it
+    did when it was stopped again. Refused by name (DemRunError) where there is no
+    checkpoint, or one of another layout or made by other DEM sources."""
     state = load_checkpoint(out_dir)
     path = Path(out_dir) / CHECKPOINT
     from millfmu.dem.tables.cache import SAME_DEM_AS
@@ -205,6 +211,8 @@ def resume_run(out_dir, progress: bool = True, threads: int | None = None,
                           f"these are {here}: run the scene again")
     if threads is not None:
         state["sim"].threads = int(threads)
+    if checkpoint_every_s is None:
+        checkpoint_every_s = state.get("checkpoint_every_s", RESUME_CHECKPOINT_EVERY_S)
     return run_scene(state["scene"], out_dir, progress=progress, window_s=state["window_s"],
                      contacts=state["contacts"], checkpoint_every_s=checkpoint_every_s,
                      _state=state)
@@ -365,7 +373,8 @@ def run_scene(scene: DemScene, out_dir, progress: bool = True, threads: int | No
                         cpu_s=time.process_time() - t_cpu)
             _write_checkpoint(ckpt, dict(
                 format=CHECKPOINT_FORMAT, kernel_version=version, scene=scene,
-                window_s=window_s, contacts=contacts, sim=sim, cpl=cpl, loop=loop))
+                window_s=window_s, contacts=contacts, checkpoint_every_s=checkpoint_every_s,
+                sim=sim, cpl=cpl, loop=loop))
             t_check = time.perf_counter()
     if bar is not None:
         bar.close()

@@ -58,6 +58,12 @@ def test_a_stopped_run_resumes_to_the_same_outputs(tmp_path, monkeypatch):
         R.run_scene(_scene(), parts, progress=False, threads=1)
     assert (parts / R.CHECKPOINT).read_bytes() == before
     monkeypatch.setattr(R, "_write_checkpoint", write)
+    written = []
+
+    def write_then_count(path, state):
+        write(path, state)
+        written.append(state["checkpoint_every_s"])
+
     # made by earlier sources that give the same results to the digit (SAME_DEM_AS): resumed
     import pickle
 
@@ -69,8 +75,11 @@ def test_a_stopped_run_resumes_to_the_same_outputs(tmp_path, monkeypatch):
     R._write_checkpoint(parts / R.CHECKPOINT, state)
     same = {"sha256:earlier": "sha256:shipped", here: "sha256:shipped"}
     monkeypatch.setattr(cache, "SAME_DEM_AS", same)
-    # resumed from the command line, as a user would
+    # resumed from the command line, as a user would; it goes on writing checkpoints at
+    # the interval the run was started with (none given here)
+    monkeypatch.setattr(R, "_write_checkpoint", write_then_count)
     assert dem_main(["run", "--resume", str(parts), "--no-progress"]) == 0
+    assert written and set(written) == {1e-9}
     assert not (parts / R.CHECKPOINT).exists()
     assert _stats(parts) == _stats(whole)
     for f in ("fluid_fields.npz", "bead_samples.npz"):
