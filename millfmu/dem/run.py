@@ -371,6 +371,10 @@ def run_scene(scene: DemScene, out_dir, progress: bool = True, threads: int | No
                         fluid_samples=fluid_samples, budget0=budget0,
                         wall_s=time.perf_counter() - t_wall,
                         cpu_s=time.process_time() - t_cpu)
+            # (step, wall s, CPU s) at every checkpoint: the recent pace for `dem progress`
+            # (the mean since the start mixes in any slower or paused stretch)
+            loop.setdefault("checkpoints", []).append(
+                (sim.step_count, loop["wall_s"], loop["cpu_s"]))
             _write_checkpoint(ckpt, dict(
                 format=CHECKPOINT_FORMAT, kernel_version=version, scene=scene,
                 window_s=window_s, contacts=contacts, checkpoint_every_s=checkpoint_every_s,

@@ -134,9 +134,13 @@ def test_progress_of_a_stopped_run(tmp_path, monkeypatch, capsys):
     its cost, the bed's angular velocity; a folder without one is refused by name."""
     write = R._write_checkpoint
 
+    written = []
+
     def write_then_stop(path, state):
         write(path, state)
-        raise Stopped
+        written.append(1)
+        if len(written) == 2:
+            raise Stopped
 
     monkeypatch.setattr(R, "_write_checkpoint", write_then_stop)
     with pytest.raises(Stopped):
@@ -144,10 +148,18 @@ def test_progress_of_a_stopped_run(tmp_path, monkeypatch, capsys):
     assert dem_main(["progress", str(tmp_path)]) == 0
     text = capsys.readouterr().out
     assert "accelerator_slice" in text and "h per simulated second" in text
+    assert "between the last two checkpoints" in text
     assert dem_main(["progress", str(tmp_path), "--json"]) == 0
     p = json.loads(capsys.readouterr().out)
     sc = _scene()
-    assert p["t_s"] == pytest.approx(sc.sample_every_s) and p["phase"] == "spin-up"
+    assert p["t_s"] == pytest.approx(2 * sc.sample_every_s)
+    assert p["phase"] == ("spin-up" if p["t_s"] < sc.spin_up_s else "recording")
+    # the pace between the two checkpoints, one sample apart
+    (s0, w0, c0), (s1, w1, c1) = R.load_checkpoint(tmp_path)["loop"]["checkpoints"]
+    assert (s1 - s0) * sc.dt_s == pytest.approx(sc.sample_every_s)
+    assert p["recent_wall_per_simulated_s"] == pytest.approx((w1 - w0) / sc.sample_every_s)
+    assert p["recent_wall_to_go_s"] == pytest.approx(
+        p["recent_wall_per_simulated_s"] * (p["total_s"] - p["t_s"]))
     assert p["total_s"] == pytest.approx(sc.spin_up_s + sc.record_s)
     assert p["beads"] > 0 and p["wall_s"] > 0 and p["particle_steps_per_s"] > 0
     assert 0.0 < p["cpu_s"] and p["cpu_per_simulated_s"] == pytest.approx(p["cpu_s"] / p["t_s"])

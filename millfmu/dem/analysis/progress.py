@@ -7,6 +7,9 @@ From the run's ``checkpoint.pkl`` (:mod:`millfmu.dem.run`), read only:
 - time simulated [s] of the protocol's spin-up + recording, wall time so far [s] (with any
   time the process was stopped), CPU time of all threads [s] (without it), both per
   simulated second [s/s], particle-steps per second, the checkpoint's size per bead [B];
+  and the recent pace, between the last two checkpoints (wall and CPU time per simulated
+  second, the wall time to go at that pace), where the run has written two since it was
+  last started or resumed by these sources or later;
 - the beads' mean angular velocity about the axis over the stirrer's (omega_i = v_perp / r);
 - disc slices: seed 001's first bead layer (centres within 0.75 d of a disc face, inside
   the disc radius; section 3.2) at this instant, over the stirrer's angular velocity;
@@ -54,6 +57,7 @@ def run_progress(out_dir) -> dict:
                cpu_per_simulated_s=_cpu_per_simulated_s(loop, sim.step_count, dt),
                checkpoint_bytes_per_bead=path.stat().st_size / sim.n,
                kinetic_energy=dict(t_s=list(loop["ke_t"]), e_j=list(loop["ke"])))
+    out.update(recent_pace(loop.get("checkpoints", []), dt, total_s - t_s, sim.n))
     omega = scene.tip_speed_m_s / (g.disc_radius_m or g.shaft_radius_m)
     x, v = sim.x, sim.v
     r = np.hypot(x[:, 0], x[:, 1])
@@ -66,6 +70,22 @@ def run_progress(out_dir) -> dict:
         out["first_bead_layer_beads"] = n
     out.update(circumferential(x, scene.gravity_m_s2, g.sector_deg))
     return out
+
+
+def recent_pace(checkpoints, dt_s: float, to_go_s: float, beads: int) -> dict:
+    """Pace between the last two of ``checkpoints`` [(step, wall s, CPU s), ...]: wall and
+    CPU time per simulated second [s/s], particle-steps per second and the wall time to go
+    [s] for ``to_go_s`` [s] more at that pace; {} with fewer than two or no step between."""
+    if len(checkpoints) < 2:
+        return {}
+    (s0, w0, c0), (s1, w1, c1) = checkpoints[-2], checkpoints[-1]
+    span = (s1 - s0) * dt_s
+    if span <= 0.0:
+        return {}
+    wall = (w1 - w0) / span
+    return dict(recent_wall_per_simulated_s=wall, recent_cpu_per_simulated_s=(c1 - c0) / span,
+                recent_particle_steps_per_s=beads * (s1 - s0) / max(w1 - w0, 1e-300),
+                recent_wall_to_go_s=wall * max(to_go_s, 0.0))
 
 
 def _cpu_per_simulated_s(loop: dict, step_count: int, dt_s: float) -> float | None:
@@ -114,8 +134,14 @@ def progress_lines(p: dict) -> list[str]:
             f"second" if p["cpu_per_simulated_s"] is not None else
             "CPU time: not recorded (a checkpoint of earlier sources)"),
            f"{p['particle_steps_per_s'] / 1e6:.3g} M particle-steps/s; checkpoint "
-           f"{p['checkpoint_bytes_per_bead'] / 1e3:.2f} kB per bead",
-           f"beads' mean angular velocity / stirrer's: {p['angular_velocity_over_stirrer']:.3f}"]
+           f"{p['checkpoint_bytes_per_bead'] / 1e3:.2f} kB per bead"]
+    if "recent_wall_per_simulated_s" in p:
+        out.append(f"between the last two checkpoints: {p['recent_wall_per_simulated_s'] / h:.2f}"
+                   f" h wall ({p['recent_cpu_per_simulated_s'] / h:.2f} h CPU) per simulated "
+                   f"second, {p['recent_particle_steps_per_s'] / 1e6:.3g} M particle-steps/s; "
+                   f"about {p['recent_wall_to_go_s'] / h:.1f} h to go at that pace")
+    out.append(f"beads' mean angular velocity / stirrer's: "
+               f"{p['angular_velocity_over_stirrer']:.3f}")
     if "first_bead_layer_angular_velocity_ratio" in p:
         out.append(f"first bead layer (within 0.75 d of a disc face) / stirrer's: "
                    f"{p['first_bead_layer_angular_velocity_ratio']:.3f} "

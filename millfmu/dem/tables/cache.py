@@ -88,7 +88,8 @@ KERNEL_MODULES = {
 #: file), and the coupled step's kernel modules and the numba flags counted in the hash
 #: (they were not), and the DEM's chunks handed to threads one at a time and OpenMP's
 #: short spin before its threads sleep (the same results on one thread and, as before, on
-#: two), and a resumed run that keeps its checkpoint interval. A checkpoint made by one of these sources resumes under another
+#: two), a resumed run that keeps its checkpoint interval, and checkpoints that list the
+#: step, wall and CPU time of each (for the recent pace). A checkpoint made by one of these sources resumes under another
 #: (run.resume_run). Any
 #: other change of these sources gives a new hash, and a new version.
 SAME_DEM_AS = {
@@ -117,6 +118,8 @@ SAME_DEM_AS = {
     "sha256:71aff4427c81e0c03bf765726fffe34203be9ddcf975680f01667e53e7c6f2a1":
         "sha256:cc5c174862c188a675fdb35932f269eb61ae82876e3d110866af2b7a62b0d3bd",
     "sha256:6b286e37b124290f387cd763133f2d9dc64435ae3cfcc08aabca224eb10fd33a":
+        "sha256:cc5c174862c188a675fdb35932f269eb61ae82876e3d110866af2b7a62b0d3bd",
+    "sha256:a41ae236e3021380e493b51d2994e88f02ae008740069460f87480d511ed4166":
         "sha256:cc5c174862c188a675fdb35932f269eb61ae82876e3d110866af2b7a62b0d3bd",
 }
 
