@@ -406,7 +406,8 @@ class DemSimulation:
         # every parallel loop of a DEM step runs over the chunks, whose work differs (their
         # pairs and wall contacts): hand them out one at a time
         # as threads come free instead of numba's equal static blocks (dilute bench bed on
-        # 2 threads: 26.5 M particle-steps/s against 23.8); the results do not change,
+        # 2 threads, four alternating pairs: 23.8-24.4 M particle-steps/s against
+        # 23.1-23.8); the results do not change,
         # since each chunk sums into its own buffer. Set per call, as numba keeps it per
         # calling thread, and restored after, for the coupled liquid's loops over cells.
         with numba.parallel_chunksize(1):
