@@ -50,6 +50,7 @@ import numpy as np
 
 from millfmu.dem.analysis import flow_structure as FS
 from millfmu.dem.analysis import plots, snapshots
+from millfmu.dem.analysis.progress import circumferential
 from millfmu.dem.analysis.stats import DemStats, compute_stats
 from millfmu.dem.coupling.cfd_dem import CfdDem
 from millfmu.dem.engine.sim import DemSimulation
@@ -581,6 +582,11 @@ def flow_summary(scene, sim, cpl, sx, sv, torques, budget0, fields, substeps) ->
             turbulent_viscosity_max_m2_s=float(np.nanmax(fields["nu_t"])) if fields else None)
     out["power_w"] = {k.replace("_nm", "_w"): v * om for k, v in torque.items()}
     out["torque"] = torque
+    # a full slice with gravity across the axis: where the beads sit round the circle, time
+    # mean over the recording's samples (seed 001's asymmetry, seed 002's figure 8)
+    circ = circumferential(sx, scene.gravity_m_s2, g.sector_deg)
+    if circ:
+        out["circumferential"] = circ
     if not g.has_disc:
         return out
     if g.has_channel:

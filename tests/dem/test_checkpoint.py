@@ -189,3 +189,40 @@ def test_circumferential_distribution_hand_case():
     assert c["largest_over_smallest_bin"] == 3.0  # empty bins count as one
     assert circumferential(x, (0.0, 0.0, 0.0), 360.0) == {}
     assert circumferential(x, (0.0, -9.81, 0.0), 60.0) == {}
+    # time mean over samples (a run's recording): the second sample moves the bead at 200
+    # degrees to 300 (bin 7) and one at 100 to 20 (bin 9)
+    ang2 = deg(np.array([100, 100, 20, 300, 300, 300, 20, 20], dtype=float))
+    x2 = np.column_stack([np.cos(ang2), np.sin(ang2), np.zeros(8)]) * 0.02
+    m = circumferential([x, x2], (0.0, -9.81, 0.0), 360.0)
+    assert m["samples"] == 2
+    assert m["beads_per_bin"] == [2.5, 0, 0, 0.5, 0, 0, 0, 2.5, 0, 2.5, 0, 0]
+    assert m["per_bin_over_mean"][0] == pytest.approx(2.5 / (8 / 12))
+    assert m["rising_over_falling_half"] == pytest.approx(10 / 6)
+    assert m["upper_over_lower_half"] == pytest.approx(10 / 6)
+    assert m == circumferential(np.stack([x, x2]), (0.0, -9.81, 0.0), 360.0)
+    assert circumferential([], (0.0, -9.81, 0.0), 360.0) == {}
+
+
+def test_full_slice_with_gravity_reports_the_time_mean_circumferential_distribution(tmp_path):
+    """A full slice with gravity across the axis writes the circumferential distribution
+    of its recording (flow.circumferential), the time mean over the recorded samples: every
+    bead in some bin at every sample, and the figures those samples give."""
+    from millfmu.dem.analysis.progress import circumferential
+
+    sc = load_scene("annulus").with_overrides(gravity_m_s2=(0.0, -9.81, 0.0), spin_up_s=5e-5,
+                                              record_s=1.5e-4, sample_every_s=5e-5)
+    st = R.run_scene(sc, tmp_path, progress=False, threads=1)
+    c = st.flow["circumferential"]
+    assert c["samples"] == 3 and c["azimuth_bin_deg"] == 30.0
+    assert sum(c["beads_per_bin"]) == pytest.approx(st.beads)
+    assert np.mean(c["per_bin_over_mean"]) == pytest.approx(1.0)
+    # the beads barely move in 1.5e-4 s: the mean is (nearly) the placement's distribution
+    x0 = R.make_simulation(sc, 1)[0].x
+    c0 = circumferential(x0, sc.gravity_m_s2, 360.0)
+    assert c["rising_over_falling_half"] == pytest.approx(c0["rising_over_falling_half"],
+                                                          rel=0.02)
+    # a sector without gravity has none
+    st2 = R.run_scene(load_scene("annulus").with_overrides(
+        spin_up_s=5e-5, record_s=5e-5, sample_every_s=5e-5), tmp_path / "no_g",
+        progress=False, threads=1)
+    assert "circumferential" not in st2.flow
