@@ -459,6 +459,9 @@ def run_scene(scene: DemScene, out_dir, progress: bool = True, threads: int | No
     if fields is not None:
         np.savez(out / "fluid_fields.npz", **fields)
         plots.write_fluid_maps(out, scene, fields)
+    if "circumferential" in stats.flow:
+        plots.write_circumferential(out / "circumferential.png", scene,
+                                    stats.flow["circumferential"])
     if "swirl_profile_at_disc_radius" in stats.flow:
         plots.write_swirl_profile(out / "swirl_profile.png", scene,
                                   stats.flow["swirl_profile_at_disc_radius"])

@@ -216,6 +216,7 @@ def test_full_slice_with_gravity_reports_the_time_mean_circumferential_distribut
     assert c["samples"] == 3 and c["azimuth_bin_deg"] == 30.0
     assert sum(c["beads_per_bin"]) == pytest.approx(st.beads)
     assert np.mean(c["per_bin_over_mean"]) == pytest.approx(1.0)
+    assert (tmp_path / "circumferential.png").stat().st_size > 0
     # the beads barely move in 1.5e-4 s: the mean is (nearly) the placement's distribution
     x0 = R.make_simulation(sc, 1)[0].x
     c0 = circumferential(x0, sc.gravity_m_s2, 360.0)

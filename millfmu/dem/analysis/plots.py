@@ -292,3 +292,36 @@ def write_swirl_profile(path: Path, scene, prof: dict):
     fig.tight_layout()
     fig.savefig(path, dpi=110)
     plt.close(fig)
+
+
+def write_circumferential(path: Path, scene, circ: dict):
+    """Where the beads sit round the circle of a full slice with gravity (``circ``, the
+    run's ``flow.circumferential``): beads per azimuthal bin over the mean of the bins,
+    the azimuth counted from the top (against gravity) in the direction of rotation; the
+    rising half (the stirrer moving upwards, 180-360 degrees) shaded."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    rel = np.asarray(circ["per_bin_over_mean"], float)
+    w = float(circ["azimuth_bin_deg"])
+    centres = w * (np.arange(rel.size) + 0.5)
+    fig, ax = plt.subplots(figsize=(6, 4))
+    ax.axvspan(180.0, 360.0, color="0.92", lw=0)
+    ax.bar(centres, rel, width=0.85 * w, color="tab:blue")
+    ax.axhline(1.0, color="k", lw=0.8, ls="--")
+    lo, hi = float(rel.min()), float(rel.max())
+    pad = max(0.02, 0.25 * (hi - lo))
+    ax.set_ylim(min(lo - pad, 0.98), max(hi + pad, 1.02))
+    ax.set_xlim(0.0, 360.0)
+    ax.set_xticks(np.arange(0.0, 361.0, 60.0))
+    ax.set_xlabel("azimuth from the top, in the direction of rotation [deg]")
+    ax.set_ylabel("beads per bin / mean of the bins [-]")
+    ax.set_title(f"{scene.name}: time mean of {circ['samples']} samples; shaded: rising "
+                 f"half\nlargest / smallest bin {circ['largest_over_smallest_bin']:.3f}, "
+                 f"rising / falling half {circ['rising_over_falling_half']:.3f}, upper / "
+                 f"lower half {circ['upper_over_lower_half']:.3f}", fontsize=9)
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
