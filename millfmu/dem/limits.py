@@ -17,6 +17,8 @@ DISC_SLICE_FILLING = (0.5, 0.9)
 #: section 3.2) and bead filling [-] (seed 002: 0.6-0.9).
 ACCELERATOR_RPM_RANGE = (400.0, 1600.0)
 ACCELERATOR_FILLING = (0.5, 0.9)
+#: coupled liquid: the widest theta cell [rad] of its grid (n_theta > 1)
+MAX_THETA_CELL_RAD = 0.5
 
 
 def point_ranges(scene: dict) -> dict:

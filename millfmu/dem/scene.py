@@ -38,7 +38,8 @@ KINDS = ("annulus", "disc_slice", "accelerator_slice")
 #: rotor speeds of seed 002 are 800-1400 rpm (and 400 rpm in its section 3.2); the ranges
 #: of each kind live in millfmu.dem.limits, which reads them without the engine
 from millfmu.dem.limits import (ACCELERATOR_FILLING, ACCELERATOR_RPM_RANGE,  # noqa: E402
-                                DISC_SLICE_FILLING, DISC_SLICE_TIP_SPEED_M_S)
+                                DISC_SLICE_FILLING, DISC_SLICE_TIP_SPEED_M_S,
+                                MAX_THETA_CELL_RAD)
 FLUID_MODES = ("coupled", "prescribed", "none")
 #: coupling schemes of the coupled fluid ([fluid.coupled] scheme): volume-averaged
 #: Navier-Stokes (millfmu.dem.coupling.cfd_dem) or a dilute discrete phase model
@@ -219,6 +220,16 @@ def _check_ranges(s: DemScene):
         _positive(name, v)
     if s.spin_up_s < 0:
         raise DemSceneError(f"run.spin_up_s = {s.spin_up_s!r}: must be >= 0")
+    c = s.coupling
+    if s.fluid_mode == "coupled" and c is not None and c.n_theta > 1:
+        sector = math.radians(s.geometry.sector_deg)
+        if sector / c.n_theta > MAX_THETA_CELL_RAD:
+            need = math.ceil(sector / MAX_THETA_CELL_RAD - 1e-12)
+            raise DemSceneError(
+                f"fluid.coupled.n_theta = {c.n_theta}: theta cells of "
+                f"{sector / c.n_theta:.3g} rad over the {s.geometry.sector_deg:g} degree "
+                f"sector, wider than the {MAX_THETA_CELL_RAD:g} rad the liquid's grid allows; "
+                f"use 1 (axisymmetric with swirl) or at least {need}")
     if not 0.0 <= s.initial_rotation <= 1.0:
         raise DemSceneError(f"run.initial_rotation = {s.initial_rotation!r}: allowed 0 to 1 "
                             f"(a fraction of the stirrer's angular velocity)")

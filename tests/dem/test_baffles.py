@@ -250,3 +250,38 @@ def test_section_maps_outline_the_baffles():
     ys = np.concatenate([c.get_paths()[0].vertices[:, 1] for c in hatched])
     assert ys.min() == pytest.approx(16.0) and ys.max() == pytest.approx(30.0)
     plt.close(fig)
+
+
+def test_too_few_theta_cells_name_the_least_allowed():
+    """Theta cells wider than 0.5 rad are refused with the count a sector needs."""
+    from millfmu.dem.fluid.grid import GridError, mill_grid
+
+    g = load_scene("accelerator_slice").with_overrides(sector_deg=360.0,
+                                                       gravity_m_s2=(0.0, -9.81, 0.0))
+    with pytest.raises(GridError, match=r"n_theta = 12: theta cells of 0.524 rad, wider than "
+                                        r"the 0.5 rad allowed; use 1 \(axisymmetric\) or at "
+                                        r"least 13 for 360 degrees"):
+        mill_grid(g.geometry, 5e-4, n_theta=12)
+    assert mill_grid(g.geometry, 5e-4, n_theta=13).shape[1] == 13
+
+
+def test_scene_refuses_too_few_theta_cells_before_a_run(capsys, tmp_path):
+    """The scene refuses theta cells wider than the grid allows, by name, from a file's value,
+    an override and the CLI (no traceback, nothing written)."""
+    from millfmu.cli import main
+
+    sc = load_scene("accelerator_slice").with_overrides(sector_deg=360.0,
+                                                        gravity_m_s2=(0.0, -9.81, 0.0))
+    with pytest.raises(DemSceneError, match=r"fluid.coupled.n_theta = 12: theta cells of "
+                                            r"0.524 rad over the 360 degree sector, .* at "
+                                            r"least 13"):
+        sc.with_overrides(n_theta=12)
+    assert sc.with_overrides(n_theta=13).coupling.n_theta == 13
+    # a narrower sector with the same count is fine; widening it afterwards is refused
+    s60 = load_scene("accelerator_slice").with_overrides(n_theta=12)
+    with pytest.raises(DemSceneError, match="n_theta = 12"):
+        s60.with_overrides(sector_deg=360.0, gravity_m_s2=(0.0, -9.81, 0.0))
+    out = tmp_path / "never"
+    assert main(["dem", "run", "disc_slice", "--out", str(out), "--theta-cells", "8",
+                 "--no-progress"]) == 2
+    assert "n_theta = 8" in capsys.readouterr().err and not out.exists()

@@ -28,6 +28,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from millfmu.dem.limits import MAX_THETA_CELL_RAD
+
 FLUID = 0
 ROTOR = 1
 STATOR = 2
@@ -64,8 +66,12 @@ class CylGrid:
         if self.n_theta < 1 or self.n_z < 3:
             raise GridError(f"n_theta = {self.n_theta}, n_z = {self.n_z}: need n_theta >= 1 "
                             f"and n_z >= 3")
-        if self.n_theta > 1 and self.sector_rad / self.n_theta > 0.5:
-            raise GridError(f"n_theta = {self.n_theta}: theta cells wider than 0.5 rad")
+        if self.n_theta > 1 and self.sector_rad / self.n_theta > MAX_THETA_CELL_RAD:
+            need = math.ceil(self.sector_rad / MAX_THETA_CELL_RAD - 1e-12)
+            raise GridError(f"n_theta = {self.n_theta}: theta cells of "
+                            f"{self.sector_rad / self.n_theta:.3g} rad, wider than the "
+                            f"{MAX_THETA_CELL_RAD:g} rad allowed; use 1 (axisymmetric) or at "
+                            f"least {need} for {math.degrees(self.sector_rad):g} degrees")
         if self.solid.shape != (rf.size - 1, self.n_theta, self.n_z):
             raise GridError(f"solid: shape {self.solid.shape}, expected "
                             f"{(rf.size - 1, self.n_theta, self.n_z)}")

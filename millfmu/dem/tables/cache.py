@@ -90,7 +90,8 @@ KERNEL_MODULES = {
 #: short spin before its threads sleep (the same results on one thread and, as before, on
 #: two), a resumed run that keeps its checkpoint interval, and checkpoints that list the
 #: step, wall and CPU time of each (for the recent pace), and a full slice with gravity
-#: that reports its circumferential distribution's time mean (and plots it). A checkpoint made by one of
+#: that reports its circumferential distribution's time mean (and plots it), and a grid
+#: that names the theta cells a sector needs when it refuses too few. A checkpoint made by one of
 #: these sources resumes under another
 #: (run.resume_run). Any
 #: other change of these sources gives a new hash, and a new version.
@@ -128,6 +129,8 @@ SAME_DEM_AS = {
     "sha256:77b707345135db3ad3a1943408b6ec26bfa2e8b0adfd0e600b9104395c998536":
         "sha256:cc5c174862c188a675fdb35932f269eb61ae82876e3d110866af2b7a62b0d3bd",
     "sha256:c1be632cc2eb93fc6f74bebafdaaa0a44426ef348b1bcb2efdaaba1defcc4b93":
+        "sha256:cc5c174862c188a675fdb35932f269eb61ae82876e3d110866af2b7a62b0d3bd",
+    "sha256:960091580bd02eb91882afa454c32cb9b20a4083cd3eeffc01c076228a3abceb":
         "sha256:cc5c174862c188a675fdb35932f269eb61ae82876e3d110866af2b7a62b0d3bd",
 }
 
