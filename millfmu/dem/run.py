@@ -54,7 +54,7 @@ from millfmu.dem.analysis.progress import circumferential
 from millfmu.dem.analysis.stats import DemStats, compute_stats
 from millfmu.dem.coupling.cfd_dem import CfdDem
 from millfmu.dem.engine.sim import DemSimulation
-from millfmu.dem.fluid.grid import mill_grid
+from millfmu.dem.fluid.grid import GridError, mill_grid
 from millfmu.dem.fluid.solver import FluidProperties
 from millfmu.dem.mills import accelerator as A
 from millfmu.dem.mills import zones_for
@@ -245,9 +245,11 @@ def run_scene(scene: DemScene, out_dir, progress: bool = True, threads: int | No
         raise DemRunError(f"{out}: holds the checkpoint of a stopped run; go on with it "
                           f"(resume_run, dem run --resume {out}) or remove "
                           f"{out / CHECKPOINT} to start afresh")
-    out.mkdir(parents=True, exist_ok=True)
     if _state is None:
-        sim, cpl = make_simulation(scene, threads)
+        try:
+            sim, cpl = make_simulation(scene, threads)
+        except GridError as e:  # a liquid's grid the scene's values cannot make
+            raise DemRunError(f"{scene.name}: the coupled liquid's grid: {e}") from None
         if checkpoint_every_s is not None and sim.device != "cpu":
             raise DemRunError("checkpoints are written for runs on the CPU only")
     else:
@@ -257,6 +259,7 @@ def run_scene(scene: DemScene, out_dir, progress: bool = True, threads: int | No
         # a machine with fewer cores: fewer threads, the same chunks and results
         sim.threads = min(sim.threads, numba.config.NUMBA_NUM_THREADS)
         numba.set_num_threads(sim.threads)
+    out.mkdir(parents=True, exist_ok=True)
     zones = zones_for(scene)
     dt = scene.dt_s
     unit = cpl.unit_steps if cpl is not None else 1

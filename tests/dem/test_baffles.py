@@ -285,3 +285,17 @@ def test_scene_refuses_too_few_theta_cells_before_a_run(capsys, tmp_path):
     assert main(["dem", "run", "disc_slice", "--out", str(out), "--theta-cells", "8",
                  "--no-progress"]) == 2
     assert "n_theta = 8" in capsys.readouterr().err and not out.exists()
+
+
+def test_a_grid_the_scene_cannot_make_is_a_run_error_and_writes_nothing(tmp_path):
+    """A coupled liquid's grid that cannot be made (baffles with the axisymmetric liquid,
+    which has no column to stand for them) ends the run with DemRunError naming the scene
+    and the grid's reason, before the output folder exists."""
+    from millfmu.dem.run import DemRunError, run_scene
+
+    sc = _scene().with_overrides(n_theta=1)
+    out = tmp_path / "never"
+    with pytest.raises(DemRunError, match=r"accelerator_slice: the coupled liquid's grid: "
+                                          r"n_theta = 1: .*baffle"):
+        run_scene(sc, out, progress=False, threads=1)
+    assert not out.exists()

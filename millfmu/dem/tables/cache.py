@@ -91,7 +91,8 @@ KERNEL_MODULES = {
 #: two), a resumed run that keeps its checkpoint interval, and checkpoints that list the
 #: step, wall and CPU time of each (for the recent pace), and a full slice with gravity
 #: that reports its circumferential distribution's time mean (and plots it), and a grid
-#: that names the theta cells a sector needs when it refuses too few. A checkpoint made by one of
+#: that names the theta cells a sector needs when it refuses too few (a run ending on
+#: such a grid before its folder is made). A checkpoint made by one of
 #: these sources resumes under another
 #: (run.resume_run). Any
 #: other change of these sources gives a new hash, and a new version.
@@ -131,6 +132,8 @@ SAME_DEM_AS = {
     "sha256:c1be632cc2eb93fc6f74bebafdaaa0a44426ef348b1bcb2efdaaba1defcc4b93":
         "sha256:cc5c174862c188a675fdb35932f269eb61ae82876e3d110866af2b7a62b0d3bd",
     "sha256:960091580bd02eb91882afa454c32cb9b20a4083cd3eeffc01c076228a3abceb":
+        "sha256:cc5c174862c188a675fdb35932f269eb61ae82876e3d110866af2b7a62b0d3bd",
+    "sha256:4d8cef38c8109883e91e3c24cfeffe5b9b82172122d298f1edd749e6dfbe7b94":
         "sha256:cc5c174862c188a675fdb35932f269eb61ae82876e3d110866af2b7a62b0d3bd",
 }
 
