@@ -50,7 +50,7 @@ import numpy as np
 
 from millfmu.dem.analysis import flow_structure as FS
 from millfmu.dem.analysis import plots, snapshots
-from millfmu.dem.analysis.progress import circumferential
+from millfmu.dem.analysis.circumferential import circumferential
 from millfmu.dem.analysis.stats import DemStats, compute_stats
 from millfmu.dem.coupling.cfd_dem import CfdDem
 from millfmu.dem.engine.sim import DemSimulation

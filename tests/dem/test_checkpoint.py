@@ -173,7 +173,7 @@ def test_progress_of_a_stopped_run(tmp_path, monkeypatch, capsys):
 def test_circumferential_distribution_hand_case():
     """Gravity along -y, rotation about +z (counter-clockwise): the top is +y, azimuth
     counted from it towards -x; the rising side (stirrer moving up) is x > 0."""
-    from millfmu.dem.analysis.progress import circumferential
+    from millfmu.dem.analysis.circumferential import circumferential
 
     deg = np.radians
     # beads at azimuths (from +x, counter-clockwise): 3 at 100 (upper half, falling side),
@@ -207,7 +207,7 @@ def test_full_slice_with_gravity_reports_the_time_mean_circumferential_distribut
     """A full slice with gravity across the axis writes the circumferential distribution
     of its recording (flow.circumferential), the time mean over the recorded samples: every
     bead in some bin at every sample, and the figures those samples give."""
-    from millfmu.dem.analysis.progress import circumferential
+    from millfmu.dem.analysis.circumferential import circumferential
 
     sc = load_scene("annulus").with_overrides(gravity_m_s2=(0.0, -9.81, 0.0), spin_up_s=5e-5,
                                               record_s=1.5e-4, sample_every_s=5e-5)

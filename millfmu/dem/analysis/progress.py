@@ -16,7 +16,8 @@ From the run's ``checkpoint.pkl`` (:mod:`millfmu.dem.run`), read only:
 - with gravity across the axis: the beads per 30 degrees of azimuth, counted from the top
   (against gravity) in the direction of rotation, largest over smallest; the rising half
   (where the stirrer's motion is upwards) over the falling half; the upper half over the
-  lower. A sector without gravity has none of these (rotational symmetry).
+  lower (:mod:`millfmu.dem.analysis.circumferential`). A sector without gravity has none
+  of these (rotational symmetry).
 
 One instant, not a time mean: a bed's state fluctuates by a few percent from one sample to
 the next (the run's statistics average over its recording).
@@ -29,8 +30,7 @@ from pathlib import Path
 
 import numpy as np
 
-#: azimuthal bins of the circumferential distribution [deg]
-AZIMUTH_BIN_DEG = 30.0
+from millfmu.dem.analysis.circumferential import circumferential
 
 
 def run_progress(out_dir) -> dict:
@@ -95,46 +95,6 @@ def _cpu_per_simulated_s(loop: dict, step_count: int, dt_s: float) -> float | No
         return None
     span = (step_count - loop.get("cpu_from_step", 0)) * dt_s
     return loop["cpu_s"] / span if span > 0 else None
-
-
-def circumferential(x, gravity_m_s2, sector_deg: float) -> dict:
-    """The circumferential distribution of the beads at positions ``x`` [m] (module
-    docstring): one instant (x an array (n, 3)) or the time mean over samples (a sequence
-    of (n_i, 3) arrays, or an array (samples, n, 3)); {} without gravity across the axis or
-    in a sector. beads_per_bin: mean beads per bin; per_bin_over_mean: each bin over the
-    mean of the bins (seed 002's figure 8 measure); the ratios are those of the bead counts
-    summed over the samples."""
-    gx, gy = float(gravity_m_s2[0]), float(gravity_m_s2[1])
-    gn = math.hypot(gx, gy)
-    if gn == 0.0 or sector_deg < 360.0:
-        return {}
-    # one instant, or samples (each its own bead count: a subset, e.g. one radial ring)
-    samples = [x] if isinstance(x, np.ndarray) and x.ndim == 2 else list(x)
-    if not samples:
-        return {}
-    # azimuth from the top (the direction against gravity), positive with the rotation
-    # (+z, counter-clockwise seen from +z)
-    top = math.atan2(-gy, -gx)
-    nb = int(round(360.0 / AZIMUTH_BIN_DEG))
-    counts = np.zeros(nb, np.int64)
-    rising = upper = n = 0
-    for xs in samples:
-        xs = np.asarray(xs)
-        phi = np.mod(np.arctan2(xs[:, 1], xs[:, 0]) - top, 2.0 * math.pi)
-        counts += np.bincount(np.minimum((phi / (2.0 * math.pi) * nb).astype(int), nb - 1),
-                              minlength=nb)
-        # the stirrer moves upwards (against gravity) where (e_z x r) . (-g) > 0: past the
-        # top by 180-360 degrees in the direction of rotation
-        rising += int(np.sum(phi > math.pi))
-        upper += int(np.sum((phi < 0.5 * math.pi) | (phi > 1.5 * math.pi)))
-        n += xs.shape[0]
-    k = len(samples)
-    return dict(azimuth_bin_deg=AZIMUTH_BIN_DEG, samples=k,
-                beads_per_bin=counts.tolist() if k == 1 else (counts / k).tolist(),
-                per_bin_over_mean=(counts / max(counts.mean(), 1e-300)).tolist(),
-                largest_over_smallest_bin=float(counts.max() / max(counts.min(), 1)),
-                rising_over_falling_half=float(rising / max(n - rising, 1)),
-                upper_over_lower_half=float(upper / max(n - upper, 1)))
 
 
 def progress_lines(p: dict) -> list[str]:
