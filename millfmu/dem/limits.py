@@ -21,6 +21,12 @@ ACCELERATOR_FILLING = (0.5, 0.9)
 MAX_THETA_CELL_RAD = 0.5
 
 
+def least_theta_cells(sector_rad: float) -> int:
+    """The fewest theta cells (above one) a sector of ``sector_rad`` [rad] may be cut into:
+    cells no wider than MAX_THETA_CELL_RAD."""
+    return math.ceil(sector_rad / MAX_THETA_CELL_RAD - 1e-12)
+
+
 def point_ranges(scene: dict) -> dict:
     """Table axis -> (lo, hi, why) that the DEM scene ``scene`` (the TOML content as a dict,
     as a table's manifest keeps it) accepts; {} for a scene without limits (annulus, or no

@@ -39,7 +39,7 @@ KINDS = ("annulus", "disc_slice", "accelerator_slice")
 #: of each kind live in millfmu.dem.limits, which reads them without the engine
 from millfmu.dem.limits import (ACCELERATOR_FILLING, ACCELERATOR_RPM_RANGE,  # noqa: E402
                                 DISC_SLICE_FILLING, DISC_SLICE_TIP_SPEED_M_S,
-                                MAX_THETA_CELL_RAD)
+                                MAX_THETA_CELL_RAD, least_theta_cells)
 FLUID_MODES = ("coupled", "prescribed", "none")
 #: coupling schemes of the coupled fluid ([fluid.coupled] scheme): volume-averaged
 #: Navier-Stokes (millfmu.dem.coupling.cfd_dem) or a dilute discrete phase model
@@ -224,7 +224,7 @@ def _check_ranges(s: DemScene):
     if s.fluid_mode == "coupled" and c is not None and c.n_theta > 1:
         sector = math.radians(s.geometry.sector_deg)
         if sector / c.n_theta > MAX_THETA_CELL_RAD:
-            need = math.ceil(sector / MAX_THETA_CELL_RAD - 1e-12)
+            need = least_theta_cells(sector)
             raise DemSceneError(
                 f"fluid.coupled.n_theta = {c.n_theta}: theta cells of "
                 f"{sector / c.n_theta:.3g} rad over the {s.geometry.sector_deg:g} degree "

@@ -28,7 +28,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from millfmu.dem.limits import MAX_THETA_CELL_RAD
+from millfmu.dem.limits import MAX_THETA_CELL_RAD, least_theta_cells
 
 FLUID = 0
 ROTOR = 1
@@ -67,7 +67,7 @@ class CylGrid:
             raise GridError(f"n_theta = {self.n_theta}, n_z = {self.n_z}: need n_theta >= 1 "
                             f"and n_z >= 3")
         if self.n_theta > 1 and self.sector_rad / self.n_theta > MAX_THETA_CELL_RAD:
-            need = math.ceil(self.sector_rad / MAX_THETA_CELL_RAD - 1e-12)
+            need = least_theta_cells(self.sector_rad)
             raise GridError(f"n_theta = {self.n_theta}: theta cells of "
                             f"{self.sector_rad / self.n_theta:.3g} rad, wider than the "
                             f"{MAX_THETA_CELL_RAD:g} rad allowed; use 1 (axisymmetric) or at "

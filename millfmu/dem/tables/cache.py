@@ -92,10 +92,9 @@ KERNEL_MODULES = {
 #: step, wall and CPU time of each (for the recent pace), and a full slice with gravity
 #: that reports its circumferential distribution's time mean (and plots it), and a grid
 #: that names the theta cells a sector needs when it refuses too few (a run ending on
-#: such a grid before its folder is made). A checkpoint made by one of
-#: these sources resumes under another
-#: (run.resume_run). Any
-#: other change of these sources gives a new hash, and a new version.
+#: such a grid before its folder is made). A checkpoint made by one of these sources
+#: resumes under another (run.resume_run). Any other change of these sources gives a new
+#: hash, and a new version.
 SAME_DEM_AS = {
     "sha256:4e5f649d8459bddd50a7ec059ace6b44106bac1745e88635e4f565af91d91452":
         "sha256:cc5c174862c188a675fdb35932f269eb61ae82876e3d110866af2b7a62b0d3bd",
@@ -136,6 +135,8 @@ SAME_DEM_AS = {
     "sha256:4d8cef38c8109883e91e3c24cfeffe5b9b82172122d298f1edd749e6dfbe7b94":
         "sha256:cc5c174862c188a675fdb35932f269eb61ae82876e3d110866af2b7a62b0d3bd",
     "sha256:a81e8a1df05611dcbd873c9cada9a738180aa03ceb55692f7114780ca7d00738":
+        "sha256:cc5c174862c188a675fdb35932f269eb61ae82876e3d110866af2b7a62b0d3bd",
+    "sha256:4afb54364059ef99ca9791e1de6acda80b84ee06de65e2cac5b2f9925f40578a":
         "sha256:cc5c174862c188a675fdb35932f269eb61ae82876e3d110866af2b7a62b0d3bd",
 }
 
