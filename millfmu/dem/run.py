@@ -31,7 +31,9 @@ Outputs in the output folder:
 Checkpoints (``checkpoint_every_s``): while a run goes, ``checkpoint.pkl`` in the output
 folder holds its whole state (beads, contact histories, the liquid, what has been recorded
 so far), written anew (atomically) every so many seconds of wall time and removed once the
-outputs are written; :func:`resume_run` (``millfmu dem run --resume DIR``) goes on from it
+outputs are written. The recorded contacts are appended to ``recorded_contacts.f8`` in the
+same folder as the run goes (:mod:`millfmu.dem.contact_log`: a full slice's do not fit in
+memory), of which the checkpoint names the length; the file too is removed at the end; :func:`resume_run` (``millfmu dem run --resume DIR``) goes on from it
 and gives the same outputs to the digit as the run that was not stopped.
 """
 
@@ -52,6 +54,8 @@ from millfmu.dem.analysis import flow_structure as FS
 from millfmu.dem.analysis import plots, snapshots
 from millfmu.dem.analysis.circumferential import circumferential
 from millfmu.dem.analysis.stats import DemStats, compute_stats
+from millfmu.dem.contact_log import FILE as CONTACT_LOG
+from millfmu.dem.contact_log import ContactLog, ContactLogError
 from millfmu.dem.coupling.cfd_dem import CfdDem
 from millfmu.dem.engine.sim import DemSimulation
 from millfmu.dem.fluid.grid import GridError, mill_grid
@@ -141,8 +145,11 @@ def bead_angular_momentum_kgm2_s(sim) -> float:
 
 #: the checkpoint file in a run's output folder
 CHECKPOINT = "checkpoint.pkl"
-#: layout of a checkpoint (a later layout refuses an older file by name)
-CHECKPOINT_FORMAT = 1
+#: layout of a checkpoint: 2 keeps the recorded contacts in the run's contact log file,
+#: 1 (earlier sources, still read) kept them in the checkpoint
+CHECKPOINT_FORMAT = 2
+#: the layouts this version reads (any other is refused by name)
+CHECKPOINT_FORMATS_READ = (1, 2)
 #: [s of wall time] checkpoint interval of a resumed run whose checkpoint does not record
 #: the one it was started with (made by earlier sources)
 RESUME_CHECKPOINT_EVERY_S = 600.0
@@ -185,9 +192,9 @@ def load_checkpoint(out_dir) -> dict:
         raise DemRunError(f"{path}: not a readable checkpoint ({type(e).__name__}: {e})") \
             from None
     fmt = state.get("format") if isinstance(state, dict) else None
-    if fmt != CHECKPOINT_FORMAT:
-        raise DemRunError(f"{path}: checkpoint layout {fmt!r}; this version reads layout "
-                          f"{CHECKPOINT_FORMAT}")
+    if fmt not in CHECKPOINT_FORMATS_READ:
+        raise DemRunError(f"{path}: checkpoint layout {fmt!r}; this version reads layouts "
+                          f"{', '.join(map(str, CHECKPOINT_FORMATS_READ))}")
     return state
 
 
@@ -278,13 +285,23 @@ def run_scene(scene: DemScene, out_dir, progress: bool = True, threads: int | No
                    smoothing=0.1, bar_format="{l_bar}{bar}| {n_fmt}/{total_fmt} "
                    "[{elapsed}<{remaining}, {rate_fmt}]")
     loop = _state["loop"] if _state is not None else dict(
-        done=0, ke_t=[], ke=[], sx=[], sv=[], events=[], torques=[],
+        done=0, ke_t=[], ke=[], sx=[], sv=[], torques=[],
         # accelerator slices: the contacts present at every sample, for seed 002's counting
         frames=[] if scene.kind == "accelerator_slice" else None,
         dropped=0, builds=0, fluid_acc={}, fluid_samples=0, substeps=[], budget0=None,
         wall_s=0.0)
     ke_t, ke, sx, sv = loop["ke_t"], loop["ke"], loop["sx"], loop["sv"]
-    events, torques, frames = loop["events"], loop["torques"], loop["frames"]
+    torques, frames = loop["torques"], loop["frames"]
+    # the recorded contacts, one chunk per sample, on disk (module docstring)
+    if _state is None:
+        events = ContactLog(out / CONTACT_LOG, K.EV_NF)
+    elif "events" in loop:  # a layout 1 checkpoint kept them in memory
+        events = ContactLog.from_chunks(out / CONTACT_LOG, K.EV_NF, loop.pop("events"))
+    else:
+        try:
+            events = ContactLog.resume(out / CONTACT_LOG, K.EV_NF, loop["contact_log"])
+        except ContactLogError as e:
+            raise DemRunError(f"cannot go on with the run: {e}") from None
     dropped, builds = loop["dropped"], loop["builds"]
     fluid_acc, fluid_samples = loop["fluid_acc"], loop["fluid_samples"]
     substeps, budget0 = loop["substeps"], loop["budget0"]
@@ -348,7 +365,12 @@ def run_scene(scene: DemScene, out_dir, progress: bool = True, threads: int | No
         if recording and budget0 is None:
             budget0 = _budget_reading(sim, cpl)
         k = min(every, (n_spin - done) if not recording else total - done)
-        sts = advance(k, recording)
+        try:
+            sts = advance(k, recording)
+        except DemRunError:
+            if not ckpt.exists():  # nothing to resume: nothing left behind
+                events.remove()
+            raise
         for st in sts:
             builds += st.neighbour_builds
         if recording:
@@ -372,6 +394,7 @@ def run_scene(scene: DemScene, out_dir, progress: bool = True, threads: int | No
         if checkpoint_every_s is not None and done < total and \
                 time.perf_counter() - t_check >= checkpoint_every_s:
             loop.update(done=done, dropped=dropped, builds=builds, fluid_acc=fluid_acc,
+                        contact_log=events.state(),
                         fluid_samples=fluid_samples, budget0=budget0,
                         wall_s=time.perf_counter() - t_wall,
                         cpu_s=time.process_time() - t_cpu)
@@ -387,7 +410,7 @@ def run_scene(scene: DemScene, out_dir, progress: bool = True, threads: int | No
     if bar is not None:
         bar.close()
     wall = time.perf_counter() - t_wall
-    ev = np.concatenate(events) if events else np.zeros((0, K.EV_NF))
+    ev = events.chunks(0, len(events))
     notes = [
         "fluid: " + scene.fluid_description,
         "spin-up excluded from all statistics; samples and contacts from the recording "
@@ -401,7 +424,8 @@ def run_scene(scene: DemScene, out_dir, progress: bool = True, threads: int | No
 
     def stats_of(chunks, t0_s, counts=None):
         # Statistics of the recording chunks ``chunks`` (indices), which start at t0_s.
-        e = np.concatenate([events[i] for i in chunks]) if chunks else np.zeros((0, K.EV_NF))
+        # chunks are consecutive: a view of the log's file
+        e = events.chunks(chunks[0], chunks[-1] + 1) if chunks else np.zeros((0, K.EV_NF))
         n = sum(torques[i][0] for i in chunks)
         return compute_stats(
             scene=scene.name, zones=zones, events=e, ev_cols=EV_COLS,
@@ -470,6 +494,8 @@ def run_scene(scene: DemScene, out_dir, progress: bool = True, threads: int | No
                                   stats.flow["swirl_profile_at_disc_radius"])
     if ckpt.exists():  # the outputs are written: the run needs no resuming
         ckpt.unlink()
+    del ev
+    events.remove()
     return stats
 
 

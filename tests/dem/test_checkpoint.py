@@ -52,6 +52,27 @@ def test_a_stopped_run_resumes_to_the_same_outputs(tmp_path, monkeypatch):
         R.run_scene(_scene(), parts, progress=False, threads=1, window_s=5e-4,
                     checkpoint_every_s=1e-9)
     assert (parts / R.CHECKPOINT).exists() and not (parts / "stats.json").exists()
+    # the recorded contacts are on disk, the checkpoint names their chunks' rows only
+    from millfmu.dem.contact_log import FILE, ContactLog
+
+    loop = R.load_checkpoint(parts)["loop"]
+    assert "events" not in loop and len(loop["contact_log"]["rows"]) >= 1
+    log = ContactLog.resume(parts / FILE, loop["contact_log"]["n_cols"], loop["contact_log"])
+    assert log.total_rows == sum(loop["contact_log"]["rows"]) > 0
+    # rows the stopped run appended after its checkpoint: cut, and recorded again
+    with open(parts / FILE, "ab") as fh:
+        fh.write(np.full((5, log.n_cols), 7.0).tobytes())
+    # the same stop as a checkpoint of earlier sources (layout 1: the contacts in it)
+    import shutil
+
+    layout1 = tmp_path / "layout1"
+    shutil.copytree(parts, layout1)
+    st1 = R.load_checkpoint(layout1)
+    st1["loop"]["events"] = [np.array(c) for c in log]
+    del st1["loop"]["contact_log"]
+    st1["format"] = 1
+    (layout1 / FILE).unlink()
+    R._write_checkpoint(layout1 / R.CHECKPOINT, st1)
     # a new run into the folder would overwrite the stopped one: refused, nothing touched
     before = (parts / R.CHECKPOINT).read_bytes()
     with pytest.raises(R.DemRunError, match="holds the checkpoint of a stopped run"):
@@ -87,6 +108,47 @@ def test_a_stopped_run_resumes_to_the_same_outputs(tmp_path, monkeypatch):
         for k in a.files:
             assert np.array_equal(a[k], b[k], equal_nan=True), (f, k)
     assert (whole / "windows.csv").read_text() == (parts / "windows.csv").read_text()
+    assert not (parts / FILE).exists() and not (whole / FILE).exists()
+    monkeypatch.setattr(R, "_write_checkpoint", write)
+    R.resume_run(layout1, progress=False)
+    assert _stats(layout1) == _stats(whole)
+    assert not (layout1 / FILE).exists()
+
+
+def test_contact_log_chunks_resume_and_refusals(tmp_path):
+    from millfmu.dem.contact_log import ContactLog, ContactLogError
+
+    rng = np.random.default_rng(1)
+    chunks = [rng.random((n, 4)) for n in (3, 0, 5, 2)]
+    log = ContactLog(tmp_path / "c.f8", 4)
+    for c in chunks[:3]:
+        log.append(c)
+    st = log.state()
+    log.append(chunks[3])
+    assert len(log) == 4 and log.total_rows == 10
+    for a, b in zip(log, chunks):
+        assert np.array_equal(a, b) and type(a) is np.ndarray
+    assert np.array_equal(log.chunks(1, 4), np.concatenate(chunks[1:]))
+    assert log.chunks(0, 0).shape == (0, 4)
+    with pytest.raises(ValueError, match=r"must be \(n, 4\)"):
+        log.append(np.zeros((2, 3)))
+    # resumed at the state a checkpoint named: the last chunk is cut from the file
+    back = ContactLog.resume(tmp_path / "c.f8", 4, st)
+    assert back.total_rows == 8 and (tmp_path / "c.f8").stat().st_size == 8 * 4 * 8
+    assert np.array_equal(back.chunks(0, 3), np.concatenate(chunks[:3]))
+    with pytest.raises(ContactLogError, match="has 4 columns|4 columns; this version records 5"):
+        ContactLog.resume(tmp_path / "c.f8", 5, st)
+    with open(tmp_path / "c.f8", "r+b") as fh:
+        fh.truncate(10)
+    with pytest.raises(ContactLogError, match=r"c.f8: 10 bytes; the checkpoint recorded 8 "):
+        ContactLog.resume(tmp_path / "c.f8", 4, st)
+    back.remove()
+    with pytest.raises(ContactLogError, match="c.f8: missing"):
+        ContactLog.resume(tmp_path / "c.f8", 4, st)
+    # a fresh log over a stale file starts empty
+    (tmp_path / "d.f8").write_bytes(b"x" * 64)
+    assert ContactLog(tmp_path / "d.f8", 4).total_rows == 0
+    assert (tmp_path / "d.f8").stat().st_size == 0
 
 
 def test_what_cannot_be_resumed_is_refused_by_name(tmp_path, monkeypatch, capsys):
@@ -110,6 +172,9 @@ def test_what_cannot_be_resumed_is_refused_by_name(tmp_path, monkeypatch, capsys
     # sources mapped to another version than this one's are other sources
     monkeypatch.setattr(cache, "SAME_DEM_AS", {"sha256:other": "sha256:older-release"})
     with pytest.raises(R.DemRunError, match="made by other DEM sources"):
+        R.resume_run(tmp_path)
+    R._write_checkpoint(tmp_path / R.CHECKPOINT, dict(format=9))
+    with pytest.raises(R.DemRunError, match="checkpoint layout 9; this version reads layouts 1, 2"):
         R.resume_run(tmp_path)
     (tmp_path / R.CHECKPOINT).write_bytes(b"not a pickle")
     with pytest.raises(R.DemRunError, match="not a readable checkpoint"):

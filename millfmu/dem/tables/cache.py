@@ -92,7 +92,8 @@ KERNEL_MODULES = {
 #: step, wall and CPU time of each (for the recent pace), and a full slice with gravity
 #: that reports its circumferential distribution's time mean (and plots it), and a grid
 #: that names the theta cells a sector needs when it refuses too few (a run ending on
-#: such a grid before its folder is made). A checkpoint made by one of these sources
+#: such a grid before its folder is made), and the recorded contacts kept in a file on
+#: disk instead of memory and the checkpoint (layout 2). A checkpoint made by one of these sources
 #: resumes under another (run.resume_run). Any other change of these sources gives a new
 #: hash, and a new version.
 SAME_DEM_AS = {
@@ -137,6 +138,8 @@ SAME_DEM_AS = {
     "sha256:a81e8a1df05611dcbd873c9cada9a738180aa03ceb55692f7114780ca7d00738":
         "sha256:cc5c174862c188a675fdb35932f269eb61ae82876e3d110866af2b7a62b0d3bd",
     "sha256:4afb54364059ef99ca9791e1de6acda80b84ee06de65e2cac5b2f9925f40578a":
+        "sha256:cc5c174862c188a675fdb35932f269eb61ae82876e3d110866af2b7a62b0d3bd",
+    "sha256:2fa658bbb59da52cfcb10a1472d1ac8861ed641cc0ed01aaaf8d019573a05382":
         "sha256:cc5c174862c188a675fdb35932f269eb61ae82876e3d110866af2b7a62b0d3bd",
 }
 
