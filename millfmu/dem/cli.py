@@ -60,6 +60,10 @@ def register(subparsers) -> argparse.ArgumentParser:
     r.add_argument("--theta-cells", type=int, dest="n_theta", metavar="N",
                    help="coupled liquid: N theta cells over the sector (1: axisymmetric with "
                         "swirl; a full circle with gravity wants 16 or more)")
+    r.add_argument("--smoothing", choices=["explicit_diffusion", "split_implicit"],
+                   help="coupled liquid: how the beads' fields are smoothed (default the "
+                        "scene's; split_implicit costs the same on any cell size, for full "
+                        "slices)")
     r.add_argument("--threads", type=int, help="numba threads (default: all cores)")
     r.add_argument("--windows", type=float, dest="window_s", metavar="S",
                    help="also write windows.csv: zone statistics of consecutive recording "
@@ -292,7 +296,7 @@ def _run(args) -> int:
         over = {k: getattr(args, k) for k in ("tip_speed_m_s", "filling", "sector_deg",
                                               "spin_up_s", "record_s", "sample_every_s",
                                               "dt_s", "fluid_mode", "initial_rotation",
-                                              "primed_s", "n_theta")}
+                                              "primed_s", "n_theta", "smoothing")}
         if args.no_gravity:
             over["gravity_m_s2"] = (0.0, 0.0, 0.0)
         if args.rotor_speed_rpm is not None:
@@ -346,7 +350,7 @@ def _resume(args) -> int:
                  filling="--filling", sector_deg="--sector-deg", fluid_mode="--fluid",
                  spin_up_s="--spin-up", record_s="--record", sample_every_s="--sample-every",
                  dt_s="--dt", initial_rotation="--initial-rotation", primed_s="--primed",
-                 n_theta="--theta-cells", window_s="--windows")
+                 n_theta="--theta-cells", window_s="--windows", smoothing="--smoothing")
     fixed = [f for k, f in flags.items() if getattr(args, k) is not None]
     if args.scene is not None or args.no_gravity or fixed:
         given = ([args.scene] if args.scene else []) + fixed + \

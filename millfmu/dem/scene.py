@@ -26,7 +26,8 @@ if sys.version_info >= (3, 11):
 else:  # pragma: no cover
     import tomli as tomllib
 
-from millfmu.dem.coupling.settings import PRESSURE_GRADIENT_TIMINGS, CouplingSettings
+from millfmu.dem.coupling.settings import (PRESSURE_GRADIENT_TIMINGS, SMOOTHINGS,
+                                           CouplingSettings)
 from millfmu.dem.engine.params import BeadMaterial
 from millfmu.dem.engine.sim import FluidSettings
 from millfmu.dem.mills.accelerator import SevSpec
@@ -98,7 +99,7 @@ class DemScene:
     def with_overrides(self, **kw) -> "DemScene":
         """Copy with run-time overrides (tip_speed_m_s, filling, sector_deg, spin_up_s,
         record_s, dt_s, fluid_mode, initial_rotation, primed_s, n_theta: the coupled
-        liquid's theta cells; ``baffles``: a dict of the [mill] baffle keys, BAFFLE_KEYS);
+        liquid's theta cells; smoothing: its smoothing (SMOOTHINGS); ``baffles``: a dict of the [mill] baffle keys, BAFFLE_KEYS);
         validated like file values."""
         geo = self.geometry
         if kw.get("baffles") is not None:
@@ -109,6 +110,7 @@ class DemScene:
         kw.pop("sector_deg", None)
         mode = kw.pop("fluid_mode", None)
         n_theta = kw.pop("n_theta", None)
+        smoothing = kw.pop("smoothing", None)
         new = replace(self, geometry=geo, **{k: v for k, v in kw.items() if v is not None})
         if mode is not None and mode != self.fluid_mode:
             new = _with_fluid_mode(new, mode)
@@ -120,6 +122,13 @@ class DemScene:
                 raise DemSceneError(f"n_theta = {n_theta}: theta cells are the coupled "
                                     f"liquid's; the fluid here is {new.fluid_mode!r}")
             new = replace(new, coupling=replace(new.coupling, n_theta=n_theta))
+        if smoothing is not None:
+            if smoothing not in SMOOTHINGS:
+                raise DemSceneError(f"smoothing = {smoothing!r}: allowed {list(SMOOTHINGS)}")
+            if new.coupling is None:
+                raise DemSceneError(f"smoothing = {smoothing!r}: the coupled liquid's; the "
+                                    f"fluid here is {new.fluid_mode!r}")
+            new = replace(new, coupling=replace(new.coupling, smoothing=smoothing))
         _check_ranges(new)
         return new
 
@@ -140,13 +149,15 @@ class DemScene:
                     f"the CFD step and exchange interval of {c.cfd_step_s:g} s; turbulence "
                     f"{c.turbulence}, cylindrical grid of ~{c.cell_m * 1e3:g} mm cells, "
                     f"{c.n_theta} theta cell(s)")
+        smoothing = (f", smoothing split_implicit in {c.smoothing_steps} step(s)"
+                     if c.smoothing == "split_implicit" else "")
         timing = (" (pressure gradient of the interval just solved)"
                   if c.model == "A" and c.pressure_gradient == "this_interval" else "")
         return (f"coupled CFD-DEM: volume-averaged Navier-Stokes model {c.model}{timing}, "
                 f"turbulence {c.turbulence}, Koch-Hill drag, cylindrical grid of "
                 f"~{c.cell_m * 1e3:g} mm cells, {c.n_theta} theta cell(s), coupling every "
                 f"{c.steps} DEM steps ({c.steps * self.dt_s:.3g} s), CFD step the coupling "
-                f"interval or the part of it that CFL {c.cfl:g} allows")
+                f"interval or the part of it that CFL {c.cfl:g} allows{smoothing}")
 
 
 #: the [mill] keys of stationary baffles between the rotors (all or none; see
@@ -412,7 +423,7 @@ _FLUID_KEYS = {"mode", "enabled", "density_kg_m3", "viscosity_pa_s", "drag", "lu
 _COUPLED_KEYS = {"vans_model": str, "turbulence": str, "coupling_steps": int, "cell_m": float,
                  "n_theta": int, "smoothing_diameters": float, "eps_min": float,
                  "cfl": float, "scheme": str, "cfd_step_s": float,
-                 "pressure_gradient": str}
+                 "pressure_gradient": str, "smoothing": str, "smoothing_steps": int}
 
 
 def _fluid_from_dict(fluid: dict, dia: float):
@@ -474,7 +485,20 @@ def _coupling_from_dict(c: dict) -> CouplingSettings:
         scheme=kw["scheme"] if kw["scheme"] is not None else d.scheme,
         cfd_step_s=kw["cfd_step_s"] if kw["cfd_step_s"] is not None else d.cfd_step_s,
         pressure_gradient=(kw["pressure_gradient"] if kw["pressure_gradient"] is not None
-                           else d.pressure_gradient))
+                           else d.pressure_gradient),
+        smoothing=kw["smoothing"] if kw["smoothing"] is not None else d.smoothing,
+        smoothing_steps=(kw["smoothing_steps"] if kw["smoothing_steps"] is not None
+                         else d.smoothing_steps))
+    if out.smoothing not in SMOOTHINGS:
+        raise DemSceneError(f"fluid.coupled.smoothing = {out.smoothing!r}: allowed "
+                            f"{list(SMOOTHINGS)}")
+    if not 1 <= out.smoothing_steps <= 64:
+        raise DemSceneError(f"fluid.coupled.smoothing_steps = {out.smoothing_steps!r}: "
+                            f"allowed 1 to 64")
+    if kw["smoothing_steps"] is not None and out.smoothing != "split_implicit":
+        raise DemSceneError(f"fluid.coupled.smoothing_steps = {out.smoothing_steps!r}: only "
+                            f"smoothing = 'split_implicit' takes steps (the explicit sweeps "
+                            f"are as many as the cells need); leave it out")
     if out.scheme not in COUPLING_SCHEMES:
         raise DemSceneError(f"fluid.coupled.scheme = {out.scheme!r}: allowed "
                             f"{list(COUPLING_SCHEMES)}")

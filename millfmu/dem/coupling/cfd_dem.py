@@ -61,7 +61,8 @@ class CfdDem:
         self.solver = FluidSolver(grid, fluid, omega_rad_s, settings.turbulence,
                                   settings.model, cfl=settings.cfl)
         d = 2.0 * float(sim.rad.max())
-        self.projector = Projector(grid, settings.smoothing_diameters * d, settings.eps_min)
+        self.projector = Projector(grid, settings.smoothing_diameters * d, settings.eps_min,
+                                   settings.smoothing, settings.smoothing_steps)
         self.interval_s = settings.steps * sim.dt_s
         n = sim.n
         ncell = int(np.prod(grid.shape))

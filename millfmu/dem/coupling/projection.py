@@ -166,9 +166,11 @@ def gather(idx, w, field, out):
 class Projector:
     """Smoothing of :mod:`millfmu.dem.coupling.projection` for one grid.
     ``smoothing_length_m`` [m]: L, the kernel's variance per axis being 2 L^2 (0: no
-    smoothing)."""
+    smoothing), reached by ``method`` (:data:`millfmu.dem.coupling.settings.SMOOTHINGS`;
+    ``steps``: split_implicit's backward-Euler steps)."""
 
-    def __init__(self, grid, smoothing_length_m: float, eps_min: float = 0.35):
+    def __init__(self, grid, smoothing_length_m: float, eps_min: float = 0.35,
+                 method: str = "explicit_diffusion", steps: int = 4):
         self.grid = grid
         self.L = float(smoothing_length_m)
         self.eps_min = float(eps_min)
@@ -205,6 +207,19 @@ class Projector:
             a *= kappa
         self._tmp = None
         self._vol_r = np.ascontiguousarray(g.cell_volume_m3)
+        self.method = method
+        self._implicit = None
+        if method == "split_implicit" and self.L > 0:
+            from millfmu.dem.coupling.split_implicit_smoothing import SplitImplicitSmoother
+
+            # the face coefficients of one unit of kappa dtau
+            un = kappa if kappa else 1.0
+            self._implicit = SplitImplicitSmoother(g.shape, self._vol_r, self._ar / un,
+                                                   self._at / un, self._az / un,
+                                                   self.variance_m2, steps)
+        elif method not in ("explicit_diffusion", "split_implicit"):
+            raise ValueError(f"smoothing = {method!r}: allowed 'explicit_diffusion', "
+                             f"'split_implicit'")
 
     # ---- smoothing ----------------------------------------------------------------------
     def smooth_totals(self, tot, ncols=None):
@@ -218,7 +233,9 @@ class Projector:
         return self._smooth(val, False, ncols)
 
     def _smooth(self, a, totals, ncols):
-        if self.sweeps:
+        if self._implicit is not None:
+            self._implicit.smooth(a, totals, a.shape[0] if ncols is None else int(ncols))
+        elif self.sweeps:
             a4 = a.reshape((a.shape[0],) + self.grid.shape)
             if self._tmp is None or self._tmp.shape != a4.shape:
                 self._tmp = np.zeros(a4.shape)

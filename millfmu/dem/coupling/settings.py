@@ -17,6 +17,16 @@ from dataclasses import dataclass
 #:   ``previous_interval`` blows up at 0.83 s, ``this_interval`` runs on (docs/cfd-dem.md).
 PRESSURE_GRADIENT_TIMINGS = ("previous_interval", "this_interval")
 
+#: How the beads' fields are smoothed to the smoothing length (same per-axis variance):
+#: - ``explicit_diffusion``: explicit finite-volume diffusion sweeps
+#:   (:mod:`millfmu.dem.coupling.projection`), as many as the smallest cell's stability
+#:   needs (the kernel approaches a Gaussian);
+#: - ``split_implicit``: ``smoothing_steps`` backward-Euler steps split by direction
+#:   (:mod:`millfmu.dem.coupling.split_implicit_smoothing`), a cost independent of the
+#:   cell size; with theta cells (a full slice) the explicit sweeps were the largest part
+#:   of a coupling interval.
+SMOOTHINGS = ("explicit_diffusion", "split_implicit")
+
 
 @dataclass(frozen=True)
 class CouplingSettings:
@@ -29,6 +39,8 @@ class CouplingSettings:
     cell_m: float = 0.75e-3  # target fluid cell size
     n_theta: int = 1  # theta cells over the sector (1: axisymmetric with swirl)
     smoothing_diameters: float = 1.0  # Helmholtz smoothing length in bead diameters
+    smoothing: str = "explicit_diffusion"  # SMOOTHINGS
+    smoothing_steps: int = 4  # split_implicit: backward-Euler steps to the variance
     eps_min: float = 0.35  # lower clip of the void fraction
     cfl: float = 0.4
     # "vans": volume-averaged Navier-Stokes (CfdDem; the void fraction in the liquid, the

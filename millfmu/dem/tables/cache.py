@@ -53,6 +53,8 @@ KERNEL_MODULES = {
     "millfmu.dem.coupling.settings": "millfmu.dem.coupling.settings",
     "millfmu.dem.coupling.dpm": "millfmu.dem.coupling.dpm",
     "millfmu.dem.coupling.schiller_naumann": "millfmu.dem.coupling.schiller_naumann",
+    "millfmu.dem.coupling.split_implicit_smoothing":
+        "millfmu.dem.coupling.split_implicit_smoothing",
     # the coupled step's kernels and the one set of numba flags (fastmath, error model)
     "millfmu.dem.coupling.exchange_kernels": "millfmu.dem.coupling.exchange_kernels",
     "millfmu.dem.fluid.step_kernels": "millfmu.dem.fluid.step_kernels",
@@ -93,7 +95,9 @@ KERNEL_MODULES = {
 #: that reports its circumferential distribution's time mean (and plots it), and a grid
 #: that names the theta cells a sector needs when it refuses too few (a run ending on
 #: such a grid before its folder is made), and the recorded contacts kept in a file on
-#: disk instead of memory and the checkpoint (layout 2). A checkpoint made by one of these sources
+#: disk instead of memory and the checkpoint (layout 2), and the smoothing chosen by name
+#: (split implicit diffusion added, counted in the hash; the explicit sweeps, as before, by
+#: default). A checkpoint made by one of these sources
 #: resumes under another (run.resume_run). Any other change of these sources gives a new
 #: hash, and a new version.
 SAME_DEM_AS = {
@@ -140,6 +144,8 @@ SAME_DEM_AS = {
     "sha256:4afb54364059ef99ca9791e1de6acda80b84ee06de65e2cac5b2f9925f40578a":
         "sha256:cc5c174862c188a675fdb35932f269eb61ae82876e3d110866af2b7a62b0d3bd",
     "sha256:2fa658bbb59da52cfcb10a1472d1ac8861ed641cc0ed01aaaf8d019573a05382":
+        "sha256:cc5c174862c188a675fdb35932f269eb61ae82876e3d110866af2b7a62b0d3bd",
+    "sha256:4b9208ba6080af5e8bd169bf37178985a5e29ec39873be34a8a848f549927b99":
         "sha256:cc5c174862c188a675fdb35932f269eb61ae82876e3d110866af2b7a62b0d3bd",
 }
 
