@@ -107,6 +107,20 @@ def test_zone_volumes_partition_the_pm1_cell_and_follow_seed_order():
         assert (cls == k).mean() * box == pytest.approx(v[k], rel=0.02)
     in_disc = (np.abs(zz) < 0.004) & (r < 0.036)
     assert np.all(cls[in_disc] == -1) and np.all(cls[~in_disc] >= 0)
+    # the statistics classify recorded contacts' rows in blocks: the same zones
+    from millfmu.dem.analysis import stats as S
+
+    ev = np.zeros((n, 11))
+    ev[:, 3:6] = p
+    cols = dict(x=3, y=4, z=5)
+    whole = S.zone_of_rows(z, ev, cols)
+    assert whole.dtype == np.int8 and np.array_equal(whole, cls)
+    old = S.BLOCK_ROWS
+    try:
+        S.BLOCK_ROWS = 7001  # not a divisor of n
+        assert np.array_equal(S.zone_of_rows(z, ev, cols), cls)
+    finally:
+        S.BLOCK_ROWS = old
 
 
 def test_zone_spec_errors_name_key_and_value():

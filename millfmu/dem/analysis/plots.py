@@ -19,15 +19,21 @@ def section_maps(scene, events: np.ndarray, cols: dict):
     g = scene.geometry
     zr_edges = np.linspace(-0.5 * g.height_m, 0.5 * g.height_m, scene.map_bins_z + 1)
     r_edges = np.linspace(g.shaft_radius_m, g.chamber_radius_m, scene.map_bins_r + 1)
-    bb = events[events[:, cols["type"]] == 0] if events.size else events
-    x = bb[:, cols["x"]]
-    y = bb[:, cols["y"]]
-    z = bb[:, cols["z"]] - g.disc_z_m
-    z = z - g.height_m * np.floor(z / g.height_m + 0.5)
-    r = np.hypot(x, y)
-    se = bb[:, cols["setn"]] + bb[:, cols["sets"]] + bb[:, cols["serot"]]
-    n, _, _ = np.histogram2d(z, r, bins=[zr_edges, r_edges])
-    s, _, _ = np.histogram2d(z, r, bins=[zr_edges, r_edges], weights=se)
+    n = np.zeros((scene.map_bins_z, scene.map_bins_r))
+    s = np.zeros_like(n)
+    # in blocks of rows: copying all bead-bead rows at once took 88 bytes per contact
+    step = 1 << 22
+    for i in range(0, events.shape[0] if events.size else 0, step):
+        blk = events[i:i + step]
+        bb = blk[blk[:, cols["type"]] == 0]
+        x = bb[:, cols["x"]]
+        y = bb[:, cols["y"]]
+        z = bb[:, cols["z"]] - g.disc_z_m
+        z = z - g.height_m * np.floor(z / g.height_m + 0.5)
+        r = np.hypot(x, y)
+        se = bb[:, cols["setn"]] + bb[:, cols["sets"]] + bb[:, cols["serot"]]
+        n += np.histogram2d(z, r, bins=[zr_edges, r_edges])[0]
+        s += np.histogram2d(z, r, bins=[zr_edges, r_edges], weights=se)[0]
     ring = math.pi * np.diff(r_edges ** 2) * g.sector_fraction
     vol = np.outer(np.diff(zr_edges), ring)
     t = scene.record_s

@@ -97,7 +97,9 @@ KERNEL_MODULES = {
 #: such a grid before its folder is made), and the recorded contacts kept in a file on
 #: disk instead of memory and the checkpoint (layout 2), and the smoothing chosen by name
 #: (split implicit diffusion added, counted in the hash; the explicit sweeps, as before, by
-#: default). A checkpoint made by one of these sources
+#: default), and the statistics' zone of each contact and the section maps taken in blocks
+#: of rows (a full slice's 84 M contacts took 12 GB at once). A checkpoint made by one of
+#: these sources
 #: resumes under another (run.resume_run). Any other change of these sources gives a new
 #: hash, and a new version.
 SAME_DEM_AS = {
@@ -146,6 +148,8 @@ SAME_DEM_AS = {
     "sha256:2fa658bbb59da52cfcb10a1472d1ac8861ed641cc0ed01aaaf8d019573a05382":
         "sha256:cc5c174862c188a675fdb35932f269eb61ae82876e3d110866af2b7a62b0d3bd",
     "sha256:4b9208ba6080af5e8bd169bf37178985a5e29ec39873be34a8a848f549927b99":
+        "sha256:cc5c174862c188a675fdb35932f269eb61ae82876e3d110866af2b7a62b0d3bd",
+    "sha256:eba119aae07c01d0288ab74d83b90f61bc34294cb2a83b826ea1eebd1b22b5c6":
         "sha256:cc5c174862c188a675fdb35932f269eb61ae82876e3d110866af2b7a62b0d3bd",
 }
 
