@@ -26,8 +26,8 @@ if sys.version_info >= (3, 11):
 else:  # pragma: no cover
     import tomli as tomllib
 
-from millfmu.dem.coupling.settings import (PRESSURE_GRADIENT_TIMINGS, SMOOTHINGS,
-                                           CouplingSettings)
+from millfmu.dem.coupling.settings import (PRESSURE_GRADIENT_TIMINGS, PRESSURE_SOLVERS,
+                                           SMOOTHINGS, CouplingSettings)
 from millfmu.dem.engine.params import BeadMaterial
 from millfmu.dem.engine.sim import FluidSettings
 from millfmu.dem.mills.accelerator import SevSpec
@@ -99,7 +99,8 @@ class DemScene:
     def with_overrides(self, **kw) -> "DemScene":
         """Copy with run-time overrides (tip_speed_m_s, filling, sector_deg, spin_up_s,
         record_s, dt_s, fluid_mode, initial_rotation, primed_s, n_theta: the coupled
-        liquid's theta cells; smoothing: its smoothing (SMOOTHINGS); ``baffles``: a dict of the [mill] baffle keys, BAFFLE_KEYS);
+        liquid's theta cells; smoothing: its smoothing (SMOOTHINGS); pressure_solver: its
+        pressure equation's solver (PRESSURE_SOLVERS); ``baffles``: a dict of the [mill] baffle keys, BAFFLE_KEYS);
         validated like file values."""
         geo = self.geometry
         if kw.get("baffles") is not None:
@@ -111,6 +112,7 @@ class DemScene:
         mode = kw.pop("fluid_mode", None)
         n_theta = kw.pop("n_theta", None)
         smoothing = kw.pop("smoothing", None)
+        pressure_solver = kw.pop("pressure_solver", None)
         new = replace(self, geometry=geo, **{k: v for k, v in kw.items() if v is not None})
         if mode is not None and mode != self.fluid_mode:
             new = _with_fluid_mode(new, mode)
@@ -129,6 +131,14 @@ class DemScene:
                 raise DemSceneError(f"smoothing = {smoothing!r}: the coupled liquid's; the "
                                     f"fluid here is {new.fluid_mode!r}")
             new = replace(new, coupling=replace(new.coupling, smoothing=smoothing))
+        if pressure_solver is not None:
+            if pressure_solver not in PRESSURE_SOLVERS:
+                raise DemSceneError(f"pressure_solver = {pressure_solver!r}: allowed "
+                                    f"{list(PRESSURE_SOLVERS)}")
+            if new.coupling is None:
+                raise DemSceneError(f"pressure_solver = {pressure_solver!r}: the coupled "
+                                    f"liquid's; the fluid here is {new.fluid_mode!r}")
+            new = replace(new, coupling=replace(new.coupling, pressure_solver=pressure_solver))
         _check_ranges(new)
         return new
 
@@ -151,6 +161,8 @@ class DemScene:
                     f"{c.n_theta} theta cell(s)")
         smoothing = (f", smoothing split_implicit in {c.smoothing_steps} step(s)"
                      if c.smoothing == "split_implicit" else "")
+        if c.pressure_solver != "direct_lu":
+            smoothing += f", pressure by {c.pressure_solver}"
         timing = (" (pressure gradient of the interval just solved)"
                   if c.model == "A" and c.pressure_gradient == "this_interval" else "")
         return (f"coupled CFD-DEM: volume-averaged Navier-Stokes model {c.model}{timing}, "
@@ -423,7 +435,8 @@ _FLUID_KEYS = {"mode", "enabled", "density_kg_m3", "viscosity_pa_s", "drag", "lu
 _COUPLED_KEYS = {"vans_model": str, "turbulence": str, "coupling_steps": int, "cell_m": float,
                  "n_theta": int, "smoothing_diameters": float, "eps_min": float,
                  "cfl": float, "scheme": str, "cfd_step_s": float,
-                 "pressure_gradient": str, "smoothing": str, "smoothing_steps": int}
+                 "pressure_gradient": str, "smoothing": str, "smoothing_steps": int,
+                 "pressure_solver": str}
 
 
 def _fluid_from_dict(fluid: dict, dia: float):
@@ -488,7 +501,12 @@ def _coupling_from_dict(c: dict) -> CouplingSettings:
                            else d.pressure_gradient),
         smoothing=kw["smoothing"] if kw["smoothing"] is not None else d.smoothing,
         smoothing_steps=(kw["smoothing_steps"] if kw["smoothing_steps"] is not None
-                         else d.smoothing_steps))
+                         else d.smoothing_steps),
+        pressure_solver=(kw["pressure_solver"] if kw["pressure_solver"] is not None
+                         else d.pressure_solver))
+    if out.pressure_solver not in PRESSURE_SOLVERS:
+        raise DemSceneError(f"fluid.coupled.pressure_solver = {out.pressure_solver!r}: "
+                            f"allowed {list(PRESSURE_SOLVERS)}")
     if out.smoothing not in SMOOTHINGS:
         raise DemSceneError(f"fluid.coupled.smoothing = {out.smoothing!r}: allowed "
                             f"{list(SMOOTHINGS)}")

@@ -59,7 +59,8 @@ class CfdDem:
         # model A: the beads take this interval's pressure gradient (settings.py)
         self._gradient_now = settings.pressure_gradient == "this_interval"
         self.solver = FluidSolver(grid, fluid, omega_rad_s, settings.turbulence,
-                                  settings.model, cfl=settings.cfl)
+                                  settings.model, cfl=settings.cfl,
+                                  pressure_solver=settings.pressure_solver)
         d = 2.0 * float(sim.rad.max())
         self.projector = Projector(grid, settings.smoothing_diameters * d, settings.eps_min,
                                    settings.smoothing, settings.smoothing_steps)

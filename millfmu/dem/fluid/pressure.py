@@ -19,13 +19,21 @@ import numpy as np
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
+from millfmu.dem.coupling.settings import PRESSURE_SOLVERS
 from millfmu.dem.fluid.grid import FLUID, CylGrid
 
 
 class PressureSolver:
-    """Direct solver of the projection equation on a CylGrid's fluid cells."""
+    """Direct solver of the projection equation on a CylGrid's fluid cells. ``method``
+    (:data:`PRESSURE_SOLVERS`): ``direct_lu``, one sparse LU of the whole operator;
+    ``theta_fft``, an FFT in theta and one LU per mode
+    (:mod:`millfmu.dem.fluid.theta_fft_pressure`: grids whose solids do not vary with
+    theta; the same solution to round-off, a fraction of the cost on 3D grids)."""
 
-    def __init__(self, grid: CylGrid):
+    def __init__(self, grid: CylGrid, method: str = "direct_lu"):
+        if method not in PRESSURE_SOLVERS:
+            raise ValueError(f"pressure_solver = {method!r}: allowed {list(PRESSURE_SOLVERS)}")
+        self.method = method
         self.grid = grid
         g = grid
         nr, nt, nz = g.shape
@@ -64,7 +72,12 @@ class PressureSolver:
                                 (np.concatenate([r[keep], [0]]),
                                  np.concatenate([c[keep], [0]]))), shape=(self.n, self.n))
         self._pinned = pinned
-        self._lu = spla.splu(pinned, permc_spec="COLAMD")
+        self._fft = None
+        if method == "theta_fft":
+            from millfmu.dem.fluid.theta_fft_pressure import ThetaFftPressure
+
+            self._fft = ThetaFftPressure(grid)
+        self._lu = self._factor()
         self.solves = 0
         self.last_residual = 0.0
 
@@ -77,15 +90,24 @@ class PressureSolver:
 
     def __setstate__(self, d):
         self.__dict__.update(d)
-        self._lu = spla.splu(self._pinned, permc_spec="COLAMD")
+        self.__dict__.setdefault("_fft", None)  # a checkpoint of earlier sources
+        self.__dict__.setdefault("method", "direct_lu")
+        self._lu = self._factor()
+
+    def _factor(self):
+        return None if self._fft is not None else spla.splu(self._pinned,
+                                                             permc_spec="COLAMD")
 
     def solve(self, b_cells: np.ndarray, check: bool = False) -> np.ndarray:
         """phi (cells, 0 in solids) with sum_f (A_f/h_f) (phi_nb - phi_c) = b_cells."""
         b = b_cells[self.fluid]
         b = b - self.volume * (b.sum() / self.volume.sum())
         rhs = -b
-        rhs[0] = 0.0
-        x = self._lu.solve(rhs)
+        if self._fft is not None:
+            x = self._fft.solve(rhs)
+        else:
+            rhs[0] = 0.0  # the pinned unknown (the others' equations imply its own)
+            x = self._lu.solve(rhs)
         if check:
             res = self.matrix @ x + b
             self.last_residual = float(np.linalg.norm(res) / max(np.linalg.norm(b), 1e-300))

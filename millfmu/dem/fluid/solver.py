@@ -59,7 +59,7 @@ class FluidSolver:
 
     def __init__(self, grid: CylGrid, fluid: FluidProperties = FluidProperties(),
                  omega_rad_s: float = 0.0, turbulence: str = "k_epsilon", model: str = "A",
-                 cfl: float = 0.4):
+                 cfl: float = 0.4, pressure_solver: str = "direct_lu"):
         # numba kernels: compiled when a fluid is built, not with a scene file.
         from millfmu.dem.fluid import k_epsilon as KE
         from millfmu.dem.fluid import step_kernels as SK
@@ -203,7 +203,7 @@ class FluidSolver:
         self._zero_r = np.zeros(shp_r)
         self._zero_c = np.zeros(g.shape)
         self._gphi = (np.zeros(shp_r), np.zeros(g.shape), np.zeros(g.shape))
-        self.pressure = PressureSolver(grid)
+        self.pressure = PressureSolver(grid, pressure_solver)
         self._F = (self.ur, self.ut, self.uz, self.p, self.k, self.e, self.nu_t, self.eps_c,
                    self.eps_c_old, self.eps_r, self.eps_t, self.eps_z, self.kd_r, self.kd_t,
                    self.kd_z, self.sd_r, self.sd_t, self.sd_z, self.fixed_t, *self.mean_u,
@@ -344,5 +344,8 @@ class FluidSolver:
     def describe(self) -> dict:
         return dict(model=self.model, turbulence=self.turbulence, grid=self.grid.describe(),
                     density_kg_m3=self.rho, viscosity_pa_s=self.fluid.viscosity_pa_s,
-                    pressure="direct sparse LU of the constant projection operator",
+                    pressure=("direct sparse LU of the constant projection operator"
+                              if self.pressure.method == "direct_lu" else
+                              "FFT in theta and a direct sparse LU of each mode's 2D "
+                              "operator (theta_fft)"),
                     cfl=self.cfl)

@@ -55,6 +55,7 @@ KERNEL_MODULES = {
     "millfmu.dem.coupling.schiller_naumann": "millfmu.dem.coupling.schiller_naumann",
     "millfmu.dem.coupling.split_implicit_smoothing":
         "millfmu.dem.coupling.split_implicit_smoothing",
+    "millfmu.dem.fluid.theta_fft_pressure": "millfmu.dem.fluid.theta_fft_pressure",
     # the coupled step's kernels and the one set of numba flags (fastmath, error model)
     "millfmu.dem.coupling.exchange_kernels": "millfmu.dem.coupling.exchange_kernels",
     "millfmu.dem.fluid.step_kernels": "millfmu.dem.fluid.step_kernels",
@@ -98,8 +99,9 @@ KERNEL_MODULES = {
 #: disk instead of memory and the checkpoint (layout 2), and the smoothing chosen by name
 #: (split implicit diffusion added, counted in the hash; the explicit sweeps, as before, by
 #: default), and the statistics' zone of each contact and the section maps taken in blocks
-#: of rows (a full slice's 84 M contacts took 12 GB at once). A checkpoint made by one of
-#: these sources
+#: of rows (a full slice's 84 M contacts took 12 GB at once), and the pressure equation's
+#: solver chosen by name (an FFT in theta added, counted in the hash; the direct LU, as
+#: before, by default). A checkpoint made by one of these sources
 #: resumes under another (run.resume_run). Any other change of these sources gives a new
 #: hash, and a new version.
 SAME_DEM_AS = {
@@ -150,6 +152,8 @@ SAME_DEM_AS = {
     "sha256:4b9208ba6080af5e8bd169bf37178985a5e29ec39873be34a8a848f549927b99":
         "sha256:cc5c174862c188a675fdb35932f269eb61ae82876e3d110866af2b7a62b0d3bd",
     "sha256:eba119aae07c01d0288ab74d83b90f61bc34294cb2a83b826ea1eebd1b22b5c6":
+        "sha256:cc5c174862c188a675fdb35932f269eb61ae82876e3d110866af2b7a62b0d3bd",
+    "sha256:5207b2b0d73dd3b0fd783b1bc3ef990da5e2059c870de59f2a2fe92e1d74c831":
         "sha256:cc5c174862c188a675fdb35932f269eb61ae82876e3d110866af2b7a62b0d3bd",
 }
 
