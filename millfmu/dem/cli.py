@@ -322,7 +322,10 @@ def _run(args) -> int:
         print(f"millfmu dem run: --windows = {args.window_s!r}: must be > 0 s", file=sys.stderr)
         return 2
     from millfmu.dem.run import DemRunError
+    from millfmu.dem.scene import scene_advice
 
+    for line in scene_advice(scene):
+        print(f"millfmu dem run: note: {line}", file=sys.stderr)
     try:
         stats = run_scene(scene, args.out, progress=not args.no_progress, threads=args.threads,
                           window_s=args.window_s, checkpoint_every_s=args.checkpoint_every_s)

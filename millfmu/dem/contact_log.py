@@ -1,10 +1,11 @@
 """The recorded contacts of a run, kept on disk instead of in memory.
 
 A run records every new contact (rows of ``n_cols`` float64, layout ``engine.kernels.EV_*``)
-once per sampling interval ("chunk"). A full slice records about 1,400 contacts per bead
-per simulated second, 88 bytes each: 0.3 s of seed 001's 235 k-bead disc slice are 9 GB,
-which in memory (and pickled whole into every checkpoint) took a 24 GB machine's memory.
-Here each chunk is appended to one raw file; memory holds only the chunks' row counts.
+once per sampling interval ("chunk"). A full slice records about 1,200 contacts per bead
+per simulated second, 88 bytes each: 0.3 s of seed 001's 235 k-bead disc slice are 84 M
+contacts, 7.4 GB, which in memory (and pickled whole into every checkpoint) took a 24 GB
+machine's memory. Here each chunk is appended to one raw file; memory holds only the
+chunks' row counts.
 
 The file is written append-only and flushed to disk before a checkpoint names its
 length (:meth:`ContactLog.state`), so that a run stopped after the checkpoint resumes

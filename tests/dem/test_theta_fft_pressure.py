@@ -79,3 +79,17 @@ def test_chosen_by_name_and_a_coupled_disc_run_with_it(tmp_path):
     with pytest.raises(R.DemRunError, match="same solids in every theta column"):
         R.run_scene(acc, tmp_path / "acc", progress=False, threads=1)
     assert not (tmp_path / "acc").exists()
+
+
+def test_dem_run_advises_on_full_slices():
+    from millfmu.dem.scene import load_scene, scene_advice
+
+    full = load_scene("disc_slice")  # the full circle with gravity, one theta cell
+    assert full.geometry.sector_deg == 360.0 and full.coupling.n_theta == 1
+    assert any("cannot carry gravity's asymmetry" in a for a in scene_advice(full))
+    t32 = full.with_overrides(n_theta=32)
+    assert [a for a in scene_advice(t32) if "theta_fft" in a]
+    assert scene_advice(t32.with_overrides(pressure_solver="theta_fft")) == []
+    sector = full.with_overrides(sector_deg=10.0, gravity_m_s2=(0.0, 0.0, 0.0))
+    assert scene_advice(sector) == []
+    assert scene_advice(full.with_overrides(fluid_mode="prescribed")) == []

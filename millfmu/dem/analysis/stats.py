@@ -163,7 +163,7 @@ def kinetic_energy_steadiness(t_s: np.ndarray, ke_j: np.ndarray, t_record_start_
 
 
 #: rows of recorded contacts taken at a time where a whole-recording pass would copy them
-#: all (a full slice's recording is 9 GB, read from its file: millfmu.dem.contact_log)
+#: all (a full slice's recording is 7.4 GB, read from its file: millfmu.dem.contact_log)
 BLOCK_ROWS = 1 << 22
 
 
