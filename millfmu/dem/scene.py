@@ -124,21 +124,17 @@ class DemScene:
                 raise DemSceneError(f"n_theta = {n_theta}: theta cells are the coupled "
                                     f"liquid's; the fluid here is {new.fluid_mode!r}")
             new = replace(new, coupling=replace(new.coupling, n_theta=n_theta))
-        if smoothing is not None:
-            if smoothing not in SMOOTHINGS:
-                raise DemSceneError(f"smoothing = {smoothing!r}: allowed {list(SMOOTHINGS)}")
+        # the coupled liquid's choices by name
+        for key, value, allowed in (("smoothing", smoothing, SMOOTHINGS),
+                                    ("pressure_solver", pressure_solver, PRESSURE_SOLVERS)):
+            if value is None:
+                continue
+            if value not in allowed:
+                raise DemSceneError(f"{key} = {value!r}: allowed {list(allowed)}")
             if new.coupling is None:
-                raise DemSceneError(f"smoothing = {smoothing!r}: the coupled liquid's; the "
-                                    f"fluid here is {new.fluid_mode!r}")
-            new = replace(new, coupling=replace(new.coupling, smoothing=smoothing))
-        if pressure_solver is not None:
-            if pressure_solver not in PRESSURE_SOLVERS:
-                raise DemSceneError(f"pressure_solver = {pressure_solver!r}: allowed "
-                                    f"{list(PRESSURE_SOLVERS)}")
-            if new.coupling is None:
-                raise DemSceneError(f"pressure_solver = {pressure_solver!r}: the coupled "
-                                    f"liquid's; the fluid here is {new.fluid_mode!r}")
-            new = replace(new, coupling=replace(new.coupling, pressure_solver=pressure_solver))
+                raise DemSceneError(f"{key} = {value!r}: the coupled liquid's; the fluid "
+                                    f"here is {new.fluid_mode!r}")
+            new = replace(new, coupling=replace(new.coupling, **{key: value}))
         _check_ranges(new)
         return new
 

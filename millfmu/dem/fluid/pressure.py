@@ -23,6 +23,17 @@ from millfmu.dem.coupling.settings import PRESSURE_SOLVERS
 from millfmu.dem.fluid.grid import FLUID, CylGrid
 
 
+def coupling_entries(rows: list, cols: list, vals: list, a, b, cond) -> None:
+    """Append to the (rows, cols, vals) triplets the conductance ``cond`` [m] between the
+    unknowns ``a`` and ``b`` (index arrays, -1 for solid cells, whose pairs are skipped):
+    a symmetric -Laplacian's four entries per face."""
+    m = (a >= 0) & (b >= 0)
+    a, b, c = a[m], b[m], np.broadcast_to(cond, m.shape)[m]
+    rows.extend([a, b, a, b])
+    cols.extend([b, a, a, b])
+    vals.extend([-c, -c, c, c])
+
+
 class PressureSolver:
     """Direct solver of the projection equation on a CylGrid's fluid cells. ``method``
     (:data:`PRESSURE_SOLVERS`): ``direct_lu``, one sparse LU of the whole operator;
@@ -47,11 +58,7 @@ class PressureSolver:
         rows, cols, vals = [], [], []
 
         def couple(a, b, cond):
-            m = (a >= 0) & (b >= 0)
-            a, b, c = a[m], b[m], np.broadcast_to(cond, m.shape)[m]
-            rows.extend([a, b, a, b])
-            cols.extend([b, a, a, b])
-            vals.extend([-c, -c, c, c])
+            coupling_entries(rows, cols, vals, a, b, cond)
 
         ii, jj, kk = np.meshgrid(np.arange(1, nr), np.arange(nt), np.arange(nz), indexing="ij")
         couple(idx[ii - 1, jj, kk], idx[ii, jj, kk],

@@ -28,6 +28,7 @@ import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
 from millfmu.dem.fluid.grid import FLUID, CylGrid, GridError
+from millfmu.dem.fluid.pressure import coupling_entries
 
 
 def theta_invariant(grid: CylGrid) -> bool:
@@ -60,11 +61,7 @@ class ThetaFftPressure:
 
         # the r and z faces' conductances as the direct solver's (one theta column)
         def couple(a, b, cond):
-            m = (a >= 0) & (b >= 0)
-            a, b, c = a[m], b[m], np.broadcast_to(cond, m.shape)[m]
-            rows.extend([a, b, a, b])
-            cols.extend([b, a, a, b])
-            vals.extend([-c, -c, c, c])
+            coupling_entries(rows, cols, vals, a, b, cond)
 
         ii, kk = np.meshgrid(np.arange(1, nr), np.arange(nz), indexing="ij")
         couple(idx[ii - 1, kk], idx[ii, kk], (rf[1:nr] * dth * dz / (rc[1:] - rc[:-1]))[:, None])
