@@ -126,7 +126,9 @@ def write_maps(out: Path, scene, events: np.ndarray, cols: dict):
         _zone_outline(ax, scene)
         ax.set_xlabel("axial position from the disc mid-plane [mm]")
         ax.set_ylabel("radius [mm]")
-        ax.set_title(f"{scene.name}: v_tip {scene.tip_speed_m_s:g} m/s, filling "
+        # the figure's title, above the colour bar's offset label ("1e12"), which the axes'
+        # title ran into on the right
+        fig.suptitle(f"{scene.name}: v_tip {scene.tip_speed_m_s:.3g} m/s, filling "
                      f"{scene.filling if scene.filling is not None else '-'}, fluid "
                      f"{scene.fluid_mode}", fontsize=9)
         fig.tight_layout()
