@@ -11,6 +11,8 @@ import json
 import math
 import sys
 
+from millfmu.dem.coupling.settings import PRESSURE_SOLVERS, SMOOTHINGS
+
 
 def register(subparsers) -> argparse.ArgumentParser:
     """Add the ``dem`` command group to an argparse subparsers object."""
@@ -60,11 +62,11 @@ def register(subparsers) -> argparse.ArgumentParser:
     r.add_argument("--theta-cells", type=int, dest="n_theta", metavar="N",
                    help="coupled liquid: N theta cells over the sector (1: axisymmetric with "
                         "swirl; a full circle with gravity wants 16 or more)")
-    r.add_argument("--smoothing", choices=["explicit_diffusion", "split_implicit"],
+    r.add_argument("--smoothing", choices=SMOOTHINGS,
                    help="coupled liquid: how the beads' fields are smoothed (default the "
                         "scene's; split_implicit costs the same on any cell size, for full "
                         "slices)")
-    r.add_argument("--pressure-solver", choices=["direct_lu", "theta_fft"],
+    r.add_argument("--pressure-solver", choices=PRESSURE_SOLVERS,
                    dest="pressure_solver",
                    help="coupled liquid: the pressure equation's solver (default the scene's; "
                         "theta_fft, for theta cells without baffles, solves the same "

@@ -33,8 +33,9 @@ folder holds its whole state (beads, contact histories, the liquid, what has bee
 so far), written anew (atomically) every so many seconds of wall time and removed once the
 outputs are written. The recorded contacts are appended to ``recorded_contacts.f8`` in the
 same folder as the run goes (:mod:`millfmu.dem.contact_log`: a full slice's do not fit in
-memory), of which the checkpoint names the length; the file too is removed at the end; :func:`resume_run` (``millfmu dem run --resume DIR``) goes on from it
-and gives the same outputs to the digit as the run that was not stopped.
+memory), of which the checkpoint names the length; the file too is removed at the end.
+:func:`resume_run` (``millfmu dem run --resume DIR``) goes on from a checkpoint and gives
+the same outputs to the digit as the run that was not stopped.
 """
 
 from __future__ import annotations
@@ -422,10 +423,10 @@ def run_scene(scene: DemScene, out_dir, progress: bool = True, threads: int | No
         "per axial period of the cell",
     ]
 
-    def stats_of(chunks, t0_s, counts=None):
-        # Statistics of the recording chunks ``chunks`` (indices), which start at t0_s.
-        # chunks are consecutive: a view of the log's file
-        e = events.chunks(chunks[0], chunks[-1] + 1) if chunks else np.zeros((0, K.EV_NF))
+    def stats_of(chunks: range, t0_s, counts=None):
+        # Statistics of the recording chunks ``chunks`` (consecutive), which start at t0_s:
+        # their contacts a view of the log's file
+        e = events.chunks(chunks.start, chunks.stop)
         n = sum(torques[i][0] for i in chunks)
         return compute_stats(
             scene=scene.name, zones=zones, events=e, ev_cols=EV_COLS,
@@ -438,7 +439,7 @@ def run_scene(scene: DemScene, out_dir, progress: bool = True, threads: int | No
             fluid_model=scene.fluid_description, notes=notes,
             counts=counts or {})
 
-    stats = stats_of(list(range(len(events))), n_spin * dt, counts=dict(
+    stats = stats_of(range(len(events)), n_spin * dt, counts=dict(
         contacts_recorded=int(ev.shape[0]),
         bead_bead=int((ev[:, K.EV_TYPE] == 0).sum()) if ev.size else 0,
         bead_wall=int((ev[:, K.EV_TYPE] > 0).sum()) if ev.size else 0,
@@ -460,7 +461,7 @@ def run_scene(scene: DemScene, out_dir, progress: bool = True, threads: int | No
         per = max(1, int(round(window_s / (every * dt))))
         rows = []
         for w0 in range(0, len(events), per):
-            chunks = list(range(w0, min(w0 + per, len(events))))
+            chunks = range(w0, min(w0 + per, len(events)))
             t0 = (n_spin + w0 * every) * dt
             rows.append((t0, t0 + sum(torques[i][0] for i in chunks) * dt,
                          stats_of(chunks, t0)))

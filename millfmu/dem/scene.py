@@ -100,8 +100,8 @@ class DemScene:
         """Copy with run-time overrides (tip_speed_m_s, filling, sector_deg, spin_up_s,
         record_s, dt_s, fluid_mode, initial_rotation, primed_s, n_theta: the coupled
         liquid's theta cells; smoothing: its smoothing (SMOOTHINGS); pressure_solver: its
-        pressure equation's solver (PRESSURE_SOLVERS); ``baffles``: a dict of the [mill] baffle keys, BAFFLE_KEYS);
-        validated like file values."""
+        pressure equation's solver (PRESSURE_SOLVERS); ``baffles``: a dict of the [mill]
+        baffle keys, BAFFLE_KEYS); validated like file values."""
         geo = self.geometry
         if kw.get("baffles") is not None:
             geo = _with_baffles(geo, kw["baffles"], "baffles")

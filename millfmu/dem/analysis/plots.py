@@ -11,6 +11,8 @@ from pathlib import Path
 
 import numpy as np
 
+from millfmu.dem.analysis.stats import BLOCK_ROWS
+
 
 def section_maps(scene, events: np.ndarray, cols: dict):
     """Binned maps over (axial position [m], radius [m]) of bead-bead collisions:
@@ -22,9 +24,8 @@ def section_maps(scene, events: np.ndarray, cols: dict):
     n = np.zeros((scene.map_bins_z, scene.map_bins_r))
     s = np.zeros_like(n)
     # in blocks of rows: copying all bead-bead rows at once took 88 bytes per contact
-    step = 1 << 22
-    for i in range(0, events.shape[0] if events.size else 0, step):
-        blk = events[i:i + step]
+    for i in range(0, events.shape[0] if events.size else 0, BLOCK_ROWS):
+        blk = events[i:i + BLOCK_ROWS]
         bb = blk[blk[:, cols["type"]] == 0]
         x = bb[:, cols["x"]]
         y = bb[:, cols["y"]]

@@ -32,6 +32,7 @@ import math
 import numpy as np
 from numba import prange
 
+from millfmu.dem.coupling.settings import SMOOTHINGS
 from millfmu.dem.engine._jit import inlined, kernel, serial
 from millfmu.dem.fluid.grid import FLUID
 
@@ -182,18 +183,17 @@ class Projector:
         self.rtab, self.rh = radial_table(self.rc)
         # explicit diffusion sweeps: per-sweep face coefficients alpha = kappa dtau A / h
         # [m3] between fluid cells, on the "+" face of each cell (r, theta, z)
-        rf, rc, dth, dz = g.r_faces_m, g.r_centres_m, g.dtheta_rad, g.dz_m
+        if method not in SMOOTHINGS:
+            raise ValueError(f"smoothing = {method!r}: allowed {list(SMOOTHINGS)}")
+        cr, ct, cz = g.face_conductances_m()
         fl = self.fluid
         self._ar = np.zeros(g.shape)
         self._at = np.zeros(g.shape)
         self._az = np.zeros(g.shape)
-        self._ar[:-1] = np.where(fl[:-1] & fl[1:],
-                                 (rf[1:nr] * dth * dz / (rc[1:] - rc[:-1]))[:, None, None], 0.0)
+        self._ar[:-1] = np.where(fl[:-1] & fl[1:], cr[:, None, None], 0.0)
         if nt > 1:
-            self._at[:] = np.where(fl & np.roll(fl, -1, axis=1),
-                                   (g.dr_m * dz / (rc * dth))[:, None, None], 0.0)
-        self._az[:] = np.where(fl & np.roll(fl, -1, axis=2),
-                               (g.cell_volume_m3 / dz ** 2)[:, None, None], 0.0)
+            self._at[:] = np.where(fl & np.roll(fl, -1, axis=1), ct[:, None, None], 0.0)
+        self._az[:] = np.where(fl & np.roll(fl, -1, axis=2), cz[:, None, None], 0.0)
         # stability and positivity: sum of a cell's coefficients <= V / 2 per sweep
         conn = self._ar + np.roll(self._ar, 1, axis=0) * (np.arange(nr) > 0)[:, None, None] + \
             self._at + np.roll(self._at, 1, axis=1) + self._az + np.roll(self._az, 1, axis=2)
@@ -203,23 +203,19 @@ class Projector:
         self.variance_m2 = 2.0 * self.L ** 2
         self.sweeps = int(math.ceil(self.variance_m2 / (2.0 * k_max))) if self.L > 0 else 0
         kappa = self.variance_m2 / (2.0 * self.sweeps) if self.sweeps else 0.0
-        for a in (self._ar, self._at, self._az):
-            a *= kappa
-        self._tmp = None
-        self._vol_r = np.ascontiguousarray(g.cell_volume_m3)
         self.method = method
         self._implicit = None
         if method == "split_implicit" and self.L > 0:
             from millfmu.dem.coupling.split_implicit_smoothing import SplitImplicitSmoother
 
-            # the face coefficients of one unit of kappa dtau
-            un = kappa if kappa else 1.0
-            self._implicit = SplitImplicitSmoother(g.shape, self._vol_r, self._ar / un,
-                                                   self._at / un, self._az / un,
-                                                   self.variance_m2, steps)
-        elif method not in ("explicit_diffusion", "split_implicit"):
-            raise ValueError(f"smoothing = {method!r}: allowed 'explicit_diffusion', "
-                             f"'split_implicit'")
+            # the face coefficients of one unit of kappa dtau (before the sweeps' scaling)
+            self._implicit = SplitImplicitSmoother(g.shape, g.cell_volume_m3, self._ar,
+                                                   self._at, self._az, self.variance_m2,
+                                                   steps)
+        for a in (self._ar, self._at, self._az):
+            a *= kappa
+        self._tmp = None
+        self._vol_r = np.ascontiguousarray(g.cell_volume_m3)
 
     # ---- smoothing ----------------------------------------------------------------------
     def smooth_totals(self, tot, ncols=None):

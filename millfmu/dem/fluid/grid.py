@@ -116,6 +116,16 @@ class CylGrid:
         rf = self.r_faces_m
         return 0.5 * (rf[1:] ** 2 - rf[:-1] ** 2) * self.dtheta_rad * self.dz_m
 
+    def face_conductances_m(self):
+        """Face area over the distance between the centres it parts [m], per radial row:
+        the r faces between rows i and i + 1 (n_r - 1,), the theta faces (n_r,), the z faces
+        (n_r,). The pressure equation's Laplacian and the beads' smoothing diffusion both
+        couple neighbouring cells by these."""
+        rf, rc, dth, dz = self.r_faces_m, self.r_centres_m, self.dtheta_rad, self.dz_m
+        nr = rc.size
+        return (rf[1:nr] * dth * dz / (rc[1:] - rc[:-1]), self.dr_m * dz / (rc * dth),
+                self.cell_volume_m3 / dz ** 2)
+
     @property
     def fluid_volume_m3(self) -> float:
         """Volume of all fluid cells [m3] (beads included)."""

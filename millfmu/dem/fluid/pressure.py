@@ -54,21 +54,18 @@ class PressureSolver:
         self.n = int(fluid.sum())
         idx[fluid] = np.arange(self.n)
         self.volume = np.broadcast_to(g.cell_volume_m3[:, None, None], g.shape)[fluid]
-        rf, rc, dth, dz = g.r_faces_m, g.r_centres_m, g.dtheta_rad, g.dz_m
         rows, cols, vals = [], [], []
 
         def couple(a, b, cond):
             coupling_entries(rows, cols, vals, a, b, cond)
 
+        cr, ct, cz = g.face_conductances_m()
         ii, jj, kk = np.meshgrid(np.arange(1, nr), np.arange(nt), np.arange(nz), indexing="ij")
-        couple(idx[ii - 1, jj, kk], idx[ii, jj, kk],
-               (rf[1:nr] * dth * dz / (rc[1:] - rc[:-1]))[:, None, None])
+        couple(idx[ii - 1, jj, kk], idx[ii, jj, kk], cr[:, None, None])
         ii, jj, kk = np.meshgrid(np.arange(nr), np.arange(nt), np.arange(nz), indexing="ij")
         if nt > 1:
-            couple(idx[ii, jj, kk], idx[ii, (jj + 1) % nt, kk],
-                   (g.dr_m * dz / (rc * dth))[:, None, None])
-        couple(idx[ii, jj, kk], idx[ii, jj, (kk + 1) % nz],
-               (g.cell_volume_m3 / dz ** 2)[:, None, None])
+            couple(idx[ii, jj, kk], idx[ii, (jj + 1) % nt, kk], ct[:, None, None])
+        couple(idx[ii, jj, kk], idx[ii, jj, (kk + 1) % nz], cz[:, None, None])
         r = np.concatenate(rows)
         c = np.concatenate(cols)
         v = np.concatenate(vals)

@@ -56,7 +56,7 @@ class ThetaFftPressure:
         n2 = int(f2.sum())
         idx = np.full((nr, nz), -1, np.int64)
         idx[f2] = np.arange(n2)
-        rf, rc, dth, dz = g.r_faces_m, g.r_centres_m, g.dtheta_rad, g.dz_m
+        cr, ct, cz = g.face_conductances_m()
         rows, cols, vals = [], [], []
 
         # the r and z faces' conductances as the direct solver's (one theta column)
@@ -64,12 +64,12 @@ class ThetaFftPressure:
             coupling_entries(rows, cols, vals, a, b, cond)
 
         ii, kk = np.meshgrid(np.arange(1, nr), np.arange(nz), indexing="ij")
-        couple(idx[ii - 1, kk], idx[ii, kk], (rf[1:nr] * dth * dz / (rc[1:] - rc[:-1]))[:, None])
+        couple(idx[ii - 1, kk], idx[ii, kk], cr[:, None])
         ii, kk = np.meshgrid(np.arange(nr), np.arange(nz), indexing="ij")
-        couple(idx[ii, kk], idx[ii, (kk + 1) % nz], (g.cell_volume_m3 / dz ** 2)[:, None])
+        couple(idx[ii, kk], idx[ii, (kk + 1) % nz], cz[:, None])
         a_rz = sp.csc_matrix((np.concatenate(vals), (np.concatenate(rows),
                                                      np.concatenate(cols))), shape=(n2, n2))
-        ct = np.broadcast_to((g.dr_m * dz / (rc * dth))[:, None], (nr, nz))[f2]
+        ct = np.broadcast_to(ct[:, None], (nr, nz))[f2]
         lam = 2.0 - 2.0 * np.cos(2.0 * np.pi * np.arange(nt // 2 + 1) / nt)
         self._lus = []
         for m, lm in enumerate(lam):

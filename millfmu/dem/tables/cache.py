@@ -102,7 +102,8 @@ KERNEL_MODULES = {
 #: of rows (a full slice's 84 M contacts took 12 GB at once), and the pressure equation's
 #: solver chosen by name (an FFT in theta added, counted in the hash; the direct LU, as
 #: before, by default), and the pressure matrix's face entries in one helper both solvers
-#: share. A checkpoint made by one of these sources
+#: share, and the faces' conductances in one grid method that the pressure equation and the
+#: smoothing both read. A checkpoint made by one of these sources
 #: resumes under another (run.resume_run). Any other change of these sources gives a new
 #: hash, and a new version.
 SAME_DEM_AS = {
@@ -157,6 +158,8 @@ SAME_DEM_AS = {
     "sha256:5207b2b0d73dd3b0fd783b1bc3ef990da5e2059c870de59f2a2fe92e1d74c831":
         "sha256:cc5c174862c188a675fdb35932f269eb61ae82876e3d110866af2b7a62b0d3bd",
     "sha256:aff26d9e8c03c48c62bd8a321f93b74e017f563bd5b28df2240e907bdb7f1d3a":
+        "sha256:cc5c174862c188a675fdb35932f269eb61ae82876e3d110866af2b7a62b0d3bd",
+    "sha256:6d4572076a746ea46398bc337a67704dde5c0b2e3aaa51b4aa473b764906332d":
         "sha256:cc5c174862c188a675fdb35932f269eb61ae82876e3d110866af2b7a62b0d3bd",
 }
 
