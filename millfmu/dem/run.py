@@ -547,6 +547,14 @@ def _finite(obj):
     return obj
 
 
+def _weight_note(budget: dict) -> str:
+    """The weight's part of the printed budget line, where the weight has a torque."""
+    w = budget.get("gravity_nms")
+    if not w:
+        return ""
+    return f" (the beads' weight gave {w:.3g} N m s of {budget['stirrer_drive_nms']:.3g})"
+
+
 def _zeta_of_grid(grid, geometry):
     return FS.fold_zeta(grid.z_centres_m, geometry.disc_z_m, geometry.height_m)
 
@@ -558,6 +566,7 @@ def _budget_reading(sim, cpl) -> dict:
     if cpl is not None:
         r["fluid"] = cpl.solver.angular_momentum_kgm2_s()
         r.update(cpl.angular_impulses_nms())
+        r["gravity"] = cpl.gravity_angular_impulse_nms
     return r
 
 
@@ -585,15 +594,21 @@ def flow_summary(scene, sim, cpl, sx, sv, torques, budget0, fields, substeps) ->
         drive = -(jf_rot + tb_rot * t_rec)
         walls = jf_sta + tb_sta * t_rec
         change = (b1["fluid"] - budget0["fluid"]) + (b1["beads"] - budget0["beads"])
-        scale = max(abs(drive), abs(walls), abs(change), 1e-300)
+        # the beads' weight about the axis (gravity across the axis of a full slice); a
+        # run resumed from a checkpoint of earlier sources does not know it (NaN): left out
+        weight = b1.get("gravity", math.nan) - budget0.get("gravity", math.nan)
+        known = math.isfinite(weight)
+        scale = max(abs(drive), abs(walls), abs(change), abs(weight) if known else 0.0,
+                    1e-300)
         out["angular_momentum_budget"] = dict(
-            note="simulated sector over the recording [N m s, kg m2/s]: stirrer drive = "
-                 "change of fluid + bead angular momentum + impulse taken by the chamber "
-                 "wall",
-            stirrer_drive_nms=drive, chamber_nms=walls,
+            note="simulated sector over the recording [N m s, kg m2/s]: stirrer drive + "
+                 "angular impulse of the beads' buoyancy-reduced weight = change of fluid "
+                 "+ bead angular momentum + impulse taken by the chamber wall",
+            stirrer_drive_nms=drive, gravity_nms=weight if known else None,
+            chamber_nms=walls,
             change_fluid=b1["fluid"] - budget0["fluid"],
             change_beads=b1["beads"] - budget0["beads"],
-            closure_rel=(drive - change - walls) / scale)
+            closure_rel=(drive + (weight if known else 0.0) - change - walls) / scale)
         rho = scene.fluid.density_kg_m3
         n_rev = om / (2.0 * math.pi)
         p_tot = torque["stirrer_total_nm"] * om
@@ -763,7 +778,8 @@ def summary_table(stats: DemStats) -> str:
                      f"shear {t['stirrer_fluid_shear_nm']:.4g}, bead contacts "
                      f"{t['stirrer_bead_contacts_nm']:.4g}), power number "
                      f"{fl['power_number']['value']:.4g}; angular momentum budget closes to "
-                     f"{fl['angular_momentum_budget']['closure_rel']:.1e}; CFD step "
+                     f"{fl['angular_momentum_budget']['closure_rel']:.1e}"
+                     f"{_weight_note(fl['angular_momentum_budget'])}; CFD step "
                      f"{fl['fluid']['cfd_dt_s']:.3g} s, grid {fl['fluid']['grid']['n_r']} x "
                      f"{fl['fluid']['grid']['n_theta']} x {fl['fluid']['grid']['n_z']}")
     a = fl.get("seed002")

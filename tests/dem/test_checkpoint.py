@@ -252,6 +252,13 @@ def test_circumferential_distribution_hand_case():
     # 200 -> 110 (bin 3), 300 -> 210 (bin 7), 20 -> 290 (bin 9)
     assert c["beads_per_bin"] == [3, 0, 0, 1, 0, 0, 0, 2, 0, 2, 0, 0]
     assert c["largest_over_smallest_bin"] == 3.0  # empty bins count as one
+    # the centroid: towards the rising side (+x here) and upwards (+y)
+    assert c["centroid_rising_m"] == [pytest.approx(x[:, 0].mean(), abs=1e-15)]
+    assert c["centroid_up_m"] == [pytest.approx(x[:, 1].mean(), abs=1e-15)]
+    # gravity along -x: up is +x, the rising side (up turned by -90 degrees) is -y
+    cg = circumferential(x, (-9.81, 0.0, 0.0), 360.0)
+    assert cg["centroid_up_m"] == [pytest.approx(x[:, 0].mean(), abs=1e-15)]
+    assert cg["centroid_rising_m"] == [pytest.approx(-x[:, 1].mean(), abs=1e-15)]
     assert circumferential(x, (0.0, 0.0, 0.0), 360.0) == {}
     assert circumferential(x, (0.0, -9.81, 0.0), 60.0) == {}
     # time mean over samples (a run's recording): the second sample moves the bead at 200

@@ -25,7 +25,10 @@ def circumferential(x, gravity_m_s2, sector_deg: float) -> dict:
     of (n_i, 3) arrays, or an array (samples, n, 3)); {} without gravity across the axis or
     in a sector. beads_per_bin: mean beads per bin; per_bin_over_mean: each bin over the
     mean of the bins (seed 002's figure 8 measure); the ratios are those of the bead counts
-    summed over the samples."""
+    summed over the samples. centroid_rising_m, centroid_up_m: the beads' mean position
+    across the axis at each sample [m], towards the rising side and upwards; with equal
+    beads the centre of mass, whose offset towards the rising side makes the weight's
+    torque about the axis (in a turning bed it travels round with the bed)."""
     gx, gy = float(gravity_m_s2[0]), float(gravity_m_s2[1])
     gn = math.hypot(gx, gy)
     if gn == 0.0 or sector_deg < 360.0:
@@ -40,8 +43,15 @@ def circumferential(x, gravity_m_s2, sector_deg: float) -> dict:
     nb = int(round(360.0 / AZIMUTH_BIN_DEG))
     counts = np.zeros(nb, np.int64)
     rising = upper = n = 0
+    # unit vectors across the axis: up (against gravity) and towards the rising side (up
+    # turned by -90 degrees about +z: where the stirrer, turning about +z, moves upwards)
+    ux, uy = -gx / gn, -gy / gn
+    hx, hy = uy, -ux
+    c_rise, c_up = [], []
     for xs in samples:
         xs = np.asarray(xs)
+        c_rise.append(float(np.mean(xs[:, 0] * hx + xs[:, 1] * hy)) if xs.size else 0.0)
+        c_up.append(float(np.mean(xs[:, 0] * ux + xs[:, 1] * uy)) if xs.size else 0.0)
         phi = np.mod(np.arctan2(xs[:, 1], xs[:, 0]) - top, 2.0 * math.pi)
         counts += np.bincount(np.minimum((phi / (2.0 * math.pi) * nb).astype(int), nb - 1),
                               minlength=nb)
@@ -56,4 +66,7 @@ def circumferential(x, gravity_m_s2, sector_deg: float) -> dict:
                 per_bin_over_mean=(counts / max(counts.mean(), 1e-300)).tolist(),
                 largest_over_smallest_bin=float(counts.max() / max(counts.min(), 1)),
                 rising_over_falling_half=float(rising / max(n - rising, 1)),
-                upper_over_lower_half=float(upper / max(n - upper, 1)))
+                upper_over_lower_half=float(upper / max(n - upper, 1)),
+                centroid_note="the beads' centroid (mean position) across the axis [m], per "
+                              "sample: towards the rising side and upwards",
+                centroid_rising_m=c_rise, centroid_up_m=c_up)

@@ -307,7 +307,8 @@ def write_circumferential(path: Path, scene, circ: dict):
     """Where the beads sit round the circle of a full slice with gravity (``circ``, the
     run's ``flow.circumferential``): beads per azimuthal bin over the mean of the bins,
     the azimuth counted from the top (against gravity) in the direction of rotation; the
-    rising half (the stirrer moving upwards, 180-360 degrees) shaded."""
+    rising half (the stirrer moving upwards, 180-360 degrees) shaded; beside it, where
+    ``circ`` has them, the beads' centroid across the axis at each sample [mm]."""
     import matplotlib
 
     matplotlib.use("Agg")
@@ -316,7 +317,13 @@ def write_circumferential(path: Path, scene, circ: dict):
     rel = np.asarray(circ["per_bin_over_mean"], float)
     w = float(circ["azimuth_bin_deg"])
     centres = w * (np.arange(rel.size) + 0.5)
-    fig, ax = plt.subplots(figsize=(6, 4))
+    cr = np.asarray(circ.get("centroid_rising_m", ()), float) * 1e3
+    cu = np.asarray(circ.get("centroid_up_m", ()), float) * 1e3
+    if cr.size:
+        fig, (ax, axc) = plt.subplots(1, 2, figsize=(10, 4),
+                                      gridspec_kw=dict(width_ratios=[1.6, 1.0]))
+    else:
+        fig, ax = plt.subplots(figsize=(6, 4))
     ax.axvspan(180.0, 360.0, color="0.92", lw=0)
     ax.bar(centres, rel, width=0.85 * w, color="tab:blue")
     ax.axhline(1.0, color="k", lw=0.8, ls="--")
@@ -331,6 +338,22 @@ def write_circumferential(path: Path, scene, circ: dict):
                  f"half\nlargest / smallest bin {circ['largest_over_smallest_bin']:.3f}, "
                  f"rising / falling half {circ['rising_over_falling_half']:.3f}, upper / "
                  f"lower half {circ['upper_over_lower_half']:.3f}", fontsize=9)
+    if cr.size:
+        # the centroid's path: a bed whose denser part travels round draws a loop
+        axc.plot(cr, cu, color="0.6", lw=0.8, zorder=1)
+        sc = axc.scatter(cr, cu, c=np.arange(cr.size), cmap="viridis", s=14, zorder=2)
+        axc.plot([cr.mean()], [cu.mean()], "k+", ms=12, mew=1.5, zorder=3)
+        axc.axhline(0.0, color="k", lw=0.6, ls=":")
+        axc.axvline(0.0, color="k", lw=0.6, ls=":")
+        m = max(float(np.abs(np.r_[cr, cu]).max()) * 1.15, 0.05)
+        axc.set_xlim(-m, m)
+        axc.set_ylim(-m, m)
+        axc.set_aspect("equal")
+        axc.set_xlabel("towards the rising side [mm]")
+        axc.set_ylabel("upwards [mm]")
+        axc.set_title(f"the beads' centroid across the axis, per sample\n+: time mean "
+                      f"({cr.mean():.2f}, {cu.mean():.2f}) mm", fontsize=9)
+        fig.colorbar(sc, ax=axc, label="sample (in order)", fraction=0.046, pad=0.04)
     fig.tight_layout()
     fig.savefig(path, dpi=110)
     plt.close(fig)

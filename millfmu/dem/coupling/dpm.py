@@ -198,9 +198,11 @@ class DiscretePhaseCoupling(CfdDem):
             raise ValueError(f"nsteps = {nsteps}: must be a multiple of the CFD step of "
                              f"{m} DEM steps")
         out = []
+        tau = self._weight_torque_start()
         for _ in range(nsteps // m):
             self.exchange()
             for _ in range(m // k):
                 self._drag()
-                out.append(self.sim.run(k, record=record))
+                st, tau = self._dem_run(k, record, tau)
+                out.append(st)
         return out

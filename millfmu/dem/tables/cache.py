@@ -103,7 +103,9 @@ KERNEL_MODULES = {
 #: solver chosen by name (an FFT in theta added, counted in the hash; the direct LU, as
 #: before, by default), and the pressure matrix's face entries in one helper both solvers
 #: share, and the faces' conductances in one grid method that the pressure equation and the
-#: smoothing both read. A checkpoint made by one of these sources
+#: smoothing both read, and the weight's angular impulse about the axis counted in the
+#: coupled run's angular-momentum budget (a diagnostic beside the run, with the beads'
+#: centroid per sample of a full slice). A checkpoint made by one of these sources
 #: resumes under another (run.resume_run). Any other change of these sources gives a new
 #: hash, and a new version.
 SAME_DEM_AS = {
@@ -160,6 +162,8 @@ SAME_DEM_AS = {
     "sha256:aff26d9e8c03c48c62bd8a321f93b74e017f563bd5b28df2240e907bdb7f1d3a":
         "sha256:cc5c174862c188a675fdb35932f269eb61ae82876e3d110866af2b7a62b0d3bd",
     "sha256:6d4572076a746ea46398bc337a67704dde5c0b2e3aaa51b4aa473b764906332d":
+        "sha256:cc5c174862c188a675fdb35932f269eb61ae82876e3d110866af2b7a62b0d3bd",
+    "sha256:d6b0665ee6306f42530ba8f29ff4afa07e60689f9863b07a860415558fe59f08":
         "sha256:cc5c174862c188a675fdb35932f269eb61ae82876e3d110866af2b7a62b0d3bd",
 }
 
