@@ -231,9 +231,10 @@ class CfdDem:
     def _dem_run(self, k: int, record: bool, tau):
         """``k`` DEM steps, adding the weight's angular impulse over them by the
         trapezoidal rule from ``tau``, the torque at their start (None: none to add), as
-        the velocity-Verlet kicks apply it over each step; the bed's centre of mass moves
-        over tenths of a second, so over a coupling interval the rule is exact to about
-        1e-8 of the impulse. Returns (the DEM's StepStats, the torque at the end)."""
+        the velocity-Verlet kicks apply it over each step. The bed's centre of mass moves
+        over tenths of a second: in the disc full slice (torque swinging by 1.3e-3 N m once
+        in 0.17 s) the rule's error over 0.3 s is at most 1e-10 N m s, 1e-8 of the
+        stirrer's drive. Returns (the DEM's StepStats, the torque at the end)."""
         st = self.sim.run(k, record=record)
         if tau is not None:
             t1 = self.gravity_torque_nm()
