@@ -106,9 +106,8 @@ KERNEL_MODULES = {
 #: smoothing both read, and the weight's angular impulse about the axis counted in the
 #: coupled run's angular-momentum budget (a diagnostic beside the run, with the beads'
 #: centroid per sample of a full slice; then a docstring of it reworded). A checkpoint made
-#: by one of these sources
-#: resumes under another (run.resume_run). Any other change of these sources gives a new
-#: hash, and a new version.
+#: by one of these sources resumes under another (run.resume_run). Any other change of
+#: these sources gives a new hash, and a new version.
 SAME_DEM_AS = {
     "sha256:4e5f649d8459bddd50a7ec059ace6b44106bac1745e88635e4f565af91d91452":
         "sha256:cc5c174862c188a675fdb35932f269eb61ae82876e3d110866af2b7a62b0d3bd",
