@@ -54,6 +54,7 @@ import numpy as np
 from millfmu.dem.analysis import flow_structure as FS
 from millfmu.dem.analysis import plots, snapshots
 from millfmu.dem.analysis.circumferential import circumferential
+from millfmu.dem.analysis.circumferential import summary_line as circumferential_line
 from millfmu.dem.analysis.stats import DemStats, compute_stats
 from millfmu.dem.contact_log import FILE as CONTACT_LOG
 from millfmu.dem.contact_log import ContactLog, ContactLogError
@@ -782,6 +783,8 @@ def summary_table(stats: DemStats) -> str:
                      f"{_weight_note(fl['angular_momentum_budget'])}; CFD step "
                      f"{fl['fluid']['cfd_dt_s']:.3g} s, grid {fl['fluid']['grid']['n_r']} x "
                      f"{fl['fluid']['grid']['n_theta']} x {fl['fluid']['grid']['n_z']}")
+    if fl.get("circumferential"):
+        lines.append(circumferential_line(fl["circumferential"]))
     a = fl.get("seed002")
     if a:
         lines.append(f"seed 002 ({a['rotor_speed_rpm']:.0f} rpm): " + "; ".join(

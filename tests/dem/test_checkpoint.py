@@ -255,6 +255,12 @@ def test_circumferential_distribution_hand_case():
     # the centroid: towards the rising side (+x here) and upwards (+y)
     assert c["centroid_rising_m"] == [pytest.approx(x[:, 0].mean(), abs=1e-15)]
     assert c["centroid_up_m"] == [pytest.approx(x[:, 1].mean(), abs=1e-15)]
+    from millfmu.dem.analysis.circumferential import summary_line
+
+    line = summary_line(c)
+    assert "rising / falling half 1.000, upper / lower 1.667" in line
+    assert f"at most {np.hypot(x[:, 0].mean(), x[:, 1].mean()) * 1e3:.2f} mm" in line
+    assert summary_line({}) == ""
     # gravity along -x: up is +x, the rising side (up turned by -90 degrees) is -y
     cg = circumferential(x, (-9.81, 0.0, 0.0), 360.0)
     assert cg["centroid_up_m"] == [pytest.approx(x[:, 0].mean(), abs=1e-15)]

@@ -70,3 +70,23 @@ def circumferential(x, gravity_m_s2, sector_deg: float) -> dict:
                 centroid_note="the beads' centroid (mean position) across the axis [m], per "
                               "sample: towards the rising side and upwards",
                 centroid_rising_m=c_rise, centroid_up_m=c_up)
+
+
+def summary_line(circ: dict) -> str:
+    """One line of a run's printed summary for ``circ`` (:func:`circumferential` of the
+    recording): the halves, the bins' range and the centroid's mean and largest distance
+    from the axis [mm]; "" where there is none."""
+    if not circ:
+        return ""
+    rel = np.asarray(circ["per_bin_over_mean"], float)
+    line = (f"circumferential (time mean of {circ['samples']} samples): rising / falling half "
+            f"{circ['rising_over_falling_half']:.3f}, upper / lower "
+            f"{circ['upper_over_lower_half']:.3f}, beads per {circ['azimuth_bin_deg']:.0f} "
+            f"degrees {rel.min():.3f}-{rel.max():.3f} of their mean")
+    cr = np.asarray(circ.get("centroid_rising_m", ()), float)
+    cu = np.asarray(circ.get("centroid_up_m", ()), float)
+    if cr.size:
+        line += (f"; the beads' centroid on average {cr.mean() * 1e3:.2f} mm towards the "
+                 f"rising side and {cu.mean() * 1e3:.2f} mm up, at most "
+                 f"{np.hypot(cr, cu).max() * 1e3:.2f} mm from the axis")
+    return line

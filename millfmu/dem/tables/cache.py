@@ -105,7 +105,8 @@ KERNEL_MODULES = {
 #: share, and the faces' conductances in one grid method that the pressure equation and the
 #: smoothing both read, and the weight's angular impulse about the axis counted in the
 #: coupled run's angular-momentum budget (a diagnostic beside the run, with the beads'
-#: centroid per sample of a full slice; then a docstring of it reworded). A checkpoint made
+#: centroid per sample of a full slice; then a docstring of it reworded), and the
+#: circumferential figures in the run's printed summary. A checkpoint made
 #: by one of these sources resumes under another (run.resume_run). Any other change of
 #: these sources gives a new hash, and a new version.
 SAME_DEM_AS = {
@@ -166,6 +167,8 @@ SAME_DEM_AS = {
     "sha256:d6b0665ee6306f42530ba8f29ff4afa07e60689f9863b07a860415558fe59f08":
         "sha256:cc5c174862c188a675fdb35932f269eb61ae82876e3d110866af2b7a62b0d3bd",
     "sha256:a918b0919a96770cf3cb258766c1057dc780524a61ac831e327919384a5bf507":
+        "sha256:cc5c174862c188a675fdb35932f269eb61ae82876e3d110866af2b7a62b0d3bd",
+    "sha256:ca031c44b723e5de37154318c204db8608e5cb76f8b31e08e9b8ff2ca3e445c8":
         "sha256:cc5c174862c188a675fdb35932f269eb61ae82876e3d110866af2b7a62b0d3bd",
 }
 
