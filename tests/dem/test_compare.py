@@ -32,6 +32,22 @@ def test_rows_and_relative_differences(tmp_path):
     assert rows["collision density, chamber [1/(m3 s)]"] == ["2.25e+12", "4.5e+12 (+100.0 %)"]
     assert rows["stirrer torque: fluid shear share [-]"][0] == "0.75"
     assert "first bead layer / disc angular velocity [-]" not in rows  # absent in both
+    assert "rising / falling half (full slice with gravity) [-]" not in rows
+    # a full slice with gravity: its budget and circumferential figures
+    st = _stats(0.1, 1e12)
+    st["flow"]["angular_momentum_budget"] = dict(stirrer_drive_nms=0.028,
+                                                 gravity_nms=-8.4e-4, closure_rel=-7.7e-5)
+    st["flow"]["circumferential"] = dict(rising_over_falling_half=1.056,
+                                         upper_over_lower_half=0.99,
+                                         centroid_rising_m=[7e-4, 8e-4],
+                                         centroid_up_m=[-2e-4, -3e-4])
+    full = _write(tmp_path / "full", st)
+    rows = {r[0]: r[1:] for r in C.compare_rows([full, a])}
+    assert rows["weight's angular impulse / stirrer drive [-]"] == ["-0.03", "n/a"]
+    assert rows["angular-momentum budget closure [-]"] == ["-7.7e-05", "n/a"]
+    assert rows["rising / falling half (full slice with gravity) [-]"] == ["1.056", "n/a"]
+    assert rows["beads' centroid towards the rising side, time mean [m]"][0] == "0.00075"
+    assert rows["beads' centroid upwards, time mean [m]"][0] == "-0.00025"
     md = C.markdown([a, b])
     assert md.splitlines()[0] == "| quantity | a | b |"
 

@@ -74,6 +74,21 @@ def _flow(*keys):
     return f
 
 
+def _weight_share(st):
+    """The beads' weight's angular impulse over the stirrer's drive [-] (full slices with
+    gravity across the axis; None where the budget has no such entry)."""
+    b = st.get("flow", {}).get("angular_momentum_budget") or {}
+    w, d = b.get("gravity_nms"), b.get("stirrer_drive_nms")
+    return None if w is None or not d else w / d
+
+
+def _centroid_mean(key):
+    def f(st):
+        v = st.get("flow", {}).get("circumferential", {}).get(key)
+        return None if not v else sum(v) / len(v)
+    return f
+
+
 def _grid(st):
     g = st.get("flow", {}).get("fluid", {}).get("grid")
     if not g:
@@ -102,6 +117,16 @@ QUANTITIES = (
        ("stirrer torque: fluid shear share",
         lambda st: (lambda t: None if not t else t["stirrer_fluid_shear_nm"] /
                     t["stirrer_total_nm"])(st.get("flow", {}).get("torque")), "-", True),
+       ("angular-momentum budget closure",
+        _flow("angular_momentum_budget", "closure_rel"), "-", False),
+       ("weight's angular impulse / stirrer drive", _weight_share, "-", False),
+       ("rising / falling half (full slice with gravity)",
+        _flow("circumferential", "rising_over_falling_half"), "-", True),
+       ("upper / lower half (full slice with gravity)",
+        _flow("circumferential", "upper_over_lower_half"), "-", True),
+       ("beads' centroid towards the rising side, time mean",
+        _centroid_mean("centroid_rising_m"), "m", False),
+       ("beads' centroid upwards, time mean", _centroid_mean("centroid_up_m"), "m", False),
        ("kinetic energy trend over the recording",
         lambda st: st.get("kinetic_energy", {}).get("rel_trend_over_record"), "-", False),
        ("vortices (fluid): between discs / disc tip to wall",
