@@ -77,14 +77,17 @@ def _flow(*keys):
 def _weight_share(st):
     """The beads' weight's angular impulse over the stirrer's drive [-] (full slices with
     gravity across the axis; None where the budget has no such entry)."""
-    b = st.get("flow", {}).get("angular_momentum_budget") or {}
-    w, d = b.get("gravity_nms"), b.get("stirrer_drive_nms")
+    w = _flow("angular_momentum_budget", "gravity_nms")(st)
+    d = _flow("angular_momentum_budget", "stirrer_drive_nms")(st)
     return None if w is None or not d else w / d
 
 
 def _centroid_mean(key):
+    """Time mean [m] of the per-sample centroid list ``key`` of flow.circumferential."""
+    get = _flow("circumferential", key)
+
     def f(st):
-        v = st.get("flow", {}).get("circumferential", {}).get(key)
+        v = get(st)
         return None if not v else sum(v) / len(v)
     return f
 

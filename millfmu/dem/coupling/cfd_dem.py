@@ -216,8 +216,6 @@ class CfdDem:
         the axis."""
         sim = self.sim
         gx, gy = float(sim.prm[sim.K.P_GX]), float(sim.prm[sim.K.P_GY])
-        if gx == 0.0 and gy == 0.0:
-            return 0.0
         return float(gy * np.dot(sim.mass, sim.x[:, 0]) - gx * np.dot(sim.mass, sim.x[:, 1]))
 
     def _weight_torque_start(self):

@@ -106,7 +106,8 @@ KERNEL_MODULES = {
 #: smoothing both read, and the weight's angular impulse about the axis counted in the
 #: coupled run's angular-momentum budget (a diagnostic beside the run, with the beads'
 #: centroid per sample of a full slice; then a docstring of it reworded), and the
-#: circumferential figures in the run's printed summary. A checkpoint made
+#: circumferential figures in the run's printed summary, and the weight's torque checked
+#: for gravity across the axis in one place. A checkpoint made
 #: by one of these sources resumes under another (run.resume_run). Any other change of
 #: these sources gives a new hash, and a new version.
 SAME_DEM_AS = {
@@ -169,6 +170,8 @@ SAME_DEM_AS = {
     "sha256:a918b0919a96770cf3cb258766c1057dc780524a61ac831e327919384a5bf507":
         "sha256:cc5c174862c188a675fdb35932f269eb61ae82876e3d110866af2b7a62b0d3bd",
     "sha256:ca031c44b723e5de37154318c204db8608e5cb76f8b31e08e9b8ff2ca3e445c8":
+        "sha256:cc5c174862c188a675fdb35932f269eb61ae82876e3d110866af2b7a62b0d3bd",
+    "sha256:5b4f2ef30188b94bb56c6a48c6eb6b4661a14a2bef0fe85a734329c8d098f23d":
         "sha256:cc5c174862c188a675fdb35932f269eb61ae82876e3d110866af2b7a62b0d3bd",
 }
 
