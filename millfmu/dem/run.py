@@ -107,8 +107,10 @@ def initial_positions(scene: DemScene) -> np.ndarray:
     return place_beads(scene.geometry, n, r, seed=scene.seed)
 
 
-def make_simulation(scene: DemScene, threads: int | None = None):
-    """The DEM of ``scene`` and, for the coupled fluid, its :class:`CfdDem` (else None)."""
+def make_simulation(scene: DemScene, threads: int | None = None, device: str = "cpu"):
+    """The DEM of ``scene`` and, for the coupled fluid, its :class:`CfdDem` (else None).
+    ``device``: where the DEM steps ("cpu": numba threads; "gpu": numba.cuda, the liquid
+    and the exchange staying on the CPU's ``threads``)."""
     x0 = initial_positions(scene)
     v0 = None
     if scene.initial_rotation:
@@ -116,7 +118,7 @@ def make_simulation(scene: DemScene, threads: int | None = None):
         v0 = np.column_stack([-w * x0[:, 1], w * x0[:, 0], np.zeros(len(x0))])
     sim = DemSimulation(scene.geometry, scene.material, x0, 0.5 * scene.bead_diameter_m,
                         scene.omega_rad_s, scene.dt_s, gravity_m_s2=scene.gravity_m_s2,
-                        fluid=scene.fluid, threads=threads, velocities_m_s=v0)
+                        fluid=scene.fluid, threads=threads, velocities_m_s=v0, device=device)
     cpl = None
     if scene.fluid_mode == "coupled":
         c = scene.coupling
@@ -230,7 +232,8 @@ def resume_run(out_dir, progress: bool = True, threads: int | None = None,
 
 def run_scene(scene: DemScene, out_dir, progress: bool = True, threads: int | None = None,
               window_s: float | None = None, contacts: bool = False,
-              checkpoint_every_s: float | None = None, _state: dict | None = None) -> DemStats:
+              checkpoint_every_s: float | None = None, _state: dict | None = None,
+              device: str = "cpu") -> DemStats:
     """Run ``scene`` and write its outputs to ``out_dir``; returns the statistics.
 
     ``window_s`` [s]: also cut the recording into consecutive windows of this length (a
@@ -238,6 +241,9 @@ def run_scene(scene: DemScene, out_dir, progress: bool = True, threads: int | No
     ``windows.csv``, to see whether the recorded state is stationary. With the coupled
     fluid, spin-up, recording and sampling interval are rounded up to whole coupling
     intervals. ``contacts``: also write ``contacts.npz`` (:func:`write_contacts`).
+    ``device``: "gpu" steps the DEM with numba.cuda (:mod:`millfmu.dem.engine.gpu`; the
+    same model, results equal to the CPU's to round-off), the coupled liquid staying on
+    the CPU; no checkpoints then.
     ``checkpoint_every_s`` [s of wall time]: keep ``checkpoint.pkl`` (module docstring)
     written at the first sample after each such span; :func:`resume_run` goes on from it.
     """
@@ -254,13 +260,21 @@ def run_scene(scene: DemScene, out_dir, progress: bool = True, threads: int | No
         raise DemRunError(f"{out}: holds the checkpoint of a stopped run; go on with it "
                           f"(resume_run, dem run --resume {out}) or remove "
                           f"{out / CHECKPOINT} to start afresh")
+    if device not in ("cpu", "gpu"):
+        raise DemRunError(f"device = {device!r}: allowed 'cpu' or 'gpu'")
+    if checkpoint_every_s is not None and device != "cpu":
+        raise DemRunError("checkpoints are written for runs on the CPU only (device = "
+                          f"{device!r})")
     if _state is None:
         try:
-            sim, cpl = make_simulation(scene, threads)
+            sim, cpl = make_simulation(scene, threads, device)
         except GridError as e:  # a liquid's grid the scene's values cannot make
             raise DemRunError(f"{scene.name}: the coupled liquid's grid: {e}") from None
-        if checkpoint_every_s is not None and sim.device != "cpu":
-            raise DemRunError("checkpoints are written for runs on the CPU only")
+        except (RuntimeError, ImportError, ValueError) as e:
+            if device == "cpu":
+                raise
+            # no CUDA GPU or numba.cuda, or a scene the GPU stepper does not model (vanes)
+            raise DemRunError(f"{scene.name}: {e}") from None
     else:
         sim, cpl = _state["sim"], _state["cpl"]
         import numba
@@ -423,6 +437,9 @@ def run_scene(scene: DemScene, out_dir, progress: bool = True, threads: int | No
         "stirrer torque and power scaled from the simulated sector to the full circle; "
         "per axial period of the cell",
     ]
+    if sim.device != "cpu":
+        notes.append(f"DEM stepped on the {sim.device.upper()} (numba.cuda), the liquid and "
+                     f"the exchange on {sim.threads} CPU threads")
 
     def stats_of(chunks: range, t0_s, counts=None):
         # Statistics of the recording chunks ``chunks`` (consecutive), which start at t0_s:

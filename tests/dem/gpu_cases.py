@@ -48,7 +48,17 @@ def run_both(sims, steps, record=True):
     assert out["gpu"].dropped_events == out["cpu"].dropped_events == 0
     ec, eg = sorted_events(out["cpu"].events), sorted_events(out["gpu"].events)
     assert eg.shape == ec.shape
-    np.testing.assert_allclose(eg, ec, rtol=1e-9, atol=1e-24)
+    # each column to round-off of its own scale: a GPU fuses multiply-adds (the CPU's
+    # kernels do not), which moves a quantity that is a difference of larger terms (a
+    # contact point's coordinate that should be 0, a shear energy of a nearly head-on
+    # contact) by round-off of those terms, not of itself
+    # (the position's three columns share one scale, as do the three stress energies)
+    scale = np.abs(ec).max(axis=0) if ec.size else np.zeros(K.EV_NF)
+    for group in ((K.EV_X, K.EV_Y, K.EV_Z), (K.EV_SETN, K.EV_SETS, K.EV_SEROT)):
+        scale[list(group)] = scale[list(group)].max()
+    for col in range(K.EV_NF):
+        np.testing.assert_allclose(eg[:, col], ec[:, col], rtol=1e-9,
+                                   atol=1e-12 * scale[col] + 1e-300, err_msg=f"column {col}")
     for key in ("torque_sum_nm_steps", "chamber_torque_sum_nm_steps"):
         a, b = getattr(out["gpu"], key), getattr(out["cpu"], key)
         assert a == pytest.approx(b, rel=1e-9, abs=1e-18), key
@@ -157,3 +167,29 @@ def test_contact_carried_across_a_sector_wrap_matches_cpu():
         run_both(sims, 5)
     assert np.arctan2(sims["gpu"].x[0, 1], sims["gpu"].x[0, 0]) > math.radians(30.0)
     assert_same_state(sims)
+
+
+def test_coupled_primed_disc_sector_matches_cpu():
+    """``dem run --device gpu`` with the coupled liquid: the liquid and the exchange on the
+    CPU, the DEM on the GPU. The primed start gives the beads the liquid's velocity on the
+    host (uploaded through host_state_changed); two coupling intervals then agree with
+    the CPU's in the beads and the liquid."""
+    from millfmu.dem.run import make_simulation
+    from millfmu.dem.scene import load_scene
+
+    sc = load_scene("disc_slice").with_overrides(
+        bead_diameter_m=2.4e-3, filling=0.5, sector_deg=10.0, gravity_m_s2=(0.0, 0.0, 0.0),
+        primed_s=1e-3)
+    made = {dev: make_simulation(sc, 1, dev) for dev in ("cpu", "gpu")}
+    sims = {dev: m[0] for dev, m in made.items()}
+    assert 100 < sims["gpu"].n < 1000
+    # the primed start moved the beads with the liquid (and the GPU holds that velocity)
+    assert np.abs(sims["gpu"].v).max() > 1e-3
+    np.testing.assert_array_equal(sims["gpu"]._gpu.v.copy_to_host(), sims["gpu"].v)
+    for sim, cpl in made.values():
+        cpl.run(2 * cpl.settings.steps)
+    assert_same_state(sims, atol_x=1e-14, rtol_v=1e-8)
+    sc_, sg = made["cpu"][1].solver, made["gpu"][1].solver
+    for name in ("ur", "ut", "uz"):
+        a, b = getattr(sg, name), getattr(sc_, name)
+        np.testing.assert_allclose(a, b, rtol=0, atol=1e-9 * np.abs(b).max(), err_msg=name)

@@ -194,6 +194,7 @@ class CfdDem:
         sim.v[:, 0] = c * u[:, 0] - sn * u[:, 1]
         sim.v[:, 1] = sn * u[:, 0] + c * u[:, 1]
         sim.v[:, 2] = u[:, 2]
+        sim.host_state_changed("v")
         sim.per_bead["fluid_at_bead"][:, 0:3] = u
         # the beads' void fractions without rescaling the liquid's velocities
         self._deposit_and_split(self._eps_cells)

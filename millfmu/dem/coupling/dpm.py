@@ -34,6 +34,7 @@ from numba import prange
 from millfmu.dem.coupling import exchange_kernels as EK
 from millfmu.dem.coupling import projection as PJ
 from millfmu.dem.coupling.cfd_dem import CfdDem
+from millfmu.dem.coupling.exchange_kernels import held_sums
 from millfmu.dem.coupling.koch_hill2001 import STIFF_RATIO
 from millfmu.dem.coupling.projection import stencil_one
 from millfmu.dem.coupling.schiller_naumann import drag_coefficient
@@ -50,8 +51,6 @@ def particle_drag(x, v, rad, mass, cellv, mu, rho, interval, rc, rtab, rh, dth, 
     fext = (F_r [N], T_z [N m], F_z [N]), the deposit columns q (0, c, c r, c v_r,
     r c v_theta, c v_z) and fab[:, 0:3] the liquid's velocity at the bead. Returns the sums
     of T_z and F_z."""
-    tsum = 0.0
-    fsum = 0.0
     for b in prange(x.shape[0]):
         r = stencil_one(b, x, rc, rtab, rh, dth, nt, dz, nz, lz, solid, idx, w)
         inv = 1.0 / r if r > 0.0 else 0.0
@@ -80,8 +79,6 @@ def particle_drag(x, v, rad, mass, cellv, mu, rho, interval, rc, rtab, rh, dth, 
         fext[b, 0] = fr
         fext[b, 1] = tz
         fext[b, 2] = fz
-        tsum += tz
-        fsum += fz
         fab[b, 0] = u0
         fab[b, 1] = u1
         fab[b, 2] = u2
@@ -91,7 +88,7 @@ def particle_drag(x, v, rad, mass, cellv, mu, rho, interval, rc, rtab, rh, dth, 
         q[b, 3] = c * vr
         q[b, 4] = r * c * vt
         q[b, 5] = c * vz
-    return tsum, fsum
+    return held_sums(fext)
 
 
 class DiscretePhaseCoupling(CfdDem):

@@ -182,6 +182,21 @@ def nodes_to_cell_values(ur, ut, uz, gr, gt, gz, kr, kt, kz, solid, out):
                 out[5, c] = wa * gz[i, j, km] + wb * gz[i, j, k]
 
 
+@serial
+def held_sums(fext):
+    """Sums of T_z [N m] and F_z [N] of the held forces fext over the beads, in bead order.
+    Summed after the parallel loop that sets them, not as its reduction: numba's parfor
+    pass fails to compile a prange loop with a scalar reduction beside an inner loop with
+    a conditional read (numba issue 10132, on Python 3.12); and the sum no longer depends
+    on the thread count."""
+    tsum = 0.0
+    fsum = 0.0
+    for b in range(fext.shape[0]):
+        tsum += fext[b, 1]
+        fsum += fext[b, 2]
+    return tsum, fsum
+
+
 @kernel
 def bead_forces(idx, w, cellv, c, cyl, rad, fab, pf, now, body_z, fext):
     """Read the smoothed cell values back at each bead (fluid velocity and pressure
@@ -191,8 +206,6 @@ def bead_forces(idx, w, cellv, c, cyl, rad, fab, pf, now, body_z, fext):
     interval (the one whose reaction the fluid was given; now = False) or of this interval
     (now = True); then store the new values in fab. Returns the sums of T_z and F_z over
     the beads."""
-    tsum = 0.0
-    fsum = 0.0
     for b in prange(idx.shape[0]):
         at0 = 0.0
         at1 = 0.0
@@ -227,12 +240,10 @@ def bead_forces(idx, w, cellv, c, cyl, rad, fab, pf, now, body_z, fext):
         fext[b, 0] = fr
         fext[b, 1] = tz
         fext[b, 2] = fz
-        tsum += tz
-        fsum += fz
         fab[b, 0] = at0
         fab[b, 1] = at1
         fab[b, 2] = at2
         fab[b, 3] = at3
         fab[b, 4] = at4
         fab[b, 5] = at5
-    return tsum, fsum
+    return held_sums(fext)

@@ -542,6 +542,14 @@ class GpuStepper:
         ev = np.concatenate(events) if events else np.zeros((0, K.EV_NF))
         return ev, float(acc[0]), float(acc[1]), dropped, builds
 
+    def upload(self, names):
+        """Copy the host arrays named (of x, v, w) to the device; new positions get a new
+        neighbour build (their displacement is not tracked against the last one)."""
+        for name in names:
+            getattr(self, name).copy_to_device(getattr(self.sim, name))
+        if "x" in names:
+            self._build(wrap=True)
+
     def pairs(self):
         """(i, j, s) of the current neighbour lists, on the host."""
         nnb = self.lists["nnb"].copy_to_host()

@@ -242,6 +242,17 @@ class DemSimulation:
         self._finish(record=False, kick=0.0)
         self.prm[K.P_DT] = dt
 
+    def host_state_changed(self, *names: str) -> None:
+        """The host arrays named (of "x", "v", "w") were changed in place outside ``run``
+        (a coupling giving the beads the liquid's velocity): on the GPU they are uploaded
+        (positions with a new neighbour build); on the CPU the arrays are the state and
+        nothing is done."""
+        bad = [k for k in names if k not in ("x", "v", "w")]
+        if bad:
+            raise ValueError(f"host_state_changed: {bad}: allowed 'x', 'v', 'w'")
+        if self._gpu is not None:
+            self._gpu.upload(names)
+
     def register_per_bead(self, name: str, array: np.ndarray):
         """Keep ``array`` (first axis: beads, current row order) in ``per_bead[name]`` and
         reorder it with the beads whenever they are sorted."""
