@@ -72,6 +72,10 @@ def register(subparsers) -> argparse.ArgumentParser:
                         "theta_fft, for theta cells without baffles, solves the same "
                         "equation at a fraction of the cost on full disc slices)")
     r.add_argument("--threads", type=int, help="numba threads (default: all cores)")
+    r.add_argument("--device", choices=("cpu", "gpu"), default=None,
+                   help="where the DEM steps: cpu (numba threads, default) or gpu "
+                        "(numba.cuda; the coupled liquid stays on the CPU's threads; no "
+                        "checkpoints, no vanes)")
     r.add_argument("--windows", type=float, dest="window_s", metavar="S",
                    help="also write windows.csv: zone statistics of consecutive recording "
                         "windows of S seconds (stationarity check)")
@@ -91,17 +95,22 @@ def register(subparsers) -> argparse.ArgumentParser:
                         "(the bed and a million beads; numba.cuda); default: both, the "
                         "GPU rows where a GPU is present")
     b.add_argument("--profile", action="store_true",
-                   help="instead: where millfmu.dem's time goes, per kernel (1 and 2 threads)")
+                   help="instead: where millfmu.dem's time goes, per kernel (1 and 2 threads; "
+                        "with --device gpu, or where a GPU is present, per GPU phase)")
     b.add_argument("--regenerate-bed", action="store_true",
                    help="make the bed again (it is made once and cached)")
     b.add_argument("--json", action="store_true", help="also print every run as JSON")
-    b.add_argument("--bed", choices=("dense", "dilute", "both"), default="dense",
+    b.add_argument("--bed", choices=("dense", "dilute", "both", "none"), default="dense",
                    help="the dense sheared bed (default), the dilute one (a granular gas: "
-                        "few contacts, frequent neighbour rebuilds) or both in turn")
-    b.add_argument("--coupled", action="store_true",
+                        "few contacts, frequent neighbour rebuilds), both in turn, or none "
+                        "(with --coupled: the coupled row alone)")
+    b.add_argument("--coupled", nargs="?", const="sector", default=None,
+                   choices=("sector", "full"),
                    help="also the coupled row: disc_slice with the coupled fluid against the "
                         "DEM alone on the same beads, alternating, best of 3 (on the largest "
-                        "of --cores threads)")
+                        "of --cores threads; the DEM on the GPU with --device gpu): the "
+                        "10-degree sector (default) or 'full', the 360-degree slice with "
+                        "gravity and 32 theta cells (235 k beads)")
     b.set_defaults(func=_bench)
 
     s = sub.add_parser("seed001", help="seed 001 side by side: run its cases, print the "
@@ -330,7 +339,8 @@ def _run(args) -> int:
         print(f"millfmu dem run: note: {line}", file=sys.stderr)
     try:
         stats = run_scene(scene, args.out, progress=not args.no_progress, threads=args.threads,
-                          window_s=args.window_s, checkpoint_every_s=args.checkpoint_every_s)
+                          window_s=args.window_s, checkpoint_every_s=args.checkpoint_every_s,
+                          device=args.device or "cpu")
     except DemRunError as e:
         print(f"millfmu dem run: {e}", file=sys.stderr)
         return 2
@@ -364,6 +374,8 @@ def _resume(args) -> int:
                  n_theta="--theta-cells", window_s="--windows", smoothing="--smoothing",
                  pressure_solver="--pressure-solver")
     fixed = [f for k, f in flags.items() if getattr(args, k) is not None]
+    if args.device is not None:
+        fixed.append("--device")
     if args.scene is not None or args.no_gravity or fixed:
         given = ([args.scene] if args.scene else []) + fixed + \
             (["--no-gravity"] if args.no_gravity else [])
@@ -393,12 +405,18 @@ def _bench(args) -> int:
 
     steps = args.steps or B.BENCH_STEPS
     cores = tuple(args.cores or (1, 2))
-    beds = ("dense", "dilute") if args.bed == "both" else (args.bed,)
+    beds = dict(both=("dense", "dilute"), none=()).get(args.bed, (args.bed,))
+    if args.bed == "none" and not args.coupled:
+        print("millfmu dem bench: --bed none: nothing to run without --coupled", file=sys.stderr)
+        return 2
     if args.profile:
         for bed in beds:
             path = B.bed_file(B.BEDS[bed], regenerate=args.regenerate_bed)
-            for nc in cores:
-                B.profile(path, nc, steps)
+            if args.device != "gpu":
+                for nc in cores:
+                    B.profile(path, nc, steps)
+            if args.device == "gpu" or (args.device is None and B.gpu_available()):
+                B.profile_gpu(path, steps)
         return 0
     runs = []
     for bed in beds:
@@ -409,10 +427,17 @@ def _bench(args) -> int:
     if args.coupled:
         from millfmu.dem.studies.coupled_bench import run_coupled_bench
 
-        c = out["coupled"] = run_coupled_bench(steps=steps, threads=max(cores)).as_dict()
-        print(f"coupled row (disc_slice 10 m/s, 80 %, 10 deg, {c['beads']} beads, "
+        c = out["coupled"] = run_coupled_bench(
+            steps=steps, repeats=args.repeats or 3, threads=max(cores), scene=args.coupled,
+            device="gpu" if args.device == "gpu" else "cpu").as_dict()
+        where = f"DEM on the GPU, liquid on {c['threads']} threads" if c["device"] == "gpu" \
+            else f"{c['threads']} threads"
+        where += f" ({c['threading_layer']})"
+        print(f"coupled row (disc_slice 10 m/s, 80 %, "
+              f"{'10 deg' if c['scene'] == 'sector' else '360 deg with gravity'}, "
+              f"{c['beads']} beads, "
               f"{c['fluid_cells']} fluid cells, coupling every {c['coupling_steps']} steps, "
-              f"{c['threads']} threads, best of 3): DEM alone "
+              f"{where}, best of {len(c['dem_times_s'])}): DEM alone "
               f"{c['dem_particle_steps_per_s']:.4g}, coupled "
               f"{c['coupled_particle_steps_per_s']:.4g} particle-steps/s; the fluid and the "
               f"coupling add {c['added_cost']:.0%}")

@@ -19,8 +19,9 @@ the bookkeeping, which follows the GPU:
   image entries: the same pairs);
 - beads are not reordered.
 
-Per step: zero forces, forces, kick (and drift); the host reads four integers back
-(rebuild due, contacts recorded, cell and list overflow) to decide on a neighbour build.
+Per step: forces, then the kick (and drift; it zeroes the forces it has read); the host
+reads four integers back (rebuild due, contacts recorded, cell and list overflow) to
+decide on a neighbour build.
 numba.cuda is imported only here, when a GPU run is requested; with
 NUMBA_ENABLE_CUDASIM=1 the kernels run in numba's CUDA simulator (how the tests check
 this path without a GPU).
@@ -63,9 +64,12 @@ N_FLAGS = 4
 
 
 @gpu_kernel
-def g_kick(x, v, w, f, t, inv_m, inv_i, kick, dt, drift, xref, half_skin2, flags):
+def g_kick(x, v, w, f, t, inv_m, inv_i, kick, dt, drift, xref, half_skin2, flags, zero):
     """v += kick F/m, w += kick T/I and, with drift, x += dt v; raise F_REBUILD when a bead
-    has moved more than half the skin since the last neighbour build."""
+    has moved more than half the skin since the last neighbour build. With zero, the bead's
+    force and torque are zeroed once read, for the next force kernel to sum into: no other
+    thread touches row i during this kernel (the reactions' atomics are the force
+    kernel's), and it saves a launch per step."""
     i = cuda.grid(1)
     if i >= x.shape[0]:
         return
@@ -74,6 +78,9 @@ def g_kick(x, v, w, f, t, inv_m, inv_i, kick, dt, drift, xref, half_skin2, flags
     for a in range(3):
         v[i, a] += f[i, a] * im
         w[i, a] += t[i, a] * ii
+        if zero:
+            f[i, a] = 0.0
+            t[i, a] = 0.0
     if drift:
         dd = 0.0
         for a in range(3):
@@ -219,7 +226,7 @@ def g_build(x, count, cells, lo0, lo1, cs, ncx, ncy, ncz, cut2, prm, wrapk, nb_o
 def g_forces(x, v, w, f, t, rad, mass, inertia, nb, img, nnb, sh, fl, shw, flw, prm, fext,
              record, step, evbuf, flags, acc):
     """Forces [N] and torques [N m] on bead i (own contacts, walls, body forces) and the
-    reactions on its partners (atomic adds into f, t, which g_zero cleared); the torques
+    reactions on its partners (atomic adds into f, t, which the last kick zeroed); the torques
     on the stirrer and the chamber wall are added to acc[0], acc[1] [N m]; new contacts
     go to evbuf (row from the counter flags[F_EVENTS]). As
     :func:`millfmu.dem.engine.kernels.compute_forces`, with one thread per bead."""
@@ -493,10 +500,11 @@ class GpuStepper:
                      self.flw, self.prm, self.fext, record, step, self.evbuf, self.flags,
                      self.acc)
 
-    def _kick(self, kick: float, drift: bool):
+    def _kick(self, kick: float, drift: bool, zero: bool):
         sim = self.sim
         self._launch(g_kick, self.x, self.v, self.w, self.f, self.t, self.inv_m, self.inv_i,
-                     kick, sim.dt_s, drift, self.xref, (0.5 * sim.skin_m) ** 2, self.flags)
+                     kick, sim.dt_s, drift, self.xref, (0.5 * sim.skin_m) ** 2, self.flags,
+                     zero)
 
     def _drain(self, out: list, dropped: int) -> int:
         """Move the recorded contacts to the host (appended to out); returns the dropped
@@ -522,7 +530,9 @@ class GpuStepper:
         events: list = []
         dropped = 0
         builds = 0
-        self._kick(0.5 * dt, True)
+        # every kick but a run's last zeroes the forces it has read (the host keeps a
+        # run's last forces, which the next run's first half kick reads)
+        self._kick(0.5 * dt, True, True)
         for step in range(nsteps):
             h = self._flags()
             if h[F_REBUILD]:
@@ -530,10 +540,9 @@ class GpuStepper:
                 builds += 1
             if record and h[F_EVENTS] > self.evbuf.shape[0] // 2:
                 dropped = self._drain(events, dropped)
-            self._launch(g_zero, self.f, self.t)
             self._forces(record, step)
             last = step == nsteps - 1
-            self._kick(0.5 * dt if last else dt, not last)
+            self._kick(0.5 * dt if last else dt, not last, not last)
         if record:
             dropped = self._drain(events, dropped)
         for name in ("x", "v", "w", "f", "t"):

@@ -456,6 +456,16 @@ def gpu_available() -> bool:
         return False
 
 
+def gpu_name() -> str:
+    """The current CUDA device's name (numba's simulator has none)."""
+    try:
+        from numba import cuda
+        name = cuda.get_current_device().name
+    except Exception:
+        return "numba CUDA simulator"
+    return name.decode() if isinstance(name, bytes) else str(name)
+
+
 def _load() -> str:
     try:
         return "load average %.2f %.2f %.2f" % os.getloadavg()
@@ -670,3 +680,82 @@ def _profile_sim(sim, steps, out):
     out(f"  {'total (incl. Python between kernels)':38s} {total[0]:8.3f} {'':6s} {total[1]:8.3f}"
         f"  {s.n * steps / total[0] / 1e6:.2f} M particle-steps/s (wall)")
     return dict(tm, total=total, builds=builds)
+
+
+GPU_PHASES = ("flags read back", "neighbour build", "contact drain", "force kernel",
+              "kick (drift, zeroing)")
+
+
+def profile_gpu(path, steps: int = BENCH_STEPS, out=print) -> dict:
+    """Where the GPU path's step time goes on the bed at ``path``: the loop of
+    :meth:`millfmu.dem.engine.gpu.GpuStepper.run` driven phase by phase with the device
+    synchronised after each (wall clock [s], launch and kernel together). The
+    synchronisations serialise what the plain loop overlaps (the host launching the next
+    kernel while the device runs the last), so the phases' sum is compared with the same
+    steps run plainly; ``launch_s`` is the host's cost of one kernel launch (200 zero-force
+    launches, not synchronised, on a tiny grid). Returns {phase: s} plus 'total',
+    'plain', 'launch_s', 'builds'."""
+    from numba import cuda
+
+    from millfmu.dem.engine import gpu as G
+    from millfmu.dem.engine.sim import DemSimulation
+
+    bed = read_data(path)
+    sim = DemSimulation(BENCH_GEOMETRY, BENCH_MATERIAL, bed.x, 0.5 * bed.diameter_m,
+                        BENCH_OMEGA_RAD_S, BENCH_DT_S, velocities_m_s=bed.v, spins_rad_s=bed.w,
+                        skin_m=BENCH_SKIN_M, device="gpu")
+    sim.run(2, record=True)  # compiled and warm
+    g = sim._gpu
+    dt = sim.dt_s
+    tm = {k: 0.0 for k in GPU_PHASES}
+
+    def timed(name, fn):
+        t0 = time.perf_counter()
+        r = fn()
+        cuda.synchronize()
+        tm[name] += time.perf_counter() - t0
+        return r
+
+    cuda.synchronize()
+    t_start = time.perf_counter()
+    g.fext.copy_to_device(sim.fext)
+    timed(GPU_PHASES[4], lambda: g._kick(0.5 * dt, True, True))
+    events: list = []
+    dropped = builds = 0
+    for step in range(steps):
+        h = timed(GPU_PHASES[0], g._flags)
+        if h[G.F_REBUILD]:
+            timed(GPU_PHASES[1], lambda: g._build(wrap=True))
+            builds += 1
+        if h[G.F_EVENTS] > g.evbuf.shape[0] // 2:
+            dropped = timed(GPU_PHASES[2], lambda: g._drain(events, dropped))
+        timed(GPU_PHASES[3], lambda: g._forces(True, step))
+        last = step == steps - 1
+        timed(GPU_PHASES[4], lambda: g._kick(0.5 * dt if last else dt, not last, not last))
+    timed(GPU_PHASES[2], lambda: g._drain(events, dropped))
+    total = time.perf_counter() - t_start
+    for name in ("x", "v", "w", "f", "t"):
+        getattr(g, name).copy_to_host(getattr(sim, name))
+    sim.step_count += steps
+    t0 = time.perf_counter()
+    sim.run(steps, record=True)
+    plain = time.perf_counter() - t0
+    one = cuda.to_device(np.zeros((1, 3)))
+    G.g_zero[1, 1](one, one)
+    cuda.synchronize()
+    t0 = time.perf_counter()
+    for _ in range(200):
+        G.g_zero[1, 1](one, one)
+    launch = (time.perf_counter() - t0) / 200
+    cuda.synchronize()
+    out(f"profile of millfmu.dem on the GPU ({gpu_name()}), "
+        f"{sim.n} beads, {steps} steps, {builds} neighbour builds, phases synchronised")
+    out(f"  {'phase':24s} {'wall s':>8s} {'share':>6s} {'us per step':>12s}")
+    for k, v in tm.items():
+        out(f"  {k:24s} {v:8.4f} {100 * v / total:5.1f}% {v / steps * 1e6:12.1f}")
+    out(f"  {'total, synchronised':24s} {total:8.4f} {'':6s} {total / steps * 1e6:12.1f}  "
+        f"{sim.n * steps / total / 1e6:.1f} M particle-steps/s")
+    out(f"  {'the same steps, plain':24s} {plain:8.4f} {'':6s} {plain / steps * 1e6:12.1f}  "
+        f"{sim.n * steps / plain / 1e6:.1f} M particle-steps/s")
+    out(f"  one kernel launch on the host: {launch * 1e6:.1f} us")
+    return dict(tm, total=total, plain=plain, launch_s=launch, builds=builds)
