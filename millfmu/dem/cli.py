@@ -406,8 +406,13 @@ def _bench(args) -> int:
     steps = args.steps or B.BENCH_STEPS
     cores = tuple(args.cores or (1, 2))
     beds = dict(both=("dense", "dilute"), none=()).get(args.bed, (args.bed,))
-    if args.bed == "none" and not args.coupled:
-        print("millfmu dem bench: --bed none: nothing to run without --coupled", file=sys.stderr)
+    if args.bed == "none" and (not args.coupled or args.profile):
+        print("millfmu dem bench: --bed none: nothing to run without --coupled (and "
+              "--profile profiles a bed)", file=sys.stderr)
+        return 2
+    if args.device == "gpu" and (args.profile or args.coupled) and not B.gpu_available():
+        print("millfmu dem bench: --device gpu: numba.cuda finds no CUDA GPU (numba's "
+              "simulator is for tests, not for timing)", file=sys.stderr)
         return 2
     if args.profile:
         for bed in beds:

@@ -270,10 +270,11 @@ def run_scene(scene: DemScene, out_dir, progress: bool = True, threads: int | No
             sim, cpl = make_simulation(scene, threads, device)
         except GridError as e:  # a liquid's grid the scene's values cannot make
             raise DemRunError(f"{scene.name}: the coupled liquid's grid: {e}") from None
-        except (RuntimeError, ImportError, ValueError) as e:
+        except Exception as e:
             if device == "cpu":
                 raise
-            # no CUDA GPU or numba.cuda, or a scene the GPU stepper does not model (vanes)
+            # no CUDA GPU or numba.cuda, a scene the GPU stepper does not model (vanes),
+            # or the driver's refusal (out of device memory)
             raise DemRunError(f"{scene.name}: {e}") from None
     else:
         sim, cpl = _state["sim"], _state["cpl"]

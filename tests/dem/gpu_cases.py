@@ -146,6 +146,23 @@ def test_sector_disc_slice_gas_with_rebuilds_matches_cpu():
     assert np.all(th > -0.01) and np.all(th < math.radians(45.0) + 0.01)
 
 
+def test_zero_steps_change_nothing_then_agree_with_cpu():
+    """run(0) moves nothing and keeps the forces on both devices (the GPU's kick zeroes
+    the forces it reads, so a run that kicked without stepping would lose them)."""
+    x = place_beads(ANNULUS, 16, R, seed=5)
+    v = np.random.default_rng(2).normal(0.0, 0.5, size=x.shape)
+    sims = both(ANNULUS, BeadMaterial(), x, R, 500.0, 2e-6, velocities_m_s=v,
+                fluid=FluidSettings(), max_neighbours=1)
+    before = {d: (s.x.copy(), s.v.copy(), s.f.copy()) for d, s in sims.items()}
+    for d, s in sims.items():
+        st = s.run(0, record=True)
+        assert st.steps == 0 and st.events.shape[0] == 0
+        for a, b in zip((s.x, s.v, s.f), before[d]):
+            np.testing.assert_array_equal(a, b)
+    run_both(sims, 30)
+    assert_same_state(sims)
+
+
 def test_hertz_energy_reads_the_gpu_lists():
     geom = MillGeometry(shaft_radius_m=0.015, chamber_radius_m=0.019, height_m=0.004)
     x = place_beads(geom, 30, R, seed=2, gap_m=-2e-6)  # every neighbour pair overlaps

@@ -181,7 +181,7 @@ def test_what_cannot_be_resumed_is_refused_by_name(tmp_path, monkeypatch, capsys
         R.resume_run(tmp_path)
 
 
-def test_gpu_device_refusals_name_the_item(tmp_path, capsys):
+def test_gpu_device_refusals_name_the_item(tmp_path, capsys, monkeypatch):
     """``dem run --device gpu``: no checkpoints on the GPU, not with --resume, and without
     a CUDA GPU a clear error instead of a traceback (nothing written)."""
     assert dem_main(["run", "disc_slice", "--out", str(tmp_path / "a"), "--device", "gpu",
@@ -192,16 +192,21 @@ def test_gpu_device_refusals_name_the_item(tmp_path, capsys):
     assert "not allowed with --device" in capsys.readouterr().err
     with pytest.raises(R.DemRunError, match="device = 'tpu': allowed 'cpu' or 'gpu'"):
         R.run_scene(load_scene("disc_slice"), tmp_path / "b", device="tpu")
-    from millfmu.dem.studies.bench import gpu_available
+    # as on a machine without a CUDA GPU (also under numba's simulator, which reports one)
+    from numba import cuda
 
-    if not gpu_available():
-        assert dem_main(["run", "disc_slice", "--out", str(tmp_path / "c"), "--device", "gpu",
-                         "--sector-deg", "10", "--no-gravity", "--no-progress"]) == 2
-        err = capsys.readouterr().err
-        assert "disc_slice: device='gpu': " in err and "GPU" in err
-        assert not (tmp_path / "c").exists()
-    assert dem_main(["bench", "--bed", "none"]) == 2
-    assert "--bed none: nothing to run without --coupled" in capsys.readouterr().err
+    monkeypatch.setattr(cuda, "is_available", lambda: False)
+    assert dem_main(["run", "disc_slice", "--out", str(tmp_path / "c"), "--device", "gpu",
+                     "--sector-deg", "10", "--no-gravity", "--no-progress"]) == 2
+    err = capsys.readouterr().err
+    assert "disc_slice: device='gpu': numba.cuda finds no CUDA GPU" in err
+    assert not (tmp_path / "c").exists()
+    for argv in (["--profile"], ["--coupled", "full"]):
+        assert dem_main(["bench", "--device", "gpu"] + argv) == 2
+        assert "--device gpu: numba.cuda finds no CUDA GPU" in capsys.readouterr().err
+    for argv in ([], ["--coupled", "--profile"]):
+        assert dem_main(["bench", "--bed", "none"] + argv) == 2
+        assert "--bed none: nothing to run without --coupled" in capsys.readouterr().err
 
 
 def test_theta_cells_override_and_its_refusals(capsys):

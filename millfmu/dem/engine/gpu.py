@@ -523,6 +523,8 @@ class GpuStepper:
         """Advance nsteps velocity-Verlet steps (as kernels.advance); returns (events with
         the step within this call, stirrer and chamber torque sums [N m x steps], dropped
         contacts, neighbour builds)."""
+        if nsteps <= 0:  # as on the CPU: nothing moves, the forces stay
+            return np.zeros((0, K.EV_NF)), 0.0, 0.0, 0, 0
         sim = self.sim
         dt = sim.dt_s
         self.fext.copy_to_device(sim.fext)
@@ -552,12 +554,9 @@ class GpuStepper:
         return ev, float(acc[0]), float(acc[1]), dropped, builds
 
     def upload(self, names):
-        """Copy the host arrays named (of x, v, w) to the device; new positions get a new
-        neighbour build (their displacement is not tracked against the last one)."""
+        """Copy the host arrays named (v, w) to the device."""
         for name in names:
             getattr(self, name).copy_to_device(getattr(self.sim, name))
-        if "x" in names:
-            self._build(wrap=True)
 
     def pairs(self):
         """(i, j, s) of the current neighbour lists, on the host."""

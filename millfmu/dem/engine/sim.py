@@ -243,13 +243,14 @@ class DemSimulation:
         self.prm[K.P_DT] = dt
 
     def host_state_changed(self, *names: str) -> None:
-        """The host arrays named (of "x", "v", "w") were changed in place outside ``run``
-        (a coupling giving the beads the liquid's velocity): on the GPU they are uploaded
-        (positions with a new neighbour build); on the CPU the arrays are the state and
-        nothing is done."""
-        bad = [k for k in names if k not in ("x", "v", "w")]
+        """The host arrays named (of "v", "w": velocities and spins) were changed in place
+        outside ``run`` (a coupling giving the beads the liquid's velocity): on the GPU
+        they are uploaded; on the CPU the arrays are the state and nothing is done.
+        Positions are not among them: moving beads by hand would also need new neighbour
+        lists, on either device."""
+        bad = [k for k in names if k not in ("v", "w")]
         if bad:
-            raise ValueError(f"host_state_changed: {bad}: allowed 'x', 'v', 'w'")
+            raise ValueError(f"host_state_changed: {bad}: allowed 'v', 'w'")
         if self._gpu is not None:
             self._gpu.upload(names)
 

@@ -694,7 +694,7 @@ def profile_gpu(path, steps: int = BENCH_STEPS, out=print) -> dict:
     kernel while the device runs the last), so the phases' sum is compared with the same
     steps run plainly; ``launch_s`` is the host's cost of one kernel launch (200 zero-force
     launches, not synchronised, on a tiny grid). Returns {phase: s} plus 'total',
-    'plain', 'launch_s', 'builds'."""
+    'plain', 'launch_s', 'builds', 'dropped' (contacts the buffer could not hold)."""
     from numba import cuda
 
     from millfmu.dem.engine import gpu as G
@@ -732,7 +732,7 @@ def profile_gpu(path, steps: int = BENCH_STEPS, out=print) -> dict:
         timed(GPU_PHASES[3], lambda: g._forces(True, step))
         last = step == steps - 1
         timed(GPU_PHASES[4], lambda: g._kick(0.5 * dt if last else dt, not last, not last))
-    timed(GPU_PHASES[2], lambda: g._drain(events, dropped))
+    dropped = timed(GPU_PHASES[2], lambda: g._drain(events, dropped))
     total = time.perf_counter() - t_start
     for name in ("x", "v", "w", "f", "t"):
         getattr(g, name).copy_to_host(getattr(sim, name))
@@ -749,7 +749,9 @@ def profile_gpu(path, steps: int = BENCH_STEPS, out=print) -> dict:
     launch = (time.perf_counter() - t0) / 200
     cuda.synchronize()
     out(f"profile of millfmu.dem on the GPU ({gpu_name()}), "
-        f"{sim.n} beads, {steps} steps, {builds} neighbour builds, phases synchronised")
+        f"{sim.n} beads, {steps} steps, {builds} neighbour builds, "
+        f"{sum(e.shape[0] for e in events)} contacts recorded ({dropped} dropped), "
+        f"phases synchronised")
     out(f"  {'phase':24s} {'wall s':>8s} {'share':>6s} {'us per step':>12s}")
     for k, v in tm.items():
         out(f"  {k:24s} {v:8.4f} {100 * v / total:5.1f}% {v / steps * 1e6:12.1f}")
@@ -758,4 +760,5 @@ def profile_gpu(path, steps: int = BENCH_STEPS, out=print) -> dict:
     out(f"  {'the same steps, plain':24s} {plain:8.4f} {'':6s} {plain / steps * 1e6:12.1f}  "
         f"{sim.n * steps / plain / 1e6:.1f} M particle-steps/s")
     out(f"  one kernel launch on the host: {launch * 1e6:.1f} us")
-    return dict(tm, total=total, plain=plain, launch_s=launch, builds=builds)
+    return dict(tm, total=total, plain=plain, launch_s=launch, builds=builds,
+                dropped=dropped)

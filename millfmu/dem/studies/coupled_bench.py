@@ -4,16 +4,16 @@ one process, alternating, best of ``repeats``.
 Scene: disc_slice (seed 001's PM-1 slice), 10 m/s, 80 % filling, 10 degree sector without
 gravity, coupled fluid as the scene file sets it (axisymmetric grid of 0.75 mm cells,
 k-epsilon, coupling every 10 DEM steps); or (``scene="full"``) the full 360-degree slice
-with gravity, 32 theta cells and the pressure by FFT in theta (seed 001's case as
-``dem run disc_slice --theta-cells 32 --pressure-solver theta_fft`` runs it). The DEM steps
-on the CPU's threads or (``device="gpu"``) on the GPU, the liquid on the CPU's threads. Beads and fluid start turning at 0.1 of the
-stirrer's angular velocity (about the mean bead speed of the stirred slice) and move for
-``warm_s`` [s] coupled (compilation, and a stirred, colliding bed rather than beads at
-rest, whose contact loop would cost the DEM less than in a running mill); then each repeat
-times ``steps`` DEM steps alone (``run`` calls of a block of 200 steps, as the DEM runs
-uncoupled) and the same number coupled (one exchange and one 10-step ``run`` per coupling
-interval), block after block in turn. The ratio is what the fluid and the coupling add to
-the DEM's cost.
+with gravity, 32 theta cells and the pressure by FFT in theta (seed 001's case as ``dem run
+disc_slice --theta-cells 32 --pressure-solver theta_fft`` runs it). The DEM steps on the
+CPU's threads or (``device="gpu"``) on the GPU, the liquid on the CPU's threads. Beads and
+fluid start turning at 0.1 of the stirrer's angular velocity (about the mean bead speed of
+the stirred slice) and move for ``warm_s`` [s] coupled (compilation, and a stirred,
+colliding bed rather than beads at rest, whose contact loop would cost the DEM less than in
+a running mill); then each repeat times ``steps`` DEM steps alone (``run`` calls of a block
+of 200 steps, as the DEM runs uncoupled) and the same number coupled (one exchange and one
+10-step ``run`` per coupling interval), block after block in turn. The ratio is what the
+fluid and the coupling add to the DEM's cost.
 """
 
 from __future__ import annotations
@@ -91,7 +91,8 @@ def run_coupled_bench(steps: int = 2000, repeats: int = 3, threads: int | None =
         layer = numba.threading_layer()
     except ValueError:  # no parallel region ran
         layer = "none"
-    return CoupledBenchResult(scene=scene, device=device, beads=sim.n, fluid_cells=cpl.grid.describe()["fluid_cells"],
+    return CoupledBenchResult(scene=scene, device=device, beads=sim.n,
+                              fluid_cells=cpl.grid.describe()["fluid_cells"],
                               steps=steps, coupling_steps=k, threads=sim.threads,
                               dem_particle_steps_per_s=sim.n * steps / bd,
                               coupled_particle_steps_per_s=sim.n * steps / bc,
