@@ -24,7 +24,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from millfmu.dem.fluid.grid import FLUID, ROTOR, CylGrid
+from millfmu.dem.fluid.grid import FLUID, ROTOR, STATOR, CylGrid
 from millfmu.dem.fluid.pressure import PressureSolver
 
 MODELS = ("A", "B")
@@ -204,6 +204,7 @@ class FluidSolver:
         self._zero_c = np.zeros(g.shape)
         self._gphi = (np.zeros(shp_r), np.zeros(g.shape), np.zeros(g.shape))
         self.pressure = PressureSolver(grid, pressure_solver)
+        self._plate_faces = self._find_plate_faces()
         self._F = (self.ur, self.ut, self.uz, self.p, self.k, self.e, self.nu_t, self.eps_c,
                    self.eps_c_old, self.eps_r, self.eps_t, self.eps_z, self.kd_r, self.kd_t,
                    self.kd_z, self.sd_r, self.sd_t, self.sd_z, self.fixed_t, *self.mean_u,
@@ -224,6 +225,8 @@ class FluidSolver:
         self.angular_impulse_shaft_nms = 0.0
         self.angular_impulse_rotor_nms = 0.0
         self.angular_impulse_stator_nms = 0.0
+        # of which through the pressure and normal stress on stator plates' theta faces
+        self.angular_impulse_plates_nms = 0.0
         self.exchange_angular_nms = 0.0  # angular impulse the beads gave the fluid
         self.exchange_axial_ns = 0.0
         self.last_substeps = 0
@@ -293,6 +296,10 @@ class FluidSolver:
             self._dt_stable = SK.corrector(self._F, self._W, self._K, phi, self.wall,
                                            self.wall_om, self.rf, self.rc, self.dr, self.vc,
                                            self.dth, self.dz, rho, nu, kturb, dt, self.cfl)
+            if self._plate_faces is not None:
+                jp = self.plate_torque_nm() * dt
+                acc[2] += jp
+                self.angular_impulse_plates_nms += jp
             done += dt
             n += 1
             self.time_s += dt
@@ -321,6 +328,47 @@ class FluidSolver:
     def axial_momentum_kgm_s(self) -> float:
         m = self.kz == 0
         return float((self.rho * self.eps_z * self.vol_c * self.uz)[m].sum())
+
+    def _find_plate_faces(self):
+        """Theta faces between a stator cell and a fluid cell (the faces of radial plates:
+        baffles; the axisymmetric walls have none): the liquid pushes on them with its
+        pressure and normal stress tau_theta_theta, which the scheme takes at the fluid
+        cell beside the face; their torque goes to the stator (see advance). None without
+        such faces, else (fluid cells ahead of a plate, their r dr dz [m3], fluid cells
+        behind one, theirs)."""
+        solid = self.grid.solid
+        nt = solid.shape[1]
+        if nt == 1:
+            return None
+        st = solid == STATOR
+        fl = solid == FLUID
+        ahead = np.nonzero(st & np.roll(fl, 1, axis=1))  # fluid at j - 1 pushes +theta
+        behind = np.nonzero(st & np.roll(fl, -1, axis=1))  # fluid at j + 1 pushes -theta
+        if not (ahead[0].size or behind[0].size):
+            return None
+        arm = self.rc * self.dr * self.dz
+        return ((ahead[0], (ahead[1] - 1) % nt, ahead[2]), arm[ahead[0]],
+                (behind[0], (behind[1] + 1) % nt, behind[2]), arm[behind[0]])
+
+    def __setstate__(self, state):
+        # a solver pickled by sources before the plates' torque was counted (a run's
+        # checkpoint) goes on with it counted from the resume on
+        self.__dict__.update(state)
+        if "_plate_faces" not in state:
+            self._plate_faces = self._find_plate_faces()
+            self.angular_impulse_plates_nms = 0.0
+
+    def plate_torque_nm(self) -> float:
+        """Torque about +z [N m] the liquid exerts through its pressure and normal stress on
+        the theta faces of stator plates (baffles), in the last substep (simulated sector):
+        the fluid cell beside a face holds the face's stress (as the theta momentum takes
+        it), so the sum is what the liquid's solved nodes lose to the plates. 0 without
+        plates."""
+        if self._plate_faces is None:
+            return 0.0
+        ib, arm_b, ia, arm_a = self._plate_faces
+        q = self.p - self._ttt  # a tau_theta_theta of the substep, p after its projection
+        return float((arm_b * q[ib]).sum() - (arm_a * q[ia]).sum())
 
     def wall_torques_nm(self) -> dict:
         """Torques [N m] the fluid exerted on shaft, rotor cells (disc) and stator in the

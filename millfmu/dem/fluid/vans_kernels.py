@@ -510,11 +510,25 @@ def correct(u, kind, eps, gphi, rho, dt):
             u[n] -= dt * gphi[n] / (rho * eps[n])
 
 
+@inlined
+def _wall_kind(solid, i, j, k, nt):
+    """Kind (ROTOR 1, STATOR 2) of the wall a fixed theta node (i, j, k) belongs to: a
+    node inside a solid (kind 2) lies between two solid cells, a node on a plate's face
+    (kind 1: baffles) between the plate's cell and a fluid cell."""
+    s = solid[i, j, k]
+    if s == 0:
+        s = solid[i, (j + 1) % nt, k]
+    return s
+
+
 @serial
 def wall_torques(e_rt, e_tz, kt_, solid, rf, rc, vc, dth, dz):
     """Torque about +z [N m] the fluid exerts on the shaft, on the rotor's solid cells
-    (disc) and on the stationary walls (chamber, housing), from the same wall-edge stresses
-    the theta momentum uses: returns (shaft, rotor cells, stator)."""
+    (disc) and on the stationary walls (chamber, housing, baffles), from the same
+    wall-edge stresses the theta momentum uses: every r- and z-edge between a solved theta
+    node and a fixed one (inside a solid, or on a baffle's face); returns (shaft, rotor
+    cells, stator). The baffles' theta faces, where the liquid pushes with its pressure,
+    are FluidSolver.plate_torque_nm's."""
     nr, nt, nz = kt_.shape
     sh = 0.0
     rot = 0.0
@@ -530,12 +544,12 @@ def wall_torques(e_rt, e_tz, kt_, solid, rf, rc, vc, dth, dz):
             for i in range(1, nr):
                 ka = kt_[i - 1, j, k]
                 kb = kt_[i, j, k]
-                if ka == 2 and kb == 0:
+                if ka != 0 and kb == 0:
                     t = rf[i] ** 2 * e_rt[i, j, k] * dth * dz
-                    s = solid[i - 1, j, k]
-                elif kb == 2 and ka == 0:
+                    s = _wall_kind(solid, i - 1, j, k, nt)
+                elif kb != 0 and ka == 0:
                     t = -rf[i] ** 2 * e_rt[i, j, k] * dth * dz
-                    s = solid[i, j, k]
+                    s = _wall_kind(solid, i, j, k, nt)
                 else:
                     continue
                 if s == 1:
@@ -545,12 +559,12 @@ def wall_torques(e_rt, e_tz, kt_, solid, rf, rc, vc, dth, dz):
             for i in range(nr):
                 ka = kt_[i, j, k]
                 kb = kt_[i, j, kp]
-                if ka == 2 and kb == 0:
+                if ka != 0 and kb == 0:
                     t = rc[i] * e_tz[i, j, k] * vc[i] / dz
-                    s = solid[i, j, k]
-                elif kb == 2 and ka == 0:
+                    s = _wall_kind(solid, i, j, k, nt)
+                elif kb != 0 and ka == 0:
                     t = -rc[i] * e_tz[i, j, k] * vc[i] / dz
-                    s = solid[i, j, kp]
+                    s = _wall_kind(solid, i, j, kp, nt)
                 else:
                     continue
                 if s == 1:

@@ -112,10 +112,16 @@ KERNEL_MODULES = {
 #: sums of the held torques and axial forces taken after its parallel loop instead of as
 #: its reduction (numba on Python 3.12 failed to compile that loop; sector runs identical
 #: on 1 and 2 threads), and then only velocities and spins accepted from the host (not
-#: positions) and every failure to start a GPU run named as a run error. A checkpoint made
+#: positions) and every failure to start a GPU run named as a run error, and the liquid's
+#: torque on stator plates (baffles: pressure and normal stress on their theta faces, shear
+#: on their edges) counted in the stator's impulse, a diagnostic that is 0 without baffles
+#: (coupled sector runs identical on 1 and 2 threads, numba's cache emptied first). A
+#: checkpoint made
 #: by one of these sources resumes under another (run.resume_run). Any other change of
 #: these sources gives a new hash, and a new version.
 SAME_DEM_AS = {
+    "sha256:4f0be1f5c60bc72ea6f35afef4fef8979fcef21bdcc60d2b32f986b62750b350":
+        "sha256:cc5c174862c188a675fdb35932f269eb61ae82876e3d110866af2b7a62b0d3bd",
     "sha256:562d77630841edf661764954655b9250be192612da39bdd27bef81dbda6edf51":
         "sha256:cc5c174862c188a675fdb35932f269eb61ae82876e3d110866af2b7a62b0d3bd",
     "sha256:eb63ffecd754ccc40f3a503755a0a48812180deaa050c048fddbf8b57e7a9788":
