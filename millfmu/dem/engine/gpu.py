@@ -547,11 +547,16 @@ class GpuStepper:
             self._kick(0.5 * dt if last else dt, not last, not last)
         if record:
             dropped = self._drain(events, dropped)
-        for name in ("x", "v", "w", "f", "t"):
-            getattr(self, name).copy_to_host(getattr(sim, name))
+        self.fetch()
         acc = self.acc.copy_to_host()
         ev = np.concatenate(events) if events else np.zeros((0, K.EV_NF))
         return ev, float(acc[0]), float(acc[1]), dropped, builds
+
+    def fetch(self):
+        """Copy the beads' state and forces (x, v, w, f, t) to the simulation's host
+        arrays."""
+        for name in ("x", "v", "w", "f", "t"):
+            getattr(self, name).copy_to_host(getattr(self.sim, name))
 
     def upload(self, names):
         """Copy the host arrays named (v, w) to the device."""

@@ -734,8 +734,7 @@ def profile_gpu(path, steps: int = BENCH_STEPS, out=print) -> dict:
         timed(GPU_PHASES[4], lambda: g._kick(0.5 * dt if last else dt, not last, not last))
     dropped = timed(GPU_PHASES[2], lambda: g._drain(events, dropped))
     total = time.perf_counter() - t_start
-    for name in ("x", "v", "w", "f", "t"):
-        getattr(g, name).copy_to_host(getattr(sim, name))
+    g.fetch()
     sim.step_count += steps
     t0 = time.perf_counter()
     sim.run(steps, record=True)

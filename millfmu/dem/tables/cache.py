@@ -115,11 +115,13 @@ KERNEL_MODULES = {
 #: positions) and every failure to start a GPU run named as a run error, and the liquid's
 #: torque on stator plates (baffles: pressure and normal stress on their theta faces, shear
 #: on their edges) counted in the stator's impulse, a diagnostic that is 0 without baffles
-#: (coupled sector runs identical on 1 and 2 threads, numba's cache emptied first). A
-#: checkpoint made
-#: by one of these sources resumes under another (run.resume_run). Any other change of
-#: these sources gives a new hash, and a new version.
+#: (coupled sector runs identical on 1 and 2 threads, numba's cache emptied first; then
+#: read at the faces' cells only). A checkpoint made by one of these sources resumes under
+#: another (run.resume_run). Any other change of these sources gives a new hash, and a new
+#: version.
 SAME_DEM_AS = {
+    "sha256:332ba9f69ed3ede1421cb05870278a7c96398ae56afac264b63b7735668e0258":
+        "sha256:cc5c174862c188a675fdb35932f269eb61ae82876e3d110866af2b7a62b0d3bd",
     "sha256:4f0be1f5c60bc72ea6f35afef4fef8979fcef21bdcc60d2b32f986b62750b350":
         "sha256:cc5c174862c188a675fdb35932f269eb61ae82876e3d110866af2b7a62b0d3bd",
     "sha256:562d77630841edf661764954655b9250be192612da39bdd27bef81dbda6edf51":
