@@ -131,16 +131,38 @@ def bead_stencils(x, rc, rtab, rh, dth, nt, dz, nz, lz, solid, idx, w, r_out):
         r_out[b] = stencil_one(b, x, rc, rtab, rh, dth, nt, dz, nz, lz, solid, idx, w)
 
 
-@kernel
+@serial
 def deposit(idx, w, q, out):
     """out[m, cell] = sum over beads of w q[bead, m] (totals per cell; out (m, ncells)).
-    One thread per column m, each summing the beads in their order, as one thread would:
-    the same totals on any thread count."""
+    Each column is summed over the beads in their order: the same totals on any thread
+    count. One serial pass for all columns, the bead's six values read once before its
+    corners (a 10-degree disc sector, 6,536 beads: 0.10 ms against 0.20-0.30 ms for the
+    columns on threads of their own, which each read a column's values after every store,
+    as the store might have changed them); any other column count, column by column."""
     nm = q.shape[1]
     nb = idx.shape[0]
-    for m in prange(nm):
+    out[:, :] = 0.0
+    if nm == 6:
+        for b in range(nb):
+            q0 = q[b, 0]
+            q1 = q[b, 1]
+            q2 = q[b, 2]
+            q3 = q[b, 3]
+            q4 = q[b, 4]
+            q5 = q[b, 5]
+            for s in range(8):
+                ww = w[b, s]
+                if ww != 0.0:
+                    c = idx[b, s]
+                    out[0, c] += ww * q0
+                    out[1, c] += ww * q1
+                    out[2, c] += ww * q2
+                    out[3, c] += ww * q3
+                    out[4, c] += ww * q4
+                    out[5, c] += ww * q5
+        return
+    for m in range(nm):
         om = out[m]
-        om[:] = 0.0
         for b in range(nb):
             qq = q[b, m]
             for s in range(8):

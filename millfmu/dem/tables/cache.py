@@ -116,10 +116,15 @@ KERNEL_MODULES = {
 #: torque on stator plates (baffles: pressure and normal stress on their theta faces, shear
 #: on their edges) counted in the stator's impulse, a diagnostic that is 0 without baffles
 #: (coupled sector runs identical on 1 and 2 threads, numba's cache emptied first; then
-#: read at the faces' cells only). A checkpoint made by one of these sources resumes under
-#: another (run.resume_run). Any other change of these sources gives a new hash, and a new
-#: version.
+#: read at the faces' cells only), and the beads' deposit summed in one serial pass for
+#: all six columns (each column in the same order: coupled sector runs, one with the
+#: discrete phase model, and an accelerator slice gave the same states as before to the
+#: bit, on 1 and on 2 threads, numba's cache emptied first). A checkpoint made by one of
+#: these sources resumes under another (run.resume_run). Any other change of these sources
+#: gives a new hash, and a new version.
 SAME_DEM_AS = {
+    "sha256:481d167006290e736566cf2fdeef09310c9e22b4dc250f4499a75706e09c8471":
+        "sha256:cc5c174862c188a675fdb35932f269eb61ae82876e3d110866af2b7a62b0d3bd",
     "sha256:332ba9f69ed3ede1421cb05870278a7c96398ae56afac264b63b7735668e0258":
         "sha256:cc5c174862c188a675fdb35932f269eb61ae82876e3d110866af2b7a62b0d3bd",
     "sha256:4f0be1f5c60bc72ea6f35afef4fef8979fcef21bdcc60d2b32f986b62750b350":
