@@ -207,6 +207,12 @@ def test_gpu_device_refusals_name_the_item(tmp_path, capsys, monkeypatch):
     for argv in ([], ["--coupled", "--profile"]):
         assert dem_main(["bench", "--bed", "none"] + argv) == 2
         assert "--bed none: nothing to run without --coupled" in capsys.readouterr().err
+    assert dem_main(["bench", "--coupled-start", "early"]) == 2
+    assert "--coupled-start early: applies to the coupled row" in capsys.readouterr().err
+    for argv in (["--coupled", "full"], ["--coupled", "--device", "gpu"]):
+        assert dem_main(["bench", "--bed", "none", "--coupled-start", "running"] + argv) == 2
+        assert "--coupled-start running: the 10-degree sector on the CPU only" in \
+            capsys.readouterr().err
 
 
 def test_theta_cells_override_and_its_refusals(capsys):

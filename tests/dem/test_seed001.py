@@ -3,6 +3,7 @@ row's structure (timings are printed, never asserted)."""
 
 import json
 
+import numpy as np
 import pytest
 
 from millfmu.dem.studies import seed001
@@ -63,10 +64,38 @@ def test_coupled_bench_row_prints_its_ratio():
     pytest.importorskip("numba")
     from millfmu.dem.studies.coupled_bench import run_coupled_bench
 
-    r = run_coupled_bench(steps=200, repeats=1)
+    r = run_coupled_bench(steps=200, repeats=1, start="early")
     print(r.as_dict())
     assert r.beads > 1000 and r.fluid_cells > 100 and r.coupling_steps == 10
     assert r.dem_particle_steps_per_s > 0 and r.coupled_particle_steps_per_s > 0
+    assert r.start == "early" and len(r.block_added_costs) == 1
+    assert r.as_dict()["added_cost_median"] == r.block_added_costs[0]
+
+
+def test_coupled_bench_running_state_is_made_once_and_reloaded(tmp_path, monkeypatch):
+    """The coupled row's running mill: made once in the bench folder, then loaded as it was
+    left (the same beads, step count and liquid), for these sources and thread count; a
+    start it cannot take is refused by name."""
+    pytest.importorskip("numba")
+    from millfmu.dem.studies import coupled_bench as CB
+
+    monkeypatch.setenv("MILLFMU_BENCH_DIR", str(tmp_path))
+    said = []
+    sim, cpl = CB.running_state(threads=1, running_s=2e-4, out=said.append)
+    assert any("making the running coupled sector" in m for m in said)
+    files = list(tmp_path.glob("coupled_sector_running_*.pkl"))
+    assert len(files) == 1 and sim.step_count == 40 and cpl.intervals == 4
+    said.clear()
+    sim2, cpl2 = CB.running_state(threads=1, running_s=2e-4, out=said.append)
+    assert not said and sim2.step_count == 40 and cpl2.intervals == 4
+    assert np.array_equal(sim2.x, sim.x) and np.array_equal(cpl2.solver.ut, cpl.solver.ut)
+    # another running time is another state
+    CB.running_state(threads=1, running_s=1e-4, out=said.append)
+    assert len(list(tmp_path.glob("coupled_sector_running_*.pkl"))) == 2
+    with pytest.raises(ValueError, match="the sector on the CPU only"):
+        CB.run_coupled_bench(steps=10, repeats=1, scene="full", start="running")
+    with pytest.raises(ValueError, match="start = 'late'"):
+        CB.run_coupled_bench(steps=10, repeats=1, start="late")
 
 
 def test_campaign_runs_the_stated_protocol(tmp_path, monkeypatch):
