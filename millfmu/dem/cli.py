@@ -115,8 +115,8 @@ def register(subparsers) -> argparse.ArgumentParser:
                    help="where the coupled row's beads start: 'running', the running mill "
                         "(the sector's default: after 0.4 s of coupled motion, made once and "
                         "cached beside the bench bed) or 'early', 0.01 s after the start at "
-                        "0.1 of the stirrer's rotation (the full slice and the GPU always), "
-                        "when the bed has a third of the running mill's contacts")
+                        "0.1 of the stirrer's rotation, when the bed has about a third of "
+                        "the running mill's contacts (the full slice and the GPU always)")
     b.set_defaults(func=_bench)
 
     s = sub.add_parser("seed001", help="seed 001 side by side: run its cases, print the "

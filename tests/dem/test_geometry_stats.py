@@ -86,6 +86,26 @@ def test_bench_ke_table_sets_the_references_beside_ours_and_flags_over_3_percent
     assert B.ke_table({"millfmu.dem 1 thr": best["millfmu.dem 1 thr"]}, 1000) == []
 
 
+def test_bench_ratio_lines_give_the_bests_and_each_rounds_ratio():
+    """The bench's speed ratios (no LAMMPS needed): ours against the faster reference's
+    best run, then round by round (runs of a round follow each other within seconds) with
+    their median; a core count without a reference gives no line."""
+    from millfmu.dem.studies import bench as B
+
+    def run(code, nc, loop_s):
+        return B.RunResult(code=code, cores=nc, device="cpu", beads=1000, steps=100,
+                           loop_s=loop_s, ke_trans_j=1.0, ke_rot_j=1.0, coordination=1.0)
+
+    runs = {"millfmu.dem 2 thr": [run("millfmu.dem", 2, t) for t in (1.0, 2.0, 1.2)],
+            "LAMMPS 2 MPI": [run("LAMMPS", 2, t) for t in (1.5, 2.2, 1.5)],
+            "LIGGGHTS 2 MPI": [run("LIGGGHTS", 2, t) for t in (3.0, 3.0, 3.0)],
+            "millfmu.dem 1 thr": [run("millfmu.dem", 1, 2.0)]}
+    lines = B.ratio_lines(runs, (1, 2))
+    assert lines == [
+        "on 2 core(s): millfmu.dem / LAMMPS (the faster reference) = 1.50; / LIGGGHTS = 3.00",
+        "  per round, millfmu.dem / LAMMPS: 1.50, 1.10, 1.25 (median 1.25)"]
+
+
 def test_zone_volumes_partition_the_pm1_cell_and_follow_seed_order():
     z = Zones(PM1)
     v = z.volumes_m3()

@@ -518,17 +518,38 @@ def bench(steps: int = BENCH_STEPS, repeats: int = BENCH_REPEATS, cores=(1, 2),
     for name, r in best.items():
         out(f"{name:22s} {r.cores:5d} {r.loop_s:11.3f} {r.rate / 1e6:11.2f} "
             f"{r.ke_trans_j:11.4e} {r.ke_rot_j:10.3e} {r.coordination:6.3f}")
-    for nc in sorted(cores, reverse=True):
-        ours = best.get(f"millfmu.dem {nc} thr")
-        refs = [best[k] for k in (f"LAMMPS {nc} MPI", f"LIGGGHTS {nc} MPI") if k in best]
-        if ours and refs:
-            ref = max(refs, key=lambda r: r.rate)
-            out(f"on {nc} core(s): millfmu.dem / {ref.code} (the faster reference) = "
-                f"{ours.rate / ref.rate:.2f}" + "".join(
-                    f"; / {r.code} = {ours.rate / r.rate:.2f}" for r in refs if r is not ref))
+    for line in ratio_lines(runs, cores):
+        out(line)
     for line in ke_table(best, steps):
         out(line)
     return [r for rs in runs.values() for r in rs]
+
+
+def ratio_lines(runs: dict, cores) -> list[str]:
+    """Lines of the speed ratios: for each core count, millfmu.dem's fastest run against
+    the faster reference's fastest, and the same ratio round by round (``runs``: name ->
+    the runs of each round, in order) with its median."""
+    best = {name: min(rs, key=lambda r: r.loop_s) for name, rs in runs.items() if rs}
+    lines = []
+    for nc in sorted(cores, reverse=True):
+        ours = best.get(f"millfmu.dem {nc} thr")
+        keys = [k for k in (f"LAMMPS {nc} MPI", f"LIGGGHTS {nc} MPI") if k in best]
+        refs = [best[k] for k in keys]
+        if not (ours and refs):
+            continue
+        ref = max(refs, key=lambda r: r.rate)
+        ref_key = keys[refs.index(ref)]
+        lines.append(f"on {nc} core(s): millfmu.dem / {ref.code} (the faster reference) = "
+                     f"{ours.rate / ref.rate:.2f}" + "".join(
+                         f"; / {r.code} = {ours.rate / r.rate:.2f}"
+                         for r in refs if r is not ref))
+        # each round's runs follow each other within seconds: their ratios see the same
+        # machine, while the bests may come from rounds minutes apart on a shared one
+        pairs = [a.rate / b.rate for a, b in zip(runs[f"millfmu.dem {nc} thr"], runs[ref_key])]
+        lines.append(f"  per round, millfmu.dem / {ref.code}: "
+                     f"{', '.join(f'{p:.2f}' for p in pairs)} "
+                     f"(median {float(np.median(pairs)):.2f})")
+    return lines
 
 
 #: relative difference of a kinetic energy from a reference's that the bench flags

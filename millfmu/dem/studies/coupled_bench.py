@@ -15,16 +15,22 @@ of 200 steps, as the DEM runs uncoupled) and the same number coupled (one exchan
 10-step ``run`` per coupling interval), block after block in turn. The ratio is what the
 fluid and the coupling add to the DEM's cost.
 
-Where the beads are when they are timed matters: a bed that has just started turning has
-few contacts (0.9 per bead 0.006 s after the start in the sector) and costs the DEM about
-half of what the running mill costs (2.5 contacts per bead from 0.35 s on, 3.5 at the
-spin-up's peak near 0.1 s), while the liquid's and the exchange's cost per interval do not
-change; the coupling's share is then about twice its share in the running mill. The
-sector row therefore starts by default from the running mill (``start="running"``): the
-state after :data:`RUNNING_S` of coupled motion, made once (about 2-3 minutes on 2
-threads) and kept in the bench folder (:func:`millfmu.dem.studies.bench.bench_dir`) for
-these sources and thread count; ``start="early"`` times the bed ``warm_s`` after the start,
-as this bench did before, and the full slice (hours to spin up on 2 cores) always does.
+Where the beads are when they are timed: a bed that has just started turning has few
+contacts (0.9 per bead 0.006 s after the start in the sector, 2.5 in the running mill from
+about 0.35 s on, 3.5 at the spin-up's peak near 0.1 s), and its DEM steps cost 0.6-0.7 of
+the running mill's. The sector row therefore starts by default from the running mill
+(``start="running"``): the state after :data:`RUNNING_S` of coupled motion, made once
+(about 2.5 minutes on 2 threads) and kept in the bench folder
+(:func:`millfmu.dem.studies.bench.bench_dir`) for these sources and thread count;
+``start="early"`` times the bed ``warm_s`` after the start, as this bench did before, and
+the full slice (hours to spin up on 2 cores) always does. The coupling's share is not
+smaller in the running mill (2 threads, two runs each: 30-31 % against 24-28 % early): an
+exchange there took 3.1-3.5 ms within the coupled run against 2.5 ms when exchanges ran
+back to back on the same beads, and the DEM's 10-step runs between exchanges took 7 %
+(median of eight blocks, -2 to +16 %) longer than its 200-step blocks alone, against 1 %
+for 10-step runs without exchanges between them. Most likely the exchange's per-bead
+arrays (about 2.7 MB) and the DEM's beads and pairs (4-5 MB for 6,536 beads) push each
+other out of the cores' caches (512 kB of L2 each); not measured with hardware counters.
 """
 
 from __future__ import annotations
