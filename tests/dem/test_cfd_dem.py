@@ -23,6 +23,44 @@ D = 0.8e-3
 RHO_F, MU_F = 998.2, 1.002e-3
 
 
+def test_axisymmetric_stencils_are_4_wide_and_sum_as_the_8_wide():
+    """On an axisymmetric grid a bead's stencil holds 4 corners (the two theta corners are
+    one cell, the second of weight 0): the same cells and weights, in the same order, as
+    the 8 corners' non-zero ones, so that deposits and read-backs are the same to the bit
+    (an 8-wide stencil, as a checkpoint of earlier sources holds, still works); a grid
+    with theta cells keeps 8."""
+    geo = MillGeometry(0.015, 0.045, 0.028, disc_radius_m=0.036, disc_thickness_m=0.008,
+                       sector_deg=10.0)
+    grid = mill_grid(geo, 0.75e-3)
+    assert grid.shape[1] == 1 and PJ.stencil_width(1) == 4 and PJ.stencil_width(3) == 8
+    proj = PJ.Projector(grid, 0.8e-3)
+    rng = np.random.default_rng(7)
+    x = fcc_sites(geo, 0.4e-3, 0.3e-3)
+    x = x[rng.permutation(len(x))][:600]
+    n = x.shape[0]
+    nr, nt, nz = grid.shape
+    st = {}
+    for ns in (4, 8):
+        idx = np.zeros((n, ns), np.int64)
+        w = np.full((n, ns), np.nan)
+        PJ.bead_stencils(x, proj.rc, proj.rtab, proj.rh, grid.dtheta_rad, nt, grid.dz_m, nz,
+                         grid.height_m, grid.solid, idx, w, np.zeros(n))
+        st[ns] = idx, w
+    (i4, w4), (i8, w8) = st[4], st[8]
+    assert np.all(np.isfinite(w4)) and np.all(w8[:, [2, 3, 6, 7]] == 0.0)
+    assert np.array_equal(w4, w8[:, [0, 1, 4, 5]])
+    assert np.array_equal(i4, i8[:, [0, 1, 4, 5]])
+    q = rng.normal(size=(n, 6))
+    t4, t8 = np.zeros((6, grid.solid.size)), np.zeros((6, grid.solid.size))
+    PJ.deposit(i4, w4, q, t4)
+    PJ.deposit(i8, w8, q, t8)
+    assert np.array_equal(t4, t8) and np.any(t4 != 0.0)
+    b4, b8 = np.zeros((n, 6)), np.zeros((n, 6))
+    PJ.gather(i4, w4, t4, b4)
+    PJ.gather(i8, w8, t8, b8)
+    assert np.array_equal(b4, b8)
+
+
 def test_deposit_and_gather_are_transposes_and_conserve():
     """Deposit (with smoothing and node splits) conserves every bead total, and reading a
     field back is its exact transpose: <gather(field), q> = <field, deposit(q)>."""

@@ -67,8 +67,10 @@ class CfdDem:
         self.interval_s = settings.steps * sim.dt_s
         n = sim.n
         ncell = int(np.prod(grid.shape))
-        self._idx = np.zeros((n, 8), np.int64)
-        self._w = np.zeros((n, 8))
+        # the beads' cell stencils, 4 wide on an axisymmetric grid (projection.stencil_width)
+        ns = self.PJ.stencil_width(grid.shape[1])
+        self._idx = np.zeros((n, ns), np.int64)
+        self._w = np.zeros((n, ns))
         self._cyl = np.zeros((n, 4))
         self._c = np.zeros(n)
         self._q = np.zeros((n, 6))

@@ -60,7 +60,7 @@ def particle_drag(x, v, rad, mass, cellv, mu, rho, interval, rc, rtab, rh, dth, 
         u0 = 0.0
         u1 = 0.0
         u2 = 0.0
-        for s in range(8):
+        for s in range(idx.shape[1]):
             ww = w[b, s]
             if ww != 0.0:
                 cc = idx[b, s]

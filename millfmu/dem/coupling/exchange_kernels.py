@@ -46,7 +46,7 @@ def beads_in(x, v, rad, mass, fab, eps_cells, body_z, pf, model_b, mu, rho, inte
         vt = (x[b, 0] * v[b, 1] - x[b, 1] * v[b, 0]) * inv
         vz = v[b, 2]
         eb = 0.0
-        for s in range(8):
+        for s in range(idx.shape[1]):
             if w[b, s] != 0.0:
                 eb += w[b, s] * eps_cells[idx[b, s]]
         d = 2.0 * rad[b]
@@ -213,7 +213,7 @@ def bead_forces(idx, w, cellv, c, cyl, rad, fab, pf, now, body_z, fext):
         at3 = 0.0
         at4 = 0.0
         at5 = 0.0
-        for s in range(8):
+        for s in range(idx.shape[1]):
             ww = w[b, s]
             if ww != 0.0:
                 cc = idx[b, s]

@@ -53,6 +53,8 @@ def stencil_one(b, x, rc, rtab, rh, dth, nt, dz, nz, lz, solid, idx, w):
     """Trilinear stencil of bead b (see :func:`bead_stencils`); returns its r [m]. rtab, rh:
     :func:`radial_table` of rc."""
     nr = rc.size
+    ns = idx.shape[1]
+    nbb = ns // 4  # theta corners: 2, or 1 in a 4-wide stencil (axisymmetric grid)
     r = math.sqrt(x[b, 0] ** 2 + x[b, 1] ** 2)
     th = 0.0
     if nt > 1:  # the axisymmetric mode needs no angle
@@ -92,7 +94,7 @@ def stencil_one(b, x, rc, rtab, rh, dth, nt, dz, nz, lz, solid, idx, w):
     for a in range(2):
         wa = fr if a else 1.0 - fr
         ia = i0 + a
-        for bb in range(2):
+        for bb in range(nbb):
             wb = ft if bb else 1.0 - ft
             jb = j1 if bb else j0
             for c in range(2):
@@ -106,7 +108,7 @@ def stencil_one(b, x, rc, rtab, rh, dth, nt, dz, nz, lz, solid, idx, w):
                 s += ww
                 m += 1
     if s > 0.0:
-        for m in range(8):
+        for m in range(ns):
             w[b, m] /= s
     else:
         # no fluid cell in the stencil (cannot happen for a bead in the fluid): the cell
@@ -114,19 +116,29 @@ def stencil_one(b, x, rc, rtab, rh, dth, nt, dz, nz, lz, solid, idx, w):
         ic = 0
         while ic < nr - 1 and rc[ic] + 0.5 * (rc[ic + 1] - rc[ic]) < r:
             ic += 1
-        for m in range(8):
+        for m in range(ns):
             w[b, m] = 0.0
         idx[b, 0] = (ic * nt + int(th / dth) % nt) * nz + int(z / dz) % nz
         w[b, 0] = 1.0
     return r
 
 
+def stencil_width(nt: int) -> int:
+    """Entries of a bead's stencil on a grid of ``nt`` theta cells: 8 corners, or 4 where
+    nt = 1 (the axisymmetric grid's two theta corners are one cell, the second of weight 0:
+    leaving it out keeps every sum over the stencil the same, in the same order, and
+    halves the stencils' memory and the loops over them)."""
+    return 8 if int(nt) > 1 else 4
+
+
 @kernel
 def bead_stencils(x, rc, rtab, rh, dth, nt, dz, nz, lz, solid, idx, w, r_out):
-    """Trilinear cell stencils of beads at Cartesian x [m] (n, 3): idx (n, 8) flat cell
-    indices, w (n, 8) weights summing to 1 over fluid cells (weights on solid cells
+    """Trilinear cell stencils of beads at Cartesian x [m] (n, 3): idx (n, ns) flat cell
+    indices, w (n, ns) weights summing to 1 over fluid cells (weights on solid cells
     dropped, the rest renormalised); r_out [m] the beads' radii from the axis. Theta is
-    taken in [0, nt dth), z in [0, lz)."""
+    taken in [0, nt dth), z in [0, lz). ns = 8 corners (r, theta, z), or 4 on an
+    axisymmetric grid (nt = 1, see :func:`stencil_width`), whose two theta corners are the
+    same cell and the second has weight 0."""
     for b in prange(x.shape[0]):
         r_out[b] = stencil_one(b, x, rc, rtab, rh, dth, nt, dz, nz, lz, solid, idx, w)
 
@@ -141,6 +153,7 @@ def deposit(idx, w, q, out):
     as the store might have changed them); any other column count, column by column."""
     nm = q.shape[1]
     nb = idx.shape[0]
+    ns = idx.shape[1]
     out[:, :] = 0.0
     if nm == 6:
         for b in range(nb):
@@ -150,7 +163,7 @@ def deposit(idx, w, q, out):
             q3 = q[b, 3]
             q4 = q[b, 4]
             q5 = q[b, 5]
-            for s in range(8):
+            for s in range(ns):
                 ww = w[b, s]
                 if ww != 0.0:
                     c = idx[b, s]
@@ -165,7 +178,7 @@ def deposit(idx, w, q, out):
         om = out[m]
         for b in range(nb):
             qq = q[b, m]
-            for s in range(8):
+            for s in range(ns):
                 ww = w[b, s]
                 if ww != 0.0:
                     om[idx[b, s]] += ww * qq
@@ -175,10 +188,11 @@ def deposit(idx, w, q, out):
 def gather(idx, w, field, out):
     """out[bead, m] = sum over the stencil of w field[m, cell] (field (m, ncells))."""
     nm = field.shape[0]
+    ns = idx.shape[1]
     for b in prange(idx.shape[0]):
         for m in range(nm):
             out[b, m] = 0.0
-        for s in range(8):
+        for s in range(ns):
             ww = w[b, s]
             if ww != 0.0:
                 c = idx[b, s]
