@@ -24,13 +24,16 @@ the running mill's. The sector row therefore starts by default from the running 
 (:func:`millfmu.dem.studies.bench.bench_dir`) for these sources and thread count;
 ``start="early"`` times the bed ``warm_s`` after the start, as this bench did before, and
 the full slice (hours to spin up on 2 cores) always does. The coupling's share is not
-smaller in the running mill (2 threads, two runs each: 30-31 % against 24-28 % early): an
-exchange there took 3.1-3.5 ms within the coupled run against 2.5 ms when exchanges ran
-back to back on the same beads, and the DEM's 10-step runs between exchanges took 7 %
-(median of eight blocks, -2 to +16 %) longer than its 200-step blocks alone, against 1 %
-for 10-step runs without exchanges between them. Most likely the exchange's per-bead
-arrays (about 2.7 MB) and the DEM's beads and pairs (4-5 MB for 6,536 beads) push each
-other out of the cores' caches (512 kB of L2 each); not measured with hardware counters.
+smaller in the running mill (2 threads, two runs each: 30-31 % against 24-28 % early):
+with 8-wide bead stencils an exchange there took 3.1-3.5 ms within the coupled run against
+2.5 ms when exchanges ran back to back on the same beads, and the DEM's 10-step runs
+between exchanges took 7 % (median of eight blocks, -2 to +16 %) longer than its 200-step
+blocks alone, against 1 % for 10-step runs without exchanges between them. Most likely the
+exchange's per-bead arrays (about 2.7 MB) and the DEM's beads and pairs (4-5 MB for 6,536
+beads) push each other out of the cores' caches (512 kB of L2 each; not measured with
+hardware counters). With the axisymmetric grid's stencils 4 wide (half the stencils'
+memory) the exchanges took 2.4-2.5 ms inside the run and the DEM's 10-step runs 3-7 %
+longer; the row gave 27 % twice (block-pair medians 21 and 22 %).
 """
 
 from __future__ import annotations
