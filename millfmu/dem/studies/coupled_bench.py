@@ -39,8 +39,8 @@ longer; the row gave 27 % twice (block-pair medians 21 and 22 %).
 from __future__ import annotations
 
 import hashlib
-import os
 import pickle
+import statistics
 import time
 from dataclasses import asdict, dataclass, field
 
@@ -68,11 +68,8 @@ class CoupledBenchResult:
 
     @property
     def added_cost_median(self) -> float:
-        v = sorted(self.block_added_costs)
-        if not v:
-            return float("nan")
-        m = len(v) // 2
-        return v[m] if len(v) % 2 else 0.5 * (v[m - 1] + v[m])
+        v = self.block_added_costs
+        return statistics.median(v) if v else float("nan")
 
     def as_dict(self) -> dict:
         return dict(asdict(self), added_cost_median=self.added_cost_median)
@@ -99,13 +96,17 @@ def running_state(threads: int | None = None, running_s: float = RUNNING_S, out=
     """(sim, coupling) of the 10-degree sector after ``running_s`` [s] of coupled motion
     from its start, loaded from the bench folder or made there once (atomically) and kept
     for these sources, thread count (the beads' chunks) and running_s."""
-    from millfmu.dem.run import _Pickler, make_simulation
+    import numba
+
+    from millfmu.dem.run import _write_checkpoint, make_simulation
     from millfmu.dem.studies.bench import bench_dir
     from millfmu.dem.tables.cache import kernel_source_hash
 
     sc = _scene("sector")
-    sim, cpl = make_simulation(sc, threads, "cpu")
-    key = hashlib.sha256(f"{kernel_source_hash()} {sc!r} {sim.threads} {running_s!r}"
+    # the thread count DemSimulation takes for None (the sector has thousands of beads),
+    # known without building the simulation that a cached state makes unnecessary
+    nthr = int(threads) if threads is not None else numba.config.NUMBA_NUM_THREADS
+    key = hashlib.sha256(f"{kernel_source_hash()} {sc!r} {nthr} {running_s!r}"
                          .encode()).hexdigest()[:12]
     path = bench_dir() / f"coupled_sector_running_{key}.pkl"
     if path.exists():
@@ -116,6 +117,7 @@ def running_state(threads: int | None = None, running_s: float = RUNNING_S, out=
         except (OSError, pickle.UnpicklingError, EOFError, AttributeError, ImportError,
                 KeyError) as e:
             out(f"{path}: not readable ({type(e).__name__}: {e}); making it again")
+    sim, cpl = make_simulation(sc, nthr, "cpu")
     k = cpl.unit_steps
     n = k * max(1, int(round(running_s / (k * sc.dt_s))))
     out(f"making the running coupled sector {path} (once; {n * sc.dt_s:g} s of coupled "
@@ -127,10 +129,7 @@ def running_state(threads: int | None = None, running_s: float = RUNNING_S, out=
         out(f"  {sim.step_count * sc.dt_s:.3f} s simulated, "
             f"{time.perf_counter() - t0:.0f} s wall")
     path.parent.mkdir(parents=True, exist_ok=True)
-    tmp = path.with_name(path.name + f".tmp{os.getpid()}")
-    with open(tmp, "wb") as fh:
-        _Pickler(fh, protocol=pickle.HIGHEST_PROTOCOL).dump({"sim": sim, "cpl": cpl})
-    os.replace(tmp, path)
+    _write_checkpoint(path, {"sim": sim, "cpl": cpl})
     return sim, cpl
 
 
