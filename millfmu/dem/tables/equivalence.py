@@ -1,0 +1,376 @@
+"""DEM source changes accepted by their statistics: a change that alters only round-off.
+
+The DEM is chaotic. A change in the last bit of one force (a fused multiply-add, another
+order of a sum) sends the beads along another trajectory within milliseconds, so a table
+point run by the changed sources is another sample of the same statistics, never the same
+numbers, and the bit-for-bit check behind :data:`~.cache.SAME_DEM_AS` cannot accept it.
+Rebuilding the shipped coupled table for every such change costs 8 h of points.
+
+This module accepts such a change as the shipped tables' kernel version on evidence
+instead, at the operating point of the work-precision study (millfmu/data/
+dem_work_precision.json, where the table's sampling noise was measured):
+
+1. reference: realizations of the table's own version there, the table's point and runs
+   of its sources on other thread counts (each count splits the 10-degree sector's beads
+   into as many chunks, so each is another trajectory; a count repeated repeats its run
+   to the bit). Their spread is the noise of one point as it is, from the spin-up to the
+   end of the recording.
+2. a change: runs of the changed sources there, judged against the reference for each
+   statistic of :data:`GATED` (local filling, collision frequency, median normal stress
+   energy) per zone, on values relative to the table's: score = (mean of the runs - mean
+   of the reference) / (s sqrt(1/n + 1/m)), s the larger of the pooled standard
+   deviation of both groups and the study's recording-length law sigma(T) (T the table's
+   record_s; a floor where a few realizations happen to agree). Every |score| must lie
+   within :data:`Z_LIMIT`.
+
+What passes is a change of the statistics below the realizations' own spread: the table's
+precision at that point, below which a change cannot be told from sampling. A change of
+the physics (a contact law, a drag law, a smoothing kernel) is not round-off and needs a
+rebuilt table, whatever the scores say.
+
+The evidence (:data:`EVIDENCE_PATH`): the reference (the table's values at the point, the
+law's sigmas, the runs' values) and the accepted changes (source hash, version accepted
+as, runs); :func:`accepted_versions` recomputes every change's scores on reading and
+ignores one that does not pass. Reading it needs no numba and no numpy.
+"""
+
+from __future__ import annotations
+
+import datetime as _dt
+import json
+import math
+import os
+import platform
+import tempfile
+from pathlib import Path
+
+#: Evidence of accepted source changes (JSON, shipped with millfmu).
+EVIDENCE_PATH = Path(__file__).resolve().parents[2] / "data" / "dem_equivalence.json"
+
+#: Table check field (:data:`~.build.CHECK_FIELDS`) -> the work-precision statistic whose
+#: recording-length law gives its sampling error. The check's fourth field, the beads'
+#: speed over the tip speed, has no measured law: reported, not gated.
+GATED = {"filling_local": "filling", "collision_frequency_norm": "collision_frequency",
+         "se_tn_q50_norm": "se_tn_q50"}
+
+#: Largest accepted |score|. With s known, a change of round-off only would exceed it with
+#: probability 0.27 % per comparison (Gaussian sampling errors); with s estimated from a
+#: few realizations the score follows Student's t, |t| > 3 with 4 % probability at 4
+#: degrees of freedom (3 runs against the table's point and 2 runs), less where the law's
+#: sigma is the larger. The 12 comparisons are correlated (fillings and collision
+#: frequencies move together): a sound change that fails is run again on more threads.
+Z_LIMIT = 3.0
+Z_LIMIT = 3.0
+
+FORMAT = 1
+
+
+class EquivalenceError(ValueError):
+    """Evidence that cannot be produced or read (names the item and what is allowed)."""
+
+
+def sampling_sigma(law: dict, statistic: str, zone: str, record_s: float) -> float | None:
+    """Relative sampling error [-] of one recording of ``record_s`` [s]: the work-precision
+    study's law at_1s T^slope (``law``: the summary's ``recording_law``); None where the
+    law has no entry."""
+    f = (law.get(statistic) or {}).get(zone)
+    if not f:
+        return None
+    return float(f["at_1s"]) * float(record_s) ** float(f["slope"])
+
+
+def _rel(values: dict, table_values: dict, field: str, zi: int):
+    v, t = values[field][zi], table_values[field][zi]
+    if v is None or t is None or t == 0 or not math.isfinite(v) or not math.isfinite(t):
+        return None
+    return v / t - 1.0
+
+
+def judge(table_values: dict, reference_runs: list, runs: list, sigma: dict, zones,
+          z_limit: float = Z_LIMIT) -> dict:
+    """Scores of ``runs`` (the changed sources) against the reference: the table's point
+    and ``reference_runs`` (both realizations of the table's kernel version).
+
+    table_values: field -> value per zone at the point; runs and reference_runs: lists of
+    dicts with ``values`` (field -> value per zone); sigma: field -> the work-precision law's
+    relative sampling error per zone (None where unknown). For each :data:`GATED` field and
+    zone, on values relative to the table's (v / table - 1): s = the larger of the
+    realizations' pooled standard deviation (both groups about their own means) and sigma,
+    and score = (mean of runs - mean of the reference) / (s sqrt(1/n_runs + 1/n_ref)).
+    Returns ``comparisons`` (field, zone, n_runs, n_ref, mean difference, pooled sd, sigma,
+    score), ``n``, ``max_abs_score``, ``passed`` (every |score| <= z_limit, at least one)
+    and ``notes``."""
+    ref = [dict(values=table_values)] + list(reference_runs)
+    comps = []
+    for f in GATED:
+        sig = sigma.get(f) or [None] * len(zones)
+        for zi, z in enumerate(zones):
+            a = [x for x in (_rel(r["values"], table_values, f, zi) for r in runs)
+                 if x is not None]
+            b = [x for x in (_rel(r["values"], table_values, f, zi) for r in ref)
+                 if x is not None]
+            if not a or not b:
+                continue
+            ma, mb = sum(a) / len(a), sum(b) / len(b)
+            dof = len(a) + len(b) - 2
+            ss = sum((x - ma) ** 2 for x in a) + sum((x - mb) ** 2 for x in b)
+            sd = math.sqrt(ss / dof) if dof > 0 else None
+            law = sig[zi]
+            s = max(x for x in (sd, law) if x is not None) if (sd or law) else None
+            if not s:
+                continue
+            comps.append(dict(field=f, zone=z, n_runs=len(a), n_ref=len(b), diff=ma - mb,
+                              sd=sd, sigma=law,
+                              score=(ma - mb) / (s * math.sqrt(1 / len(a) + 1 / len(b)))))
+    scores = [c["score"] for c in comps]
+    notes = []
+    for i, x in enumerate(runs):
+        for y in runs[i + 1:]:
+            if x["values"] == y["values"]:
+                notes.append(f"the runs on {x.get('threads')} and {y.get('threads')} threads "
+                             f"gave the same values: one sample, not two")
+    return dict(n=len(comps), z_limit=z_limit,
+                max_abs_score=max((abs(x) for x in scores), default=None),
+                passed=bool(scores) and all(abs(x) <= z_limit for x in scores),
+                comparisons=comps, notes=notes)
+
+
+def read_evidence(path=None) -> dict:
+    """The evidence file: ``reference`` (None before the first reference run is recorded)
+    and ``accepted`` (a list); an empty evidence when the file does not exist."""
+    p = Path(path) if path is not None else EVIDENCE_PATH
+    if not p.is_file():
+        return dict(format=FORMAT, reference=None, accepted=[])
+    try:
+        data = json.loads(p.read_text())
+    except (OSError, json.JSONDecodeError) as e:
+        raise EquivalenceError(f"{p}: not readable JSON ({e})") from None
+    if not isinstance(data, dict) or data.get("format") != FORMAT or \
+            not isinstance(data.get("accepted"), list):
+        raise EquivalenceError(
+            f"{p}: format {data.get('format') if isinstance(data, dict) else None!r}; "
+            f"allowed: {{'format': {FORMAT}, 'reference': {{...}}, 'accepted': [...]}}")
+    return data
+
+
+def rejudge(entry: dict, reference: dict) -> dict:
+    """:func:`judge` of an accepted entry, recomputed from what the evidence records."""
+    return judge(reference["table_values"], reference["runs"], entry["runs"],
+                 reference["sigma"], reference["zones"], entry.get("z_limit", Z_LIMIT))
+
+
+def accepted_versions(path=None) -> dict:
+    """Source hash -> the kernel version it is accepted as, for every accepted entry whose
+    scores, recomputed against the recorded reference, pass. An unreadable file accepts
+    nothing."""
+    try:
+        data = read_evidence(path)
+    except EquivalenceError:
+        return {}
+    ref = data.get("reference")
+    out = {}
+    for e in data["accepted"] if ref else ():
+        try:
+            if e["accepted_as"] == ref["kernel_version"] and rejudge(e, ref)["passed"]:
+                out[e["source_hash"]] = e["accepted_as"]
+        except (KeyError, TypeError, IndexError, ZeroDivisionError):
+            continue
+    return out
+
+
+def _write(data: dict, path=None) -> Path:
+    """The evidence written to a temporary file beside it and renamed into place, so that a
+    reader never sees half a file."""
+    p = Path(path) if path is not None else EVIDENCE_PATH
+    text = json.dumps(data, indent=1) + "\n"
+    fd, tmp = tempfile.mkstemp(prefix=p.name + ".", dir=p.parent)
+    try:
+        with os.fdopen(fd, "w") as fh:
+            fh.write(text)
+            fh.flush()
+            os.fsync(fh.fileno())
+        os.replace(tmp, p)
+    except BaseException:
+        Path(tmp).unlink(missing_ok=True)
+        raise
+    return p
+
+
+def record(result: dict, path=None) -> Path:
+    """Add what :func:`run_equivalence` gave to the evidence: reference runs to the
+    reference (started with the first), an accepted change to ``accepted`` (replacing an
+    entry of the same source hash; refused unless it passed)."""
+    data = read_evidence(path)
+    if result["kind"] == "reference":
+        ref = data.get("reference")
+        if ref is None:
+            data["reference"] = {k: v for k, v in result.items() if k != "kind"}
+        else:
+            same = ("kernel_version", "table_key", "point", "record_s", "zones")
+            if any(ref[k] != result[k] for k in same):
+                raise EquivalenceError(
+                    "reference runs of another table, version or point than the recorded "
+                    "reference's (" + ", ".join(f"{k} {ref[k]!r}" for k in same) + ")")
+            had = sorted({r["threads"] for r in ref["runs"]} &
+                         {r["threads"] for r in result["runs"]})
+            if had:
+                raise EquivalenceError(f"reference runs on {had} threads are recorded "
+                                       f"already: the same sources on the same thread count "
+                                       f"repeat a run, they add no realization")
+            ref["runs"] = ref["runs"] + result["runs"]
+    else:
+        if not result["judgement"]["passed"]:
+            raise EquivalenceError("the change did not pass: not recorded")
+        entry = {k: v for k, v in result.items() if k != "kind"}
+        data["accepted"] = [e for e in data["accepted"]
+                            if e.get("source_hash") != entry["source_hash"]] + [entry]
+    return _write(data, path)
+
+
+def _run_one(scene: dict, point: dict, threads: int) -> dict:
+    # a process of its own (spawned): each run sets its numba thread count
+    from .build import _check_fields
+    from .cache import kernel_source_hash
+    from .dem_builder import DemBuilder
+
+    r = DemBuilder(threads=threads)(scene, point)
+    return dict(threads=threads, source_hash=kernel_source_hash(),
+                wall_time_s=round(float(r["wall_time_s"]), 1),
+                values={k: [float(x) if math.isfinite(float(x)) else None for x in v]
+                        for k, v in _check_fields(r).items()})
+
+
+def operating_point(table, summary: dict) -> dict:
+    """The work-precision study's operating point as a full point of ``table`` (grid axes
+    tip speed and filling; one-at-a-time axes at their references)."""
+    from .build import _full_point
+
+    op = summary.get("operating_point") or {}
+    point = {k: float(op[k]) for k in ("tip_speed_m_s", "filling") if k in op}
+    if len(point) != 2:
+        raise EquivalenceError(f"work-precision summary: operating_point {op!r} names no "
+                               f"tip_speed_m_s and filling")
+    return _full_point(table, point)
+
+
+def run_equivalence(table_ref: str = "coupled", threads=(1, 2), change: str = "",
+                    reference: bool = False, evidence_path=None, summary_path=None,
+                    z_limit: float = Z_LIMIT, run_one=None) -> dict:
+    """Run the table's scene at the work-precision operating point with the installed DEM
+    sources, once per entry of ``threads`` (distinct counts, in parallel processes).
+
+    ``reference``: the sources must be the table's kernel version (to the bit,
+    :data:`~.cache.SAME_DEM_AS`); the runs are more realizations of it (``kind``
+    "reference"). Otherwise the sources must differ and the runs are judged
+    (:func:`judge`) against the table's point and the recorded reference runs (``kind``
+    "change", with ``judgement``). Writes nothing (:func:`record` does).
+    ``run_one(scene, point, threads)``: instead of the DEM, in this process (tests)."""
+    from .build import _check_fields
+    from .cache import SAME_DEM_AS, kernel_source_hash
+    from .table import read_table_ref
+    from millfmu.dem.studies.work_precision import SUMMARY_PATH
+
+    threads = [int(t) for t in threads]
+    if not threads or len(set(threads)) != len(threads) or min(threads) < 1:
+        raise EquivalenceError(f"threads = {threads}: give distinct counts >= 1 (one run "
+                               f"per count; a count repeated repeats its run to the bit)")
+    table = read_table_ref(table_ref)
+    version = table.manifest.get("kernel_version")
+    h = kernel_source_hash()
+    same = SAME_DEM_AS.get(h, h) == version
+    if reference and not same:
+        raise EquivalenceError(f"--reference: the installed DEM sources ({h[:19]}...) are "
+                               f"not table {table_ref}'s kernel version ({version[:19]}...): "
+                               f"reference runs need that version's sources")
+    if not reference and same:
+        raise EquivalenceError(f"the installed DEM sources ({h[:19]}...) are table "
+                               f"{table_ref}'s kernel version to the bit: nothing to judge "
+                               f"(--reference adds realizations of it)")
+    ref = None
+    if not reference:
+        ref = read_evidence(evidence_path).get("reference")
+        if ref is None:
+            raise EquivalenceError("no reference runs recorded: run 'millfmu tables "
+                                   "equivalence --reference --write' with the table's own "
+                                   "sources first (their spread is the noise a change is "
+                                   "judged by)")
+        if ref["kernel_version"] != version or ref["table_key"] != table.manifest.get("key"):
+            raise EquivalenceError(f"the recorded reference is of table key "
+                                   f"{ref['table_key']} version {ref['kernel_version']}, not "
+                                   f"of table {table_ref}")
+    sp = Path(summary_path) if summary_path is not None else SUMMARY_PATH
+    if not sp.is_file():
+        raise EquivalenceError(f"{sp}: no work-precision study (its operating point and "
+                               f"sampling law are what the runs are judged at and by)")
+    summary = json.loads(sp.read_text())["summary"]
+    law = summary.get("recording_law") or {}
+    record_s = float(((table.manifest.get("resolution") or {}).get("dem") or {})["record_s"])
+    point = operating_point(table, summary)
+    zones = list(table.zone_names)
+    scene = table.spec().scene
+    if run_one is not None:
+        runs = [run_one(scene, point, t) for t in threads]
+    else:
+        import multiprocessing
+        from concurrent.futures import ProcessPoolExecutor
+
+        # spawned, not forked: GNU OpenMP is not fork safe (see build.run_points)
+        with ProcessPoolExecutor(max_workers=len(threads),
+                                 mp_context=multiprocessing.get_context("spawn")) as pool:
+            futs = [pool.submit(_run_one, scene, point, t) for t in threads]
+            runs = [f.result() for f in futs]
+    machine = dict(date_utc=_dt.datetime.now(_dt.timezone.utc).strftime("%Y-%m-%d %H:%M:%SZ"),
+                   cpus=os.cpu_count(), platform=platform.platform(),
+                   python=platform.python_version())
+    for r in runs:
+        r["measured_on"] = machine
+    if reference:
+        tv = {k: [float(x) if math.isfinite(float(x)) else None for x in v]
+              for k, v in _check_fields(table.lookup(point).values).items()}
+        sigma = {f: [sampling_sigma(law, st, z, record_s) for z in zones]
+                 for f, st in GATED.items()}
+        return dict(kind="reference", table=table_ref, table_key=table.manifest.get("key"),
+                    kernel_version=version, point=point, record_s=record_s, zones=zones,
+                    sigma=sigma, table_values=tv, runs=runs)
+    out = dict(kind="change", source_hash=h, accepted_as=version, change=change,
+               z_limit=z_limit, runs=runs)
+    out["judgement"] = {k: v for k, v in rejudge(out, ref).items() if k != "comparisons"}
+    return out
+
+
+def reference_lines(ref: dict) -> list:
+    """Lines that show the reference: per statistic and zone the realizations relative to
+    the table's point, their standard deviation and the law's sigma."""
+    lines = [f"reference at {ref['point']}, recording {ref['record_s']:g} s: the table's point "
+             f"and {len(ref['runs'])} run(s) of its version; values relative to the table's"]
+    for f in GATED:
+        for zi, z in enumerate(ref["zones"]):
+            got = [(r.get("threads"), _rel(r["values"], ref["table_values"], f, zi))
+                   for r in ref["runs"]]
+            got = [(t, x) for t, x in got if x is not None]
+            xs = [0.0] + [x for _, x in got]
+            m = sum(xs) / len(xs)
+            sd = math.sqrt(sum((x - m) ** 2 for x in xs) / (len(xs) - 1)) if len(xs) > 1 else None
+            law = ref["sigma"][f][zi]
+            lines.append(f"  {f:24s} {z}: table 0, " +
+                         ", ".join(f"{t} thr {x:+.3f}" for t, x in got) +
+                         (f"; sd {sd:.3f}" if sd is not None else "") +
+                         (f", law sigma {law:.3f}" if law is not None else ", no law"))
+    return lines
+
+
+def change_lines(entry: dict, reference: dict) -> list:
+    """Lines that show a change's scores per statistic and zone."""
+    j = rejudge(entry, reference)
+    lines = [f"score = (mean of the runs - mean of the reference) / (s sqrt(1/n + 1/m)), s the "
+             f"larger of the pooled sd and the law's sigma; accepted within +-{j['z_limit']:g}"]
+    for c in j["comparisons"]:
+        sd = "-" if c["sd"] is None else f"{c['sd']:.3f}"
+        law = "-" if c["sigma"] is None else f"{c['sigma']:.3f}"
+        lines.append(f"  {c['field']:24s} {c['zone']}: runs - reference {c['diff']:+.3f} "
+                     f"(n {c['n_runs']}, m {c['n_ref']}; sd {sd}, sigma {law}): "
+                     f"score {c['score']:+.2f}")
+    lines.append(f"{j['n']} scores, largest |score| {j['max_abs_score']:.2f}: "
+                 f"{'PASSED' if j['passed'] else 'FAILED'}" if j["n"] else "no scores: FAILED")
+    lines += [f"note: {n}" for n in j["notes"]]
+    return lines
