@@ -448,7 +448,52 @@ def dem_section(out: Path, quick: bool, dem_runs=None, log=print) -> str:
                   _dem_tables(res)]
     else:
         parts.append("<p>No full study shipped (millfmu/data/dem_work_precision.json).</p>")
+    parts.append(_realizations())
     return "\n".join(parts)
+
+
+def _realizations() -> str:
+    """The realizations of the shipped table's version at the operating point (the
+    reference of ``millfmu tables equivalence``): their spread beside the study's sampling
+    sigma of one recording."""
+    from millfmu.dem.tables import equivalence as E
+
+    try:
+        ref = E.read_evidence().get("reference")
+    except E.EquivalenceError as e:
+        return f"<p>Realizations: {_esc(e)}</p>"
+    if not ref:
+        return ("<p>No realizations of the shipped table's version recorded "
+                "(<code>millfmu tables equivalence --reference --write</code>).</p>")
+    runs = ref["runs"]
+    head = (["statistic", "zone", "table's point"] +
+            [f"{r.get('threads')} thread(s), {r.get('wall_time_s', 0):.0f} s" for r in runs] +
+            ["standard deviation [%]", "study's sigma [%]", "ratio [-]"])
+    rows = []
+    for f in E.GATED:
+        for zi, z in enumerate(ref["zones"]):
+            xs = [E._rel(r["values"], ref["table_values"], f, zi) for r in runs]
+            have = [0.0] + [x for x in xs if x is not None]
+            m = sum(have) / len(have)
+            sd = (sum((x - m) ** 2 for x in have) / (len(have) - 1)) ** 0.5 \
+                if len(have) > 1 else None
+            law = ref["sigma"][f][zi]
+            rows.append([f, z, "0"] + ["-" if x is None else f"{100 * x:+.1f} %" for x in xs] +
+                        [_fmt(None if sd is None else 100 * sd, ".1f"),
+                         _fmt(None if law is None else 100 * law, ".1f"),
+                         _fmt(sd / law if sd is not None and law else None, ".1f")])
+    return "\n".join([
+        f"<h3>Realizations of the shipped coupled table's version at the operating point "
+        f"(<code>millfmu tables equivalence --show</code>)</h3>",
+        f"<p>The table's point and runs of the same sources on other thread counts (each "
+        f"splits the beads into other chunks: another trajectory from the same start), "
+        f"spin-up and recording as the table's ({ref['record_s']:g} s recorded); values "
+        f"relative to the table's point. Their standard deviation is the noise of one table "
+        f"point as built; the study's sigma is its recording-length law for one recording "
+        f"of that length (windows of one long run). A change of the DEM's sources that alters "
+        f"only round-off is accepted when its runs here differ from these by less than "
+        f"{E.Z_LIMIT:g} standard errors.</p>",
+        _table(head, rows)])
 
 
 # --- the page ---------------------------------------------------------------------------

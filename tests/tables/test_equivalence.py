@@ -156,6 +156,12 @@ def test_bad_thread_counts_and_bad_files(evidence, tmp_path):
         E.read_evidence(bad)
 
 
+def test_a_table_of_another_scene_is_refused(evidence):
+    with pytest.raises(E.EquivalenceError, match="scene 'disc_slice'; this table's scene is "
+                                                 "'accelerator_slice'"):
+        E.run_equivalence("accelerator", threads=(1,), reference=True, run_one=runner())
+
+
 def test_cli_names_bad_thread_counts(tmp_path):
     r = subprocess.run([sys.executable, "-m", "millfmu.cli", "tables", "equivalence",
                         "--reference", "--threads", "2", "2", "--evidence",
@@ -173,3 +179,16 @@ def test_shipped_evidence_reads_and_its_changes_pass():
 
         m = read_table_ref(ref["table"]).manifest
         assert (ref["kernel_version"], ref["table_key"]) == (m["kernel_version"], m["key"])
+
+
+def test_report_shows_the_realizations(tmp_path, monkeypatch):
+    from millfmu.report import _realizations
+
+    html = _realizations()
+    ref = E.read_evidence().get("reference")
+    if ref is not None:
+        assert html.count("<tr>") == 1 + 12 and "study's sigma" in html
+    monkeypatch.setattr(E, "EVIDENCE_PATH", tmp_path / "none.json")
+    assert "No realizations" in _realizations()
+    (tmp_path / "none.json").write_text("[]")
+    assert "Realizations:" in _realizations() and "format" in _realizations()

@@ -246,6 +246,11 @@ def operating_point(table, summary: dict) -> dict:
     from .build import _full_point
 
     op = summary.get("operating_point") or {}
+    name = (table.manifest.get("scene") or {}).get("name")
+    if op.get("scene") != name:
+        raise EquivalenceError(f"the work-precision study is of scene {op.get('scene')!r}; "
+                               f"this table's scene is {name!r}, whose sampling noise was not "
+                               f"measured: judge against the coupled table")
     point = {k: float(op[k]) for k in ("tip_speed_m_s", "filling") if k in op}
     if len(point) != 2:
         raise EquivalenceError(f"work-precision summary: operating_point {op!r} names no "
@@ -276,6 +281,14 @@ def run_equivalence(table_ref: str = "coupled", threads=(1, 2), change: str = ""
                                f"per count; a count repeated repeats its run to the bit)")
     table = read_table_ref(table_ref)
     version = table.manifest.get("kernel_version")
+    sp = Path(summary_path) if summary_path is not None else SUMMARY_PATH
+    if not sp.is_file():
+        raise EquivalenceError(f"{sp}: no work-precision study (its operating point and "
+                               f"sampling law are what the runs are judged at and by)")
+    summary = json.loads(sp.read_text())["summary"]
+    law = summary.get("recording_law") or {}
+    record_s = float(((table.manifest.get("resolution") or {}).get("dem") or {})["record_s"])
+    point = operating_point(table, summary)
     h = kernel_source_hash()
     same = SAME_DEM_AS.get(h, h) == version
     if reference and not same:
@@ -298,14 +311,6 @@ def run_equivalence(table_ref: str = "coupled", threads=(1, 2), change: str = ""
             raise EquivalenceError(f"the recorded reference is of table key "
                                    f"{ref['table_key']} version {ref['kernel_version']}, not "
                                    f"of table {table_ref}")
-    sp = Path(summary_path) if summary_path is not None else SUMMARY_PATH
-    if not sp.is_file():
-        raise EquivalenceError(f"{sp}: no work-precision study (its operating point and "
-                               f"sampling law are what the runs are judged at and by)")
-    summary = json.loads(sp.read_text())["summary"]
-    law = summary.get("recording_law") or {}
-    record_s = float(((table.manifest.get("resolution") or {}).get("dem") or {})["record_s"])
-    point = operating_point(table, summary)
     zones = list(table.zone_names)
     scene = table.spec().scene
     if run_one is not None:
