@@ -483,8 +483,8 @@ def _realizations() -> str:
                          _fmt(None if law is None else 100 * law, ".1f"),
                          _fmt(sd / law if sd is not None and law else None, ".1f")])
     return "\n".join([
-        f"<h3>Realizations of the shipped coupled table's version at the operating point "
-        f"(<code>millfmu tables equivalence --show</code>)</h3>",
+        "<h3>Realizations of the shipped coupled table's version at the operating point "
+        "(<code>millfmu tables equivalence --show</code>)</h3>",
         f"<p>The table's point and runs of the same sources on other thread counts (each "
         f"splits the beads into other chunks: another trajectory from the same start), "
         f"spin-up and recording as the table's ({ref['record_s']:g} s recorded); values "
