@@ -228,7 +228,11 @@ def record(result: dict, path=None) -> Path:
 
 
 def _run_one(scene: dict, point: dict, threads: int) -> dict:
-    # a process of its own (spawned): each run sets its numba thread count
+    # a process of its own (spawned): each run sets its numba thread count, which numba
+    # caps at NUMBA_NUM_THREADS (default: the cores), read when numba is first imported,
+    # here below: a realization on more threads than cores is still another realization
+    if int(os.environ.get("NUMBA_NUM_THREADS") or 0) < threads:
+        os.environ["NUMBA_NUM_THREADS"] = str(max(threads, os.cpu_count() or 1))
     from .build import _check_fields
     from .cache import kernel_source_hash
     from .dem_builder import DemBuilder
@@ -319,6 +323,11 @@ def run_equivalence(table_ref: str = "coupled", threads=(1, 2), change: str = ""
         import multiprocessing
         from concurrent.futures import ProcessPoolExecutor
 
+        if sum(threads) > (os.cpu_count() or 1) and "OMP_WAIT_POLICY" not in os.environ \
+                and "GOMP_SPINCOUNT" not in os.environ:
+            # more threads than cores: idle threads sleep at once instead of spinning on
+            # the cores the other runs need (the spawned workers inherit this)
+            os.environ["OMP_WAIT_POLICY"] = "passive"
         # spawned, not forked: GNU OpenMP is not fork safe (see build.run_points)
         with ProcessPoolExecutor(max_workers=len(threads),
                                  mp_context=multiprocessing.get_context("spawn")) as pool:
