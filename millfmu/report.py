@@ -466,8 +466,9 @@ def _realizations() -> str:
         return ("<p>No realizations of the shipped table's version recorded "
                 "(<code>millfmu tables equivalence --reference --write</code>).</p>")
     runs = ref["runs"]
-    head = (["statistic", "zone", "table's point"] +
-            [f"{r.get('threads')} thread(s), {r.get('wall_time_s', 0):.0f} s" for r in runs] +
+    head = (["statistic", "zone", "table's point [%]"] +
+            [f"run on {r.get('threads')} thread(s), {r.get('wall_time_s', 0):.0f} s [%]"
+             for r in runs] +
             ["standard deviation [%]", "study's sigma [%]", "ratio [-]"])
     rows = []
     for f in E.GATED:
@@ -478,7 +479,7 @@ def _realizations() -> str:
             sd = (sum((x - m) ** 2 for x in have) / (len(have) - 1)) ** 0.5 \
                 if len(have) > 1 else None
             law = ref["sigma"][f][zi]
-            rows.append([f, z, "0"] + ["-" if x is None else f"{100 * x:+.1f} %" for x in xs] +
+            rows.append([f, z, "0"] + ["-" if x is None else f"{100 * x:+.1f}" for x in xs] +
                         [_fmt(None if sd is None else 100 * sd, ".1f"),
                          _fmt(None if law is None else 100 * law, ".1f"),
                          _fmt(sd / law if sd is not None and law else None, ".1f")])

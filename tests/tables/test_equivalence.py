@@ -14,6 +14,7 @@ import pytest
 
 from millfmu.dem.tables import cache
 from millfmu.dem.tables import equivalence as E
+from millfmu.dem.tables import equivalence_runs as R
 
 ZONES = ["V1", "V2", "V3", "V4"]
 TABLE = {"filling_local": [0.2, 0.7, 0.9, 0.1], "collision_frequency_norm": [1.0, 7.0, 7.5, 0.5],
@@ -95,29 +96,29 @@ def test_reference_then_a_change_then_its_version(evidence):
     # a change needs the reference first
     state["hash"] = "sha256:" + "c" * 64
     with pytest.raises(E.EquivalenceError, match="no reference runs"):
-        E.run_equivalence(threads=(1, 2), run_one=runner())
+        R.run_equivalence(threads=(1, 2), run_one=runner())
     with pytest.raises(E.EquivalenceError, match="not table coupled's kernel version"):
-        E.run_equivalence(threads=(1, 2), reference=True, run_one=runner())
+        R.run_equivalence(threads=(1, 2), reference=True, run_one=runner())
     # the table's own sources: reference runs, recorded in two goes
     state["hash"] = version
     with pytest.raises(E.EquivalenceError, match="nothing to judge"):
-        E.run_equivalence(threads=(1, 2), run_one=runner())
-    E.record(E.run_equivalence(threads=(1, 2), reference=True, run_one=runner()))
-    E.record(E.run_equivalence(threads=(3,), reference=True, run_one=runner()))
+        R.run_equivalence(threads=(1, 2), run_one=runner())
+    E.record(R.run_equivalence(threads=(1, 2), reference=True, run_one=runner()))
+    E.record(R.run_equivalence(threads=(3,), reference=True, run_one=runner()))
     with pytest.raises(E.EquivalenceError, match="recorded already"):
-        E.record(E.run_equivalence(threads=(3, 4), reference=True, run_one=runner()))
+        E.record(R.run_equivalence(threads=(3, 4), reference=True, run_one=runner()))
     ref = E.read_evidence()["reference"]
     assert [r["threads"] for r in ref["runs"]] == [1, 2, 3]
     assert ref["kernel_version"] == version and len(E.reference_lines(ref)) == 13
     # a change far off the reference: refused, nothing recorded, its hash its own version
     state["hash"] = "sha256:" + "d" * 64
-    bad = E.run_equivalence(threads=(1, 2, 3), change="a real change", run_one=runner(0.3))
+    bad = R.run_equivalence(threads=(1, 2, 3), change="a real change", run_one=runner(0.3))
     assert not bad["judgement"]["passed"]
     with pytest.raises(E.EquivalenceError, match="did not pass"):
         E.record(bad)
     assert cache.dem_kernel_version() == state["hash"]
     # a change within the realizations' spread: recorded, and its hash takes the version
-    ok = E.run_equivalence(threads=(4, 5, 6), change="round-off", run_one=runner(seed0=10))
+    ok = R.run_equivalence(threads=(4, 5, 6), change="round-off", run_one=runner(seed0=10))
     assert ok["judgement"]["passed"], E.change_lines(ok, ref)
     E.record(ok)
     assert E.accepted_versions() == {state["hash"]: version}
@@ -133,7 +134,7 @@ def test_reference_then_a_change_then_its_version(evidence):
 
 def test_reference_of_another_point_is_refused(evidence):
     path, state, version = evidence
-    res = E.run_equivalence(threads=(1,), reference=True, run_one=runner())
+    res = R.run_equivalence(threads=(1,), reference=True, run_one=runner())
     E.record(res)
     other = dict(res, point=dict(res["point"], tip_speed_m_s=6.0))
     with pytest.raises(E.EquivalenceError, match="another table, version or point"):
@@ -143,9 +144,9 @@ def test_reference_of_another_point_is_refused(evidence):
 
 def test_bad_thread_counts_and_bad_files(evidence, tmp_path):
     with pytest.raises(E.EquivalenceError, match="distinct counts"):
-        E.run_equivalence(threads=(2, 2), reference=True, run_one=runner())
+        R.run_equivalence(threads=(2, 2), reference=True, run_one=runner())
     with pytest.raises(E.EquivalenceError, match="distinct counts"):
-        E.run_equivalence(threads=(), reference=True, run_one=runner())
+        R.run_equivalence(threads=(), reference=True, run_one=runner())
     bad = tmp_path / "bad.json"
     bad.write_text("{not json")
     with pytest.raises(E.EquivalenceError, match="not readable JSON"):
@@ -159,7 +160,7 @@ def test_bad_thread_counts_and_bad_files(evidence, tmp_path):
 def test_a_table_of_another_scene_is_refused(evidence):
     with pytest.raises(E.EquivalenceError, match="scene 'disc_slice'; this table's scene is "
                                                  "'accelerator_slice'"):
-        E.run_equivalence("accelerator", threads=(1,), reference=True, run_one=runner())
+        R.run_equivalence("accelerator", threads=(1,), reference=True, run_one=runner())
 
 
 def test_cli_names_bad_thread_counts(tmp_path):
@@ -192,3 +193,9 @@ def test_report_shows_the_realizations(tmp_path, monkeypatch):
     assert "No realizations" in _realizations()
     (tmp_path / "none.json").write_text("[]")
     assert "Realizations:" in _realizations() and "format" in _realizations()
+
+
+def test_work_precision_summary_is_the_studys():
+    from millfmu.dem.studies.work_precision import SUMMARY_PATH
+
+    assert E.WORK_PRECISION_PATH == SUMMARY_PATH and SUMMARY_PATH.is_file()

@@ -15,7 +15,8 @@ The modules, by role:
 - :mod:`.build`: a builder run over the grid (serially, process pool, Dask) and assembled;
 - :mod:`.cache`: the cache of built tables, its locks and the DEM kernel version;
 - :mod:`.equivalence`: source changes of round-off only, accepted as the tables' kernel
-  version on the evidence of runs scored against the version's own realizations;
+  version on the evidence of runs scored against the version's own realizations (the
+  runs: :mod:`.equivalence_runs`);
 - :mod:`.dem_builder`: the DEM as a builder (:class:`DemBuilder`), DEM table specs and
   rebuilds that cover a new point.
 

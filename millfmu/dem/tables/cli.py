@@ -459,8 +459,10 @@ def _equivalence(args) -> int:
                 for line in E.change_lines(e, ref):
                     print("  " + line)
             return 0
-        res = E.run_equivalence(args.table, args.threads, args.change,
-                                reference=args.reference, evidence_path=args.evidence)
+        from millfmu.dem.tables.equivalence_runs import run_equivalence
+
+        res = run_equivalence(args.table, args.threads, args.change,
+                              reference=args.reference, evidence_path=args.evidence)
         if res["kind"] == "reference":
             shown = dict(res)
             if args.write:

@@ -31,21 +31,25 @@ rebuilt table, whatever the scores say.
 The evidence (:data:`EVIDENCE_PATH`): the reference (the table's values at the point, the
 law's sigmas, the runs' values) and the accepted changes (source hash, version accepted
 as, runs); :func:`accepted_versions` recomputes every change's scores on reading and
-ignores one that does not pass. Reading it needs no numba and no numpy.
+ignores one that does not pass. Reading it needs no numba and no numpy, and this module
+imports nothing of the DEM's (the cache reads it for the kernel version); the runs are in
+:mod:`.equivalence_runs`.
 """
 
 from __future__ import annotations
 
-import datetime as _dt
 import json
 import math
 import os
-import platform
 import tempfile
 from pathlib import Path
 
 #: Evidence of accepted source changes (JSON, shipped with millfmu).
 EVIDENCE_PATH = Path(__file__).resolve().parents[2] / "data" / "dem_equivalence.json"
+#: The work-precision study's summary shipped with millfmu (the file that
+#: ``millfmu.dem.studies.work_precision.SUMMARY_PATH`` names; named here, not imported:
+#: the tables import no study)
+WORK_PRECISION_PATH = Path(__file__).resolve().parents[2] / "data" / "dem_work_precision.json"
 
 #: Table check field (:data:`~.build.CHECK_FIELDS`) -> the work-precision statistic whose
 #: recording-length law gives its sampling error. The check's fourth field, the beads'
@@ -197,9 +201,9 @@ def _write(data: dict, path=None) -> Path:
 
 
 def record(result: dict, path=None) -> Path:
-    """Add what :func:`run_equivalence` gave to the evidence: reference runs to the
-    reference (started with the first), an accepted change to ``accepted`` (replacing an
-    entry of the same source hash; refused unless it passed)."""
+    """Add what :func:`~.equivalence_runs.run_equivalence` gave to the evidence: reference
+    runs to the reference (started with the first), an accepted change to ``accepted``
+    (replacing an entry of the same source hash; refused unless it passed)."""
     data = read_evidence(path)
     if result["kind"] == "reference":
         ref = data.get("reference")
@@ -225,131 +229,6 @@ def record(result: dict, path=None) -> Path:
         data["accepted"] = [e for e in data["accepted"]
                             if e.get("source_hash") != entry["source_hash"]] + [entry]
     return _write(data, path)
-
-
-def _run_one(scene: dict, point: dict, threads: int) -> dict:
-    # a process of its own (spawned): each run sets its numba thread count, which numba
-    # caps at NUMBA_NUM_THREADS (default: the cores), read when numba is first imported,
-    # here below: a realization on more threads than cores is still another realization
-    if int(os.environ.get("NUMBA_NUM_THREADS") or 0) < threads:
-        os.environ["NUMBA_NUM_THREADS"] = str(max(threads, os.cpu_count() or 1))
-    from .build import _check_fields
-    from .cache import kernel_source_hash
-    from .dem_builder import DemBuilder
-
-    r = DemBuilder(threads=threads)(scene, point)
-    return dict(threads=threads, source_hash=kernel_source_hash(),
-                wall_time_s=round(float(r["wall_time_s"]), 1),
-                values={k: [float(x) if math.isfinite(float(x)) else None for x in v]
-                        for k, v in _check_fields(r).items()})
-
-
-def operating_point(table, summary: dict) -> dict:
-    """The work-precision study's operating point as a full point of ``table`` (grid axes
-    tip speed and filling; one-at-a-time axes at their references)."""
-    from .build import _full_point
-
-    op = summary.get("operating_point") or {}
-    name = (table.manifest.get("scene") or {}).get("name")
-    if op.get("scene") != name:
-        raise EquivalenceError(f"the work-precision study is of scene {op.get('scene')!r}; "
-                               f"this table's scene is {name!r}, whose sampling noise was not "
-                               f"measured: judge against the coupled table")
-    point = {k: float(op[k]) for k in ("tip_speed_m_s", "filling") if k in op}
-    if len(point) != 2:
-        raise EquivalenceError(f"work-precision summary: operating_point {op!r} names no "
-                               f"tip_speed_m_s and filling")
-    return _full_point(table, point)
-
-
-def run_equivalence(table_ref: str = "coupled", threads=(1, 2), change: str = "",
-                    reference: bool = False, evidence_path=None, summary_path=None,
-                    z_limit: float = Z_LIMIT, run_one=None) -> dict:
-    """Run the table's scene at the work-precision operating point with the installed DEM
-    sources, once per entry of ``threads`` (distinct counts, in parallel processes).
-
-    ``reference``: the sources must be the table's kernel version (to the bit,
-    :data:`~.cache.SAME_DEM_AS`); the runs are more realizations of it (``kind``
-    "reference"). Otherwise the sources must differ and the runs are judged
-    (:func:`judge`) against the table's point and the recorded reference runs (``kind``
-    "change", with ``judgement``). Writes nothing (:func:`record` does).
-    ``run_one(scene, point, threads)``: instead of the DEM, in this process (tests)."""
-    from .build import _check_fields
-    from .cache import SAME_DEM_AS, kernel_source_hash
-    from .table import read_table_ref
-    from millfmu.dem.studies.work_precision import SUMMARY_PATH
-
-    threads = [int(t) for t in threads]
-    if not threads or len(set(threads)) != len(threads) or min(threads) < 1:
-        raise EquivalenceError(f"threads = {threads}: give distinct counts >= 1 (one run "
-                               f"per count; a count repeated repeats its run to the bit)")
-    table = read_table_ref(table_ref)
-    version = table.manifest.get("kernel_version")
-    sp = Path(summary_path) if summary_path is not None else SUMMARY_PATH
-    if not sp.is_file():
-        raise EquivalenceError(f"{sp}: no work-precision study (its operating point and "
-                               f"sampling law are what the runs are judged at and by)")
-    summary = json.loads(sp.read_text())["summary"]
-    law = summary.get("recording_law") or {}
-    record_s = float(((table.manifest.get("resolution") or {}).get("dem") or {})["record_s"])
-    point = operating_point(table, summary)
-    h = kernel_source_hash()
-    same = SAME_DEM_AS.get(h, h) == version
-    if reference and not same:
-        raise EquivalenceError(f"--reference: the installed DEM sources ({h[:19]}...) are "
-                               f"not table {table_ref}'s kernel version ({version[:19]}...): "
-                               f"reference runs need that version's sources")
-    if not reference and same:
-        raise EquivalenceError(f"the installed DEM sources ({h[:19]}...) are table "
-                               f"{table_ref}'s kernel version to the bit: nothing to judge "
-                               f"(--reference adds realizations of it)")
-    ref = None
-    if not reference:
-        ref = read_evidence(evidence_path).get("reference")
-        if ref is None:
-            raise EquivalenceError("no reference runs recorded: run 'millfmu tables "
-                                   "equivalence --reference --write' with the table's own "
-                                   "sources first (their spread is the noise a change is "
-                                   "judged by)")
-        if ref["kernel_version"] != version or ref["table_key"] != table.manifest.get("key"):
-            raise EquivalenceError(f"the recorded reference is of table key "
-                                   f"{ref['table_key']} version {ref['kernel_version']}, not "
-                                   f"of table {table_ref}")
-    zones = list(table.zone_names)
-    scene = table.spec().scene
-    if run_one is not None:
-        runs = [run_one(scene, point, t) for t in threads]
-    else:
-        import multiprocessing
-        from concurrent.futures import ProcessPoolExecutor
-
-        if sum(threads) > (os.cpu_count() or 1) and "OMP_WAIT_POLICY" not in os.environ \
-                and "GOMP_SPINCOUNT" not in os.environ:
-            # more threads than cores: idle threads sleep at once instead of spinning on
-            # the cores the other runs need (the spawned workers inherit this)
-            os.environ["OMP_WAIT_POLICY"] = "passive"
-        # spawned, not forked: GNU OpenMP is not fork safe (see build.run_points)
-        with ProcessPoolExecutor(max_workers=len(threads),
-                                 mp_context=multiprocessing.get_context("spawn")) as pool:
-            futs = [pool.submit(_run_one, scene, point, t) for t in threads]
-            runs = [f.result() for f in futs]
-    machine = dict(date_utc=_dt.datetime.now(_dt.timezone.utc).strftime("%Y-%m-%d %H:%M:%SZ"),
-                   cpus=os.cpu_count(), platform=platform.platform(),
-                   python=platform.python_version())
-    for r in runs:
-        r["measured_on"] = machine
-    if reference:
-        tv = {k: [float(x) if math.isfinite(float(x)) else None for x in v]
-              for k, v in _check_fields(table.lookup(point).values).items()}
-        sigma = {f: [sampling_sigma(law, st, z, record_s) for z in zones]
-                 for f, st in GATED.items()}
-        return dict(kind="reference", table=table_ref, table_key=table.manifest.get("key"),
-                    kernel_version=version, point=point, record_s=record_s, zones=zones,
-                    sigma=sigma, table_values=tv, runs=runs)
-    out = dict(kind="change", source_hash=h, accepted_as=version, change=change,
-               z_limit=z_limit, runs=runs)
-    out["judgement"] = {k: v for k, v in rejudge(out, ref).items() if k != "comparisons"}
-    return out
 
 
 def reference_lines(ref: dict) -> list:
