@@ -470,19 +470,11 @@ def _realizations() -> str:
             [f"run on {r.get('threads')} thread(s), {r.get('wall_time_s', 0):.0f} s [%]"
              for r in runs] +
             ["standard deviation [%]", "study's sigma [%]", "ratio [-]"])
-    rows = []
-    for f in E.GATED:
-        for zi, z in enumerate(ref["zones"]):
-            xs = [E._rel(r["values"], ref["table_values"], f, zi) for r in runs]
-            have = [0.0] + [x for x in xs if x is not None]
-            m = sum(have) / len(have)
-            sd = (sum((x - m) ** 2 for x in have) / (len(have) - 1)) ** 0.5 \
-                if len(have) > 1 else None
-            law = ref["sigma"][f][zi]
-            rows.append([f, z, "0"] + ["-" if x is None else f"{100 * x:+.1f}" for x in xs] +
-                        [_fmt(None if sd is None else 100 * sd, ".1f"),
-                         _fmt(None if law is None else 100 * law, ".1f"),
-                         _fmt(sd / law if sd is not None and law else None, ".1f")])
+    rows = [[f, z, "0"] + ["-" if x is None else f"{100 * x:+.1f}" for _, x in got] +
+            [_fmt(None if sd is None else 100 * sd, ".1f"),
+             _fmt(None if law is None else 100 * law, ".1f"),
+             _fmt(sd / law if sd is not None and law else None, ".1f")]
+            for f, z, got, sd, law in E.spread(ref)]
     return "\n".join([
         "<h3>Realizations of the shipped coupled table's version at the operating point "
         "(<code>millfmu tables equivalence --show</code>)</h3>",

@@ -231,24 +231,32 @@ def record(result: dict, path=None) -> Path:
     return _write(data, path)
 
 
+def spread(ref: dict) -> list:
+    """Per :data:`GATED` field and zone of the reference: (field, zone, [(threads, run /
+    table - 1) per run], standard deviation of the realizations with the table's point
+    (None for one), the law's sigma)."""
+    out = []
+    for f in GATED:
+        for zi, z in enumerate(ref["zones"]):
+            got = [(r.get("threads"), _rel(r["values"], ref["table_values"], f, zi))
+                   for r in ref["runs"]]
+            xs = [0.0] + [x for _, x in got if x is not None]
+            m = sum(xs) / len(xs)
+            sd = math.sqrt(sum((x - m) ** 2 for x in xs) / (len(xs) - 1)) if len(xs) > 1 else None
+            out.append((f, z, got, sd, ref["sigma"][f][zi]))
+    return out
+
+
 def reference_lines(ref: dict) -> list:
     """Lines that show the reference: per statistic and zone the realizations relative to
     the table's point, their standard deviation and the law's sigma."""
     lines = [f"reference at {ref['point']}, recording {ref['record_s']:g} s: the table's point "
              f"and {len(ref['runs'])} run(s) of its version; values relative to the table's"]
-    for f in GATED:
-        for zi, z in enumerate(ref["zones"]):
-            got = [(r.get("threads"), _rel(r["values"], ref["table_values"], f, zi))
-                   for r in ref["runs"]]
-            got = [(t, x) for t, x in got if x is not None]
-            xs = [0.0] + [x for _, x in got]
-            m = sum(xs) / len(xs)
-            sd = math.sqrt(sum((x - m) ** 2 for x in xs) / (len(xs) - 1)) if len(xs) > 1 else None
-            law = ref["sigma"][f][zi]
-            lines.append(f"  {f:24s} {z}: table 0, " +
-                         ", ".join(f"{t} thr {x:+.3f}" for t, x in got) +
-                         (f"; sd {sd:.3f}" if sd is not None else "") +
-                         (f", law sigma {law:.3f}" if law is not None else ", no law"))
+    for f, z, got, sd, law in spread(ref):
+        lines.append(f"  {f:24s} {z}: table 0, " +
+                     ", ".join("-" if x is None else f"{t} thr {x:+.3f}" for t, x in got) +
+                     (f"; sd {sd:.3f}" if sd is not None else "") +
+                     (f", law sigma {law:.3f}" if law is not None else ", no law"))
     return lines
 
 
