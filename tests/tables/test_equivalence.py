@@ -136,6 +136,8 @@ def test_reference_of_another_point_is_refused(evidence):
     path, state, version = evidence
     res = R.run_equivalence(threads=(1,), reference=True, run_one=runner())
     E.record(res)
+    assert path.stat().st_mode & 0o777 == 0o644  # readable by all, as the shipped data
+    assert [p.name for p in path.parent.iterdir()] == [path.name]  # no temporary left
     other = dict(res, point=dict(res["point"], tip_speed_m_s=6.0))
     with pytest.raises(E.EquivalenceError, match="another table, version or point"):
         E.record(other)

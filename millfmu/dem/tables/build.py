@@ -16,7 +16,6 @@ import contextlib
 import json
 import math
 import os
-import tempfile
 import time
 import warnings
 from pathlib import Path
@@ -24,7 +23,7 @@ from typing import Callable
 
 import numpy as np
 
-from .files import canonical_json, sha256_bytes, write_synced
+from .files import canonical_json, sha256_bytes, write_replacing
 from .spec import (COMPONENTS, DRIFT_FIELDS, FIELDS, FORMAT_VERSION, QUANTILE_NAMES, TableError,
                    TableSpec, scene_at_point)
 from .table import FIXED_AXIS_RTOL, Table
@@ -67,20 +66,14 @@ class PointStore:
     def put(self, spec: TableSpec, point: dict, result: dict) -> bool:
         """Store a point's result; False (with a warning) where it cannot be written (a
         full disk, a result that is not JSON): the build goes on without it."""
-        tmp = None
         try:
             self.folder.mkdir(parents=True, exist_ok=True)
             text = json.dumps({"key_content": self.key_content(spec, point),
                                "result": _plain(result)}, sort_keys=True)
-            fd, tmp = tempfile.mkstemp(prefix=".tmp-point-", dir=self.folder)
-            os.close(fd)
-            os.chmod(tmp, 0o644)
-            write_synced(Path(tmp), text.encode())
-            os.replace(tmp, self.folder / f"{self.key(spec, point)}.json")
+            write_replacing(self.folder / f"{self.key(spec, point)}.json", text.encode(),
+                            prefix=".tmp-point-")
             return True
         except (OSError, TypeError, ValueError) as e:
-            if tmp is not None:
-                Path(tmp).unlink(missing_ok=True)
             warnings.warn(f"point store {self.folder}: point {point} not kept ({e}); the "
                           f"build goes on, a resume would run it again", stacklevel=2)
             return False

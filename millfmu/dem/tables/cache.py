@@ -211,8 +211,8 @@ def dem_kernel_version() -> str:
     """sha256 over the labels and source files of :data:`KERNEL_MODULES` (read, not
     imported: no numba), or the version that :data:`SAME_DEM_AS` gives for it (the same
     results to the bit), or the version that the evidence of
-    :mod:`millfmu.dem.tables.equivalence` accepts it as (the same statistics within the
-    table's sampling noise: a change of round-off only)."""
+    :mod:`millfmu.dem.tables.equivalence` accepts it as (a change of round-off only, its
+    statistics within the spread of the version's own realizations)."""
     h = kernel_source_hash()
     if h in SAME_DEM_AS:
         return SAME_DEM_AS[h]

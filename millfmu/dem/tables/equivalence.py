@@ -40,9 +40,9 @@ from __future__ import annotations
 
 import json
 import math
-import os
-import tempfile
 from pathlib import Path
+
+from .files import write_replacing
 
 #: Evidence of accepted source changes (JSON, shipped with millfmu).
 EVIDENCE_PATH = Path(__file__).resolve().parents[2] / "data" / "dem_equivalence.json"
@@ -63,7 +63,6 @@ GATED = {"filling_local": "filling", "collision_frequency_norm": "collision_freq
 #: degrees of freedom (3 runs against the table's point and 2 runs), less where the law's
 #: sigma is the larger. The 12 comparisons are correlated (fillings and collision
 #: frequencies move together): a sound change that fails is run again on more threads.
-Z_LIMIT = 3.0
 Z_LIMIT = 3.0
 
 FORMAT = 1
@@ -120,7 +119,7 @@ def judge(table_values: dict, reference_runs: list, runs: list, sigma: dict, zon
             ss = sum((x - ma) ** 2 for x in a) + sum((x - mb) ** 2 for x in b)
             sd = math.sqrt(ss / dof) if dof > 0 else None
             law = sig[zi]
-            s = max(x for x in (sd, law) if x is not None) if (sd or law) else None
+            s = max((x for x in (sd, law) if x), default=0.0)
             if not s:
                 continue
             comps.append(dict(field=f, zone=z, n_runs=len(a), n_ref=len(b), diff=ma - mb,
@@ -183,20 +182,10 @@ def accepted_versions(path=None) -> dict:
 
 
 def _write(data: dict, path=None) -> Path:
-    """The evidence written to a temporary file beside it and renamed into place, so that a
-    reader never sees half a file."""
+    """The evidence written beside its place and renamed onto it (a reader never sees half
+    a file)."""
     p = Path(path) if path is not None else EVIDENCE_PATH
-    text = json.dumps(data, indent=1) + "\n"
-    fd, tmp = tempfile.mkstemp(prefix=p.name + ".", dir=p.parent)
-    try:
-        with os.fdopen(fd, "w") as fh:
-            fh.write(text)
-            fh.flush()
-            os.fsync(fh.fileno())
-        os.replace(tmp, p)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
+    write_replacing(p, (json.dumps(data, indent=1) + "\n").encode(), prefix=p.name + ".")
     return p
 
 

@@ -8,15 +8,21 @@ therefore imports neither the cache nor the DEM: these runs need both.
 
 from __future__ import annotations
 
-import datetime as _dt
 import json
 import math
 import os
-import platform
 from pathlib import Path
+
+from millfmu.machine import machine
 
 from .equivalence import (GATED, WORK_PRECISION_PATH, Z_LIMIT, EquivalenceError,
                           read_evidence, rejudge, sampling_sigma)
+
+
+def _plain(fields: dict) -> dict:
+    """Check fields (:func:`~.build._check_fields`) as JSON lists, None where not finite."""
+    return {k: [float(x) if math.isfinite(float(x)) else None for x in v]
+            for k, v in fields.items()}
 
 
 def _run_one(scene: dict, point: dict, threads: int) -> dict:
@@ -31,9 +37,7 @@ def _run_one(scene: dict, point: dict, threads: int) -> dict:
 
     r = DemBuilder(threads=threads)(scene, point)
     return dict(threads=threads, source_hash=kernel_source_hash(),
-                wall_time_s=round(float(r["wall_time_s"]), 1),
-                values={k: [float(x) if math.isfinite(float(x)) else None for x in v]
-                        for k, v in _check_fields(r).items()})
+                wall_time_s=round(float(r["wall_time_s"]), 1), values=_plain(_check_fields(r)))
 
 
 def operating_point(table, summary: dict) -> dict:
@@ -124,14 +128,11 @@ def run_equivalence(table_ref: str = "coupled", threads=(1, 2), change: str = ""
                                  mp_context=multiprocessing.get_context("spawn")) as pool:
             futs = [pool.submit(_run_one, scene, point, t) for t in threads]
             runs = [f.result() for f in futs]
-    machine = dict(date_utc=_dt.datetime.now(_dt.timezone.utc).strftime("%Y-%m-%d %H:%M:%SZ"),
-                   cpus=os.cpu_count(), platform=platform.platform(),
-                   python=platform.python_version())
+    measured_on = machine()
     for r in runs:
-        r["measured_on"] = machine
+        r["measured_on"] = measured_on
     if reference:
-        tv = {k: [float(x) if math.isfinite(float(x)) else None for x in v]
-              for k, v in _check_fields(table.lookup(point).values).items()}
+        tv = _plain(_check_fields(table.lookup(point).values))
         sigma = {f: [sampling_sigma(law, st, z, record_s) for z in zones]
                  for f, st in GATED.items()}
         return dict(kind="reference", table=table_ref, table_key=table.manifest.get("key"),

@@ -14,6 +14,7 @@ from __future__ import annotations
 import hashlib
 import json
 import os
+import tempfile
 from pathlib import Path
 
 
@@ -54,6 +55,22 @@ def write_synced(path: Path, data: bytes):
         fh.write(data)
         fh.flush()
         os.fsync(fh.fileno())
+
+
+def write_replacing(path: Path, data: bytes, prefix: str = ".tmp-"):
+    """Write ``data`` to a temporary file beside ``path`` (mode 644, not mkstemp's 600),
+    fsync it and rename it onto ``path``: a reader sees the old file or the whole new one.
+    The temporary file is removed where anything fails."""
+    path = Path(path)
+    fd, tmp = tempfile.mkstemp(prefix=prefix, dir=path.parent)
+    os.close(fd)
+    try:
+        os.chmod(tmp, 0o644)
+        write_synced(Path(tmp), data)
+        os.replace(tmp, path)
+    except BaseException:
+        Path(tmp).unlink(missing_ok=True)
+        raise
 
 
 def fsync_dir(path: Path):
