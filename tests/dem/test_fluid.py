@@ -110,3 +110,25 @@ def test_projection_is_solved_to_round_off():
     for _ in range(20):
         s.advance(1e-3)
     assert s.max_divergence_s() < 1e-9 * 50.0
+
+
+def test_interval_means_and_a_velocity_that_is_not_finite():
+    """The interval's mean velocity is the substeps' time average (several substeps in one
+    interval: their dt-weighted sum over the interval), and a velocity that is not finite
+    stops the liquid by name instead of passing NaN to the beads."""
+    from millfmu.dem.fluid.solver import FluidError
+
+    g = annulus_grid(R1, R2, 0.004, 12, 4)
+    s = FluidSolver(g, FluidProperties(RHO, MU), OMEGA, turbulence="laminar")
+    s.advance(2e-3)
+    ut0 = s.ut.copy()
+    s.advance(3.0 * s._dt_stable)  # at least three substeps
+    assert s.last_substeps >= 3
+    lo, hi = np.minimum(ut0, s.ut), np.maximum(ut0, s.ut)
+    m = s.mean_u[1]
+    # the flow spins up monotonically, so its mean lies between the interval's ends
+    assert np.all(m >= lo - 1e-12) and np.all(m <= hi + 1e-12)
+    assert np.abs(m - s.ut).max() > 0.0 and np.abs(m - ut0).max() > 0.0
+    s.ut[3, 0, 1] = np.nan
+    with pytest.raises(FluidError, match="not finite at t = "):
+        s.advance(2e-3)

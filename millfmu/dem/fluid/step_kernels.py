@@ -9,6 +9,8 @@ Arrays travel in tuples (see :class:`millfmu.dem.fluid.solver.FluidSolver`): F, 
 and what the beads impose; W, work arrays; K, the int8 node kinds and cell kinds.
 """
 
+import math
+
 from millfmu.dem.engine._jit import serial
 from millfmu.dem.fluid import k_epsilon as KE
 from millfmu.dem.fluid import vans_kernels as VK
@@ -150,6 +152,47 @@ def corrector(F, W, K, phi, wall, wall_om, rf, rc, dr, vc, dth, dz, rho, nu, ktu
         F[ET][:] = W[ENEW]
         KE.eddy_viscosity(F[KT], F[ET], solid, F[NUT])
     return stable_dt(ur, ut, uz, F[NUT], rc, dr, dth, dz, nu, cfl)
+
+
+@serial
+def _scale(a, zero, div):
+    """a[:] = 0 (zero) or a[:] = a / div, element by element as numpy's."""
+    f = a.reshape(-1)
+    for n in range(f.size):
+        f[n] = 0.0 if zero else f[n] / div
+
+
+@serial
+def start_interval(F, acc):
+    """Before an interval's substeps: the sums of its mean velocities and pressure
+    gradients and the impulse accumulator acc zeroed (one call instead of seven numpy
+    passes, each a few microseconds on arrays that the DEM's steps pushed out of cache)."""
+    _scale(F[MUR], True, 1.0)
+    _scale(F[MUT], True, 1.0)
+    _scale(F[MUZ], True, 1.0)
+    _scale(F[MGR], True, 1.0)
+    _scale(F[MGT], True, 1.0)
+    _scale(F[MGZ], True, 1.0)
+    for n in range(acc.size):
+        acc[n] = 0.0
+
+
+@serial
+def finish_interval(F, interval):
+    """After an interval's substeps: the sums divided by its length interval [s] (the
+    means); returns whether every velocity u_r, u_theta is finite."""
+    _scale(F[MUR], False, interval)
+    _scale(F[MUT], False, interval)
+    _scale(F[MUZ], False, interval)
+    _scale(F[MGR], False, interval)
+    _scale(F[MGT], False, interval)
+    _scale(F[MGZ], False, interval)
+    ok = True
+    for a in (F[UT].reshape(-1), F[UR].reshape(-1)):
+        for n in range(a.size):
+            if not math.isfinite(a[n]):
+                ok = False
+    return ok
 
 
 @serial
