@@ -96,7 +96,9 @@ def register(subparsers) -> argparse.ArgumentParser:
                         "GPU rows where a GPU is present")
     b.add_argument("--profile", action="store_true",
                    help="instead: where millfmu.dem's time goes, per kernel (1 and 2 threads; "
-                        "with --device gpu, or where a GPU is present, per GPU phase)")
+                        "with --device gpu, or where a GPU is present, per GPU phase); with "
+                        "--coupled, where a coupled interval's time goes, part by part, "
+                        "inside the coupled run (the sector; --bed none for it alone)")
     b.add_argument("--regenerate-bed", action="store_true",
                    help="make the bed again (it is made once and cached)")
     b.add_argument("--json", action="store_true", help="also print every run as JSON")
@@ -412,9 +414,14 @@ def _bench(args) -> int:
     steps = args.steps or B.BENCH_STEPS
     cores = tuple(args.cores or (1, 2))
     beds = dict(both=("dense", "dilute"), none=()).get(args.bed, (args.bed,))
-    if args.bed == "none" and (not args.coupled or args.profile):
-        print("millfmu dem bench: --bed none: nothing to run without --coupled (and "
-              "--profile profiles a bed)", file=sys.stderr)
+    if args.bed == "none" and not args.coupled:
+        print("millfmu dem bench: --bed none: nothing to run without --coupled",
+              file=sys.stderr)
+        return 2
+    if args.profile and args.coupled and (args.coupled == "full" or args.device == "gpu"):
+        print(f"millfmu dem bench: --profile --coupled: the 10-degree sector with the DEM on "
+              f"the CPU (here --coupled {args.coupled}"
+              f"{', --device gpu' if args.device == 'gpu' else ''})", file=sys.stderr)
         return 2
     if args.coupled_start and not args.coupled:
         print(f"millfmu dem bench: --coupled-start {args.coupled_start}: applies to the "
@@ -431,6 +438,11 @@ def _bench(args) -> int:
               "simulator is for tests, not for timing)", file=sys.stderr)
         return 2
     if args.profile:
+        if args.coupled:
+            from millfmu.dem.studies.coupled_bench import profile_coupled
+
+            profile_coupled(steps=args.steps or 2000, threads=max(cores),
+                            start=args.coupled_start or "running")
         for bed in beds:
             path = B.bed_file(B.BEDS[bed], regenerate=args.regenerate_bed)
             if args.device != "gpu":

@@ -204,9 +204,12 @@ def test_gpu_device_refusals_name_the_item(tmp_path, capsys, monkeypatch):
     for argv in (["--profile"], ["--coupled", "full"]):
         assert dem_main(["bench", "--device", "gpu"] + argv) == 2
         assert "--device gpu: numba.cuda finds no CUDA GPU" in capsys.readouterr().err
-    for argv in ([], ["--coupled", "--profile"]):
-        assert dem_main(["bench", "--bed", "none"] + argv) == 2
-        assert "--bed none: nothing to run without --coupled" in capsys.readouterr().err
+    assert dem_main(["bench", "--bed", "none"]) == 2
+    assert "--bed none: nothing to run without --coupled" in capsys.readouterr().err
+    for argv in (["--coupled", "full"], ["--coupled", "--device", "gpu"]):
+        assert dem_main(["bench", "--bed", "none", "--profile"] + argv) == 2
+        assert "--profile --coupled: the 10-degree sector with the DEM on the CPU" in \
+            capsys.readouterr().err
     assert dem_main(["bench", "--coupled-start", "early"]) == 2
     assert "--coupled-start early: applies to the coupled row" in capsys.readouterr().err
     for argv in (["--coupled", "full"], ["--coupled", "--device", "gpu"]):

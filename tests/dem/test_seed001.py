@@ -120,3 +120,31 @@ def test_campaign_runs_the_stated_protocol(tmp_path, monkeypatch):
         assert kw["window_s"] == 0.1
         vt, fill = float(d.name.split("_v")[1].split("_")[0]), int(d.name.split("_f")[1])
         assert sc.tip_speed_m_s == vt and round(sc.filling * 100) == fill
+
+
+def test_coupled_interval_profile_names_every_part():
+    """``dem bench --coupled --profile``: every part of a coupled interval timed inside the
+    run, and the coupling's kernels and methods given back afterwards."""
+    pytest.importorskip("numba")
+    from millfmu.dem.coupling import exchange_kernels as EK
+    from millfmu.dem.fluid import step_kernels as SK
+    from millfmu.dem.run import make_simulation
+    from millfmu.dem.studies import coupled_bench as CB
+
+    sim, cpl = make_simulation(CB._scene("sector"), 1, "cpu")
+    said = []
+    res = CB.profile_coupled(steps=40, out=said.append, state=(sim, cpl))
+    labels = [label for label, _, _ in CB.COUPLED_PARTS]
+    assert list(res)[:len(labels)] == labels and "DEM alone, 10 steps" in res
+    for label, (med, mean) in res.items():
+        assert med > 0.0 and mean > 0.0, label
+    # the parts of the exchange (not the liquid's substeps, within its whole interval)
+    parts = sum(res[label][1] for label in labels[:5] + labels[8:12])
+    assert parts <= res["exchange, whole"][1]
+    assert any("the exchange adds" in line for line in said)
+    assert cpl.EK is EK and cpl.solver.SK is SK
+    assert "exchange" not in vars(cpl) and "run" not in vars(sim)
+    assert "solve" not in vars(cpl.solver.pressure) and "advance" not in vars(cpl.solver)
+    assert sim.step_count == 20 + 40 + 200  # compiled, profiled, the DEM alone
+    with pytest.raises(ValueError, match="start = 'late'"):
+        CB.profile_coupled(steps=10, start="late")
