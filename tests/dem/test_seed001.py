@@ -141,7 +141,7 @@ def test_coupled_interval_profile_names_every_part():
     # the parts of the exchange (not the liquid's substeps, within its whole interval)
     parts = sum(res[label][1] for label in labels[:5] + labels[8:12])
     assert parts <= res["exchange, whole"][1]
-    assert any("the exchange adds" in line for line in said)
+    assert any("against the DEM's interval alone: the exchange" in line for line in said)
     assert cpl.EK is EK and cpl.solver.SK is SK
     assert "exchange" not in vars(cpl) and "run" not in vars(sim)
     assert "solve" not in vars(cpl.solver.pressure) and "advance" not in vars(cpl.solver)

@@ -231,7 +231,7 @@ def profile_coupled(steps: int = 2000, threads: int | None = None, start: str = 
     DEM steps, then as many DEM steps alone in blocks of 200 (the DEM's pace without the
     exchange between its runs). The grid's arrays are pushed out of the caches by the DEM's
     steps between two exchanges, so each part costs more here than called back to back (a
-    10-degree sector on 2 threads: the pressure solve 0.45-0.57 ms against 0.11-0.19).
+    10-degree sector on 2 threads: the pressure solve 0.40-0.57 ms against 0.11-0.19).
     Returns {label: (median [s], mean per interval [s])} with "DEM alone, 10 steps".
     ``state``: a (sim, coupling) pair of the sector to profile as it is (start and
     warm_s are then not used)."""
@@ -303,6 +303,6 @@ def profile_coupled(steps: int = 2000, threads: int | None = None, start: str = 
     ex = res["exchange, whole"][1]
     dem = res["DEM steps of the interval"][1]
     base = res["DEM alone, 10 steps"][1]
-    out(f"  the exchange adds {ex / base:.0%} of the DEM's interval alone, the DEM's runs "
-        f"between exchanges {dem / base - 1:+.0%}: {(ex + dem) / base - 1:.0%} in all")
+    out(f"  against the DEM's interval alone: the exchange {ex / base:.0%}, the DEM's steps "
+        f"between exchanges {dem / base - 1:+.0%}, {(ex + dem) / base - 1:.0%} in all")
     return res

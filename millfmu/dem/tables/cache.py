@@ -56,6 +56,7 @@ KERNEL_MODULES = {
     "millfmu.dem.coupling.split_implicit_smoothing":
         "millfmu.dem.coupling.split_implicit_smoothing",
     "millfmu.dem.fluid.theta_fft_pressure": "millfmu.dem.fluid.theta_fft_pressure",
+    "millfmu.dem.fluid.ldl_pressure": "millfmu.dem.fluid.ldl_pressure",
     # the coupled step's kernels and the one set of numba flags (fastmath, error model)
     "millfmu.dem.coupling.exchange_kernels": "millfmu.dem.coupling.exchange_kernels",
     "millfmu.dem.fluid.step_kernels": "millfmu.dem.fluid.step_kernels",
@@ -127,7 +128,9 @@ KERNEL_MODULES = {
 #: solve's fluid cells taken by index instead of by mask (a coupled disc sector, a
 #: prescribed-swirl disc sector and a coupled accelerator slice, 300 steps each, gave the
 #: same beads, forces, liquid and recorded contacts to the bit before and after, on 1 and
-#: on 2 threads). A checkpoint made by one of
+#: on 2 threads), and the pressure equation's symmetric solver chosen by name (L D L^T on
+#: a minimum-degree ordering, a numba solve, counted in the hash; the direct LU, as before,
+#: by default: the same three runs again identical to the bit). A checkpoint made by one of
 #: these sources resumes under another (run.resume_run). Any other change of these sources
 #: gives a new hash, and a new version.
 SAME_DEM_AS = {
@@ -206,6 +209,8 @@ SAME_DEM_AS = {
     "sha256:5b4f2ef30188b94bb56c6a48c6eb6b4661a14a2bef0fe85a734329c8d098f23d":
         "sha256:cc5c174862c188a675fdb35932f269eb61ae82876e3d110866af2b7a62b0d3bd",
     "sha256:f6d70edf289446eb2aebcb7607e71b6527f07d7e37bb34b79743c9a4e990c1aa":
+        "sha256:cc5c174862c188a675fdb35932f269eb61ae82876e3d110866af2b7a62b0d3bd",
+    "sha256:c17be759cb39af8022bc70c507c86fe8f1de5bbe004ce269db39f6464ff10fa0":
         "sha256:cc5c174862c188a675fdb35932f269eb61ae82876e3d110866af2b7a62b0d3bd",
 }
 
