@@ -51,7 +51,10 @@ class LdlFactor:
         # row k of the permuted system is row order[k] of a (perm_r maps a's rows to it)
         self.order = np.empty_like(lu.perm_r, dtype=np.int64)
         self.order[lu.perm_r] = np.arange(lu.perm_r.size)
+        # work arrays of a solve (no allocation per solve on the coupled run's hot path)
         self._work = np.zeros(a.shape[0])
+        self._rhs = np.zeros(a.shape[0])
+        self._x = np.zeros(a.shape[0])
         #: entries kept: L's strictly lower part
         self.entries = int(lower.nnz)
 
@@ -63,11 +66,10 @@ class LdlFactor:
         the first fluid cell pinned: :meth:`PressureSolver.solve` in one numba call."""
         from millfmu.dem.fluid.step_kernels import ldl_project
 
-        n = cells.shape[0]
         out = np.empty(shape)
         ldl_project(np.ascontiguousarray(b_cells, dtype=float).reshape(-1), cells, volume,
                     volume_sum, self.indptr, self.indices, self.values, self.inv_d,
-                    self.order, np.empty(n), self._work, np.empty(n), out.reshape(-1))
+                    self.order, self._rhs, self._work, self._x, out.reshape(-1))
         return out
 
     def solve(self, rhs: np.ndarray) -> np.ndarray:

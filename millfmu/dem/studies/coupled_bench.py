@@ -133,6 +133,21 @@ def running_state(threads: int | None = None, running_s: float = RUNNING_S, out=
     return sim, cpl
 
 
+def _start(scene: str, start: str, threads, device: str, warm_s: float, running_s: float,
+           out):
+    """(sim, coupling) where a timing begins: the running mill's state
+    (:func:`running_state`) or ``warm_s`` [s] of coupled motion after the start."""
+    from millfmu.dem.run import make_simulation
+
+    if start == "running":
+        return running_state(threads, running_s, out=out)
+    sc = _scene(scene)
+    sim, cpl = make_simulation(sc, threads, device)
+    k = cpl.settings.steps
+    cpl.run(k * max(1, int(round(warm_s / (k * sc.dt_s)))))
+    return sim, cpl
+
+
 def run_coupled_bench(steps: int = 2000, repeats: int = 3, threads: int | None = None,
                       warm_s: float = 0.01, block: int = 200, scene: str = "sector",
                       device: str = "cpu", start: str | None = None,
@@ -145,7 +160,6 @@ def run_coupled_bench(steps: int = 2000, repeats: int = 3, threads: int | None =
     ``CfdDem.exchange``). Best of ``repeats``. ``start``: "running" (the default for the
     sector on the CPU: from :func:`running_state`) or "early" (``warm_s`` after the start;
     the full slice and the GPU always)."""
-    from millfmu.dem.run import make_simulation
 
     if scene not in SCENES:
         raise ValueError(f"scene = {scene!r}: allowed {SCENES}")
@@ -158,16 +172,11 @@ def run_coupled_bench(steps: int = 2000, repeats: int = 3, threads: int | None =
                          f"device = {device!r}; the full slice takes hours to spin up on "
                          f"2 cores): use start = 'early'")
     sc = _scene(scene)
-    if start == "running":
-        sim, cpl = running_state(threads, running_s, out=out)
-    else:
-        sim, cpl = make_simulation(sc, threads, device)
+    sim, cpl = _start(scene, start, threads, device, warm_s, running_s, out)
     k = cpl.settings.steps
     block = max(k, k * (block // k))
     nblocks = max(1, steps // block)
     steps = nblocks * block
-    if start == "early":
-        cpl.run(k * max(1, int(round(warm_s / (k * sc.dt_s)))))
     start_s = sim.step_count * sc.dt_s
     sim.run(k)  # compiled
     td, tc, ratios = [], [], []
@@ -239,16 +248,8 @@ def profile_coupled(steps: int = 2000, threads: int | None = None, start: str = 
 
     if start not in STARTS:
         raise ValueError(f"start = {start!r}: allowed {STARTS}")
-    if state is not None:
-        sim, cpl = state
-    elif start == "running":
-        sim, cpl = running_state(threads, running_s, out=out)
-    else:
-        from millfmu.dem.run import make_simulation
-
-        sim, cpl = make_simulation(_scene("sector"), threads, "cpu")
-        k = cpl.settings.steps
-        cpl.run(k * max(1, int(round(warm_s / (k * sim.dt_s)))))
+    sim, cpl = state if state is not None else _start("sector", start, threads, "cpu",
+                                                         warm_s, running_s, out)
     k = cpl.settings.steps
     intervals = max(1, steps // k)
     cpl.run(2 * k)  # compiled

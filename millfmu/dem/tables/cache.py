@@ -130,7 +130,9 @@ KERNEL_MODULES = {
 #: same beads, forces, liquid and recorded contacts to the bit before and after, on 1 and
 #: on 2 threads), and the pressure equation's symmetric solver chosen by name (L D L^T on
 #: a minimum-degree ordering, a numba solve, counted in the hash; the direct LU, as before,
-#: by default: the same three runs again identical to the bit). A checkpoint made by one of
+#: by default: the same three runs again identical to the bit; then the pressure solver's
+#: cell indices made with it and its symmetric solve's work arrays kept, the same again). A
+#: checkpoint made by one of
 #: these sources resumes under another (run.resume_run). Any other change of these sources
 #: gives a new hash, and a new version.
 SAME_DEM_AS = {
@@ -211,6 +213,8 @@ SAME_DEM_AS = {
     "sha256:f6d70edf289446eb2aebcb7607e71b6527f07d7e37bb34b79743c9a4e990c1aa":
         "sha256:cc5c174862c188a675fdb35932f269eb61ae82876e3d110866af2b7a62b0d3bd",
     "sha256:c17be759cb39af8022bc70c507c86fe8f1de5bbe004ce269db39f6464ff10fa0":
+        "sha256:cc5c174862c188a675fdb35932f269eb61ae82876e3d110866af2b7a62b0d3bd",
+    "sha256:bbc100ab125eacfdd65bd060cbc0f332cd0695d255cc137f7feb68ee834cc7a4":
         "sha256:cc5c174862c188a675fdb35932f269eb61ae82876e3d110866af2b7a62b0d3bd",
 }
 
