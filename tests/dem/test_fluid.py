@@ -166,3 +166,22 @@ def test_ldl_pressure_is_the_direct_solution(n_theta):
 
     again = pickle.loads(pickle.dumps(ldl))
     np.testing.assert_array_equal(again.solve(b), fast)
+    if n_theta == 1:
+        # a fluid's description names the solver it has
+        from millfmu.dem.fluid.solver import PRESSURE_DESCRIPTIONS, FluidSolver
+        from millfmu.dem.coupling.settings import PRESSURE_SOLVERS
+
+        assert set(PRESSURE_DESCRIPTIONS) == set(PRESSURE_SOLVERS)
+        d = FluidSolver(g, pressure_solver="direct_ldl").describe()["pressure"]
+        assert "direct_ldl" in d and "FFT" not in d
+
+
+def test_periodic_neighbour_index_is_the_modulo():
+    """The liquid's kernels find periodic neighbours by adding or taking away one period
+    (vans_kernels.wrap) instead of Python's integer modulo: the same index for every offset
+    they use (within two periods), on periods down to one cell."""
+    from millfmu.dem.fluid.vans_kernels import wrap
+
+    for n in range(1, 8):
+        for a in range(-2 * n, 2 * n):
+            assert wrap(a, n) == a % n, (a, n)

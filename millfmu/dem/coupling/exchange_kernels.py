@@ -16,6 +16,7 @@ from numba import prange
 from millfmu.dem.coupling.koch_hill2001 import STIFF_RATIO, beta
 from millfmu.dem.coupling.projection import stencil_one
 from millfmu.dem.engine._jit import inlined, kernel, serial
+from millfmu.dem.fluid.vans_kernels import wrap
 
 NQ = 6
 
@@ -105,11 +106,11 @@ def cells_to_exchange(tot, vc, eps_min, solid, kr, kt, kz, vol_r, rc, eps_c, eps
     sd_z[:] = 0.0
     for i in range(nr):
         for j in range(nt):
-            jm = (j - 1) % nt
+            jm = wrap(j - 1, nt)
             for k in range(nz):
                 if solid[i, j, k] != 0:
                     continue
-                km = (k - 1) % nz
+                km = wrap(k - 1, nz)
                 # r: faces i (low) and i + 1
                 wa, wb = split(kr[i, j, k], kr[i + 1, j, k])
                 kd_r[i, j, k] += wa * tot[1, i, j, k]
@@ -142,9 +143,9 @@ def cells_to_exchange(tot, vc, eps_min, solid, kr, kt, kz, vol_r, rc, eps_c, eps
     for i in range(nr):
         sc = 1.0 / (rc[i] * vc[i])
         for j in range(nt):
-            jp = (j + 1) % nt
+            jp = wrap(j + 1, nt)
             for k in range(nz):
-                kp = (k + 1) % nz
+                kp = wrap(k + 1, nz)
                 kd_t[i, j, k] *= sc
                 sd_t[i, j, k] *= sc
                 kd_z[i, j, k] /= vc[i]
@@ -163,14 +164,14 @@ def nodes_to_cell_values(ur, ut, uz, gr, gt, gz, kr, kt, kz, solid, out):
     nr, nt, nz = solid.shape
     for i in range(nr):
         for j in range(nt):
-            jm = (j - 1) % nt
+            jm = wrap(j - 1, nt)
             for k in range(nz):
                 c = (i * nt + j) * nz + k
                 if solid[i, j, k] != 0:
                     for m in range(6):
                         out[m, c] = 0.0
                     continue
-                km = (k - 1) % nz
+                km = wrap(k - 1, nz)
                 wa, wb = split(kr[i, j, k], kr[i + 1, j, k])
                 out[0, c] = wa * ur[i, j, k] + wb * ur[i + 1, j, k]
                 out[3, c] = wa * gr[i, j, k] + wb * gr[i + 1, j, k]

@@ -21,7 +21,7 @@ equations use the same nu_w at their wall edges (:func:`millfmu.dem.fluid.vans_k
 import math
 
 from millfmu.dem.engine._jit import serial
-from millfmu.dem.fluid.vans_kernels import (C_MU, E_LOG, KAPPA, YPLUS_LAM, tvd_flux)
+from millfmu.dem.fluid.vans_kernels import (C_MU, E_LOG, KAPPA, YPLUS_LAM, tvd_flux, wrap)
 
 C_1 = 1.44
 C_2 = 1.92
@@ -55,13 +55,13 @@ def production(ur, ut, uz, nu_t, s2diag, g_rt, g_rz, g_tz, solid, wall, wall_om,
     nr, nt, nz = k.shape
     for i in range(nr):
         for j in range(nt):
-            jm = (j - 1) % nt
+            jm = wrap(j - 1, nt)
             for kk in range(nz):
                 if solid[i, j, kk] != 0:
                     prod[i, j, kk] = 0.0
                     e_wall[i, j, kk] = -1.0
                     continue
-                km = (kk - 1) % nz
+                km = wrap(kk - 1, nz)
                 nw = 0
                 for d in range(6):
                     if wall[i, j, kk, d]:
@@ -121,8 +121,8 @@ def transport(q, q_old_k, q_old_e, is_eps, fr, ft, fz, epsc, nu_t, solid, prod, 
     for i in range(nr):
         vol = vc[i]
         for j in range(nt):
-            jm = (j - 1) % nt
-            jp = (j + 1) % nt
+            jm = wrap(j - 1, nt)
+            jp = wrap(j + 1, nt)
             for kk in range(nz):
                 if solid[i, j, kk] != 0:
                     out[i, j, kk] = q[i, j, kk]
@@ -130,8 +130,8 @@ def transport(q, q_old_k, q_old_e, is_eps, fr, ft, fz, epsc, nu_t, solid, prod, 
                 if is_eps and e_wall[i, j, kk] >= 0.0:
                     out[i, j, kk] = max(e_wall[i, j, kk], qmin)
                     continue
-                km = (kk - 1) % nz
-                kp = (kk + 1) % nz
+                km = wrap(kk - 1, nz)
+                kp = wrap(kk + 1, nz)
                 qc = q[i, j, kk]
                 gc = epsc[i, j, kk] * (nu + nu_t[i, j, kk] / sig)
                 adv = 0.0
@@ -160,7 +160,7 @@ def transport(q, q_old_k, q_old_e, is_eps, fr, ft, fz, epsc, nu_t, solid, prod, 
                         (rf[i + 1] * dth * dz)
                 if nt > 1:
                     for s in (-1, 1):
-                        jn = (j + s) % nt
+                        jn = wrap(j + s, nt)
                         if solid[i, jn, kk] != 0:
                             continue
                         f = ft[i, j if s > 0 else jm, kk]
@@ -168,29 +168,29 @@ def transport(q, q_old_k, q_old_e, is_eps, fr, ft, fz, epsc, nu_t, solid, prod, 
                         dif += g * (q[i, jn, kk] - qc) / (rc[i] * dth) * dr[i] * dz
                         if s > 0:
                             adv -= tvd_flux(f, q[i, jm, kk], qc, q[i, jp, kk],
-                                            q[i, (j + 2) % nt, kk], solid[i, jm, kk] == 0,
-                                            solid[i, (j + 2) % nt, kk] == 0)
+                                            q[i, wrap(j + 2, nt), kk], solid[i, jm, kk] == 0,
+                                            solid[i, wrap(j + 2, nt), kk] == 0)
                             net += f
                         else:
-                            adv += tvd_flux(f, q[i, (j - 2) % nt, kk], q[i, jm, kk], qc,
-                                            q[i, jp, kk], solid[i, (j - 2) % nt, kk] == 0,
+                            adv += tvd_flux(f, q[i, wrap(j - 2, nt), kk], q[i, jm, kk], qc,
+                                            q[i, jp, kk], solid[i, wrap(j - 2, nt), kk] == 0,
                                             solid[i, jp, kk] == 0)
                             net -= f
                 az = vol / dz
                 for s in (-1, 1):
-                    kn = (kk + s) % nz
+                    kn = wrap(kk + s, nz)
                     if solid[i, j, kn] != 0:
                         continue
                     f = fz[i, j, kk if s > 0 else km]
                     g = 0.5 * (gc + epsc[i, j, kn] * (nu + nu_t[i, j, kn] / sig))
                     dif += g * (q[i, j, kn] - qc) / dz * az
                     if s > 0:
-                        adv -= tvd_flux(f, q[i, j, km], qc, q[i, j, kp], q[i, j, (kk + 2) % nz],
-                                        solid[i, j, km] == 0, solid[i, j, (kk + 2) % nz] == 0)
+                        adv -= tvd_flux(f, q[i, j, km], qc, q[i, j, kp], q[i, j, wrap(kk + 2, nz)],
+                                        solid[i, j, km] == 0, solid[i, j, wrap(kk + 2, nz)] == 0)
                         net += f
                     else:
-                        adv += tvd_flux(f, q[i, j, (kk - 2) % nz], q[i, j, km], qc,
-                                        q[i, j, kp], solid[i, j, (kk - 2) % nz] == 0,
+                        adv += tvd_flux(f, q[i, j, wrap(kk - 2, nz)], q[i, j, km], qc,
+                                        q[i, j, kp], solid[i, j, wrap(kk - 2, nz)] == 0,
                                         solid[i, j, kp] == 0)
                         net -= f
                 # non-conservative advection: remove q * (net outflow) so that a change of

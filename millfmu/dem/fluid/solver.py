@@ -34,6 +34,13 @@ MODELS = ("A", "B")
 #: value stable, and the torque it takes is the vanes' share of the rotor torque.
 VANE_SLIP_TIME_S = 1e-5
 TURBULENCE = ("k_epsilon", "laminar")
+#: what a run's description says of each pressure solver (settings.PRESSURE_SOLVERS)
+PRESSURE_DESCRIPTIONS = {
+    "direct_lu": "direct sparse LU of the constant projection operator",
+    "theta_fft": "FFT in theta and a direct sparse LU of each mode's 2D operator (theta_fft)",
+    "direct_ldl": "direct symmetric factor L D L^T of the constant projection operator on a "
+                  "minimum-degree ordering (direct_ldl)",
+}
 
 
 class FluidError(ValueError):
@@ -392,8 +399,5 @@ class FluidSolver:
     def describe(self) -> dict:
         return dict(model=self.model, turbulence=self.turbulence, grid=self.grid.describe(),
                     density_kg_m3=self.rho, viscosity_pa_s=self.fluid.viscosity_pa_s,
-                    pressure=("direct sparse LU of the constant projection operator"
-                              if self.pressure.method == "direct_lu" else
-                              "FFT in theta and a direct sparse LU of each mode's 2D "
-                              "operator (theta_fft)"),
+                    pressure=PRESSURE_DESCRIPTIONS[self.pressure.method],
                     cfl=self.cfl)

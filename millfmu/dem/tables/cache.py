@@ -131,8 +131,11 @@ KERNEL_MODULES = {
 #: on 2 threads), and the pressure equation's symmetric solver chosen by name (L D L^T on
 #: a minimum-degree ordering, a numba solve, counted in the hash; the direct LU, as before,
 #: by default: the same three runs again identical to the bit; then the pressure solver's
-#: cell indices made with it and its symmetric solve's work arrays kept, the same again). A
-#: checkpoint made by one of
+#: cell indices made with it and its symmetric solve's work arrays kept, the same again),
+#: and the liquid's periodic neighbours found by adding or taking away one period instead
+#: of an integer modulo, and a fluid's description naming the symmetric solver (a coupled
+#: disc sector and a coupled accelerator slice, 300 steps, the same beads, held forces and
+#: liquid to the bit, on 1 and on 2 threads). A checkpoint made by one of
 #: these sources resumes under another (run.resume_run). Any other change of these sources
 #: gives a new hash, and a new version.
 SAME_DEM_AS = {
@@ -215,6 +218,8 @@ SAME_DEM_AS = {
     "sha256:c17be759cb39af8022bc70c507c86fe8f1de5bbe004ce269db39f6464ff10fa0":
         "sha256:cc5c174862c188a675fdb35932f269eb61ae82876e3d110866af2b7a62b0d3bd",
     "sha256:bbc100ab125eacfdd65bd060cbc0f332cd0695d255cc137f7feb68ee834cc7a4":
+        "sha256:cc5c174862c188a675fdb35932f269eb61ae82876e3d110866af2b7a62b0d3bd",
+    "sha256:cffb4ecbb1e2ff165010083e1467a9f2743b0be6ccc438b60916ce46698497aa":
         "sha256:cc5c174862c188a675fdb35932f269eb61ae82876e3d110866af2b7a62b0d3bd",
 }
 
