@@ -71,7 +71,8 @@ def register(subparsers) -> argparse.ArgumentParser:
                    help="coupled liquid: the pressure equation's solver (default the scene's; "
                         "theta_fft, for theta cells without baffles, solves the same "
                         "equation at a fraction of the cost on full disc slices; direct_ldl, "
-                        "a symmetric factor, a third of direct_lu's time on a sector)")
+                        "the default, a symmetric factor, a third of direct_lu's time on a "
+                        "sector)")
     r.add_argument("--threads", type=int, help="numba threads (default: all cores)")
     r.add_argument("--device", choices=("cpu", "gpu"), default=None,
                    help="where the DEM steps: cpu (numba threads, default) or gpu "

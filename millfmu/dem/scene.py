@@ -26,7 +26,8 @@ if sys.version_info >= (3, 11):
 else:  # pragma: no cover
     import tomli as tomllib
 
-from millfmu.dem.coupling.settings import (PRESSURE_GRADIENT_TIMINGS, PRESSURE_SOLVERS,
+from millfmu.dem.coupling.settings import (DEFAULT_PRESSURE_SOLVER,
+                                           PRESSURE_GRADIENT_TIMINGS, PRESSURE_SOLVERS,
                                            SMOOTHINGS, CouplingSettings)
 from millfmu.dem.engine.params import BeadMaterial
 from millfmu.dem.engine.sim import FluidSettings
@@ -157,7 +158,7 @@ class DemScene:
                     f"{c.n_theta} theta cell(s)")
         smoothing = (f", smoothing split_implicit in {c.smoothing_steps} step(s)"
                      if c.smoothing == "split_implicit" else "")
-        if c.pressure_solver != "direct_lu":
+        if c.pressure_solver != DEFAULT_PRESSURE_SOLVER:
             smoothing += f", pressure by {c.pressure_solver}"
         timing = (" (pressure gradient of the interval just solved)"
                   if c.model == "A" and c.pressure_gradient == "this_interval" else "")
@@ -186,10 +187,10 @@ def scene_advice(s: DemScene) -> list[str]:
         out.append("the full circle with gravity and a liquid of one theta cell: the liquid "
                    "is axisymmetric and cannot carry gravity's asymmetry; --theta-cells 16 "
                    "or more (16 keep 99.4 % of the once-per-turn mode)")
-    if c.n_theta > 1 and c.pressure_solver == "direct_lu" and not s.geometry.baffle_count:
+    if c.n_theta > 1 and c.pressure_solver != "theta_fft" and not s.geometry.baffle_count:
         out.append("theta cells without baffles: --pressure-solver theta_fft solves the same "
-                   "pressure equation (to round-off) at a fraction of the direct LU's cost "
-                   "(disc full slice: 2.75 ms per solve instead of 63.7)")
+                   "pressure equation (to round-off) at a fraction of the direct solvers' "
+                   "cost (disc full slice: a few ms per solve instead of 60-64)")
     return out
 
 

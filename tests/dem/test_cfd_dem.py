@@ -291,8 +291,9 @@ def test_full_slice_budget_counts_the_weights_angular_impulse(tmp_path):
 
 
 def test_coupled_sector_with_the_ldl_pressure_solver():
-    """``pressure_solver = "direct_ldl"`` chosen by name in a coupled disc sector: the same
-    run as with direct_lu to round-off (the pressure solves agree to about 1e-13)."""
+    """``pressure_solver = "direct_ldl"``, the default, in a coupled disc sector: the same
+    run as with direct_lu chosen by name to round-off (the pressure solves agree to about
+    1e-13); a scene's description names the solver when it is not the default."""
     from millfmu.dem.run import make_simulation
     from millfmu.dem.scene import load_scene
 
@@ -303,7 +304,10 @@ def test_coupled_sector_with_the_ldl_pressure_solver():
     for solver in ("direct_lu", "direct_ldl"):
         sc = base.with_overrides(pressure_solver=solver)
         if solver == "direct_ldl":
-            assert "pressure by direct_ldl" in sc.fluid_description
+            assert base.coupling.pressure_solver == "direct_ldl"
+            assert "pressure by" not in sc.fluid_description
+        else:
+            assert "pressure by direct_lu" in sc.fluid_description
         sim, cpl = make_simulation(sc, 1)
         cpl.run(100)
         runs[solver] = (sim, cpl)

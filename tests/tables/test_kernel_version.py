@@ -40,3 +40,20 @@ def test_tables_verify_passes_on_the_shipped_tables():
                         str(DATA / "coupled_table"), str(DATA / "accelerator_table")],
                        capture_output=True, text=True)
     assert r.returncode == 0, r.stdout + r.stderr
+
+
+def test_same_results_as_an_accepted_change_take_its_version(monkeypatch):
+    """SAME_DEM_AS may name the source hash of a round-off change accepted on evidence:
+    sources the same to the bit as those take the version it was accepted as; a hash that
+    is neither stays its own version."""
+    from millfmu.dem.tables import cache, equivalence
+
+    monkeypatch.setattr(cache, "kernel_source_hash", lambda: "sha256:bit-identical")
+    monkeypatch.setattr(equivalence, "accepted_versions",
+                        lambda path=None: {"sha256:accepted-change": "sha256:table-version"})
+    monkeypatch.setattr(cache, "SAME_DEM_AS", {"sha256:bit-identical": "sha256:accepted-change"})
+    assert cache.dem_kernel_version() == "sha256:table-version"
+    monkeypatch.setattr(cache, "SAME_DEM_AS", {"sha256:bit-identical": "sha256:table-version"})
+    assert cache.dem_kernel_version() == "sha256:table-version"
+    monkeypatch.setattr(cache, "SAME_DEM_AS", {})
+    assert cache.dem_kernel_version() == "sha256:bit-identical"

@@ -33,11 +33,15 @@ SMOOTHINGS = ("explicit_diffusion", "split_implicit")
 #:   for grids with theta cells whose solids do not vary with theta (disc mills, the
 #:   accelerator: its vanes are driven nodes; not stationary baffles). On the disc full
 #:   slice 63 ms per solve fall to a few;
-#: - ``direct_ldl``: a symmetric factorisation L D L^T on a minimum-degree ordering, solved
-#:   by a numba kernel (millfmu.dem.fluid.ldl_pressure): on the 10-degree disc sector a
-#:   third of direct_lu's factor entries, 67 us per solve inside the coupled run against
-#:   228 us.
+#: - ``direct_ldl`` (the default): a symmetric factorisation L D L^T on a minimum-degree
+#:   ordering, solved by a numba kernel (millfmu.dem.fluid.ldl_pressure): on the 10-degree
+#:   disc sector a third of direct_lu's factor entries and of its time per solve inside the
+#:   coupled run; on the disc full slice's 3D grid 15.8 M entries against 68 M, no slower.
+#:   The default since 2026-11-27 (before: direct_lu), a change of round-off only, judged
+#:   by ``millfmu tables equivalence`` at the shipped table's point (docs/tables.md).
 PRESSURE_SOLVERS = ("direct_lu", "theta_fft", "direct_ldl")
+#: the solver a scene gets when it names none
+DEFAULT_PRESSURE_SOLVER = "direct_ldl"
 
 
 @dataclass(frozen=True)
@@ -53,7 +57,7 @@ class CouplingSettings:
     smoothing_diameters: float = 1.0  # Helmholtz smoothing length in bead diameters
     smoothing: str = "explicit_diffusion"  # SMOOTHINGS
     smoothing_steps: int = 4  # split_implicit: backward-Euler steps to the variance
-    pressure_solver: str = "direct_lu"  # PRESSURE_SOLVERS
+    pressure_solver: str = DEFAULT_PRESSURE_SOLVER  # PRESSURE_SOLVERS
     eps_min: float = 0.35  # lower clip of the void fraction
     cfl: float = 0.4
     # "vans": volume-averaged Navier-Stokes (CfdDem; the void fraction in the liquid, the

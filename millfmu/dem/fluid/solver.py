@@ -66,7 +66,7 @@ class FluidSolver:
 
     def __init__(self, grid: CylGrid, fluid: FluidProperties = FluidProperties(),
                  omega_rad_s: float = 0.0, turbulence: str = "k_epsilon", model: str = "A",
-                 cfl: float = 0.4, pressure_solver: str = "direct_lu"):
+                 cfl: float = 0.4, pressure_solver: str = "direct_ldl"):
         # numba kernels: compiled when a fluid is built, not with a scene file.
         from millfmu.dem.fluid import k_epsilon as KE
         from millfmu.dem.fluid import step_kernels as SK

@@ -137,7 +137,9 @@ KERNEL_MODULES = {
 #: disc sector and a coupled accelerator slice, 300 steps, the same beads, held forces and
 #: liquid to the bit, on 1 and on 2 threads). A checkpoint made by one of
 #: these sources resumes under another (run.resume_run). Any other change of these sources
-#: gives a new hash, and a new version.
+#: gives a new hash, and a new version. An entry may also map to the source hash of a
+#: round-off change accepted on evidence (:mod:`millfmu.dem.tables.equivalence`): sources
+#: the same to the bit as those, which take the version that change was accepted as.
 SAME_DEM_AS = {
     "sha256:50c71a6d91ca3ead7c3ae29058f6eeaa5d22a0a91394c8be4533dd97437308d3":
         "sha256:cc5c174862c188a675fdb35932f269eb61ae82876e3d110866af2b7a62b0d3bd",
@@ -234,9 +236,11 @@ def dem_kernel_version() -> str:
     results to the bit), or the version that the evidence of
     :mod:`millfmu.dem.tables.equivalence` accepts it as (a change of round-off only, its
     statistics within the spread of the version's own realizations)."""
-    h = kernel_source_hash()
-    if h in SAME_DEM_AS:
-        return SAME_DEM_AS[h]
+    # SAME_DEM_AS may name a version or the source hash of an accepted round-off change
+    # (sources the same to the bit as those), which the evidence then resolves
+    h = SAME_DEM_AS.get(kernel_source_hash())
+    if h is None:
+        h = kernel_source_hash()
     from .equivalence import accepted_versions
 
     return accepted_versions().get(h, h)
