@@ -578,11 +578,13 @@ def wrap_one(i, x, v, w, shw, prm, wrapk):
                 shw[i, q, 1] = s * x0 + c * y0
 
 
-@serial
-def wrap_periodic(x, v, w, shw, prm, wrapk):
-    """:func:`wrap_one` for every bead."""
-    for i in range(x.shape[0]):
-        wrap_one(i, x, v, w, shw, prm, wrapk)
+@kernel
+def wrap_periodic(x, v, w, shw, prm, wrapk, cb):
+    """:func:`wrap_one` for every bead, the chunks cb on the threads (each bead's rows
+    only: the same on any thread count)."""
+    for c in prange(cb.shape[0] - 1):
+        for i in range(cb[c], cb[c + 1]):
+            wrap_one(i, x, v, w, shw, prm, wrapk)
 
 
 @serial
@@ -632,9 +634,9 @@ def make_entries(x, prm, cut):
 @serial
 def bin_entries(ej, es, ex, lo, cs, ncx, ncy, ncz, lz):
     """Counting sort of entries into cells of size cs [m] (z periodic with ncz cells over
-    lz). Returns (cell_start, bead index, image code, position, highest bead index per
-    cell) with the entries of each cell contiguous, so that the neighbour search streams
-    through memory."""
+    lz). Returns (cell_start, bead index, image code, position [m] by component (3,
+    entries), highest bead index per cell) with the entries of each cell contiguous, so
+    that the neighbour search streams through memory."""
     ne = ex.shape[0]
     ncell = ncx * ncy * ncz
     cid = np.empty(ne, np.int64)
@@ -654,15 +656,17 @@ def bin_entries(ej, es, ex, lo, cs, ncx, ncy, ncz, lz):
     cmax = np.full(ncell, -1, np.int64)
     sj = np.empty(ne, np.int64)
     ss = np.empty(ne, np.int8)
-    sx = np.empty((ne, 3))
+    # coordinates by component (3, ne): the neighbour search tests a run of entries with
+    # vector instructions (build_nlist)
+    sx = np.empty((3, ne))
     for e in range(ne):
         c = cid[e]
         q = fill[c]
         sj[q] = ej[e]
         ss[q] = es[e]
-        sx[q, 0] = ex[e, 0]
-        sx[q, 1] = ex[e, 1]
-        sx[q, 2] = ex[e, 2]
+        sx[0, q] = ex[e, 0]
+        sx[1, q] = ex[e, 1]
+        sx[2, q] = ex[e, 2]
         fill[c] += 1
         cmax[c] = max(cmax[c], ej[e])
     return start, sj, ss, sx, cmax
@@ -696,6 +700,11 @@ def build_nlist(x, ej, es, ex, start, cmax, lo, cs, ncx, ncy, ncz, cut2, prm, wr
         q = base
         hij = cb[c + 1] - 1
         hit = np.empty(27 * occ, np.int64)  # a row's entries in reach
+        inr = np.empty(27 * occ, np.int64)  # 1 where a run's entry is in reach, else 0
+        ex0 = ex[0]
+        ex1 = ex[1]
+        ex2 = ex[2]
+        hlz = 0.5 * lz
         hit_o = np.empty(27 * occ, np.int64)  # their old index if in contact, or -1
         runs = np.empty((18, 2), np.int64)  # runs of stencil cells [first, end)
         for i in range(cb[c], cb[c + 1]):
@@ -751,13 +760,21 @@ def build_nlist(x, ej, es, ex, start, cmax, lo, cs, ncx, ncy, ncz, cut2, prm, wr
                 # (DemSimulation._sort) that is about half of the stencil
                 while c0 < c1 and cmax[c0] <= i:
                     c0 += 1
-                for e in range(start[c0], start[c1]):
-                    dx = xi - ex[e, 0]
-                    dy = yi - ex[e, 1]
-                    dz = axial_image(zi - ex[e, 2], lz)
-                    ok = (dx * dx + dy * dy + dz * dz < cut2) & (ej[e] > i)
+                e0 = start[c0]
+                e1 = start[c1]
+                # the run's tests first, in a loop without a carried dependency (vector
+                # instructions: axial_image's branches as selects), then the entries in
+                # reach collected
+                for e in range(e0, e1):
+                    dx = xi - ex0[e]
+                    dy = yi - ex1[e]
+                    dz = zi - ex2[e]
+                    dz = dz - lz if dz > hlz else (dz + lz if dz < -hlz else dz)
+                    inr[e - e0] = ((dx * dx + dy * dy + dz * dz < cut2) &
+                                   (ej[e] > i))
+                for e in range(e0, e1):
                     hit[nh] = e
-                    nh += 1 if ok else 0
+                    nh += inr[e - e0]
             # The pairs in contact at the last evaluation go first in the row, the others
             # after them: the force loop's branch on overlap then changes once per row
             # instead of at random (about 45 % of listed pairs overlap), which the
@@ -1159,7 +1176,7 @@ def rebuild(x, v, w, shw, xref, prm, wrapk, cutoff, do_wrap, pst, nnb, pj, pim, 
     current ones are untouched; enlarge and call again with do_wrap false, which keeps
     the beads and wrapk as they are)."""
     if do_wrap:
-        wrap_periodic(x, v, w, shw, prm, wrapk)
+        wrap_periodic(x, v, w, shw, prm, wrapk, cb)
     ej, es, ex = make_entries(x, prm, cutoff)
     lz = prm[P_LZ]
     lo = np.empty(2)

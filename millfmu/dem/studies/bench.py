@@ -653,7 +653,7 @@ def _profile_sim(sim, steps, out):
     for step in range(steps):
         if s.dmax.max() > half_skin2:
             t0 = clock()
-            K.wrap_periodic(s.x, s.v, s.w, s.shw, s.prm, s.wrapk)
+            K.wrap_periodic(s.x, s.v, s.w, s.shw, s.prm, s.wrapk, s.cb)
             ej, es, ex = K.make_entries(s.x, s.prm, s.cutoff_m)
             lz = s.prm[K.P_LZ]
             lo = np.array([ex[:, 0].min() - 1e-9, ex[:, 1].min() - 1e-9])
