@@ -19,7 +19,7 @@ import numpy as np
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
-from millfmu.dem.coupling.settings import PRESSURE_SOLVERS
+from millfmu.dem.coupling.settings import DEFAULT_PRESSURE_SOLVER, PRESSURE_SOLVERS
 from millfmu.dem.fluid.grid import FLUID, CylGrid
 
 
@@ -42,9 +42,10 @@ class PressureSolver:
     theta; the same solution to round-off, a fraction of the cost on 3D grids);
     ``direct_ldl``, a symmetric factor L D L^T on a minimum-degree ordering solved by a
     numba kernel (:mod:`millfmu.dem.fluid.ldl_pressure`: the same solution to round-off, a
-    third of direct_lu's factor and time on an axisymmetric sector)."""
+    third of direct_lu's factor and time on an axisymmetric sector; the default,
+    :data:`DEFAULT_PRESSURE_SOLVER`)."""
 
-    def __init__(self, grid: CylGrid, method: str = "direct_lu"):
+    def __init__(self, grid: CylGrid, method: str = DEFAULT_PRESSURE_SOLVER):
         if method not in PRESSURE_SOLVERS:
             raise ValueError(f"pressure_solver = {method!r}: allowed {list(PRESSURE_SOLVERS)}")
         self.method = method

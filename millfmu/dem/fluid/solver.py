@@ -25,6 +25,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from millfmu.dem.fluid.grid import FLUID, ROTOR, STATOR, CylGrid
+from millfmu.dem.coupling.settings import DEFAULT_PRESSURE_SOLVER
 from millfmu.dem.fluid.pressure import PressureSolver
 
 MODELS = ("A", "B")
@@ -66,7 +67,7 @@ class FluidSolver:
 
     def __init__(self, grid: CylGrid, fluid: FluidProperties = FluidProperties(),
                  omega_rad_s: float = 0.0, turbulence: str = "k_epsilon", model: str = "A",
-                 cfl: float = 0.4, pressure_solver: str = "direct_ldl"):
+                 cfl: float = 0.4, pressure_solver: str = DEFAULT_PRESSURE_SOLVER):
         # numba kernels: compiled when a fluid is built, not with a scene file.
         from millfmu.dem.fluid import k_epsilon as KE
         from millfmu.dem.fluid import step_kernels as SK
