@@ -704,7 +704,6 @@ def build_nlist(x, ej, es, ex, start, cmax, lo, cs, ncx, ncy, ncz, cut2, prm, wr
         ex0 = ex[0]
         ex1 = ex[1]
         ex2 = ex[2]
-        hlz = 0.5 * lz
         hit_o = np.empty(27 * occ, np.int64)  # their old index if in contact, or -1
         runs = np.empty((18, 2), np.int64)  # runs of stencil cells [first, end)
         for i in range(cb[c], cb[c + 1]):
@@ -763,13 +762,12 @@ def build_nlist(x, ej, es, ex, start, cmax, lo, cs, ncx, ncy, ncz, cut2, prm, wr
                 e0 = start[c0]
                 e1 = start[c1]
                 # the run's tests first, in a loop without a carried dependency (vector
-                # instructions: axial_image's branches as selects), then the entries in
-                # reach collected
+                # instructions: the inlined axial_image's branches become selects), then
+                # the entries in reach collected
                 for e in range(e0, e1):
                     dx = xi - ex0[e]
                     dy = yi - ex1[e]
-                    dz = zi - ex2[e]
-                    dz = dz - lz if dz > hlz else (dz + lz if dz < -hlz else dz)
+                    dz = axial_image(zi - ex2[e], lz)
                     inr[e - e0] = ((dx * dx + dy * dy + dz * dz < cut2) &
                                    (ej[e] > i))
                 for e in range(e0, e1):

@@ -10,9 +10,10 @@ solves. On the 10-degree disc sector's 1,344 cells L holds 15,573 entries agains
 in L + U of ``direct_lu`` (COLAMD); a solve took 39 us back to back against 130 us for
 SuperLU's, and 67 us against 228 us inside the coupled run, where the factor comes back
 from memory after the DEM's steps (2026-11-27, 2 threads). The solution is direct_lu's to
-round-off (1.6e-13 of its largest value on the sector; tests/dem/test_fluid.py); it is a
-choice by name, not the default, since a run with it differs from the shipped tables' runs
-by round-off (``millfmu tables equivalence`` judges such a change).
+round-off (1.6e-13 of its largest value on the sector; tests/dem/test_fluid.py). It is the
+default since 2026-11-27: a run with it differs from the shipped tables' runs (made with
+``direct_lu``) by round-off, which ``millfmu tables equivalence`` judged at the coupled
+table's operating point before it became the default (docs/tables.md).
 
 Imports no numba until a solve.
 """

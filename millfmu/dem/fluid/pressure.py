@@ -7,11 +7,11 @@ the equation is sum over a cell's faces of (A_f / h_f) (phi_nb - phi_c) =
 (rho / dt) (net outflow of eps u* + V d(eps)/dt), a constant-coefficient finite-volume
 Laplacian on the fluid cells (the void fraction enters only the right-hand side and the
 correction). One factorisation of it therefore serves the whole run, in the axisymmetric
-and the 3-D mode (by default a symmetric L D L^T, ``direct_ldl``; a sparse LU, ``direct_lu``,
-or an FFT in theta, ``theta_fft``, by name); each solve is direct (residual at round-off,
-checked in the tests). The pure-Neumann/periodic null space is removed by pinning one cell after making
-the right-hand side consistent (its volume-weighted mean removed: round-off and a clipped
-void fraction would otherwise leave it unsolvable).
+and the 3-D mode (by default a symmetric L D L^T, ``direct_ldl``; a sparse LU,
+``direct_lu``, or an FFT in theta, ``theta_fft``, by name); each solve is direct (residual
+at round-off, checked in the tests). The pure-Neumann/periodic null space is removed by
+pinning one cell after making the right-hand side consistent (its volume-weighted mean
+removed: round-off and a clipped void fraction would otherwise leave it unsolvable).
 """
 
 from __future__ import annotations
