@@ -5,7 +5,8 @@ Only the kernel modules import this file, and only when a DEM run is requested, 
 
 - ``FLAGS``: options common to all kernels (cached compilation, no Python objects,
   fastmath off so that the contact laws are evaluated as written, in IEEE order, and a
-  run repeats bit for bit on the same thread count).
+  run repeats bit for bit on the same thread count). The cache lives in a folder keyed
+  by the bytes of every kernel file (:func:`kernel_cache_dir`), not beside each module.
 - ``kernel``: decorator for loops over all beads; these use ``prange`` over chunks of beads.
 - ``device``: decorator for the small scalar helpers that kernels call inside a chunk
   (the same flags without ``parallel``, because a parallel region must not nest).
@@ -51,7 +52,12 @@ its workers; Dask's workers are spawned too. Neither layer can launch from sever
 threads at once (run one DEM per process).
 """
 
+import hashlib
 import os
+import shutil
+import tempfile
+import time
+from pathlib import Path
 
 import numba
 
@@ -69,11 +75,86 @@ if "OMP_WAIT_POLICY" not in os.environ and "GOMP_SPINCOUNT" not in os.environ:
 FLAGS = dict(cache=True, nogil=True, fastmath=False, error_model="numpy",
              boundscheck=False)
 
-kernel = numba.njit(parallel=True, **FLAGS)
-device = numba.njit(inline="never", **FLAGS)
-contact = numba.njit(inline="always", **FLAGS)
+#: the folders whose modules hold the kernels (and this file): their sources key the cache
+KERNEL_DIRS = ("engine", "fluid", "coupling")
+#: a kernel cache folder not written for this many days is removed when a new one is made
+CACHE_KEEP_DAYS = 30
+
+
+def sources_key(dem: Path | None = None) -> str:
+    """sha256 (16 hex digits) over the names and bytes of every module in
+    :data:`KERNEL_DIRS` of the package folder ``dem`` (default millfmu/dem)."""
+    dem = Path(__file__).resolve().parent.parent if dem is None else Path(dem)
+    h = hashlib.sha256()
+    for d in KERNEL_DIRS:
+        for f in sorted((dem / d).glob("*.py")):
+            h.update(f"{d}/{f.name}\0".encode())
+            h.update(f.read_bytes())
+    return h.hexdigest()[:16]
+
+
+def _prune(base: Path, keep: Path) -> None:
+    """Remove the other kernel cache folders under base not written for CACHE_KEEP_DAYS
+    (older sources' compiled code); never fails."""
+    limit = time.time() - CACHE_KEEP_DAYS * 86400.0
+    try:
+        for d in base.glob("millfmu-kernels-*"):
+            if d == keep or not d.is_dir():
+                continue
+            newest = max((f.stat().st_mtime for f in d.rglob("*")), default=0.0)
+            if max(newest, d.stat().st_mtime) < limit:
+                shutil.rmtree(d, ignore_errors=True)
+    except OSError:
+        pass
+
+
+def kernel_cache_dir() -> Path:
+    """Where the kernels' compiled code is cached: a folder named after the kernel sources'
+    key (:func:`sources_key`) under NUMBA_CACHE_DIR where the user set it, else under
+    $XDG_CACHE_HOME (~/.cache)/millfmu.
+
+    Why not numba's own place beside each module: numba checks a cached function against its
+    own file's time stamp only, so a function whose callee in another file changed (the
+    fluid's predictor in step_kernels.py calling vans_kernels.py's stress kernels) loads its
+    old compiled code, callee and all, and runs the old arithmetic without a word. Keyed by
+    every kernel file's bytes, a change anywhere compiles everything afresh."""
+    base = numba.config.CACHE_DIR or os.environ.get("XDG_CACHE_HOME") or ""
+    if base:
+        base = Path(base).expanduser()
+    else:
+        try:
+            base = Path.home() / ".cache"
+        except RuntimeError:  # no home folder known (a service account)
+            base = Path(tempfile.gettempdir())
+    if not numba.config.CACHE_DIR:
+        base = base / "millfmu"
+    return base / f"millfmu-kernels-{sources_key()}"
+
+
+_CACHE_DIR = kernel_cache_dir()
+if not _CACHE_DIR.exists():
+    _prune(_CACHE_DIR.parent, _CACHE_DIR)
+
+
+def _cached(decorate):
+    """decorate(fn) with numba's cache in :data:`_CACHE_DIR` (numba reads its CACHE_DIR
+    when a cached function is made; restored after, so that other numba code in the
+    process keeps its own place). A folder that cannot be made leaves numba's fallbacks."""
+    def wrap(fn):
+        prev = numba.config.CACHE_DIR
+        numba.config.CACHE_DIR = str(_CACHE_DIR)
+        try:
+            return decorate(fn)
+        finally:
+            numba.config.CACHE_DIR = prev
+    return wrap
+
+
+kernel = _cached(numba.njit(parallel=True, **FLAGS))
+device = _cached(numba.njit(inline="never", **FLAGS))
+contact = _cached(numba.njit(inline="always", **FLAGS))
 inlined = contact
-serial = numba.njit(**FLAGS)
+serial = _cached(numba.njit(**FLAGS))
 
 
 def gpu_kernel(fn):
@@ -81,7 +162,7 @@ def gpu_kernel(fn):
     when the GPU path is used; NUMBA_ENABLE_CUDASIM=1 runs the kernels on the CPU."""
     from numba import cuda
 
-    return cuda.jit(cache=True)(fn)
+    return _cached(cuda.jit(cache=True))(fn)
 
 
 def gpu_device(cpu_fn, **twins):
