@@ -35,9 +35,10 @@ hardware counters). Measured later (docs/dem.md, "Where a coupled interval goes"
 exchange after 15 ms of waiting took longer (2.8-3.0 ms) than one after ten DEM steps
 (2.5) or back to back (2.1), so on this shared host it is mostly the time between two
 exchanges, not the DEM's footprint, that costs; and ten DEM steps after an exchange took
-2-4 % longer than after ten steps, interleaved step block by step block. With the axisymmetric grid's stencils 4 wide (half the stencils'
-memory) the exchanges took 2.4-2.5 ms inside the run and the DEM's 10-step runs 3-7 %
-longer; the row gave 27 % twice (block-pair medians 21 and 22 %).
+2-4 % longer than ten steps after ten steps (the two kinds interleaved block by block).
+With the axisymmetric grid's stencils 4 wide (half the stencils' memory) the exchanges took
+2.4-2.5 ms inside the run and the DEM's 10-step runs 3-7 % longer; the row gave 27 % twice
+(block-pair medians 21 and 22 %).
 """
 
 from __future__ import annotations
