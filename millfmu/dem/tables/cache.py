@@ -264,9 +264,8 @@ def dem_kernel_version() -> str:
     statistics within the spread of the version's own realizations)."""
     # SAME_DEM_AS may name a version or the source hash of an accepted round-off change
     # (sources the same to the bit as those), which the evidence then resolves
-    h = SAME_DEM_AS.get(kernel_source_hash())
-    if h is None:
-        h = kernel_source_hash()
+    src = kernel_source_hash()
+    h = SAME_DEM_AS.get(src, src)
     from .equivalence import accepted_versions
 
     return accepted_versions().get(h, h)
