@@ -323,9 +323,10 @@ def _forces_once(sim):
     psh, pfl, shw, flw = sim.psh.copy(), sim.pfl.copy(), sim.shw.copy(), sim.flw.copy()
     K.compute_forces(sim.x, sim.v, sim.w, sim.fb, sim.tb, sim.rad, sim.mass, sim.inertia,
                      sim.pst, sim.nnb, sim.pj, sim.pim, psh, pfl, shw, flw, sim.prm, sim.cb,
-                     sim.maxj, False, 0, sim.evc, sim.evn, sim.torq, sim.fext)
+                     sim.maxj, False, 0, sim.evc, sim.evn, sim.torq, sim.fext, sim.claims())
     K.reduce_kick(sim.fb, sim.tb, sim.cb, sim.maxj, sim.f, sim.t, sim.v.copy(), sim.w.copy(),
-                  sim.x.copy(), sim.inv_m, sim.inv_i, 0.0, 0.0, False, sim.xref, sim.dmax)
+                  sim.x.copy(), sim.inv_m, sim.inv_i, 0.0, 0.0, False, sim.xref, sim.dmax,
+                  sim.claims())
     return sim.f.copy(), sim.t.copy()
 
 
@@ -524,7 +525,8 @@ def test_half_lists_hold_every_pair_within_the_cutoff_once(every, height):
     sim.run(120)
     K.rebuild(sim.x, sim.v, sim.w, sim.shw, sim.xref, sim.prm, sim.wrapk, sim.cutoff_m, True,
               sim.pst, sim.nnb, sim.pj, sim.pim, sim.psh, sim.pfl, sim.pst_o, sim.nnb_o,
-              sim.pj_o, sim.pim_o, sim.psh_o, sim.pfl_o, sim.cb, sim.need, sim.maxj)
+              sim.pj_o, sim.pim_o, sim.psh_o, sim.pfl_o, sim.cb, sim.need, sim.maxj,
+              sim.claims())
     listed = []
     for i in range(sim.n):
         for k in range(sim.pst_o[i], sim.pst_o[i] + sim.nnb_o[i]):

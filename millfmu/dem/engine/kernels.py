@@ -19,8 +19,9 @@ Conventions
   a thread held up on a shared machine leaves its chunks to the others, and so that the
   results do not depend on the thread count); each chunk adds its forces into its own
   buffer (its beads and their higher-indexed partners), and a second pass sums the
-  buffers and integrates: no atomics, no races. A contact is recorded once, at its first
-  overlap.
+  buffers and integrates: no atomic additions, no races. The threads take the chunks
+  from counters (:mod:`millfmu.dem.engine.chunk_claims`: each thread its own contiguous
+  region first). A contact is recorded once, at its first overlap.
 
 Contact model (as in LIGGGHTS, see the project REFERENCE "DEM contact model"):
 Hertz-Mindlin with k_n = 4/3 Y* sqrt(R* d_n), S_t = 8 G* sqrt(R* d_n), viscous damping
@@ -34,9 +35,10 @@ in the CFDEM form ("model A", not divided by the void fraction).
 import math
 
 import numpy as np
-from numba import prange
+from numba import get_thread_id, prange
 
 from millfmu.dem.engine._jit import contact, device, kernel, serial
+from millfmu.dem.engine.chunk_claims import claim, reset_claims
 
 # ---- layout of the parameter vector prm (float64) -------------------------------------
 P_DT = 0  # time step [s]
@@ -675,7 +677,7 @@ def bin_entries(ej, es, ex, lo, cs, ncx, ncy, ncz, lz):
 @kernel
 def build_nlist(x, ej, es, ex, start, cmax, lo, cs, ncx, ncy, ncz, cut2, prm, wrapk,
                 pst_o, nnb_o, pj_o, pim_o, psh_o, pfl_o, pst, nnb, pj, pim, psh, pfl, cb,
-                need, maxj):
+                need, maxj, claims):
     """Half neighbour lists within sqrt(cut2) [m] from the binned entries of
     :func:`bin_entries` (ej, es, ex, start, cmax): bead i's partners j > i (each pair once,
     owned by its lower index, image pairs included) are pj[pst[i]:pst[i] + nnb[i]], with
@@ -694,141 +696,148 @@ def build_nlist(x, ej, es, ex, start, cmax, lo, cs, ncx, ncy, ncz, cut2, prm, wr
     occ = 0  # the fullest cell's entries: a row sees at most 27 cells' worth
     for cc in range(start.shape[0] - 1):
         occ = max(occ, start[cc + 1] - start[cc])
-    for c in prange(nch):
-        base = c * cap
-        end = base + cap
-        q = base
-        hij = cb[c + 1] - 1
-        hit = np.empty(27 * occ, np.int64)  # a row's entries in reach
-        inr = np.empty(27 * occ, np.int64)  # 1 where a run's entry is in reach, else 0
-        ex0 = ex[0]
-        ex1 = ex[1]
-        ex2 = ex[2]
-        hit_o = np.empty(27 * occ, np.int64)  # their old index if in contact, or -1
-        runs = np.empty((18, 2), np.int64)  # runs of stencil cells [first, end)
-        for i in range(cb[c], cb[c + 1]):
-            xi = x[i, 0]
-            yi = x[i, 1]
-            zi = x[i, 2]
-            ix = min(max(int((xi - lo[0]) / cs), 0), ncx - 1)
-            iy = min(max(int((yi - lo[1]) / cs), 0), ncy - 1)
-            zz = zi - lz * math.floor(zi / lz)
-            iz = min(int(zz / csz), ncz - 1)
-            pst[i] = q
-            ko = pst_o[i]
-            ke = ko + nnb_o[i]
-            # Two passes: the entries in reach are collected without a branch on the
-            # distance (about one candidate in six is in reach, at random, and the
-            # mispredicted branch cost more than the test: 12 % of the build on the bench
-            # bed), then only they are stored.
-            nh = 0
-            # The stencil's cells as runs of consecutive cell indices (cells are numbered
-            # z fastest): one run per (ax, ay) column, split in two where the axial
-            # stencil wraps, and, when the stencil spans the whole axial period (ncz ==
-            # 3), one run per ax over the three columns. Looping over cells one by one
-            # cost a mispredicted loop exit per cell, more than the distance tests.
-            nr = 0
-            for ax in range(max(ix - 1, 0), min(ix + 2, ncx)):
-                ay0 = max(iy - 1, 0)
-                ay1 = min(iy + 2, ncy)
-                if ncz == 3:
-                    runs[nr, 0] = (ax * ncy + ay0) * ncz
-                    runs[nr, 1] = (ax * ncy + ay1) * ncz
-                    nr += 1
-                    continue
-                for ay in range(ay0, ay1):
-                    cxy = (ax * ncy + ay) * ncz
-                    # in cell order: the wrapped cell 0 of a top cell, the cells
-                    # iz - 1 .. iz + 1 within the period, the wrapped top cell of cell 0
-                    if iz == ncz - 1:
-                        runs[nr, 0] = cxy
-                        runs[nr, 1] = cxy + 1
+    # each thread its region's chunks first, then the others' left (chunk_claims)
+    nreg = reset_claims(claims, nch)
+    for _ in prange(nreg):
+        own = get_thread_id() % nreg
+        while True:
+            c = claim(claims, nch, own)
+            if c < 0:
+                break
+            base = c * cap
+            end = base + cap
+            q = base
+            hij = cb[c + 1] - 1
+            hit = np.empty(27 * occ, np.int64)  # a row's entries in reach
+            inr = np.empty(27 * occ, np.int64)  # 1 where a run's entry is in reach, else 0
+            ex0 = ex[0]
+            ex1 = ex[1]
+            ex2 = ex[2]
+            hit_o = np.empty(27 * occ, np.int64)  # their old index if in contact, or -1
+            runs = np.empty((18, 2), np.int64)  # runs of stencil cells [first, end)
+            for i in range(cb[c], cb[c + 1]):
+                xi = x[i, 0]
+                yi = x[i, 1]
+                zi = x[i, 2]
+                ix = min(max(int((xi - lo[0]) / cs), 0), ncx - 1)
+                iy = min(max(int((yi - lo[1]) / cs), 0), ncy - 1)
+                zz = zi - lz * math.floor(zi / lz)
+                iz = min(int(zz / csz), ncz - 1)
+                pst[i] = q
+                ko = pst_o[i]
+                ke = ko + nnb_o[i]
+                # Two passes: the entries in reach are collected without a branch on the
+                # distance (about one candidate in six is in reach, at random, and the
+                # mispredicted branch cost more than the test: 12 % of the build on the bench
+                # bed), then only they are stored.
+                nh = 0
+                # The stencil's cells as runs of consecutive cell indices (cells are numbered
+                # z fastest): one run per (ax, ay) column, split in two where the axial
+                # stencil wraps, and, when the stencil spans the whole axial period (ncz ==
+                # 3), one run per ax over the three columns. Looping over cells one by one
+                # cost a mispredicted loop exit per cell, more than the distance tests.
+                nr = 0
+                for ax in range(max(ix - 1, 0), min(ix + 2, ncx)):
+                    ay0 = max(iy - 1, 0)
+                    ay1 = min(iy + 2, ncy)
+                    if ncz == 3:
+                        runs[nr, 0] = (ax * ncy + ay0) * ncz
+                        runs[nr, 1] = (ax * ncy + ay1) * ncz
                         nr += 1
-                    runs[nr, 0] = cxy + max(iz - 1, 0)
-                    runs[nr, 1] = cxy + min(iz + 2, ncz)
-                    nr += 1
-                    if iz == 0:
-                        runs[nr, 0] = cxy + ncz - 1
-                        runs[nr, 1] = cxy + ncz
+                        continue
+                    for ay in range(ay0, ay1):
+                        cxy = (ax * ncy + ay) * ncz
+                        # in cell order: the wrapped cell 0 of a top cell, the cells
+                        # iz - 1 .. iz + 1 within the period, the wrapped top cell of cell 0
+                        if iz == ncz - 1:
+                            runs[nr, 0] = cxy
+                            runs[nr, 1] = cxy + 1
+                            nr += 1
+                        runs[nr, 0] = cxy + max(iz - 1, 0)
+                        runs[nr, 1] = cxy + min(iz + 2, ncz)
                         nr += 1
-            for r in range(nr):
-                c0 = runs[r, 0]
-                c1 = runs[r, 1]
-                # leading cells whose beads all have lower indices hold no partner of i
-                # (rows own j > i); with the beads sorted along the cells
-                # (DemSimulation._sort) that is about half of the stencil
-                while c0 < c1 and cmax[c0] <= i:
-                    c0 += 1
-                e0 = start[c0]
-                e1 = start[c1]
-                # the run's tests first, in a loop without a carried dependency (vector
-                # instructions: the inlined axial_image's branches become selects), then
-                # the entries in reach collected
-                for e in range(e0, e1):
-                    dx = xi - ex0[e]
-                    dy = yi - ex1[e]
-                    dz = axial_image(zi - ex2[e], lz)
-                    inr[e - e0] = ((dx * dx + dy * dy + dz * dz < cut2) &
-                                   (ej[e] > i))
-                for e in range(e0, e1):
-                    hit[nh] = e
-                    nh += inr[e - e0]
-            # The pairs in contact at the last evaluation go first in the row, the others
-            # after them: the force loop's branch on overlap then changes once per row
-            # instead of at random (about 45 % of listed pairs overlap), which the
-            # processor predicts, and contacts mostly keep their overlap until the next
-            # build (force loop on the bench bed 10 % faster). First each pair's index in
-            # the old lists where it was in contact, else -1.
-            nc = 0
-            for h in range(nh):
-                e = hit[h]
-                j = ej[e]
-                if j > hij:
-                    hij = j
-                so = es[e] - wrapk[i] + wrapk[j]  # same physical pair before the wrap
-                old = -1
-                for k in range(ko, ke):
-                    if pj_o[k] == j and pim_o[k] == so:
-                        if pfl_o[k] != 0:
-                            old = k
-                            nc += 1
-                        break
-                hit_o[h] = old
-            qc = q  # next slot for a contact
-            qn = q + nc  # next slot for a pair not in contact
-            for h in range(nh):
-                e = hit[h]
-                k = hit_o[h]
-                if k >= 0:
-                    qq = qc
-                    qc += 1
-                else:
-                    qq = qn
-                    qn += 1
-                if qq < end:
-                    pj[qq] = ej[e]
-                    pim[qq] = es[e]
-                    pfl[qq] = 0
-                    psh[qq, 0] = 0.0
-                    psh[qq, 1] = 0.0
-                    psh[qq, 2] = 0.0
+                        if iz == 0:
+                            runs[nr, 0] = cxy + ncz - 1
+                            runs[nr, 1] = cxy + ncz
+                            nr += 1
+                for r in range(nr):
+                    c0 = runs[r, 0]
+                    c1 = runs[r, 1]
+                    # leading cells whose beads all have lower indices hold no partner of i
+                    # (rows own j > i); with the beads sorted along the cells
+                    # (DemSimulation._sort) that is about half of the stencil
+                    while c0 < c1 and cmax[c0] <= i:
+                        c0 += 1
+                    e0 = start[c0]
+                    e1 = start[c1]
+                    # the run's tests first, in a loop without a carried dependency (vector
+                    # instructions: the inlined axial_image's branches become selects), then
+                    # the entries in reach collected
+                    for e in range(e0, e1):
+                        dx = xi - ex0[e]
+                        dy = yi - ex1[e]
+                        dz = axial_image(zi - ex2[e], lz)
+                        inr[e - e0] = ((dx * dx + dy * dy + dz * dz < cut2) &
+                                       (ej[e] > i))
+                    for e in range(e0, e1):
+                        hit[nh] = e
+                        nh += inr[e - e0]
+                # The pairs in contact at the last evaluation go first in the row, the others
+                # after them: the force loop's branch on overlap then changes once per row
+                # instead of at random (about 45 % of listed pairs overlap), which the
+                # processor predicts, and contacts mostly keep their overlap until the next
+                # build (force loop on the bench bed 10 % faster). First each pair's index in
+                # the old lists where it was in contact, else -1.
+                nc = 0
+                for h in range(nh):
+                    e = hit[h]
+                    j = ej[e]
+                    if j > hij:
+                        hij = j
+                    so = es[e] - wrapk[i] + wrapk[j]  # same physical pair before the wrap
+                    old = -1
+                    for k in range(ko, ke):
+                        if pj_o[k] == j and pim_o[k] == so:
+                            if pfl_o[k] != 0:
+                                old = k
+                                nc += 1
+                            break
+                    hit_o[h] = old
+                qc = q  # next slot for a contact
+                qn = q + nc  # next slot for a pair not in contact
+                for h in range(nh):
+                    e = hit[h]
+                    k = hit_o[h]
                     if k >= 0:
-                        pfl[qq] = pfl_o[k]
-                        a0 = psh_o[k, 0]
-                        a1 = psh_o[k, 1]
-                        if wrapk[i] != 0:
-                            cr = math.cos(wrapk[i] * sec)
-                            sr = math.sin(wrapk[i] * sec)
-                            psh[qq, 0] = cr * a0 - sr * a1
-                            psh[qq, 1] = sr * a0 + cr * a1
-                        else:
-                            psh[qq, 0] = a0
-                            psh[qq, 1] = a1
-                        psh[qq, 2] = psh_o[k, 2]
-            q += nh
-            nnb[i] = min(q, end) - pst[i]
-        need[c] = q - base
-        maxj[c] = hij
+                        qq = qc
+                        qc += 1
+                    else:
+                        qq = qn
+                        qn += 1
+                    if qq < end:
+                        pj[qq] = ej[e]
+                        pim[qq] = es[e]
+                        pfl[qq] = 0
+                        psh[qq, 0] = 0.0
+                        psh[qq, 1] = 0.0
+                        psh[qq, 2] = 0.0
+                        if k >= 0:
+                            pfl[qq] = pfl_o[k]
+                            a0 = psh_o[k, 0]
+                            a1 = psh_o[k, 1]
+                            if wrapk[i] != 0:
+                                cr = math.cos(wrapk[i] * sec)
+                                sr = math.sin(wrapk[i] * sec)
+                                psh[qq, 0] = cr * a0 - sr * a1
+                                psh[qq, 1] = sr * a0 + cr * a1
+                            else:
+                                psh[qq, 0] = a0
+                                psh[qq, 1] = a1
+                            psh[qq, 2] = psh_o[k, 2]
+                q += nh
+                nnb[i] = min(q, end) - pst[i]
+            need[c] = q - base
+            maxj[c] = hij
 
 
 # ---- forces ----------------------------------------------------------------------------
@@ -843,7 +852,7 @@ def _add3(buf, c, j, ax, ay, az, cr, sr):
 
 @kernel
 def compute_forces(x, v, w, fb, tb, rad, mass, inertia, pst, nnb, pj, pim, psh, pfl, shw,
-                   flw, prm, cb, maxj, record, step, evc, evn, torq, fext):
+                   flw, prm, cb, maxj, record, step, evc, evn, torq, fext, claims):
     """Forces [N] and torques [N m] from bead contacts, lubrication, walls, drag and
     gravity, accumulated per chunk: fb[c, i], tb[c, i] hold what chunk c's rows put on
     bead i (its own beads cb[c] <= i < cb[c + 1] and partners up to maxj[c]); the rows of
@@ -893,187 +902,195 @@ def compute_forces(x, v, w, fb, tb, rad, mass, inertia, pst, nnb, pj, pim, psh, 
             break
     rstar0 = r0 * r0 / (r0 + r0)
     mstar0 = m0 * m0 / (m0 + m0)
-    for c in prange(cb.shape[0] - 1):
-        ne = 0
-        tq = 0.0
-        tqc = 0.0
-        # fb, tb arrive all zero: reduce_kick zeroes every entry it sums (see there)
-        for i in range(cb[c], cb[c + 1]):
-            xi = x[i, 0]
-            yi = x[i, 1]
-            zi = x[i, 2]
-            ri = rad[i]
-            mi = mass[i]
-            fx, fy, fz, rxy = body_force(xi, yi, zi, v[i, 0], v[i, 1], v[i, 2], ri, mi,
-                                         fext[i, 0], fext[i, 1], fext[i, 2], prm)
-            tx = 0.0
-            ty = 0.0
-            tz = 0.0
-            # ---- bead-bead (half list: j > i) ----
-            for k in range(pst[i], pst[i] + nnb[i]):
-                j = pj[k]
-                s = pim[k] if sec > 0.0 else 0
-                xj = x[j, 0]
-                yj = x[j, 1]
-                cr = 1.0
-                sr = 0.0
-                if s != 0:
-                    cr = cs1
-                    sr = sn1 if s > 0 else -sn1
-                    xj, yj = cr * xj - sr * yj, sr * xj + cr * yj
-                dx = xi - xj
-                dy = yi - yj
-                dz = axial_image(zi - x[j, 2], lz)
-                rj = r0 if mono else rad[j]
-                rsum = ri + rj
-                r2 = dx * dx + dy * dy + dz * dz
-                lim = rsum + hcut
-                if r2 >= lim * lim:
-                    if pfl[k] != 0:
-                        pfl[k] = 0
-                        psh[k, 0] = 0.0
-                        psh[k, 1] = 0.0
-                        psh[k, 2] = 0.0
-                    continue
-                vjx = v[j, 0]
-                vjy = v[j, 1]
-                wjx = w[j, 0]
-                wjy = w[j, 1]
-                if s != 0:
-                    vjx, vjy = cr * vjx - sr * vjy, sr * vjx + cr * vjy
-                    wjx, wjy = cr * wjx - sr * wjy, sr * wjx + cr * wjy
-                r = math.sqrt(r2)
-                # 1/r from 1/r2, which does not wait for the root: a product after the root
-                # instead of a division
-                ir2 = 1.0 / r2
-                ir = r * ir2
-                nx = dx * ir
-                ny = dy * ir
-                nz = dz * ir
-                delta = rsum - r
-                vrx = v[i, 0] - vjx
-                vry = v[i, 1] - vjy
-                vrz = v[i, 2] - v[j, 2]
-                if delta > 0.0:
-                    if mono:
-                        mstar = mstar0
-                        rstar = rstar0
+    nch = cb.shape[0] - 1
+    # each thread its region's chunks first, then the others' left (chunk_claims)
+    nreg = reset_claims(claims, nch)
+    for _ in prange(nreg):
+        own = get_thread_id() % nreg
+        while True:
+            c = claim(claims, nch, own)
+            if c < 0:
+                break
+            ne = 0
+            tq = 0.0
+            tqc = 0.0
+            # fb, tb arrive all zero: reduce_kick zeroes every entry it sums (see there)
+            for i in range(cb[c], cb[c + 1]):
+                xi = x[i, 0]
+                yi = x[i, 1]
+                zi = x[i, 2]
+                ri = rad[i]
+                mi = mass[i]
+                fx, fy, fz, rxy = body_force(xi, yi, zi, v[i, 0], v[i, 1], v[i, 2], ri, mi,
+                                             fext[i, 0], fext[i, 1], fext[i, 2], prm)
+                tx = 0.0
+                ty = 0.0
+                tz = 0.0
+                # ---- bead-bead (half list: j > i) ----
+                for k in range(pst[i], pst[i] + nnb[i]):
+                    j = pj[k]
+                    s = pim[k] if sec > 0.0 else 0
+                    xj = x[j, 0]
+                    yj = x[j, 1]
+                    cr = 1.0
+                    sr = 0.0
+                    if s != 0:
+                        cr = cs1
+                        sr = sn1 if s > 0 else -sn1
+                        xj, yj = cr * xj - sr * yj, sr * xj + cr * yj
+                    dx = xi - xj
+                    dy = yi - yj
+                    dz = axial_image(zi - x[j, 2], lz)
+                    rj = r0 if mono else rad[j]
+                    rsum = ri + rj
+                    r2 = dx * dx + dy * dy + dz * dz
+                    lim = rsum + hcut
+                    if r2 >= lim * lim:
+                        if pfl[k] != 0:
+                            pfl[k] = 0
+                            psh[k, 0] = 0.0
+                            psh[k, 1] = 0.0
+                            psh[k, 2] = 0.0
+                        continue
+                    vjx = v[j, 0]
+                    vjy = v[j, 1]
+                    wjx = w[j, 0]
+                    wjy = w[j, 1]
+                    if s != 0:
+                        vjx, vjy = cr * vjx - sr * vjy, sr * vjx + cr * vjy
+                        wjx, wjy = cr * wjx - sr * wjy, sr * wjx + cr * wjy
+                    r = math.sqrt(r2)
+                    # 1/r from 1/r2, which does not wait for the root: a product after the root
+                    # instead of a division
+                    ir2 = 1.0 / r2
+                    ir = r * ir2
+                    nx = dx * ir
+                    ny = dy * ir
+                    nz = dz * ir
+                    delta = rsum - r
+                    vrx = v[i, 0] - vjx
+                    vry = v[i, 1] - vjy
+                    vrz = v[i, 2] - v[j, 2]
+                    if delta > 0.0:
+                        if mono:
+                            mstar = mstar0
+                            rstar = rstar0
+                        else:
+                            mstar = mi * mass[j] / (mi + mass[j])
+                            rstar = ri * rj / rsum
+                        if record and pfl[k] == 0:
+                            if ne < cap:
+                                lev = ri - 0.5 * delta
+                                write_event(evc[c, ne], 0.0, i, j, xi - lev * nx, yi - lev * ny,
+                                            zi - lev * nz, vrx, vry, vrz, nx, ny, nz,
+                                            w[i, 0] - wjx, w[i, 1] - wjy, w[i, 2] - w[j, 2],
+                                            mstar, inertia[i] * inertia[j] / (inertia[i] +
+                                                                              inertia[j]),
+                                            step)
+                            ne += 1
+                        pfl[k] = 1
+                        s0 = psh[k, 0]
+                        s1 = psh[k, 1]
+                        s2 = psh[k, 2]
+                        sdn, sm0, sm1 = history_frame_pair(s0, s1, s2, dx, dy, dz, ir2, ir)
+                        if hproj:
+                            sm1 = 0.0  # "projected": no rescaling
+                        (gx, gy, gz, tix, tiy, tiz, tjx, tjy, tjz, s0, s1,
+                         s2) = pair_response(nx, ny, nz, delta, vrx, vry, vrz, w[i, 0], w[i, 1],
+                                             w[i, 2], wjx, wjy, w[j, 2], ri, rj, mstar, rstar, s0,
+                                             s1, s2, sdn, sm0, sm1, ystar, gstar, beta, mu, mur,
+                                             dt)
+                        psh[k, 0] = s0
+                        psh[k, 1] = s1
+                        psh[k, 2] = s2
+                        fx += gx
+                        fy += gy
+                        fz += gz
+                        tx += tix
+                        ty += tiy
+                        tz += tiz
+                        # reaction on j, rotated back into j's frame (image pairs)
+                        _add3(fb, c, j, -gx, -gy, -gz, cr, -sr)
+                        _add3(tb, c, j, tjx, tjy, tjz, cr, -sr)
                     else:
-                        mstar = mi * mass[j] / (mi + mass[j])
-                        rstar = ri * rj / rsum
-                    if record and pfl[k] == 0:
+                        if pfl[k] != 0:
+                            pfl[k] = 0
+                            psh[k, 0] = 0.0
+                            psh[k, 1] = 0.0
+                            psh[k, 2] = 0.0
+                        if eta > 0.0:
+                            fl_m = lubrication_force(eta, ri * rj / rsum,
+                                                     vrx * nx + vry * ny + vrz * nz, -delta, hmin)
+                            fx += fl_m * nx
+                            fy += fl_m * ny
+                            fz += fl_m * nz
+                            _add3(fb, c, j, -fl_m * nx, -fl_m * ny, -fl_m * nz, cr, -sr)
+                # ---- walls ----
+                # quick rejection: most beads touch no wall
+                near = rxy - rsh <= ri or rch - rxy <= ri
+                if not near and has_disc:
+                    zd = zi - zdisc
+                    zd -= lz * math.floor(zd / lz + 0.5)
+                    near = abs(zd) - hdisc <= ri and rxy - rdisc <= ri
+                if not near and has_baffles:
+                    near = rxy - rbaf >= -ri
+                if not near:
+                    for q in range(NWALL):
+                        if flw[i, q] != 0:
+                            flw[i, q] = 0
+                            shw[i, q, 0] = 0.0
+                            shw[i, q, 1] = 0.0
+                            shw[i, q, 2] = 0.0
+                for q in range(NWALL if near else 0):
+                    (touch, vrx, vry, vrz, nx, ny, nz, wz_w, gx, gy, gz, tix, tiy, tiz, s0, s1,
+                     s2, twall) = wall_response(
+                        xi, yi, zi, v[i, 0], v[i, 1], v[i, 2], w[i, 0], w[i, 1], w[i, 2], ri, mi,
+                        q, shw[i, q, 0], shw[i, q, 1], shw[i, q, 2], prm, ystar, gstar, beta, mu,
+                        mur, dt)
+                    if not touch:
+                        if flw[i, q] != 0:
+                            flw[i, q] = 0
+                            shw[i, q, 0] = 0.0
+                            shw[i, q, 1] = 0.0
+                            shw[i, q, 2] = 0.0
+                        continue
+                    if record and flw[i, q] == 0:
                         if ne < cap:
-                            lev = ri - 0.5 * delta
-                            write_event(evc[c, ne], 0.0, i, j, xi - lev * nx, yi - lev * ny,
-                                        zi - lev * nz, vrx, vry, vrz, nx, ny, nz,
-                                        w[i, 0] - wjx, w[i, 1] - wjy, w[i, 2] - w[j, 2],
-                                        mstar, inertia[i] * inertia[j] / (inertia[i] +
-                                                                          inertia[j]),
-                                        step)
+                            # recorded at the bead's centre: the contact point lies inside
+                            # the wall by the overlap, outside every zone, and at an edge
+                            # (disc rim and face, rotor rim) could not tell the bead's side
+                            write_event(evc[c, ne], 1.0 + q, i, -1.0, xi, yi, zi, vrx, vry, vrz,
+                                        nx, ny, nz, w[i, 0], w[i, 1], w[i, 2] - wz_w, mi,
+                                        inertia[i], step)
                         ne += 1
-                    pfl[k] = 1
-                    s0 = psh[k, 0]
-                    s1 = psh[k, 1]
-                    s2 = psh[k, 2]
-                    sdn, sm0, sm1 = history_frame_pair(s0, s1, s2, dx, dy, dz, ir2, ir)
-                    if hproj:
-                        sm1 = 0.0  # "projected": no rescaling
-                    (gx, gy, gz, tix, tiy, tiz, tjx, tjy, tjz, s0, s1,
-                     s2) = pair_response(nx, ny, nz, delta, vrx, vry, vrz, w[i, 0], w[i, 1],
-                                         w[i, 2], wjx, wjy, w[j, 2], ri, rj, mstar, rstar, s0,
-                                         s1, s2, sdn, sm0, sm1, ystar, gstar, beta, mu, mur,
-                                         dt)
-                    psh[k, 0] = s0
-                    psh[k, 1] = s1
-                    psh[k, 2] = s2
+                    flw[i, q] = 1
+                    shw[i, q, 0] = s0
+                    shw[i, q, 1] = s1
+                    shw[i, q, 2] = s2
                     fx += gx
                     fy += gy
                     fz += gz
                     tx += tix
                     ty += tiy
                     tz += tiz
-                    # reaction on j, rotated back into j's frame (image pairs)
-                    _add3(fb, c, j, -gx, -gy, -gz, cr, -sr)
-                    _add3(tb, c, j, tjx, tjy, tjz, cr, -sr)
-                else:
-                    if pfl[k] != 0:
-                        pfl[k] = 0
-                        psh[k, 0] = 0.0
-                        psh[k, 1] = 0.0
-                        psh[k, 2] = 0.0
-                    if eta > 0.0:
-                        fl_m = lubrication_force(eta, ri * rj / rsum,
-                                                 vrx * nx + vry * ny + vrz * nz, -delta, hmin)
-                        fx += fl_m * nx
-                        fy += fl_m * ny
-                        fz += fl_m * nz
-                        _add3(fb, c, j, -fl_m * nx, -fl_m * ny, -fl_m * nz, cr, -sr)
-            # ---- walls ----
-            # quick rejection: most beads touch no wall
-            near = rxy - rsh <= ri or rch - rxy <= ri
-            if not near and has_disc:
-                zd = zi - zdisc
-                zd -= lz * math.floor(zd / lz + 0.5)
-                near = abs(zd) - hdisc <= ri and rxy - rdisc <= ri
-            if not near and has_baffles:
-                near = rxy - rbaf >= -ri
-            if not near:
-                for q in range(NWALL):
-                    if flw[i, q] != 0:
-                        flw[i, q] = 0
-                        shw[i, q, 0] = 0.0
-                        shw[i, q, 1] = 0.0
-                        shw[i, q, 2] = 0.0
-            for q in range(NWALL if near else 0):
-                (touch, vrx, vry, vrz, nx, ny, nz, wz_w, gx, gy, gz, tix, tiy, tiz, s0, s1,
-                 s2, twall) = wall_response(
-                    xi, yi, zi, v[i, 0], v[i, 1], v[i, 2], w[i, 0], w[i, 1], w[i, 2], ri, mi,
-                    q, shw[i, q, 0], shw[i, q, 1], shw[i, q, 2], prm, ystar, gstar, beta, mu,
-                    mur, dt)
-                if not touch:
-                    if flw[i, q] != 0:
-                        flw[i, q] = 0
-                        shw[i, q, 0] = 0.0
-                        shw[i, q, 1] = 0.0
-                        shw[i, q, 2] = 0.0
-                    continue
-                if record and flw[i, q] == 0:
-                    if ne < cap:
-                        # recorded at the bead's centre: the contact point lies inside
-                        # the wall by the overlap, outside every zone, and at an edge
-                        # (disc rim and face, rotor rim) could not tell the bead's side
-                        write_event(evc[c, ne], 1.0 + q, i, -1.0, xi, yi, zi, vrx, vry, vrz,
-                                    nx, ny, nz, w[i, 0], w[i, 1], w[i, 2] - wz_w, mi,
-                                    inertia[i], step)
-                    ne += 1
-                flw[i, q] = 1
-                shw[i, q, 0] = s0
-                shw[i, q, 1] = s1
-                shw[i, q, 2] = s2
-                fx += gx
-                fy += gy
-                fz += gz
-                tx += tix
-                ty += tiy
-                tz += tiz
-                if wall_stands(q):
-                    tqc += twall
-                else:
-                    tq += twall
-            fb[c, i, 0] += fx
-            fb[c, i, 1] += fy
-            fb[c, i, 2] += fz
-            tb[c, i, 0] += tx
-            tb[c, i, 1] += ty
-            tb[c, i, 2] += tz
-        evn[c] = ne
-        torq[c, 0] = tq
-        torq[c, 1] = tqc
+                    if wall_stands(q):
+                        tqc += twall
+                    else:
+                        tq += twall
+                fb[c, i, 0] += fx
+                fb[c, i, 1] += fy
+                fb[c, i, 2] += fz
+                tb[c, i, 0] += tx
+                tb[c, i, 1] += ty
+                tb[c, i, 2] += tz
+            evn[c] = ne
+            torq[c, 0] = tq
+            torq[c, 1] = tqc
 
 
 @kernel
 def reduce_kick(fb, tb, cb, maxj, f, t, v, w, x, inv_m, inv_i, kick, dt, drift, xref,
-                dmax):
+                dmax, claims):
     """f = sum of the chunks' force buffers (t likewise), then v += kick f/m,
     w += kick t/I and, with drift, x += dt v; dmax[c] receives the largest squared
     displacement [m2] since the last neighbour build of chunk c's beads. f and t are
@@ -1081,64 +1098,71 @@ def reduce_kick(fb, tb, cb, maxj, f, t, v, w, x, inv_m, inv_i, kick, dt, drift, 
     needs the sums only for this kick, and the two arrays' stores were a quarter of this
     memory-bound pass's traffic on the dilute bench bed."""
     nch = cb.shape[0] - 1
-    for c in prange(nch):
-        dm = 0.0
-        # the first chunk whose partners reach this chunk's beads (without sector images
-        # usually c - 1): the chunks before it are not visited bead by bead
-        first = 0
-        while first < c and maxj[first] < cb[c]:
-            first += 1
-        for i in range(cb[c], cb[c + 1]):
-            f0 = 0.0
-            f1 = 0.0
-            f2 = 0.0
-            t0 = 0.0
-            t1 = 0.0
-            t2 = 0.0
-            # chunks c2 <= c write bead i (partners have higher indices than their rows)
-            for c2 in range(first, c + 1):
-                if c2 == c or maxj[c2] >= i:
-                    f0 += fb[c2, i, 0]
-                    f1 += fb[c2, i, 1]
-                    f2 += fb[c2, i, 2]
-                    t0 += tb[c2, i, 0]
-                    t1 += tb[c2, i, 1]
-                    t2 += tb[c2, i, 2]
-                    # zeroed here, while in cache, for the next force evaluation
-                    # (compute_forces accumulates into them without a pass of its own)
-                    fb[c2, i, 0] = 0.0
-                    fb[c2, i, 1] = 0.0
-                    fb[c2, i, 2] = 0.0
-                    tb[c2, i, 0] = 0.0
-                    tb[c2, i, 1] = 0.0
-                    tb[c2, i, 2] = 0.0
-            if not drift:
-                f[i, 0] = f0
-                f[i, 1] = f1
-                f[i, 2] = f2
-                t[i, 0] = t0
-                t[i, 1] = t1
-                t[i, 2] = t2
-            im = kick * inv_m[i]
-            ii = kick * inv_i[i]
-            v[i, 0] += f0 * im
-            v[i, 1] += f1 * im
-            v[i, 2] += f2 * im
-            w[i, 0] += t0 * ii
-            w[i, 1] += t1 * ii
-            w[i, 2] += t2 * ii
+    # each thread its region's chunks first, then the others' left (chunk_claims)
+    nreg = reset_claims(claims, nch)
+    for _ in prange(nreg):
+        own = get_thread_id() % nreg
+        while True:
+            c = claim(claims, nch, own)
+            if c < 0:
+                break
+            dm = 0.0
+            # the first chunk whose partners reach this chunk's beads (without sector images
+            # usually c - 1): the chunks before it are not visited bead by bead
+            first = 0
+            while first < c and maxj[first] < cb[c]:
+                first += 1
+            for i in range(cb[c], cb[c + 1]):
+                f0 = 0.0
+                f1 = 0.0
+                f2 = 0.0
+                t0 = 0.0
+                t1 = 0.0
+                t2 = 0.0
+                # chunks c2 <= c write bead i (partners have higher indices than their rows)
+                for c2 in range(first, c + 1):
+                    if c2 == c or maxj[c2] >= i:
+                        f0 += fb[c2, i, 0]
+                        f1 += fb[c2, i, 1]
+                        f2 += fb[c2, i, 2]
+                        t0 += tb[c2, i, 0]
+                        t1 += tb[c2, i, 1]
+                        t2 += tb[c2, i, 2]
+                        # zeroed here, while in cache, for the next force evaluation
+                        # (compute_forces accumulates into them without a pass of its own)
+                        fb[c2, i, 0] = 0.0
+                        fb[c2, i, 1] = 0.0
+                        fb[c2, i, 2] = 0.0
+                        tb[c2, i, 0] = 0.0
+                        tb[c2, i, 1] = 0.0
+                        tb[c2, i, 2] = 0.0
+                if not drift:
+                    f[i, 0] = f0
+                    f[i, 1] = f1
+                    f[i, 2] = f2
+                    t[i, 0] = t0
+                    t[i, 1] = t1
+                    t[i, 2] = t2
+                im = kick * inv_m[i]
+                ii = kick * inv_i[i]
+                v[i, 0] += f0 * im
+                v[i, 1] += f1 * im
+                v[i, 2] += f2 * im
+                w[i, 0] += t0 * ii
+                w[i, 1] += t1 * ii
+                w[i, 2] += t2 * ii
+                if drift:
+                    x[i, 0] += dt * v[i, 0]
+                    x[i, 1] += dt * v[i, 1]
+                    x[i, 2] += dt * v[i, 2]
+                    a0 = x[i, 0] - xref[i, 0]
+                    a1 = x[i, 1] - xref[i, 1]
+                    a2 = x[i, 2] - xref[i, 2]
+                    dd = a0 * a0 + a1 * a1 + a2 * a2
+                    if dd > dm:
+                        dm = dd
             if drift:
-                x[i, 0] += dt * v[i, 0]
-                x[i, 1] += dt * v[i, 1]
-                x[i, 2] += dt * v[i, 2]
-                a0 = x[i, 0] - xref[i, 0]
-                a1 = x[i, 1] - xref[i, 1]
-                a2 = x[i, 2] - xref[i, 2]
-                dd = a0 * a0 + a1 * a1 + a2 * a2
-                if dd > dm:
-                    dm = dd
-        if drift:
-            dmax[c] = dm
+                dmax[c] = dm
 
 
 # ---- driver ----------------------------------------------------------------------------
@@ -1166,7 +1190,7 @@ def gather_events(evc, evn, evbuf, evcount, acc):
 
 @serial
 def rebuild(x, v, w, shw, xref, prm, wrapk, cutoff, do_wrap, pst, nnb, pj, pim, psh, pfl,
-            pst_n, nnb_n, pj_n, pim_n, psh_n, pfl_n, cb, need, maxj):
+            pst_n, nnb_n, pj_n, pim_n, psh_n, pfl_n, cb, need, maxj, claims):
     """Wrap beads into the periodic cell and build new half neighbour lists (pst_n ...)
     from the current ones (pst ...), carrying the tangential history over; reset the
     displacement reference. Returns the pairs the fullest chunk needs: more than the
@@ -1189,7 +1213,7 @@ def rebuild(x, v, w, shw, xref, prm, wrapk, cutoff, do_wrap, pst, nnb, pj, pim, 
     start, sj, ss, sx, cmax = bin_entries(ej, es, ex, lo, cs, ncx, ncy, ncz, lz)
     build_nlist(x, sj, ss, sx, start, cmax, lo, cs, ncx, ncy, ncz, cutoff * cutoff, prm,
                 wrapk, pst, nnb, pj, pim, psh, pfl, pst_n, nnb_n, pj_n, pim_n, psh_n, pfl_n,
-                cb, need, maxj)
+                cb, need, maxj, claims)
     xref[:, :] = x
     return need.max()
 
@@ -1209,7 +1233,7 @@ def advance_rotor(prm, dt):
 def advance(nsteps, x, v, w, f, t, rad, mass, inertia, inv_m, inv_i, xref, prm, wrapk,
             cutoff, pst, nnb, pj, pim, psh, pfl, pst_o, nnb_o, pj_o, pim_o, psh_o, pfl_o,
             shw, flw, cb, need, maxj, dmax, record, evc, evn, evbuf, evcount, acc, fb, tb,
-            torq, fext):
+            torq, fext, claims):
     """Advance ``nsteps`` velocity-Verlet steps of dt = prm[P_DT] [s] (nsteps >= 1).
 
     Velocities are synchronous with positions on entry and exit; the forces f, t must be
@@ -1236,7 +1260,7 @@ def advance(nsteps, x, v, w, f, t, rad, mass, inertia, inv_m, inv_i, xref, prm, 
         if dmax.max() > half_skin2:
             needed = rebuild(x, v, w, shw, xref, prm, wrapk, cutoff, True, pst, nnb, pj, pim,
                              psh, pfl, pst_o, nnb_o, pj_o, pim_o, psh_o, pfl_o, cb, need,
-                             maxj)
+                             maxj, claims)
             acc[2] += 1.0
             if needed > pj_o.shape[0] // nch:
                 return step, 1, parity
@@ -1252,7 +1276,7 @@ def advance(nsteps, x, v, w, f, t, rad, mass, inertia, inv_m, inv_i, xref, prm, 
         if record and evcount[0] > evbuf.shape[0] - 2 * evc.shape[1] * nch:
             last = True
         compute_forces(x, v, w, fb, tb, rad, mass, inertia, pst, nnb, pj, pim, psh, pfl,
-                       shw, flw, prm, cb, maxj, record, step, evc, evn, torq, fext)
+                       shw, flw, prm, cb, maxj, record, step, evc, evn, torq, fext, claims)
         tq = 0.0
         tqc = 0.0
         for c in range(nch):
@@ -1265,20 +1289,21 @@ def advance(nsteps, x, v, w, f, t, rad, mass, inertia, inv_m, inv_i, xref, prm, 
             gather_events(evc, evn, evbuf, evcount, acc)
         if last:
             reduce_kick(fb, tb, cb, maxj, f, t, v, w, x, inv_m, inv_i, 0.5 * dt, dt, False,
-                        xref, dmax)
+                        xref, dmax, claims)
             return step + 1, (0 if step == nsteps - 1 else 2), parity
-        reduce_kick(fb, tb, cb, maxj, f, t, v, w, x, inv_m, inv_i, dt, dt, True, xref, dmax)
+        reduce_kick(fb, tb, cb, maxj, f, t, v, w, x, inv_m, inv_i, dt, dt, True, xref, dmax,
+                    claims)
     return nsteps, 0, parity
 
 
 @serial
 def finish_step(x, v, w, f, t, rad, mass, inertia, inv_m, inv_i, prm, pst, nnb, pj, pim,
                 psh, pfl, shw, flw, cb, maxj, record, evc, evn, torq, xref, dmax, fb, tb,
-                kick, fext):
+                kick, fext, claims):
     """Forces at the current positions, then v += kick F/m: with kick = dt/2 this closes
     a step after the neighbour lists were enlarged in the middle of it; with kick = 0 it
     only fills f, t. New contacts are left in evc/evn for the caller to collect."""
     compute_forces(x, v, w, fb, tb, rad, mass, inertia, pst, nnb, pj, pim, psh, pfl, shw,
-                   flw, prm, cb, maxj, record, 0, evc, evn, torq, fext)
+                   flw, prm, cb, maxj, record, 0, evc, evn, torq, fext, claims)
     reduce_kick(fb, tb, cb, maxj, f, t, v, w, x, inv_m, inv_i, kick, prm[P_DT], False,
-                xref, dmax)
+                xref, dmax, claims)

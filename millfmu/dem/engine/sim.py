@@ -185,7 +185,8 @@ class DemSimulation:
         # chunks of beads, each with its own force buffer: a fixed number for a given bead
         # count (about 4096 beads each), so that results do not depend on the thread count
         # (while threads <= chunks) and a thread held up on a shared machine leaves its
-        # chunks to the others
+        # chunks to the others (each thread takes its own region's chunks first:
+        # chunk_claims)
         nch = min(max(1, self.threads, min(64, n // 4096)), max(n, 1))
         self.cb = np.linspace(0, n, nch + 1).astype(np.int64)
         self.need = np.zeros(nch, np.int64)
@@ -301,6 +302,17 @@ class DemSimulation:
             setattr(self, k, b)
             setattr(self, k + "_o", a)
 
+    def claims(self):
+        """The counters by which the CPU kernels' threads take the chunks
+        (:mod:`millfmu.dem.engine.chunk_claims`): one region per thread of the run. Made
+        when first needed (a simulation restored from an earlier checkpoint has none)."""
+        from millfmu.dem.engine.chunk_claims import CLAIM_STRIDE, claim_counters
+
+        c = getattr(self, "_claims", None)
+        if c is None or c.size != CLAIM_STRIDE * max(1, self.threads):
+            c = self._claims = claim_counters(self.threads)
+        return c
+
     def _build(self, do_wrap: bool = True):
         """Build new neighbour lists from the current ones and make them current; the spare
         lists are enlarged (by 30 %) until the fullest chunk's pairs fit."""
@@ -311,7 +323,7 @@ class DemSimulation:
                                self.wrapk, self.cutoff_m, do_wrap, self.pst, self.nnb, self.pj,
                                self.pim, self.psh, self.pfl, self.pst_o, self.nnb_o,
                                self.pj_o, self.pim_o, self.psh_o, self.pfl_o, self.cb,
-                               self.need, self.maxj)
+                               self.need, self.maxj, self.claims())
             if needed <= self.pj_o.shape[0] // nch:
                 self._swap_lists()
                 if self.pj_o.shape[0] < self.pj.shape[0]:
@@ -327,7 +339,7 @@ class DemSimulation:
                            self.nnb, self.pj, self.pim, self.psh, self.pfl, self.shw,
                            self.flw, self.cb, self.maxj, record, self.evc, self.evn,
                            self.torq, self.xref, self.dmax, self.fb, self.tb, kick,
-                           self.fext)
+                           self.fext, self.claims())
 
     _PER_BEAD = ("x", "v", "w", "f", "t", "xref", "rad", "mass", "inertia", "inv_m",
                  "inv_i", "wrapk", "shw", "flw", "ids", "fext")
@@ -417,7 +429,9 @@ class DemSimulation:
         numba.set_num_threads(self.threads)
         # every parallel loop of a DEM step runs over the chunks, whose work differs (their
         # pairs and wall contacts): hand them out one at a time
-        # as threads come free instead of numba's equal static blocks (dilute bench bed on
+        # as threads come free instead of numba's equal static blocks (the force loop, the
+        # reduction and the neighbour build take them from counters of their own instead,
+        # each thread its region first: chunk_claims) (dilute bench bed on
         # 2 threads, four alternating pairs: 23.8-24.4 M particle-steps/s against
         # 23.1-23.8); the results do not change,
         # since each chunk sums into its own buffer. Set per call, as numba keeps it per
@@ -432,6 +446,7 @@ class DemSimulation:
             self._sort()
         done = 0
         chunks = []
+        claims = self.claims()
         torque = 0.0
         chamber = 0.0
         dropped = 0
@@ -446,7 +461,7 @@ class DemSimulation:
                 self.pst_o, self.nnb_o, self.pj_o, self.pim_o, self.psh_o, self.pfl_o,
                 self.shw, self.flw, self.cb, self.need, self.maxj, self.dmax, record,
                 self.evc, self.evn, self.evbuf, self.evcount, self.acc, self.fb, self.tb,
-                self.torq, self.fext)
+                self.torq, self.fext, claims)
             if parity:
                 self._swap_lists()
             m = int(self.evcount[0])

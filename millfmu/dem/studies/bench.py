@@ -665,7 +665,8 @@ def _profile_sim(sim, steps, out):
             t1 = clock()
             K.build_nlist(s.x, sj, ss, sx, start, cmax, lo, cs, ncx, ncy, ncz, cs * cs, s.prm,
                           s.wrapk, s.pst, s.nnb, s.pj, s.pim, s.psh, s.pfl, s.pst_o, s.nnb_o,
-                          s.pj_o, s.pim_o, s.psh_o, s.pfl_o, s.cb, s.need, s.maxj)
+                          s.pj_o, s.pim_o, s.psh_o, s.pfl_o, s.cb, s.need, s.maxj,
+                          s.claims())
             s.xref[:, :] = s.x
             if s.need.max() > s.pj_o.shape[0] // (s.cb.size - 1):
                 raise RuntimeError("profile: neighbour lists overflowed; run the bench once")
@@ -677,14 +678,14 @@ def _profile_sim(sim, steps, out):
         t0 = clock()
         K.compute_forces(s.x, s.v, s.w, s.fb, s.tb, s.rad, s.mass, s.inertia, s.pst, s.nnb,
                          s.pj, s.pim, s.psh, s.pfl, s.shw, s.flw, s.prm, s.cb, s.maxj, True,
-                         step, s.evc, s.evn, s.torq, s.fext)
+                         step, s.evc, s.evn, s.torq, s.fext, s.claims())
         t1 = clock()
         s.evcount[0] = 0
         K.gather_events(s.evc, s.evn, s.evbuf, s.evcount, s.acc)
         t2 = clock()
         last = step == steps - 1  # as advance: the last kick is a half kick, no drift
         K.reduce_kick(s.fb, s.tb, s.cb, s.maxj, s.f, s.t, s.v, s.w, s.x, s.inv_m, s.inv_i,
-                      0.5 * dt if last else dt, dt, not last, s.xref, s.dmax)
+                      0.5 * dt if last else dt, dt, not last, s.xref, s.dmax, s.claims())
         t3 = clock()
         tm[PHASES[2]] += t1 - t0
         tm[PHASES[3]] += t2 - t1

@@ -61,6 +61,8 @@ KERNEL_MODULES = {
     "millfmu.dem.coupling.exchange_kernels": "millfmu.dem.coupling.exchange_kernels",
     "millfmu.dem.fluid.step_kernels": "millfmu.dem.fluid.step_kernels",
     "millfmu.dem.engine._jit": "millfmu.dem.engine._jit",
+    # how the threads share out the chunks (the same results on any schedule)
+    "millfmu.dem.engine.chunk_claims": "millfmu.dem.engine.chunk_claims",
 }
 
 #: Source hash -> the kernel version it stands for, where sources changed without changing
@@ -248,6 +250,11 @@ SAME_DEM_AS = {
     # (where it is kept, not what it computes: three scenes and a 4-theta-cell sector, 1
     # and 2 threads, against the previous sources compiled afresh, the same to the bit)
     "sha256:f4c516f6b843a414ed7048eca49879743a74469baf30ebd86370e67a12735708":
+        "sha256:97f753cea048d151d29bfc09ed08fc9161f206eb44b7bf748a0474d96810be97",
+    # and the force loop, reduction and neighbour build taking the chunks each thread its
+    # own region first (chunk_claims: which thread runs a chunk, not what it computes;
+    # three scenes on 1 and 2 threads against the previous sources, the same to the bit)
+    "sha256:f1d8588faa54a408b18401d5cbd6e88640cef0b6dade7df6300bc3fcca7c80c7":
         "sha256:97f753cea048d151d29bfc09ed08fc9161f206eb44b7bf748a0474d96810be97",
 }
 
