@@ -316,3 +316,66 @@ def test_coupled_sector_with_the_ldl_pressure_solver():
     assert np.abs(ca.solver.ut - cb.solver.ut).max() < 1e-9 * np.abs(ca.solver.ut).max()
     assert np.abs(ca.solver.p - cb.solver.p).max() < 1e-6 * np.abs(ca.solver.p).max()
     assert type(cb.solver.pressure._lu).__name__ == "LdlFactor"
+
+
+def test_fused_exchange_is_the_calls_to_the_bit():
+    """The exchange in one compiled call (coupling.fused_exchange, taken where the form
+    allows: explicit smoothing, ``direct_ldl``) gives what its thirteen calls from Python
+    give, to the bit: beads, held forces, the liquid's fields, clock, counters and
+    impulses, over intervals in a row, the first exchange, and an interval after the DEM
+    advanced alone (which takes the calls). The fused run is checked to take the fused
+    path; other forms of the exchange keep the calls, and a velocity that is not finite
+    raises FluidError on either path."""
+    from millfmu.dem.fluid.solver import FluidError
+    from millfmu.dem.run import make_simulation
+    from millfmu.dem.scene import load_scene
+
+    base = load_scene("disc_slice").with_overrides(
+        sector_deg=10.0, gravity_m_s2=(0.0, 0.0, 0.0), fluid_mode="coupled",
+        initial_rotation=0.1)
+    runs = {}
+    for fused in (False, True):
+        sim, cpl = make_simulation(base, 1)
+        k = cpl.settings.steps
+        assert cpl.fused and cpl.fused_possible()
+        cpl.fused = fused
+        if fused:
+            def calls(*a, **kw):
+                raise AssertionError("the fused exchange called the smoothing from Python")
+            smooth = cpl.projector.smooth_totals
+            cpl.projector.smooth_totals = calls
+        cpl.run(6 * k)
+        if fused:
+            cpl.projector.smooth_totals = smooth
+        sim.run(2 * k)  # the DEM alone: the next exchange takes the calls
+        cpl.run(3 * k)
+        runs[fused] = sim, cpl
+    (a, ca), (b, cb) = runs[False], runs[True]
+    for name in ("x", "v", "w", "fext"):
+        np.testing.assert_array_equal(getattr(a, name), getattr(b, name), err_msg=name)
+    np.testing.assert_array_equal(a.per_bead["fluid_at_bead"], b.per_bead["fluid_at_bead"])
+    sa, sb = ca.solver, cb.solver
+    for name in ("ur", "ut", "uz", "p", "k", "e", "nu_t", "eps_c", "eps_c_old", "eps_r"):
+        np.testing.assert_array_equal(getattr(sa, name), getattr(sb, name), err_msg=name)
+    for i in range(3):
+        np.testing.assert_array_equal(sa.mean_u[i], sb.mean_u[i])
+        np.testing.assert_array_equal(sa.mean_gp[i], sb.mean_gp[i])
+    for name in ("time_s", "_dt_stable", "substeps", "last_substeps",
+                 "angular_impulse_rotor_nms", "angular_impulse_stator_nms",
+                 "angular_impulse_shaft_nms", "exchange_angular_nms", "exchange_axial_ns"):
+        assert getattr(sa, name) == getattr(sb, name), name
+    assert sa.pressure.solves == sb.pressure.solves == sa.substeps
+    for name in ("intervals", "clipped_cells", "stiffness", "angular_impulse_to_beads_nms",
+                 "axial_impulse_to_beads_ns"):
+        assert getattr(ca, name) == getattr(cb, name), name
+    np.testing.assert_array_equal(ca._eps_cells, cb._eps_cells)
+    # other forms keep the calls
+    for over in (dict(smoothing="split_implicit"), dict(pressure_solver="direct_lu")):
+        sim, cpl = make_simulation(base.with_overrides(**over), 1)
+        assert not cpl.fused_possible() and not cpl.fused, over
+    # a liquid that is no longer finite stops either path with a clear error
+    for fused, (sim, cpl) in runs.items():
+        cpl.fused = fused
+        cpl.solver.ut[cpl.solver.kt == 0] = np.nan
+        with pytest.raises(FluidError, match="not finite"):
+            cpl.run(cpl.settings.steps)

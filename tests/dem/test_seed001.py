@@ -124,7 +124,8 @@ def test_campaign_runs_the_stated_protocol(tmp_path, monkeypatch):
 
 def test_coupled_interval_profile_names_every_part():
     """``dem bench --coupled --profile``: every part of a coupled interval timed inside the
-    run, and the coupling's kernels and methods given back afterwards."""
+    run, then the exchange in one compiled call, and the coupling's kernels, methods and
+    choice of path given back afterwards."""
     pytest.importorskip("numba")
     from millfmu.dem.coupling import exchange_kernels as EK
     from millfmu.dem.fluid import step_kernels as SK
@@ -145,6 +146,7 @@ def test_coupled_interval_profile_names_every_part():
     assert cpl.EK is EK and cpl.solver.SK is SK
     assert "exchange" not in vars(cpl) and "run" not in vars(sim)
     assert "solve" not in vars(cpl.solver.pressure) and "advance" not in vars(cpl.solver)
-    assert sim.step_count == 20 + 40 + 200  # compiled, profiled, the DEM alone
+    assert cpl.fused and res["exchange, whole, in one call"][0] > 0.0
+    assert sim.step_count == 20 + 40 + 40 + 200  # compiled, profiled, one call, DEM alone
     with pytest.raises(ValueError, match="start = 'late'"):
         CB.profile_coupled(steps=10, start="late")

@@ -37,7 +37,7 @@ import warnings
 import numpy as np
 
 from millfmu.dem.coupling.settings import CouplingSettings
-from millfmu.dem.fluid.solver import FluidProperties, FluidSolver
+from millfmu.dem.fluid.solver import VANE_SLIP_TIME_S, FluidProperties, FluidSolver
 
 
 class CfdDem:
@@ -104,6 +104,17 @@ class CfdDem:
         # DEM step count at the last exchange: the liquid expects the beads one interval
         # (or no step) further at the next (see exchange)
         self._synced_step = sim.step_count
+        #: an interval's exchange in one compiled call where its form allows
+        #: (:mod:`millfmu.dem.coupling.fused_exchange`; the same results to the bit)
+        self.fused = self.fused_possible()
+
+    def fused_possible(self) -> bool:
+        """Whether :mod:`millfmu.dem.coupling.fused_exchange` can take this coupling's
+        exchange: explicit smoothing sweeps (or none), the pressure by ``direct_ldl``, no
+        stator plates whose torque the liquid integrates per substep."""
+        s = self.solver
+        return (self.projector._implicit is None and s.pressure.method == "direct_ldl"
+                and s._plate_faces is None)
 
     def _deposit_and_split(self, eps_cells):
         """Beads' deposit columns -> smoothed cell totals -> void fractions and exchange
@@ -137,6 +148,8 @@ class CfdDem:
         # chamber). The liquid and the drag laws take the beads' present void fraction.
         gap = sim.step_count - self._synced_step not in (0, self.settings.steps)
         self._synced_step = sim.step_count
+        if self.fused and not gap:
+            return self._exchange_fused()
         if gap:
             self._deposit_and_split(self._eps_cells)
             self._eps_cells[:] = self._eps[0].ravel()
@@ -160,6 +173,52 @@ class CfdDem:
                                      sim.rad, sim.per_bead["fluid_at_bead"],
                                      0.0 if self.model_b else 1.0, self._gradient_now,
                                      s.body_z, sim.fext)
+        self.angular_impulse_to_beads_nms += ts * self.interval_s
+        self.axial_impulse_to_beads_ns += fs * self.interval_s
+        self.intervals += 1
+
+    def _exchange_fused(self):
+        """:meth:`exchange` without a gap, in one call of
+        :func:`millfmu.dem.coupling.fused_exchange.exchange_interval`."""
+        from millfmu.dem.coupling.fused_exchange import exchange_interval
+
+        sim, g, s, pj = self.sim, self.grid, self.solver, self.projector
+        fac = s.pressure._lu
+        if pj.sweeps and (pj._tmp is None or pj._tmp.shape != (6,) + g.shape):
+            pj._tmp = np.zeros((6,) + g.shape)
+        # the pressure increment's buffer (the calls' path makes one per solve)
+        phi = getattr(self, "_phi", None)
+        if phi is None:
+            phi = self._phi = np.empty(g.shape)
+        _, nt, nz = g.shape
+        e = self._eps
+        s.interval_s = float(self.interval_s)
+        pf = 0.0 if self.model_b else 1.0
+        clipped, stiff, n, dt_stable, time_s, finite, ts, fs = exchange_interval(
+            (sim.x, sim.v, sim.rad, sim.mass, sim.per_bead["fluid_at_bead"], sim.fext,
+             self._eps_cells),
+            (s.body_z, pf, s.fluid.viscosity_pa_s, s.rho, self.interval_s, self.model_b,
+             self._gradient_now),
+            (self._idx, self._w, self._cyl, self._c, self._q, self._x),
+            (pj.rc, pj.rtab, pj.rh, g.dtheta_rad, nt, g.dz_m, nz, g.height_m, g.solid,
+             self._vc, self._vol_r, self.settings.eps_min),
+            (self._tot, self._cellv, pj._vol_r, pj._ar, pj._at, pj._az,
+             pj._tmp if pj.sweeps else self._cellv.reshape((6,) + g.shape), pj.sweeps),
+            (e[0], e[1], e[2], e[3], *self._kd, *self._sd),
+            (s._F, s._W, s._K, s._driven, s._acc, s.wall, s.wall_om, s.rf, s.rc, s.dr,
+             s.vc),
+            (s.rho, s.nu, VANE_SLIP_TIME_S, s.omega, s.om_shaft, s.body_z, s.dth, s.dz,
+             s.cfl, s.interval_s or 0.0, s.turbulence == "k_epsilon", s.model == "A"),
+            (s.pressure._cells, s.pressure.volume, s.pressure._volume_sum, fac.indptr,
+             fac.indices, fac.values, fac.inv_d, fac.order, fac._rhs, fac._work, fac._x,
+             phi, s._div),
+            self.intervals == 0, -1.0 if s._dt_stable is None else s._dt_stable, s.time_s)
+        self.clipped_cells = int(clipped)
+        self.stiffness = float(stiff)
+        s._dt_stable = float(dt_stable)
+        s.time_s = float(time_s)
+        s.pressure.solves += int(n)
+        s.close_interval(int(n), bool(finite))
         self.angular_impulse_to_beads_nms += ts * self.interval_s
         self.axial_impulse_to_beads_ns += fs * self.interval_s
         self.intervals += 1
@@ -212,6 +271,8 @@ class CfdDem:
         # a checkpoint of earlier sources, which did not integrate the weight's torque:
         # its impulse before the checkpoint is unknown
         self.__dict__.setdefault("gravity_angular_impulse_nms", float("nan"))
+        if "fused" not in self.__dict__:
+            self.fused = self.fused_possible()
 
     def gravity_torque_nm(self) -> float:
         """Torque [N m] about the axis (+z) of the beads' buoyancy-reduced weight at

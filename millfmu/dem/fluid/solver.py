@@ -309,8 +309,14 @@ class FluidSolver:
             done += dt
             n += 1
             self.time_s += dt
+        self.close_interval(n, SK.finish_interval(self._F, interval_s))
+
+    def close_interval(self, n: int, finite: bool):
+        """After an interval of ``n`` substeps (:meth:`advance`, or the coupling's
+        :mod:`~millfmu.dem.coupling.fused_exchange`): its impulses added to the running
+        totals; FluidError where a velocity is not finite."""
+        acc = self._acc
         self.substeps += n
-        finite = SK.finish_interval(self._F, interval_s)
         if self.grid.shaft_rotates:
             self.angular_impulse_shaft_nms += acc[0]
         else:

@@ -63,6 +63,8 @@ KERNEL_MODULES = {
     "millfmu.dem.engine._jit": "millfmu.dem.engine._jit",
     # how the threads share out the chunks (the same results on any schedule)
     "millfmu.dem.engine.chunk_claims": "millfmu.dem.engine.chunk_claims",
+    # the coupled exchange in one compiled call (the same kernels in the same order)
+    "millfmu.dem.coupling.fused_exchange": "millfmu.dem.coupling.fused_exchange",
 }
 
 #: Source hash -> the kernel version it stands for, where sources changed without changing
@@ -258,6 +260,11 @@ SAME_DEM_AS = {
         "sha256:97f753cea048d151d29bfc09ed08fc9161f206eb44b7bf748a0474d96810be97",
     # and chunk_claims' docstring with the later measurements (a docstring only)
     "sha256:6c1b4aca393d8e74d105449db73d97fc44c6086d128968b6b11fdd23c6d22fcb":
+        "sha256:97f753cea048d151d29bfc09ed08fc9161f206eb44b7bf748a0474d96810be97",
+    # and the coupled exchange in one compiled call (fused_exchange: the same kernels, in
+    # the same order, with the same arguments; three scenes on 1 and 2 threads against the
+    # previous sources, the same to the bit)
+    "sha256:c2a52b2afdbe96b38027a3813304b5ce1e7dd653dfce84f8e2e32a55666e857e":
         "sha256:97f753cea048d151d29bfc09ed08fc9161f206eb44b7bf748a0474d96810be97",
 }
 

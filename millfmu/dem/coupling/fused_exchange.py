@@ -1,0 +1,119 @@
+"""One coupling interval of :class:`millfmu.dem.coupling.cfd_dem.CfdDem` in one compiled
+call: the same kernels, in the same order, with the same arguments as the exchange's
+thirteen calls from Python (beads in, deposit, smoothing, void fractions and exchange
+coefficients, the liquid taking them, its substeps of predictor, pressure solve and
+corrector, the interval's means, cell values, smoothing, held forces), so the same
+results to the bit.
+
+Why: each call of a numba kernel from Python checks the types of its arguments, and inside
+the coupled run, where the DEM's ten steps come between two exchanges, that check is slow:
+an empty kernel with the liquid predictor's arguments (tuples of 27 and 30 arrays) took
+87 us after the DEM's steps against 19 us called again at once, one with a single array
+15 us against 1.6 (the 10-degree disc sector, 2 threads, medians of 150). The thirteen
+calls' checks added up to 0.25 ms of the 2.55 ms exchange, and the Python between them
+(the liquid's substep loop, reshapes, copies, the largest stiffness) to more.
+
+Taken where the exchange is of that form: the explicit smoothing sweeps (or none), the
+pressure by ``direct_ldl``, no stator plates with theta faces (whose torque the liquid's
+Python loop integrates per substep). Anything else runs the calls one by one.
+"""
+
+import math
+
+from millfmu.dem.coupling.exchange_kernels import (beads_in, bead_forces, cells_to_exchange,
+                                                   nodes_to_cell_values)
+from millfmu.dem.coupling.projection import deposit, diffuse
+from millfmu.dem.engine._jit import serial
+from millfmu.dem.fluid.step_kernels import (EPSC, EPSC0, KR, KTH, KZ, MGR, MGT, MGZ, MUR,
+                                            MUT, MUZ, NUT, UR, UT, UZ, corrector,
+                                            finish_interval, ldl_project, predictor,
+                                            stable_dt, start_interval, take_beads)
+
+
+@serial
+def exchange_interval(beads, bead_prm, stencil, grid, smooth, nodes, liquid, liquid_prm,
+                      factor, same_eps, dt_stable, time_s):
+    """One coupling interval (:meth:`CfdDem.exchange`, the no-gap branch, and
+    :meth:`FluidSolver.advance` with ``direct_ldl``), argument groups as
+    :meth:`CfdDem._exchange_fused` packs them:
+
+    - beads: x, v, rad, mass, fab (the fluid at each bead), fext, eps_cells;
+    - bead_prm: body_z, pf, mu, rho, interval [s], model_b, now (the gradient timing);
+    - stencil: idx, w, cyl, c, q, xmax;
+    - grid: rc, rtab, rh, dth, nt, dz, nz, lz, solid, vc, vol_r (nodes), eps_min;
+    - smooth: tot, cellv, svol, ar, at, az, tmp, sweeps;
+    - nodes: eps_c, eps_r, eps_t, eps_z, kd_r, kd_t, kd_z, sd_r, sd_t, sd_z;
+    - liquid: F, W, K, driven, acc, wall, wall_om, rf, rc, dr, vc;
+    - liquid_prm: rho, nu, slip_s, omega, om_shaft, body_z, dth, dz, cfl, interval_s
+      (the solver's), kturb, model_a;
+    - factor: cells, volume, volume_sum, lp, li, lx, inv_d, order, rhs, y, x, phi, div.
+
+    same_eps: the liquid's previous void fraction taken as the new one (the first
+    exchange). dt_stable: the liquid's last stable substep [s] (<= 0: none yet). time_s:
+    the liquid's clock [s]. Returns (clipped cells, largest stiffness ratio, substeps, the
+    new stable substep [s], the new clock [s], velocities finite, T_z sum [N m], F_z sum
+    [N])."""
+    x, v, rad, mass, fab, fext, eps_cells = beads
+    body_zb, pf, mu, rho_b, interval, model_b, now = bead_prm
+    idx, w, cyl, c, q, xmax = stencil
+    rcb, rtab, rh, dthb, nt, dzb, nz, lz, solid, vcb, vol_r, eps_min = grid
+    tot, cellv, svol, ar, at, az, tmp, sweeps = smooth
+    eps_c, eps_r, eps_t, eps_z, kd_r, kd_t, kd_z, sd_r, sd_t, sd_z = nodes
+    F, W, K, driven, acc, wall, wall_om, rf, rc, dr, vc = liquid
+    (rho, nu, slip_s, omega, om_sh, body_z, dth, dz, cfl, interval_s, kturb,
+     model_a) = liquid_prm
+    cells, volume, volume_sum, lp, li, lx, inv_d, order, rhs, y, xs, phi, div = factor
+    nr = solid.shape[0]
+    shape4 = (tot.shape[0], nr, solid.shape[1], solid.shape[2])
+    shapev = (cellv.shape[0], nr, solid.shape[1], solid.shape[2])
+
+    # beads -> grid (CfdDem._deposit_and_split)
+    beads_in(x, v, rad, mass, fab, eps_cells, body_zb, pf, model_b, mu, rho_b, interval,
+             rcb, rtab, rh, dthb, nt, dzb, nz, lz, solid, idx, w, cyl, c, q, xmax)
+    deposit(idx, w, q, tot)
+    if sweeps:
+        diffuse(tot.reshape(shape4), svol, ar, at, az, sweeps, True, tmp, tot.shape[0])
+    clipped = cells_to_exchange(tot.reshape(shape4), vcb, eps_min, solid, K[KR], K[KTH], K[KZ],
+                                vol_r, rcb, eps_c, eps_r, eps_t, eps_z, kd_r, kd_t, kd_z,
+                                sd_r, sd_t, sd_z)
+    stiff = xmax.max() if xmax.size else 0.0
+    # the liquid takes them (FluidSolver.set_beads)
+    take_beads(F, K, driven, eps_c, eps_r, eps_t, eps_z, kd_r, kd_t, kd_z, sd_r, sd_t,
+               sd_z, rc, rho, slip_s, omega)
+    if same_eps:
+        ec = F[EPSC0].reshape(-1)
+        en = F[EPSC].reshape(-1)
+        for n in range(ec.size):
+            ec[n] = en[n]
+    # FluidSolver.advance, its Python loop as it is there
+    start_interval(F, acc)
+    if dt_stable <= 0.0:
+        dt_stable = stable_dt(F[UR], F[UT], F[UZ], F[NUT], rc, dr, dth, dz, nu, cfl)
+    done = 0.0
+    n = 0
+    while interval - done > 1e-12 * interval:
+        rest = interval - done
+        dt = rest / max(1, int(math.ceil(rest / dt_stable - 1e-9)))
+        predictor(F, W, K, rf, rc, dr, vc, dth, dz, om_sh, rho, nu, kturb, model_a,
+                  body_z, dt, interval_s, acc)
+        ldl_project(div.reshape(-1), cells, volume, volume_sum, lp, li, lx, inv_d, order,
+                    rhs, y, xs, phi.reshape(-1))
+        dt_stable = corrector(F, W, K, phi, wall, wall_om, rf, rc, dr, vc, dth, dz, rho,
+                              nu, kturb, dt, cfl)
+        done += dt
+        n += 1
+        time_s += dt
+    finite = finish_interval(F, interval)
+    if not finite:
+        return clipped, stiff, n, dt_stable, time_s, False, 0.0, 0.0
+    ecl = eps_cells
+    ecn = eps_c.reshape(-1)
+    for k in range(ecl.size):
+        ecl[k] = ecn[k]
+    # grid -> beads
+    nodes_to_cell_values(F[MUR], F[MUT], F[MUZ], F[MGR], F[MGT], F[MGZ], K[KR], K[KTH], K[KZ],
+                         solid, cellv)
+    if sweeps:
+        diffuse(cellv.reshape(shapev), svol, ar, at, az, sweeps, False, tmp, 3)
+    ts, fs = bead_forces(idx, w, cellv, c, cyl, rad, fab, pf, now, body_zb, fext)
+    return clipped, stiff, n, dt_stable, time_s, True, ts, fs
