@@ -358,20 +358,18 @@ class DemSimulation:
         perm = np.argsort(key, kind="stable")
         inv = np.empty_like(perm)
         inv[perm] = np.arange(perm.size)
-        # the pairs, flattened; a pair stays with its lower (new) index
-        nnb = self.nnb
-        rows = np.repeat(np.arange(n), nnb)
-        first = np.cumsum(nnb) - nnb
-        pos = np.repeat(self.pst, nnb) + (np.arange(rows.size) - np.repeat(first, nnb))
-        pj = self.pj[pos].astype(np.int64)
-        ps = self.pim[pos].astype(np.int64)
-        psh = self.psh[pos]
-        pfl = self.pfl[pos]
-        a = inv[rows]
-        b = inv[pj]
-        swap = a > b
-        owner = np.where(swap, b, a)
-        partner = np.where(swap, a, b)
+        # the pairs, flattened; a pair stays with its lower (new) index (engine.reorder)
+        from millfmu.dem.engine import reorder
+
+        m = int(self.nnb.sum())
+        owner = np.empty(m, np.int64)
+        partner = np.empty(m, np.int64)
+        ps = np.empty(m, np.int64)
+        psh = np.empty((m, 3))
+        pfl = np.empty(m, np.uint8)
+        swap = np.empty(m, np.bool_)
+        reorder.flatten_pairs(self.nnb, self.pst, self.pj, self.pim, self.psh, self.pfl, inv,
+                              owner, partner, ps, psh, pfl, swap)
         if swap.any():
             # seen from the other bead: opposite spring, in that bead's frame (rotated by
             # -s sector for image pairs), image code negated
@@ -387,30 +385,15 @@ class DemSimulation:
         for k, arr in self.per_bead.items():
             arr[:] = arr[perm]
         # rows in the new order, each chunk's rows one after the other in its region
-        counts = np.bincount(owner, minlength=n)
-        before = np.cumsum(counts) - counts  # pairs of all lower rows
         cb = self.cb
-        nch = cb.size - 1
-        chunk_of = np.repeat(np.arange(nch), np.diff(cb))
-        per_chunk = np.add.reduceat(counts, cb[:-1]) if n else np.zeros(nch, np.int64)
-        if per_chunk.max() > self.pair_capacity:
+        counts = np.empty(n, np.int64)
+        per_chunk = np.empty(cb.size - 1, np.int64)
+        reorder.pair_counts(owner, cb, counts, per_chunk)
+        if per_chunk.size and per_chunk.max() > self.pair_capacity:
             self._alloc_lists(int(per_chunk.max() * 1.3) + 16)
-        cap = self.pair_capacity
-        pst = chunk_of * cap + before - before[cb[chunk_of]]
-        order = np.argsort(owner, kind="stable")
-        owner, partner, ps, psh, pfl = (owner[order], partner[order], ps[order], psh[order],
-                                        pfl[order])
-        slot = pst[owner] + np.arange(owner.size) - before[owner]
-        self.pj[slot] = partner
-        self.pim[slot] = ps
-        self.psh[slot] = psh
-        self.pfl[slot] = pfl
-        self.pst[:] = pst
-        self.nnb[:] = counts
-        # the chunks' partner ranges changed with the names: recompute them
-        self.maxj[:] = cb[1:] - 1
-        if owner.size:
-            np.maximum.at(self.maxj, chunk_of[owner], partner)
+        reorder.place_pairs(owner, partner, ps, psh, pfl, counts, cb, self.pair_capacity,
+                            np.empty(n, np.int64), self.pst, self.nnb, self.pj, self.pim,
+                            self.psh, self.pfl, self.maxj)
         self._last_sort = self.step_count
 
     # ---- time stepping ----------------------------------------------------------------
