@@ -7,7 +7,8 @@ Only the kernel modules import this file, and only when a DEM run is requested, 
   fastmath off so that the contact laws are evaluated as written, in IEEE order, and a
   run repeats bit for bit on the same thread count). The cache lives in a folder keyed
   by the bytes of every kernel file (:func:`kernel_cache_dir`), not beside each module.
-- ``kernel``: decorator for loops over all beads; these use ``prange`` over chunks of beads.
+- ``kernel``: decorator for loops over all beads; these use ``prange`` over chunks of beads
+  (and, in the liquid, over rows of cells).
 - ``device``: decorator for the small scalar helpers that kernels call inside a chunk
   (the same flags without ``parallel``, because a parallel region must not nest).
 - ``contact``: ``device`` for the helpers called once per contact in the force loop

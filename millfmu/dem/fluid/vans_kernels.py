@@ -30,6 +30,13 @@ solid's velocity); a gradient taken between a fluid node and an inside node uses
 at the face between them, half a cell away. With wall functions the viscosity at such a
 wall edge follows the log law (see :mod:`millfmu.dem.fluid.k_epsilon`).
 
+Threads: the heaviest kernels (edge stresses, the three explicit rates) run their rows of
+nodes in parallel (``prange`` over i); each row writes only its own nodes from values no
+row writes, so the results are the same to the bit on any thread count. Sums over the grid
+(wall torques) stay serial, in their order. On a 10-degree disc sector (40 x 1 x 42 cells,
+2 threads, called back to back) the edge stresses took 47 us against 115 serial, each rate
+20-23 us against 42-48.
+
 Index conventions: cells (i, j, k); u_r[i] on r-face i (0..n_r), u_t[j] on the theta face
 between cells j and j + 1, u_z[k] on the z-face between k and k + 1 (both periodic).
 Edge stresses: e_rt[i, j, k] = a tau_r_theta at (r_f[i], theta_{j+1/2}, z_k),
@@ -39,7 +46,9 @@ e_tz[i, j, k] = a tau_theta_z at (r_c[i], theta_{j+1/2}, z_{k+1/2}).
 
 import math
 
-from millfmu.dem.engine._jit import inlined, serial
+from numba import prange
+
+from millfmu.dem.engine._jit import inlined, kernel, serial
 
 KAPPA = 0.41  # von Karman constant (Launder & Spalding 1974)
 E_LOG = 9.8  # log-law constant E
@@ -182,7 +191,10 @@ def _edge_visc(em, epsc, kt, solid, i0, i1, j0, j1, k0, k1, nr, nt, nz):
     se = 0.0
     sk = 0.0
     n = 0
-    for i in (i0, i1):
+    for t in range(2):
+        # i0, then i1: not a tuple of them, whose types differ where i1 is a prange's
+        # (unsigned) row index and i0 = i1 - 1 (signed)
+        i = i0 + t * (i1 - i0)
         if i < 0 or i >= nr:
             continue
         for j in (j0, j1):
@@ -197,7 +209,7 @@ def _edge_visc(em, epsc, kt, solid, i0, i1, j0, j1, k0, k1, nr, nt, nz):
     return s / n, se / n, sk / n
 
 
-@serial
+@kernel
 def edge_stresses(ur, ut, uz, kr, kt_, kz, em, epsc, ktur, solid, rf, rc, dr, dth, dz,
                   om_sh, rho, nu, wallfn, model_a, e_rt, e_rz, e_tz, g_rt, g_rz, g_tz):
     """Shear stresses a tau [Pa] on the grid edges (layout in the module docstring) and the
@@ -208,7 +220,7 @@ def edge_stresses(ur, ut, uz, kr, kt_, kz, em, epsc, ktur, solid, rf, rc, dr, dt
     rho a nu_w (:func:`wall_nu`) with the mean k of the fluid cells beside the edge."""
     nr, nt, nz = ut.shape
     # ---- r-theta edges: (r_f[i], theta_{j+1/2}, z_k), i = 0..nr ----
-    for i in range(nr + 1):
+    for i in prange(nr + 1):
         for j in range(nt):
             jp = wrap(j + 1, nt)
             for k in range(nz):
@@ -247,7 +259,7 @@ def edge_stresses(ur, ut, uz, kr, kt_, kz, em, epsc, ktur, solid, rf, rc, dr, dt
                 e_rt[i, j, k] = mu * gam
                 g_rt[i, j, k] = gam
     # ---- r-z edges: (r_f[i], theta_j, z_{k+1/2}), i = 0..nr ----
-    for i in range(nr + 1):
+    for i in prange(nr + 1):
         for j in range(nt):
             for k in range(nz):
                 kp = wrap(k + 1, nz)
@@ -288,7 +300,7 @@ def edge_stresses(ur, ut, uz, kr, kt_, kz, em, epsc, ktur, solid, rf, rc, dr, dt
                 e_rz[i, j, k] = mu * gam
                 g_rz[i, j, k] = gam
     # ---- theta-z edges: (r_c[i], theta_{j+1/2}, z_{k+1/2}) ----
-    for i in range(nr):
+    for i in prange(nr):
         for j in range(nt):
             jp = wrap(j + 1, nt)
             for k in range(nz):
@@ -321,13 +333,13 @@ def edge_stresses(ur, ut, uz, kr, kt_, kz, em, epsc, ktur, solid, rf, rc, dr, dt
                 g_tz[i, j, k] = gam
 
 
-@serial
+@kernel
 def rhs_r(ur, ut, fr, ft, fz, kr, trr, ttt, e_rt, e_rz, epsr, rf, rc, dr, vc, dth, dz,
           rho, out):
     """Explicit rate of eps u_r per unit volume [m/s2] at every solved r-node: advection,
     viscous forces over rho, centrifugal term eps u_theta^2 / r; 0 at fixed nodes."""
     nr, nt, nz = ut.shape
-    for i in range(1, nr):
+    for i in prange(1, nr):
         vol = 0.5 * (vc[i - 1] + vc[i])
         for j in range(nt):
             jm = wrap(j - 1, nt)
@@ -371,14 +383,14 @@ def rhs_r(ur, ut, fr, ft, fz, kr, trr, ttt, e_rt, e_rz, epsr, rf, rc, dr, vc, dt
                 out[i, j, k] = adv / vol + epsr[i, j, k] * u2 / rf[i] + vis / (rho * vol)
 
 
-@serial
+@kernel
 def rhs_t(ut, fr, ft, fz, kt_, ttt, e_rt, e_tz, rf, rc, dr, vc, dth, dz, rho, out):
     """Explicit rate of eps u_theta per unit volume [m/s2] at every solved theta node,
     computed as the divergence of angular-momentum fluxes (advection of r u_theta, and
     r^2 tau_r_theta, r tau_theta_theta, r tau_theta_z over rho) divided by r; 0 at fixed
     nodes."""
     nr, nt, nz = ut.shape
-    for i in range(nr):
+    for i in prange(nr):
         vol = vc[i]
         for j in range(nt):
             jm = wrap(j - 1, nt)
@@ -425,12 +437,12 @@ def rhs_t(ut, fr, ft, fz, kt_, ttt, e_rt, e_tz, rf, rc, dr, vc, dth, dz, rho, ou
                 out[i, j, k] = (adv + vis / rho) / (rc[i] * vol)
 
 
-@serial
+@kernel
 def rhs_z(uz, fr, ft, fz, kz, tzz, e_rz, e_tz, rf, dr, vc, dth, dz, rho, out):
     """Explicit rate of eps u_z per unit volume [m/s2] at every solved z-node: advection
     and viscous forces over rho; 0 at fixed nodes."""
     nr, nt, nz = uz.shape
-    for i in range(nr):
+    for i in prange(nr):
         vol = vc[i]
         az = vc[i] / dz
         for j in range(nt):

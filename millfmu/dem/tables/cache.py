@@ -273,6 +273,13 @@ SAME_DEM_AS = {
     # three scenes on 1 and 2 threads against the previous sources, the same to the bit)
     "sha256:4c1d1d6daf90010bd28c3ac4639db19acb5079b09f1b035f097d0d7975f7ccee":
         "sha256:97f753cea048d151d29bfc09ed08fc9161f206eb44b7bf748a0474d96810be97",
+    # and the liquid's edge stresses, explicit rates, turbulence production and transport
+    # with their rows on the threads (each row writes its own nodes; a coupled disc sector
+    # from the running mill and from its start, a 4-theta-cell sector, a coupled
+    # accelerator slice and one with baffles and k-epsilon, on 1 and 2 threads against the
+    # previous sources, the same to the bit)
+    "sha256:874a7ca4856c4dcc09104dce45b62fe4211bdd12f93498030bc8deaab9f36fd0":
+        "sha256:97f753cea048d151d29bfc09ed08fc9161f206eb44b7bf748a0474d96810be97",
 }
 
 
