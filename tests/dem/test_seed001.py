@@ -143,6 +143,7 @@ def test_coupled_interval_profile_names_every_part():
     parts = sum(res[label][1] for label in labels[:5] + labels[8:12])
     assert parts <= res["exchange, whole"][1]
     assert any("against the DEM's interval alone: the exchange" in line for line in said)
+    assert ", 10 deg sector, 6536 beads," in said[0]  # the heading names what it profiled
     assert cpl.EK is EK and cpl.solver.SK is SK
     assert "exchange" not in vars(cpl) and "run" not in vars(sim)
     assert "solve" not in vars(cpl.solver.pressure) and "advance" not in vars(cpl.solver)

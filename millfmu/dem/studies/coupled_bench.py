@@ -44,6 +44,7 @@ With the axisymmetric grid's stencils 4 wide (half the stencils' memory) the exc
 from __future__ import annotations
 
 import hashlib
+import math
 import pickle
 import statistics
 import time
@@ -251,8 +252,9 @@ def profile_coupled(steps: int = 2000, threads: int | None = None, start: str = 
     whole over as many intervals ("exchange, whole, in one call", which the closing line's
     shares take). Returns {label: (median [s], mean per interval [s])} with "DEM alone, 10
     steps".
-    ``state``: a (sim, coupling) pair of the sector to profile as it is (start and
-    warm_s are then not used)."""
+    ``state``: a (sim, coupling) pair to profile as it is (start and warm_s are then not
+    used): the sector, or another disc_slice such as the full slice, which the heading
+    names."""
     import types
 
     if start not in STARTS:
@@ -318,7 +320,9 @@ def profile_coupled(steps: int = 2000, threads: int | None = None, start: str = 
         res["exchange, whole, in one call"] = (statistics.median(one_call),
                                                sum(one_call) / len(one_call))
     res["DEM alone, 10 steps"] = (statistics.median(alone), sum(alone) / len(alone))
-    out(f"coupled interval profile: disc_slice 10 m/s, 80 %, 10 deg sector, {sim.n} beads, "
+    deg = math.degrees(sim.geometry.sector_rad)
+    what = "full slice" if deg > 359.0 else f"{deg:g} deg sector"
+    out(f"coupled interval profile: disc_slice 10 m/s, 80 %, {what}, {sim.n} beads, "
         f"{cpl.grid.describe()['fluid_cells']} fluid cells, {sim.threads} threads, "
         f"{intervals} intervals of {k} steps, {sim.step_count * sim.dt_s:.3f} s after the "
         f"start; per interval [ms]")
