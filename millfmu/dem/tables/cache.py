@@ -280,6 +280,11 @@ SAME_DEM_AS = {
     # previous sources, the same to the bit)
     "sha256:874a7ca4856c4dcc09104dce45b62fe4211bdd12f93498030bc8deaab9f36fd0":
         "sha256:97f753cea048d151d29bfc09ed08fc9161f206eb44b7bf748a0474d96810be97",
+    # and the beads' deposit of six columns as two halves on the threads (each column
+    # summed in the beads' order; the same five coupled runs and a discrete-phase sector,
+    # on 1 and 2 threads against the previous sources, the same to the bit)
+    "sha256:b4d59e9de1b2e4e71b64a1b3e5d9a7c6690b2436fd6447b43e0ff0b94cca9451":
+        "sha256:97f753cea048d151d29bfc09ed08fc9161f206eb44b7bf748a0474d96810be97",
 }
 
 
