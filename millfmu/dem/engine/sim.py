@@ -408,7 +408,6 @@ class DemSimulation:
                              neighbour_builds=builds)
         import numba
 
-        K = self.K
         numba.set_num_threads(self.threads)
         # every parallel loop of a DEM step runs over the chunks, whose work differs (their
         # pairs and wall contacts): hand them out one at a time
