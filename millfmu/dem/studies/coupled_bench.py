@@ -44,7 +44,6 @@ With the axisymmetric grid's stencils 4 wide (half the stencils' memory) the exc
 from __future__ import annotations
 
 import hashlib
-import math
 import pickle
 import statistics
 import time
@@ -320,8 +319,8 @@ def profile_coupled(steps: int = 2000, threads: int | None = None, start: str = 
         res["exchange, whole, in one call"] = (statistics.median(one_call),
                                                sum(one_call) / len(one_call))
     res["DEM alone, 10 steps"] = (statistics.median(alone), sum(alone) / len(alone))
-    deg = math.degrees(sim.geometry.sector_rad)
-    what = "full slice" if deg > 359.0 else f"{deg:g} deg sector"
+    deg = sim.geometry.sector_deg
+    what = "full slice" if deg == 360.0 else f"{deg:g} deg sector"
     out(f"coupled interval profile: disc_slice 10 m/s, 80 %, {what}, {sim.n} beads, "
         f"{cpl.grid.describe()['fluid_cells']} fluid cells, {sim.threads} threads, "
         f"{intervals} intervals of {k} steps, {sim.step_count * sim.dt_s:.3f} s after the "
