@@ -280,9 +280,11 @@ def run_scene(scene: DemScene, out_dir, progress: bool = True, threads: int | No
         sim, cpl = _state["sim"], _state["cpl"]
         import numba
 
+        from millfmu.dem.engine._jit import use_threads
+
         # a machine with fewer cores: fewer threads, the same chunks and results
         sim.threads = min(sim.threads, numba.config.NUMBA_NUM_THREADS)
-        numba.set_num_threads(sim.threads)
+        use_threads(sim.threads)
     out.mkdir(parents=True, exist_ok=True)
     zones = zones_for(scene)
     dt = scene.dt_s

@@ -84,3 +84,42 @@ def test_tables_process_pool_runs_the_dem_after_the_parent_did():
     assert out.returncode == 0, out.stderr[-2000:]
     assert out.stdout.split()[0] == _expected_layer()
     assert "(2, 2)" in out.stdout
+
+
+FIRST_SETTING = r"""
+import os
+import numba
+from millfmu.dem.engine.sim import DemSimulation  # the class only: no kernel module yet
+from millfmu.dem.engine._jit import use_threads
+os.environ["NUMBA_DEBUG_CACHE"] = "0"  # a NUMBA_ variable changes: numba re-reads them all
+numba.core.config.reload_config()
+use_threads(2)
+print(numba.threading_layer())
+"""
+
+
+def test_the_first_thread_setting_chooses_the_package_layer():
+    """The DEM bench set numba's thread count before any kernel module was loaded, which
+    settled numba's own first choice (TBB) for the whole process: its millfmu rows and the
+    coupled row ran on TBB while `dem run` ran on OpenMP. Setting the count through
+    use_threads chooses the package's layer, also after numba has re-read its
+    configuration from a changed environment."""
+    env = {k: v for k, v in os.environ.items()
+           if k not in ("NUMBA_THREADING_LAYER", "NUMBA_THREADING_LAYER_PRIORITY")}
+    env["NUMBA_NUM_THREADS"] = "2"
+    out = subprocess.run([sys.executable, "-c", FIRST_SETTING], capture_output=True,
+                         text=True, env=env, timeout=300)
+    assert out.returncode == 0, out.stderr[-2000:]
+    assert out.stdout.split()[-1] == _expected_layer()
+
+
+def test_the_package_sets_thread_counts_only_through_use_threads():
+    """numba.set_num_threads anywhere else in the package could run before the layer is
+    set up (see the test above)."""
+    import pathlib
+    import re
+
+    root = pathlib.Path(__file__).resolve().parents[2] / "millfmu"
+    offenders = [str(f.relative_to(root)) for f in root.rglob("*.py")
+                 if f.name != "_jit.py" and re.search(r"\bset_num_threads\(", f.read_text())]
+    assert offenders == []

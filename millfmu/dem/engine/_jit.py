@@ -21,7 +21,9 @@ Only the kernel modules import this file, and only when a DEM run is requested, 
   times slower and the beads' deposit pass 1.6 times.
 
 Threading layer: OpenMP (numba's ``omp`` layer), else ``workqueue``, unless
-NUMBA_THREADING_LAYER is set; OpenMP's idle threads spin briefly, then sleep
+NUMBA_THREADING_LAYER or NUMBA_THREADING_LAYER_PRIORITY is set; numba settles the layer
+at a process's first parallel launch or thread-count setting, so the package sets its
+thread counts only through :func:`use_threads`; OpenMP's idle threads spin briefly, then sleep
 (GOMP_SPINCOUNT=1000 unless it or OMP_WAIT_POLICY is set). Measured on the DEM bench bed
 (1000 steps, shared 2-core machine, M particle-steps/s):
 - TBB, which numba picks by default where libtbb is installed (numba 0.68, libtbb
@@ -62,9 +64,15 @@ from pathlib import Path
 
 import numba
 
-if "NUMBA_THREADING_LAYER" not in os.environ:
-    # numba wants all three named; workqueue always loads, so TBB is never reached
-    numba.config.THREADING_LAYER_PRIORITY = ["omp", "workqueue", "tbb"]
+#: the threading layers in the order tried (numba wants all three named; workqueue always
+#: loads, so TBB is never reached)
+LAYER_PRIORITY = ("omp", "workqueue", "tbb")
+if "NUMBA_THREADING_LAYER" not in os.environ and \
+        "NUMBA_THREADING_LAYER_PRIORITY" not in os.environ:
+    # in the environment too: numba re-reads its configuration from the environment when a
+    # NUMBA_ variable has changed (at the next compilation), which would put TBB first again
+    os.environ["NUMBA_THREADING_LAYER_PRIORITY"] = " ".join(LAYER_PRIORITY)
+    numba.config.THREADING_LAYER_PRIORITY = list(LAYER_PRIORITY)
     numba.config.THREADING_LAYER = "default"
 # read by the OpenMP runtime when it loads, at the first parallel launch: idle threads spin
 # SPIN_COUNT times (GNU OpenMP, tens of microseconds), then sleep; either variable set by
@@ -72,6 +80,15 @@ if "NUMBA_THREADING_LAYER" not in os.environ:
 SPIN_COUNT = 1000
 if "OMP_WAIT_POLICY" not in os.environ and "GOMP_SPINCOUNT" not in os.environ:
     os.environ["GOMP_SPINCOUNT"] = str(SPIN_COUNT)
+
+
+def use_threads(n: int) -> None:
+    """numba's thread count for the parallel loops that follow: the one way the package
+    sets it. The layer is chosen at the first launch or thread-count setting in a process
+    and cannot change afterwards; importing this module first is what puts OpenMP before
+    TBB. A study that set the count with numba's own call before any kernel module was
+    imported (the DEM bench did, up to 2026-11) ran every later kernel on TBB."""
+    numba.set_num_threads(int(n))
 
 FLAGS = dict(cache=True, nogil=True, fastmath=False, error_model="numpy",
              boundscheck=False)

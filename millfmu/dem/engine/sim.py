@@ -89,6 +89,7 @@ class DemSimulation:
         import numba
 
         from millfmu.dem.engine import kernels as K
+        from millfmu.dem.engine._jit import use_threads
 
         self.K = K
         self.geometry = geometry
@@ -103,7 +104,7 @@ class DemSimulation:
             # wait for a busy core cost more than the work
             threads = numba.config.NUMBA_NUM_THREADS if n >= 2000 else 1
         self.threads = int(threads)
-        numba.set_num_threads(self.threads)
+        use_threads(self.threads)
         self.n = n
         self.rad = np.ascontiguousarray(np.broadcast_to(radii_m, (n,)), dtype=np.float64).copy()
         rho = material.density_kg_m3
@@ -408,7 +409,9 @@ class DemSimulation:
                              neighbour_builds=builds)
         import numba
 
-        numba.set_num_threads(self.threads)
+        from millfmu.dem.engine._jit import use_threads
+
+        use_threads(self.threads)
         # every parallel loop of a DEM step runs over the chunks, whose work differs (their
         # pairs and wall contacts): hand them out one at a time
         # as threads come free instead of numba's equal static blocks (the force loop, the

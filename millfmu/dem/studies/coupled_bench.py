@@ -199,12 +199,9 @@ def run_coupled_bench(steps: int = 2000, repeats: int = 3, threads: int | None =
         td.append(a)
         tc.append(b)
     bd, bc = min(td), min(tc)
-    import numba
+    from millfmu.dem.studies.bench import threading_layer
 
-    try:
-        layer = numba.threading_layer()
-    except ValueError:  # no parallel region ran
-        layer = "none"
+    layer = threading_layer()
     return CoupledBenchResult(scene=scene, device=device, beads=sim.n,
                               fluid_cells=cpl.grid.describe()["fluid_cells"],
                               steps=steps, coupling_steps=k, threads=sim.threads,
