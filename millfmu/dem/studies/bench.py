@@ -474,9 +474,9 @@ def _load() -> str:
 
 def threading_layer() -> str:
     """numba's threading layer in this process ("none" before any parallel launch or where
-    numba was never loaded): the bench prints it, since it moves millfmu.dem's figures (a
-    2-thread coupled sector measured 4.95 M particle-steps/s of DEM on TBB against 6.24 on
-    OpenMP, one bench each)."""
+    numba was never loaded): the bench prints it, since it moves millfmu.dem's figures (the
+    coupled 10-degree sector's DEM on 2 threads: 4.57 and 4.32 M particle-steps/s on TBB
+    against 5.47 and 5.04 on OpenMP, two benches each, alternating)."""
     import sys
 
     if "numba" not in sys.modules:
