@@ -294,15 +294,14 @@ def run_ours(path, threads: int, steps: int = BENCH_STEPS, device: str = "cpu",
              record: bool = True) -> RunResult:
     """millfmu.dem on the bed at ``path``; contacts are recorded as in a mill run
     (LAMMPS and LIGGGHTS record none)."""
-    from millfmu.dem.engine._jit import use_threads
     from millfmu.dem.engine.sim import DemSimulation
 
     bed = read_data(path)
     kw = dict(velocities_m_s=bed.v, spins_rad_s=bed.w, skin_m=BENCH_SKIN_M, threads=threads)
     if device != "cpu":
         kw["device"] = device
-    # compile (or load from the cache) outside the timed loop, with the same types
-    use_threads(threads)
+    # compile (or load from the cache) outside the timed loop, with the same types (each
+    # DemSimulation sets the thread count itself, after its kernels' module chose the layer)
     DemSimulation(BENCH_GEOMETRY, BENCH_MATERIAL, bed.x[:4000], 0.5 * bed.diameter_m,
                   BENCH_OMEGA_RAD_S, BENCH_DT_S, **dict(kw, velocities_m_s=bed.v[:4000],
                                                         spins_rad_s=bed.w[:4000])
@@ -628,11 +627,9 @@ def profile(path, threads: int, steps: int = BENCH_STEPS, out=print) -> dict:
     :func:`millfmu.dem.engine.kernels.advance` driven one kernel at a time from Python, each timed
     (wall clock and process CPU time [s]; on a shared machine the CPU time of a 1-thread
     profile is the steadier figure). Returns {phase: (wall, cpu)} plus 'total', 'builds'."""
-    from millfmu.dem.engine._jit import use_threads
     from millfmu.dem.engine.sim import DemSimulation
 
     bed = read_data(path)
-    use_threads(threads)
     sim = DemSimulation(BENCH_GEOMETRY, BENCH_MATERIAL, bed.x, 0.5 * bed.diameter_m,
                         BENCH_OMEGA_RAD_S, BENCH_DT_S, velocities_m_s=bed.v,
                         spins_rad_s=bed.w, skin_m=BENCH_SKIN_M, threads=threads)
