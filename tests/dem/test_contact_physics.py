@@ -323,10 +323,11 @@ def _forces_once(sim):
     psh, pfl, shw, flw = sim.psh.copy(), sim.pfl.copy(), sim.shw.copy(), sim.flw.copy()
     K.compute_forces(sim.x, sim.v, sim.w, sim.fb, sim.tb, sim.rad, sim.mass, sim.inertia,
                      sim.pst, sim.nnb, sim.pj, sim.pim, psh, pfl, shw, flw, sim.prm, sim.cb,
-                     sim.maxj, False, 0, sim.evc, sim.evn, sim.torq, sim.fext, sim.claims())
+                     sim.maxj, False, 0, sim.evc, sim.evn, sim.torq, sim.fext, sim.claims(),
+                     False, 0.0, sim.inv_m, sim.inv_i, sim.xref, sim.dmax)
     K.reduce_kick(sim.fb, sim.tb, sim.cb, sim.maxj, sim.f, sim.t, sim.v.copy(), sim.w.copy(),
                   sim.x.copy(), sim.inv_m, sim.inv_i, 0.0, 0.0, False, sim.xref, sim.dmax,
-                  sim.claims())
+                  sim.claims(), False)
     return sim.f.copy(), sim.t.copy()
 
 

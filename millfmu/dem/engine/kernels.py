@@ -852,7 +852,8 @@ def _add3(buf, c, j, ax, ay, az, cr, sr):
 
 @kernel
 def compute_forces(x, v, w, fb, tb, rad, mass, inertia, pst, nnb, pj, pim, psh, pfl, shw,
-                   flw, prm, cb, maxj, record, step, evc, evn, torq, fext, claims):
+                   flw, prm, cb, maxj, record, step, evc, evn, torq, fext, claims, fuse,
+                   kick, inv_m, inv_i, xref, dmax):
     """Forces [N] and torques [N m] from bead contacts, lubrication, walls, drag and
     gravity, accumulated per chunk: fb[c, i], tb[c, i] hold what chunk c's rows put on
     bead i (its own beads cb[c] <= i < cb[c + 1] and partners up to maxj[c]); the rows of
@@ -866,7 +867,17 @@ def compute_forces(x, v, w, fb, tb, rad, mass, inertia, pst, nnb, pj, pim, psh, 
     fext[i] = (F_r [N], T_z [N m], F_z [N]) is a force held over the call (the coupled
     fluid's drag and pressure force, in cylindrical components at the bead's current
     position: F_r e_r + T_z / r e_theta + F_z e_z, so that its torque about z is exactly
-    T_z); zeros without a coupled fluid."""
+    T_z); zeros without a coupled fluid.
+
+    With fuse, the kick and drift of :func:`reduce_kick` (v += kick F/m, w += kick T/I,
+    x += dt v, dmax[c] the largest squared displacement [m2] since the last build) are done
+    here for each bead that no earlier chunk's rows reach (i > maxj of every chunk before
+    c), as soon as its row is done: rows own only partners j > i, so by then every row of
+    the chunk that puts a force on bead i has run, and no other chunk reads or writes it.
+    The bead's state and buffer are still in cache, which spares the reduction's pass over
+    memory; the sum is the one reduce_kick forms (0 + its one buffer), so the results are
+    the same to the bit. The beads that earlier chunks reach are left to
+    ``reduce_kick(..., deferred=True)``."""
     dt = prm[P_DT]
     ystar = prm[P_YSTAR]
     gstar = prm[P_GSTAR]
@@ -914,6 +925,9 @@ def compute_forces(x, v, w, fb, tb, rad, mass, inertia, pst, nnb, pj, pim, psh, 
             ne = 0
             tq = 0.0
             tqc = 0.0
+            dm = 0.0
+            # the beads from here on are kicked in this loop when fused (see above)
+            lo_kick = deferred_end(cb, maxj, c) if fuse else cb[c + 1]
             # fb, tb arrive all zero: reduce_kick zeroes every entry it sums (see there)
             for i in range(cb[c], cb[c + 1]):
                 xi = x[i, 0]
@@ -1077,26 +1091,89 @@ def compute_forces(x, v, w, fb, tb, rad, mass, inertia, pst, nnb, pj, pim, psh, 
                         tqc += twall
                     else:
                         tq += twall
-                fb[c, i, 0] += fx
-                fb[c, i, 1] += fy
-                fb[c, i, 2] += fz
-                tb[c, i, 0] += tx
-                tb[c, i, 1] += ty
-                tb[c, i, 2] += tz
+                if i < lo_kick:
+                    fb[c, i, 0] += fx
+                    fb[c, i, 1] += fy
+                    fb[c, i, 2] += fz
+                    tb[c, i, 0] += tx
+                    tb[c, i, 1] += ty
+                    tb[c, i, 2] += tz
+                    continue
+                # reduce_kick's arithmetic for a bead of one buffer: 0 + (buffer + own row)
+                f0 = 0.0
+                f1 = 0.0
+                f2 = 0.0
+                t0 = 0.0
+                t1 = 0.0
+                t2 = 0.0
+                f0 += fb[c, i, 0] + fx
+                f1 += fb[c, i, 1] + fy
+                f2 += fb[c, i, 2] + fz
+                t0 += tb[c, i, 0] + tx
+                t1 += tb[c, i, 1] + ty
+                t2 += tb[c, i, 2] + tz
+                fb[c, i, 0] = 0.0
+                fb[c, i, 1] = 0.0
+                fb[c, i, 2] = 0.0
+                tb[c, i, 0] = 0.0
+                tb[c, i, 1] = 0.0
+                tb[c, i, 2] = 0.0
+                dd = kick_bead(i, f0, f1, f2, t0, t1, t2, v, w, x, inv_m, inv_i, kick, dt,
+                               True, xref)
+                if dd > dm:
+                    dm = dd
             evn[c] = ne
             torq[c, 0] = tq
             torq[c, 1] = tqc
+            if fuse:
+                dmax[c] = dm
+
+
+@contact
+def deferred_end(cb, maxj, c):
+    """One past the last bead of chunk c that the rows of an earlier chunk reach (their
+    partners j <= maxj): at least cb[c], at most cb[c + 1]."""
+    e = cb[c]
+    for c2 in range(c):
+        if maxj[c2] + 1 > e:
+            e = maxj[c2] + 1
+    return min(e, cb[c + 1])
+
+
+@contact
+def kick_bead(i, f0, f1, f2, t0, t1, t2, v, w, x, inv_m, inv_i, kick, dt, drift, xref):
+    """v[i] += kick F/m, w[i] += kick T/I and, with drift, x[i] += dt v[i]; returns the
+    squared displacement [m2] since the last build (0 without drift)."""
+    im = kick * inv_m[i]
+    ii = kick * inv_i[i]
+    v[i, 0] += f0 * im
+    v[i, 1] += f1 * im
+    v[i, 2] += f2 * im
+    w[i, 0] += t0 * ii
+    w[i, 1] += t1 * ii
+    w[i, 2] += t2 * ii
+    if not drift:
+        return 0.0
+    x[i, 0] += dt * v[i, 0]
+    x[i, 1] += dt * v[i, 1]
+    x[i, 2] += dt * v[i, 2]
+    a0 = x[i, 0] - xref[i, 0]
+    a1 = x[i, 1] - xref[i, 1]
+    a2 = x[i, 2] - xref[i, 2]
+    return a0 * a0 + a1 * a1 + a2 * a2
 
 
 @kernel
 def reduce_kick(fb, tb, cb, maxj, f, t, v, w, x, inv_m, inv_i, kick, dt, drift, xref,
-                dmax, claims):
+                dmax, claims, deferred):
     """f = sum of the chunks' force buffers (t likewise), then v += kick f/m,
     w += kick t/I and, with drift, x += dt v; dmax[c] receives the largest squared
     displacement [m2] since the last neighbour build of chunk c's beads. f and t are
     stored only without drift (a run's last step, finish_step): within a run the next step
     needs the sums only for this kick, and the two arrays' stores were a quarter of this
-    memory-bound pass's traffic on the dilute bench bed."""
+    memory-bound pass's traffic on the dilute bench bed. With deferred (after
+    ``compute_forces(..., fuse=True)``, which kicked the other beads), only the beads that
+    an earlier chunk's rows reach, and dmax[c] keeps the larger of its value and theirs."""
     nch = cb.shape[0] - 1
     # each thread its region's chunks first, then the others' left (chunk_claims)
     nreg = reset_claims(claims, nch)
@@ -1112,7 +1189,8 @@ def reduce_kick(fb, tb, cb, maxj, f, t, v, w, x, inv_m, inv_i, kick, dt, drift, 
             first = 0
             while first < c and maxj[first] < cb[c]:
                 first += 1
-            for i in range(cb[c], cb[c + 1]):
+            end = deferred_end(cb, maxj, c) if deferred else cb[c + 1]
+            for i in range(cb[c], end):
                 f0 = 0.0
                 f1 = 0.0
                 f2 = 0.0
@@ -1143,26 +1221,12 @@ def reduce_kick(fb, tb, cb, maxj, f, t, v, w, x, inv_m, inv_i, kick, dt, drift, 
                     t[i, 0] = t0
                     t[i, 1] = t1
                     t[i, 2] = t2
-                im = kick * inv_m[i]
-                ii = kick * inv_i[i]
-                v[i, 0] += f0 * im
-                v[i, 1] += f1 * im
-                v[i, 2] += f2 * im
-                w[i, 0] += t0 * ii
-                w[i, 1] += t1 * ii
-                w[i, 2] += t2 * ii
-                if drift:
-                    x[i, 0] += dt * v[i, 0]
-                    x[i, 1] += dt * v[i, 1]
-                    x[i, 2] += dt * v[i, 2]
-                    a0 = x[i, 0] - xref[i, 0]
-                    a1 = x[i, 1] - xref[i, 1]
-                    a2 = x[i, 2] - xref[i, 2]
-                    dd = a0 * a0 + a1 * a1 + a2 * a2
-                    if dd > dm:
-                        dm = dd
+                dd = kick_bead(i, f0, f1, f2, t0, t1, t2, v, w, x, inv_m, inv_i, kick, dt,
+                               drift, xref)
+                if dd > dm:
+                    dm = dd
             if drift:
-                dmax[c] = dm
+                dmax[c] = max(dm, dmax[c]) if deferred else dm
 
 
 # ---- driver ----------------------------------------------------------------------------
@@ -1238,8 +1302,9 @@ def advance(nsteps, x, v, w, f, t, rad, mass, inertia, inv_m, inv_i, xref, prm, 
 
     Velocities are synchronous with positions on entry and exit; the forces f, t must be
     those of the entry state. Each step is two parallel passes: forces on the half
-    neighbour lists into per-chunk buffers fb, tb, then their sum with the leapfrog kick
-    and drift. Recorded contacts are appended to evbuf (evcount[0] rows used); acc
+    neighbour lists into per-chunk buffers fb, tb, with the leapfrog kick and drift of the
+    beads that only their own chunk's rows reach, then the sum of the buffers with the
+    kick and drift of the others (a run's last step: the sum, kick and store of all). Recorded contacts are appended to evbuf (evcount[0] rows used); acc
     accumulates [0] stirrer torque x steps [N m], [1] steps, [2] neighbour builds,
     [3] contacts dropped for lack of chunk buffer space, [4] chamber-wall torque x steps
     [N m]; torq (chunks, 2) is the per-chunk scratch of compute_forces, fext the held
@@ -1275,8 +1340,10 @@ def advance(nsteps, x, v, w, f, t, rad, mass, inertia, inv_m, inv_i, xref, prm, 
         last = step == nsteps - 1
         if record and evcount[0] > evbuf.shape[0] - 2 * evc.shape[1] * nch:
             last = True
+        # within the run, the kick and drift of most beads go with their force rows
         compute_forces(x, v, w, fb, tb, rad, mass, inertia, pst, nnb, pj, pim, psh, pfl,
-                       shw, flw, prm, cb, maxj, record, step, evc, evn, torq, fext, claims)
+                       shw, flw, prm, cb, maxj, record, step, evc, evn, torq, fext, claims,
+                       not last, dt, inv_m, inv_i, xref, dmax)
         tq = 0.0
         tqc = 0.0
         for c in range(nch):
@@ -1289,10 +1356,10 @@ def advance(nsteps, x, v, w, f, t, rad, mass, inertia, inv_m, inv_i, xref, prm, 
             gather_events(evc, evn, evbuf, evcount, acc)
         if last:
             reduce_kick(fb, tb, cb, maxj, f, t, v, w, x, inv_m, inv_i, 0.5 * dt, dt, False,
-                        xref, dmax, claims)
+                        xref, dmax, claims, False)
             return step + 1, (0 if step == nsteps - 1 else 2), parity
         reduce_kick(fb, tb, cb, maxj, f, t, v, w, x, inv_m, inv_i, dt, dt, True, xref, dmax,
-                    claims)
+                    claims, True)
     return nsteps, 0, parity
 
 
@@ -1304,6 +1371,7 @@ def finish_step(x, v, w, f, t, rad, mass, inertia, inv_m, inv_i, prm, pst, nnb, 
     a step after the neighbour lists were enlarged in the middle of it; with kick = 0 it
     only fills f, t. New contacts are left in evc/evn for the caller to collect."""
     compute_forces(x, v, w, fb, tb, rad, mass, inertia, pst, nnb, pj, pim, psh, pfl, shw,
-                   flw, prm, cb, maxj, record, 0, evc, evn, torq, fext, claims)
+                   flw, prm, cb, maxj, record, 0, evc, evn, torq, fext, claims, False, kick,
+                   inv_m, inv_i, xref, dmax)
     reduce_kick(fb, tb, cb, maxj, f, t, v, w, x, inv_m, inv_i, kick, prm[P_DT], False,
-                xref, dmax, claims)
+                xref, dmax, claims, False)

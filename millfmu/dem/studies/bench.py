@@ -618,8 +618,8 @@ def ke_table(best: dict, steps: int) -> list[str]:
 
 
 # ---- profile ---------------------------------------------------------------------------------
-PHASES = ("neighbour build: wrap, cell binning", "neighbour build: lists", "force loop",
-          "event gather", "reduction + integration")
+PHASES = ("neighbour build: wrap, cell binning", "neighbour build: lists",
+          "force loop (+ most kicks)", "event gather", "reduction + the other kicks")
 
 
 def profile(path, threads: int, steps: int = BENCH_STEPS, out=print) -> dict:
@@ -689,17 +689,19 @@ def _profile_sim(sim, steps, out):
             t2 = clock()
             tm[PHASES[0]] += t1 - t0
             tm[PHASES[1]] += t2 - t1
+        last = step == steps - 1  # as advance: the last kick is a half kick, no drift
         t0 = clock()
         K.compute_forces(s.x, s.v, s.w, s.fb, s.tb, s.rad, s.mass, s.inertia, s.pst, s.nnb,
                          s.pj, s.pim, s.psh, s.pfl, s.shw, s.flw, s.prm, s.cb, s.maxj, True,
-                         step, s.evc, s.evn, s.torq, s.fext, s.claims())
+                         step, s.evc, s.evn, s.torq, s.fext, s.claims(), not last, dt,
+                         s.inv_m, s.inv_i, s.xref, s.dmax)
         t1 = clock()
         s.evcount[0] = 0
         K.gather_events(s.evc, s.evn, s.evbuf, s.evcount, s.acc)
         t2 = clock()
-        last = step == steps - 1  # as advance: the last kick is a half kick, no drift
         K.reduce_kick(s.fb, s.tb, s.cb, s.maxj, s.f, s.t, s.v, s.w, s.x, s.inv_m, s.inv_i,
-                      0.5 * dt if last else dt, dt, not last, s.xref, s.dmax, s.claims())
+                      0.5 * dt if last else dt, dt, not last, s.xref, s.dmax, s.claims(),
+                      not last)
         t3 = clock()
         tm[PHASES[2]] += t1 - t0
         tm[PHASES[3]] += t2 - t1
