@@ -1100,26 +1100,10 @@ def compute_forces(x, v, w, fb, tb, rad, mass, inertia, pst, nnb, pj, pim, psh, 
                     tb[c, i, 2] += tz
                     continue
                 # reduce_kick's arithmetic for a bead of one buffer: 0 + (buffer + own row)
-                f0 = 0.0
-                f1 = 0.0
-                f2 = 0.0
-                t0 = 0.0
-                t1 = 0.0
-                t2 = 0.0
-                f0 += fb[c, i, 0] + fx
-                f1 += fb[c, i, 1] + fy
-                f2 += fb[c, i, 2] + fz
-                t0 += tb[c, i, 0] + tx
-                t1 += tb[c, i, 1] + ty
-                t2 += tb[c, i, 2] + tz
-                fb[c, i, 0] = 0.0
-                fb[c, i, 1] = 0.0
-                fb[c, i, 2] = 0.0
-                tb[c, i, 0] = 0.0
-                tb[c, i, 1] = 0.0
-                tb[c, i, 2] = 0.0
-                dd = kick_bead(i, f0, f1, f2, t0, t1, t2, v, w, x, inv_m, inv_i, kick, dt,
-                               True, xref)
+                b0, b1, b2, b3, b4, b5 = take_buffer(fb, tb, c, i)
+                dd = kick_bead(i, 0.0 + (b0 + fx), 0.0 + (b1 + fy), 0.0 + (b2 + fz),
+                               0.0 + (b3 + tx), 0.0 + (b4 + ty), 0.0 + (b5 + tz), v, w, x,
+                               inv_m, inv_i, kick, dt, True, xref)
                 if dd > dm:
                     dm = dd
             evn[c] = ne
@@ -1138,6 +1122,26 @@ def deferred_end(cb, maxj, c):
         if maxj[c2] + 1 > e:
             e = maxj[c2] + 1
     return min(e, cb[c + 1])
+
+
+@contact
+def take_buffer(fb, tb, c, i):
+    """Chunk c's force and torque on bead i (fb[c, i], tb[c, i]), zeroed as they are read,
+    while in cache, for the next force evaluation (compute_forces accumulates into them
+    without a pass of its own)."""
+    b0 = fb[c, i, 0]
+    b1 = fb[c, i, 1]
+    b2 = fb[c, i, 2]
+    b3 = tb[c, i, 0]
+    b4 = tb[c, i, 1]
+    b5 = tb[c, i, 2]
+    fb[c, i, 0] = 0.0
+    fb[c, i, 1] = 0.0
+    fb[c, i, 2] = 0.0
+    tb[c, i, 0] = 0.0
+    tb[c, i, 1] = 0.0
+    tb[c, i, 2] = 0.0
+    return b0, b1, b2, b3, b4, b5
 
 
 @contact
@@ -1200,20 +1204,9 @@ def reduce_kick(fb, tb, cb, maxj, f, t, v, w, x, inv_m, inv_i, kick, dt, drift, 
                 # chunks c2 <= c write bead i (partners have higher indices than their rows)
                 for c2 in range(first, c + 1):
                     if c2 == c or maxj[c2] >= i:
-                        f0 += fb[c2, i, 0]
-                        f1 += fb[c2, i, 1]
-                        f2 += fb[c2, i, 2]
-                        t0 += tb[c2, i, 0]
-                        t1 += tb[c2, i, 1]
-                        t2 += tb[c2, i, 2]
-                        # zeroed here, while in cache, for the next force evaluation
-                        # (compute_forces accumulates into them without a pass of its own)
-                        fb[c2, i, 0] = 0.0
-                        fb[c2, i, 1] = 0.0
-                        fb[c2, i, 2] = 0.0
-                        tb[c2, i, 0] = 0.0
-                        tb[c2, i, 1] = 0.0
-                        tb[c2, i, 2] = 0.0
+                        b0, b1, b2, b3, b4, b5 = take_buffer(fb, tb, c2, i)
+                        f0, f1, f2 = f0 + b0, f1 + b1, f2 + b2
+                        t0, t1, t2 = t0 + b3, t1 + b4, t2 + b5
                 if not drift:
                     f[i, 0] = f0
                     f[i, 1] = f1
