@@ -858,7 +858,8 @@ def compute_forces(x, v, w, fb, tb, rad, mass, inertia, pst, nnb, pj, pim, psh, 
     gravity, accumulated per chunk: fb[c, i], tb[c, i] hold what chunk c's rows put on
     bead i (its own beads cb[c] <= i < cb[c + 1] and partners up to maxj[c]); the rows of
     chunk c are the half neighbour lists (:func:`build_nlist`), so each pair is evaluated
-    once (Newton's third law) and no two chunks write the same buffer. :func:`reduce_kick` sums the chunks.
+    once (Newton's third law) and no two chunks write the same buffer.
+    :func:`reduce_kick` sums the chunks.
 
     New contacts (first overlap) go to evc[c, k, :] (layout EV_*) when record is true;
     torq[c, 0] receives the torque [N m] about +z that chunk c's beads exert on the stirrer
@@ -1297,12 +1298,13 @@ def advance(nsteps, x, v, w, f, t, rad, mass, inertia, inv_m, inv_i, xref, prm, 
     those of the entry state. Each step is two parallel passes: forces on the half
     neighbour lists into per-chunk buffers fb, tb, with the leapfrog kick and drift of the
     beads that only their own chunk's rows reach, then the sum of the buffers with the
-    kick and drift of the others (a run's last step: the sum, kick and store of all). Recorded contacts are appended to evbuf (evcount[0] rows used); acc
-    accumulates [0] stirrer torque x steps [N m], [1] steps, [2] neighbour builds,
-    [3] contacts dropped for lack of chunk buffer space, [4] chamber-wall torque x steps
-    [N m]; torq (chunks, 2) is the per-chunk scratch of compute_forces, fext the held
-    external force (see compute_forces). The two sets of neighbour lists (pst ... and
-    pst_o ...) alternate at every build. Returns (steps done, status, list parity):
+    kick and drift of the others (a run's last step: the sum, kick and store of all).
+    Recorded contacts are appended to evbuf (evcount[0] rows used); acc accumulates
+    [0] stirrer torque x steps [N m], [1] steps, [2] neighbour builds, [3] contacts
+    dropped for lack of chunk buffer space, [4] chamber-wall torque x steps [N m]; torq
+    (chunks, 2) is the per-chunk scratch of compute_forces, fext the held external force
+    (see compute_forces). The two sets of neighbour lists (pst ... and pst_o ...)
+    alternate at every build. Returns (steps done, status, list parity):
     parity 1 means the caller must swap its list references. Status 0 done; 1 new
     neighbour lists too short (positions advanced, velocities half a step ahead: enlarge,
     rebuild, finish_step); 2 event buffer nearly full (stopped early, synchronous state).

@@ -300,6 +300,10 @@ SAME_DEM_AS = {
     # and the buffers' read-and-zero as one inlined helper (the same checks, the same bits)
     "sha256:67b181cf65b90fc438303e8f8bc38b017c993f814c1759868eea53a836e5d24c":
         "sha256:97f753cea048d151d29bfc09ed08fc9161f206eb44b7bf748a0474d96810be97",
+    # and two docstrings of the kernels rewrapped (no code changed; the bench beds and the
+    # coupled scenes the same to the bit)
+    "sha256:637be488bf1f1706aac2f45c6bcd61e5ec8b1fb6dede8c457c4e8d5f3f22124e":
+        "sha256:97f753cea048d151d29bfc09ed08fc9161f206eb44b7bf748a0474d96810be97",
 }
 
 
