@@ -318,6 +318,16 @@ def test_coupled_sector_with_the_ldl_pressure_solver():
     assert type(cb.solver.pressure._lu).__name__ == "LdlFactor"
 
 
+def _coupled_sector():
+    """The 10-degree disc sector without gravity, coupled, its beads turning at 0.1 of the
+    stirrer at the start (6,536 beads)."""
+    from millfmu.dem.scene import load_scene
+
+    return load_scene("disc_slice").with_overrides(
+        sector_deg=10.0, gravity_m_s2=(0.0, 0.0, 0.0), fluid_mode="coupled",
+        initial_rotation=0.1)
+
+
 def test_fused_exchange_is_the_calls_to_the_bit():
     """The exchange in one compiled call (coupling.fused_exchange, taken where the form
     allows: explicit smoothing, ``direct_ldl``) gives what its thirteen calls from Python
@@ -328,11 +338,8 @@ def test_fused_exchange_is_the_calls_to_the_bit():
     raises FluidError on either path."""
     from millfmu.dem.fluid.solver import FluidError
     from millfmu.dem.run import make_simulation
-    from millfmu.dem.scene import load_scene
 
-    base = load_scene("disc_slice").with_overrides(
-        sector_deg=10.0, gravity_m_s2=(0.0, 0.0, 0.0), fluid_mode="coupled",
-        initial_rotation=0.1)
+    base = _coupled_sector()
     runs = {}
     for fused in (False, True):
         sim, cpl = make_simulation(base, 1)
@@ -379,3 +386,70 @@ def test_fused_exchange_is_the_calls_to_the_bit():
         cpl.solver.ut[cpl.solver.kt == 0] = np.nan
         with pytest.raises(FluidError, match="not finite"):
             cpl.run(cpl.settings.steps)
+
+
+def test_compiled_intervals_are_the_calls_to_the_bit():
+    """Runs of coupling intervals in one compiled call (CfdDem._run_compiled: each fused
+    exchange and the DEM's steps after it, without Python between them) give what the
+    exchange and sim.run called in turn give, to the bit: beads, held forces, the liquid,
+    impulses, counters and the DEM's per-interval stats, across the beads' reorderings
+    (which stop a compiled run) and a neighbour-list overflow in the middle of an interval
+    (whose steps run() then finishes). Recording runs keep the calls."""
+    from millfmu.dem.run import make_simulation
+
+    base = _coupled_sector()
+    runs = {}
+    for compiled in (False, True):
+        sim, cpl = make_simulation(base, 1)
+        k = cpl.settings.steps
+        assert cpl.fused and cpl.compiled
+        cpl.compiled = compiled
+        sim.sort_every_steps = 65  # reorderings inside the runs below, between intervals
+        seen = {"calls": 0, "intervals": 0, "resumed": 0}
+        if compiled:
+            run_compiled, resume = cpl._run_compiled, sim.resume_run
+
+            def counted(m, run_compiled=run_compiled, seen=seen):
+                seen["calls"] += 1
+                seen["intervals"] += m
+                return run_compiled(m)
+
+            def resumed(*a, resume=resume, seen=seen):
+                seen["resumed"] += 1
+                return resume(*a)
+
+            cpl._run_compiled, sim.resume_run = counted, resumed
+        stats = cpl.run(14 * k)
+        # spare lists too short for the next build: advance stops in that step
+        sim._alloc_spare(sim.pair_capacity // 3)
+        stats += cpl.run(16 * k)
+        before = seen["calls"]
+        stats += cpl.run(3 * k, record=True)
+        assert seen["calls"] == before  # recording keeps the calls
+        runs[compiled] = sim, cpl, stats, seen
+    (a, ca, sta, _), (b, cb, stb, seen) = runs[False], runs[True]
+    assert seen["calls"] >= 4 and seen["intervals"] >= 20 and seen["resumed"] == 1
+    assert a.step_count == b.step_count and a._last_sort == b._last_sort > 0
+    for name in ("x", "v", "w", "f", "t", "fext", "psh", "pj", "nnb"):
+        np.testing.assert_array_equal(getattr(a, name), getattr(b, name), err_msg=name)
+    np.testing.assert_array_equal(a.per_bead["fluid_at_bead"], b.per_bead["fluid_at_bead"])
+    assert len(sta) == len(stb) == 33
+    for x, y in zip(sta, stb):
+        assert (x.steps, x.torque_sum_nm_steps, x.chamber_torque_sum_nm_steps,
+                x.dropped_events, x.neighbour_builds) == \
+            (y.steps, y.torque_sum_nm_steps, y.chamber_torque_sum_nm_steps,
+             y.dropped_events, y.neighbour_builds)
+        np.testing.assert_array_equal(x.events, y.events)
+    assert sum(x.neighbour_builds for x in sta) > 0
+    sa, sb = ca.solver, cb.solver
+    for name in ("ur", "ut", "uz", "p", "k", "e", "nu_t", "eps_c", "eps_c_old"):
+        np.testing.assert_array_equal(getattr(sa, name), getattr(sb, name), err_msg=name)
+    for name in ("time_s", "_dt_stable", "substeps", "last_substeps",
+                 "angular_impulse_rotor_nms", "angular_impulse_stator_nms",
+                 "angular_impulse_shaft_nms", "exchange_angular_nms", "exchange_axial_ns"):
+        assert getattr(sa, name) == getattr(sb, name), name
+    np.testing.assert_array_equal(sa._acc, sb._acc)
+    assert sa.pressure.solves == sb.pressure.solves
+    for name in ("intervals", "clipped_cells", "stiffness", "angular_impulse_to_beads_nms",
+                 "axial_impulse_to_beads_ns", "_synced_step"):
+        assert getattr(ca, name) == getattr(cb, name), name

@@ -107,6 +107,10 @@ class CfdDem:
         #: an interval's exchange in one compiled call where its form allows
         #: (:mod:`millfmu.dem.coupling.fused_exchange`; the same results to the bit)
         self.fused = self.fused_possible()
+        #: runs of such intervals, each exchange and the DEM's steps after it, in one
+        #: compiled call where they record no contacts (:meth:`_run_compiled`; the same
+        #: results to the bit)
+        self.compiled = True
 
     def fused_possible(self) -> bool:
         """Whether :mod:`millfmu.dem.coupling.fused_exchange` can take this coupling's
@@ -177,11 +181,10 @@ class CfdDem:
         self.axial_impulse_to_beads_ns += fs * self.interval_s
         self.intervals += 1
 
-    def _exchange_fused(self):
-        """:meth:`exchange` without a gap, in one call of
-        :func:`millfmu.dem.coupling.fused_exchange.exchange_interval`."""
-        from millfmu.dem.coupling.fused_exchange import exchange_interval
-
+    def _fused_groups(self) -> tuple:
+        """The first nine argument groups of
+        :func:`~millfmu.dem.coupling.fused_exchange.exchange_interval` (the same arrays every
+        interval until the beads are reordered)."""
         sim, g, s, pj = self.sim, self.grid, self.solver, self.projector
         fac = s.pressure._lu
         if pj.sweeps and (pj._tmp is None or pj._tmp.shape != (6,) + g.shape):
@@ -194,7 +197,7 @@ class CfdDem:
         e = self._eps
         s.interval_s = float(self.interval_s)
         pf = 0.0 if self.model_b else 1.0
-        clipped, stiff, n, dt_stable, time_s, finite, ts, fs = exchange_interval(
+        return (
             (sim.x, sim.v, sim.rad, sim.mass, sim.per_bead["fluid_at_bead"], sim.fext,
              self._eps_cells),
             (s.body_z, pf, s.fluid.viscosity_pa_s, s.rho, self.interval_s, self.model_b,
@@ -211,8 +214,23 @@ class CfdDem:
              s.cfl, s.interval_s or 0.0, s.turbulence == "k_epsilon", s.model == "A"),
             (s.pressure._cells, s.pressure.volume, s.pressure._volume_sum, fac.indptr,
              fac.indices, fac.values, fac.inv_d, fac.order, fac._rhs, fac._work, fac._x,
-             phi, s._div),
-            self.intervals == 0, -1.0 if s._dt_stable is None else s._dt_stable, s.time_s)
+             phi, s._div))
+
+    def _exchange_fused(self):
+        """:meth:`exchange` without a gap, in one call of
+        :func:`millfmu.dem.coupling.fused_exchange.exchange_interval`."""
+        from millfmu.dem.coupling.fused_exchange import exchange_interval
+
+        s = self.solver
+        out = exchange_interval(*self._fused_groups(), self.intervals == 0,
+                                -1.0 if s._dt_stable is None else s._dt_stable, s.time_s)
+        self._close_fused(*out)
+
+    def _close_fused(self, clipped, stiff, n, dt_stable, time_s, finite, ts, fs):
+        """The bookkeeping after a fused exchange (its returns, in order): the liquid's
+        clock, substeps and impulses (FluidError where a velocity is not finite), the
+        beads' impulses, the interval count."""
+        s = self.solver
         self.clipped_cells = int(clipped)
         self.stiffness = float(stiff)
         s._dt_stable = float(dt_stable)
@@ -222,6 +240,61 @@ class CfdDem:
         self.angular_impulse_to_beads_nms += ts * self.interval_s
         self.axial_impulse_to_beads_ns += fs * self.interval_s
         self.intervals += 1
+
+    def _compiled_intervals(self, left: int, record: bool, tau) -> int:
+        """How many of the next ``left`` intervals :meth:`_run_compiled` may take: those
+        whose exchange is fused and follows the DEM's steps without a gap, with no contacts
+        recorded, no weight's torque to integrate (gravity along the axis or none) and the
+        DEM on the CPU, up to the next reordering of the beads (which run() makes between an
+        exchange and the DEM's steps). 0: run the next interval by the calls."""
+        sim = self.sim
+        if (record or tau is not None or not self.fused or sim._gpu is not None
+                or self.intervals == 0
+                or sim.step_count - self._synced_step != self.settings.steps):
+            return 0
+        m = sim.runs_before_sort(self.settings.steps)
+        return left if m is None else min(left, m)
+
+    def _run_compiled(self, m: int) -> list:
+        """``m`` coupling intervals (exchange, then the DEM's steps) in one compiled call
+        (:func:`~millfmu.dem.coupling.fused_exchange.coupled_intervals`): the same kernels
+        in the same order as :meth:`exchange` and ``sim.run`` called in turn, so the same
+        results to the bit, without the Python and the argument checks between them.
+        Returns the DEM's StepStats, one per interval."""
+        import numba
+
+        from millfmu.dem.coupling.fused_exchange import PER_INTERVAL, coupled_intervals
+        from millfmu.dem.engine._jit import use_threads
+        from millfmu.dem.engine.sim import StepStats
+
+        sim, s = self.sim, self.solver
+        k = self.settings.steps
+        use_threads(sim.threads)
+        per = np.zeros((m, PER_INTERVAL))
+        done, kk, status, parity = coupled_intervals(
+            m, k, self._fused_groups(), -1.0 if s._dt_stable is None else s._dt_stable,
+            s.time_s, sim.advance_args(False), sim.advance_args(False, swapped=True),
+            numba.get_parallel_chunksize(), per)
+        if parity:
+            sim._swap_lists()
+        out = []
+        # each interval's bookkeeping in turn, as exchange() and sim.run() do it
+        for i in range(min(m, done + 1)):
+            r = per[i]
+            self._synced_step = sim.step_count
+            s._acc[:] = r[8:13]
+            self._close_fused(*(float(a) for a in r[:8]))
+            if i == done:
+                # its DEM steps stopped early (the neighbour lists overflowed): the rest of
+                # them as run() goes on after such a stop
+                out.append(sim.resume_run(k, (int(kk), int(status))))
+                break
+            sim.step_count += k
+            out.append(StepStats(steps=k, events=np.zeros((0, sim.K.EV_NF)),
+                                 torque_sum_nm_steps=0.0 + r[13],
+                                 chamber_torque_sum_nm_steps=0.0 + r[14],
+                                 dropped_events=int(r[15]), neighbour_builds=int(r[16])))
+        return out
 
     def prime(self, duration_s: float, chunk_s: float = 1e-3) -> None:
         """Primed start: advance the liquid alone for ``duration_s`` [s] (no beads: void
@@ -273,6 +346,7 @@ class CfdDem:
         self.__dict__.setdefault("gravity_angular_impulse_nms", float("nan"))
         if "fused" not in self.__dict__:
             self.fused = self.fused_possible()
+        self.__dict__.setdefault("compiled", True)
 
     def gravity_torque_nm(self) -> float:
         """Torque [N m] about the axis (+z) of the beads' buoyancy-reduced weight at
@@ -322,10 +396,19 @@ class CfdDem:
                              f"interval of {k} DEM steps")
         out = []
         tau = self._weight_torque_start()
-        for _ in range(nsteps // k):
+        left = nsteps // k
+        while left:
+            m = self._compiled_intervals(left, record, tau) if self.compiled else 0
+            if m:
+                # fewer than m where the DEM's steps stopped early (then finished by run())
+                done = self._run_compiled(m)
+                out.extend(done)
+                left -= len(done)
+                continue
             self.exchange()
             st, tau = self._dem_run(k, record, tau)
             out.append(st)
+            left -= 1
         return out
 
     # ---- observation --------------------------------------------------------------------

@@ -15,6 +15,8 @@ Only the kernel modules import this file, and only when a DEM run is requested, 
   (contact law, pair and wall response), inlined into the loop by numba: as calls they
   made the force loop on the bench bed 28 % slower.
 - ``serial``: the same flags for serial drivers and bookkeeping (binning, wrapping).
+- ``set_chunksize``: numba's parallel chunk size set from jitted code, cached (the
+  coupling's compiled run of intervals switches it between the liquid and the DEM).
 - ``inlined``: ``contact``'s inlining for the liquid's per-node and per-edge helpers
   (gradients, edge viscosities, wall functions, fluxes) and the exchange's per-bead ones
   (stencil, drag law): as calls returning tuples they made the edge-stress kernel several
@@ -63,6 +65,9 @@ import time
 from pathlib import Path
 
 import numba
+from llvmlite import ir
+from numba.core import cgutils, types
+from numba.extending import intrinsic
 
 #: the threading layers in the order tried (numba wants all three named; workqueue always
 #: loads, so TBB is never reached)
@@ -80,6 +85,24 @@ if "NUMBA_THREADING_LAYER" not in os.environ and \
 SPIN_COUNT = 1000
 if "OMP_WAIT_POLICY" not in os.environ and "GOMP_SPINCOUNT" not in os.environ:
     os.environ["GOMP_SPINCOUNT"] = str(SPIN_COUNT)
+
+
+@intrinsic
+def set_chunksize(typingctx, n):
+    """numba's parallel chunk size for the parallel loops that follow (``n`` >= 0; 0:
+    numba's equal static blocks), called in jitted code; returns the size before. It calls
+    the threading layer's own ``set_parallel_chunksize`` by its symbol, which the layer
+    registers when it loads (:func:`use_threads` loads it): numba's jitted
+    ``set_parallel_chunksize`` calls it through a ctypes pointer instead, and numba does
+    not cache a function that holds one."""
+    def codegen(context, builder, signature, args):
+        i32 = ir.IntType(32)
+        fn = cgutils.get_or_insert_function(builder.module, ir.FunctionType(i32, [i32]),
+                                            "set_parallel_chunksize")
+        old = builder.call(fn, [builder.trunc(args[0], i32)])
+        return builder.zext(old, ir.IntType(64))
+
+    return types.int64(n), codegen
 
 
 def use_threads(n: int) -> None:

@@ -424,31 +424,69 @@ class DemSimulation:
         with numba.parallel_chunksize(1):
             return self._run_cpu(nsteps, record)
 
+    def resume_run(self, nsteps: int, first) -> StepStats:
+        """The rest of a run of ``nsteps`` steps (no contacts recorded) whose first
+        ``advance`` call was made elsewhere (a compiled coupling loop) and stopped early:
+        ``first`` = (its steps, its status), its lists swapped, its counts in acc."""
+        import numba
+
+        from millfmu.dem.engine._jit import use_threads
+
+        use_threads(self.threads)
+        with numba.parallel_chunksize(1):
+            return self._steps(nsteps, False, first)
+
     def _run_cpu(self, nsteps: int, record: bool) -> StepStats:
         """run() on the CPU (numba's thread count and chunk size set by the caller)."""
-        K = self.K
         if self.sort_every_steps and self.step_count - self._last_sort >= self.sort_every_steps:
             self._sort()
+        return self._steps(nsteps, record)
+
+    def runs_before_sort(self, steps: int) -> int | None:
+        """How many run() calls of ``steps`` steps each, the first starting now, start
+        without reordering the beads (:meth:`_sort`, due every ``sort_every_steps``); None:
+        no reordering."""
+        if not self.sort_every_steps:
+            return None
+        left = self.sort_every_steps - (self.step_count - self._last_sort)
+        return max(0, -(-left // int(steps)))
+
+    def advance_args(self, record: bool, swapped: bool = False) -> tuple:
+        """The arguments of the kernels' ``advance`` after the step count, the neighbour
+        lists as they are (or, with swapped, the spare set in their place: the lists after
+        one build)."""
+        a, b = self._LISTS, tuple(k + "_o" for k in self._LISTS)
+        if swapped:
+            a, b = b, a
+        lists = tuple(getattr(self, k) for k in a) + tuple(getattr(self, k) for k in b)
+        return ((self.x, self.v, self.w, self.f, self.t, self.rad, self.mass, self.inertia,
+                 self.inv_m, self.inv_i, self.xref, self.prm, self.wrapk, self.cutoff_m)
+                + lists + (self.shw, self.flw, self.cb, self.need, self.maxj, self.dmax,
+                           record, self.evc, self.evn, self.evbuf, self.evcount, self.acc,
+                           self.fb, self.tb, self.torq, self.fext, self.claims()))
+
+    def _steps(self, nsteps: int, record: bool, first=None) -> StepStats:
+        """nsteps steps by the kernels' ``advance`` (and, where its neighbour lists
+        overflow, the build and the step's end here). ``first``: (steps, status) of an
+        ``advance`` call already made for these nsteps (its lists swapped, its counts in
+        acc and evcount), which is taken as this loop's first call's."""
+        K = self.K
         done = 0
         chunks = []
-        claims = self.claims()
         torque = 0.0
         chamber = 0.0
         dropped = 0
         builds = 0
         while done < nsteps:
-            self.evcount[0] = 0
-            self.acc[:] = 0.0
-            k, status, parity = K.advance(
-                nsteps - done, self.x, self.v, self.w, self.f, self.t, self.rad, self.mass,
-                self.inertia, self.inv_m, self.inv_i, self.xref, self.prm, self.wrapk,
-                self.cutoff_m, self.pst, self.nnb, self.pj, self.pim, self.psh, self.pfl,
-                self.pst_o, self.nnb_o, self.pj_o, self.pim_o, self.psh_o, self.pfl_o,
-                self.shw, self.flw, self.cb, self.need, self.maxj, self.dmax, record,
-                self.evc, self.evn, self.evbuf, self.evcount, self.acc, self.fb, self.tb,
-                self.torq, self.fext, claims)
-            if parity:
-                self._swap_lists()
+            if first is not None:
+                k, status = first
+                first = None
+            else:
+                self.evcount[0] = 0
+                self.acc[:] = 0.0
+                k, status, parity = K.advance(nsteps - done, *self.advance_args(record))
+                if parity:
+                    self._swap_lists()
             m = int(self.evcount[0])
             if m:
                 ev = self.evbuf[:m].copy()
