@@ -274,7 +274,7 @@ class CfdDem:
         done, kk, status, parity = coupled_intervals(
             m, k, self._fused_groups(), -1.0 if s._dt_stable is None else s._dt_stable,
             s.time_s, sim.advance_args(False), sim.advance_args(False, swapped=True),
-            numba.get_parallel_chunksize(), per)
+            sim.evcount, sim.acc, numba.get_parallel_chunksize(), per)
         if parity:
             sim._swap_lists()
         out = []

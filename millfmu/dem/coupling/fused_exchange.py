@@ -129,14 +129,11 @@ def exchange_interval(beads, bead_prm, stencil, grid, smooth, nodes, liquid, liq
 #: :func:`exchange_interval`, the liquid's five impulses after it (its acc), the DEM's
 #: stirrer and chamber torque sums [N m steps], contacts dropped, neighbour builds
 PER_INTERVAL = 17
-#: where ``advance``'s arguments after the step count (``DemSimulation.advance_args``) hold
-#: the event count and the accumulator acc
-_EVCOUNT = 36
-_ACC = 37
 
 
 @serial
-def coupled_intervals(m, k, groups, dt_stable, time_s, dem, dem_swapped, chunk, per):
+def coupled_intervals(m, k, groups, dt_stable, time_s, dem, dem_swapped, evcount, acc,
+                      chunk, per):
     """``m`` coupling intervals of ``k`` DEM steps: each :func:`exchange_interval` (no gap,
     not the first exchange) and then the DEM's ``advance`` (no contacts recorded), as
     :meth:`CfdDem.exchange` and ``DemSimulation.run`` make them one after the other, the
@@ -147,16 +144,15 @@ def coupled_intervals(m, k, groups, dt_stable, time_s, dem, dem_swapped, chunk, 
     groups: the exchange's nine argument groups (``CfdDem._fused_groups``); dt_stable [s],
     time_s [s]: the liquid's last stable substep and clock; dem, dem_swapped: ``advance``'s
     arguments after the step count with the neighbour lists as they are and swapped (the
-    DEM's ``advance`` swaps them at each build); chunk: numba's parallel chunk size for
-    the exchange's loops (the DEM's run with chunk size 1, as ``run`` sets it). per
-    (m, PER_INTERVAL) receives each interval's record. Returns (intervals done, the steps
+    DEM's ``advance`` swaps them at each build); evcount, acc: the event count and the
+    accumulator among those arguments, zeroed before each run; chunk: numba's parallel
+    chunk size for the exchange's loops (the DEM's run with chunk size 1, as ``run`` sets
+    it). per (m, PER_INTERVAL) receives each interval's record. Returns (intervals done, the steps
     and the status of the interval whose ``advance`` stopped early (status 1: its new
     neighbour lists overflowed; 3: the liquid's velocities not finite, before the DEM's
     steps), 0 and 0 when all were done, the parity of the lists' swaps)."""
     beads, bead_prm, stencil, grid, smooth, nodes, liquid, liquid_prm, factor = groups
     acc_l = liquid[4]
-    evcount = dem[_EVCOUNT]
-    acc = dem[_ACC]
     par = 0
     for i in range(m):
         set_chunksize(chunk)

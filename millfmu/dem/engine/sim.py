@@ -268,6 +268,7 @@ class DemSimulation:
     # psh, pfl) and the spare one (the same names + "_o") that the next build fills; pair
     # arrays hold `cap` pairs per chunk.
     _LISTS = ("pst", "nnb", "pj", "pim", "psh", "pfl")
+    _LISTS_O = tuple(k + "_o" for k in _LISTS)
 
     def _new_lists(self, cap: int) -> dict:
         n, nch = self.n, self.cb.size - 1
@@ -407,6 +408,10 @@ class DemSimulation:
             return StepStats(steps=nsteps, events=ev, torque_sum_nm_steps=torque,
                              chamber_torque_sum_nm_steps=chamber, dropped_events=dropped,
                              neighbour_builds=builds)
+        return self._on_threads(self._run_cpu, nsteps, record)
+
+    def _on_threads(self, fn, *args):
+        """fn(*args) with numba's thread count and chunk size set for the DEM's kernels."""
         import numba
 
         from millfmu.dem.engine._jit import use_threads
@@ -422,19 +427,13 @@ class DemSimulation:
         # since each chunk sums into its own buffer. Set per call, as numba keeps it per
         # calling thread, and restored after, for the coupled liquid's loops over cells.
         with numba.parallel_chunksize(1):
-            return self._run_cpu(nsteps, record)
+            return fn(*args)
 
     def resume_run(self, nsteps: int, first) -> StepStats:
         """The rest of a run of ``nsteps`` steps (no contacts recorded) whose first
         ``advance`` call was made elsewhere (a compiled coupling loop) and stopped early:
         ``first`` = (its steps, its status), its lists swapped, its counts in acc."""
-        import numba
-
-        from millfmu.dem.engine._jit import use_threads
-
-        use_threads(self.threads)
-        with numba.parallel_chunksize(1):
-            return self._steps(nsteps, False, first)
+        return self._on_threads(self._steps, nsteps, False, first)
 
     def _run_cpu(self, nsteps: int, record: bool) -> StepStats:
         """run() on the CPU (numba's thread count and chunk size set by the caller)."""
@@ -455,7 +454,7 @@ class DemSimulation:
         """The arguments of the kernels' ``advance`` after the step count, the neighbour
         lists as they are (or, with swapped, the spare set in their place: the lists after
         one build)."""
-        a, b = self._LISTS, tuple(k + "_o" for k in self._LISTS)
+        a, b = self._LISTS, self._LISTS_O
         if swapped:
             a, b = b, a
         lists = tuple(getattr(self, k) for k in a) + tuple(getattr(self, k) for k in b)

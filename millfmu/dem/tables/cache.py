@@ -310,6 +310,10 @@ SAME_DEM_AS = {
     # threads: the same to the bit)
     "sha256:3203b62805bb94bad79251804a869e2d8e1f2732c2fae41c27f97f50be335697":
         "sha256:97f753cea048d151d29bfc09ed08fc9161f206eb44b7bf748a0474d96810be97",
+    # and the run's thread setting shared by run() and resume_run(), the event count and
+    # accumulator passed to the compiled intervals by name (the same checks, the same bits)
+    "sha256:68cf7434cc69873bfc865c86396d5ee325ecc8ae74b0aa17af3984cfe974bf29":
+        "sha256:97f753cea048d151d29bfc09ed08fc9161f206eb44b7bf748a0474d96810be97",
 }
 
 
