@@ -105,6 +105,27 @@ def set_chunksize(typingctx, n):
     return types.int64(n), codegen
 
 
+@intrinsic
+def nonneg(typingctx, i):
+    """``i``, with the compiler told that it is not negative (``llvm.assume``), for an
+    array index known to be >= 0 (a chunk, bead, pair or entry index). numba's indexing
+    adds the length to a negative index (Python's wraparound): a select per index and
+    array, which the compiler can drop only where it proves the index non-negative, and
+    in a vectorised loop the selected addresses made every load a gather. Passing a
+    negative value is undefined behaviour: only for indices that cannot be negative."""
+    if not isinstance(i, types.Integer):
+        return None
+
+    def codegen(context, builder, signature, args):
+        v = args[0]
+        fn = builder.module.declare_intrinsic(
+            "llvm.assume", fnty=ir.FunctionType(ir.VoidType(), [ir.IntType(1)]))
+        builder.call(fn, [builder.icmp_signed(">=", v, ir.Constant(v.type, 0))])
+        return v
+
+    return i(i), codegen
+
+
 def use_threads(n: int) -> None:
     """numba's thread count for the parallel loops that follow: the one way the package
     sets it. The layer is chosen at the first launch or thread-count setting in a process

@@ -37,7 +37,7 @@ import math
 import numpy as np
 from numba import get_thread_id, prange
 
-from millfmu.dem.engine._jit import contact, device, kernel, serial
+from millfmu.dem.engine._jit import contact, device, kernel, nonneg, serial
 from millfmu.dem.engine.chunk_claims import claim, reset_claims
 
 # ---- layout of the parameter vector prm (float64) -------------------------------------
@@ -523,7 +523,8 @@ def kick_drift(x, v, w, f, t, inv_m, inv_i, kick, dt, xref, cb, dmax):
     displacement [m2] since the last neighbour build within chunk c."""
     for c in prange(cb.shape[0] - 1):
         dm = 0.0
-        for i in range(cb[c], cb[c + 1]):
+        for i0 in range(cb[c], cb[c + 1]):
+            i = nonneg(i0)
             for k in range(3):
                 v[i, k] += kick * f[i, k] * inv_m[i]
                 w[i, k] += kick * t[i, k] * inv_i[i]
@@ -586,7 +587,7 @@ def wrap_periodic(x, v, w, shw, prm, wrapk, cb):
     only: the same on any thread count)."""
     for c in prange(cb.shape[0] - 1):
         for i in range(cb[c], cb[c + 1]):
-            wrap_one(i, x, v, w, shw, prm, wrapk)
+            wrap_one(nonneg(i), x, v, w, shw, prm, wrapk)
 
 
 @serial
@@ -704,6 +705,7 @@ def build_nlist(x, ej, es, ex, start, cmax, lo, cs, ncx, ncy, ncz, cut2, prm, wr
             c = claim(claims, nch, own)
             if c < 0:
                 break
+            c = nonneg(c)
             base = c * cap
             end = base + cap
             q = base
@@ -715,7 +717,8 @@ def build_nlist(x, ej, es, ex, start, cmax, lo, cs, ncx, ncy, ncz, cut2, prm, wr
             ex2 = ex[2]
             hit_o = np.empty(27 * occ, np.int64)  # their old index if in contact, or -1
             runs = np.empty((18, 2), np.int64)  # runs of stencil cells [first, end)
-            for i in range(cb[c], cb[c + 1]):
+            for i0 in range(cb[c], cb[c + 1]):
+                i = nonneg(i0)
                 xi = x[i, 0]
                 yi = x[i, 1]
                 zi = x[i, 2]
@@ -773,15 +776,21 @@ def build_nlist(x, ej, es, ex, start, cmax, lo, cs, ncx, ncy, ncz, cut2, prm, wr
                     # the run's tests first, in a loop without a carried dependency (vector
                     # instructions: the inlined axial_image's branches become selects), then
                     # the entries in reach collected
-                    for e in range(e0, e1):
-                        dx = xi - ex0[e]
-                        dy = yi - ex1[e]
-                        dz = axial_image(zi - ex2[e], lz)
-                        inr[e - e0] = ((dx * dx + dy * dy + dz * dz < cut2) &
-                                       (ej[e] > i))
-                    for e in range(e0, e1):
-                        hit[nh] = e
-                        nh += inr[e - e0]
+                    # (on views of the run, indexed from 0: with the run's offset in the
+                    # index the compiler could not rule out a negative index, whose
+                    # wraparound made every load a gather)
+                    r0 = ex0[e0:e1]
+                    r1 = ex1[e0:e1]
+                    r2 = ex2[e0:e1]
+                    rj = ej[e0:e1]
+                    for t in range(e1 - e0):
+                        dx = xi - r0[t]
+                        dy = yi - r1[t]
+                        dz = axial_image(zi - r2[t], lz)
+                        inr[t] = (dx * dx + dy * dy + dz * dz < cut2) & (rj[t] > i)
+                    for t in range(e1 - e0):
+                        hit[nonneg(nh)] = e0 + t
+                        nh += inr[t]
                 # The pairs in contact at the last evaluation go first in the row, the others
                 # after them: the force loop's branch on overlap then changes once per row
                 # instead of at random (about 45 % of listed pairs overlap), which the
@@ -790,13 +799,14 @@ def build_nlist(x, ej, es, ex, start, cmax, lo, cs, ncx, ncy, ncz, cut2, prm, wr
                 # the old lists where it was in contact, else -1.
                 nc = 0
                 for h in range(nh):
-                    e = hit[h]
-                    j = ej[e]
+                    e = nonneg(hit[h])
+                    j = nonneg(ej[e])
                     if j > hij:
                         hij = j
                     so = es[e] - wrapk[i] + wrapk[j]  # same physical pair before the wrap
                     old = -1
-                    for k in range(ko, ke):
+                    for k0 in range(ko, ke):
+                        k = nonneg(k0)
                         if pj_o[k] == j and pim_o[k] == so:
                             if pfl_o[k] != 0:
                                 old = k
@@ -806,7 +816,7 @@ def build_nlist(x, ej, es, ex, start, cmax, lo, cs, ncx, ncy, ncz, cut2, prm, wr
                 qc = q  # next slot for a contact
                 qn = q + nc  # next slot for a pair not in contact
                 for h in range(nh):
-                    e = hit[h]
+                    e = nonneg(hit[h])
                     k = hit_o[h]
                     if k >= 0:
                         qq = qc
@@ -923,6 +933,7 @@ def compute_forces(x, v, w, fb, tb, rad, mass, inertia, pst, nnb, pj, pim, psh, 
             c = claim(claims, nch, own)
             if c < 0:
                 break
+            c = nonneg(c)
             ne = 0
             tq = 0.0
             tqc = 0.0
@@ -930,7 +941,8 @@ def compute_forces(x, v, w, fb, tb, rad, mass, inertia, pst, nnb, pj, pim, psh, 
             # the beads from here on are kicked in this loop when fused (see above)
             lo_kick = deferred_end(cb, maxj, c) if fuse else cb[c + 1]
             # fb, tb arrive all zero: reduce_kick zeroes every entry it sums (see there)
-            for i in range(cb[c], cb[c + 1]):
+            for i0 in range(cb[c], cb[c + 1]):
+                i = nonneg(i0)
                 xi = x[i, 0]
                 yi = x[i, 1]
                 zi = x[i, 2]
@@ -942,8 +954,9 @@ def compute_forces(x, v, w, fb, tb, rad, mass, inertia, pst, nnb, pj, pim, psh, 
                 ty = 0.0
                 tz = 0.0
                 # ---- bead-bead (half list: j > i) ----
-                for k in range(pst[i], pst[i] + nnb[i]):
-                    j = pj[k]
+                for k0 in range(pst[i], pst[i] + nnb[i]):
+                    k = nonneg(k0)
+                    j = nonneg(pj[k])
                     s = pim[k] if sec > 0.0 else 0
                     xj = x[j, 0]
                     yj = x[j, 1]
@@ -1188,6 +1201,7 @@ def reduce_kick(fb, tb, cb, maxj, f, t, v, w, x, inv_m, inv_i, kick, dt, drift, 
             c = claim(claims, nch, own)
             if c < 0:
                 break
+            c = nonneg(c)
             dm = 0.0
             # the first chunk whose partners reach this chunk's beads (without sector images
             # usually c - 1): the chunks before it are not visited bead by bead
@@ -1195,7 +1209,8 @@ def reduce_kick(fb, tb, cb, maxj, f, t, v, w, x, inv_m, inv_i, kick, dt, drift, 
             while first < c and maxj[first] < cb[c]:
                 first += 1
             end = deferred_end(cb, maxj, c) if deferred else cb[c + 1]
-            for i in range(cb[c], end):
+            for i0 in range(cb[c], end):
+                i = nonneg(i0)
                 f0 = 0.0
                 f1 = 0.0
                 f2 = 0.0
@@ -1203,7 +1218,8 @@ def reduce_kick(fb, tb, cb, maxj, f, t, v, w, x, inv_m, inv_i, kick, dt, drift, 
                 t1 = 0.0
                 t2 = 0.0
                 # chunks c2 <= c write bead i (partners have higher indices than their rows)
-                for c2 in range(first, c + 1):
+                for c20 in range(first, c + 1):
+                    c2 = nonneg(c20)
                     if c2 == c or maxj[c2] >= i:
                         b0, b1, b2, b3, b4, b5 = take_buffer(fb, tb, c2, i)
                         f0, f1, f2 = f0 + b0, f1 + b1, f2 + b2
