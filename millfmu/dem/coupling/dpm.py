@@ -38,7 +38,7 @@ from millfmu.dem.coupling.exchange_kernels import held_sums
 from millfmu.dem.coupling.koch_hill2001 import STIFF_RATIO
 from millfmu.dem.coupling.projection import stencil_one
 from millfmu.dem.coupling.schiller_naumann import drag_coefficient
-from millfmu.dem.engine._jit import kernel
+from millfmu.dem.engine._jit import kernel, nonneg
 
 
 @kernel
@@ -63,7 +63,7 @@ def particle_drag(x, v, rad, mass, cellv, mu, rho, interval, rc, rtab, rh, dth, 
         for s in range(idx.shape[1]):
             ww = w[b, s]
             if ww != 0.0:
-                cc = idx[b, s]
+                cc = nonneg(idx[b, s])
                 u0 += ww * cellv[0, cc]
                 u1 += ww * cellv[1, cc]
                 u2 += ww * cellv[2, cc]

@@ -15,7 +15,7 @@ from numba import prange
 
 from millfmu.dem.coupling.koch_hill2001 import STIFF_RATIO, beta
 from millfmu.dem.coupling.projection import stencil_one
-from millfmu.dem.engine._jit import inlined, kernel, serial
+from millfmu.dem.engine._jit import inlined, kernel, nonneg, serial
 from millfmu.dem.fluid.vans_kernels import wrap
 
 NQ = 6
@@ -49,7 +49,7 @@ def beads_in(x, v, rad, mass, fab, eps_cells, body_z, pf, model_b, mu, rho, inte
         eb = 0.0
         for s in range(idx.shape[1]):
             if w[b, s] != 0.0:
-                eb += w[b, s] * eps_cells[idx[b, s]]
+                eb += w[b, s] * eps_cells[nonneg(idx[b, s])]
         d = 2.0 * rad[b]
         vol = math.pi / 6.0 * d * d * d
         urel = math.sqrt((fab[b, 0] - vr) ** 2 + (fab[b, 1] - vt) ** 2 + (fab[b, 2] - vz) ** 2)
@@ -217,7 +217,7 @@ def bead_forces(idx, w, cellv, c, cyl, rad, fab, pf, now, body_z, fext):
         for s in range(idx.shape[1]):
             ww = w[b, s]
             if ww != 0.0:
-                cc = idx[b, s]
+                cc = nonneg(idx[b, s])
                 at0 += ww * cellv[0, cc]
                 at1 += ww * cellv[1, cc]
                 at2 += ww * cellv[2, cc]

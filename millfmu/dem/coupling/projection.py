@@ -33,8 +33,9 @@ import numpy as np
 from numba import prange
 
 from millfmu.dem.coupling.settings import SMOOTHINGS
-from millfmu.dem.engine._jit import inlined, kernel
+from millfmu.dem.engine._jit import inlined, kernel, nonneg
 from millfmu.dem.fluid.grid import FLUID
+from millfmu.dem.fluid.vans_kernels import wrap
 
 
 def radial_table(rc):
@@ -70,7 +71,7 @@ def stencil_one(b, x, rc, rtab, rh, dth, nt, dz, nz, lz, solid, idx, w):
         i0 = nr - 2
         fr = 1.0
     else:
-        i0 = rtab[int((r - rc[0]) / rh)]
+        i0 = nonneg(rtab[nonneg(int((r - rc[0]) / rh))])
         while i0 < nr - 2 and rc[i0 + 1] <= r:  # at most a step or two
             i0 += 1
         fr = (r - rc[i0]) / (rc[i0 + 1] - rc[i0])
@@ -78,14 +79,14 @@ def stencil_one(b, x, rc, rtab, rh, dth, nt, dz, nz, lz, solid, idx, w):
         t = th / dth - 0.5
         j0f = math.floor(t)
         ft = t - j0f
-        j0 = int(j0f) % nt
+        j0 = wrap(int(j0f), nt)
     else:
         j0 = 0
         ft = 0.0
     t = z / dz - 0.5
     k0f = math.floor(t)
     fz = t - k0f
-    k0 = int(k0f) % nz
+    k0 = wrap(int(k0f), nz)
     s = 0.0
     m = 0
     # the wrapped neighbours once, not per corner (an integer modulo costs tens of cycles)
@@ -173,7 +174,7 @@ def deposit(idx, w, q, out):
                 for s in range(ns):
                     ww = w[b, s]
                     if ww != 0.0:
-                        c = idx[b, s]
+                        c = nonneg(idx[b, s])
                         o0[c] += ww * q0
                         o1[c] += ww * q1
                         o2[c] += ww * q2
@@ -186,7 +187,7 @@ def deposit(idx, w, q, out):
             for s in range(ns):
                 ww = w[b, s]
                 if ww != 0.0:
-                    om[idx[b, s]] += ww * qq
+                    om[nonneg(idx[b, s])] += ww * qq
 
 
 @kernel
@@ -200,7 +201,7 @@ def gather(idx, w, field, out):
         for s in range(ns):
             ww = w[b, s]
             if ww != 0.0:
-                c = idx[b, s]
+                c = nonneg(idx[b, s])
                 for m in range(nm):
                     out[b, m] += ww * field[m, c]
 

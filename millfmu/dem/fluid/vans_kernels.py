@@ -48,7 +48,7 @@ import math
 
 from numba import prange
 
-from millfmu.dem.engine._jit import inlined, kernel, serial
+from millfmu.dem.engine._jit import inlined, kernel, nonneg, serial
 
 KAPPA = 0.41  # von Karman constant (Launder & Spalding 1974)
 E_LOG = 9.8  # log-law constant E
@@ -65,7 +65,7 @@ def wrap(a, n):
         a -= n
     while a < 0:
         a += n
-    return a
+    return nonneg(a)
 
 
 @inlined
