@@ -909,6 +909,7 @@ def compute_forces(x, v, w, fb, tb, rad, mass, inertia, pst, nnb, pj, pim, psh, 
     has_disc = rdisc > 0.0
     hdisc = 0.5 * prm[P_BDISC]
     has_baffles = prm[P_NBAF] > 0.0
+    has_vanes = prm[P_NVANE] > 0.0
     rbaf = prm[P_RBAF]
     zdisc = prm[P_ZDISC]
     hproj = prm[P_THIST] != 0.0
@@ -1070,6 +1071,19 @@ def compute_forces(x, v, w, fb, tb, rad, mass, inertia, pst, nnb, pj, pim, psh, 
                             shw[i, q, 1] = 0.0
                             shw[i, q, 2] = 0.0
                 for q in range(NWALL if near else 0):
+                    # walls that wall_response would find out of reach or absent, decided as
+                    # it decides (the same distance from the same radius; no disc: no rotor,
+                    # vanes or baffles; no vanes or baffles of their own), skipped: a near
+                    # bead is near one or two of the five
+                    if ((q == 0 and rxy - rsh >= ri) or (q == 1 and rch - rxy >= ri)
+                            or (q >= 2 and not has_disc) or (q == 3 and not has_vanes)
+                            or (q == 4 and not has_baffles)):
+                        if flw[i, q] != 0:
+                            flw[i, q] = 0
+                            shw[i, q, 0] = 0.0
+                            shw[i, q, 1] = 0.0
+                            shw[i, q, 2] = 0.0
+                        continue
                     (touch, vrx, vry, vrz, nx, ny, nz, wz_w, gx, gy, gz, tix, tiy, tiz, s0, s1,
                      s2, twall) = wall_response(
                         xi, yi, zi, v[i, 0], v[i, 1], v[i, 2], w[i, 0], w[i, 1], w[i, 2], ri, mi,
