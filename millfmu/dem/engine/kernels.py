@@ -1069,11 +1069,7 @@ def compute_forces(x, v, w, fb, tb, rad, mass, inertia, pst, nnb, pj, pim, psh, 
                     near = rxy - rbaf >= -ri
                 if not near:
                     for q in range(NWALL):
-                        if flw[i, q] != 0:
-                            flw[i, q] = 0
-                            shw[i, q, 0] = 0.0
-                            shw[i, q, 1] = 0.0
-                            shw[i, q, 2] = 0.0
+                        release_wall(flw, shw, i, q)
                 for q in range(NWALL if near else 0):
                     # walls that wall_response would find out of reach or absent, decided as
                     # it decides (the same distance from the same radius; no disc: no rotor,
@@ -1082,11 +1078,7 @@ def compute_forces(x, v, w, fb, tb, rad, mass, inertia, pst, nnb, pj, pim, psh, 
                     if ((q == 0 and rxy - rsh >= ri) or (q == 1 and rch - rxy >= ri)
                             or (q >= 2 and not has_disc) or (q == 3 and not has_vanes)
                             or (q == 4 and not has_baffles)):
-                        if flw[i, q] != 0:
-                            flw[i, q] = 0
-                            shw[i, q, 0] = 0.0
-                            shw[i, q, 1] = 0.0
-                            shw[i, q, 2] = 0.0
+                        release_wall(flw, shw, i, q)
                         continue
                     (touch, vrx, vry, vrz, nx, ny, nz, wz_w, gx, gy, gz, tix, tiy, tiz, s0, s1,
                      s2, twall) = wall_response(
@@ -1094,11 +1086,7 @@ def compute_forces(x, v, w, fb, tb, rad, mass, inertia, pst, nnb, pj, pim, psh, 
                         q, shw[i, q, 0], shw[i, q, 1], shw[i, q, 2], prm, ystar, gstar, beta, mu,
                         mur, dt)
                     if not touch:
-                        if flw[i, q] != 0:
-                            flw[i, q] = 0
-                            shw[i, q, 0] = 0.0
-                            shw[i, q, 1] = 0.0
-                            shw[i, q, 2] = 0.0
+                        release_wall(flw, shw, i, q)
                         continue
                     if record and flw[i, q] == 0:
                         if ne < cap:
@@ -1143,6 +1131,17 @@ def compute_forces(x, v, w, fb, tb, rad, mass, inertia, pst, nnb, pj, pim, psh, 
             torq[c, 1] = tqc
             if fuse:
                 dmax[c] = dm
+
+
+@contact
+def release_wall(flw, shw, i, q):
+    """Bead i out of contact with wall q: its contact flag and tangential history [m]
+    cleared (where set)."""
+    if flw[i, q] != 0:
+        flw[i, q] = 0
+        shw[i, q, 0] = 0.0
+        shw[i, q, 1] = 0.0
+        shw[i, q, 2] = 0.0
 
 
 @contact
