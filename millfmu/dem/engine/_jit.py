@@ -118,6 +118,8 @@ def nonneg(typingctx, i):
 
     def codegen(context, builder, signature, args):
         v = args[0]
+        if not signature.args[0].signed:
+            return v  # never negative (a prange's index)
         fn = builder.module.declare_intrinsic(
             "llvm.assume", fnty=ir.FunctionType(ir.VoidType(), [ir.IntType(1)]))
         builder.call(fn, [builder.icmp_signed(">=", v, ir.Constant(v.type, 0))])

@@ -336,6 +336,10 @@ SAME_DEM_AS = {
     # same to the bit)
     "sha256:79a11383c1dfaace0948bdefa70379097050fd2caff410a5a287e6c2d30a1d2c":
         "sha256:97f753cea048d151d29bfc09ed08fc9161f206eb44b7bf748a0474d96810be97",
+    # and nonneg() passing an unsigned index through as it is (the same five cases, 1 and 2
+    # threads: the same to the bit)
+    "sha256:2ef25e4b0b3ee86aa94b13d572309792cfcd889254f3fa5adb5ba255e016666e":
+        "sha256:97f753cea048d151d29bfc09ed08fc9161f206eb44b7bf748a0474d96810be97",
 }
 
 
