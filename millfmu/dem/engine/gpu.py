@@ -54,6 +54,7 @@ body_force = gpu_device(K.body_force, swirl_velocity=gpu_device(K.swirl_velocity
 lubrication_force = gpu_device(K.lubrication_force)
 write_event = gpu_device(K.write_event)
 wrap_one = gpu_device(K.wrap_one)
+release_wall = gpu_device(K.release_wall)
 
 # flags (int64) read back by the host after each step
 F_REBUILD = 0  # some bead moved more than half the skin since the last build
@@ -359,11 +360,7 @@ def g_forces(x, v, w, f, t, rad, mass, inertia, nb, img, nnb, sh, fl, shw, flw, 
                                         shw[i, q, 1], shw[i, q, 2], prm, ystar, gstar, beta,
                                         mu, mur, dt)
         if not touch:
-            if flw[i, q] != 0:
-                flw[i, q] = 0
-                shw[i, q, 0] = 0.0
-                shw[i, q, 1] = 0.0
-                shw[i, q, 2] = 0.0
+            release_wall(flw, shw, i, q)
             continue
         if record and flw[i, q] == 0:
             e = cuda.atomic.add(flags, F_EVENTS, 1)

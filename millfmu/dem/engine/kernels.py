@@ -979,11 +979,7 @@ def compute_forces(x, v, w, fb, tb, rad, mass, inertia, pst, nnb, pj, pim, psh, 
                     r2 = dx * dx + dy * dy + dz * dz
                     lim = rsum + hcut
                     if r2 >= lim * lim:
-                        if pfl[k] != 0:
-                            pfl[k] = 0
-                            psh[k, 0] = 0.0
-                            psh[k, 1] = 0.0
-                            psh[k, 2] = 0.0
+                        release_pair(pfl, psh, k)
                         continue
                     vjx = v[j, 0]
                     vjy = v[j, 1]
@@ -1046,11 +1042,7 @@ def compute_forces(x, v, w, fb, tb, rad, mass, inertia, pst, nnb, pj, pim, psh, 
                         _add3(fb, c, j, -gx, -gy, -gz, cr, -sr)
                         _add3(tb, c, j, tjx, tjy, tjz, cr, -sr)
                     else:
-                        if pfl[k] != 0:
-                            pfl[k] = 0
-                            psh[k, 0] = 0.0
-                            psh[k, 1] = 0.0
-                            psh[k, 2] = 0.0
+                        release_pair(pfl, psh, k)
                         if eta > 0.0:
                             fl_m = lubrication_force(eta, ri * rj / rsum,
                                                      vrx * nx + vry * ny + vrz * nz, -delta, hmin)
@@ -1131,6 +1123,17 @@ def compute_forces(x, v, w, fb, tb, rad, mass, inertia, pst, nnb, pj, pim, psh, 
             torq[c, 1] = tqc
             if fuse:
                 dmax[c] = dm
+
+
+@contact
+def release_pair(pfl, psh, k):
+    """Listed pair k out of contact: its contact flag and tangential history [m] cleared
+    (where set)."""
+    if pfl[k] != 0:
+        pfl[k] = 0
+        psh[k, 0] = 0.0
+        psh[k, 1] = 0.0
+        psh[k, 2] = 0.0
 
 
 @contact
