@@ -328,18 +328,25 @@ def _coupled_sector():
         initial_rotation=0.1)
 
 
-def test_fused_exchange_is_the_calls_to_the_bit():
+@pytest.mark.parametrize("cfl", [None, 1e-4])
+def test_fused_exchange_is_the_calls_to_the_bit(cfl):
     """The exchange in one compiled call (coupling.fused_exchange, taken where the form
     allows: explicit smoothing, ``direct_ldl``) gives what its thirteen calls from Python
     give, to the bit: beads, held forces, the liquid's fields, clock, counters and
     impulses, over intervals in a row, the first exchange, and an interval after the DEM
     advanced alone (which takes the calls). The fused run is checked to take the fused
     path; other forms of the exchange keep the calls, and a velocity that is not finite
-    raises FluidError on either path."""
+    raises FluidError on either path. With a CFL number of 1e-4 the liquid takes several
+    substeps in some intervals (the fused exchange leaves only the last one's turbulence
+    to run beside the values' smoothing)."""
+    from dataclasses import replace
+
     from millfmu.dem.fluid.solver import FluidError
     from millfmu.dem.run import make_simulation
 
     base = _coupled_sector()
+    if cfl is not None:
+        base = replace(base, coupling=replace(base.coupling, cfl=cfl))
     runs = {}
     for fused in (False, True):
         sim, cpl = make_simulation(base, 1)
@@ -372,6 +379,8 @@ def test_fused_exchange_is_the_calls_to_the_bit():
                  "angular_impulse_shaft_nms", "exchange_angular_nms", "exchange_axial_ns"):
         assert getattr(sa, name) == getattr(sb, name), name
     assert sa.pressure.solves == sb.pressure.solves == sa.substeps
+    if cfl is not None:
+        assert sa.substeps > ca.intervals + 2  # several substeps in some intervals
     for name in ("intervals", "clipped_cells", "stiffness", "angular_impulse_to_beads_nms",
                  "axial_impulse_to_beads_ns"):
         assert getattr(ca, name) == getattr(cb, name), name

@@ -3,7 +3,10 @@ call: the same kernels, in the same order, with the same arguments as the exchan
 thirteen calls from Python (beads in, deposit, smoothing, void fractions and exchange
 coefficients, the liquid taking them, its substeps of predictor, pressure solve and
 corrector, the interval's means, cell values, smoothing, held forces), so the same
-results to the bit.
+results to the bit. One liberty with the order: the last substep's k-epsilon step, which
+nothing before the next interval reads but the next stable substep, runs beside the
+smoothing of the cell values (:func:`values_and_turbulence`), the two tasks on two
+threads; each writes only its own arrays, so the results stay those of the calls.
 
 Why: each call of a numba kernel from Python checks the types of its arguments, and inside
 the coupled run, where the DEM's ten steps come between two exchanges, that check is slow:
@@ -25,15 +28,18 @@ between two intervals.
 
 import math
 
+import numpy as np
+from numba import prange
+
 from millfmu.dem.coupling.exchange_kernels import (beads_in, bead_forces, cells_to_exchange,
                                                    nodes_to_cell_values)
-from millfmu.dem.coupling.projection import deposit, diffuse
-from millfmu.dem.engine._jit import serial, set_chunksize
+from millfmu.dem.coupling.projection import deposit, diffuse, diffuse_field
+from millfmu.dem.engine._jit import kernel, serial, set_chunksize
 from millfmu.dem.engine.kernels import advance
 from millfmu.dem.fluid.step_kernels import (EPSC, EPSC0, KR, KTH, KZ, MGR, MGT, MGZ, MUR,
-                                            MUT, MUZ, NUT, UR, UT, UZ, corrector,
-                                            finish_interval, ldl_project, predictor,
-                                            stable_dt, start_interval, take_beads)
+                                            MUT, MUZ, NUT, UR, UT, UZ, finish_interval,
+                                            ldl_project, predictor, project, stable_dt,
+                                            start_interval, take_beads, turbulence)
 
 
 @serial
@@ -97,15 +103,27 @@ def exchange_interval(beads, bead_prm, stencil, grid, smooth, nodes, liquid, liq
         dt_stable = stable_dt(F[UR], F[UT], F[UZ], F[NUT], rc, dr, dth, dz, nu, cfl)
     done = 0.0
     n = 0
+    # the last substep's turbulence is left for later (see values_and_turbulence)
+    deferred = False
+    dt = 0.0
     while interval - done > 1e-12 * interval:
+        if deferred:  # not reached: a substep of the whole rest ends the loop
+            dt_stable = turbulence(F, W, K, wall, wall_om, rf, rc, dr, vc, dth, dz, nu,
+                                   kturb, dt, cfl, True)
+            deferred = False
         rest = interval - done
-        dt = rest / max(1, int(math.ceil(rest / dt_stable - 1e-9)))
+        nsub = max(1, int(math.ceil(rest / dt_stable - 1e-9)))
+        dt = rest / nsub
         predictor(F, W, K, rf, rc, dr, vc, dth, dz, om_sh, rho, nu, kturb, model_a,
                   body_z, dt, interval_s, acc)
         ldl_project(div.reshape(-1), cells, volume, volume_sum, lp, li, lx, inv_d, order,
                     rhs, y, xs, phi.reshape(-1))
-        dt_stable = corrector(F, W, K, phi, wall, wall_om, rf, rc, dr, vc, dth, dz, rho,
-                              nu, kturb, dt, cfl)
+        project(F, W, K, phi, rc, dr, dth, dz, rho, dt)
+        if nsub == 1:
+            deferred = True
+        else:
+            dt_stable = turbulence(F, W, K, wall, wall_om, rf, rc, dr, vc, dth, dz, nu,
+                                   kturb, dt, cfl, True)
         done += dt
         n += 1
         time_s += dt
@@ -119,10 +137,36 @@ def exchange_interval(beads, bead_prm, stencil, grid, smooth, nodes, liquid, liq
     # grid -> beads
     nodes_to_cell_values(F[MUR], F[MUT], F[MUZ], F[MGR], F[MGT], F[MGZ], K[KR], K[KTH], K[KZ],
                          solid, cellv)
-    if sweeps:
+    if deferred:
+        dt_stable = values_and_turbulence(cellv.reshape(shapev), svol, ar, at, az, sweeps,
+                                          tmp, F, W, K, wall, wall_om, rf, rc, dr, vc, dth,
+                                          dz, nu, kturb, dt, cfl)
+    elif sweeps:
         diffuse(cellv.reshape(shapev), svol, ar, at, az, sweeps, False, tmp, 3)
     ts, fs = bead_forces(idx, w, cellv, c, cyl, rad, fab, pf, now, body_zb, fext)
     return clipped, stiff, n, dt_stable, time_s, True, ts, fs
+
+
+@kernel
+def values_and_turbulence(cellv, svol, ar, at, az, sweeps, tmp, F, W, K, wall, wall_om, rf,
+                          rc, dr, vc, dth, dz, nu, kturb, dt, cfl):
+    """The smoothing of the cell values' first three fields (the fluid velocities:
+    :func:`~millfmu.dem.coupling.projection.diffuse`, ``sweeps`` sweeps) on one thread and
+    the interval's last k-epsilon step (:func:`~millfmu.dem.fluid.step_kernels.turbulence`,
+    kturb) on another, side by side: neither reads what the other writes, and each gives
+    the same results as alone. Returns the liquid's new stable substep [s].
+
+    Why: on two threads the values' three fields split two and one, and the turbulence's
+    rows wait behind them; side by side the turbulence fills the idle thread."""
+    out = np.zeros(1)
+    for h in prange(2):
+        if h == 0:
+            for col in range(3 if sweeps else 0):
+                diffuse_field(col, cellv, svol, ar, at, az, sweeps, False, tmp)
+        else:
+            out[0] = turbulence(F, W, K, wall, wall_om, rf, rc, dr, vc, dth, dz, nu, kturb,
+                                dt, cfl, False)
+    return out[0]
 
 
 #: columns of :func:`coupled_intervals`' record per interval: the eight returns of

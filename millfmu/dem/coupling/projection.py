@@ -297,37 +297,72 @@ def diffuse(q, vol, ar, at, az, sweeps, totals, tmp, ncols):
     The fields are independent: one thread per field, each field's sweeps in the same
     order as one thread would make them (the same results on any thread count). With theta
     cells this is the coupled step's largest part (the accelerator slice with 12 theta
-    cells: 59 % of a coupling interval on one thread, about 95 sweeps of 6 fields)."""
-    nr, nt, nz = ar.shape
+    cells: 59 % of a coupling interval on one thread, about 95 sweeps of 6 fields).
+
+    Along a row (fixed i, j) the cell being visited and the next one are carried in
+    registers: each receives the same additions in the same order as through memory (the
+    same bits), but the next cell's value no longer waits for the store of the face flux
+    just added to it (10-degree disc sector, 11 sweeps: 15 % faster on one thread). The
+    row's last cell, whose +z face wraps to its first, goes through memory as before."""
     for c in prange(ncols):
-        for _ in range(sweeps):
-            # tmp: densities (totals) or values at the start of the sweep; q accumulates
-            for i in range(nr):
-                f = 1.0 / vol[i] if totals else 1.0
-                for j in range(nt):
-                    for k in range(nz):
-                        tmp[c, i, j, k] = q[c, i, j, k] * f
-            for i in range(nr):
-                ia = 1.0 if totals else 1.0 / vol[i]
-                ib = 1.0 if totals or i + 1 >= nr else 1.0 / vol[i + 1]
-                for j in range(nt):
-                    jp = j + 1 if j + 1 < nt else 0
-                    for k in range(nz):
-                        kp = k + 1 if k + 1 < nz else 0
-                        t0 = tmp[c, i, j, k]
-                        al = az[i, j, k]
+        diffuse_field(c, q, vol, ar, at, az, sweeps, totals, tmp)
+
+
+@inlined
+def diffuse_field(c, q, vol, ar, at, az, sweeps, totals, tmp):
+    """Field c of :func:`diffuse` (its sweeps, on the calling thread)."""
+    nr, nt, nz = ar.shape
+    for _ in range(sweeps):
+        # tmp: densities (totals) or values at the start of the sweep; q accumulates
+        for i in range(nr):
+            f = 1.0 / vol[i] if totals else 1.0
+            for j in range(nt):
+                for k in range(nz):
+                    tmp[c, i, j, k] = q[c, i, j, k] * f
+        for i in range(nr):
+            ia = 1.0 if totals else 1.0 / vol[i]
+            ib = 1.0 if totals or i + 1 >= nr else 1.0 / vol[i + 1]
+            for j in range(nt):
+                jp = j + 1 if j + 1 < nt else 0
+                # v: cell k, with everything the faces before it gave it; vn: cell k + 1
+                v = q[c, i, j, 0]
+                for k in range(nz - 1):
+                    t0 = tmp[c, i, j, k]
+                    vn = q[c, i, j, k + 1]
+                    al = az[i, j, k]
+                    if al != 0.0:
+                        f = al * (t0 - tmp[c, i, j, k + 1])
+                        v -= f * ia
+                        vn += f * ia
+                    al = ar[i, j, k]
+                    if al != 0.0:
+                        f = al * (t0 - tmp[c, i + 1, j, k])
+                        v -= f * ia
+                        q[c, i + 1, j, k] += f * ib
+                    if nt > 1:
+                        al = at[i, j, k]
                         if al != 0.0:
-                            f = al * (t0 - tmp[c, i, j, kp])
-                            q[c, i, j, k] -= f * ia
-                            q[c, i, j, kp] += f * ia
-                        al = ar[i, j, k]
-                        if al != 0.0:
-                            f = al * (t0 - tmp[c, i + 1, j, k])
-                            q[c, i, j, k] -= f * ia
-                            q[c, i + 1, j, k] += f * ib
-                        if nt > 1:
-                            al = at[i, j, k]
-                            if al != 0.0:
-                                f = al * (t0 - tmp[c, i, jp, k])
-                                q[c, i, j, k] -= f * ia
-                                q[c, i, jp, k] += f * ia
+                            f = al * (t0 - tmp[c, i, jp, k])
+                            v -= f * ia
+                            q[c, i, jp, k] += f * ia
+                    q[c, i, j, k] = v
+                    v = vn
+                k = nz - 1
+                q[c, i, j, k] = v
+                t0 = tmp[c, i, j, k]
+                al = az[i, j, k]
+                if al != 0.0:
+                    f = al * (t0 - tmp[c, i, j, 0])
+                    q[c, i, j, k] -= f * ia
+                    q[c, i, j, 0] += f * ia
+                al = ar[i, j, k]
+                if al != 0.0:
+                    f = al * (t0 - tmp[c, i + 1, j, k])
+                    q[c, i, j, k] -= f * ia
+                    q[c, i + 1, j, k] += f * ib
+                if nt > 1:
+                    al = at[i, j, k]
+                    if al != 0.0:
+                        f = al * (t0 - tmp[c, i, jp, k])
+                        q[c, i, j, k] -= f * ia
+                        q[c, i, jp, k] += f * ia

@@ -117,6 +117,15 @@ def corrector(F, W, K, phi, wall, wall_om, rf, rc, dr, vc, dth, dz, rho, nu, ktu
     """Projection with the pressure increment phi [Pa], the new pressure and its gradient
     (added, times dt, to the interval means), k-epsilon; returns the largest stable
     substep [s] for the new state (advective CFL number ``cfl``, explicit diffusion)."""
+    project(F, W, K, phi, rc, dr, dth, dz, rho, dt)
+    return turbulence(F, W, K, wall, wall_om, rf, rc, dr, vc, dth, dz, nu, kturb, dt, cfl,
+                      True)
+
+
+@serial
+def project(F, W, K, phi, rc, dr, dth, dz, rho, dt):
+    """The corrector's first part: the projection with the pressure increment phi [Pa], the
+    new pressure and its gradient (added, times dt, to the interval means)."""
     kr, kt, kz, solid = K[KR], K[KTH], K[KZ], K[SOLID]
     ur, ut, uz = F[UR], F[UT], F[UZ]
     VK.pressure_gradients(phi, solid, rc, dr, dth, dz, W[GHR], W[GHT], W[GHZ])
@@ -139,15 +148,41 @@ def corrector(F, W, K, phi, wall, wall_om, rf, rc, dr, vc, dth, dz, rho, nu, ktu
             for k in range(nz):
                 F[MGT][i, j, k] += dt * W[GPT][i, j, k]
                 F[MGZ][i, j, k] += dt * W[GPZ][i, j, k]
+
+
+@serial
+def turbulence(F, W, K, wall, wall_om, rf, rc, dr, vc, dth, dz, nu, kturb, dt, cfl,
+               on_threads):
+    """The corrector's second part: k-epsilon (where kturb) on the corrected velocities,
+    its rows on the threads (on_threads) or all on the calling thread (the same results:
+    each row writes its own cells); returns the largest stable substep [s] for the new
+    state. Reads only the velocities, the void fraction and its own fields: the coupled
+    exchange runs the interval's last one beside the smoothing of the cell values
+    (:func:`millfmu.dem.coupling.fused_exchange.exchange_interval`)."""
+    solid = K[SOLID]
+    ur, ut, uz = F[UR], F[UT], F[UZ]
     if kturb:
         VK.face_fluxes(ur, ut, uz, F[EPSR], F[EPST], F[EPSZ], rf, dr, vc, dth, dz, W[FR],
                        W[FT], W[FZ])
-        KE.production(ur, ut, uz, F[NUT], W[S2], W[GRT], W[GRZ], W[GTZ], solid, wall, wall_om,
-                      F[KT], rc, dr, dth, dz, nu, W[PROD], W[EWALL])
-        KE.transport(F[KT], F[KT], F[ET], False, W[FR], W[FT], W[FZ], F[EPSC], F[NUT], solid,
-                     W[PROD], W[EWALL], rf, rc, dr, vc, dth, dz, nu, dt, KE.K_MIN, W[KNEW])
-        KE.transport(F[ET], F[KT], F[ET], True, W[FR], W[FT], W[FZ], F[EPSC], F[NUT], solid,
-                     W[PROD], W[EWALL], rf, rc, dr, vc, dth, dz, nu, dt, KE.EPS_MIN, W[ENEW])
+        if on_threads:
+            KE.production(ur, ut, uz, F[NUT], W[S2], W[GRT], W[GRZ], W[GTZ], solid, wall,
+                          wall_om, F[KT], rc, dr, dth, dz, nu, W[PROD], W[EWALL])
+            KE.transport(F[KT], F[KT], F[ET], False, W[FR], W[FT], W[FZ], F[EPSC], F[NUT],
+                         solid, W[PROD], W[EWALL], rf, rc, dr, vc, dth, dz, nu, dt, KE.K_MIN,
+                         W[KNEW])
+            KE.transport(F[ET], F[KT], F[ET], True, W[FR], W[FT], W[FZ], F[EPSC], F[NUT],
+                         solid, W[PROD], W[EWALL], rf, rc, dr, vc, dth, dz, nu, dt,
+                         KE.EPS_MIN, W[ENEW])
+        else:
+            KE.production_serial(ur, ut, uz, F[NUT], W[S2], W[GRT], W[GRZ], W[GTZ], solid,
+                                 wall, wall_om, F[KT], rc, dr, dth, dz, nu, W[PROD],
+                                 W[EWALL])
+            KE.transport_serial(F[KT], F[KT], F[ET], False, W[FR], W[FT], W[FZ], F[EPSC],
+                                F[NUT], solid, W[PROD], W[EWALL], rf, rc, dr, vc, dth, dz,
+                                nu, dt, KE.K_MIN, W[KNEW])
+            KE.transport_serial(F[ET], F[KT], F[ET], True, W[FR], W[FT], W[FZ], F[EPSC],
+                                F[NUT], solid, W[PROD], W[EWALL], rf, rc, dr, vc, dth, dz,
+                                nu, dt, KE.EPS_MIN, W[ENEW])
         F[KT][:] = W[KNEW]
         F[ET][:] = W[ENEW]
         KE.eddy_viscosity(F[KT], F[ET], solid, F[NUT])
