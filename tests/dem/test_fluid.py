@@ -223,3 +223,68 @@ def test_liquid_rows_on_threads_give_the_same_bits_on_any_thread_count():
         np.testing.assert_array_equal(getattr(one, name), getattr(two, name), err_msg=name)
     assert one.wall_torques_nm() == two.wall_torques_nm()
     assert np.all(np.isfinite(one.k)) and np.ptp(one.k[g.solid == 0]) > 0.0
+
+
+def _turbulent_housing():
+    """A k-epsilon liquid in a housing grid with 4 theta cells, disturbed so that no two
+    rows are alike."""
+    a, gap, nu = 0.05, 0.005, 1e-6
+    omega = 1e6 * nu / a ** 2
+    g = housing_grid(a, gap, 5e-4, 0.1 * a, 2e-3, 1e-3, 2.5e-4, n_theta=4,
+                     sector_rad=math.pi / 4)
+    s = FluidSolver(g, FluidProperties(1000.0, 1000.0 * nu), omega, turbulence="k_epsilon")
+    s.init_turbulence((0.02 * omega * a) ** 2, 0.1 * gap)
+    s.init_solid_body(0.4)
+    rng = np.random.default_rng(7)
+    for u in (s.ur, s.ut, s.uz):
+        u += 0.05 * omega * a * rng.standard_normal(u.shape)
+    s.advance(2.0 / omega)
+    return s, omega
+
+
+def test_turbulence_on_the_calling_thread_is_the_threaded_one_to_the_bit():
+    """The k-epsilon step's serial twins (which the coupled exchange runs as one task
+    beside the smoothing) give what its row-parallel kernels give, to the bit."""
+    from millfmu.dem.fluid import step_kernels as SK
+
+    s, omega = _turbulent_housing()
+    out = []
+    for on_threads in (True, False):
+        F = tuple(a.copy() for a in s._F)
+        W = tuple(a.copy() for a in s._W)
+        dt = SK.turbulence(F, W, s._K, s.wall, s.wall_om, s.rf, s.rc, s.dr, s.vc,
+                           s.dth, s.dz, s.nu, True, 0.2 / omega, s.cfl,
+                           on_threads)
+        out.append((dt, F))
+    (dt1, f1), (dt2, f2) = out
+    assert dt1 == dt2 > 0.0
+    for i in (SK.KT, SK.ET, SK.NUT):
+        np.testing.assert_array_equal(f1[i], f2[i])
+    assert not np.array_equal(f1[SK.KT], s.k)  # the step changed k
+
+
+def test_a_solver_pickled_before_the_turbulence_faces_goes_on_alike():
+    """A solver pickled by sources whose work arrays lacked the k-epsilon transport's face
+    arrays (a run's checkpoint) gets them when unpickled and advances as a new one does."""
+    import io
+    import pickle
+
+    from millfmu.dem.run import _Pickler
+
+    def again(obj):  # as a checkpoint pickles it (the kernel modules by name)
+        fh = io.BytesIO()
+        _Pickler(fh, protocol=pickle.HIGHEST_PROTOCOL).dump(obj)
+        return pickle.loads(fh.getvalue())
+
+    s, omega = _turbulent_housing()
+    state = dict(s.__dict__)
+    del state["_kf"]
+    state["_W"] = state["_W"][:30]
+    old = FluidSolver.__new__(FluidSolver)
+    old.__setstate__(again(state))
+    new = again(s)
+    assert len(old._W) == len(new._W) == 36
+    for t in (old, new):
+        t.advance(2.0 / omega)
+    for name in ("ur", "ut", "uz", "p", "k", "e", "nu_t"):
+        np.testing.assert_array_equal(getattr(old, name), getattr(new, name), err_msg=name)

@@ -20,6 +20,9 @@ equations use the same nu_w at their wall edges (:func:`millfmu.dem.fluid.vans_k
 The production and the transport step run their rows of cells in parallel, each row
 writing its own cells (the same results to the bit on any thread count; 10-degree disc
 sector, 2 threads: a transport step 30 us against 72 serial, the production 13 against 32).
+The transport computes each face's advective flux and diffusive term once, in a pass of
+their own, for the two cells beside it (the same bits; the same sector, back to back: a
+transport step 30.8 -> 19.8 us on one thread, 18.2 -> 12.6 on two).
 Their ``_serial`` twins run the same rows on the calling thread, for a caller that runs
 the turbulence as one task beside another (the coupled exchange's last substep).
 """
@@ -134,33 +137,100 @@ def production_row(i, ur, ut, uz, nu_t, s2diag, g_rt, g_rz, g_tz, solid, wall, w
 
 @kernel
 def transport(q, q_old_k, q_old_e, is_eps, fr, ft, fz, epsc, nu_t, solid, prod, e_wall,
-              rf, rc, dr, vc, dth, dz, nu, dt, qmin, out):
+              rf, rc, dr, vc, dth, dz, nu, dt, qmin, out, tfr, dfr, tft, dft, tfz, dfz):
     """One explicit step of dt [s] of k (is_eps False) or epsilon (True) at fluid cells:
     van Leer limited advection by the eps-weighted face fluxes (in the non-conservative
     form, so that the void fraction's change does not act as a source), diffusion with
     eps (nu + nu_t / sigma) and zero flux through walls, the sources with the sink implicit.
     q_old_k, q_old_e: k and epsilon of the old level for the source terms. Cells next to a
-    wall take epsilon from the wall function (e_wall >= 0)."""
+    wall take epsilon from the wall function (e_wall >= 0).
+
+    tfr, dfr (n_r + 1, n_t, n_z), tft, dft, tfz, dfz (n_r, n_t, n_z): work arrays for each
+    face's advective flux and diffusive term (:func:`transport_faces_row`), computed once
+    for the two cells beside it (the cells' loop computed each twice: twice the
+    divisions)."""
     for i in prange(q.shape[0]):
-        transport_row(i, q, q_old_k, q_old_e, is_eps, fr, ft, fz, epsc, nu_t, solid, prod,
-                         e_wall, rf, rc, dr, vc, dth, dz, nu, dt, qmin, out)
+        transport_faces_row(i, q, is_eps, fr, ft, fz, epsc, nu_t, solid, rf, rc, dr, vc,
+                            dth, dz, nu, tfr, dfr, tft, dft, tfz, dfz)
+    for i in prange(q.shape[0]):
+        transport_row(i, q, q_old_k, q_old_e, is_eps, fr, ft, fz, epsc, solid, prod, e_wall,
+                      vc, dt, qmin, out, tfr, dfr, tft, dft, tfz, dfz)
 
 
 @serial
 def transport_serial(q, q_old_k, q_old_e, is_eps, fr, ft, fz, epsc, nu_t, solid, prod,
-                     e_wall, rf, rc, dr, vc, dth, dz, nu, dt, qmin, out):
+                     e_wall, rf, rc, dr, vc, dth, dz, nu, dt, qmin, out, tfr, dfr, tft, dft,
+                     tfz, dfz):
     """:func:`transport` on the calling thread (the same rows, the same results)."""
     for i in range(q.shape[0]):
-        transport_row(i, q, q_old_k, q_old_e, is_eps, fr, ft, fz, epsc, nu_t, solid, prod,
-                         e_wall, rf, rc, dr, vc, dth, dz, nu, dt, qmin, out)
+        transport_faces_row(i, q, is_eps, fr, ft, fz, epsc, nu_t, solid, rf, rc, dr, vc,
+                            dth, dz, nu, tfr, dfr, tft, dft, tfz, dfz)
+    for i in range(q.shape[0]):
+        transport_row(i, q, q_old_k, q_old_e, is_eps, fr, ft, fz, epsc, solid, prod, e_wall,
+                      vc, dt, qmin, out, tfr, dfr, tft, dft, tfz, dfz)
 
 
 @inlined
-def transport_row(i, q, q_old_k, q_old_e, is_eps, fr, ft, fz, epsc, nu_t, solid, prod,
-                     e_wall, rf, rc, dr, vc, dth, dz, nu, dt, qmin, out):
-    """Row i of :func:`transport`."""
+def _diffusivity(epsc, nu_t, i, j, k, nu, is_eps):
+    """eps (nu + nu_t / sigma) [m2/s] of cell (i, j, k); sigma_k = 1 divides nothing
+    (x / 1.0 is x)."""
+    if is_eps:
+        return epsc[i, j, k] * (nu + nu_t[i, j, k] / SIGMA_EPS)
+    if SIGMA_K == 1.0:
+        return epsc[i, j, k] * (nu + nu_t[i, j, k])
+    return epsc[i, j, k] * (nu + nu_t[i, j, k] / SIGMA_K)
+
+
+@inlined
+def transport_faces_row(i, q, is_eps, fr, ft, fz, epsc, nu_t, solid, rf, rc, dr, vc, dth,
+                        dz, nu, tfr, dfr, tft, dft, tfz, dfz):
+    """The faces of row i between two fluid cells: the -r face of each cell (r-face i),
+    its +theta and +z faces. For each, the van Leer advective flux tf (which the cell
+    before the face subtracts and the one after it adds) and the diffusive term df that the
+    cell before it adds, g (q_after - q_before) / h A with g the mean of the two cells'
+    diffusivities; the cell after it adds -df, which is its own term to the bit (IEEE
+    negation is exact and commutes with the rounding of +, -, *, /)."""
     nr, nt, nz = q.shape
-    sig = SIGMA_EPS if is_eps else SIGMA_K
+    az = vc[i] / dz
+    for j in range(nt):
+        jm = wrap(j - 1, nt)
+        jp = wrap(j + 1, nt)
+        for kk in range(nz):
+            if solid[i, j, kk] != 0:
+                continue
+            km = wrap(kk - 1, nz)
+            kp = wrap(kk + 1, nz)
+            qc = q[i, j, kk]
+            gc = _diffusivity(epsc, nu_t, i, j, kk, nu, is_eps)
+            if i > 0 and solid[i - 1, j, kk] == 0:
+                tfr[i, j, kk] = tvd_flux(fr[i, j, kk], q[max(i - 2, 0), j, kk],
+                                         q[i - 1, j, kk], qc, q[min(i + 1, nr - 1), j, kk],
+                                         i - 2 >= 0 and solid[max(i - 2, 0), j, kk] == 0,
+                                         i + 1 < nr and solid[min(i + 1, nr - 1), j, kk] == 0)
+                g = 0.5 * (_diffusivity(epsc, nu_t, i - 1, j, kk, nu, is_eps) + gc)
+                dfr[i, j, kk] = g * ((qc - q[i - 1, j, kk]) / (rc[i] - rc[i - 1])) * \
+                    (rf[i] * dth * dz)
+            if nt > 1 and solid[i, jp, kk] == 0:
+                tft[i, j, kk] = tvd_flux(ft[i, j, kk], q[i, jm, kk], qc, q[i, jp, kk],
+                                         q[i, wrap(j + 2, nt), kk], solid[i, jm, kk] == 0,
+                                         solid[i, wrap(j + 2, nt), kk] == 0)
+                g = 0.5 * (gc + _diffusivity(epsc, nu_t, i, jp, kk, nu, is_eps))
+                dft[i, j, kk] = g * (q[i, jp, kk] - qc) / (rc[i] * dth) * dr[i] * dz
+            if solid[i, j, kp] == 0:
+                tfz[i, j, kk] = tvd_flux(fz[i, j, kk], q[i, j, km], qc, q[i, j, kp],
+                                         q[i, j, wrap(kk + 2, nz)], solid[i, j, km] == 0,
+                                         solid[i, j, wrap(kk + 2, nz)] == 0)
+                g = 0.5 * (gc + _diffusivity(epsc, nu_t, i, j, kp, nu, is_eps))
+                dfz[i, j, kk] = g * (q[i, j, kp] - qc) / dz * az
+
+
+@inlined
+def transport_row(i, q, q_old_k, q_old_e, is_eps, fr, ft, fz, epsc, solid, prod, e_wall, vc,
+                  dt, qmin, out, tfr, dfr, tft, dft, tfz, dfz):
+    """Row i of :func:`transport`: each cell's faces (:func:`transport_faces_row`) summed
+    in the order of the cell-by-cell form (-r, +r, -theta, +theta, -z, +z), then the
+    sources."""
+    nr, nt, nz = q.shape
     vol = vc[i]
     for j in range(nt):
         jm = wrap(j - 1, nt)
@@ -175,66 +245,35 @@ def transport_row(i, q, q_old_k, q_old_e, is_eps, fr, ft, fz, epsc, nu_t, solid,
             km = wrap(kk - 1, nz)
             kp = wrap(kk + 1, nz)
             qc = q[i, j, kk]
-            gc = epsc[i, j, kk] * (nu + nu_t[i, j, kk] / sig)
             adv = 0.0
             net = 0.0
             dif = 0.0
             # r-faces
             if i > 0 and solid[i - 1, j, kk] == 0:
-                f = fr[i, j, kk]
-                okm = i - 2 >= 0 and solid[max(i - 2, 0), j, kk] == 0
-                adv += tvd_flux(f, q[max(i - 2, 0), j, kk], q[i - 1, j, kk], qc,
-                                q[min(i + 1, nr - 1), j, kk], okm,
-                                i + 1 < nr and solid[min(i + 1, nr - 1), j, kk] == 0)
-                net -= f
-                g = 0.5 * (gc + epsc[i - 1, j, kk] * (nu + nu_t[i - 1, j, kk] / sig))
-                dif += g * ((q[i - 1, j, kk] - qc) / (rc[i] - rc[i - 1])) * \
-                    (rf[i] * dth * dz)
+                adv += tfr[i, j, kk]
+                net -= fr[i, j, kk]
+                dif -= dfr[i, j, kk]
             if i < nr - 1 and solid[i + 1, j, kk] == 0:
-                f = fr[i + 1, j, kk]
-                adv -= tvd_flux(f, q[max(i - 1, 0), j, kk], qc, q[i + 1, j, kk],
-                                q[min(i + 2, nr - 1), j, kk],
-                                i - 1 >= 0 and solid[max(i - 1, 0), j, kk] == 0,
-                                i + 2 < nr and solid[min(i + 2, nr - 1), j, kk] == 0)
-                net += f
-                g = 0.5 * (gc + epsc[i + 1, j, kk] * (nu + nu_t[i + 1, j, kk] / sig))
-                dif += g * ((q[i + 1, j, kk] - qc) / (rc[i + 1] - rc[i])) * \
-                    (rf[i + 1] * dth * dz)
+                adv -= tfr[i + 1, j, kk]
+                net += fr[i + 1, j, kk]
+                dif += dfr[i + 1, j, kk]
             if nt > 1:
-                for s in (-1, 1):
-                    jn = wrap(j + s, nt)
-                    if solid[i, jn, kk] != 0:
-                        continue
-                    f = ft[i, j if s > 0 else jm, kk]
-                    g = 0.5 * (gc + epsc[i, jn, kk] * (nu + nu_t[i, jn, kk] / sig))
-                    dif += g * (q[i, jn, kk] - qc) / (rc[i] * dth) * dr[i] * dz
-                    if s > 0:
-                        adv -= tvd_flux(f, q[i, jm, kk], qc, q[i, jp, kk],
-                                        q[i, wrap(j + 2, nt), kk], solid[i, jm, kk] == 0,
-                                        solid[i, wrap(j + 2, nt), kk] == 0)
-                        net += f
-                    else:
-                        adv += tvd_flux(f, q[i, wrap(j - 2, nt), kk], q[i, jm, kk], qc,
-                                        q[i, jp, kk], solid[i, wrap(j - 2, nt), kk] == 0,
-                                        solid[i, jp, kk] == 0)
-                        net -= f
-            az = vol / dz
-            for s in (-1, 1):
-                kn = wrap(kk + s, nz)
-                if solid[i, j, kn] != 0:
-                    continue
-                f = fz[i, j, kk if s > 0 else km]
-                g = 0.5 * (gc + epsc[i, j, kn] * (nu + nu_t[i, j, kn] / sig))
-                dif += g * (q[i, j, kn] - qc) / dz * az
-                if s > 0:
-                    adv -= tvd_flux(f, q[i, j, km], qc, q[i, j, kp], q[i, j, wrap(kk + 2, nz)],
-                                    solid[i, j, km] == 0, solid[i, j, wrap(kk + 2, nz)] == 0)
-                    net += f
-                else:
-                    adv += tvd_flux(f, q[i, j, wrap(kk - 2, nz)], q[i, j, km], qc,
-                                    q[i, j, kp], solid[i, j, wrap(kk - 2, nz)] == 0,
-                                    solid[i, j, kp] == 0)
-                    net -= f
+                if solid[i, jm, kk] == 0:
+                    dif -= dft[i, jm, kk]
+                    adv += tft[i, jm, kk]
+                    net -= ft[i, jm, kk]
+                if solid[i, jp, kk] == 0:
+                    dif += dft[i, j, kk]
+                    adv -= tft[i, j, kk]
+                    net += ft[i, j, kk]
+            if solid[i, j, km] == 0:
+                dif -= dfz[i, j, km]
+                adv += tfz[i, j, km]
+                net -= fz[i, j, km]
+            if solid[i, j, kp] == 0:
+                dif += dfz[i, j, kk]
+                adv -= tfz[i, j, kk]
+                net += fz[i, j, kk]
             # non-conservative advection: remove q * (net outflow) so that a change of
             # the void fraction (div(eps u) != 0) is no source of q
             adv += qc * net

@@ -211,6 +211,7 @@ class FluidSolver:
         self._zero_r = np.zeros(shp_r)
         self._zero_c = np.zeros(g.shape)
         self._gphi = (np.zeros(shp_r), np.zeros(g.shape), np.zeros(g.shape))
+        self._kf = self._turbulence_faces()
         self.pressure = PressureSolver(grid, pressure_solver)
         self._plate_faces = self._find_plate_faces()
         self._F = (self.ur, self.ut, self.uz, self.p, self.k, self.e, self.nu_t, self.eps_c,
@@ -221,7 +222,7 @@ class FluidSolver:
                    self._s2, self._ert, self._erz, self._etz, self._grt, self._grz,
                    self._gtz, self._rr, self._rt, self._rz, self._gpr, self._gpt, self._gpz,
                    self._em, self._prod, self._ewall, self._knew, self._enew, *self._gphi,
-                   self._zero_r, self._zero_c)
+                   self._zero_r, self._zero_c, *self._kf)
         self._K = (self.kr, self.kt, self.kz, self.solid)
         self._acc = np.zeros(5)
         self._dt_stable = None
@@ -361,6 +362,14 @@ class FluidSolver:
         return ((ahead[0], (ahead[1] - 1) % nt, ahead[2]), arm[ahead[0]],
                 (behind[0], (behind[1] + 1) % nt, behind[2]), arm[behind[0]])
 
+    def _turbulence_faces(self) -> tuple:
+        """Work arrays of the k-epsilon transport's faces (advective flux and diffusive
+        term per r-, theta- and z-face: :func:`millfmu.dem.fluid.k_epsilon.transport`)."""
+        shp_r = self.ur.shape
+        shp = self.ut.shape
+        return (np.zeros(shp_r), np.zeros(shp_r), np.zeros(shp), np.zeros(shp),
+                np.zeros(shp), np.zeros(shp))
+
     def __setstate__(self, state):
         # a solver pickled by sources before the plates' torque was counted (a run's
         # checkpoint) goes on with it counted from the resume on
@@ -368,6 +377,10 @@ class FluidSolver:
         if "_plate_faces" not in state:
             self._plate_faces = self._find_plate_faces()
             self.angular_impulse_plates_nms = 0.0
+        if "_kf" not in state:
+            # work arrays added since (their values are not state)
+            self._kf = self._turbulence_faces()
+            self._W = tuple(self._W) + self._kf
 
     def plate_torque_nm(self) -> float:
         """Torque about +z [N m] the liquid exerts through its pressure and normal stress on

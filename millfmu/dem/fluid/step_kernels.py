@@ -19,7 +19,8 @@ from millfmu.dem.fluid import vans_kernels as VK
 (UR, UT, UZ, P, KT, ET, NUT, EPSC, EPSC0, EPSR, EPST, EPSZ, KDR, KDT, KDZ, SDR, SDT, SDZ,
  FIXT, MUR, MUT, MUZ, MGR, MGT, MGZ, KDTA, SDTA) = range(27)
 (FR, FT, FZ, DIV, TRR, TTT, TZZ, S2, ERT, ERZ, ETZ, GRT, GRZ, GTZ, RR, RT, RZ, GPR, GPT,
- GPZ, EM, PROD, EWALL, KNEW, ENEW, GHR, GHT, GHZ, ZR, ZC) = range(30)
+ GPZ, EM, PROD, EWALL, KNEW, ENEW, GHR, GHT, GHZ, ZR, ZC, TFR, DFR, TFT, DFT, TFZ,
+ DFZ) = range(36)
 KR, KTH, KZ, SOLID = range(4)
 
 
@@ -169,20 +170,23 @@ def turbulence(F, W, K, wall, wall_om, rf, rc, dr, vc, dth, dz, nu, kturb, dt, c
                           wall_om, F[KT], rc, dr, dth, dz, nu, W[PROD], W[EWALL])
             KE.transport(F[KT], F[KT], F[ET], False, W[FR], W[FT], W[FZ], F[EPSC], F[NUT],
                          solid, W[PROD], W[EWALL], rf, rc, dr, vc, dth, dz, nu, dt, KE.K_MIN,
-                         W[KNEW])
+                         W[KNEW], W[TFR], W[DFR], W[TFT], W[DFT], W[TFZ], W[DFZ])
             KE.transport(F[ET], F[KT], F[ET], True, W[FR], W[FT], W[FZ], F[EPSC], F[NUT],
                          solid, W[PROD], W[EWALL], rf, rc, dr, vc, dth, dz, nu, dt,
-                         KE.EPS_MIN, W[ENEW])
+                         KE.EPS_MIN, W[ENEW], W[TFR], W[DFR], W[TFT], W[DFT], W[TFZ],
+                         W[DFZ])
         else:
             KE.production_serial(ur, ut, uz, F[NUT], W[S2], W[GRT], W[GRZ], W[GTZ], solid,
                                  wall, wall_om, F[KT], rc, dr, dth, dz, nu, W[PROD],
                                  W[EWALL])
             KE.transport_serial(F[KT], F[KT], F[ET], False, W[FR], W[FT], W[FZ], F[EPSC],
                                 F[NUT], solid, W[PROD], W[EWALL], rf, rc, dr, vc, dth, dz,
-                                nu, dt, KE.K_MIN, W[KNEW])
+                                nu, dt, KE.K_MIN, W[KNEW], W[TFR], W[DFR], W[TFT],
+                                W[DFT], W[TFZ], W[DFZ])
             KE.transport_serial(F[ET], F[KT], F[ET], True, W[FR], W[FT], W[FZ], F[EPSC],
                                 F[NUT], solid, W[PROD], W[EWALL], rf, rc, dr, vc, dth, dz,
-                                nu, dt, KE.EPS_MIN, W[ENEW])
+                                nu, dt, KE.EPS_MIN, W[ENEW], W[TFR], W[DFR], W[TFT],
+                                W[DFT], W[TFZ], W[DFZ])
         F[KT][:] = W[KNEW]
         F[ET][:] = W[ENEW]
         KE.eddy_viscosity(F[KT], F[ET], solid, F[NUT])
