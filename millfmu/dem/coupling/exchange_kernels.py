@@ -82,7 +82,20 @@ def cells_to_exchange(tot, vc, eps_min, solid, kr, kt, kz, vol_r, rc, eps_c, eps
     velocity node (volume-weighted mean of the two cells), and the drag coefficient kd
     [kg/(m3 s)] and source sd [N/m3] per node: each cell's totals go half to each of its two
     faces of a component (all to the free one next to a wall), divided by the node's control
-    volume (theta: also by r, the totals being in torque form)."""
+    volume (theta: also by r, the totals being in torque form). Two independent parts
+    (:func:`cells_to_eps_kd` from columns 0-2, :func:`cells_to_sd` from 3-5), which the
+    fused exchange runs on two threads."""
+    clipped = cells_to_eps_kd(tot, vc, eps_min, solid, kr, kt, kz, vol_r, rc, eps_c, eps_r,
+                              eps_t, eps_z, kd_r, kd_t, kd_z)
+    cells_to_sd(tot, vc, solid, kr, kt, kz, vol_r, rc, sd_r, sd_t, sd_z)
+    return clipped
+
+
+@inlined
+def cells_to_eps_kd(tot, vc, eps_min, solid, kr, kt, kz, vol_r, rc, eps_c, eps_r, eps_t,
+                    eps_z, kd_r, kd_t, kd_z):
+    """:func:`cells_to_exchange`'s void fractions and drag coefficients (columns 0-2 of
+    tot); returns the number of clipped cells."""
     nr, nt, nz = solid.shape
     clipped = 0
     for i in range(nr):
@@ -101,9 +114,6 @@ def cells_to_exchange(tot, vc, eps_min, solid, kr, kt, kz, vol_r, rc, eps_c, eps
     kd_r[:] = 0.0
     kd_t[:] = 0.0
     kd_z[:] = 0.0
-    sd_r[:] = 0.0
-    sd_t[:] = 0.0
-    sd_z[:] = 0.0
     for i in range(nr):
         for j in range(nt):
             jm = wrap(j - 1, nt)
@@ -115,25 +125,18 @@ def cells_to_exchange(tot, vc, eps_min, solid, kr, kt, kz, vol_r, rc, eps_c, eps
                 wa, wb = split(kr[i, j, k], kr[i + 1, j, k])
                 kd_r[i, j, k] += wa * tot[1, i, j, k]
                 kd_r[i + 1, j, k] += wb * tot[1, i, j, k]
-                sd_r[i, j, k] += wa * tot[3, i, j, k]
-                sd_r[i + 1, j, k] += wb * tot[3, i, j, k]
                 # theta: faces jm and j
                 wa, wb = split(kt[i, jm, k], kt[i, j, k])
                 kd_t[i, jm, k] += wa * tot[2, i, j, k]
                 kd_t[i, j, k] += wb * tot[2, i, j, k]
-                sd_t[i, jm, k] += wa * tot[4, i, j, k]
-                sd_t[i, j, k] += wb * tot[4, i, j, k]
                 # z: faces km and k
                 wa, wb = split(kz[i, j, km], kz[i, j, k])
                 kd_z[i, j, km] += wa * tot[1, i, j, k]
                 kd_z[i, j, k] += wb * tot[1, i, j, k]
-                sd_z[i, j, km] += wa * tot[5, i, j, k]
-                sd_z[i, j, k] += wb * tot[5, i, j, k]
     for i in range(nr + 1):
         for j in range(nt):
             for k in range(nz):
                 kd_r[i, j, k] /= vol_r[i]
-                sd_r[i, j, k] /= vol_r[i]
                 if i == 0 or i == nr:
                     eps_r[i, j, k] = 1.0
                 else:
@@ -147,13 +150,45 @@ def cells_to_exchange(tot, vc, eps_min, solid, kr, kt, kz, vol_r, rc, eps_c, eps
             for k in range(nz):
                 kp = wrap(k + 1, nz)
                 kd_t[i, j, k] *= sc
-                sd_t[i, j, k] *= sc
                 kd_z[i, j, k] /= vc[i]
-                sd_z[i, j, k] /= vc[i]
                 eps_t[i, j, k] = 0.5 * (eps_c[i, j, k] + eps_c[i, jp, k])
                 eps_z[i, j, k] = 0.5 * (eps_c[i, j, k] + eps_c[i, j, kp])
     return clipped
 
+
+@inlined
+def cells_to_sd(tot, vc, solid, kr, kt, kz, vol_r, rc, sd_r, sd_t, sd_z):
+    """:func:`cells_to_exchange`'s sources (columns 3-5 of tot)."""
+    nr, nt, nz = solid.shape
+    sd_r[:] = 0.0
+    sd_t[:] = 0.0
+    sd_z[:] = 0.0
+    for i in range(nr):
+        for j in range(nt):
+            jm = wrap(j - 1, nt)
+            for k in range(nz):
+                if solid[i, j, k] != 0:
+                    continue
+                km = wrap(k - 1, nz)
+                wa, wb = split(kr[i, j, k], kr[i + 1, j, k])
+                sd_r[i, j, k] += wa * tot[3, i, j, k]
+                sd_r[i + 1, j, k] += wb * tot[3, i, j, k]
+                wa, wb = split(kt[i, jm, k], kt[i, j, k])
+                sd_t[i, jm, k] += wa * tot[4, i, j, k]
+                sd_t[i, j, k] += wb * tot[4, i, j, k]
+                wa, wb = split(kz[i, j, km], kz[i, j, k])
+                sd_z[i, j, km] += wa * tot[5, i, j, k]
+                sd_z[i, j, k] += wb * tot[5, i, j, k]
+    for i in range(nr + 1):
+        for j in range(nt):
+            for k in range(nz):
+                sd_r[i, j, k] /= vol_r[i]
+    for i in range(nr):
+        sc = 1.0 / (rc[i] * vc[i])
+        for j in range(nt):
+            for k in range(nz):
+                sd_t[i, j, k] *= sc
+                sd_z[i, j, k] /= vc[i]
 
 
 @serial

@@ -6,7 +6,9 @@ corrector, the interval's means, cell values, smoothing, held forces), so the sa
 results to the bit. One liberty with the order: the last substep's k-epsilon step, which
 nothing before the next interval reads but the next stable substep, runs beside the
 smoothing of the cell values (:func:`values_and_turbulence`), the two tasks on two
-threads; each writes only its own arrays, so the results stay those of the calls.
+threads; each writes only its own arrays, so the results stay those of the calls. The
+deposit, the totals' smoothing and their split onto the nodes run likewise as two tasks,
+one per half of the six columns (:func:`beads_to_nodes`).
 
 Why: each call of a numba kernel from Python checks the types of its arguments, and inside
 the coupled run, where the DEM's ten steps come between two exchanges, that check is slow:
@@ -31,9 +33,9 @@ import math
 import numpy as np
 from numba import prange
 
-from millfmu.dem.coupling.exchange_kernels import (beads_in, bead_forces, cells_to_exchange,
-                                                   nodes_to_cell_values)
-from millfmu.dem.coupling.projection import deposit, diffuse, diffuse_field
+from millfmu.dem.coupling.exchange_kernels import (beads_in, bead_forces, cells_to_eps_kd,
+                                                   cells_to_sd, nodes_to_cell_values)
+from millfmu.dem.coupling.projection import deposit_half, diffuse, diffuse_field
 from millfmu.dem.engine._jit import kernel, serial, set_chunksize
 from millfmu.dem.engine.kernels import advance
 from millfmu.dem.fluid.step_kernels import (EPSC, EPSC0, KR, KTH, KZ, MGR, MGT, MGZ, MUR,
@@ -82,12 +84,9 @@ def exchange_interval(beads, bead_prm, stencil, grid, smooth, nodes, liquid, liq
     # beads -> grid (CfdDem._deposit_and_split)
     beads_in(x, v, rad, mass, fab, eps_cells, body_zb, pf, model_b, mu, rho_b, interval,
              rcb, rtab, rh, dthb, nt, dzb, nz, lz, solid, idx, w, cyl, c, q, xmax)
-    deposit(idx, w, q, tot)
-    if sweeps:
-        diffuse(tot.reshape(shape4), svol, ar, at, az, sweeps, True, tmp, tot.shape[0])
-    clipped = cells_to_exchange(tot.reshape(shape4), vcb, eps_min, solid, K[KR], K[KTH], K[KZ],
-                                vol_r, rcb, eps_c, eps_r, eps_t, eps_z, kd_r, kd_t, kd_z,
-                                sd_r, sd_t, sd_z)
+    clipped = beads_to_nodes(idx, w, q, tot, tot.reshape(shape4), svol, ar, at, az, sweeps,
+                             tmp, vcb, eps_min, solid, K[KR], K[KTH], K[KZ], vol_r, rcb,
+                             eps_c, eps_r, eps_t, eps_z, kd_r, kd_t, kd_z, sd_r, sd_t, sd_z)
     stiff = xmax.max() if xmax.size else 0.0
     # the liquid takes them (FluidSolver.set_beads)
     take_beads(F, K, driven, eps_c, eps_r, eps_t, eps_z, kd_r, kd_t, kd_z, sd_r, sd_t,
@@ -145,6 +144,33 @@ def exchange_interval(beads, bead_prm, stencil, grid, smooth, nodes, liquid, liq
         diffuse(cellv.reshape(shapev), svol, ar, at, az, sweeps, False, tmp, 3)
     ts, fs = bead_forces(idx, w, cellv, c, cyl, rad, fab, pf, now, body_zb, fext)
     return clipped, stiff, n, dt_stable, time_s, True, ts, fs
+
+
+@kernel
+def beads_to_nodes(idx, w, q, tot, tot4, svol, ar, at, az, sweeps, tmp, vc, eps_min, solid,
+                   kr, kt, kz, vol_r, rc, eps_c, eps_r, eps_t, eps_z, kd_r, kd_t, kd_z, sd_r,
+                   sd_t, sd_z):
+    """The beads' six deposited columns q to the liquid's nodes in two tasks, one per half
+    of the columns: the deposit (:func:`~millfmu.dem.coupling.projection.deposit_half`),
+    the smoothing of its three fields (``sweeps`` sweeps), and its part of the split onto
+    the nodes (columns 0-2: void fractions and drag coefficients, :func:`cells_to_eps_kd`;
+    3-5: sources, :func:`cells_to_sd`). Each output as the calls one after the other make
+    it (deposit, diffuse, cells_to_exchange), to the bit; returns the clipped cells.
+
+    Why: the three calls were three launches with the split on one thread, and each task
+    now goes on with the columns it has just deposited and smoothed in its own cache."""
+    clip = np.zeros(1, np.int64)
+    for h in prange(2):
+        deposit_half(h, idx, w, q, tot)
+        if sweeps:
+            for col in range(3 * h, 3 * h + 3):
+                diffuse_field(col, tot4, svol, ar, at, az, sweeps, True, tmp)
+        if h == 0:
+            clip[0] = cells_to_eps_kd(tot4, vc, eps_min, solid, kr, kt, kz, vol_r, rc,
+                                      eps_c, eps_r, eps_t, eps_z, kd_r, kd_t, kd_z)
+        else:
+            cells_to_sd(tot4, vc, solid, kr, kt, kz, vol_r, rc, sd_r, sd_t, sd_z)
+    return clip[0]
 
 
 @kernel

@@ -164,24 +164,7 @@ def deposit(idx, w, q, out):
     ns = idx.shape[1]
     if nm == 6:
         for h in prange(2):
-            m0 = 3 * h
-            o0 = out[m0]
-            o1 = out[m0 + 1]
-            o2 = out[m0 + 2]
-            o0[:] = 0.0
-            o1[:] = 0.0
-            o2[:] = 0.0
-            for b in range(nb):
-                q0 = q[b, m0]
-                q1 = q[b, m0 + 1]
-                q2 = q[b, m0 + 2]
-                for s in range(ns):
-                    ww = w[b, s]
-                    if ww != 0.0:
-                        c = nonneg(idx[b, s])
-                        o0[c] += ww * q0
-                        o1[c] += ww * q1
-                        o2[c] += ww * q2
+            deposit_half(h, idx, w, q, out)
         return
     out[:, :] = 0.0
     for m in range(nm):
@@ -192,6 +175,32 @@ def deposit(idx, w, q, out):
                 ww = w[b, s]
                 if ww != 0.0:
                     om[nonneg(idx[b, s])] += ww * qq
+
+
+@inlined
+def deposit_half(h, idx, w, q, out):
+    """Columns 3 h .. 3 h + 2 of :func:`deposit`'s six (h = 0 or 1), on the calling
+    thread."""
+    nb = idx.shape[0]
+    ns = idx.shape[1]
+    m0 = 3 * h
+    o0 = out[m0]
+    o1 = out[m0 + 1]
+    o2 = out[m0 + 2]
+    o0[:] = 0.0
+    o1[:] = 0.0
+    o2[:] = 0.0
+    for b in range(nb):
+        q0 = q[b, m0]
+        q1 = q[b, m0 + 1]
+        q2 = q[b, m0 + 2]
+        for s in range(ns):
+            ww = w[b, s]
+            if ww != 0.0:
+                c = nonneg(idx[b, s])
+                o0[c] += ww * q0
+                o1[c] += ww * q1
+                o2[c] += ww * q2
 
 
 @kernel
