@@ -334,9 +334,9 @@ def test_fused_exchange_is_the_calls_to_the_bit(cfl):
     allows: explicit smoothing, ``direct_ldl``) gives what its thirteen calls from Python
     give, to the bit: beads, held forces, the liquid's fields, clock, counters and
     impulses, over intervals in a row, the first exchange, and an interval after the DEM
-    advanced alone (which takes the calls). The fused run is checked to take the fused
-    path; other forms of the exchange keep the calls, and a velocity that is not finite
-    raises FluidError on either path. With a CFL number of 1e-4 the liquid takes several
+    advanced alone (a gap: the beads' present void fraction first). The fused run is
+    checked to take the fused path throughout; other forms of the exchange keep the calls,
+    and a velocity that is not finite raises FluidError on either path. With a CFL number of 1e-4 the liquid takes several
     substeps in some intervals (the fused exchange leaves only the last one's turbulence
     to run beside the values' smoothing)."""
     from dataclasses import replace
@@ -359,10 +359,10 @@ def test_fused_exchange_is_the_calls_to_the_bit(cfl):
             smooth = cpl.projector.smooth_totals
             cpl.projector.smooth_totals = calls
         cpl.run(6 * k)
+        sim.run(2 * k)  # the DEM alone: a gap before the next exchange
+        cpl.run(3 * k)
         if fused:
             cpl.projector.smooth_totals = smooth
-        sim.run(2 * k)  # the DEM alone: the next exchange takes the calls
-        cpl.run(3 * k)
         runs[fused] = sim, cpl
     (a, ca), (b, cb) = runs[False], runs[True]
     for name in ("x", "v", "w", "fext"):

@@ -195,6 +195,30 @@ def values_and_turbulence(cellv, svol, ar, at, az, sweeps, tmp, F, W, K, wall, w
     return out[0]
 
 
+@serial
+def present_void_fraction(beads, bead_prm, stencil, grid, smooth, nodes, K):
+    """The first pass of an exchange after a gap (the DEM advanced alone): the beads'
+    present void fraction per cell into eps_cells (beads in, deposit, smoothing, split),
+    which the exchange that follows then takes for the drag (:meth:`CfdDem.exchange`'s
+    first ``_deposit_and_split``), in one call instead of four; argument groups as
+    :func:`exchange_interval`'s."""
+    x, v, rad, mass, fab, fext, eps_cells = beads
+    body_zb, pf, mu, rho_b, interval, model_b, now = bead_prm
+    idx, w, cyl, c, q, xmax = stencil
+    rcb, rtab, rh, dthb, nt, dzb, nz, lz, solid, vcb, vol_r, eps_min = grid
+    tot, cellv, svol, ar, at, az, tmp, sweeps = smooth
+    eps_c, eps_r, eps_t, eps_z, kd_r, kd_t, kd_z, sd_r, sd_t, sd_z = nodes
+    shape4 = (tot.shape[0], solid.shape[0], solid.shape[1], solid.shape[2])
+    beads_in(x, v, rad, mass, fab, eps_cells, body_zb, pf, model_b, mu, rho_b, interval,
+             rcb, rtab, rh, dthb, nt, dzb, nz, lz, solid, idx, w, cyl, c, q, xmax)
+    beads_to_nodes(idx, w, q, tot, tot.reshape(shape4), svol, ar, at, az, sweeps, tmp, vcb,
+                   eps_min, solid, K[KR], K[KTH], K[KZ], vol_r, rcb, eps_c, eps_r, eps_t,
+                   eps_z, kd_r, kd_t, kd_z, sd_r, sd_t, sd_z)
+    ecn = eps_c.reshape(-1)
+    for k in range(eps_cells.size):
+        eps_cells[k] = ecn[k]
+
+
 #: columns of :func:`coupled_intervals`' record per interval: the eight returns of
 #: :func:`exchange_interval`, the liquid's five impulses after it (its acc), the DEM's
 #: stirrer and chamber torque sums [N m steps], contacts dropped, neighbour builds
