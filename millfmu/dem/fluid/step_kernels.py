@@ -49,17 +49,11 @@ def predictor(F, W, K, rf, rc, dr, vc, dth, dz, om_sh, rho, nu, kturb, model_a, 
                 else:
                     a = F[EPSC][i, j, k] if model_a else 1.0
                     em[i, j, k] = a * rho * (nu + F[NUT][i, j, k])
-    VK.normal_stresses(ur, ut, uz, em, solid, rf, rc, dr, dth, dz, W[TRR], W[TTT], W[TZZ],
-                       W[S2])
-    VK.edge_stresses(ur, ut, uz, kr, kt, kz, em, F[EPSC], F[KT], solid, rf, rc, dr, dth, dz,
-                     om_sh, rho, nu, kturb, model_a, W[ERT], W[ERZ], W[ETZ], W[GRT], W[GRZ],
-                     W[GTZ])
-    VK.rhs_r(ur, ut, W[FR], W[FT], W[FZ], kr, W[TRR], W[TTT], W[ERT], W[ERZ], F[EPSR], rf, rc,
-             dr, vc, dth, dz, rho, W[RR])
-    VK.rhs_t(ut, W[FR], W[FT], W[FZ], kt, W[TTT], W[ERT], W[ETZ], rf, rc, dr, vc, dth, dz, rho,
-             W[RT])
-    VK.rhs_z(uz, W[FR], W[FT], W[FZ], kz, W[TZZ], W[ERZ], W[ETZ], rf, dr, vc, dth, dz, rho,
-             W[RZ])
+    VK.stresses(ur, ut, uz, kr, kt, kz, em, F[EPSC], F[KT], solid, rf, rc, dr, dth, dz, om_sh,
+                rho, nu, kturb, model_a, W[TRR], W[TTT], W[TZZ], W[S2], W[ERT], W[ERZ],
+                W[ETZ], W[GRT], W[GRZ], W[GTZ])
+    VK.rates(ur, ut, uz, W[FR], W[FT], W[FZ], kr, kt, kz, W[TRR], W[TTT], W[TZZ], W[ERT],
+             W[ERZ], W[ETZ], F[EPSR], rf, rc, dr, vc, dth, dz, rho, W[RR], W[RT], W[RZ])
     sh, rot, sta = VK.wall_torques(W[ERT], W[ETZ], kt, solid, rf, rc, vc, dth, dz)
     acc[0] += sh * dt
     acc[1] += rot * dt

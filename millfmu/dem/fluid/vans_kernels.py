@@ -35,7 +35,9 @@ nodes in parallel (``prange`` over i); each row writes only its own nodes from v
 row writes, so the results are the same to the bit on any thread count. Sums over the grid
 (wall torques) stay serial, in their order. On a 10-degree disc sector (40 x 1 x 42 cells,
 2 threads, called back to back) the edge stresses took 47 us against 115 serial, each rate
-20-23 us against 42-48.
+20-23 us against 42-48. The predictor calls them through :func:`stresses` (the normal and
+edge stresses, one launch instead of four) and :func:`rates` (the three rates, one
+launch instead of three).
 
 Index conventions: cells (i, j, k); u_r[i] on r-face i (0..n_r), u_t[j] on the theta face
 between cells j and j + 1, u_z[k] on the z-face between k and k + 1 (both periodic).
@@ -159,28 +161,71 @@ def normal_stresses(ur, ut, uz, em, solid, rf, rc, dr, dth, dz, trr, ttt, tzz, s
     """Normal stresses at cell centres [Pa]: a tau_rr, a tau_tt, a tau_zz with
     em = a mu_eff per cell [Pa s] (0 in solids), tau_ii = 2 mu (S_ii - div u / 3); and
     2 (S_rr^2 + S_tt^2 + S_zz^2) [1/s2] for the turbulence production."""
+    for i in range(ut.shape[0]):
+        normal_row(i, ur, ut, uz, em, solid, rf, rc, dr, dth, dz, trr, ttt, tzz, s2diag)
+
+
+@inlined
+def normal_row(i, ur, ut, uz, em, solid, rf, rc, dr, dth, dz, trr, ttt, tzz, s2diag):
+    """Row i of :func:`normal_stresses`."""
     nr, nt, nz = ut.shape
-    for i in range(nr):
-        for j in range(nt):
-            jm = wrap(j - 1, nt)
-            for k in range(nz):
-                if solid[i, j, k] != 0:
-                    trr[i, j, k] = 0.0
-                    ttt[i, j, k] = 0.0
-                    tzz[i, j, k] = 0.0
-                    s2diag[i, j, k] = 0.0
-                    continue
-                km = wrap(k - 1, nz)
-                srr = (ur[i + 1, j, k] - ur[i, j, k]) / dr[i]
-                stt = (ut[i, j, k] - ut[i, jm, k]) / (rc[i] * dth) + \
-                    0.5 * (ur[i, j, k] + ur[i + 1, j, k]) / rc[i]
-                szz = (uz[i, j, k] - uz[i, j, km]) / dz
-                div3 = (srr + stt + szz) / 3.0
-                m2 = 2.0 * em[i, j, k]
-                trr[i, j, k] = m2 * (srr - div3)
-                ttt[i, j, k] = m2 * (stt - div3)
-                tzz[i, j, k] = m2 * (szz - div3)
-                s2diag[i, j, k] = 2.0 * (srr * srr + stt * stt + szz * szz)
+    for j in range(nt):
+        jm = wrap(j - 1, nt)
+        for k in range(nz):
+            if solid[i, j, k] != 0:
+                trr[i, j, k] = 0.0
+                ttt[i, j, k] = 0.0
+                tzz[i, j, k] = 0.0
+                s2diag[i, j, k] = 0.0
+                continue
+            km = wrap(k - 1, nz)
+            srr = (ur[i + 1, j, k] - ur[i, j, k]) / dr[i]
+            stt = (ut[i, j, k] - ut[i, jm, k]) / (rc[i] * dth) + \
+                0.5 * (ur[i, j, k] + ur[i + 1, j, k]) / rc[i]
+            szz = (uz[i, j, k] - uz[i, j, km]) / dz
+            div3 = (srr + stt + szz) / 3.0
+            m2 = 2.0 * em[i, j, k]
+            trr[i, j, k] = m2 * (srr - div3)
+            ttt[i, j, k] = m2 * (stt - div3)
+            tzz[i, j, k] = m2 * (szz - div3)
+            s2diag[i, j, k] = 2.0 * (srr * srr + stt * stt + szz * szz)
+
+
+@kernel
+def stresses(ur, ut, uz, kr, kt_, kz, em, epsc, ktur, solid, rf, rc, dr, dth, dz, om_sh,
+             rho, nu, wallfn, model_a, trr, ttt, tzz, s2diag, e_rt, e_rz, e_tz, g_rt, g_rz,
+             g_tz):
+    """:func:`normal_stresses` and :func:`edge_stresses` in one parallel loop over the rows
+    (each row's cell centres and edges): one launch instead of four, and the normal
+    stresses on the threads too. The same results to the bit (each row writes only its
+    own values, from values no row writes)."""
+    nr = ut.shape[0]
+    for i in prange(nr + 1):
+        if i < nr:
+            normal_row(i, ur, ut, uz, em, solid, rf, rc, dr, dth, dz, trr, ttt, tzz, s2diag)
+        edge_rt_row(i, ur, ut, uz, kr, kt_, kz, em, epsc, ktur, solid, rf, rc, dr, dth, dz,
+                    om_sh, rho, nu, wallfn, model_a, e_rt, e_rz, e_tz, g_rt, g_rz, g_tz)
+        edge_rz_row(i, ur, ut, uz, kr, kt_, kz, em, epsc, ktur, solid, rf, rc, dr, dth, dz,
+                    om_sh, rho, nu, wallfn, model_a, e_rt, e_rz, e_tz, g_rt, g_rz, g_tz)
+        if i < nr:
+            edge_tz_row(i, ur, ut, uz, kr, kt_, kz, em, epsc, ktur, solid, rf, rc, dr, dth,
+                        dz, om_sh, rho, nu, wallfn, model_a, e_rt, e_rz, e_tz, g_rt, g_rz,
+                        g_tz)
+
+
+@kernel
+def rates(ur, ut, uz, fr, ft, fz, kr, kt_, kz, trr, ttt, tzz, e_rt, e_rz, e_tz, epsr, rf,
+          rc, dr, vc, dth, dz, rho, out_r, out_t, out_z):
+    """:func:`rhs_r`, :func:`rhs_t` and :func:`rhs_z` in one parallel loop over the rows:
+    one launch instead of three, the same results to the bit."""
+    nr = ut.shape[0]
+    for i in prange(nr):
+        if i > 0:
+            rhs_r_row(i, ur, ut, fr, ft, fz, kr, trr, ttt, e_rt, e_rz, epsr, rf, rc, dr, vc,
+                      dth, dz, rho, out_r)
+        rhs_t_row(i, ut, fr, ft, fz, kt_, ttt, e_rt, e_tz, rf, rc, dr, vc, dth, dz, rho,
+                  out_t)
+        rhs_z_row(i, uz, fr, ft, fz, kz, tzz, e_rz, e_tz, rf, dr, vc, dth, dz, rho, out_z)
 
 
 @inlined
@@ -219,118 +264,145 @@ def edge_stresses(ur, ut, uz, kr, kt_, kz, em, epsc, ktur, solid, rf, rc, dr, dt
     walls beyond the first and last radial nodes. At a wall edge the viscosity is
     rho a nu_w (:func:`wall_nu`) with the mean k of the fluid cells beside the edge."""
     nr, nt, nz = ut.shape
-    # ---- r-theta edges: (r_f[i], theta_{j+1/2}, z_k), i = 0..nr ----
     for i in prange(nr + 1):
-        for j in range(nt):
-            jp = wrap(j + 1, nt)
-            for k in range(nz):
-                if i == 0:
-                    ka = 2
-                    wa = om_sh
-                    ha = 0.0
-                else:
-                    ka = kt_[i - 1, j, k]
-                    wa = ut[i - 1, j, k] / rc[i - 1]
-                    ha = 0.5 * dr[i - 1]
-                if i == nr:
-                    kb = 2
-                    wb = 0.0
-                    hb = 0.0
-                else:
-                    kb = kt_[i, j, k]
-                    wb = ut[i, j, k] / rc[i]
-                    hb = 0.5 * dr[i]
-                dw, side = grad2(wa, wb, ka, kb, ha, hb)
-                if side == 3:
-                    e_rt[i, j, k] = 0.0
-                    g_rt[i, j, k] = 0.0
-                    continue
-                gam = rf[i] * dw
-                if nt > 1 and 0 < i < nr:
-                    hh = 0.5 * rf[i] * dth
-                    du, s2 = grad2(ur[i, j, k], ur[i, jp, k], kr[i, j, k], kr[i, jp, k], hh, hh)
-                    if s2 != 3:
-                        gam += du  # (1/r) du_r/dtheta: hh already holds r
-                mu, ea, ka_ = _edge_visc(em, epsc, ktur, solid, i - 1, i, j, jp, k, k,
-                                         nr, nt, nz)
-                if side != 0:
-                    y = hb if side == 1 else ha
-                    mu = rho * (ea if model_a else 1.0) * wall_nu(nu, ka_, y, wallfn)
-                e_rt[i, j, k] = mu * gam
-                g_rt[i, j, k] = gam
-    # ---- r-z edges: (r_f[i], theta_j, z_{k+1/2}), i = 0..nr ----
+        edge_rt_row(i, ur, ut, uz, kr, kt_, kz, em, epsc, ktur, solid, rf, rc, dr, dth, dz,
+                    om_sh, rho, nu, wallfn, model_a, e_rt, e_rz, e_tz, g_rt, g_rz, g_tz)
     for i in prange(nr + 1):
-        for j in range(nt):
-            for k in range(nz):
-                kp = wrap(k + 1, nz)
-                if i == 0:
-                    ka = 2
-                    za = 0.0
-                    ha = 0.0
-                else:
-                    ka = kz[i - 1, j, k]
-                    za = uz[i - 1, j, k]
-                    ha = 0.5 * dr[i - 1]
-                if i == nr:
-                    kb = 2
-                    zb = 0.0
-                    hb = 0.0
-                else:
-                    kb = kz[i, j, k]
-                    zb = uz[i, j, k]
-                    hb = 0.5 * dr[i]
-                duz, side = grad2(za, zb, ka, kb, ha, hb)
-                dur = 0.0
-                sidez = 0
-                if 0 < i < nr:
-                    dur, sidez = grad2(ur[i, j, k], ur[i, j, kp], kr[i, j, k], kr[i, j, kp],
-                                       0.5 * dz, 0.5 * dz)
-                if side == 3 or sidez == 3:
-                    e_rz[i, j, k] = 0.0
-                    g_rz[i, j, k] = 0.0
-                    continue
-                gam = dur + duz
-                mu, ea, ka_ = _edge_visc(em, epsc, ktur, solid, i - 1, i, j, j, k, kp,
-                                         nr, nt, nz)
-                if side != 0:
-                    y = hb if side == 1 else ha
-                    mu = rho * (ea if model_a else 1.0) * wall_nu(nu, ka_, y, wallfn)
-                elif sidez != 0:
-                    mu = rho * (ea if model_a else 1.0) * wall_nu(nu, ka_, 0.5 * dz, wallfn)
-                e_rz[i, j, k] = mu * gam
-                g_rz[i, j, k] = gam
-    # ---- theta-z edges: (r_c[i], theta_{j+1/2}, z_{k+1/2}) ----
+        edge_rz_row(i, ur, ut, uz, kr, kt_, kz, em, epsc, ktur, solid, rf, rc, dr, dth, dz,
+                    om_sh, rho, nu, wallfn, model_a, e_rt, e_rz, e_tz, g_rt, g_rz, g_tz)
     for i in prange(nr):
-        for j in range(nt):
-            jp = wrap(j + 1, nt)
-            for k in range(nz):
-                kp = wrap(k + 1, nz)
-                dut, side = grad2(ut[i, j, k], ut[i, j, kp], kt_[i, j, k], kt_[i, j, kp],
-                                  0.5 * dz, 0.5 * dz)
-                if side == 3:
+        edge_tz_row(i, ur, ut, uz, kr, kt_, kz, em, epsc, ktur, solid, rf, rc, dr, dth, dz,
+                    om_sh, rho, nu, wallfn, model_a, e_rt, e_rz, e_tz, g_rt, g_rz, g_tz)
+
+
+@inlined
+def edge_rt_row(i, ur, ut, uz, kr, kt_, kz, em, epsc, ktur, solid, rf, rc, dr, dth, dz,
+                om_sh, rho, nu, wallfn, model_a, e_rt, e_rz, e_tz, g_rt, g_rz, g_tz):
+    """The r-theta edges (r_f[i], theta_{j+1/2}, z_k) of row i = 0..nr of
+    :func:`edge_stresses`."""
+    nr, nt, nz = ut.shape
+    for j in range(nt):
+        jp = wrap(j + 1, nt)
+        for k in range(nz):
+            if i == 0:
+                ka = 2
+                wa = om_sh
+                ha = 0.0
+            else:
+                ka = kt_[i - 1, j, k]
+                wa = ut[i - 1, j, k] / rc[i - 1]
+                ha = 0.5 * dr[i - 1]
+            if i == nr:
+                kb = 2
+                wb = 0.0
+                hb = 0.0
+            else:
+                kb = kt_[i, j, k]
+                wb = ut[i, j, k] / rc[i]
+                hb = 0.5 * dr[i]
+            dw, side = grad2(wa, wb, ka, kb, ha, hb)
+            if side == 3:
+                e_rt[i, j, k] = 0.0
+                g_rt[i, j, k] = 0.0
+                continue
+            gam = rf[i] * dw
+            if nt > 1 and 0 < i < nr:
+                hh = 0.5 * rf[i] * dth
+                du, s2 = grad2(ur[i, j, k], ur[i, jp, k], kr[i, j, k], kr[i, jp, k], hh, hh)
+                if s2 != 3:
+                    gam += du  # (1/r) du_r/dtheta: hh already holds r
+            mu, ea, ka_ = _edge_visc(em, epsc, ktur, solid, i - 1, i, j, jp, k, k,
+                                     nr, nt, nz)
+            if side != 0:
+                y = hb if side == 1 else ha
+                mu = rho * (ea if model_a else 1.0) * wall_nu(nu, ka_, y, wallfn)
+            e_rt[i, j, k] = mu * gam
+            g_rt[i, j, k] = gam
+
+
+@inlined
+def edge_rz_row(i, ur, ut, uz, kr, kt_, kz, em, epsc, ktur, solid, rf, rc, dr, dth, dz,
+                om_sh, rho, nu, wallfn, model_a, e_rt, e_rz, e_tz, g_rt, g_rz, g_tz):
+    """The r-z edges (r_f[i], theta_j, z_{k+1/2}) of row i = 0..nr of
+    :func:`edge_stresses`."""
+    nr, nt, nz = ut.shape
+    for j in range(nt):
+        for k in range(nz):
+            kp = wrap(k + 1, nz)
+            if i == 0:
+                ka = 2
+                za = 0.0
+                ha = 0.0
+            else:
+                ka = kz[i - 1, j, k]
+                za = uz[i - 1, j, k]
+                ha = 0.5 * dr[i - 1]
+            if i == nr:
+                kb = 2
+                zb = 0.0
+                hb = 0.0
+            else:
+                kb = kz[i, j, k]
+                zb = uz[i, j, k]
+                hb = 0.5 * dr[i]
+            duz, side = grad2(za, zb, ka, kb, ha, hb)
+            dur = 0.0
+            sidez = 0
+            if 0 < i < nr:
+                dur, sidez = grad2(ur[i, j, k], ur[i, j, kp], kr[i, j, k], kr[i, j, kp],
+                                   0.5 * dz, 0.5 * dz)
+            if side == 3 or sidez == 3:
+                e_rz[i, j, k] = 0.0
+                g_rz[i, j, k] = 0.0
+                continue
+            gam = dur + duz
+            mu, ea, ka_ = _edge_visc(em, epsc, ktur, solid, i - 1, i, j, j, k, kp,
+                                     nr, nt, nz)
+            if side != 0:
+                y = hb if side == 1 else ha
+                mu = rho * (ea if model_a else 1.0) * wall_nu(nu, ka_, y, wallfn)
+            elif sidez != 0:
+                mu = rho * (ea if model_a else 1.0) * wall_nu(nu, ka_, 0.5 * dz, wallfn)
+            e_rz[i, j, k] = mu * gam
+            g_rz[i, j, k] = gam
+
+
+@inlined
+def edge_tz_row(i, ur, ut, uz, kr, kt_, kz, em, epsc, ktur, solid, rf, rc, dr, dth, dz,
+                om_sh, rho, nu, wallfn, model_a, e_rt, e_rz, e_tz, g_rt, g_rz, g_tz):
+    """The theta-z edges (r_c[i], theta_{j+1/2}, z_{k+1/2}) of row i = 0..nr - 1 of
+    :func:`edge_stresses`."""
+    nr, nt, nz = ut.shape
+    for j in range(nt):
+        jp = wrap(j + 1, nt)
+        for k in range(nz):
+            kp = wrap(k + 1, nz)
+            dut, side = grad2(ut[i, j, k], ut[i, j, kp], kt_[i, j, k], kt_[i, j, kp],
+                              0.5 * dz, 0.5 * dz)
+            if side == 3:
+                e_tz[i, j, k] = 0.0
+                g_tz[i, j, k] = 0.0
+                continue
+            gam = dut
+            sidet = 0
+            if nt > 1:
+                hh = 0.5 * rc[i] * dth
+                duz, sidet = grad2(uz[i, j, k], uz[i, jp, k], kz[i, j, k], kz[i, jp, k],
+                                   hh, hh)
+                if sidet == 3:
                     e_tz[i, j, k] = 0.0
                     g_tz[i, j, k] = 0.0
                     continue
-                gam = dut
-                sidet = 0
-                if nt > 1:
-                    hh = 0.5 * rc[i] * dth
-                    duz, sidet = grad2(uz[i, j, k], uz[i, jp, k], kz[i, j, k], kz[i, jp, k],
-                                       hh, hh)
-                    if sidet == 3:
-                        e_tz[i, j, k] = 0.0
-                        g_tz[i, j, k] = 0.0
-                        continue
-                    gam += duz  # (1/r) du_z/dtheta
-                mu, ea, ka_ = _edge_visc(em, epsc, ktur, solid, i, i, j, jp, k, kp,
-                                         nr, nt, nz)
-                if side != 0:
-                    mu = rho * (ea if model_a else 1.0) * wall_nu(nu, ka_, 0.5 * dz, wallfn)
-                elif sidet != 0:
-                    mu = rho * (ea if model_a else 1.0) * wall_nu(nu, ka_, 0.5 * rc[i] * dth,
-                                                                 wallfn)
-                e_tz[i, j, k] = mu * gam
-                g_tz[i, j, k] = gam
+                gam += duz  # (1/r) du_z/dtheta
+            mu, ea, ka_ = _edge_visc(em, epsc, ktur, solid, i, i, j, jp, k, kp,
+                                     nr, nt, nz)
+            if side != 0:
+                mu = rho * (ea if model_a else 1.0) * wall_nu(nu, ka_, 0.5 * dz, wallfn)
+            elif sidet != 0:
+                mu = rho * (ea if model_a else 1.0) * wall_nu(nu, ka_, 0.5 * rc[i] * dth,
+                                                             wallfn)
+            e_tz[i, j, k] = mu * gam
+            g_tz[i, j, k] = gam
 
 
 @kernel
@@ -340,47 +412,56 @@ def rhs_r(ur, ut, fr, ft, fz, kr, trr, ttt, e_rt, e_rz, epsr, rf, rc, dr, vc, dt
     viscous forces over rho, centrifugal term eps u_theta^2 / r; 0 at fixed nodes."""
     nr, nt, nz = ut.shape
     for i in prange(1, nr):
-        vol = 0.5 * (vc[i - 1] + vc[i])
-        for j in range(nt):
-            jm = wrap(j - 1, nt)
-            jp = wrap(j + 1, nt)
-            for k in range(nz):
-                if kr[i, j, k] != 0:
-                    out[i, j, k] = 0.0
-                    continue
-                km = wrap(k - 1, nz)
-                kp = wrap(k + 1, nz)
-                # advection, r-faces of the control volume at r_c[i - 1] and r_c[i]
-                fe = 0.5 * (fr[i, j, k] + fr[i + 1, j, k])
-                fw = 0.5 * (fr[i - 1, j, k] + fr[i, j, k])
-                adv = -tvd_flux(fe, ur[i - 1, j, k], ur[i, j, k], ur[i + 1, j, k],
-                                ur[min(i + 2, nr), j, k], True, i + 2 <= nr)
-                adv += tvd_flux(fw, ur[max(i - 2, 0), j, k], ur[i - 1, j, k], ur[i, j, k],
-                                ur[i + 1, j, k], i - 2 >= 0, True)
-                if nt > 1:
-                    fn = 0.5 * (ft[i - 1, j, k] + ft[i, j, k])
-                    fs = 0.5 * (ft[i - 1, jm, k] + ft[i, jm, k])
-                    adv -= tvd_flux(fn, ur[i, jm, k], ur[i, j, k], ur[i, jp, k],
-                                    ur[i, wrap(j + 2, nt), k], True, True)
-                    adv += tvd_flux(fs, ur[i, wrap(j - 2, nt), k], ur[i, jm, k], ur[i, j, k],
-                                    ur[i, jp, k], True, True)
-                ft_ = 0.5 * (fz[i - 1, j, k] + fz[i, j, k])
-                fb_ = 0.5 * (fz[i - 1, j, km] + fz[i, j, km])
-                adv -= tvd_flux(ft_, ur[i, j, km], ur[i, j, k], ur[i, j, kp],
-                                ur[i, j, wrap(k + 2, nz)], True, True)
-                adv += tvd_flux(fb_, ur[i, j, wrap(k - 2, nz)], ur[i, j, km], ur[i, j, k],
-                                ur[i, j, kp], True, True)
-                # viscous forces [N] (stresses already carry a)
-                hr = rc[i] - rc[i - 1]
-                vis = (rc[i] * trr[i, j, k] - rc[i - 1] * trr[i - 1, j, k]) * dth * dz
-                if nt > 1:
-                    vis += (e_rt[i, j, k] - e_rt[i, jm, k]) * hr * dz
-                vis += (e_rz[i, j, k] - e_rz[i, j, km]) * rf[i] * hr * dth
-                vis -= 0.5 * (ttt[i - 1, j, k] + ttt[i, j, k]) / rf[i] * vol
-                # centrifugal: eps <u_theta^2> / r from the four theta nodes around the face
-                u2 = 0.25 * (ut[i - 1, j, k] ** 2 + ut[i, j, k] ** 2 +
-                             ut[i - 1, jm, k] ** 2 + ut[i, jm, k] ** 2)
-                out[i, j, k] = adv / vol + epsr[i, j, k] * u2 / rf[i] + vis / (rho * vol)
+        rhs_r_row(i, ur, ut, fr, ft, fz, kr, trr, ttt, e_rt, e_rz, epsr, rf, rc, dr, vc, dth,
+                  dz, rho, out)
+
+
+@inlined
+def rhs_r_row(i, ur, ut, fr, ft, fz, kr, trr, ttt, e_rt, e_rz, epsr, rf, rc, dr, vc, dth,
+              dz, rho, out):
+    """Row i of :func:`rhs_r`."""
+    nr, nt, nz = ut.shape
+    vol = 0.5 * (vc[i - 1] + vc[i])
+    for j in range(nt):
+        jm = wrap(j - 1, nt)
+        jp = wrap(j + 1, nt)
+        for k in range(nz):
+            if kr[i, j, k] != 0:
+                out[i, j, k] = 0.0
+                continue
+            km = wrap(k - 1, nz)
+            kp = wrap(k + 1, nz)
+            # advection, r-faces of the control volume at r_c[i - 1] and r_c[i]
+            fe = 0.5 * (fr[i, j, k] + fr[i + 1, j, k])
+            fw = 0.5 * (fr[i - 1, j, k] + fr[i, j, k])
+            adv = -tvd_flux(fe, ur[i - 1, j, k], ur[i, j, k], ur[i + 1, j, k],
+                            ur[min(i + 2, nr), j, k], True, i + 2 <= nr)
+            adv += tvd_flux(fw, ur[max(i - 2, 0), j, k], ur[i - 1, j, k], ur[i, j, k],
+                            ur[i + 1, j, k], i - 2 >= 0, True)
+            if nt > 1:
+                fn = 0.5 * (ft[i - 1, j, k] + ft[i, j, k])
+                fs = 0.5 * (ft[i - 1, jm, k] + ft[i, jm, k])
+                adv -= tvd_flux(fn, ur[i, jm, k], ur[i, j, k], ur[i, jp, k],
+                                ur[i, wrap(j + 2, nt), k], True, True)
+                adv += tvd_flux(fs, ur[i, wrap(j - 2, nt), k], ur[i, jm, k], ur[i, j, k],
+                                ur[i, jp, k], True, True)
+            ft_ = 0.5 * (fz[i - 1, j, k] + fz[i, j, k])
+            fb_ = 0.5 * (fz[i - 1, j, km] + fz[i, j, km])
+            adv -= tvd_flux(ft_, ur[i, j, km], ur[i, j, k], ur[i, j, kp],
+                            ur[i, j, wrap(k + 2, nz)], True, True)
+            adv += tvd_flux(fb_, ur[i, j, wrap(k - 2, nz)], ur[i, j, km], ur[i, j, k],
+                            ur[i, j, kp], True, True)
+            # viscous forces [N] (stresses already carry a)
+            hr = rc[i] - rc[i - 1]
+            vis = (rc[i] * trr[i, j, k] - rc[i - 1] * trr[i - 1, j, k]) * dth * dz
+            if nt > 1:
+                vis += (e_rt[i, j, k] - e_rt[i, jm, k]) * hr * dz
+            vis += (e_rz[i, j, k] - e_rz[i, j, km]) * rf[i] * hr * dth
+            vis -= 0.5 * (ttt[i - 1, j, k] + ttt[i, j, k]) / rf[i] * vol
+            # centrifugal: eps <u_theta^2> / r from the four theta nodes around the face
+            u2 = 0.25 * (ut[i - 1, j, k] ** 2 + ut[i, j, k] ** 2 +
+                         ut[i - 1, jm, k] ** 2 + ut[i, jm, k] ** 2)
+            out[i, j, k] = adv / vol + epsr[i, j, k] * u2 / rf[i] + vis / (rho * vol)
 
 
 @kernel
@@ -391,50 +472,57 @@ def rhs_t(ut, fr, ft, fz, kt_, ttt, e_rt, e_tz, rf, rc, dr, vc, dth, dz, rho, ou
     nodes."""
     nr, nt, nz = ut.shape
     for i in prange(nr):
-        vol = vc[i]
-        for j in range(nt):
-            jm = wrap(j - 1, nt)
-            jp = wrap(j + 1, nt)
-            for k in range(nz):
-                if kt_[i, j, k] != 0:
-                    out[i, j, k] = 0.0
-                    continue
-                km = wrap(k - 1, nz)
-                kp = wrap(k + 1, nz)
-                adv = 0.0
-                # r-faces at r_f[i] (inner) and r_f[i + 1] (outer)
-                if i > 0:
-                    f = 0.5 * (fr[i, j, k] + fr[i, jp, k])
-                    adv += tvd_flux(f, rc[max(i - 2, 0)] * ut[max(i - 2, 0), j, k],
-                                    rc[i - 1] * ut[i - 1, j, k], rc[i] * ut[i, j, k],
-                                    rc[min(i + 1, nr - 1)] * ut[min(i + 1, nr - 1), j, k],
-                                    i - 2 >= 0, i + 1 <= nr - 1)
-                if i < nr - 1:
-                    f = 0.5 * (fr[i + 1, j, k] + fr[i + 1, jp, k])
-                    adv -= tvd_flux(f, rc[max(i - 1, 0)] * ut[max(i - 1, 0), j, k],
-                                    rc[i] * ut[i, j, k], rc[i + 1] * ut[i + 1, j, k],
-                                    rc[min(i + 2, nr - 1)] * ut[min(i + 2, nr - 1), j, k],
-                                    i - 1 >= 0, i + 2 <= nr - 1)
-                if nt > 1:
-                    fe = 0.5 * (ft[i, j, k] + ft[i, jp, k])
-                    fw = 0.5 * (ft[i, jm, k] + ft[i, j, k])
-                    r0 = rc[i]
-                    adv -= r0 * tvd_flux(fe, ut[i, jm, k], ut[i, j, k], ut[i, jp, k],
-                                         ut[i, wrap(j + 2, nt), k], True, True)
-                    adv += r0 * tvd_flux(fw, ut[i, wrap(j - 2, nt), k], ut[i, jm, k],
-                                         ut[i, j, k], ut[i, jp, k], True, True)
-                fu = 0.5 * (fz[i, j, k] + fz[i, jp, k])
-                fd = 0.5 * (fz[i, j, km] + fz[i, jp, km])
+        rhs_t_row(i, ut, fr, ft, fz, kt_, ttt, e_rt, e_tz, rf, rc, dr, vc, dth, dz, rho, out)
+
+
+@inlined
+def rhs_t_row(i, ut, fr, ft, fz, kt_, ttt, e_rt, e_tz, rf, rc, dr, vc, dth, dz, rho, out):
+    """Row i of :func:`rhs_t`."""
+    nr, nt, nz = ut.shape
+    vol = vc[i]
+    for j in range(nt):
+        jm = wrap(j - 1, nt)
+        jp = wrap(j + 1, nt)
+        for k in range(nz):
+            if kt_[i, j, k] != 0:
+                out[i, j, k] = 0.0
+                continue
+            km = wrap(k - 1, nz)
+            kp = wrap(k + 1, nz)
+            adv = 0.0
+            # r-faces at r_f[i] (inner) and r_f[i + 1] (outer)
+            if i > 0:
+                f = 0.5 * (fr[i, j, k] + fr[i, jp, k])
+                adv += tvd_flux(f, rc[max(i - 2, 0)] * ut[max(i - 2, 0), j, k],
+                                rc[i - 1] * ut[i - 1, j, k], rc[i] * ut[i, j, k],
+                                rc[min(i + 1, nr - 1)] * ut[min(i + 1, nr - 1), j, k],
+                                i - 2 >= 0, i + 1 <= nr - 1)
+            if i < nr - 1:
+                f = 0.5 * (fr[i + 1, j, k] + fr[i + 1, jp, k])
+                adv -= tvd_flux(f, rc[max(i - 1, 0)] * ut[max(i - 1, 0), j, k],
+                                rc[i] * ut[i, j, k], rc[i + 1] * ut[i + 1, j, k],
+                                rc[min(i + 2, nr - 1)] * ut[min(i + 2, nr - 1), j, k],
+                                i - 1 >= 0, i + 2 <= nr - 1)
+            if nt > 1:
+                fe = 0.5 * (ft[i, j, k] + ft[i, jp, k])
+                fw = 0.5 * (ft[i, jm, k] + ft[i, j, k])
                 r0 = rc[i]
-                adv -= r0 * tvd_flux(fu, ut[i, j, km], ut[i, j, k], ut[i, j, kp],
-                                     ut[i, j, wrap(k + 2, nz)], True, True)
-                adv += r0 * tvd_flux(fd, ut[i, j, wrap(k - 2, nz)], ut[i, j, km],
-                                     ut[i, j, k], ut[i, j, kp], True, True)
-                vis = (rf[i + 1] ** 2 * e_rt[i + 1, j, k] - rf[i] ** 2 * e_rt[i, j, k]) * dth * dz
-                if nt > 1:
-                    vis += rc[i] * (ttt[i, jp, k] - ttt[i, j, k]) * dr[i] * dz
-                vis += rc[i] * (e_tz[i, j, k] - e_tz[i, j, km]) * vc[i] / dz
-                out[i, j, k] = (adv + vis / rho) / (rc[i] * vol)
+                adv -= r0 * tvd_flux(fe, ut[i, jm, k], ut[i, j, k], ut[i, jp, k],
+                                     ut[i, wrap(j + 2, nt), k], True, True)
+                adv += r0 * tvd_flux(fw, ut[i, wrap(j - 2, nt), k], ut[i, jm, k],
+                                     ut[i, j, k], ut[i, jp, k], True, True)
+            fu = 0.5 * (fz[i, j, k] + fz[i, jp, k])
+            fd = 0.5 * (fz[i, j, km] + fz[i, jp, km])
+            r0 = rc[i]
+            adv -= r0 * tvd_flux(fu, ut[i, j, km], ut[i, j, k], ut[i, j, kp],
+                                 ut[i, j, wrap(k + 2, nz)], True, True)
+            adv += r0 * tvd_flux(fd, ut[i, j, wrap(k - 2, nz)], ut[i, j, km],
+                                 ut[i, j, k], ut[i, j, kp], True, True)
+            vis = (rf[i + 1] ** 2 * e_rt[i + 1, j, k] - rf[i] ** 2 * e_rt[i, j, k]) * dth * dz
+            if nt > 1:
+                vis += rc[i] * (ttt[i, jp, k] - ttt[i, j, k]) * dr[i] * dz
+            vis += rc[i] * (e_tz[i, j, k] - e_tz[i, j, km]) * vc[i] / dz
+            out[i, j, k] = (adv + vis / rho) / (rc[i] * vol)
 
 
 @kernel
@@ -443,44 +531,51 @@ def rhs_z(uz, fr, ft, fz, kz, tzz, e_rz, e_tz, rf, dr, vc, dth, dz, rho, out):
     and viscous forces over rho; 0 at fixed nodes."""
     nr, nt, nz = uz.shape
     for i in prange(nr):
-        vol = vc[i]
-        az = vc[i] / dz
-        for j in range(nt):
-            jm = wrap(j - 1, nt)
-            jp = wrap(j + 1, nt)
-            for k in range(nz):
-                if kz[i, j, k] != 0:
-                    out[i, j, k] = 0.0
-                    continue
-                km = wrap(k - 1, nz)
-                kp = wrap(k + 1, nz)
-                adv = 0.0
-                if i > 0:
-                    f = 0.5 * (fr[i, j, k] + fr[i, j, kp])
-                    adv += tvd_flux(f, uz[max(i - 2, 0), j, k], uz[i - 1, j, k], uz[i, j, k],
-                                    uz[min(i + 1, nr - 1), j, k], i - 2 >= 0, i + 1 <= nr - 1)
-                if i < nr - 1:
-                    f = 0.5 * (fr[i + 1, j, k] + fr[i + 1, j, kp])
-                    adv -= tvd_flux(f, uz[max(i - 1, 0), j, k], uz[i, j, k], uz[i + 1, j, k],
-                                    uz[min(i + 2, nr - 1), j, k], i - 1 >= 0, i + 2 <= nr - 1)
-                if nt > 1:
-                    fe = 0.5 * (ft[i, j, k] + ft[i, j, kp])
-                    fw = 0.5 * (ft[i, jm, k] + ft[i, jm, kp])
-                    adv -= tvd_flux(fe, uz[i, jm, k], uz[i, j, k], uz[i, jp, k],
-                                    uz[i, wrap(j + 2, nt), k], True, True)
-                    adv += tvd_flux(fw, uz[i, wrap(j - 2, nt), k], uz[i, jm, k], uz[i, j, k],
-                                    uz[i, jp, k], True, True)
-                fu = 0.5 * (fz[i, j, k] + fz[i, j, kp])
-                fd = 0.5 * (fz[i, j, km] + fz[i, j, k])
-                adv -= tvd_flux(fu, uz[i, j, km], uz[i, j, k], uz[i, j, kp],
-                                uz[i, j, wrap(k + 2, nz)], True, True)
-                adv += tvd_flux(fd, uz[i, j, wrap(k - 2, nz)], uz[i, j, km], uz[i, j, k],
-                                uz[i, j, kp], True, True)
-                vis = (rf[i + 1] * e_rz[i + 1, j, k] - rf[i] * e_rz[i, j, k]) * dth * dz
-                if nt > 1:
-                    vis += (e_tz[i, j, k] - e_tz[i, jm, k]) * dr[i] * dz
-                vis += (tzz[i, j, kp] - tzz[i, j, k]) * az
-                out[i, j, k] = adv / vol + vis / (rho * vol)
+        rhs_z_row(i, uz, fr, ft, fz, kz, tzz, e_rz, e_tz, rf, dr, vc, dth, dz, rho, out)
+
+
+@inlined
+def rhs_z_row(i, uz, fr, ft, fz, kz, tzz, e_rz, e_tz, rf, dr, vc, dth, dz, rho, out):
+    """Row i of :func:`rhs_z`."""
+    nr, nt, nz = uz.shape
+    vol = vc[i]
+    az = vc[i] / dz
+    for j in range(nt):
+        jm = wrap(j - 1, nt)
+        jp = wrap(j + 1, nt)
+        for k in range(nz):
+            if kz[i, j, k] != 0:
+                out[i, j, k] = 0.0
+                continue
+            km = wrap(k - 1, nz)
+            kp = wrap(k + 1, nz)
+            adv = 0.0
+            if i > 0:
+                f = 0.5 * (fr[i, j, k] + fr[i, j, kp])
+                adv += tvd_flux(f, uz[max(i - 2, 0), j, k], uz[i - 1, j, k], uz[i, j, k],
+                                uz[min(i + 1, nr - 1), j, k], i - 2 >= 0, i + 1 <= nr - 1)
+            if i < nr - 1:
+                f = 0.5 * (fr[i + 1, j, k] + fr[i + 1, j, kp])
+                adv -= tvd_flux(f, uz[max(i - 1, 0), j, k], uz[i, j, k], uz[i + 1, j, k],
+                                uz[min(i + 2, nr - 1), j, k], i - 1 >= 0, i + 2 <= nr - 1)
+            if nt > 1:
+                fe = 0.5 * (ft[i, j, k] + ft[i, j, kp])
+                fw = 0.5 * (ft[i, jm, k] + ft[i, jm, kp])
+                adv -= tvd_flux(fe, uz[i, jm, k], uz[i, j, k], uz[i, jp, k],
+                                uz[i, wrap(j + 2, nt), k], True, True)
+                adv += tvd_flux(fw, uz[i, wrap(j - 2, nt), k], uz[i, jm, k], uz[i, j, k],
+                                uz[i, jp, k], True, True)
+            fu = 0.5 * (fz[i, j, k] + fz[i, j, kp])
+            fd = 0.5 * (fz[i, j, km] + fz[i, j, k])
+            adv -= tvd_flux(fu, uz[i, j, km], uz[i, j, k], uz[i, j, kp],
+                            uz[i, j, wrap(k + 2, nz)], True, True)
+            adv += tvd_flux(fd, uz[i, j, wrap(k - 2, nz)], uz[i, j, km], uz[i, j, k],
+                            uz[i, j, kp], True, True)
+            vis = (rf[i + 1] * e_rz[i + 1, j, k] - rf[i] * e_rz[i, j, k]) * dth * dz
+            if nt > 1:
+                vis += (e_tz[i, j, k] - e_tz[i, jm, k]) * dr[i] * dz
+            vis += (tzz[i, j, kp] - tzz[i, j, k]) * az
+            out[i, j, k] = adv / vol + vis / (rho * vol)
 
 
 @serial
