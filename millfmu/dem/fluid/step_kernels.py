@@ -32,7 +32,20 @@ def predictor(F, W, K, rf, rc, dr, vc, dth, dz, om_sh, rho, nu, kturb, model_a, 
     W[DIV] and adds to acc: [0] shaft, [1] rotor cells and vanes, [2] stator angular impulse
     the fluid gave [N m s], [3] angular and [4] axial impulse the beads gave the fluid
     [N m s, N s]. The theta predictor uses the beads' and the vanes' drag together (KDTA,
-    SDTA); the vanes' part (KDTA - KDT, SDTA - SDT) is their torque."""
+    SDTA); the vanes' part (KDTA - KDT, SDTA - SDT) is their torque. Three parts, of which
+    the last two are independent (the fused exchange runs them side by side):
+    :func:`predict_velocities`, :func:`predictor_sums`, :func:`projection_rhs`."""
+    predict_velocities(F, W, K, rf, rc, dr, vc, dth, dz, om_sh, rho, nu, kturb, model_a,
+                       body_z, dt)
+    predictor_sums(F, W, K, rf, rc, vc, dth, dz, dt, acc)
+    projection_rhs(F, W, rf, dr, vc, dth, dz, rho, dt, interval)
+
+
+@serial
+def predict_velocities(F, W, K, rf, rc, dr, vc, dth, dz, om_sh, rho, nu, kturb, model_a,
+                       body_z, dt):
+    """The predictor's first part: fluxes, stresses, explicit rates, pressure gradients and
+    the implicit-drag predicted velocities u* (in place of u)."""
     kr, kt, kz, solid = K[KR], K[KTH], K[KZ], K[SOLID]
     ur, ut, uz = F[UR], F[UT], F[UZ]
     VK.face_fluxes(ur, ut, uz, F[EPSR], F[EPST], F[EPSZ], rf, dr, vc, dth, dz, W[FR], W[FT],
@@ -54,10 +67,6 @@ def predictor(F, W, K, rf, rc, dr, vc, dth, dz, om_sh, rho, nu, kturb, model_a, 
                 W[ETZ], W[GRT], W[GRZ], W[GTZ])
     VK.rates(ur, ut, uz, W[FR], W[FT], W[FZ], kr, kt, kz, W[TRR], W[TTT], W[TZZ], W[ERT],
              W[ERZ], W[ETZ], F[EPSR], rf, rc, dr, vc, dth, dz, rho, W[RR], W[RT], W[RZ])
-    sh, rot, sta = VK.wall_torques(W[ERT], W[ETZ], kt, solid, rf, rc, vc, dth, dz)
-    acc[0] += sh * dt
-    acc[1] += rot * dt
-    acc[2] += sta * dt
     VK.pressure_gradients(F[P], solid, rc, dr, dth, dz, W[GPR], W[GPT], W[GPZ])
     VK.predict(ur.reshape(-1), kr.reshape(-1), F[EPSR].reshape(-1), W[RR].reshape(-1),
                F[KDR].reshape(-1), F[SDR].reshape(-1), W[GPR].reshape(-1), 0.0, rho, dt,
@@ -68,11 +77,25 @@ def predictor(F, W, K, rf, rc, dr, vc, dth, dz, om_sh, rho, nu, kturb, model_a, 
     VK.predict(uz.reshape(-1), kz.reshape(-1), F[EPSZ].reshape(-1), W[RZ].reshape(-1),
                F[KDZ].reshape(-1), F[SDZ].reshape(-1), W[GPZ].reshape(-1), body_z, rho, dt,
                W[ZC].reshape(-1))
+
+
+@serial
+def predictor_sums(F, W, K, rf, rc, vc, dth, dz, dt, acc):
+    """The predictor's sums after u*: the wall torques' and the beads' impulses into acc
+    (in this order: [0]-[2] the walls, [1] the vanes, [3], [4] the beads) and u* added,
+    times dt, to the interval's mean velocities."""
+    kt, kz, solid = K[KTH], K[KZ], K[SOLID]
+    ur, ut, uz = F[UR], F[UT], F[UZ]
+    sh, rot, sta = VK.wall_torques(W[ERT], W[ETZ], kt, solid, rf, rc, vc, dth, dz)
+    acc[0] += sh * dt
+    acc[1] += rot * dt
+    acc[2] += sta * dt
     # the beads' drag acted on u* (implicit in the predictor): what they exchange, and the
     # velocity they are given back
     ang = 0.0
     axl = 0.0
     vane = 0.0
+    nr, nt, nz = ut.shape
     for i in range(nr):
         for j in range(nt):
             for k in range(nz):
@@ -93,10 +116,18 @@ def predictor(F, W, K, rf, rc, dr, vc, dth, dz, om_sh, rho, nu, kturb, model_a, 
         for j in range(nt):
             for k in range(nz):
                 mr[i, j, k] += dt * ur[i, j, k]
+
+
+@serial
+def projection_rhs(F, W, rf, dr, vc, dth, dz, rho, dt, interval):
+    """The projection's right-hand side from u*: (rho / dt) (net outflow of eps u* +
+    V d eps / dt) in W[DIV]."""
+    ur, ut, uz = F[UR], F[UT], F[UZ]
     VK.face_fluxes(ur, ut, uz, F[EPSR], F[EPST], F[EPSZ], rf, dr, vc, dth, dz, W[FR], W[FT],
                    W[FZ])
     div = W[DIV]
     VK.divergence(W[FR], W[FT], W[FZ], div)
+    nr, nt, nz = ut.shape
     for i in range(nr):
         for j in range(nt):
             for k in range(nz):
