@@ -197,18 +197,10 @@ def test_liquid_rows_on_threads_give_the_same_bits_on_any_thread_count():
 
     if numba.config.NUMBA_NUM_THREADS < 2:
         pytest.skip("one CPU: numba has a single thread")
-    a, gap, nu = 0.05, 0.005, 1e-6
-    omega = 1e6 * nu / a ** 2
-    g = housing_grid(a, gap, 5e-4, 0.1 * a, 2e-3, 1e-3, 2.5e-4, n_theta=4,
-                     sector_rad=math.pi / 4)
     runs = []
     for threads in (1, 2):
-        s = FluidSolver(g, FluidProperties(1000.0, 1000.0 * nu), omega, turbulence="k_epsilon")
-        s.init_turbulence((0.02 * omega * a) ** 2, 0.1 * gap)
-        s.init_solid_body(0.4)
-        rng = np.random.default_rng(7)
-        for u in (s.ur, s.ut, s.uz):
-            u += 0.05 * omega * a * rng.standard_normal(u.shape)
+        s, omega = _turbulent_housing(advance=False)
+        g = s.grid
         prev = numba.get_num_threads()
         numba.set_num_threads(threads)
         try:
@@ -225,9 +217,10 @@ def test_liquid_rows_on_threads_give_the_same_bits_on_any_thread_count():
     assert np.all(np.isfinite(one.k)) and np.ptp(one.k[g.solid == 0]) > 0.0
 
 
-def _turbulent_housing():
+def _turbulent_housing(advance=True):
     """A k-epsilon liquid in a housing grid with 4 theta cells, disturbed so that no two
-    rows are alike."""
+    rows are alike (advanced by one interval of 2 / omega where ``advance``); returns it
+    and omega [rad/s]."""
     a, gap, nu = 0.05, 0.005, 1e-6
     omega = 1e6 * nu / a ** 2
     g = housing_grid(a, gap, 5e-4, 0.1 * a, 2e-3, 1e-3, 2.5e-4, n_theta=4,
@@ -238,7 +231,8 @@ def _turbulent_housing():
     rng = np.random.default_rng(7)
     for u in (s.ur, s.ut, s.uz):
         u += 0.05 * omega * a * rng.standard_normal(u.shape)
-    s.advance(2.0 / omega)
+    if advance:
+        s.advance(2.0 / omega)
     return s, omega
 
 

@@ -111,9 +111,42 @@ def cells_to_eps_kd(tot, vc, eps_min, solid, kr, kt, kz, vol_r, rc, eps_c, eps_r
                 elif e > 1.0:
                     e = 1.0
                 eps_c[i, j, k] = e
-    kd_r[:] = 0.0
-    kd_t[:] = 0.0
-    kd_z[:] = 0.0
+    split_to_nodes(tot, 1, 2, 1, solid, kr, kt, kz, vol_r, rc, vc, kd_r, kd_t, kd_z)
+    for i in range(nr + 1):
+        for j in range(nt):
+            for k in range(nz):
+                if i == 0 or i == nr:
+                    eps_r[i, j, k] = 1.0
+                else:
+                    a = vc[i - 1] * eps_c[i - 1, j, k]
+                    b = vc[i] * eps_c[i, j, k]
+                    eps_r[i, j, k] = (a + b) / (vc[i - 1] + vc[i])
+    for i in range(nr):
+        for j in range(nt):
+            jp = wrap(j + 1, nt)
+            for k in range(nz):
+                kp = wrap(k + 1, nz)
+                eps_t[i, j, k] = 0.5 * (eps_c[i, j, k] + eps_c[i, jp, k])
+                eps_z[i, j, k] = 0.5 * (eps_c[i, j, k] + eps_c[i, j, kp])
+    return clipped
+
+
+@inlined
+def cells_to_sd(tot, vc, solid, kr, kt, kz, vol_r, rc, sd_r, sd_t, sd_z):
+    """:func:`cells_to_exchange`'s sources (columns 3-5 of tot)."""
+    split_to_nodes(tot, 3, 4, 5, solid, kr, kt, kz, vol_r, rc, vc, sd_r, sd_t, sd_z)
+
+
+@inlined
+def split_to_nodes(tot, cr, ct, cz, solid, kr, kt, kz, vol_r, rc, vc, out_r, out_t, out_z):
+    """Columns cr, ct, cz of the cell totals tot onto the r, theta and z nodes (out_r,
+    out_t, out_z): half of a cell's total to each of its two faces of a component (all to
+    the free one next to a wall), per unit of the node's control volume (theta: also per
+    r, the totals being in torque form)."""
+    nr, nt, nz = solid.shape
+    out_r[:] = 0.0
+    out_t[:] = 0.0
+    out_z[:] = 0.0
     for i in range(nr):
         for j in range(nt):
             jm = wrap(j - 1, nt)
@@ -123,72 +156,26 @@ def cells_to_eps_kd(tot, vc, eps_min, solid, kr, kt, kz, vol_r, rc, eps_c, eps_r
                 km = wrap(k - 1, nz)
                 # r: faces i (low) and i + 1
                 wa, wb = split(kr[i, j, k], kr[i + 1, j, k])
-                kd_r[i, j, k] += wa * tot[1, i, j, k]
-                kd_r[i + 1, j, k] += wb * tot[1, i, j, k]
+                out_r[i, j, k] += wa * tot[cr, i, j, k]
+                out_r[i + 1, j, k] += wb * tot[cr, i, j, k]
                 # theta: faces jm and j
                 wa, wb = split(kt[i, jm, k], kt[i, j, k])
-                kd_t[i, jm, k] += wa * tot[2, i, j, k]
-                kd_t[i, j, k] += wb * tot[2, i, j, k]
+                out_t[i, jm, k] += wa * tot[ct, i, j, k]
+                out_t[i, j, k] += wb * tot[ct, i, j, k]
                 # z: faces km and k
                 wa, wb = split(kz[i, j, km], kz[i, j, k])
-                kd_z[i, j, km] += wa * tot[1, i, j, k]
-                kd_z[i, j, k] += wb * tot[1, i, j, k]
+                out_z[i, j, km] += wa * tot[cz, i, j, k]
+                out_z[i, j, k] += wb * tot[cz, i, j, k]
     for i in range(nr + 1):
         for j in range(nt):
             for k in range(nz):
-                kd_r[i, j, k] /= vol_r[i]
-                if i == 0 or i == nr:
-                    eps_r[i, j, k] = 1.0
-                else:
-                    a = vc[i - 1] * eps_c[i - 1, j, k]
-                    b = vc[i] * eps_c[i, j, k]
-                    eps_r[i, j, k] = (a + b) / (vc[i - 1] + vc[i])
-    for i in range(nr):
-        sc = 1.0 / (rc[i] * vc[i])
-        for j in range(nt):
-            jp = wrap(j + 1, nt)
-            for k in range(nz):
-                kp = wrap(k + 1, nz)
-                kd_t[i, j, k] *= sc
-                kd_z[i, j, k] /= vc[i]
-                eps_t[i, j, k] = 0.5 * (eps_c[i, j, k] + eps_c[i, jp, k])
-                eps_z[i, j, k] = 0.5 * (eps_c[i, j, k] + eps_c[i, j, kp])
-    return clipped
-
-
-@inlined
-def cells_to_sd(tot, vc, solid, kr, kt, kz, vol_r, rc, sd_r, sd_t, sd_z):
-    """:func:`cells_to_exchange`'s sources (columns 3-5 of tot)."""
-    nr, nt, nz = solid.shape
-    sd_r[:] = 0.0
-    sd_t[:] = 0.0
-    sd_z[:] = 0.0
-    for i in range(nr):
-        for j in range(nt):
-            jm = wrap(j - 1, nt)
-            for k in range(nz):
-                if solid[i, j, k] != 0:
-                    continue
-                km = wrap(k - 1, nz)
-                wa, wb = split(kr[i, j, k], kr[i + 1, j, k])
-                sd_r[i, j, k] += wa * tot[3, i, j, k]
-                sd_r[i + 1, j, k] += wb * tot[3, i, j, k]
-                wa, wb = split(kt[i, jm, k], kt[i, j, k])
-                sd_t[i, jm, k] += wa * tot[4, i, j, k]
-                sd_t[i, j, k] += wb * tot[4, i, j, k]
-                wa, wb = split(kz[i, j, km], kz[i, j, k])
-                sd_z[i, j, km] += wa * tot[5, i, j, k]
-                sd_z[i, j, k] += wb * tot[5, i, j, k]
-    for i in range(nr + 1):
-        for j in range(nt):
-            for k in range(nz):
-                sd_r[i, j, k] /= vol_r[i]
+                out_r[i, j, k] /= vol_r[i]
     for i in range(nr):
         sc = 1.0 / (rc[i] * vc[i])
         for j in range(nt):
             for k in range(nz):
-                sd_t[i, j, k] *= sc
-                sd_z[i, j, k] /= vc[i]
+                out_t[i, j, k] *= sc
+                out_z[i, j, k] /= vc[i]
 
 
 @serial

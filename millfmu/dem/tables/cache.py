@@ -376,6 +376,10 @@ SAME_DEM_AS = {
     # solve (the same five cases, 1 and 2 threads: the same to the bit)
     "sha256:bf2ade05a5fc8ff2b30397f9a1b31d3b535671dc2446c1803f7f965f27dc3ce3":
         "sha256:97f753cea048d151d29bfc09ed08fc9161f206eb44b7bf748a0474d96810be97",
+    # and the split onto the nodes' two parts sharing one helper (the same five cases, 1
+    # and 2 threads: the same to the bit)
+    "sha256:1298d213f796f1deeb417a30c6377010afcff35b9f4f18fc80074c67ffd99f0e":
+        "sha256:97f753cea048d151d29bfc09ed08fc9161f206eb44b7bf748a0474d96810be97",
 }
 
 
