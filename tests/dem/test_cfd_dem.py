@@ -328,8 +328,9 @@ def _coupled_sector():
         initial_rotation=0.1)
 
 
-@pytest.mark.parametrize("cfl", [None, 1e-4])
-def test_fused_exchange_is_the_calls_to_the_bit(cfl):
+@pytest.mark.parametrize("cfl, two_tasks", [(None, None), (1e-4, None), (None, False),
+                                            (1e-4, False)])
+def test_fused_exchange_is_the_calls_to_the_bit(cfl, two_tasks):
     """The exchange in one compiled call (coupling.fused_exchange, taken where the form
     allows: explicit smoothing, ``direct_ldl``) gives what its thirteen calls from Python
     give, to the bit: beads, held forces, the liquid's fields, clock, counters and
@@ -338,7 +339,8 @@ def test_fused_exchange_is_the_calls_to_the_bit(cfl):
     checked to take the fused path throughout; other forms of the exchange keep the calls,
     and a velocity that is not finite raises FluidError on either path. With a CFL number of 1e-4 the liquid takes several
     substeps in some intervals (the fused exchange leaves only the last one's turbulence
-    to run beside the values' smoothing)."""
+    to run beside the values' smoothing). Both forms of the fused exchange: its two tasks
+    (taken on one or two threads, as here) and the kernels' own loops (more threads)."""
     from dataclasses import replace
 
     from millfmu.dem.fluid.solver import FluidError
@@ -353,7 +355,9 @@ def test_fused_exchange_is_the_calls_to_the_bit(cfl):
         k = cpl.settings.steps
         assert cpl.fused and cpl.fused_possible()
         cpl.fused = fused
+        cpl.two_tasks = two_tasks
         if fused:
+            assert cpl._tasks() is (two_tasks is None)
             def calls(*a, **kw):
                 raise AssertionError("the fused exchange called the smoothing from Python")
             smooth = cpl.projector.smooth_totals

@@ -111,6 +111,9 @@ class CfdDem:
         #: compiled call where they record no contacts (:meth:`_run_compiled`; the same
         #: results to the bit)
         self.compiled = True
+        #: the fused exchange's two-task forms (None: where numba runs one or two threads;
+        #: the same results either way)
+        self.two_tasks = None
 
     def fused_possible(self) -> bool:
         """Whether :mod:`millfmu.dem.coupling.fused_exchange` can take this coupling's
@@ -227,11 +230,23 @@ class CfdDem:
 
         s = self.solver
         groups = self._fused_groups()
+        tasks = self._tasks()
         if gap:
-            present_void_fraction(*groups[:6], s._K)
+            present_void_fraction(*groups[:6], s._K, tasks)
         out = exchange_interval(*groups, gap or self.intervals == 0,
-                                -1.0 if s._dt_stable is None else s._dt_stable, s.time_s)
+                                -1.0 if s._dt_stable is None else s._dt_stable, s.time_s,
+                                tasks)
         self._close_fused(*out)
+
+    def _tasks(self) -> bool:
+        """Whether the fused exchange takes its two-task forms: on one or two of numba's
+        threads (where they fill the second thread), not on more (where the kernels' own
+        loops over fields and rows use them all), unless ``two_tasks`` says."""
+        if self.two_tasks is not None:
+            return bool(self.two_tasks)
+        import numba
+
+        return numba.get_num_threads() <= 2
 
     def _close_fused(self, clipped, stiff, n, dt_stable, time_s, finite, ts, fs):
         """The bookkeeping after a fused exchange (its returns, in order): the liquid's
@@ -281,7 +296,7 @@ class CfdDem:
         done, kk, status, parity = coupled_intervals(
             m, k, self._fused_groups(), -1.0 if s._dt_stable is None else s._dt_stable,
             s.time_s, sim.advance_args(False), sim.advance_args(False, swapped=True),
-            sim.evcount, sim.acc, numba.get_parallel_chunksize(), per)
+            sim.evcount, sim.acc, numba.get_parallel_chunksize(), per, self._tasks())
         if parity:
             sim._swap_lists()
         out = []
@@ -354,6 +369,7 @@ class CfdDem:
         if "fused" not in self.__dict__:
             self.fused = self.fused_possible()
         self.__dict__.setdefault("compiled", True)
+        self.__dict__.setdefault("two_tasks", None)
 
     def gravity_torque_nm(self) -> float:
         """Torque [N m] about the axis (+z) of the beads' buoyancy-reduced weight at

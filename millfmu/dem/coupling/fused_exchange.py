@@ -34,8 +34,9 @@ import numpy as np
 from numba import prange
 
 from millfmu.dem.coupling.exchange_kernels import (beads_in, bead_forces, cells_to_eps_kd,
-                                                   cells_to_sd, nodes_to_cell_values)
-from millfmu.dem.coupling.projection import deposit_half, diffuse, diffuse_field
+                                                   cells_to_exchange, cells_to_sd,
+                                                   nodes_to_cell_values)
+from millfmu.dem.coupling.projection import deposit, deposit_half, diffuse, diffuse_field
 from millfmu.dem.engine._jit import kernel, serial, set_chunksize
 from millfmu.dem.engine.kernels import advance
 from millfmu.dem.fluid.step_kernels import (EPSC, EPSC0, KR, KTH, KZ, MGR, MGT, MGZ, MUR,
@@ -47,7 +48,7 @@ from millfmu.dem.fluid.step_kernels import (EPSC, EPSC0, KR, KTH, KZ, MGR, MGT, 
 
 @serial
 def exchange_interval(beads, bead_prm, stencil, grid, smooth, nodes, liquid, liquid_prm,
-                      factor, same_eps, dt_stable, time_s):
+                      factor, same_eps, dt_stable, time_s, tasks):
     """One coupling interval (:meth:`CfdDem.exchange`, the no-gap branch, and
     :meth:`FluidSolver.advance` with ``direct_ldl``), argument groups as
     :meth:`CfdDem._exchange_fused` packs them:
@@ -65,7 +66,10 @@ def exchange_interval(beads, bead_prm, stencil, grid, smooth, nodes, liquid, liq
 
     same_eps: the liquid's previous void fraction taken as the new one (the first
     exchange). dt_stable: the liquid's last stable substep [s] (<= 0: none yet). time_s:
-    the liquid's clock [s]. Returns (clipped cells, largest stiffness ratio, substeps, the
+    the liquid's clock [s]. tasks: the two-task forms (:func:`beads_to_nodes`,
+    :func:`solve_beside_sums`, :func:`values_and_turbulence`), for one or two threads; on
+    more, the kernels' own loops over fields and rows use them all. Returns (clipped cells,
+    largest stiffness ratio, substeps, the
     new stable substep [s], the new clock [s], velocities finite, T_z sum [N m], F_z sum
     [N])."""
     x, v, rad, mass, fab, fext, eps_cells = beads
@@ -85,9 +89,8 @@ def exchange_interval(beads, bead_prm, stencil, grid, smooth, nodes, liquid, liq
     # beads -> grid (CfdDem._deposit_and_split)
     beads_in(x, v, rad, mass, fab, eps_cells, body_zb, pf, model_b, mu, rho_b, interval,
              rcb, rtab, rh, dthb, nt, dzb, nz, lz, solid, idx, w, cyl, c, q, xmax)
-    clipped = beads_to_nodes(idx, w, q, tot, tot.reshape(shape4), svol, ar, at, az, sweeps,
-                             tmp, vcb, eps_min, solid, K[KR], K[KTH], K[KZ], vol_r, rcb,
-                             eps_c, eps_r, eps_t, eps_z, kd_r, kd_t, kd_z, sd_r, sd_t, sd_z)
+    clipped = to_nodes(idx, w, q, tot, shape4, svol, ar, at, az, sweeps, tmp, vcb, eps_min,
+                       solid, K, vol_r, rcb, nodes, tasks)
     stiff = xmax.max() if xmax.size else 0.0
     # the liquid takes them (FluidSolver.set_beads)
     take_beads(F, K, driven, eps_c, eps_r, eps_t, eps_z, kd_r, kd_t, kd_z, sd_r, sd_t,
@@ -116,11 +119,17 @@ def exchange_interval(beads, bead_prm, stencil, grid, smooth, nodes, liquid, liq
         dt = rest / nsub
         predict_velocities(F, W, K, rf, rc, dr, vc, dth, dz, om_sh, rho, nu, kturb,
                            model_a, body_z, dt)
-        solve_beside_sums(F, W, K, rf, rc, dr, vc, dth, dz, rho, dt, interval_s, acc,
-                          div.reshape(-1), cells, volume, volume_sum, lp, li, lx, inv_d,
-                          order, rhs, y, xs, phi.reshape(-1))
+        if tasks:
+            solve_beside_sums(F, W, K, rf, rc, dr, vc, dth, dz, rho, dt, interval_s, acc,
+                              div.reshape(-1), cells, volume, volume_sum, lp, li, lx, inv_d,
+                              order, rhs, y, xs, phi.reshape(-1))
+        else:
+            predictor_sums(F, W, K, rf, rc, vc, dth, dz, dt, acc)
+            projection_rhs(F, W, rf, dr, vc, dth, dz, rho, dt, interval_s)
+            ldl_project(div.reshape(-1), cells, volume, volume_sum, lp, li, lx, inv_d, order,
+                        rhs, y, xs, phi.reshape(-1))
         project(F, W, K, phi, rc, dr, dth, dz, rho, dt)
-        if nsub == 1:
+        if nsub == 1 and tasks:
             deferred = True
         else:
             dt_stable = turbulence(F, W, K, wall, wall_om, rf, rc, dr, vc, dth, dz, nu,
@@ -146,6 +155,25 @@ def exchange_interval(beads, bead_prm, stencil, grid, smooth, nodes, liquid, liq
         diffuse(cellv.reshape(shapev), svol, ar, at, az, sweeps, False, tmp, 3)
     ts, fs = bead_forces(idx, w, cellv, c, cyl, rad, fab, pf, now, body_zb, fext)
     return clipped, stiff, n, dt_stable, time_s, True, ts, fs
+
+
+@serial
+def to_nodes(idx, w, q, tot, shape4, svol, ar, at, az, sweeps, tmp, vc, eps_min, solid, K,
+             vol_r, rc, nodes, tasks):
+    """The deposit, the totals' smoothing and the split onto the nodes: as two tasks
+    (:func:`beads_to_nodes`, tasks) or by the calls' kernels, the smoothing's six fields
+    on as many threads; returns the clipped cells."""
+    eps_c, eps_r, eps_t, eps_z, kd_r, kd_t, kd_z, sd_r, sd_t, sd_z = nodes
+    tot4 = tot.reshape(shape4)
+    if tasks:
+        return beads_to_nodes(idx, w, q, tot, tot4, svol, ar, at, az, sweeps, tmp, vc,
+                              eps_min, solid, K[KR], K[KTH], K[KZ], vol_r, rc, eps_c, eps_r,
+                              eps_t, eps_z, kd_r, kd_t, kd_z, sd_r, sd_t, sd_z)
+    deposit(idx, w, q, tot)
+    if sweeps:
+        diffuse(tot4, svol, ar, at, az, sweeps, True, tmp, tot.shape[0])
+    return cells_to_exchange(tot4, vc, eps_min, solid, K[KR], K[KTH], K[KZ], vol_r, rc,
+                             eps_c, eps_r, eps_t, eps_z, kd_r, kd_t, kd_z, sd_r, sd_t, sd_z)
 
 
 @kernel
@@ -220,12 +248,12 @@ def values_and_turbulence(cellv, svol, ar, at, az, sweeps, tmp, F, W, K, wall, w
 
 
 @serial
-def present_void_fraction(beads, bead_prm, stencil, grid, smooth, nodes, K):
+def present_void_fraction(beads, bead_prm, stencil, grid, smooth, nodes, K, tasks):
     """The first pass of an exchange after a gap (the DEM advanced alone): the beads'
     present void fraction per cell into eps_cells (beads in, deposit, smoothing, split),
     which the exchange that follows then takes for the drag (:meth:`CfdDem.exchange`'s
     first ``_deposit_and_split``), in one call instead of four; argument groups as
-    :func:`exchange_interval`'s."""
+    :func:`exchange_interval`'s, tasks as there."""
     x, v, rad, mass, fab, fext, eps_cells = beads
     body_zb, pf, mu, rho_b, interval, model_b, now = bead_prm
     idx, w, cyl, c, q, xmax = stencil
@@ -235,9 +263,8 @@ def present_void_fraction(beads, bead_prm, stencil, grid, smooth, nodes, K):
     shape4 = (tot.shape[0], solid.shape[0], solid.shape[1], solid.shape[2])
     beads_in(x, v, rad, mass, fab, eps_cells, body_zb, pf, model_b, mu, rho_b, interval,
              rcb, rtab, rh, dthb, nt, dzb, nz, lz, solid, idx, w, cyl, c, q, xmax)
-    beads_to_nodes(idx, w, q, tot, tot.reshape(shape4), svol, ar, at, az, sweeps, tmp, vcb,
-                   eps_min, solid, K[KR], K[KTH], K[KZ], vol_r, rcb, eps_c, eps_r, eps_t,
-                   eps_z, kd_r, kd_t, kd_z, sd_r, sd_t, sd_z)
+    to_nodes(idx, w, q, tot, shape4, svol, ar, at, az, sweeps, tmp, vcb, eps_min, solid, K,
+             vol_r, rcb, nodes, tasks)
     ecn = eps_c.reshape(-1)
     for k in range(eps_cells.size):
         eps_cells[k] = ecn[k]
@@ -251,7 +278,7 @@ PER_INTERVAL = 17
 
 @serial
 def coupled_intervals(m, k, groups, dt_stable, time_s, dem, dem_swapped, evcount, acc,
-                      chunk, per):
+                      chunk, per, tasks):
     """``m`` coupling intervals of ``k`` DEM steps: each :func:`exchange_interval` (no gap,
     not the first exchange) and then the DEM's ``advance`` (no contacts recorded), as
     :meth:`CfdDem.exchange` and ``DemSimulation.run`` make them one after the other, the
@@ -265,7 +292,8 @@ def coupled_intervals(m, k, groups, dt_stable, time_s, dem, dem_swapped, evcount
     DEM's ``advance`` swaps them at each build); evcount, acc: the event count and the
     accumulator among those arguments, zeroed before each run; chunk: numba's parallel
     chunk size for the exchange's loops (the DEM's run with chunk size 1, as ``run`` sets
-    it). per (m, PER_INTERVAL) receives each interval's record. Returns (intervals done, the steps
+    it). per (m, PER_INTERVAL) receives each interval's record; tasks: as for
+    :func:`exchange_interval`. Returns (intervals done, the steps
     and the status of the interval whose ``advance`` stopped early (status 1: its new
     neighbour lists overflowed; 3: the liquid's velocities not finite, before the DEM's
     steps), 0 and 0 when all were done, the parity of the lists' swaps)."""
@@ -275,7 +303,7 @@ def coupled_intervals(m, k, groups, dt_stable, time_s, dem, dem_swapped, evcount
     for i in range(m):
         set_chunksize(chunk)
         r = exchange_interval(beads, bead_prm, stencil, grid, smooth, nodes, liquid,
-                              liquid_prm, factor, False, dt_stable, time_s)
+                              liquid_prm, factor, False, dt_stable, time_s, tasks)
         per[i, 0] = r[0]
         per[i, 1] = r[1]
         per[i, 2] = r[2]

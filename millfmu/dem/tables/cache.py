@@ -380,6 +380,11 @@ SAME_DEM_AS = {
     # and 2 threads: the same to the bit)
     "sha256:1298d213f796f1deeb417a30c6377010afcff35b9f4f18fc80074c67ffd99f0e":
         "sha256:97f753cea048d151d29bfc09ed08fc9161f206eb44b7bf748a0474d96810be97",
+    # and the fused exchange's two-task forms taken on one or two threads only, the
+    # kernels' own loops on more (the same five cases, 1 and 2 threads, and the
+    # fused-exchange test in both forms: the same to the bit)
+    "sha256:16bacdb9a3a877e00d31c12bf64e7b38e052146152f1367906ea10d02fd8140d":
+        "sha256:97f753cea048d151d29bfc09ed08fc9161f206eb44b7bf748a0474d96810be97",
 }
 
 
