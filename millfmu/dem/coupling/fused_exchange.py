@@ -69,9 +69,8 @@ def exchange_interval(beads, bead_prm, stencil, grid, smooth, nodes, liquid, liq
     the liquid's clock [s]. tasks: the two-task forms (:func:`beads_to_nodes`,
     :func:`solve_beside_sums`, :func:`values_and_turbulence`), for one or two threads; on
     more, the kernels' own loops over fields and rows use them all. Returns (clipped cells,
-    largest stiffness ratio, substeps, the
-    new stable substep [s], the new clock [s], velocities finite, T_z sum [N m], F_z sum
-    [N])."""
+    largest stiffness ratio, substeps, the new stable substep [s], the new clock [s],
+    velocities finite, T_z sum [N m], F_z sum [N])."""
     x, v, rad, mass, fab, fext, eps_cells = beads
     body_zb, pf, mu, rho_b, interval, model_b, now = bead_prm
     idx, w, cyl, c, q, xmax = stencil
@@ -82,15 +81,9 @@ def exchange_interval(beads, bead_prm, stencil, grid, smooth, nodes, liquid, liq
     (rho, nu, slip_s, omega, om_sh, body_z, dth, dz, cfl, interval_s, kturb,
      model_a) = liquid_prm
     cells, volume, volume_sum, lp, li, lx, inv_d, order, rhs, y, xs, phi, div = factor
-    nr = solid.shape[0]
-    shape4 = (tot.shape[0], nr, solid.shape[1], solid.shape[2])
-    shapev = (cellv.shape[0], nr, solid.shape[1], solid.shape[2])
+    shapev = (cellv.shape[0], solid.shape[0], solid.shape[1], solid.shape[2])
 
-    # beads -> grid (CfdDem._deposit_and_split)
-    beads_in(x, v, rad, mass, fab, eps_cells, body_zb, pf, model_b, mu, rho_b, interval,
-             rcb, rtab, rh, dthb, nt, dzb, nz, lz, solid, idx, w, cyl, c, q, xmax)
-    clipped = to_nodes(idx, w, q, tot, shape4, svol, ar, at, az, sweeps, tmp, vcb, eps_min,
-                       solid, K, vol_r, rcb, nodes, tasks)
+    clipped = beads_to_grid(beads, bead_prm, stencil, grid, smooth, nodes, K, tasks)
     stiff = xmax.max() if xmax.size else 0.0
     # the liquid takes them (FluidSolver.set_beads)
     take_beads(F, K, driven, eps_c, eps_r, eps_t, eps_z, kd_r, kd_t, kd_z, sd_r, sd_t,
@@ -248,24 +241,32 @@ def values_and_turbulence(cellv, svol, ar, at, az, sweeps, tmp, F, W, K, wall, w
 
 
 @serial
-def present_void_fraction(beads, bead_prm, stencil, grid, smooth, nodes, K, tasks):
-    """The first pass of an exchange after a gap (the DEM advanced alone): the beads'
-    present void fraction per cell into eps_cells (beads in, deposit, smoothing, split),
-    which the exchange that follows then takes for the drag (:meth:`CfdDem.exchange`'s
-    first ``_deposit_and_split``), in one call instead of four; argument groups as
-    :func:`exchange_interval`'s, tasks as there."""
+def beads_to_grid(beads, bead_prm, stencil, grid, smooth, nodes, K, tasks):
+    """Beads -> grid (:meth:`CfdDem._deposit_and_split`): the beads' stencils, drag
+    coefficients and deposit columns (:func:`beads_in`), then :func:`to_nodes`; argument
+    groups as :func:`exchange_interval`'s, tasks as there. Returns the clipped cells."""
     x, v, rad, mass, fab, fext, eps_cells = beads
     body_zb, pf, mu, rho_b, interval, model_b, now = bead_prm
     idx, w, cyl, c, q, xmax = stencil
     rcb, rtab, rh, dthb, nt, dzb, nz, lz, solid, vcb, vol_r, eps_min = grid
     tot, cellv, svol, ar, at, az, tmp, sweeps = smooth
-    eps_c, eps_r, eps_t, eps_z, kd_r, kd_t, kd_z, sd_r, sd_t, sd_z = nodes
     shape4 = (tot.shape[0], solid.shape[0], solid.shape[1], solid.shape[2])
     beads_in(x, v, rad, mass, fab, eps_cells, body_zb, pf, model_b, mu, rho_b, interval,
              rcb, rtab, rh, dthb, nt, dzb, nz, lz, solid, idx, w, cyl, c, q, xmax)
-    to_nodes(idx, w, q, tot, shape4, svol, ar, at, az, sweeps, tmp, vcb, eps_min, solid, K,
-             vol_r, rcb, nodes, tasks)
-    ecn = eps_c.reshape(-1)
+    return to_nodes(idx, w, q, tot, shape4, svol, ar, at, az, sweeps, tmp, vcb, eps_min,
+                    solid, K, vol_r, rcb, nodes, tasks)
+
+
+@serial
+def present_void_fraction(beads, bead_prm, stencil, grid, smooth, nodes, K, tasks):
+    """The first pass of an exchange after a gap (the DEM advanced alone): the beads'
+    present void fraction per cell into eps_cells (:func:`beads_to_grid`), which the
+    exchange that follows then takes for the drag (:meth:`CfdDem.exchange`'s first
+    ``_deposit_and_split``), in one call instead of four; argument groups as
+    :func:`exchange_interval`'s, tasks as there."""
+    beads_to_grid(beads, bead_prm, stencil, grid, smooth, nodes, K, tasks)
+    eps_cells = beads[6]
+    ecn = nodes[0].reshape(-1)
     for k in range(eps_cells.size):
         eps_cells[k] = ecn[k]
 

@@ -30,14 +30,13 @@ solid's velocity); a gradient taken between a fluid node and an inside node uses
 at the face between them, half a cell away. With wall functions the viscosity at such a
 wall edge follows the log law (see :mod:`millfmu.dem.fluid.k_epsilon`).
 
-Threads: the heaviest kernels (edge stresses, the three explicit rates) run their rows of
+Threads: the heaviest kernels (the stresses, the three explicit rates) run their rows of
 nodes in parallel (``prange`` over i); each row writes only its own nodes from values no
 row writes, so the results are the same to the bit on any thread count. Sums over the grid
 (wall torques) stay serial, in their order. On a 10-degree disc sector (40 x 1 x 42 cells,
 2 threads, called back to back) the edge stresses took 47 us against 115 serial, each rate
-20-23 us against 42-48. The predictor calls them through :func:`stresses` (the normal and
-edge stresses, one launch instead of four) and :func:`rates` (the three rates, one
-launch instead of three).
+20-23 us against 42-48. :func:`stresses` (the normal and edge stresses) and :func:`rates`
+(the three rates) each make one loop over the rows of what were four and three.
 
 Index conventions: cells (i, j, k); u_r[i] on r-face i (0..n_r), u_t[j] on the theta face
 between cells j and j + 1, u_z[k] on the z-face between k and k + 1 (both periodic).
@@ -156,18 +155,11 @@ def divergence(fr, ft, fz, out):
                                 + fz[i, j, k] - fz[i, j, km])
 
 
-@serial
-def normal_stresses(ur, ut, uz, em, solid, rf, rc, dr, dth, dz, trr, ttt, tzz, s2diag):
-    """Normal stresses at cell centres [Pa]: a tau_rr, a tau_tt, a tau_zz with
-    em = a mu_eff per cell [Pa s] (0 in solids), tau_ii = 2 mu (S_ii - div u / 3); and
-    2 (S_rr^2 + S_tt^2 + S_zz^2) [1/s2] for the turbulence production."""
-    for i in range(ut.shape[0]):
-        normal_row(i, ur, ut, uz, em, solid, rf, rc, dr, dth, dz, trr, ttt, tzz, s2diag)
-
-
 @inlined
 def normal_row(i, ur, ut, uz, em, solid, rf, rc, dr, dth, dz, trr, ttt, tzz, s2diag):
-    """Row i of :func:`normal_stresses`."""
+    """Row i of the normal stresses at cell centres [Pa]: a tau_rr, a tau_tt, a tau_zz
+    with em = a mu_eff per cell [Pa s] (0 in solids), tau_ii = 2 mu (S_ii - div u / 3);
+    and 2 (S_rr^2 + S_tt^2 + S_zz^2) [1/s2] for the turbulence production."""
     nr, nt, nz = ut.shape
     for j in range(nt):
         jm = wrap(j - 1, nt)
@@ -195,10 +187,15 @@ def normal_row(i, ur, ut, uz, em, solid, rf, rc, dr, dth, dz, trr, ttt, tzz, s2d
 def stresses(ur, ut, uz, kr, kt_, kz, em, epsc, ktur, solid, rf, rc, dr, dth, dz, om_sh,
              rho, nu, wallfn, model_a, trr, ttt, tzz, s2diag, e_rt, e_rz, e_tz, g_rt, g_rz,
              g_tz):
-    """:func:`normal_stresses` and :func:`edge_stresses` in one parallel loop over the rows
-    (each row's cell centres and edges): one launch instead of four, and the normal
-    stresses on the threads too. The same results to the bit (each row writes only its
-    own values, from values no row writes)."""
+    """Normal stresses at the cell centres (:func:`normal_row`) and shear stresses a tau
+    [Pa] on the grid edges (layout in the module docstring) with the matching strain rates
+    gamma = 2 S_ab [1/s] (g_rt, g_rz, g_tz) for the turbulence production, in one parallel
+    loop over the rows (each row's cell centres and edges; before, four loops, the first
+    serial: the same results to the bit, each row writing only its own values from values
+    no row writes). kr, kt_, kz: node kinds (0 fluid, 1 wall surface, 2 inside solid); the
+    shaft (r = r_f[0], angular velocity om_sh) and the chamber (r = r_f[-1], at rest) are
+    walls beyond the first and last radial nodes. At a wall edge the viscosity is
+    rho a nu_w (:func:`wall_nu`) with the mean k of the fluid cells beside the edge."""
     nr = ut.shape[0]
     for i in prange(nr + 1):
         if i < nr:
@@ -216,8 +213,9 @@ def stresses(ur, ut, uz, kr, kt_, kz, em, epsc, ktur, solid, rf, rc, dr, dth, dz
 @kernel
 def rates(ur, ut, uz, fr, ft, fz, kr, kt_, kz, trr, ttt, tzz, e_rt, e_rz, e_tz, epsr, rf,
           rc, dr, vc, dth, dz, rho, out_r, out_t, out_z):
-    """:func:`rhs_r`, :func:`rhs_t` and :func:`rhs_z` in one parallel loop over the rows:
-    one launch instead of three, the same results to the bit."""
+    """The explicit rates of eps u_r, eps u_theta and eps u_z (:func:`rhs_r_row`,
+    :func:`rhs_t_row`, :func:`rhs_z_row`) into out_r, out_t, out_z, in one parallel loop
+    over the rows (before, three loops: the same results to the bit)."""
     nr = ut.shape[0]
     for i in prange(nr):
         if i > 0:
@@ -254,32 +252,11 @@ def _edge_visc(em, epsc, kt, solid, i0, i1, j0, j1, k0, k1, nr, nt, nz):
     return s / n, se / n, sk / n
 
 
-@kernel
-def edge_stresses(ur, ut, uz, kr, kt_, kz, em, epsc, ktur, solid, rf, rc, dr, dth, dz,
-                  om_sh, rho, nu, wallfn, model_a, e_rt, e_rz, e_tz, g_rt, g_rz, g_tz):
-    """Shear stresses a tau [Pa] on the grid edges (layout in the module docstring) and the
-    matching strain rates gamma = 2 S_ab [1/s] (g_rt, g_rz, g_tz) for the turbulence
-    production. kr, kt_, kz: node kinds (0 fluid, 1 wall surface, 2 inside solid); the
-    shaft (r = r_f[0], angular velocity om_sh) and the chamber (r = r_f[-1], at rest) are
-    walls beyond the first and last radial nodes. At a wall edge the viscosity is
-    rho a nu_w (:func:`wall_nu`) with the mean k of the fluid cells beside the edge."""
-    nr, nt, nz = ut.shape
-    for i in prange(nr + 1):
-        edge_rt_row(i, ur, ut, uz, kr, kt_, kz, em, epsc, ktur, solid, rf, rc, dr, dth, dz,
-                    om_sh, rho, nu, wallfn, model_a, e_rt, e_rz, e_tz, g_rt, g_rz, g_tz)
-    for i in prange(nr + 1):
-        edge_rz_row(i, ur, ut, uz, kr, kt_, kz, em, epsc, ktur, solid, rf, rc, dr, dth, dz,
-                    om_sh, rho, nu, wallfn, model_a, e_rt, e_rz, e_tz, g_rt, g_rz, g_tz)
-    for i in prange(nr):
-        edge_tz_row(i, ur, ut, uz, kr, kt_, kz, em, epsc, ktur, solid, rf, rc, dr, dth, dz,
-                    om_sh, rho, nu, wallfn, model_a, e_rt, e_rz, e_tz, g_rt, g_rz, g_tz)
-
-
 @inlined
 def edge_rt_row(i, ur, ut, uz, kr, kt_, kz, em, epsc, ktur, solid, rf, rc, dr, dth, dz,
                 om_sh, rho, nu, wallfn, model_a, e_rt, e_rz, e_tz, g_rt, g_rz, g_tz):
     """The r-theta edges (r_f[i], theta_{j+1/2}, z_k) of row i = 0..nr of
-    :func:`edge_stresses`."""
+    :func:`stresses`."""
     nr, nt, nz = ut.shape
     for j in range(nt):
         jp = wrap(j + 1, nt)
@@ -324,7 +301,7 @@ def edge_rt_row(i, ur, ut, uz, kr, kt_, kz, em, epsc, ktur, solid, rf, rc, dr, d
 def edge_rz_row(i, ur, ut, uz, kr, kt_, kz, em, epsc, ktur, solid, rf, rc, dr, dth, dz,
                 om_sh, rho, nu, wallfn, model_a, e_rt, e_rz, e_tz, g_rt, g_rz, g_tz):
     """The r-z edges (r_f[i], theta_j, z_{k+1/2}) of row i = 0..nr of
-    :func:`edge_stresses`."""
+    :func:`stresses`."""
     nr, nt, nz = ut.shape
     for j in range(nt):
         for k in range(nz):
@@ -371,7 +348,7 @@ def edge_rz_row(i, ur, ut, uz, kr, kt_, kz, em, epsc, ktur, solid, rf, rc, dr, d
 def edge_tz_row(i, ur, ut, uz, kr, kt_, kz, em, epsc, ktur, solid, rf, rc, dr, dth, dz,
                 om_sh, rho, nu, wallfn, model_a, e_rt, e_rz, e_tz, g_rt, g_rz, g_tz):
     """The theta-z edges (r_c[i], theta_{j+1/2}, z_{k+1/2}) of row i = 0..nr - 1 of
-    :func:`edge_stresses`."""
+    :func:`stresses`."""
     nr, nt, nz = ut.shape
     for j in range(nt):
         jp = wrap(j + 1, nt)
@@ -405,21 +382,12 @@ def edge_tz_row(i, ur, ut, uz, kr, kt_, kz, em, epsc, ktur, solid, rf, rc, dr, d
             g_tz[i, j, k] = gam
 
 
-@kernel
-def rhs_r(ur, ut, fr, ft, fz, kr, trr, ttt, e_rt, e_rz, epsr, rf, rc, dr, vc, dth, dz,
-          rho, out):
-    """Explicit rate of eps u_r per unit volume [m/s2] at every solved r-node: advection,
-    viscous forces over rho, centrifugal term eps u_theta^2 / r; 0 at fixed nodes."""
-    nr, nt, nz = ut.shape
-    for i in prange(1, nr):
-        rhs_r_row(i, ur, ut, fr, ft, fz, kr, trr, ttt, e_rt, e_rz, epsr, rf, rc, dr, vc, dth,
-                  dz, rho, out)
-
-
 @inlined
 def rhs_r_row(i, ur, ut, fr, ft, fz, kr, trr, ttt, e_rt, e_rz, epsr, rf, rc, dr, vc, dth,
               dz, rho, out):
-    """Row i of :func:`rhs_r`."""
+    """Row i of the explicit rate of eps u_r per unit volume [m/s2] at every solved r-node:
+    advection, viscous forces over rho, centrifugal term eps u_theta^2 / r; 0 at fixed
+    nodes."""
     nr, nt, nz = ut.shape
     vol = 0.5 * (vc[i - 1] + vc[i])
     for j in range(nt):
@@ -464,20 +432,12 @@ def rhs_r_row(i, ur, ut, fr, ft, fz, kr, trr, ttt, e_rt, e_rz, epsr, rf, rc, dr,
             out[i, j, k] = adv / vol + epsr[i, j, k] * u2 / rf[i] + vis / (rho * vol)
 
 
-@kernel
-def rhs_t(ut, fr, ft, fz, kt_, ttt, e_rt, e_tz, rf, rc, dr, vc, dth, dz, rho, out):
-    """Explicit rate of eps u_theta per unit volume [m/s2] at every solved theta node,
-    computed as the divergence of angular-momentum fluxes (advection of r u_theta, and
-    r^2 tau_r_theta, r tau_theta_theta, r tau_theta_z over rho) divided by r; 0 at fixed
-    nodes."""
-    nr, nt, nz = ut.shape
-    for i in prange(nr):
-        rhs_t_row(i, ut, fr, ft, fz, kt_, ttt, e_rt, e_tz, rf, rc, dr, vc, dth, dz, rho, out)
-
-
 @inlined
 def rhs_t_row(i, ut, fr, ft, fz, kt_, ttt, e_rt, e_tz, rf, rc, dr, vc, dth, dz, rho, out):
-    """Row i of :func:`rhs_t`."""
+    """Row i of the explicit rate of eps u_theta per unit volume [m/s2] at every solved
+    theta node, computed as the divergence of angular-momentum fluxes (advection of r u_theta, and
+    r^2 tau_r_theta, r tau_theta_theta, r tau_theta_z over rho) divided by r; 0 at fixed
+    nodes."""
     nr, nt, nz = ut.shape
     vol = vc[i]
     for j in range(nt):
@@ -525,18 +485,10 @@ def rhs_t_row(i, ut, fr, ft, fz, kt_, ttt, e_rt, e_tz, rf, rc, dr, vc, dth, dz, 
             out[i, j, k] = (adv + vis / rho) / (rc[i] * vol)
 
 
-@kernel
-def rhs_z(uz, fr, ft, fz, kz, tzz, e_rz, e_tz, rf, dr, vc, dth, dz, rho, out):
-    """Explicit rate of eps u_z per unit volume [m/s2] at every solved z-node: advection
-    and viscous forces over rho; 0 at fixed nodes."""
-    nr, nt, nz = uz.shape
-    for i in prange(nr):
-        rhs_z_row(i, uz, fr, ft, fz, kz, tzz, e_rz, e_tz, rf, dr, vc, dth, dz, rho, out)
-
-
 @inlined
 def rhs_z_row(i, uz, fr, ft, fz, kz, tzz, e_rz, e_tz, rf, dr, vc, dth, dz, rho, out):
-    """Row i of :func:`rhs_z`."""
+    """Row i of the explicit rate of eps u_z per unit volume [m/s2] at every solved z-node:
+    advection and viscous forces over rho; 0 at fixed nodes."""
     nr, nt, nz = uz.shape
     vol = vc[i]
     az = vc[i] / dz
