@@ -38,7 +38,6 @@ import os
 import re
 import shutil
 import sys
-import tempfile
 from dataclasses import dataclass, field, replace
 from importlib import resources
 from pathlib import Path
@@ -553,7 +552,7 @@ def write(cal: Calibration, out_dir, scene_path=None) -> list:
     """Write ``out_dir/calibrated.toml`` (the scene with the fitted values, headed by a comment
     naming the data file, its sha256 and the date) and ``out_dir/calibration.json``; both
     appear together or not at all."""
-    from .runner import check_out_dir
+    from .runner import check_out_dir, staging_dir
 
     out = check_out_dir(out_dir)
     head = (f"# Calibrated by millfmu calibrate on {cal.date_utc}: {', '.join(cal.constants)} fitted to\n"
@@ -568,7 +567,7 @@ def write(cal: Calibration, out_dir, scene_path=None) -> list:
     for k, c in cal.constants.items():
         if _get(check, k) != c.value:  # pragma: no cover - set_toml_values is tested
             raise CalibrationError(f"calibrated.toml: {k} did not take the fitted value")
-    tmp = Path(tempfile.mkdtemp(prefix=".millfmu-", dir=out.parent))
+    tmp = staging_dir(out, ".millfmu-")
     try:
         (tmp / "calibrated.toml").write_text(text, encoding="utf-8")
         (tmp / "calibration.json").write_text(json.dumps(cal.to_dict(), indent=1), encoding="utf-8")
@@ -750,7 +749,7 @@ def _cmd_calibrate(args) -> int:
 
 
 def register(sub):
-    c = sub.add_parser("calibrate", help="fit one or two scene constants to measured batch data (with 95 % intervals)",
+    c = sub.add_parser("calibrate", help="fit one or two scene constants to measured batch data (with 95 %% intervals)",
                        description="Fit scene constants to measured batch grinding data at the scene's operating point. "
                                    f"Fittable: {', '.join(FITTABLE)}.")
     c.add_argument("scene", nargs="?", default=None, help="scene file (TOML); omitted: the embedded default scene")

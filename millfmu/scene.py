@@ -395,7 +395,8 @@ def resolve_dict(d: dict) -> dict:
     # The default scene's calibration record describes its own material and kinetics: a
     # scene that sets its own, without a record of its own, has none.
     own = d.get("scene") if isinstance(d.get("scene"), dict) else {}
-    if "calibration" not in own and (d.get("material") or d.get("kinetics") or "stress_frequency_factor" in (d.get("mill") or {})):
+    mill = d.get("mill") if isinstance(d.get("mill"), dict) else {}  # not a table: refused by name below
+    if "calibration" not in own and (d.get("material") or d.get("kinetics") or "stress_frequency_factor" in mill):
         out.setdefault("scene", {})["calibration"] = ""
     return out
 
