@@ -36,14 +36,16 @@ def _libpython() -> Path:
 def host_env(fmu: str | Path) -> dict:
     """{variable: value} for a C host loading ``fmu`` with this Python's environment."""
     fmu = Path(fmu)
-    with zipfile.ZipFile(fmu) as z:  # OSError / BadZipFile for a missing or bad file
-        md = ET.fromstring(z.read("modelDescription.xml"))
-        names = z.namelist()
+    md, names = _read_fmu(fmu)
     fmi3 = md.get("fmiVersion", "").startswith("3")
     runtime = "pythonfmu3" if fmi3 else "pythonfmu"
     if not any(n.startswith(f"resources/{runtime}/") for n in names):
         raise ValueError(f"{fmu}: not a {runtime} FMU (no resources/{runtime}/)")
-    ident = md.find("CoSimulation").get("modelIdentifier")
+    cs = md.find("CoSimulation")
+    ident = cs.get("modelIdentifier") if cs is not None else None
+    if not ident:
+        raise ValueError(f"{fmu}: modelDescription.xml declares no CoSimulation modelIdentifier: "
+                         "host-env takes a co-simulation FMU built by millfmu build-fmu")
     missing = [m for m in REQUIRED if importlib.util.find_spec(m) is None]
     if missing:
         raise ValueError(f"this Python ({sys.executable}) lacks {', '.join(missing)}, which the FMU imports")
@@ -59,6 +61,25 @@ def host_env(fmu: str | Path) -> dict:
         "PYTHONPATH": os.pathsep.join(paths),
         "FMU_BINARY": f"binaries/{'x86_64-linux' if fmi3 else 'linux64'}/{ident}.so",
     }
+
+
+def _read_fmu(fmu: Path):
+    """(modelDescription.xml's root element, the archive's names) of an FMU file; ValueError
+    naming the file and what it is instead (OSError where it cannot be read at all)."""
+    what = "host-env takes an FMU (a zip archive with modelDescription.xml) built by millfmu build-fmu"
+    try:
+        with zipfile.ZipFile(fmu) as z:
+            names = z.namelist()
+            if "modelDescription.xml" not in names:
+                raise ValueError(f"{fmu}: a zip archive without modelDescription.xml, not an FMU; {what}")
+            text = z.read("modelDescription.xml")
+    except zipfile.BadZipFile:
+        raise ValueError(f"{fmu}: not a zip archive, so not an FMU; {what}") from None
+    try:
+        md = ET.fromstring(text)
+    except ET.ParseError as e:
+        raise ValueError(f"{fmu}: its modelDescription.xml is not well-formed XML ({e}); {what}") from None
+    return md, names
 
 
 def shell_lines(env: dict) -> list:
