@@ -41,6 +41,7 @@ import json
 import math
 import os
 import re
+import stat
 import sys
 import tempfile
 from dataclasses import dataclass, field, replace
@@ -519,6 +520,8 @@ def _safe(name: str) -> str:
 def write(out_dir, results: list, calibration: list | None = None, plots: bool = True) -> list:
     """Write every result's CSV, JSON and PNG (and the calibration table) into ``out_dir``;
     each file is written beside its place and moved there when complete."""
+    from .runner import current_umask
+
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     written = []
@@ -526,6 +529,10 @@ def write(out_dir, results: list, calibration: list | None = None, plots: bool =
     def put(name, data: bytes | None = None, draw=None):
         fd, tmp = tempfile.mkstemp(prefix=f".{name}.", dir=out)
         try:
+            # mkstemp's 0600 would stay with the file: give it the mode of the file it
+            # replaces, or what the user's umask gives a new one.
+            old = out / name
+            os.chmod(tmp, stat.S_IMODE(old.stat().st_mode) if old.is_file() else 0o666 & ~current_umask())
             with os.fdopen(fd, "wb") as f:
                 if data is not None:
                     f.write(data)

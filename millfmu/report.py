@@ -494,12 +494,12 @@ def _realizations() -> str:
 def build_report(out_dir, quick: bool = False, dem_runs=None, log=print) -> list[Path]:
     """Write ``report.html`` and its PNGs (and the studies' JSON) into ``out_dir``, built in
     a temporary folder beside it and moved into place when complete; returns the files."""
-    from .runner import check_out_dir
+    from .runner import check_out_dir, staging_dir
 
     out = check_out_dir(out_dir)
     t0 = time.perf_counter()
     start = machine()
-    tmp = Path(tempfile.mkdtemp(prefix=".millfmu-report-", dir=out.parent))
+    tmp = staging_dir(out, ".millfmu-report-")
     try:
         body = [process_section(tmp, quick, log), pbm_section(tmp, quick, log), cosim_section(tmp, quick, log),
                 dem_section(tmp, quick, dem_runs, log)]

@@ -17,6 +17,7 @@ import json
 import math
 import os
 import shutil
+import stat
 import sys
 import tempfile
 from pathlib import Path
@@ -55,6 +56,33 @@ def _existing_ancestor(p: Path) -> Path:
     return p
 
 
+def current_umask() -> int:
+    """The process's file mode creation mask: read from /proc where it is there, else set and
+    restored at once."""
+    try:
+        with open("/proc/self/status", encoding="ascii") as fh:
+            for line in fh:
+                if line.startswith("Umask:"):
+                    return int(line.split()[1], 8)
+    except (OSError, ValueError):
+        pass
+    mask = os.umask(0o022)
+    os.umask(mask)
+    return mask
+
+
+def staging_dir(out: Path, prefix: str) -> Path:
+    """A new hidden folder beside ``out`` (``out``'s parents made where missing) that takes
+    the results before they move into ``out``. Its mode is ``out``'s own where ``out`` is a
+    folder (the two may be swapped, and the user's folder keeps its mode), else the mode the
+    user's umask gives a new folder: mkdtemp's 0700 would otherwise become the results'."""
+    out.parent.mkdir(parents=True, exist_ok=True)
+    tmp = Path(tempfile.mkdtemp(prefix=prefix, dir=out.parent))
+    mode = stat.S_IMODE(out.stat().st_mode) if out.is_dir() else 0o777 & ~current_umask()
+    os.chmod(tmp, mode)
+    return tmp
+
+
 def check_out_dir(out_dir) -> Path:
     """OutputError unless ``out_dir`` is (or can become) a folder this process can write
     into and beside which it can make its temporary folder: checked by making and removing a
@@ -67,16 +95,15 @@ def check_out_dir(out_dir) -> Path:
     base = _existing_ancestor(out.parent)
     if not base.is_dir():
         raise OutputError(out, f"cannot write there ({base} is not a folder); give a writable folder")
-    try:
-        probe = Path(tempfile.mkdtemp(prefix=TEMP_PREFIX + "probe-", dir=base))
-        probe.rmdir()
-        if out.is_dir():
-            probe = Path(tempfile.mkdtemp(prefix=TEMP_PREFIX + "probe-", dir=out))
-            probe.rmdir()
-    except OSError as e:
-        where = "" if base == Path(os.path.abspath(out)) else (
-            f"; the results are first written into a hidden folder {TEMP_PREFIX}* in {base} beside it and switched in with one rename")
-        raise OutputError(out, f"cannot write there ({e.strerror or e}: {base}{where}); give a writable folder") from None
+    # Both folders are probed: the results are staged beside ``out`` and then moved into it.
+    for where in (base, out) if out.is_dir() else (base,):
+        try:
+            Path(tempfile.mkdtemp(prefix=TEMP_PREFIX + "probe-", dir=where)).rmdir()
+        except OSError as e:
+            why = "" if where == out else (
+                f"; the results are first written into a hidden folder {TEMP_PREFIX}* in {where} beside it and "
+                "switched in with one rename")
+            raise OutputError(out, f"cannot write there ({e.strerror or e}: {where}{why}); give a writable folder") from None
     return out
 
 
@@ -308,6 +335,7 @@ def run_warnings(model: MillModel, records) -> list:
     """The model's warnings about its data, and those about the outputs (below-grid mass) at
     the output time where that mass is largest."""
     out = list(model.warnings)
+    out.extend(model.similarity_warnings().values())
     if records:
         out.extend(model.output_warnings(max(records, key=lambda r: r.get("below_grid_fraction", 0.0))))
     return out
@@ -364,7 +392,7 @@ def write_results(out_dir: str | Path, scene: Scene, model: MillModel, records, 
     if (out / MARKER).exists():
         print(f"millfmu: warning: --out {out}: an earlier run was stopped while it replaced the result files one by one "
               "(the folder holds sub-folders); this run replaces them all", file=sys.stderr)
-    tmp = Path(tempfile.mkdtemp(prefix=f"{TEMP_PREFIX}{os.getpid()}-new-", dir=out.parent))
+    tmp = staging_dir(out, f"{TEMP_PREFIX}{os.getpid()}-new-")
     try:
         op = model.operating_point(model.inputs)
         result = {
