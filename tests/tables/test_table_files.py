@@ -120,7 +120,19 @@ def _integral_off(t):
     t.data["se_density"] = d
 
 
+def _silent_point(t):
+    """Every zone of the first grid point without collisions (frequencies and counts 0)."""
+    import numpy as np
+
+    for k in ("collision_frequency_norm", "collision_count"):
+        a = np.array(t.data[k], float)
+        a[0, 0, :] = 0.0
+        t.data[k] = a
+
+
 @pytest.mark.parametrize("edit, words", [
+    (_silent_point, "collision_frequency_norm is 0 in every zone at point index (0, 0)"),
+    (lambda t: _edit(t, "collision_frequency_norm", 0.0), "a zone has collisions in both or in neither"),
     (lambda t: _edit(t, "collision_frequency_norm", float("nan")), "collision_frequency_norm holds a non-finite value"),
     (lambda t: _edit(t, "collision_frequency_norm", float("inf")), "collision_frequency_norm holds a non-finite value"),
     (lambda t: _edit(t, "collision_frequency_norm", 1e300), "collision_frequency_norm holds a value beyond"),
