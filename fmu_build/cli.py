@@ -17,6 +17,10 @@ def _cmd_build_fmu(args) -> int:
 
     from .fmi3_wrapper import WrapperError
 
+    if args.yes:
+        from millfmu.cli import assume_yes
+
+        assume_yes()
     t0 = time.perf_counter()
     try:
         r = build_fmu(args.scene, args.output, fmi_version=args.fmi_version, log=print)
@@ -66,6 +70,8 @@ def register(subparsers) -> None:
     b.add_argument("scene", nargs="?", default=None, help="scene file (TOML); omitted: the embedded default scene")
     b.add_argument("-o", "--output", required=True, help="FMU file to write (.fmu)")
     b.add_argument("--fmi-version", type=int, choices=(2, 3), default=2, help="FMI version of the FMU (default 2)")
+    b.add_argument("--yes", action="store_true",
+                   help="run the on-demand table build the scene may need however long it is estimated to take")
     b.set_defaults(func=_cmd_build_fmu)
 
     h = subparsers.add_parser("host-env", help="environment a C/C++ host needs to load an FMU built by build-fmu")

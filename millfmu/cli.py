@@ -30,6 +30,8 @@ def _cmd_run(args) -> int:
     from .runner import check_out_dir, prediction_band, run_warnings, simulate, summary_table, write_results
     from .scene import load_scene
 
+    if args.yes:
+        assume_yes()
     scene = load_scene(args.scene)  # SceneError -> exit 2 before anything is written
     if args.on_stale is not None:
         scene = with_on_stale(scene, args.on_stale)
@@ -58,14 +60,29 @@ def _cmd_run(args) -> int:
     if band is not None:
         key, f, unit = ("disrupted_fraction", 1.0, "") if "disrupted_fraction" in band["outputs"] else ("x50_m", 1e6, " um")
         lo, hi = band["outputs"][key]
+        freq, energy = band["collision_frequency_relative_error"], band["se_median_relative_error"]
+        if all(v is None for v in freq + energy):
+            why = "no zone had collisions (the stirrer at rest): the table's error reaches no result"
+        else:
+            why = f"zones' collision frequency {_percents(freq)}, median energy {_percents(energy)}"
         print(f"prediction band at t = {band['t_s']:g} s from the table's stated error: {key} {records[-1][key] * f:.4g}{unit} "
-              f"in [{lo * f:.4g}, {hi * f:.4g}]{unit} (zones' collision frequency +-"
-              f"{', '.join('-' if v is None else f'{v:.0%}' for v in band['collision_frequency_relative_error'])}, median energy +-"
-              f"{', '.join('-' if v is None else f'{v:.0%}' for v in band['se_median_relative_error'])})")
+              f"in [{lo * f:.4g}, {hi * f:.4g}]{unit} ({why})")
     m_err = abs(records[-1]["total_mass_kg"] - (model.m0_kg + model.fed_kg)) / max(model.m0_kg + model.fed_kg, 1e-300)
     print(f"mass balance: relative residual {m_err:.2e}; simulated {scene.run.t_end_s:g} s in {wall:.3g} s wall")
     print("wrote " + ", ".join(str(f) for f in files))
     return 0
+
+
+def assume_yes() -> None:
+    """``--yes``: on-demand table builds of any length run without asking (this process)."""
+    from .dem.tables.on_demand import BUILD_LIMIT_ENV
+
+    os.environ[BUILD_LIMIT_ENV] = "inf"
+
+
+def _percents(errors) -> str:
+    """Relative errors as "+-12%, -, ..." ("-": a zone without collisions)."""
+    return ", ".join("-" if v is None else f"+-{v:.0%}" for v in errors)
 
 
 def with_on_stale(scene, policy: str):
@@ -108,6 +125,9 @@ def build_parser() -> argparse.ArgumentParser:
                    help="a table built on demand (on_outside = 'build') whose DEM kernel version is not the installed DEM's: "
                         "refuse, rebuild every point, or accept its points and run only the new ones "
                         "(default: the scene's kinetics.stress_distribution.on_stale)")
+    r.add_argument("--yes", action="store_true",
+                   help="run an on-demand table build however long it is estimated to take (without it, a build "
+                        "over MILLFMU_BUILD_LIMIT_S, default 1800 s, is asked about at a terminal and refused elsewhere)")
     r.set_defaults(func=_cmd_run)
 
     k = sub.add_parser("scene-keys", help="list every scene key with unit, default and allowed values")

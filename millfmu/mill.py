@@ -286,6 +286,9 @@ class MillModel:
         try:
             self.source.cover(self.operating_point(self.inputs_of_scene()))
         except ValueError as e:  # TableError, DemSceneError: the build's reasons
+            if getattr(e, "axis", None) in TABLE_SCENE_KEYS:  # a value of the point the DEM cannot run
+                raise SceneError(TABLE_SCENE_KEYS[e.axis], e.value, f"{e.allowed} (on_outside = 'build')",
+                                 self.scene.scene.name) from None
             raise SceneError("kinetics.stress_distribution.on_outside", "build",
                              f"the table could not be extended to the scene's operating point: {e}", self.scene.scene.name) from None
 
@@ -678,6 +681,12 @@ class MillModel:
         power_W, specific_energy_J_per_kg, eta_eff_Pa_s, reynolds [-], disrupted_fraction
         (yeast) [-]."""
         return self._last
+
+    def similarity_warnings(self) -> dict:
+        """{axis: warning} for each stress-energy table axis the operating points so far went
+        beyond with similarity assumed ({} for other sources)."""
+        f = getattr(self.source, "similarity_warnings", None)
+        return f() if f is not None else {}
 
     def output_warnings(self, out: dict | None = None) -> list:
         """Warnings about outputs (default: the current ones): more than OUTSIDE_GRID_MAX of

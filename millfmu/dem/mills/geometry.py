@@ -306,16 +306,29 @@ def bead_count_for_filling(geom: MillGeometry, filling: float, diameter_m: float
     return int(round(filling * (1.0 - bulk_porosity) * geom.free_volume_m3() / v_bead))
 
 
+def placement_gap_m(radius_m: float) -> float:
+    """Gap [m] between neighbouring sites of the initial lattice: 2 % of a bead diameter."""
+    return 0.02 * 2.0 * radius_m
+
+
+def placement_capacity(geom: MillGeometry, radius_m: float) -> int:
+    """How many beads of ``radius_m`` [m] :func:`place_beads` can place in the cell (0 where
+    the cell is too low for one lattice layer)."""
+    try:
+        return int(fcc_sites(geom, radius_m, placement_gap_m(radius_m)).shape[0])
+    except GeometryError:
+        return 0
+
+
 def place_beads(geom: MillGeometry, n_beads: int, radius_m: float, seed: int = 1,
                 gap_m: float | None = None) -> np.ndarray:
     """n_beads positions [m] without overlap (with each other and with the walls): a random
     subset of fcc sites. Raises GeometryError if the cell cannot hold them."""
-    gap = 0.02 * 2.0 * radius_m if gap_m is None else gap_m
-    sites = fcc_sites(geom, radius_m, gap)
+    sites = fcc_sites(geom, radius_m, placement_gap_m(radius_m) if gap_m is None else gap_m)
     if n_beads > sites.shape[0]:
         raise GeometryError(
-            f"n_beads = {n_beads}: the cell holds at most {sites.shape[0]} beads placed "
-            f"without overlap; lower the filling")
+            f"n_beads = {n_beads}: the cell holds at most {sites.shape[0]} beads of diameter "
+            f"{2.0 * radius_m:g} m placed without overlap; lower the filling or the bead size")
     rng = np.random.default_rng(seed)
     pick = rng.choice(sites.shape[0], size=n_beads, replace=False)
     return np.ascontiguousarray(sites[np.sort(pick)])

@@ -107,6 +107,25 @@ class DemBuilder:
         out["wall_time_s"] = time.perf_counter() - t0
         return out
 
+    def unbuildable(self, scene: dict, point: dict) -> str | None:
+        """Why the DEM cannot run ``point`` (its beads do not fit the scene's cell at the
+        point's filling and bead size), else None: asked before a build starts, so that it
+        is refused before its cost is said and before any point runs."""
+        from ..mills.geometry import bead_count_for_filling, placement_capacity
+
+        s = scene_from_dict(scene_at_point(scene, point))
+        if s.placement != "filling":
+            return None
+        need = bead_count_for_filling(s.geometry, s.filling, s.bead_diameter_m, s.bulk_porosity)
+        cap = placement_capacity(s.geometry, 0.5 * s.bead_diameter_m)
+        if need <= cap:
+            return None
+        g = s.geometry
+        return (f"the DEM scene {s.name} ({s.kind}, a cell {g.height_m * 1e3:g} mm high between radii "
+                f"{g.shaft_radius_m * 1e3:g} and {g.chamber_radius_m * 1e3:g} mm) holds at most {cap} beads of "
+                f"{s.bead_diameter_m * 1e3:g} mm placed without overlap, and a filling of {s.filling:g} needs {need}: "
+                f"the table cannot be extended to this bead size at this filling")
+
     def relative_cost(self, scene: dict, point: dict) -> float:
         """Expected run time of the point, up to a constant: bead count (filling / d^3) times
         DEM steps ((spin-up + recording) / dt). A build runs the costliest points first, so
@@ -182,6 +201,7 @@ def rebuild_including(table: Table, point: dict, builder: Callable | None = None
         # The extended table has the same DEM settings: it keeps the old one's entry.
         builder = od.default_builder(table)
     workers = run_kw.get("workers") or (1 if run_kw.get("executor") == "serial" else None)
+    od.unbuildable(table, point, builder)  # before the cost is said or anything runs
     old_v = table.spec().kernel_version
     new_v = od.installed_kernel_version(table)
     if new_v != old_v:
@@ -201,6 +221,7 @@ def rebuild_including(table: Table, point: dict, builder: Callable | None = None
     name = (table.manifest.get("scene") or {}).get("name", "?")
     if pl.todo:
         log(f"table {name}: building a table that covers {_point_text(table, point)}: {pl.line()}")
+        od.confirm_build(pl, f"the build of table {name} extended to {_point_text(table, point)}")
     run_kw.setdefault("seconds_per_cost", pl.seconds_per_cost)
     return get_table(pl.spec, builder, cache_dir=cache_dir, progress=progress, seed_from=(table,),
                      manifest_extra=extra, **run_kw)

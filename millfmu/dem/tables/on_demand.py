@@ -14,12 +14,19 @@ the table's points belong to another kernel and are not reused) and ``accept`` (
 points are kept as they are and only the new points run, with the installed DEM; the new
 table keeps the old kernel version, and its manifest says which points ran with which).
 
+A build estimated to take longer than :func:`build_limit_s` (wall time; 30 minutes unless
+``MILLFMU_BUILD_LIMIT_S`` says otherwise) runs only when confirmed (:func:`confirm_build`):
+by a yes at a terminal, or by ``--yes`` (which lifts the limit for its process); without
+either it is refused by name, before anything runs.
+
 Imports no numba (the DEM loads in the builder's processes).
 """
 
 from __future__ import annotations
 
+import math
 import os
+import sys
 from dataclasses import dataclass
 from . import cache as _cache
 from .build import PointStore, duration, relative_costs, seconds_per_cost, stored_results
@@ -33,6 +40,108 @@ STALE_POLICIES = ("refuse", "rebuild", "accept")
 class StaleTableError(TableError):
     """An on-demand build refused because the table was built by another DEM kernel
     (on_stale = 'refuse'); the message says what a rebuild costs and the choices."""
+
+
+class BuildNotConfirmedError(TableError):
+    """An on-demand build over :func:`build_limit_s` that nobody confirmed; the message
+    names its cost, the limit and how to confirm."""
+
+
+class PointNotBuildableError(TableError):
+    """A point the table's builder cannot run (beads that do not fit the DEM's cell):
+    ``axis`` and ``value`` name the point's value that is out of reach, ``allowed`` why."""
+
+    def __init__(self, axis: str, value: float, why: str):
+        self.axis, self.value, self.allowed = axis, value, why
+        super().__init__(f"{axis} = {value:g}: {why}")
+
+
+#: Wall time [s] over which an on-demand build needs a confirmation (see module docs).
+DEFAULT_BUILD_LIMIT_S = 1800.0
+#: Environment variable that sets that limit [s] ("inf": no limit, as ``--yes`` sets it).
+BUILD_LIMIT_ENV = "MILLFMU_BUILD_LIMIT_S"
+
+
+def build_limit_s() -> float:
+    """The wall time [s] over which an on-demand build needs confirmation: the value of
+    ``MILLFMU_BUILD_LIMIT_S`` where set (a number of seconds, or inf), else 1800 s. A value
+    that is no number is refused by name."""
+    raw = os.environ.get(BUILD_LIMIT_ENV, "").strip()
+    if not raw:
+        return DEFAULT_BUILD_LIMIT_S
+    try:
+        v = float(raw)
+    except ValueError:
+        v = math.nan
+    if not v >= 0.0:
+        raise TableError(f"{BUILD_LIMIT_ENV} = {raw!r}: allowed a number of seconds >= 0, or inf")
+    return v
+
+
+def confirm_build(pl: "Plan", what: str, ask=None) -> None:
+    """Let the build of plan ``pl`` (described by ``what``) go on, or refuse it with
+    :class:`BuildNotConfirmedError`: a build whose estimated wall time is within
+    :func:`build_limit_s` goes on; a longer one (or a DEM build of unknown cost) goes on
+    only where ``ask`` (default: a yes/no question at the terminal, where stdin and stderr
+    are one) says yes."""
+    if not pl.todo:
+        return
+    wall = pl.wall_s()
+    limit = build_limit_s()
+    if wall is None:
+        if pl.spec.builder_id != DEM_BUILDER_ID:
+            return  # a builder without a cost estimate is not the DEM: seconds, not hours
+    elif wall <= limit:
+        return
+    if ask is None and sys.stdin is not None and sys.stdin.isatty() and sys.stderr.isatty():
+        ask = _ask_at_terminal
+    cost = f"about {duration(wall)} on {pl.workers} worker{'s' if pl.workers != 1 else ''}" if wall is not None \
+        else "an unknown time (its table records no point's run time)"
+    if ask is not None and ask(f"{what}: it takes {cost}. Run it?"):
+        return
+    raise BuildNotConfirmedError(
+        f"{what} would take {cost}, over the {duration(limit)} a build may take without confirmation "
+        f"({BUILD_LIMIT_ENV}); refused: confirm it at a terminal, pass --yes (millfmu run, millfmu build-fmu), "
+        f"or set {BUILD_LIMIT_ENV} to a larger number of seconds")
+
+
+def _ask_at_terminal(question: str) -> bool:
+    print(f"millfmu: {question} [y/N] ", end="", file=sys.stderr, flush=True)
+    try:
+        answer = sys.stdin.readline()
+    except (OSError, KeyboardInterrupt):
+        return False
+    return answer.strip().lower() in ("y", "yes")
+
+
+def unbuildable(table: Table, point: dict, builder) -> None:
+    """Refuse (:class:`PointNotBuildableError`) where ``builder`` cannot run a point of the
+    build that extends ``table`` to ``point``: asked of each point to run, before anything
+    is said or run, from builders that know (``builder.unbuildable(scene, point)``, the
+    reason or None)."""
+    check = getattr(builder, "unbuildable", None)
+    if check is None:
+        return
+    old = table.spec()
+    grid, oat = extended_axes(old, point)
+    spec = TableSpec(scene=old.scene, grid=grid, kernel_version=old.kernel_version,
+                     builder_id=old.builder_id, one_at_a_time=oat)
+    ran = old.points()
+    for p in spec.points():
+        if p in ran:
+            continue
+        why = check(spec.scene, p)
+        if why is not None:
+            # Name the value the point was extended to (else the first that is new).
+            new = [ax for ax in p if ax in point and float(p[ax]) == float(point[ax])
+                   and not _on_axis(old, ax, float(p[ax]))]
+            ax = new[0] if new else next(iter(p))
+            raise PointNotBuildableError(ax, float(p[ax]), why)
+
+
+def _on_axis(spec: TableSpec, ax: str, x: float) -> bool:
+    vals = spec.grid.get(ax, spec.one_at_a_time.get(ax, ()))
+    return bool(vals) and vals[0] <= x <= vals[-1]
 
 
 def extended_axes(spec: TableSpec, point: dict) -> tuple[dict, dict]:

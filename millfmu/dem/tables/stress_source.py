@@ -73,6 +73,9 @@ class TableStressSource:
     error_multiple: float = 0.0
     last_lookup: Lookup | None = None
     last_notes: list = field(default_factory=list)
+    #: axis -> (least, largest) value [axis unit] looked up with similarity assumed (an axis
+    #: of ``similar_axes`` beyond the table's range): what :meth:`similarity_warnings` says.
+    similarity_seen: dict = field(default_factory=dict)
 
     def __post_init__(self):
         if self.component not in COMPONENTS:
@@ -185,11 +188,15 @@ class TableStressSource:
         (interpolation error + 2 sigma of the DEM sampling, :meth:`Lookup.bound`) plus the
         table's work-precision expected error (recording, spin-up, sector, step, coupling;
         the manifest's ``work_precision.choice.expected_error``, SE_tn's median standing for
-        the ``total`` component's), summed; NaN in a zone without collisions. The local
-        filling's error acts on the kinetics only through the collision frequency, which is
-        bounded itself."""
+        the ``total`` component's), summed; NaN in a zone without collisions, and in every
+        zone where no lookup was made (the stirrer at rest throughout: no collisions, so the
+        table's error reaches no result). The local filling's error acts on the kinetics only
+        through the collision frequency, which is bounded itself."""
         lk = lk if lk is not None else self.last_lookup
         names = self.table.zone_names
+        if lk is None:
+            nan = np.full(len(names), np.nan)
+            return {"zones": list(names), "collision_frequency": nan, "se_median": nan.copy()}
         ci = COMPONENTS.index(self.component)
 
         def rel(v, b):
@@ -224,6 +231,12 @@ class TableStressSource:
             lk = self.table.lookup(point, self.similar_axes)
         self.last_lookup = lk
         self.last_notes = notes + lk.notes
+        for note in self.last_notes:  # each note names its axis first: "AXIS = VALUE..."
+            ax = note.split(" = ", 1)[0]
+            if ax in AXES:
+                x = float(getattr(op, AXES[ax][3]))
+                lo, hi = self.similarity_seen.get(ax, (x, x))
+                self.similarity_seen[ax] = (min(lo, x), max(hi, x))
         eref = float(op.se_beads_J)
         scale = float(op.omega_rad_per_s * op.n_gb_per_m3)
         edges = eref * 10.0 ** U
@@ -248,6 +261,24 @@ class TableStressSource:
                 w[0] = 1.0
                 rate = 0.0
             out.append(Zone(n, float(vf[k]), rate, edges * float(e_fac[k]), w / w.sum()))
+        return out
+
+    def similarity_warnings(self) -> dict:
+        """{axis: warning} for every axis whose lookups so far went beyond the table's range
+        with similarity assumed (the values reached, the table's range, what it means)."""
+        out = {}
+        fixed = self.table.fixed_axis_values()
+        for ax, (lo, hi) in self.similarity_seen.items():
+            if ax in fixed:
+                held = f"the table's single value {fixed[ax]:g}"
+            else:
+                t = self.table.one_at_a_time.get(ax, self.table)
+                held = f"the table's range {float(t.axes[ax][0]):g} to {float(t.axes[ax][-1]):g}"
+            reached = f"{lo:g}" if lo == hi else f"{lo:g} to {hi:g}"
+            out[ax] = (f"{ax} = {reached} lies outside {held}: the dimensionless fields of the nearest node were used "
+                       f"(similarity assumed, named in similar_axes: collision rates scaled with omega n_gb, stress "
+                       f"energies with the reference energy of each operating point); the table's stated error and "
+                       f"the prediction band do not cover this")
         return out
 
     def _volume_fractions(self):
