@@ -15,6 +15,9 @@ with fmpy and read in its sources (sources/src/pythonfmu/PySlaveInstance.cpp):
 - fmi3GetFloat64 reads nValues items of the list the slave returns without checking its
   length (a host asking for fewer or more values than the references name);
 - the logger calls the host's logMessage also when the host passed NULL;
+- at process exit its fini function assigns to the static pyState after that object's own
+  destructor has run: a double release, after which glibc may abort ("corrupted
+  double-linked list"; valgrind: an invalid read in finalizePythonInterpreter);
 - every fmi3InstantiateCoSimulation inserts the resources folder into sys.path again and
   leaks the string; fmi3SetFMUState leaks its result; fmi3GetFMUState on a state handle the
   host passes back for reuse leaks the old state.
@@ -128,6 +131,15 @@ PATCHES = (
      "        // millfmu: a host may pass no logMessage callback.\n"
      "        if (m_fmiLogger != nullptr && (m_settings->loggedCategories.empty() ||\n"
      "            detail::CanFind(m_settings->loggedCategories, category))) {\n"),
+    # At process exit the static pyState's own C++ destructor (an exit handler) runs before
+    # the library's fini function, which then assigned to the destroyed shared_ptr: its
+    # control block was released a second time and glibc aborted later ("corrupted
+    # double-linked list"). The static destructor alone releases it, at exit and at an
+    # unloading dlclose alike (as in the FMI 2.0 wrapper, fmu_build.wrapper fix 5).
+    ("pythonfmu/PySlaveInstance.cpp",
+     "    __attribute__((destructor)) void onLibraryUnload()\n    {\n        finalizePythonInterpreter();\n}\n",
+     "    __attribute__((destructor)) void onLibraryUnload()\n    {\n"
+     "        // millfmu: nothing; pyState's static destructor has released it by now.\n}\n"),
 )
 
 #: Compiled sources, relative to pythonfmu-export/src.
