@@ -48,6 +48,9 @@ from pathlib import Path
 PYTHONFMU3_VERSION = "0.3.4"
 #: FMI 3.0 platform tuple of the binary built here.
 PLATFORM = "x86_64-linux"
+#: What the build says about it (build-fmu's output, docs/fmu.md).
+PLATFORM_NOTE = ("x86_64 Linux only (binaries/x86_64-linux): pythonfmu3's prebuilt Windows wrapper lacks millfmu's "
+                 "fixes, and none is built or tested for Windows")
 
 _HANDLER_OLD_START = "void PySlaveInstance::handle_py_exception(const std::string& what, PyGILState_STATE gilState) const\n{"
 _HANDLER_OLD_END = "\nPySlaveInstance::~PySlaveInstance()"

@@ -291,11 +291,23 @@ def choose_wrapper(log=None, progress=None) -> Path | None:
     return path
 
 
+#: Folders of pythonfmu's binaries that the FMUs do not carry: its win64 wrapper is the stock
+#: one (none of the fixes above, which are built and tested for linux64 only), and shipping
+#: it would make the same FMU behave differently on Windows (fmi2Fatal where Linux answers
+#: fmi2Error, the leaks, the double release at exit) without anything saying so.
+DROPPED_PLATFORMS = ("win64",)
+#: What the build says about it (build-fmu's output, docs/fmu.md).
+PLATFORM_NOTE = ("x86_64 Linux only (binaries/linux64): pythonfmu's Windows wrapper lacks millfmu's fixes, "
+                 "and none is built or tested for Windows")
+
+
 def fmi2_replacements(ident: str, wrapper: Path | None) -> dict:
     """Entries to replace in a pythonfmu FMU of model identifier ``ident`` (for
-    ``fmu_build.build.write_fmu``): the linux64 binary by ``wrapper`` when given, and the
-    resources' :data:`MARKER_FILE` naming the wrapper the FMU carries."""
+    ``fmu_build.build.write_fmu``): the linux64 binary by ``wrapper`` when given, the
+    binaries of :data:`DROPPED_PLATFORMS` dropped, and the resources' :data:`MARKER_FILE`
+    naming the wrapper the FMU carries."""
     out = {f"resources/{MARKER_FILE}": b"fixed\n" if wrapper is not None else b"stock\n"}
+    out.update({f"binaries/{plat}/{ident}.dll": None for plat in DROPPED_PLATFORMS})
     if wrapper is not None:
         out[f"binaries/{_platform_dir()}/{ident}.so"] = Path(wrapper).read_bytes()
     return out
