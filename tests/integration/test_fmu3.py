@@ -536,6 +536,7 @@ done({{"off": off, "near": near, "same": same, "t_now": t_now, "back": back, "st
 
 def test_fmi3_time_tolerance_is_the_fmi2_one():
     pytest.importorskip("pythonfmu3")
+    pytest.importorskip("pythonfmu")
     from millfmu import fmi3_slave, fmu
 
     assert fmi3_slave.TIME_RTOL == fmu.TIME_RTOL
