@@ -37,6 +37,9 @@ def _cmd_build_fmu(args) -> int:
     size = r.fmu.stat().st_size
     print(f"wrote {r.fmu} (FMI {r.fmi_version}.0, {size / 1024:.1f} KiB, {n_files} files) in {time.perf_counter() - t0:.2f} s")
     print(f"model identifier {r.model_identifier}; {r.n_classes} size classes; code package {r.package}: {', '.join(r.modules)}")
+    from . import fmi3_wrapper, wrapper
+
+    print(f"platforms: {(wrapper if r.fmi_version == 2 else fmi3_wrapper).PLATFORM_NOTE}")
     return 0
 
 

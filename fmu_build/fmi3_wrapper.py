@@ -15,6 +15,11 @@ with fmpy and read in its sources (sources/src/pythonfmu/PySlaveInstance.cpp):
 - fmi3GetFloat64 reads nValues items of the list the slave returns without checking its
   length (a host asking for fewer or more values than the references name);
 - the logger calls the host's logMessage also when the host passed NULL;
+- fmi3EnterInitializationMode drops its startTime: the slave never learns where its time
+  starts;
+- at process exit its fini function assigns to the static pyState after that object's own
+  destructor has run: a double release, after which glibc may abort ("corrupted
+  double-linked list"; valgrind: an invalid read in finalizePythonInterpreter);
 - every fmi3InstantiateCoSimulation inserts the resources folder into sys.path again and
   leaks the string; fmi3SetFMUState leaks its result; fmi3GetFMUState on a state handle the
   host passes back for reuse leaks the old state.
@@ -43,6 +48,9 @@ from pathlib import Path
 PYTHONFMU3_VERSION = "0.3.4"
 #: FMI 3.0 platform tuple of the binary built here.
 PLATFORM = "x86_64-linux"
+#: What the build says about it (build-fmu's output, docs/fmu.md).
+PLATFORM_NOTE = ("x86_64 Linux only (binaries/x86_64-linux): pythonfmu3's prebuilt Windows wrapper lacks millfmu's "
+                 "fixes, and none is built or tested for Windows")
 
 _HANDLER_OLD_START = "void PySlaveInstance::handle_py_exception(const std::string& what, PyGILState_STATE gilState) const\n{"
 _HANDLER_OLD_END = "\nPySlaveInstance::~PySlaveInstance()"
@@ -128,6 +136,27 @@ PATCHES = (
      "        // millfmu: a host may pass no logMessage callback.\n"
      "        if (m_fmiLogger != nullptr && (m_settings->loggedCategories.empty() ||\n"
      "            detail::CanFind(m_settings->loggedCategories, category))) {\n"),
+    # fmi3EnterInitializationMode's startTime reaches the slave (setup_experiment): the FMU's
+    # time starts there, and fmi3DoStep refuses a currentCommunicationPoint that is not it.
+    ("cppfmu/fmi_functions.cpp",
+     "fmi3Status fmi3EnterInitializationMode(fmi3Instance c, fmi3Boolean, fmi3Float64, fmi3Float64, fmi3Boolean, fmi3Float64)\n"
+     "{\n    const auto component = reinterpret_cast<Component*>(c);\n    try {\n"
+     "        component->slave->EnterInitializationMode();\n",
+     "fmi3Status fmi3EnterInitializationMode(fmi3Instance c, fmi3Boolean toleranceDefined, fmi3Float64 tolerance,\n"
+     "    fmi3Float64 startTime, fmi3Boolean stopTimeDefined, fmi3Float64 stopTime)\n"
+     "{\n    const auto component = reinterpret_cast<Component*>(c);\n    try {\n"
+     "        // millfmu: the start time reaches the slave.\n"
+     "        component->slave->SetupExperiment(toleranceDefined, tolerance, startTime, stopTimeDefined, stopTime);\n"
+     "        component->slave->EnterInitializationMode();\n"),
+    # At process exit the static pyState's own C++ destructor (an exit handler) runs before
+    # the library's fini function, which then assigned to the destroyed shared_ptr: its
+    # control block was released a second time and glibc aborted later ("corrupted
+    # double-linked list"). The static destructor alone releases it, at exit and at an
+    # unloading dlclose alike (as in the FMI 2.0 wrapper, fmu_build.wrapper fix 5).
+    ("pythonfmu/PySlaveInstance.cpp",
+     "    __attribute__((destructor)) void onLibraryUnload()\n    {\n        finalizePythonInterpreter();\n}\n",
+     "    __attribute__((destructor)) void onLibraryUnload()\n    {\n"
+     "        // millfmu: nothing; pyState's static destructor has released it by now.\n}\n"),
 )
 
 #: Compiled sources, relative to pythonfmu-export/src.

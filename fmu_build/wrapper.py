@@ -19,6 +19,9 @@ The wrapper that pythonfmu 0.7.0 ships has these faults, each seen with the mill
    freed twice, and glibc aborts ("corrupted double-linked list") in a later free. Found
    with valgrind (invalid read in finalizePythonInterpreter of a block freed by the exit
    handlers); this is the abort hosts saw at exit.
+6. Every fmi2Instantiate inserts the resources folder into ``sys.path`` again (leaking the
+   string), and ``findClass`` leaks the MRO list, the reprs and their bytes of every class
+   the script defines: the host's memory grew by about 2 kB per instantiate/free cycle.
 
 Measured (``python -m fmu_build.exit_study``, 200 processes each loading three mill FMUs
 in fmpy, stepping, freeing them and exiting normally): see docs/fmu.md.
@@ -99,6 +102,32 @@ EDITS = (
      'handle_py_exception("[_set_fmu_state] PyObject_CallMethod", gilState);\n            }\n',
      'handle_py_exception("[_set_fmu_state] PyObject_CallMethod", gilState);\n            }\n'
      "            Py_DECREF(f);\n"),
+    # 6. Per fmi2Instantiate, the resources folder went into sys.path again (a longer list
+    #    each time) and its string leaked; findClass leaked, per class of the script and per
+    #    class of its MRO, the MRO list, the repr and its UTF-8 bytes (about 1.8 kB a cycle).
+    ("src/pythonfmu/PySlaveInstance.cpp",
+     "            int success = PyList_Insert(sys_path, 0, PyUnicode_FromString(resourceLocation().c_str()));\n",
+     "            PyObject* pResources = PyUnicode_FromString(resourceLocation().c_str());\n"
+     "            int success = pResources == nullptr ? -1\n"
+     "                : (PySequence_Contains(sys_path, pResources) == 1 ? 0 : PyList_Insert(sys_path, 0, pResources));\n"
+     "            Py_XDECREF(pResources);\n"),
+    ("src/pythonfmu/PySlaveInstance.cpp",
+     "                const char* className = PyBytes_AsString(PyUnicode_AsUTF8String(PyObject_Repr(pItem)));\n\n"
+     "                std::string str(className);\n",
+     "                PyObject* pRepr = PyObject_Repr(pItem);\n"
+     "                PyObject* pReprBytes = pRepr != nullptr ? PyUnicode_AsUTF8String(pRepr) : nullptr;\n"
+     "                std::string str(pReprBytes != nullptr ? PyBytes_AsString(pReprBytes) : \"\");\n"
+     "                Py_XDECREF(pReprBytes);\n"
+     "                Py_XDECREF(pRepr);\n"),
+    ("src/pythonfmu/PySlaveInstance.cpp",
+     "                    deepestFile = PyBytes_AsString(PyUnicode_AsUTF8String(key));\n",
+     "                    PyObject* pKeyBytes = PyUnicode_AsUTF8String(key);\n"
+     "                    deepestFile = PyBytes_AsString(pKeyBytes);\n"
+     "                    Py_DECREF(pKeyBytes);\n"),
+    ("src/pythonfmu/PySlaveInstance.cpp",
+     "                    deepestChain = i;\n                }\n            }\n        }\n        Py_DECREF(pMroAttribute);\n",
+     "                    deepestChain = i;\n                }\n            }\n            Py_DECREF(pMROList);\n        }\n"
+     "        Py_XDECREF(pMroAttribute);\n"),
     # 5. pyState's static destructor releases it; the fini function must not touch it again.
     ("src/pythonfmu/PySlaveInstance.cpp",
      "__attribute__((destructor)) void onLibraryUnload()\n{\n    finalizePythonInterpreter();\n}",
@@ -262,11 +291,23 @@ def choose_wrapper(log=None, progress=None) -> Path | None:
     return path
 
 
+#: Folders of pythonfmu's binaries that the FMUs do not carry: its win64 wrapper is the stock
+#: one (none of the fixes above, which are built and tested for linux64 only), and shipping
+#: it would make the same FMU behave differently on Windows (fmi2Fatal where Linux answers
+#: fmi2Error, the leaks, the double release at exit) without anything saying so.
+DROPPED_PLATFORMS = ("win64",)
+#: What the build says about it (build-fmu's output, docs/fmu.md).
+PLATFORM_NOTE = ("x86_64 Linux only (binaries/linux64): pythonfmu's Windows wrapper lacks millfmu's fixes, "
+                 "and none is built or tested for Windows")
+
+
 def fmi2_replacements(ident: str, wrapper: Path | None) -> dict:
     """Entries to replace in a pythonfmu FMU of model identifier ``ident`` (for
-    ``fmu_build.build.write_fmu``): the linux64 binary by ``wrapper`` when given, and the
-    resources' :data:`MARKER_FILE` naming the wrapper the FMU carries."""
+    ``fmu_build.build.write_fmu``): the linux64 binary by ``wrapper`` when given, the
+    binaries of :data:`DROPPED_PLATFORMS` dropped, and the resources' :data:`MARKER_FILE`
+    naming the wrapper the FMU carries."""
     out = {f"resources/{MARKER_FILE}": b"fixed\n" if wrapper is not None else b"stock\n"}
+    out.update({f"binaries/{plat}/{ident}.dll": None for plat in DROPPED_PLATFORMS})
     if wrapper is not None:
         out[f"binaries/{_platform_dir()}/{ident}.so"] = Path(wrapper).read_bytes()
     return out

@@ -3,7 +3,7 @@ arrays whose length is one structural parameter, every value in one flat list.
 
 FMI 3.0 statuses: a call the standard calls illegal (setting an output, or a fixed
 parameter after initialization; an unknown value reference; a wrong number of values;
-another array length) raises :class:`FmiCallError`, which the FMU's wrapper (pythonfmu3's,
+another array length; a doStep whose currentCommunicationPoint is not the FMU's time) raises :class:`FmiCallError`, which the FMU's wrapper (pythonfmu3's,
 with millfmu's fixes: fmu_build.fmi3_wrapper) answers with fmi3Error and this message; the
 instance is left as it was. Input values are checked by the step, which refuses bad ones
 with fmi3Discard (the master may retry). No other exception may leave a call.
@@ -17,6 +17,7 @@ from __future__ import annotations
 import ctypes
 import hashlib
 import json
+import math
 import traceback
 from xml.etree.ElementTree import Element
 
@@ -24,6 +25,10 @@ from pythonfmu3 import Dimension, Fmi3Causality, Fmi3Initial, Fmi3Slave, Fmi3Sta
 
 #: Format of the FMU states (fmi3GetFMUState, fmi3SerializeFMUState).
 STATE_FORMAT = "millfmu-fmi3-state-1"
+#: Largest difference between currentCommunicationPoint and the FMU's time that is taken
+#: as the masters' round-off of accumulated time [s]: relative to the time and the step.
+#: The FMI 2.0 adapter's (millfmu.fmu.TIME_RTOL), which this module cannot import.
+TIME_RTOL = 1e-9
 
 
 
@@ -168,7 +173,18 @@ class Fmi3Base(Fmi3Slave):
         except Exception:  # a fault of the code, not of the call: report it whole
             self.refuse_configuration("internal error while initializing: " + traceback.format_exc(limit=3))
 
+    def setup_experiment(self, start_time: float):
+        """The FMU's time starts at fmi3EnterInitializationMode's startTime (millfmu's
+        wrapper passes it on; pythonfmu3's own drops it)."""
+        self._v[0] = float(start_time)
+
     def do_step(self, current_time: float, step_size: float):
+        t = self._v[0]
+        scale = max(abs(t), abs(step_size) if math.isfinite(step_size) else 0.0, 1.0)
+        if not (math.isfinite(current_time) and abs(current_time - t) <= TIME_RTOL * scale):
+            raise FmiCallError(f"fmi3DoStep refused, state unchanged: currentCommunicationPoint = {current_time!r} s is not the "
+                               f"FMU's time {t!r} s (the previous communication point plus its step, or the time of the state "
+                               f"set last; allowed within a relative {TIME_RTOL:g})")
         if self._config_error is not None:
             self.log(f"doStep at t = {current_time!r} s refused: {self._config_error}", Fmi3Status.error)
             return Fmi3StepResult(status=Fmi3Status.error)

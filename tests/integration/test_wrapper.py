@@ -104,3 +104,27 @@ done({{"errors": errors, "same": same, "off": off, "ok": ok}})
 """, tmp_path)
     assert any("state refused, nothing applied" in m for m in res["errors"]), res["errors"]
     assert res["same"] and res["off"] == 2 and res["ok"] == 0
+
+
+def _binary_platforms(path) -> list:
+    return sorted(n.split("/")[1] for n in zipfile.ZipFile(path).namelist() if n.startswith("binaries/") and not n.endswith("/"))
+
+
+def test_fmi2_fmus_carry_no_windows_binary(fmus, tmp_path):
+    """pythonfmu's win64 wrapper is its stock one, without the fixes the linux64 binary
+    carries: FMUs built with either wrapper carry linux64 only, and build-fmu says so."""
+    import os
+    import subprocess
+    import sys
+
+    from .fmu_support import ROOT
+
+    _, paths = fmus
+    for p in paths:
+        assert _binary_platforms(p) == ["linux64"], p
+    out = tmp_path / "stock.fmu"
+    r = subprocess.run([sys.executable, "-m", "millfmu.cli", "build-fmu", "-o", str(out)], capture_output=True, text=True, cwd=ROOT,
+                       env={**os.environ, "MILLFMU_STOCK_WRAPPER": "1"})
+    assert r.returncode == 0, r.stderr
+    assert "platforms: x86_64 Linux only" in r.stdout, r.stdout
+    assert _binary_platforms(out) == ["linux64"]
