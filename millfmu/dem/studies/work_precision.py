@@ -829,7 +829,7 @@ def plot(res, path, title=None) -> None:
         a.axvspan(w[0], w[1], color="0.9")
         a.set(xlabel="t [s] (block centre)", ylabel="relative to the reference window [%]",
               title=f"the long run in blocks of {dr['block_s']:g} s (grey: reference)")
-        a.legend(fontsize=6, loc="upper left", bbox_to_anchor=(1.01, 1.0), borderaxespad=0.0)
+        a.legend(fontsize=7, loc="upper left", bbox_to_anchor=(1.01, 1.0), borderaxespad=0.0)
     for a in ax:
         a.grid(alpha=0.3, which="both")
     plain_log_ticks(fig)
