@@ -545,6 +545,8 @@ def plot(res: Result, fs: Flowsheet, path: Path) -> Path:
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
+    from millfmu.plotstyle import plain_log_ticks
+
     fig, ax = plt.subplots(2, 2, figsize=(11, 7.5))
     t_min = res.t / 60.0
     for c in res.columns:
@@ -565,6 +567,7 @@ def plot(res: Result, fs: Flowsheet, path: Path) -> Path:
         if a.lines:
             a.legend(fontsize=7)
         a.grid(alpha=0.3)
+    plain_log_ticks(fig)
     mb = res.mass
     fig.suptitle(f"{fs.name}: {fs.algorithm}, step {fs.step_s:g} s; mass balance residual {mb['relative_residual']:.1e} (relative)")
     fig.tight_layout()

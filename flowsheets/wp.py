@@ -85,12 +85,12 @@ def _plot(rows, runs, reference, times, variable, fs, order, path):
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
+    from millfmu.plotstyle import label_points, plain_log_ticks
+
     fig, ax = plt.subplots(1, 3, figsize=(15, 4.5))
     w = [r["wall_s"] for r in rows]
     e = [r["relative_error"] for r in rows]
     ax[0].loglog(w, e, "o-")
-    for r in rows:
-        ax[0].annotate(f"{r['step_s']:g} s", (r["wall_s"], r["relative_error"]), fontsize=8)
     ax[0].set(xlabel="wall time [s]", ylabel=f"max relative error of {variable}", title="work-precision")
     hs = np.array([r["step_s"] for r in rows])
     ax[1].loglog(hs, e, "o-", label="measured")
@@ -103,7 +103,11 @@ def _plot(rows, runs, reference, times, variable, fs, order, path):
     ax[2].legend(fontsize=7)
     for a in ax:
         a.grid(alpha=0.3, which="both")
+    plain_log_ticks(fig)
     fig.suptitle(f"{fs.name}: {fs.algorithm} co-simulation, fmpy master")
     fig.tight_layout()
+    # the steps beside their points, placed in pixels once the layout is final
+    label_points(ax[0], [(r["wall_s"], r["relative_error"]) for r in rows], [f"step {r['step_s']:g} s" for r in rows],
+                 fontsize=8)
     fig.savefig(path, dpi=90)
     plt.close(fig)

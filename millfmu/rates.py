@@ -30,6 +30,12 @@ Outputs per scene: ``rates_NAME.csv`` (one row per parameter value, model and qu
 (one panel per parameter). Without a scene, the shipped calibrated pairs of seed 000's
 two materials (yeast cells, limestone) and their calibration (``calibration.csv``).
 
+The text and the plot state each model's rate at the reference point [1/s]. Where one of
+them is negligible (less than 1 % of a size class broken in the scene's run,
+:data:`NEGLIGIBLE_FRACTION`), ratios to it would read 1e-10 or 1e9 for changes between no
+breakage and next to none; then both show the rates themselves [1/s], the plot with the
+negligible ones shaded, and say which reference is negligible and why.
+
 (:mod:`millfmu.kinetics.rates` holds the rate formulas; this module only evaluates them.)
 """
 
@@ -69,6 +75,11 @@ DEFAULT_VALUES = {
     "filling": (0.5, 0.6, 0.7, 0.8, 0.9),
 }
 SOLIDS_FACTORS = (0.5, 1.0, 1.5, 2.0)
+#: A rate S [1/s] is negligible where it breaks less than this fraction of a size class in
+#: the scene's run (S t_end below it; first order: 1 - exp(-S t) ~ S t). A rate over such a
+#: reference reads 1e-10 or 1e9 for changes between no breakage and next to none, so where a
+#: reference rate is negligible the output gives the rates themselves instead of ratios.
+NEGLIGIBLE_FRACTION = 0.01
 MODELS = ("simple", "detailed")
 #: ``value`` is in ``value_unit`` (the parameter's unit: m/s, m, kg/m3, 1); every other
 #: column names its unit (``_m``, ``_per_s``, ``_J``) or is dimensionless (``_over_ref``, p_*).
@@ -111,9 +122,70 @@ class RatesResult:
     curves: dict  # (parameter, model) -> Curve
     constants: dict
     source_description: dict
+    #: The scene's run time [s], which sets :attr:`negligible_rate_per_s`.
+    run_s: float = math.nan
+    #: Whether the detailed model ran on its own scene (a calibrated pair's material
+    #: constants) rather than on ``scene``'s.
+    detailed_own_scene: bool = False
+
+    @property
+    def negligible_rate_per_s(self) -> float:
+        """Below this rate [1/s] less than :data:`NEGLIGIBLE_FRACTION` of a size class
+        breaks in the scene's run."""
+        return NEGLIGIBLE_FRACTION / self.run_s
 
     def curve(self, parameter: str, model: str) -> Curve:
         return self.curves[(parameter, model)]
+
+    def reference_rate(self, model: str, quantity: str) -> float:
+        """The model's rate at the reference point [1/s] (the same point on every
+        parameter's curve)."""
+        p = next(iter(PARAMETERS))
+        return float(self.curve(p, model).rates[quantity][self.reference_index(p)])
+
+    def negligible_references(self) -> list:
+        """(model, quantity, rate [1/s]) of every reference rate below
+        :attr:`negligible_rate_per_s`."""
+        out = []
+        for m in MODELS:
+            for q in self.quantities:
+                r = self.reference_rate(m, q)
+                if not r >= self.negligible_rate_per_s:
+                    out.append((m, q, r))
+        return out
+
+    @property
+    def absolute(self) -> bool:
+        """Whether the output shows rates [1/s] rather than ratios to the reference: where
+        a reference rate is negligible, ratios to it say nothing a process engineer can use."""
+        return bool(self.negligible_references())
+
+    def why_absolute(self) -> str:
+        """In words: which reference rates are negligible, why, and what a ratio to them
+        would read ('' where none is)."""
+        neg = self.negligible_references()
+        if not neg:
+            return ""
+        first = next(iter(PARAMETERS))
+        sf = [self.curve(first, m).sf[q][self.reference_index(first)] for m, q, _ in neg]
+        p = [r / f for (_, _, r), f in zip(neg, sf) if f > 0.0]
+        models = [m for m in MODELS if any(n[0] == m for n in neg)]
+        which = "; ".join(f"{m}: " + ", ".join(f"{_qlabel(q)} {r:.2g}" for n, q, r in neg if n == m) for m in models)
+        txt = (f"the reference rates of the {' and the '.join(models)} model{'s' if len(models) > 1 else ''} are "
+               f"negligible ({which} 1/s; below {self.negligible_rate_per_s:.2g} 1/s, under "
+               f"{100 * NEGLIGIBLE_FRACTION:g} % of a size class broken in the scene's {self.run_s:g} s")
+        if p:
+            txt += (f"; breakage probability per stress at most {max(p):.1g}: the stresses hardly ever exceed "
+                    "the material's breakage energy at these sizes")
+        txt += ")."
+        if not self.detailed_own_scene and self.scene.kinetics.model == "simple" and "detailed" in models:
+            txt += (" The detailed model runs on this scene's material constants, set for the simple model; the "
+                    "calibrated pairs (millfmu rates without a scene) give each model its own.")
+        ratios = [v for q_ in PARAMETERS for m, q, _ in neg for v in self.relative(q_, m, q)]
+        ratios = np.array([v for v in ratios if math.isfinite(v) and v > 0.0])
+        if ratios.size and ratios.max() / ratios.min() > 1e3:
+            txt += f" Ratios to these rates would run from {ratios.min():.0e} to {ratios.max():.0e}."
+        return txt + " So the rates themselves are shown [1/s]."
 
     def reference_index(self, parameter: str) -> int:
         v = self.curves[(parameter, "simple")].values
@@ -372,7 +444,8 @@ def compute(scene, name: str | None = None, sizes_m=None, values: dict | None = 
             curves[(p, model_name)] = Curve(p, model_name, vals, rates_q, sf_q, pcap_q, se, sep, sources, notes, band_q)
     constants = {"k_c": scene.mill.stress_frequency_factor,
                  "energy_transfer": (detailed_scene or scene).kinetics.energy_transfer}
-    return RatesResult(name or scene.scene.name, scene, reference, sizes, quantities, curves, constants, desc)
+    return RatesResult(name or scene.scene.name, scene, reference, sizes, quantities, curves, constants, desc,
+                       run_s=float(scene.run.t_end_s), detailed_own_scene=detailed_scene is not None)
 
 
 def _rates_at(model_name, m, op, x, sizes, w_feed) -> dict:
@@ -416,6 +489,10 @@ def to_json(result: RatesResult, calibration: dict | None = None) -> str:
                        "disruption_rate": "initial disruption rate of the feed's cells, sum_i w_i S_i [1/s]"},
         "detailed_source": result.source_description,
         "values": {p: result.curve(p, "simple").values.tolist() for p in PARAMETERS},
+        "reference_rates_per_s": {m: {_qlabel(q): result.reference_rate(m, q) for q in result.quantities}
+                                  for m in MODELS},
+        "negligible_rate_per_s": result.negligible_rate_per_s,
+        "shown": ("rates [1/s]: " + result.why_absolute()) if result.absolute else "rates over the reference rate [-]",
     }
     if calibration is not None:
         doc["calibration"] = calibration
@@ -429,15 +506,27 @@ def _qlabel(q: str) -> str:
 
 
 def summary(result: RatesResult) -> str:
-    """Text table: per parameter value, each model's rate relative to the reference."""
-    lines = [f"{result.name} ({result.scene.material.model}): k_c = {result.constants['k_c']:g}, "
-             f"eta_E = {result.constants['energy_transfer']:g}; rates over their value at the reference point"]
+    """Text table: per parameter value, each model's rate relative to the reference, or the
+    rates themselves [1/s] where a reference rate is negligible (:attr:`RatesResult.absolute`)."""
     qs = [q for q in result.quantities]
+    refs = "; ".join(f"{_qlabel(q)}: simple {result.reference_rate('simple', q):.3g}, detailed "
+                     f"{result.reference_rate('detailed', q):.3g}" for q in qs)
+    lines = [f"{result.name} ({result.scene.material.model}): k_c = {result.constants['k_c']:g}, "
+             f"eta_E = {result.constants['energy_transfer']:g}",
+             f"rates at the reference point [1/s]: {refs}"]
+    if result.absolute:
+        import textwrap
+
+        why = result.why_absolute()
+        lines.append(textwrap.fill("Rates [1/s] below, not over the reference: " + why, 110))
+    else:
+        lines.append("rates over their value at the reference point [-] below")
     head = f"{'parameter':22s} {'value':>10s} " + " ".join(f"{_qlabel(q) + ' ' + m[:3]:>22s}" for q in qs for m in MODELS)
     lines.append(head)
     for p in PARAMETERS:
         vals = result.curve(p, "simple").values
-        rel = {(q, m): result.relative(p, m, q) for q in qs for m in MODELS}
+        rel = {(q, m): (result.curve(p, m).rates[q] if result.absolute else result.relative(p, m, q))
+               for q in qs for m in MODELS}
         for k, v in enumerate(vals):
             mark = "*" if k == result.reference_index(p) else " "
             det_src = result.curve(p, "detailed").sources[k]
@@ -453,15 +542,31 @@ def _fmt(v) -> str:
 
 
 def plot(result: RatesResult, path):
-    """One panel per parameter: each model's rate over its value at the reference point."""
+    """One panel per parameter: each model's rate over its value at the reference point, or,
+    where a reference rate is negligible (:attr:`RatesResult.absolute`), the rates
+    themselves [1/s] above a band that marks the negligible ones."""
+    import textwrap
+
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
+    from .plotstyle import plain_log_ticks
+
+    absolute = result.absolute
+    floor = result.negligible_rate_per_s
     qs = ("disruption_rate",) if "disruption_rate" in result.quantities else result.quantities
     colors = plt.rcParams["axes.prop_cycle"].by_key()["color"]
-    fig, axes = plt.subplots(2, 3, figsize=(13.5, 8.0))
+    fig, axes = plt.subplots(2, 3, figsize=(13.5, 9.0 if absolute else 8.2))
+
+    def shown_rates(p, m, q):
+        return result.curve(p, m).rates[q] if absolute else result.relative(p, m, q)
+
+    def shown_band(p, q):
+        c = result.curve(p, "detailed")
+        return tuple(c.band[q]) if absolute and q in c.band else () if absolute else result.band_relative(p, q)
+
     for ax, p in zip(axes.ravel(), PARAMETERS):
         label, unit = PARAMETERS[p][0], PARAMETERS[p][1]
         scale, shown_unit = (1e3, "mm") if unit == "m" else (1.0, unit)
@@ -469,10 +574,10 @@ def plot(result: RatesResult, path):
             c = colors[j % len(colors)]
             for m, style in zip(MODELS, ("-", "--")):
                 cur = result.curve(p, m)
-                rel = result.relative(p, m, q)
+                rel = shown_rates(p, m, q)
                 xv = cur.values * scale
                 ax.plot(xv, rel, style, color=c, label=f"{m}, {_qlabel(q)}")
-                band = result.band_relative(p, q) if m == "detailed" else ()
+                band = shown_band(p, q) if m == "detailed" else ()
                 if band:
                     ax.fill_between(xv, *band, color=c, alpha=0.15, lw=0, label=f"detailed, {_qlabel(q)}: table's stated error")
                 if m == "detailed":
@@ -482,14 +587,21 @@ def plot(result: RatesResult, path):
                 else:
                     ax.plot(xv, rel, "o", color=c, ms=3)
         ax.axvline(result.reference[p] * scale, color="0.6", lw=0.8, ls=":")
-        ax.axhline(1.0, color="0.8", lw=0.6)
-        shown = np.concatenate([result.relative(p, m, q) for q in qs for m in MODELS]
-                               + [b for q in qs for b in result.band_relative(p, q)])
+        shown = np.concatenate([shown_rates(p, m, q) for q in qs for m in MODELS]
+                               + [b for q in qs for b in shown_band(p, q)])
         shown = shown[np.isfinite(shown) & (shown > 0.0)]
-        if shown.size and shown.max() / shown.min() > 10.0:  # a decade or more: log scale
+        if absolute:
             ax.set_yscale("log")
+            lo = min(shown.min(), floor) if shown.size else floor
+            ax.axhspan(lo / 10.0, floor, color="0.88", lw=0, zorder=0,
+                       label=f"negligible rates: under {100 * NEGLIGIBLE_FRACTION:g} % broken in {result.run_s:g} s")
+            ax.set_ylabel("breakage rate [1/s]")
+        else:
+            ax.axhline(1.0, color="0.8", lw=0.6)
+            if shown.size and shown.max() / shown.min() > 10.0:  # a decade or more: log scale
+                ax.set_yscale("log")
+            ax.set_ylabel("rate / rate at reference")
         ax.set_xlabel(f"{label} [{shown_unit}]")
-        ax.set_ylabel("rate / rate at reference")
         src = result.source_description[p]
         sim_any = any("similarity" in x for x in result.curve(p, "detailed").sources)
         short = "detailed: table, similarity assumed (open squares)" if sim_any else \
@@ -499,15 +611,24 @@ def plot(result: RatesResult, path):
     info = axes.ravel()[-1]
     info.axis("off")
     handles, labels = axes.ravel()[0].get_legend_handles_labels()
-    info.legend(handles, labels, loc="upper left", fontsize=8, frameon=False)
+    info.legend(handles, labels, loc="upper left", fontsize=8, frameon=False, borderaxespad=0.0)
     ref = result.reference
-    text = (f"{result.name} ({result.scene.material.model})\n"
-            f"reference: {ref['tip_speed']:g} m/s, d {ref['bead_diameter'] * 1e3:g} mm, "
-            f"rho {ref['bead_density']:g} kg/m3,\n  solids {ref['solids_mass_fraction']:g}, filling {ref['filling']:g}\n"
-            f"simple: k_c = {result.constants['k_c']:g}\ndetailed: eta_E = {result.constants['energy_transfer']:g}\n"
-            "solid: simple; dashed: detailed")
-    info.text(0.0, 0.02, text, fontsize=8, va="bottom", transform=info.transAxes)
-    fig.suptitle(f"Breakage rates relative to the reference point: {result.name}", fontsize=11)
+    refs = "\n".join(f"  {_qlabel(q)}: simple {result.reference_rate('simple', q):.2g}, detailed "
+                     f"{result.reference_rate('detailed', q):.2g}" for q in qs)
+    info.text(0.0, 0.0, f"rates at the reference point [1/s]:\n{refs}\nsimple: k_c = {result.constants['k_c']:g}; "
+              f"detailed: eta_E = {result.constants['energy_transfer']:g}", fontsize=8, va="bottom",
+              transform=info.transAxes)
+    point = (f"reference point (dotted): {ref['tip_speed']:g} m/s, bead diameter {ref['bead_diameter'] * 1e3:g} mm, "
+             f"bead density {ref['bead_density']:g} kg/m3, solids {ref['solids_mass_fraction']:g}, "
+             f"filling {ref['filling']:g} ({result.scene.material.model})")
+    if absolute:
+        why = result.why_absolute()
+        fig.suptitle(f"Breakage rates [1/s] along each operating parameter: {result.name}\n{point}\n"
+                     + textwrap.fill("Rates, not ratios: " + why, 165),
+                     fontsize=9.5)
+    else:
+        fig.suptitle(f"Breakage rates relative to the reference point: {result.name}\n{point}", fontsize=10)
+    plain_log_ticks(fig)
     fig.tight_layout()
     fig.savefig(path, dpi=110, format="png")
     plt.close(fig)

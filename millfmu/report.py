@@ -102,6 +102,7 @@ def process_section(out: Path, quick: bool, log=print) -> str:
     import matplotlib.pyplot as plt
     import numpy as np
 
+    from .plotstyle import plain_log_ticks
     from .runner import psd_figure, simulate
     from .scene import load_scene
 
@@ -110,6 +111,7 @@ def process_section(out: Path, quick: bool, log=print) -> str:
     model, records, psds = simulate(scene, progress=False)
     wall = time.perf_counter() - t0
     fig = psd_figure(model, records, psds)
+    plain_log_ticks(fig)
     fig.savefig(out / "process_psd.png", dpi=80)
     plt.close(fig)
     t = np.array([r["t_s"] for r in records])
@@ -123,11 +125,7 @@ def process_section(out: Path, quick: bool, log=print) -> str:
     a1.set(xlabel="time t [s]", ylabel="size [\u00b5m]", yscale="log", title="characteristic sizes against time")
     a2.set(xlabel="specific energy E_m [kJ/kg]", ylabel="size [\u00b5m]", yscale="log", xscale="log",
            title="against the specific energy put in")
-    from matplotlib.ticker import FuncFormatter
-
-    # Labels at 1, 2 and 5 of each decade only: the default labels every minor tick, overlapping.
-    a2.xaxis.set_minor_formatter(FuncFormatter(lambda v, _: f"{v:g}" if f"{v:.0e}"[0] in "25" else ""))
-    a2.xaxis.set_major_formatter(FuncFormatter(lambda v, _: f"{v:g}"))
+    plain_log_ticks(fig)
     for a in (a1, a2):
         a.grid(alpha=0.3, which="both")
         a.legend(loc="upper left", bbox_to_anchor=(1.02, 1.0), borderaxespad=0.0, fontsize=8)
@@ -180,6 +178,7 @@ def _zone_map(out: Path, model) -> str:
 
     from .dem.mills.zones import Zones
     from .dem.scene import scene_from_dict
+    from .plotstyle import plain_log_ticks
 
     dem = scene_from_dict(table.manifest["scene"])
     zones = Zones(dem.geometry, dem.zones)
@@ -214,6 +213,7 @@ def _zone_map(out: Path, model) -> str:
         fig.colorbar(m, ax=ax, shrink=0.9)
     fig.suptitle(f"DEM zones of the default scene's table at {op.tip_speed_m_per_s:g} m/s and {100 * model.inputs['bead_filling']:g} % "
                  f"filling (component {src.component}; \u00b1: stated relative error)", fontsize=10)
+    plain_log_ticks(fig)
     fig.tight_layout()
     fig.savefig(out / "process_zones.png", dpi=80)
     plt.close(fig)
@@ -291,6 +291,8 @@ def _plot_pbm(res, path):
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
+    from .plotstyle import plain_log_ticks
+
     fig, ax = plt.subplots(2, len(res), figsize=(8.0 * len(res), 9), squeeze=False)
     for j, (case, r) in enumerate(res.items()):
         gone = []
@@ -316,6 +318,7 @@ def _plot_pbm(res, path):
         for a in ax[:, j]:
             a.grid(alpha=0.3, which="both")
             a.legend(fontsize=7, loc="upper left", bbox_to_anchor=(1.01, 1.0), borderaxespad=0.0)
+    plain_log_ticks(fig)
     fig.tight_layout()
     fig.savefig(path, dpi=80)
     plt.close(fig)

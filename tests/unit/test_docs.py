@@ -79,3 +79,61 @@ def test_every_command_of_the_readme_table_exists():
     assert r.returncode == 0, r.stderr
     codes = json.loads(r.stdout.splitlines()[-1])
     assert not {c: v for c, v in codes.items() if v != 0}, codes
+
+
+# ---- the glossary (issue 55) ------------------------------------------------------------------
+GLOSSARY = ROOT / "docs" / "glossary.md"
+#: Symbols and abbreviations of the papers and of the project that a reader of the README
+#: meets without a definition beside them.
+SYMBOLS = ("SE", "SE_P", "SF", "SN", "SN_g", "SE_tn", "SE_ts", "SE_cs", "SE_net", "SI", "SEV_1", "SEV_2", "SEV_3",
+           "SEV_4", "V1", "V2", "V3", "V4", "eta_E", "eta_eff", "Re", "f_Mat", "k_c", "P_cap", "x10", "x50", "x90",
+           "Q3", "tip speed", "filling", "Stokes number", "power number", "FMI", "FMU", "SSP", "DEM", "CFD", "PBM")
+
+
+def glossary_names() -> set[str]:
+    """The names in the first cell of every table row of the glossary: 'a, b (c)' gives a,
+    b and c."""
+    names = set()
+    for row in GLOSSARY.read_text().splitlines():
+        if not row.startswith("| ") or row.startswith(("| symbol", "| abbreviation", "|---")):
+            continue
+        first = row.split("|")[1]
+        names |= {n.strip() for n in re.split(r", |[()]", first) if n.strip()}
+    return names
+
+
+def _used(symbol: str, text: str) -> bool:
+    return re.search(r"(?<![A-Za-z0-9_])" + re.escape(symbol) + r"(?![A-Za-z0-9_])", text) is not None
+
+
+def test_every_symbol_the_readme_uses_is_in_the_glossary():
+    readme = (ROOT / "README.md").read_text()
+    names = glossary_names()
+    used = [s for s in SYMBOLS if _used(s, readme)]
+    assert {"SEV_1", "SN_g", "SE_cs", "SE", "SF"} <= set(used)  # the list is about what the README says
+    missing = [s for s in used if s not in names]
+    assert not missing, f"used in README.md without a glossary entry: {missing}"
+    assert all(s in names for s in SYMBOLS), [s for s in SYMBOLS if s not in names]
+
+
+def test_glossary_rows_give_meaning_unit_and_source():
+    rows = [r for r in GLOSSARY.read_text().splitlines()
+            if r.startswith("| ") and not r.startswith(("| symbol", "| abbreviation", "|---"))]
+    assert len(rows) > 40
+    for r in rows:
+        cells = [c.strip() for c in r.strip("|").split("|")]
+        if len(cells) == 2:  # software abbreviations: a name and its meaning
+            assert cells[1], r
+            continue
+        assert len(cells) == 4 and all(cells), r  # symbol, meaning, unit, source
+
+
+def test_readme_links_the_glossary_and_names_both_fmi_versions():
+    readme = (ROOT / "README.md").read_text()
+    assert "(docs/glossary.md)" in readme
+    for line in readme.splitlines():
+        if "FMI 2.0" in line:
+            assert "3.0" in line, f"names FMI 2.0 alone, while both versions are built: {line[:120]}"
+    # the docs where the papers' symbols first appear link it too
+    for name in ("model", "dem", "validation-seed001", "validation-seed002", "rates-and-calibration"):
+        assert "(glossary.md)" in (ROOT / "docs" / f"{name}.md").read_text(), name

@@ -102,3 +102,156 @@ def test_the_checks_catch_what_was_wrong():
     p = check_figure(fig)
     plt.close(fig)
     assert any("overlap" in m for m in p) and any("no legend entry" in m for m in p) and any("covers" in m for m in p)
+
+
+# ---- issue 55: log ticks in plain numbers, the DEM work-precision figure --------------------
+@pytest.fixture
+def saved(monkeypatch):
+    """The figures saved while the test runs (a plotting function closes its figure after
+    saving it; the figure object still holds what was drawn)."""
+    from matplotlib.figure import Figure
+
+    figs = []
+    orig = Figure.savefig
+
+    def savefig(self, *a, **k):
+        figs.append(self)
+        return orig(self, *a, **k)
+
+    monkeypatch.setattr(Figure, "savefig", savefig)
+    yield figs
+    for fig in figs:
+        plt.close(fig)
+
+
+def measurable(fig):
+    """``fig`` with a canvas again (closing a figure leaves it without one)."""
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+
+    FigureCanvasAgg(fig)
+    return fig
+
+
+def log_tick_labels(fig):
+    """(axis, label) of every labelled tick of every log axis of ``fig``, after a draw."""
+    fig.canvas.draw()
+    out = []
+    for ax in fig.axes:
+        if not ax.get_visible():
+            continue
+        for axis in (ax.xaxis, ax.yaxis):
+            if axis.get_scale() == "log":
+                ticks = axis.get_majorticklabels() + axis.get_minorticklabels()
+                out += [(axis, t.get_text()) for t in ticks if t.get_text()]
+    return out
+
+
+def powers_of_ten_in_modest_range(fig):
+    """Log-tick labels written as powers of ten ("2x10^0") on an axis whose view lies
+    within the plain range: each should read as a plain number."""
+    from millfmu.plotstyle import PLAIN_RANGE
+
+    bad = []
+    for axis, text in log_tick_labels(fig):
+        lo, hi = sorted(abs(v) for v in axis.get_view_interval())
+        if PLAIN_RANGE[0] <= lo and hi <= PLAIN_RANGE[1] and ("^" in text or "times" in text or "e" in text):
+            bad.append(text)
+    return bad
+
+
+@pytest.mark.parametrize("limits, want", [((0.06, 0.3), {"0.1", "0.06", "0.2", "0.3"}),
+                                          ((0.5, 30.0), {"1", "10"}),
+                                          ((300.0, 1500.0), {"1000", "300", "600"})])
+def test_plain_log_ticks_give_plain_numbers(limits, want):
+    from millfmu.plotstyle import plain_log_ticks
+
+    fig, ax = plt.subplots()
+    ax.loglog(limits, limits)
+    plain_log_ticks(fig)
+    try:
+        labels = {t for _, t in log_tick_labels(fig)}
+        assert want <= labels and powers_of_ten_in_modest_range(fig) == []
+    finally:
+        plt.close(fig)
+
+
+def test_plain_log_ticks_keep_powers_of_ten_over_many_decades():
+    from millfmu.plotstyle import plain_log_ticks
+
+    fig, ax = plt.subplots()
+    ax.semilogy([0, 1], [1e-10, 1e9])
+    plain_log_ticks(ax)
+    try:
+        labels = [t for _, t in log_tick_labels(fig)]
+        assert labels and all("10^" in t for t in labels)  # 1e-10 as a plain number: unreadable
+    finally:
+        plt.close(fig)
+
+
+def test_flowsheet_work_precision_ticks_are_plain(saved, tmp_path):
+    from types import SimpleNamespace
+
+    import numpy as np
+
+    from flowsheets.wp import _plot
+
+    rows = [{"step_s": h, "wall_s": w, "relative_error": e}
+            for h, w, e in ((40.0, 2.1, 0.3), (20.0, 3.5, 0.16), (10.0, 6.2, 0.08), (5.0, 11.0, 0.041))]
+    times = np.linspace(0.0, 600.0, 5)
+    runs = {r["step_s"]: (None, 1e-5 * (1 - times / 1200.0)) for r in rows}
+    fs = SimpleNamespace(name="demo", algorithm="jacobi")
+    _plot(rows, runs, 5.0, times, "mill.x50", fs, 0.97, tmp_path / "wp.png")
+    fig = measurable(saved[0])
+    assert len(saved) == 1 and log_tick_labels(fig)
+    assert powers_of_ten_in_modest_range(fig) == []
+
+
+def _shipped_dem_study():
+    import json
+
+    from millfmu.dem.studies import work_precision as W
+
+    if not W.SUMMARY_PATH.is_file():
+        pytest.skip("no DEM study shipped")
+    return W, json.loads(W.SUMMARY_PATH.read_text())["study"]
+
+
+def test_dem_work_precision_figure_reads(saved, tmp_path):
+    """The report's DEM figure: every line in a legend (marker meanings included), titles
+    in words rather than marker codes, point labels that do not overlap one another, plain
+    log ticks."""
+    import re
+
+    W, res = _shipped_dem_study()
+    W.plot(res, tmp_path / "wp.png")
+    fig = measurable(saved[0])
+    assert check_figure(fig) == []
+    titles = [ax.get_title() for ax in fig.axes]
+    assert not [t for t in titles if re.search(r"\((o|s|D|--)[ ,)]|\bD variants", t)], titles
+    assert powers_of_ten_in_modest_range(fig) == []
+    r = fig.canvas.get_renderer()
+    for ax in fig.axes:
+        boxes = [t.get_window_extent(r) for t in ax.texts]
+        clash = [(ax.texts[i].get_text(), ax.texts[j].get_text()) for i in range(len(boxes))
+                 for j in range(i + 1, len(boxes)) if boxes[i].overlaps(boxes[j])]
+        assert clash == [], clash
+    wp_axes = [ax for ax in fig.axes if ax.get_title().startswith("work-precision")]
+    assert wp_axes and len(wp_axes[0].texts) >= len(res["variants"])  # the variants are named
+    legend = {t.get_text() for t in wp_axes[0].get_legend().get_texts()}
+    assert any("spin-up" in t for t in legend) and any("recording" in t for t in legend)
+
+
+def test_label_points_leaves_out_what_would_overlap():
+    from millfmu.plotstyle import label_points
+
+    fig, ax = plt.subplots(figsize=(3, 2))
+    pts = [(1.0, 1.0), (1.001, 1.001), (1.002, 1.0), (1.0, 1.002), (2.0, 2.0)]
+    ax.plot([p[0] for p in pts], [p[1] for p in pts], "o")
+    placed = label_points(ax, pts, ["a long label %d" % i for i in range(len(pts))])
+    r = fig.canvas.get_renderer()
+    try:
+        boxes = [a.get_window_extent(r) for a in placed]
+        assert 1 <= len(placed) < len(pts)
+        assert not any(boxes[i].overlaps(boxes[j]) for i in range(len(boxes)) for j in range(i + 1, len(boxes)))
+    finally:
+        plt.close(fig)

@@ -200,3 +200,44 @@ def test_rates_command_refuses_a_material_without_stress_model(tmp_path, capsys)
     austin = resources.files("millfmu.data").joinpath("examples", "austin_generic.toml")
     assert main(["rates", str(austin), "--out", str(tmp_path / "out")]) == 2
     assert "material.model" in capsys.readouterr().err
+
+
+# ---- a negligible reference rate (issue 55) ---------------------------------------------------
+def test_negligible_reference_rate_is_said_and_rates_are_shown(tmp_path, capsys, monkeypatch):
+    """limestone_simple.toml runs the detailed model on the simple model's material
+    constants: its rate at the reference point is about 3e-9 1/s at 10 um, so ratios to it
+    ran from 1e-10 to 1e9 without a word. The output names the reference rates, says they
+    are negligible and why, and gives (and draws) the rates themselves in 1/s."""
+    import json
+
+    from matplotlib.figure import Figure
+
+    figs = []
+    orig = Figure.savefig
+    monkeypatch.setattr(Figure, "savefig", lambda self, *a, **k: (figs.append(self), orig(self, *a, **k))[1])
+    scene = resources.files("millfmu.data").joinpath("examples", "limestone_simple.toml")
+    assert main(["rates", str(scene), "--out", str(tmp_path / "out")]) == 0
+    out = capsys.readouterr().out
+    flat = " ".join(out.split())  # the explanation is wrapped
+    assert "rates at the reference point [1/s]" in flat
+    assert "negligible" in flat and "under 1 % of a size class broken in the scene's 1800 s" in flat
+    assert "Rates [1/s] below, not over the reference" in flat
+    # the table gives rates, not ratios: the detailed model's reference S(10 um) stands in it
+    lines = [ln for ln in out.splitlines() if ln.startswith("tip speed") and "10*" in ln]
+    assert lines and "3.27e-09" in lines[0]
+    assert not any(ln.startswith("tip speed") and "8.19e-10" in ln for ln in out.splitlines())  # the old ratio
+    doc = json.loads((tmp_path / "out" / "rates_limestone-simple.json").read_text())
+    ref = doc["reference_rates_per_s"]["detailed"]["S(10 um)"]
+    assert ref < doc["negligible_rate_per_s"] == pytest.approx(0.01 / 1800.0)
+    assert doc["shown"].startswith("rates [1/s]")
+    fig = figs[-1]
+    panels = [ax for ax in fig.axes if ax.get_visible() and ax.axison]
+    assert {ax.get_ylabel() for ax in panels} == {"breakage rate [1/s]"}
+    assert "negligible" in fig._suptitle.get_text()
+
+
+def test_calibrated_pair_keeps_ratios(yeast):
+    """Where every reference rate breaks more than 1 % in the run, ratios stay."""
+    assert not yeast.absolute and yeast.why_absolute() == ""
+    assert yeast.reference_rate("detailed", "disruption_rate") > yeast.negligible_rate_per_s
+    assert "rates over their value at the reference point" in mrates.summary(yeast)

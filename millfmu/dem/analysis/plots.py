@@ -219,6 +219,8 @@ def write_distributions(path: Path, stats):
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
+    from ...plotstyle import plain_log_ticks
+
     e = np.asarray(stats.se_bin_edges_j)
     mid = np.sqrt(e[:-1] * e[1:])
     fig, ax = plt.subplots(figsize=(6, 4))
@@ -227,6 +229,7 @@ def write_distributions(path: Path, stats):
     ax.set_xlabel("stress energy SE_tn [J]")
     ax.set_ylabel("number density [1/decade]")
     ax.legend(fontsize=8)
+    plain_log_ticks(fig)
     fig.tight_layout()
     fig.savefig(path, dpi=110)
     plt.close(fig)

@@ -742,14 +742,21 @@ def write(res, out_dir) -> list[Path]:
     return files
 
 
+#: Plain names of the statistics the drift panel shows.
+_STAT_NAMES = {"filling": "local filling", "collision_frequency": "collision frequency",
+               "se_tn_q50": "median SE_tn"}
+
+
 def plot(res, path, title=None) -> None:
     """Error of the median SE_tn and of the collision frequency against recording length per
-    zone, with what independent contacts would give (dashed) and T^-1/2; and the largest
-    error against run time of every row."""
+    zone, with what independent contacts would give (dashed) and T^-1/2; the largest error
+    against run time of every row; and the long run's drift in blocks."""
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
+
+    from millfmu.plotstyle import label_points, plain_log_ticks
 
     wp = bool(res.get("spin_up") or res.get("variants"))
     dr = res.get("drift")
@@ -765,50 +772,70 @@ def plot(res, path, title=None) -> None:
     t = np.array([r["record_s"] for r in rows])
     for a, s, label in ((ax[0], "se_tn_q50", "median SE_tn"),
                         (ax[1], "collision_frequency", "collision frequency")):
+        measured, independent = [], []
         for z, col in zip(res["zones"], ("C0", "C1", "C2", "C3")):
             e = [r["error"][s][z] for r in rows]
             pr = [r.get("predicted", {}).get(s, {}).get(z) for r in rows]
             if all(v is not None for v in e):
-                a.loglog(t, e, "o-", color=col, label=f"{z}")
+                measured += a.loglog(t, e, "o-", color=col, label=f"{z}: measured")
             if all(v is not None for v in pr):
-                a.loglog(t, pr, "--", color=col, lw=1)
+                independent += a.loglog(t, pr, "--", color=col, lw=1, label=f"{z}: independent contacts")
+        law = []
         if t.size:
-            a.loglog(t, 0.5 * min(r["error"][s][z] or 1 for r in rows[:1] for z in res["zones"])
-                     * np.sqrt(t[0] / t), "k:", lw=1.5, label="T^-1/2")
+            law = a.loglog(t, 0.5 * min(r["error"][s][z] or 1 for r in rows[:1] for z in res["zones"])
+                           * np.sqrt(t[0] / t), "k:", lw=1.5, label="slope of T^-1/2")
         a.set(xlabel="recording length T [s]", ylabel="relative error (batch means)",
-              title=f"{label}: measured (o), independent contacts (--)")
-        a.legend(fontsize=7, loc="upper left", bbox_to_anchor=(1.01, 1.0), borderaxespad=0.0)  # beside the curves
+              title=f"{label}: error against recording length")
+        # measured first, then what independent contacts would give: the zones in the same order
+        a.legend(handles=measured + independent + law, fontsize=7, loc="upper left",
+                 bbox_to_anchor=(1.01, 1.0), borderaxespad=0.0)  # beside the curves
     if title:
         fig.suptitle(title)
+    labels = []
     if wp:
-        for kind, mk in (("recording", "o"), ("spin_up", "s"), ("variants", "D")):
+        a = ax[2]
+        kinds = (("recording", "o-", "C0", "recording length T (one run)"),
+                 ("spin_up", "s-", "C1", "spin-up time"),
+                 ("variants", "D", "C3", "resolution: sector, DEM step, coupling interval"))
+        for kind, style, col, name in kinds:
+            pts = []
             for r in res.get(kind, []):
                 e = _worst(r["error"], STATISTICS, TARGET_ZONES)
                 if e is None:
                     continue
-                lab = {"recording": f"T {r.get('record_s', 0):g} s",
-                       "spin_up": f"spin-up {r.get('spin_up_s', 0):g} s",
-                       "variants": r.get("name", "")}[kind]
-                ax[2].loglog(r["run_s"], e, mk, color={"recording": "C0", "spin_up": "C1",
-                                                      "variants": "C3"}[kind])
-                ax[2].annotate(lab, (r["run_s"], e), fontsize=6)
-        ax[2].set(xlabel="run time [s] (CPU, 1 thread)",
-                  ylabel=f"largest relative error, {', '.join(TARGET_ZONES)}",
-                  title="work-precision (o recording, s spin-up, D variants)")
+                text = {"recording": f"T {r.get('record_s', 0):g} s",
+                        "spin_up": f"{r.get('spin_up_s', 0):g} s",
+                        "variants": r.get("what", r.get("name", "")).split(" (")[0]}[kind]
+                pts.append((r["run_s"], e, text))
+            if not pts:
+                continue
+            pts.sort()
+            a.loglog([p[0] for p in pts], [p[1] for p in pts], style, color=col, lw=0.8, ms=5, label=name)
+            # the recording lengths crowd at nearly one run time: their ends only (the table
+            # has every row); elsewhere every point, the series' ends first
+            inner = [] if kind == "recording" else list(range(1, len(pts) - 1))
+            labels.append((a, [pts[i] for i in dict.fromkeys([0, len(pts) - 1] + inner)]))
+        a.set(xlabel="run time [s] (CPU, 1 thread)",
+              ylabel=f"largest relative error, {', '.join(TARGET_ZONES)}",
+              title="work-precision: error against run time")
+        a.legend(fontsize=7, loc="upper left", bbox_to_anchor=(1.01, 1.0), borderaxespad=0.0)
     if dr:
         a = ax[-1]
         for st, ls in zip(DRIFT_STATS, ("-", "--", ":")):
             for z, col in zip(res["zones"], ("C0", "C1", "C2", "C3")):
                 a.plot(dr["t_s"], [np.nan if v is None else 100 * v for v in dr[st][z]], ls,
-                       color=col, label=f"{st} {z}" if st == DRIFT_STATS[0] or z == "V1" else None)
+                       color=col, label=f"{_STAT_NAMES.get(st, st)} {z}")
         w = res["reference_window_s"]
         a.axvspan(w[0], w[1], color="0.9")
         a.set(xlabel="t [s] (block centre)", ylabel="relative to the reference window [%]",
               title=f"the long run in blocks of {dr['block_s']:g} s (grey: reference)")
-        a.legend(fontsize=6, loc="upper left", bbox_to_anchor=(1.01, 1.0), borderaxespad=0.0)
+        a.legend(fontsize=7, loc="upper left", bbox_to_anchor=(1.01, 1.0), borderaxespad=0.0)
     for a in ax:
         a.grid(alpha=0.3, which="both")
+    plain_log_ticks(fig)
     fig.tight_layout(rect=(0, 0, 1, 0.94) if title else None)
+    for a, pts in labels:  # placed in pixels: after the layout
+        label_points(a, [p[:2] for p in pts], [p[2] for p in pts], fontsize=7)
     fig.savefig(path, dpi=90)
     plt.close(fig)
 
