@@ -60,6 +60,25 @@ def test_calibrate_and_run_take_the_shipped_examples_by_name_from_any_folder(tmp
 def test_examples_lists_every_shipped_file_with_its_path(capsys):
     assert main(["examples"]) == 0
     lines = capsys.readouterr().out.splitlines()
-    listed = {ln.split()[0]: Path(ln.split()[1]) for ln in lines if ln.endswith((".toml", ".csv"))}
+    rows = [ln.split(maxsplit=1) for ln in lines if ln.endswith((".toml", ".csv"))]
+    listed = {name: Path(path) for name, path in rows}
     assert set(listed) == {p.name for p in EXAMPLES.iterdir() if p.suffix in (".toml", ".csv")}
     assert all(p.is_absolute() and p.is_file() for p in listed.values())
+
+
+def test_build_fmu_and_rates_take_names_too_and_the_dem_keeps_its_own_scenes(tmp_path, monkeypatch):
+    from millfmu.cli import _use_shipped_examples, build_parser
+
+    pytest.importorskip("fmu_build.cli")
+    monkeypatch.chdir(tmp_path)
+    parse = build_parser().parse_args
+    shipped = str(millfmu.example_path("limestone_simple.toml"))
+    a = parse(["build-fmu", "limestone_simple.toml", "-o", "m.fmu"])
+    _use_shipped_examples(a)
+    assert a.scene == shipped
+    a = parse(["rates", "limestone_simple", "mine.toml"])
+    _use_shipped_examples(a)
+    assert a.scene == [shipped, "mine.toml"]
+    a = parse(["dem", "run", "annulus", "--out", "d"])  # a DEM scene name, resolved by the DEM
+    _use_shipped_examples(a)
+    assert a.scene == "annulus"
