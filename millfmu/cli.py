@@ -111,6 +111,53 @@ def _cmd_bench_pbm(args) -> int:
     return 0
 
 
+#: Per command, the arguments that name a file of the user's and may instead name a shipped
+#: example by its bare file name (``millfmu examples`` lists them): an installed package's
+#: examples lie in site-packages, which no one should have to type.
+EXAMPLE_ARGS = {"run": ("scene",), "calibrate": ("scene", "data"), "build-fmu": ("scene",), "rates": ("scene",)}
+
+
+def shipped_example(arg):
+    """The file a command-line file argument stands for: ``arg`` itself where it exists, has a
+    folder in it or is None; else the shipped example of that name (``.toml`` optional) as
+    a string; else ``arg`` unchanged, whose command then reports the missing file. A file
+    of the user's wins over an example of the same name."""
+    from pathlib import Path
+
+    from .scene import example_files
+
+    if arg is None or Path(arg).exists() or Path(arg).name != arg:
+        return arg
+    files = example_files()
+    path = files.get(arg) or files.get(arg + ".toml")
+    return arg if path is None else str(path)
+
+
+def _use_shipped_examples(args) -> None:
+    """Put the shipped example's path in each of the command's file arguments (EXAMPLE_ARGS)
+    that names one, saying so on stderr."""
+    for name in EXAMPLE_ARGS.get(getattr(args, "command", None), ()):
+        value = getattr(args, name, None)
+        values = value if isinstance(value, list) else [value]
+        resolved = [shipped_example(v) for v in values]
+        for v, r in zip(values, resolved):
+            if r != v:
+                print(f"millfmu: no file {v} here: using the shipped example {r}", file=sys.stderr)
+        setattr(args, name, resolved if isinstance(value, list) else resolved[0])
+
+
+def _cmd_examples(args) -> int:
+    from .scene import example_files
+
+    files = example_files()
+    width = max(map(len, files))
+    for name, path in files.items():
+        print(f"{name:{width}s}  {path}")
+    print("Run one by name (millfmu run limestone_simple.toml; millfmu calibrate --data limestone_standin_batch.csv ...); "
+          "to change one, copy it and run the copy.")
+    return 0
+
+
 def build_parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(prog="millfmu", description="Wet stirred media mill (bead mill) model: population balance with Kwade's stress model.")
     sub = p.add_subparsers(dest="command", metavar="COMMAND")
@@ -129,6 +176,9 @@ def build_parser() -> argparse.ArgumentParser:
                    help="run an on-demand table build however long it is estimated to take (without it, a build "
                         "over MILLFMU_BUILD_LIMIT_S, default 1800 s, is asked about at a terminal and refused elsewhere)")
     r.set_defaults(func=_cmd_run)
+
+    e = sub.add_parser("examples", help="list the shipped example scenes and data with their paths (commands take them by name)")
+    e.set_defaults(func=_cmd_examples)
 
     k = sub.add_parser("scene-keys", help="list every scene key with unit, default and allowed values")
     k.add_argument("--default", action="store_true", help="print the embedded default scene instead")
@@ -165,6 +215,7 @@ def main(argv=None) -> int:
 
     parser = build_parser()
     args = parser.parse_args(argv)
+    _use_shipped_examples(args)
     try:
         return int(args.func(args) or 0)
     except (SceneError, InputError, OutputError) as e:

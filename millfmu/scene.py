@@ -449,15 +449,24 @@ def load_scene(path: str | Path | None = None) -> Scene:
     return scene_from_dict(d, source)
 
 
-def example_path(name: str) -> Path:
-    """Path of a shipped example scene (millfmu/data/examples/NAME, ``.toml`` optional),
-    wherever the package is installed; SceneError listing the examples for another name."""
+def example_files() -> dict[str, Path]:
+    """The shipped examples (millfmu/data/examples): file name -> path, wherever the package
+    is installed. Scenes (``.toml``) and the stand-in batch data the calibration fits to
+    (``.csv``)."""
     base = resources.files(__name__.rpartition(".")[0] + ".data").joinpath("examples")
-    names = sorted(p.name for p in base.iterdir() if p.name.endswith(".toml"))
-    file = name if name.endswith(".toml") else name + ".toml"
-    if file not in names:
-        raise SceneError("(example)", name, "not a shipped example; the examples: " + ", ".join(names), "example_path")
-    return Path(str(base.joinpath(file)))
+    return {p.name: Path(str(p)) for p in sorted(base.iterdir(), key=lambda p: p.name)
+            if p.is_file() and p.name.endswith((".toml", ".csv"))}
+
+
+def example_path(name: str) -> Path:
+    """Path of a shipped example file (millfmu/data/examples/NAME: a scene, ``.toml``
+    optional, or stand-in batch data such as ``limestone_standin_batch.csv``), wherever the
+    package is installed; SceneError listing the examples for another name."""
+    files = example_files()
+    file = name if name in files else name + ".toml"
+    if file not in files:
+        raise SceneError("(example)", name, "not a shipped example; the examples: " + ", ".join(files), "example_path")
+    return files[file]
 
 
 def default_scene_text() -> str:
