@@ -91,8 +91,7 @@ class MillSlave(Fmi2Slave):
         except OSError:
             type(self)._raise_errors = False
         self._start_time = 0.0
-        self._warned_below_grid = False
-        self._warned_similarity = set()
+        self._warned: set = set()  # what the log said once (MillModel.new_warnings)
         self._scene_dict = read_scene_dict(self.resources)
         scene = scene_from_dict(self._scene_dict, SCENE_FILE)
         self.model = MillModel(scene, no_dem=True)  # an FMU carries no DEM: it never builds a table
@@ -287,15 +286,8 @@ class MillSlave(Fmi2Slave):
             self.log(f"doStep at t = {current_time!r} s failed, state unchanged: " + traceback.format_exc(limit=4), Fmi2Status.error)
             return False
         self._publish(outs)
-        if not self._warned_below_grid:
-            for w in self.model.output_warnings(outs):
-                self._warned_below_grid = True
-                self.log(w, Fmi2Status.warning)
-        if self.model.source is not None:
-            for ax, w in self.model.similarity_warnings().items():
-                if ax not in self._warned_similarity:  # once per axis
-                    self._warned_similarity.add(ax)
-                    self.log(w, Fmi2Status.warning)
+        for w in self.model.new_warnings(outs, self._warned):
+            self.log(w, Fmi2Status.warning)
         return True
 
     # ---- FMU state -------------------------------------------------------------------------

@@ -24,7 +24,7 @@ import copy
 from xml.etree.ElementTree import Element
 
 import numpy as np
-from pythonfmu3 import DefaultExperiment
+from pythonfmu3 import DefaultExperiment, Fmi3Status
 
 from .fmi3_slave import Fmi3Base
 from .fmu_variables import CLASS_COUNT, SCENE_FILE, HeldArray, UNITS, model_description_text, model_with, plain, read_scene_dict, variables
@@ -43,6 +43,7 @@ class MillSlave3(Fmi3Base):
         self._scene_dict = read_scene_dict(self.resources)
         scene = scene_from_dict(self._scene_dict, SCENE_FILE)
         self.model = MillModel(scene, no_dem=True)  # an FMU carries no DEM: it never builds a table
+        self._warned: set = set()  # what the log said once (MillModel.new_warnings)
         self._base_scene = scene
         self._overrides: dict = {}
         n = self.model.grid.n
@@ -108,7 +109,10 @@ class MillSlave3(Fmi3Base):
         self._publish(model.outputs())
 
     def _take_step(self, h: float):
-        self._publish(self.model.step(h, **self._inputs()))
+        outs = self.model.step(h, **self._inputs())
+        self._publish(outs)
+        for w in self.model.new_warnings(outs, self._warned):
+            self.log(w, Fmi3Status.warning)
 
     def _refusal(self, e: Exception) -> str:
         if isinstance(e, InputError):

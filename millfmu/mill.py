@@ -688,6 +688,23 @@ class MillModel:
         f = getattr(self.source, "similarity_warnings", None)
         return f() if f is not None else {}
 
+    def new_warnings(self, out: dict, said: set) -> list:
+        """Warnings about ``out`` and the data used so far whose keys are not in ``said`` yet
+        (the keys are added): the product below the size grid (once), each table axis gone
+        beyond with similarity assumed (once per axis). For an FMU's log, which says each once."""
+        new = []
+        if "below_grid" not in said:
+            w = self.output_warnings(out)
+            if w:
+                said.add("below_grid")
+                new += w
+        if self.source is not None:
+            for ax, w in self.similarity_warnings().items():
+                if ax not in said:
+                    said.add(ax)
+                    new.append(w)
+        return new
+
     def output_warnings(self, out: dict | None = None) -> list:
         """Warnings about outputs (default: the current ones): more than OUTSIDE_GRID_MAX of
         the product below the size grid, where its sizes are not resolved."""

@@ -53,3 +53,18 @@ def test_runs_without_millfmu_and_matches_model(table_fmu):
     d, fmu = table_fmu
     res = run_isolated_and_compare(fmu, SCENE, d, OUTS)
     assert res["x50"][-1] < res["x50"][0]
+
+
+def test_tip_speeds_beyond_the_table_are_a_warning_once(table_fmu):
+    """similar_axes = tip_speed_m_s: steps at 15 and 16 m/s run, and the log says it once."""
+    from tests.integration.fmu_support import isolated_python, run_py
+
+    d, fmu = table_fmu
+    res = run_py(isolated_python(d), f"""
+f = open_fmu({str(fmu)!r}, "w")
+st = [step(f, float(k), 1.0, {{"tip_speed": v}}) for k, v in enumerate((12.0, 15.0, 16.0, 10.0))]
+done({{"st": st, "warn": [e[3] for e in LOG if e[0] == "w" and e[1] == 1]}})
+""", d)
+    assert res["st"] == [0, 0, 0, 0]
+    hits = [w for w in res["warn"] if "tip_speed_m_s" in w and "lies outside the table's range 6 to 14" in w]
+    assert len(hits) == 1 and "similarity assumed" in hits[0], res["warn"]
