@@ -492,6 +492,9 @@ def psd_figure(model: MillModel, records, psds):
     first_marker = [(h, lab) for h, lab in zip(h2, l2) if lab == BELOW_LABEL][:1]
     hs, ls = h1 + [h for h, _ in first_marker], l1 + [lab for _, lab in first_marker]
     _legend_right(a2, handles=hs, labels=ls, title="output time")
+    from .plotstyle import plain_log_ticks  # matplotlib: only where a plot is drawn
+
+    plain_log_ticks(fig)
     fig.suptitle(f"{model.scene.scene.name}: size distribution of the {_what_psd(model)}")
     fig.tight_layout()
     return fig
@@ -529,6 +532,9 @@ def sizes_figure(model: MillModel, records):
         ax.grid(True, which="both", alpha=0.3)
         _legend_right(ax)
     axes[-1].set_xlabel("time t [s]")
+    from .plotstyle import plain_log_ticks  # matplotlib: only where a plot is drawn
+
+    plain_log_ticks(fig)
     fig.suptitle(f"{model.scene.scene.name}: characteristic sizes of the {_what_psd(model)}", fontsize=11)
     fig.tight_layout()
     return fig
