@@ -111,6 +111,8 @@ class Data:
     source: str = "data"
     sha256: str = ""
     feed_rows: int = 0
+    #: What the data's reader noticed that does not stop a fit (duplicate measurements).
+    notes: tuple = ()
 
     @property
     def times_s(self) -> list:
@@ -138,6 +140,7 @@ def parse_data(text: str, source: str = "data") -> Data:
     and ``Q3`` [-], or ``disrupted_fraction`` [-]. Lines starting with '#' are comments; an
     empty cell is a value not measured. Rows at t_s = 0 are the feed (the scene's) and are
     not fitted. Raises :class:`CalibrationError` naming the line and column."""
+    text = text.removeprefix("\ufeff")  # a byte-order mark, as spreadsheet programs write UTF-8
     lines = [(i + 1, ln) for i, ln in enumerate(text.splitlines()) if ln.strip() and not ln.lstrip().startswith("#")]
     if not lines:
         raise CalibrationError(f"{source}: no header and no data rows")
@@ -171,6 +174,7 @@ def parse_data(text: str, source: str = "data") -> Data:
             x, q = _num(cell["x_m"], where, "x_m"), _num(cell["Q3"], where, "Q3")
             if x <= 0.0:
                 raise CalibrationError(f"{where}: column x_m = {x:g}: must be > 0 m")
+            _check_metres(x, where, "x_m")
             if not 0.0 <= q <= 1.0:
                 raise CalibrationError(f"{where}: column Q3 = {q:g}: must lie in [0, 1]")
             rows.append((t, "Q3", x, q))
@@ -183,10 +187,37 @@ def parse_data(text: str, source: str = "data") -> Data:
                 raise CalibrationError(f"{where}: column {col} = {v:g}: must lie in [0, 1]")
             if kind == "sizes" and v <= 0.0:
                 raise CalibrationError(f"{where}: column {col} = {v:g}: must be > 0 m")
+            if kind == "sizes":
+                _check_metres(v, where, col)
             rows.append((t, col, None, v))
+        if kind == "sizes":
+            given = [(c, float(cell[c])) for c in SIZE_COLUMNS if c in cell and cell[c] != ""]
+            for (c1, v1), (c2, v2) in zip(given, given[1:]):
+                if v1 > v2:
+                    raise CalibrationError(f"{where}: {c1} = {v1:g} m is larger than {c2} = {v2:g} m: a size distribution's "
+                                           f"x10 <= x50 <= x90; check the columns' order in the header")
     if not rows:
         raise CalibrationError(f"{source}: no measured values after t_s = 0")
-    return Data(kind, tuple(rows), source, hashlib.sha256(text.encode()).hexdigest(), feed)
+    seen, dup = set(), []
+    for t, col, x, _ in rows:
+        key = (t, col, x)
+        if key in seen and key not in dup:
+            dup.append(key)
+        seen.add(key)
+    notes = tuple(f"{source}: {col}{'' if x is None else f' at x_m = {x:g}'} at t_s = {t:g} is given more than once; each is "
+                  f"fitted as an independent measurement (average repeats first if they are one sample's)" for t, col, x in dup)
+    return Data(kind, tuple(rows), source, hashlib.sha256(text.encode()).hexdigest(), feed, notes)
+
+
+#: Largest particle size [m] a bead mill's data may give: beyond it a value is taken to be
+#: in another unit (a size of 25 meant as micrometres), since mills grind feeds below 1 cm.
+MAX_SIZE_M = 0.01
+
+
+def _check_metres(x: float, where: str, col: str):
+    if x > MAX_SIZE_M:
+        raise CalibrationError(f"{where}: column {col} = {x:g} m: larger than {MAX_SIZE_M:g} m, which no bead mill grinds; "
+                               f"the column is in metres (if {x:g} is in micrometres, write {x * 1e-6:g})")
 
 
 def read_data(path) -> Data:
@@ -737,7 +768,10 @@ def _cmd_calibrate(args) -> int:
                 raise CalibrationError(f"--start {item!r}: expected KEY=VALUE with a number") from None
             if not sep or k.strip() not in FITTABLE:
                 raise CalibrationError(f"--start {item!r}: expected KEY=VALUE with KEY among {', '.join(FITTABLE)}")
-        cal = calibrate(scene, read_data(args.data), args.fit, start=start, progress=say)
+        data = read_data(args.data)
+        for note in data.notes:
+            print(f"millfmu calibrate: warning: {note}", file=sys.stderr)
+        cal = calibrate(scene, data, args.fit, start=start, progress=say)
         print(cal.summary())
         if args.out:
             files = write(cal, args.out, scene_path=args.scene or "default")

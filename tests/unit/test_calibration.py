@@ -214,3 +214,39 @@ def test_set_toml_values_keeps_comments_and_adds_missing_keys():
     assert "f_mat_kg_per_J_m = 2.5   # note" in out
     s = millfmu.load_scene(out)
     assert (s.material.f_mat_kg_per_J_m, s.mill.stress_frequency_factor, s.kinetics.energy_transfer) == (2.5, 3.0, 0.5)
+
+
+# ---- what a laboratory's CSV brings -------------------------------------------------------------
+def test_a_byte_order_mark_is_accepted():
+    from millfmu.calibration import parse_data
+
+    d = parse_data("\ufefft_s,x50_m\n0,1e-5\n60,8e-6\n", "bom.csv")
+    assert d.rows == ((60.0, "x50_m", None, 8e-6),) and d.notes == ()
+
+
+@pytest.mark.parametrize("text, words", [
+    ("t_s,x10_m,x50_m,x90_m\n60,3e-6,2e-6,9e-6\n", "line 2: x10_m = 3e-06 m is larger than x50_m = 2e-06 m"),
+    ("t_s,x50_m,x90_m\n60,9e-6,8e-6\n", "x50_m = 9e-06 m is larger than x90_m = 8e-06 m"),
+    ("t_s,x50_m\n60,25\n", "column x50_m = 25 m: larger than 0.01 m, which no bead mill grinds; the column is in metres "
+                           "(if 25 is in micrometres, write 2.5e-05)"),
+    ("t_s,x_m,Q3\n60,12,0.5\n", "column x_m = 12 m: larger than 0.01 m"),
+])
+def test_sizes_out_of_order_or_in_micrometres_are_refused_by_line(text, words):
+    from millfmu.calibration import CalibrationError, parse_data
+
+    with pytest.raises(CalibrationError) as e:
+        parse_data(text, "lab.csv")
+    assert words in str(e.value)
+
+
+def test_a_measurement_given_twice_is_noted(tmp_path, capsys):
+    from millfmu.calibration import parse_data
+    from millfmu.cli import main
+
+    text = "t_s,x50_m\n0,1e-5\n300,5e-6\n300,5.2e-6\n600,4e-6\n"
+    d = parse_data(text, "lab.csv")
+    assert len(d.rows) == 3 and len(d.notes) == 1 and "x50_m at t_s = 300 is given more than once" in d.notes[0]
+    f = tmp_path / "lab.csv"
+    f.write_text(text)
+    assert main(["calibrate", "--data", str(f), "--fit", "material.f_mat_kg_per_J_m", "-q"]) == 0
+    assert "warning: " in capsys.readouterr().err
