@@ -24,18 +24,108 @@ def test_docs_exist_and_readme_is_short():
     assert len((ROOT / "README.md").read_text().splitlines()) <= 250
 
 
+def anchors(page: Path) -> set[str]:
+    """The anchors of a Markdown page's headings, as GitHub makes them: lower case, spaces to
+    hyphens, punctuation other than hyphens and underscores dropped."""
+    text = re.sub(r"```.*?```", "", page.read_text(), flags=re.S)
+    out = set()
+    for h in re.findall(r"^#{1,6} (.+)$", text, re.M):
+        out.add(re.sub(r"[^\w\- ]", "", h.strip().lower()).replace(" ", "-"))
+    return out
+
+
 def test_every_relative_link_resolves():
+    """Every relative link of the README and docs/ names an existing file, and an anchor of a
+    Markdown page names one of its headings."""
     bad = []
     n = 0
     for page in PAGES:
         for target in _links(page):
-            if re.match(r"^[a-z]+:", target) or target.startswith("#"):
-                continue  # a web address or an anchor on the same page
+            if re.match(r"^[a-z]+:", target):
+                continue  # a web address
             n += 1
-            if not (page.parent / target.split("#")[0]).exists():
+            path, _, anchor = target.partition("#")
+            dest = (page.parent / path) if path else page
+            if not dest.exists():
                 bad.append(f"{page.relative_to(ROOT)}: {target}")
+            elif anchor and dest.suffix == ".md" and anchor not in anchors(dest):
+                bad.append(f"{page.relative_to(ROOT)}: {target} (no such heading)")
     assert n > 10
     assert not bad, bad
+
+
+# ---- size, dates, history (issue 56) ----------------------------------------------------------
+def _table_cells(text: str) -> list[str]:
+    text = re.sub(r"```.*?```", "", text, flags=re.S)
+    return [c for row in text.splitlines() if row.startswith("|") for c in re.split(r"(?<!\\)\|", row)[1:-1]]
+
+
+def test_readme_is_at_most_12000_characters_and_its_table_cells_short():
+    text = (ROOT / "README.md").read_text()
+    assert len(text) <= 12_000, len(text)
+    long = [c[:80] for c in _table_cells(text) if len(c) > 400]
+    assert not long, f"README table cells over 400 characters: {long}"
+
+
+def test_every_docs_page_is_under_40000_characters():
+    big = {p.name: len(p.read_text()) for p in (ROOT / "docs").glob("*.md") if len(p.read_text()) > 40_000}
+    assert not big, big
+
+
+def test_no_date_in_readme_or_docs():
+    """The README and docs/ say what is; dated measurements and history belong in
+    CHANGELOG.md and benchmarks/results/."""
+    iso = re.compile(r"\b(19|20)\d\d-[01]\d-[0-3]\d\b")
+    dated = [f"{p.relative_to(ROOT)}: {m.group(0)}" for p in PAGES for m in iso.finditer(p.read_text())]
+    assert not dated, dated
+
+
+# ---- the README's figures and their measurements (issue 56) -----------------------------------
+RESULTS = ROOT / "benchmarks" / "results"
+
+
+def _numbers(x) -> list[float]:
+    if isinstance(x, dict):
+        return [v for y in x.values() for v in _numbers(y)]
+    if isinstance(x, list):
+        return [v for y in x for v in _numbers(y)]
+    return [float(x)] if isinstance(x, (int, float)) and not isinstance(x, bool) else []
+
+
+def figure_rows() -> list[list[str]]:
+    """The rows of the README's "How good is it" table: measure, aim, figure, command, data."""
+    text = (ROOT / "README.md").read_text()
+    section = text.split("## How good is it", 1)[1].split("\n## ", 1)[0]
+    rows = [[c.strip() for c in r.strip().strip("|").split("|")] for r in section.splitlines()
+            if r.startswith("| ") and not r.startswith("| measure")]
+    return rows
+
+
+def test_benchmark_results_are_machine_readable():
+    files = sorted(RESULTS.glob("*.json"))
+    assert len(files) >= 5
+    for f in files:
+        d = json.loads(f.read_text())
+        assert {"commit", "host", "date", "command", "figures"} <= set(d), f.name
+        assert re.fullmatch(r"[0-9a-f]{7,40}", d["commit"]) and re.fullmatch(r"\d{4}-\d\d-\d\d", d["date"]), f.name
+        assert d["command"].startswith("millfmu ") and _numbers(d["figures"]), f.name
+
+
+def test_each_figure_of_the_readme_is_its_measurement():
+    """Each row's figure and command are those of the file it links: the table and the data
+    cannot drift apart."""
+    rows = figure_rows()
+    assert len(rows) >= 5
+    for measure, aim, figure, command, data in rows:
+        m = re.search(r"\]\((benchmarks/results/[\w.-]+\.json)\)", data)
+        assert m, f"{measure}: no data file linked"
+        d = json.loads((ROOT / m.group(1)).read_text())
+        assert command == f"`{d['command']}`", (measure, command, d["command"])
+        found = [float(v) for v in re.findall(r"\d+(?:\.\d+)?", figure.replace(",", ""))]
+        assert found, (measure, figure)
+        known = _numbers(d["figures"])
+        for v in found:
+            assert any(abs(v - k) <= 1e-9 * max(1.0, abs(k)) for k in known), (measure, v, d["figures"])
 
 
 def table_commands(text: str) -> list[list[str]]:
