@@ -20,6 +20,15 @@ pytest.importorskip("fmpy")
 #: after the first (the issue's protocol, the heap's settling included), then in four windows
 #: (a leak grows in every window; the heap's settling does not: the least is compared), and
 #: how many slave classes of the FMU's model identifier exist.
+#: RSS growth per cycle [kB] in four windows of ``cycles`` cycles each (both scripts).
+WINDOWS = r'''
+windows = []
+for w in range(4):
+    gc.collect(); r0 = rss()
+    for _ in range(cycles):
+        cycle()
+    gc.collect(); windows.append((rss() - r0) / cycles)
+'''
 CYCLES = r'''
 import gc, json, sys
 from fmpy import extract, read_model_description
@@ -50,13 +59,7 @@ gc.collect(); r0 = rss()
 for _ in range(250):  # the issue's protocol: 250 cycles after the first; the heap settles
     cycle()           # (fragmentation, first-use caches) within them
 gc.collect(); first = (rss() - r0) / 250
-windows = []
-for w in range(4):
-    gc.collect(); r0 = rss()
-    for _ in range(cycles):
-        cycle()
-    gc.collect(); windows.append((rss() - r0) / cycles)
-ident = md.coSimulation.modelIdentifier
+''' + WINDOWS + r'''ident = md.coSimulation.modelIdentifier
 n_classes = sum(1 for o in gc.get_objects() if isinstance(o, type) and o.__name__ == ident)
 print("RESULT " + json.dumps({"kB_per_cycle": min(windows), "windows": windows, "first_250": first,
                               "classes": n_classes}), flush=True)
@@ -123,13 +126,7 @@ for _ in range(1000):
 ident = md.coSimulation.modelIdentifier
 base = getattr(sys.modules[ident], ident).__mro__[1]
 gc.collect(); refs0 = sys.getrefcount(base)
-windows = []
-for w in range(4):
-    gc.collect(); r0 = rss()
-    for _ in range(cycles):
-        cycle()
-    gc.collect(); windows.append((rss() - r0) / cycles)
-extract_dir = str(f.unzipDirectory)
+''' + WINDOWS + r'''extract_dir = str(f.unzipDirectory)
 print("RESULT " + json.dumps({"windows": windows, "base_refs": sys.getrefcount(base) - refs0, "base": base.__name__,
                               "in_sys_path": sum(1 for p in sys.path if p.startswith(extract_dir))}), flush=True)
 import os
