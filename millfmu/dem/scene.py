@@ -178,7 +178,7 @@ BAFFLE_KEYS = ("baffle_count", "baffle_thickness_m", "baffle_inner_radius_m",
 def scene_advice(s: DemScene) -> list[str]:
     """Notes for a user about to run ``s`` (printed by ``dem run``; the run is unchanged):
     a full circle with gravity whose coupled liquid has one theta cell cannot carry the
-    asymmetry; with theta cells, the faster solvers chosen by name (docs/dem.md)."""
+    asymmetry; with theta cells, the faster solvers chosen by name (docs/dem-full-slices.md)."""
     c = s.coupling
     if s.fluid_mode != "coupled" or c is None:
         return []

@@ -31,7 +31,7 @@ between exchanges took 7 % (median of eight blocks, -2 to +16 %) longer than its
 blocks alone, against 1 % for 10-step runs without exchanges between them. Most likely the
 exchange's per-bead arrays (about 2.7 MB) and the DEM's beads and pairs (4-5 MB for 6,536
 beads) push each other out of the cores' caches (512 kB of L2 each; not measured with
-hardware counters). Measured later (docs/dem.md, "Where a coupled interval goes"): an
+hardware counters). Measured later (CHANGELOG.md, "Where a coupled interval goes"): an
 exchange after 15 ms of waiting took longer (2.8-3.0 ms) than one after ten DEM steps
 (2.5) or back to back (2.1), so on this shared host it is mostly the time between two
 exchanges, not the DEM's footprint, that costs; and ten DEM steps after an exchange took
