@@ -15,10 +15,11 @@ The modules, by role:
   refusals, warnings).
 
 This package is what an FMU carries of the tables (numpy and the kinetics; no DEM, no
-numba), and a step of a scene with a table loads nothing of :mod:`millfmu.dem`. Building
-tables (grid runs, the cache, the DEM as builder, on-demand builds) is
-:mod:`millfmu.dem.tables`, which reads and writes tables through this package; only the
-stress source's on-demand builds (``on_outside = 'build'``, never in an FMU) reach it, by
-imports inside those functions. The package imports none of its modules itself, so that
-importing one loads only what that one needs.
+numba; every FMU carries this file and :mod:`.rules`, which the mill model imports), and a
+step of a scene with a table loads nothing of the DEM's package. Building tables (grid
+runs, the cache, the DEM as builder, on-demand builds) is the DEM's ``tables`` package,
+which reads and writes tables through this one; only the stress source's on-demand builds
+(``on_outside = 'build'``, never in an FMU) reach it, by imports inside those functions.
+The package imports none of its modules itself, so that importing one loads only what
+that one needs.
 """

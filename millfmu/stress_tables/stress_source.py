@@ -55,8 +55,8 @@ class TableStressSource:
     kernel version differs from the table's, ``on_stale`` decides: ``'refuse'`` (the
     point is refused, naming the cost of the full rebuild), ``'rebuild'`` (every point
     again with the installed DEM) or ``'accept'`` (the table's points as they are, only the
-    new ones run; :mod:`.on_demand`). ``outside_note``: words added to every refusal of a
-    point outside the grid (an FMU says that it carries no DEM).
+    new ones run; :mod:`millfmu.dem.tables.on_demand`). ``outside_note``: words added to
+    every refusal of a point outside the grid (an FMU says that it carries no DEM).
     At tip speed 0 (stirrer at rest) there are no collisions: zones with zero rate.
     """
 
