@@ -34,22 +34,19 @@ else:  # pragma: no cover
     import tomli as tomllib
 
 import millfmu
-from millfmu.dem.tables.table import read_table_ref
 from millfmu.mill import MillModel
 from millfmu.scene import default_scene_text, load_scene, toml_text
+from millfmu.stress_tables.table import read_table_ref
 
 from . import fmi3_wrapper
 from .leftovers import clean, tag, temp_dir
 from .wrapper import choose_wrapper, fmi2_replacements
 
 #: Modules the FMU must never carry or import for a scene (heavy, and not needed by the
-#: kinetics; the DEM would be imported only by scenes that run it).
+#: kinetics; the DEM would be imported only by scenes that run it). The table reader of the
+#: detailed model is millfmu.stress_tables, outside millfmu.dem: nothing under millfmu.dem
+#: (the DEM, the table builder, the cache) may be carried.
 FORBIDDEN = ("numba", "millfmu.dem", "matplotlib", "tqdm")
-#: Exceptions to FORBIDDEN: the table reader of the detailed model, its reading and lookup
-#: modules only (numpy; reading a table never touches the DEM kernels). The builder's modules
-#: (millfmu.dem.tables.build, .cache, .dem_builder) stay forbidden: they run the DEM.
-ALLOWED = ("millfmu.dem", "millfmu.dem.tables", "millfmu.dem.tables.spec", "millfmu.dem.tables.files",
-           "millfmu.dem.tables.table", "millfmu.dem.tables.stress_source")
 #: Prefix of the table files in the FMU's resources (TABLE_PREFIX.npz, TABLE_PREFIX.json).
 TABLE_PREFIX = "table"
 
@@ -189,7 +186,7 @@ def _needed_modules(scene_path: Path, fmi_version: int = 2) -> dict:
     if r.returncode != 0:
         raise RuntimeError("cannot run the scene's model to find the modules it needs:\n" + r.stderr)
     info = json.loads(r.stdout.strip().splitlines()[-1])
-    bad = [m for m in info["loaded"] if m not in ALLOWED and any(m == f or m.startswith(f + ".") for f in FORBIDDEN)]
+    bad = [m for m in info["loaded"] if any(m == f or m.startswith(f + ".") for f in FORBIDDEN)]
     if bad:
         raise RuntimeError(f"the scene's model imports {', '.join(bad)}, which an FMU must not carry")
     return info["modules"]

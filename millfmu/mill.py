@@ -16,6 +16,8 @@ from .kinetics import grid as kgrid
 from .kinetics import materials, pbm, rates, stress
 from .kinetics.stress_distribution import LogNormalStressSource
 from .scene import PSD, Scene, SceneError
+from .stress_tables.rules import (NO_DEM_NOTE, TABLE_INPUTS, TABLE_INPUTS_CHECKED, TABLE_SCENE_KEYS, rebuild_hint,
+                                  recording_warnings)
 
 #: Tolerance on the sum of an input size distribution's mass fractions [-].
 PSD_SUM_TOL = kgrid.PSD_SUM_TOL
@@ -27,24 +29,6 @@ class InputError(ValueError):
     def __init__(self, name: str, value, allowed: str):
         self.name, self.value, self.allowed = name, value, allowed
         super().__init__(f"input {name} = {value!r}: {allowed}")
-
-
-#: Axes of a stress-energy table that are model inputs: axis -> input name. A table that
-#: refuses an input value (outside its grid) gives an InputError naming the input.
-TABLE_INPUTS = {"tip_speed_m_s": "tip_speed_m_per_s", "filling": "bead_filling"}
-TABLE_INPUTS_CHECKED = tuple(TABLE_INPUTS.values())
-#: Table axis -> the scene key that sets it (for a SceneError when the scene lies outside).
-TABLE_SCENE_KEYS = {"tip_speed_m_s": "mill.tip_speed_m_per_s", "filling": "mill.bead_filling",
-                    "bead_diameter_m": "beads.diameter_m",
-                    "bead_density_kg_m3": "beads.density_kg_per_m3",
-                    "viscosity_pa_s": "suspension.viscosity_Pa_s"}
-
-
-#: What an FMU adds to a refusal of a point outside its table where the scene asks for
-#: on-demand builds (on_outside = 'build'): an FMU carries no DEM.
-NO_DEM_NOTE = ("; an FMU carries no DEM, so on_outside = 'build' acts as 'refuse' here: it "
-               "carries the table that millfmu build-fmu built for the scene's operating point "
-               "(build the FMU again from a scene at the new point to carry a table that covers it)")
 
 
 class StepError(RuntimeError):
@@ -113,41 +97,6 @@ def build_material(s: Scene):
         return materials.Yeast(m.density_kg_per_m3, m.youngs_modulus_Pa, m.burst_energy_median_J, m.burst_energy_sigma_ln, brk)
     sel = m.selection
     return materials.Austin(m.density_kg_per_m3, m.youngs_modulus_Pa, sel.a_per_s, sel.x0_m, sel.alpha, sel.mu_m, sel.Lambda, brk)
-
-
-def _rebuild_hint(ref: str) -> str:
-    if ref == "default":
-        # Imported here as the table reader is (see _stress_source): a scene without a table
-        # never imports the tables.
-        from .dem.tables.table import REBUILD_DEFAULT
-
-        return f"reinstall millfmu, or rebuild it (from the repository root) with `{REBUILD_DEFAULT}`"
-    return (f"rebuild it with `millfmu tables build ... --export {ref}` (the command is the rebuild_command "
-            f"of an intact copy of {ref}.json), or name another table")
-
-
-def recording_warnings(manifest: dict) -> list:
-    """Warnings for a DEM table whose recordings are too short to average the bead motion:
-    shorter than one stirrer revolution at the grid's lowest tip speed (2 pi R / v_t), or
-    with fewer than 4 sampling windows (then the drift between the recording's halves, part
-    of the stated error, is not measured). Tables from other builders have no DEM resolution."""
-    dem = (manifest.get("resolution") or {}).get("dem")
-    if not dem:
-        return []
-    rec, every = float(dem.get("record_s", 0.0)), float(dem.get("sample_every_s", 0.0))
-    radius = float((manifest.get("scene") or {}).get("mill", {}).get("disc_radius_m", 0.0))
-    speeds = (manifest.get("grid") or {}).get("tip_speed_m_s") or [(manifest.get("scene") or {}).get("mill", {}).get("tip_speed_m_s", 0.0)]
-    v_min = min(float(v) for v in speeds)
-    turn = 2.0 * math.pi * radius / v_min if radius > 0.0 and v_min > 0.0 else 0.0
-    out = []
-    if rec < turn:
-        out.append(f"stress-energy table {manifest.get('key', '?')[:12]}: built from DEM recordings of {rec:g} s, shorter than one "
-                   f"stirrer revolution at its lowest tip speed ({turn:.3g} s at {v_min:g} m/s); its zone statistics may not be "
-                   f"representative: rebuild it with a longer --record")
-    if every > 0.0 and rec < 4.0 * every:
-        out.append(f"stress-energy table {manifest.get('key', '?')[:12]}: {rec:g} s recordings sampled every {every:g} s give fewer "
-                   f"than 4 windows: the drift within the recordings, part of the stated error, is not measured")
-    return out
 
 
 #: Q3 levels of the outputs x10, x50, x90
@@ -238,14 +187,14 @@ class MillModel:
         if sd.source == "table":
             # Imported only here: scenes without a table never load the table code (and the
             # modules that read a table are all an FMU carries of it).
-            from .dem.tables.spec import TableError
-            from .dem.tables.stress_source import TableStressSource
-            from .dem.tables.table import read_table_ref
+            from .stress_tables.spec import TableError
+            from .stress_tables.stress_source import TableStressSource
+            from .stress_tables.table import read_table_ref
 
             try:
                 table = read_table_ref(sd.table)
             except TableError as e:
-                raise SceneError("kinetics.stress_distribution.table", sd.table, f"cannot be used: {e}; {_rebuild_hint(sd.table)}",
+                raise SceneError("kinetics.stress_distribution.table", sd.table, f"cannot be used: {e}; {rebuild_hint(sd.table)}",
                                  self.scene.scene.name) from None
             self.warnings.extend(recording_warnings(table.manifest))
             on_outside, note = sd.on_outside, ""

@@ -268,7 +268,7 @@ def _seed002(args) -> int:
         print(f"millfmu dem seed002: {e}", file=sys.stderr)
         return 2
     if args.export_table:
-        from millfmu.dem.tables.spec import TableError
+        from millfmu.stress_tables.spec import TableError
 
         try:
             t = seed002.export_table(args.out, args.export_table)

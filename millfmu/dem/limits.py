@@ -1,7 +1,7 @@
 """What the DEM's scenes accept, as numbers: the operating ranges of each scene kind
 (tip speed, filling), checked by :func:`millfmu.dem.scene.scene_from_dict` when a DEM scene
 is made and read here by whoever must know before a DEM run whether a point can be built
-(a table extended on demand, :mod:`millfmu.dem.tables.stress_source`).
+(a table extended on demand, :mod:`millfmu.stress_tables.stress_source`).
 
 Imports nothing: knowing the ranges must not load the DEM engine (or numba).
 """

@@ -337,8 +337,8 @@ def test_campaign_table_from_short_runs(tmp_path, monkeypatch):
     verifies and is refused when a run's protocol differs."""
     pytest.importorskip("numba")
     from millfmu.dem.studies import seed002 as S
-    from millfmu.dem.tables import read_table
-    from millfmu.dem.tables.spec import TableError
+    from millfmu.stress_tables.table import read_table
+    from millfmu.stress_tables.spec import TableError
 
     for name, v in (("SPIN_UP_S", 1e-3), ("RECORD_S", 2e-3), ("WINDOW_S", 1e-3),
                     ("SAMPLE_S", 1e-3), ("SPEEDS", (1000.0, 1400.0)), ("SECTOR_DEG", 30.0)):

@@ -290,7 +290,7 @@ def test_disc_slice_short_run_gives_zone_statistics(tmp_path):
         f = [float(r["collision_frequency_per_m3_s"]) for r in rows if r["zone"] == z.name]
         assert np.mean(f) == pytest.approx(z.collision_frequency_per_m3_s, rel=1e-10)
     from millfmu.dem.tables.dem_builder import recording_drift
-    from millfmu.dem.tables.spec import DRIFT_FIELDS
+    from millfmu.stress_tables.spec import DRIFT_FIELDS
 
     drift = recording_drift(out / "windows.csv", [z.name for z in stats.zones])
     f = [float(r["collision_frequency_per_m3_s"]) for r in rows if r["zone"] == "V2"]

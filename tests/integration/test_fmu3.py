@@ -124,10 +124,13 @@ def test_fmu_carries_its_scene_and_only_the_code_it_needs(work, kind):
     assert "fmu3.py" in mods and "fmi3_slave.py" in mods and "fmu_variables.py" in mods
     assert "fmu.py" not in mods and "fmi_xml.py" not in mods  # the FMI 2.0 adapter stays out
     assert not any(n.startswith("resources/pythonfmu/") for n in names)  # pythonfmu3 only
-    dem = sorted(m for m in mods if m.startswith("dem/"))
-    reader = ["dem/__init__.py", "dem/tables/__init__.py", "dem/tables/files.py", "dem/tables/spec.py", "dem/tables/stress_source.py",
-              "dem/tables/table.py"]
-    assert dem == (reader if kind == "batch" else [])  # the table reader at most
+    assert not [m for m in mods if m.startswith("dem/")]  # nothing of the DEM nor of the table builder
+    tables = sorted(m for m in mods if m.startswith("stress_tables/"))
+    # MillModel's table rules for every scene; the table reader for a scene with a table
+    rules = ["stress_tables/__init__.py", "stress_tables/rules.py"]
+    reader = ["stress_tables/__init__.py", "stress_tables/files.py", "stress_tables/rules.py", "stress_tables/spec.py",
+              "stress_tables/stress_source.py", "stress_tables/table.py"]
+    assert tables == (reader if kind == "batch" else rules)
     assert not any("numba" in n or n.endswith(".pyc") or "cli.py" in n or "runner.py" in n for n in names)
     blob = b"".join(z.read(n) for n in code)
     assert b"import numba" not in blob and b"from numba" not in blob

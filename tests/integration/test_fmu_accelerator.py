@@ -22,8 +22,8 @@ def acc_fmu(tmp_path_factory):
 def test_validates_and_carries_the_accelerator_table(acc_fmu):
     from fmpy.validation import validate_fmu
 
-    from millfmu.dem.tables import read_table
-    from millfmu.dem.tables.table import read_table_ref
+    from millfmu.stress_tables.table import read_table
+    from millfmu.stress_tables.table import read_table_ref
 
     _, fmu = acc_fmu
     assert validate_fmu(str(fmu)) == []

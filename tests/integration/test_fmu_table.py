@@ -21,17 +21,21 @@ def test_carries_table_slice_and_reader_only(table_fmu):
     _, fmu = table_fmu
     names = zipfile.ZipFile(fmu).namelist()
     assert "resources/table.npz" in names and "resources/table.json" in names
-    dem = sorted(n.split("/dem/")[1] for n in names if "/dem/" in n)
-    # The table's reading and lookup modules only: no builder, cache or DEM kernels, no numba.
-    assert dem == ["__init__.py", "tables/__init__.py", "tables/files.py", "tables/spec.py", "tables/stress_source.py", "tables/table.py"]
-    from millfmu.dem.tables import read_table
+    code = [n.split("/", 2)[2] for n in names if n.startswith("resources/_millfmu_")]
+    # The table's reader only (millfmu.stress_tables), nothing under dem/: no builder, cache or
+    # DEM kernels, no numba.
+    assert not [n for n in code if n.startswith("dem/")]
+    assert sorted(n for n in code if n.startswith("stress_tables/")) == [
+        "stress_tables/__init__.py", "stress_tables/files.py", "stress_tables/rules.py", "stress_tables/spec.py",
+        "stress_tables/stress_source.py", "stress_tables/table.py"]
+    from millfmu.stress_tables.table import read_table
 
     with zipfile.ZipFile(fmu) as z:
         z.extract("resources/table.npz", fmu.parent)
         z.extract("resources/table.json", fmu.parent)
     t = read_table(npz=fmu.parent / "resources/table.npz", manifest_path=fmu.parent / "resources/table.json")  # verifies checksums
     # the default scene's table is the coupled DEM-CFD one: the FMU carries a slice of it
-    from millfmu.dem.tables import read_table_ref
+    from millfmu.stress_tables.table import read_table_ref
 
     coupled = read_table_ref("coupled").manifest["key"]
     assert t.manifest.get("slice_of", t.manifest["key"]) == coupled  # the whole table where the scene fixes no axis
@@ -43,7 +47,7 @@ def test_description_names_the_table_and_the_stand_in_calibration(table_fmu):
     from fmpy import read_model_description
 
     text = read_model_description(str(fmu)).description
-    from millfmu.dem.tables import read_table_ref
+    from millfmu.stress_tables.table import read_table_ref
 
     key = read_table_ref("coupled").manifest["key"][:12]
     assert f"DEM table {key} (disc_slice, fluid coupled" in text and "STAND-IN" in text and "f_mat_kg_per_J_m" in text

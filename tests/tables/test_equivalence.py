@@ -71,7 +71,7 @@ def evidence(tmp_path, monkeypatch):
     """An evidence file of its own; the installed sources' hash settable."""
     path = tmp_path / "dem_equivalence.json"
     monkeypatch.setattr(E, "EVIDENCE_PATH", path)
-    from millfmu.dem.tables.table import read_table_ref
+    from millfmu.stress_tables.table import read_table_ref
 
     version = read_table_ref("coupled").manifest["kernel_version"]
     state = {"hash": version}
@@ -82,7 +82,7 @@ def evidence(tmp_path, monkeypatch):
 def runner(shift=0.0, sd=0.02, seed0=0):
     def run_one(scene, point, threads):
         from millfmu.dem.tables.build import _check_fields
-        from millfmu.dem.tables.table import read_table_ref
+        from millfmu.stress_tables.table import read_table_ref
 
         tv = _check_fields(read_table_ref("coupled").lookup(point).values)
         rng = random.Random(seed0 + threads)
@@ -178,7 +178,7 @@ def test_shipped_evidence_reads_and_its_changes_pass():
     for e in data["accepted"]:
         assert ref is not None and E.rejudge(e, ref)["passed"], e["source_hash"]
     if ref is not None:
-        from millfmu.dem.tables.table import read_table_ref
+        from millfmu.stress_tables.table import read_table_ref
 
         m = read_table_ref(ref["table"]).manifest
         assert (ref["kernel_version"], ref["table_key"]) == (m["kernel_version"], m["key"])

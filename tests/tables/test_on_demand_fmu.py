@@ -75,7 +75,7 @@ def test_a_point_the_dem_cannot_build_is_refused_before_the_run(monkeypatch):
     1.4 mm beads that do not fit the table's 10-degree cell) is a SceneError naming
     on_outside and the reason, never an error inside the first step."""
     import millfmu.dem.tables.dem_builder as db
-    from millfmu.dem.tables.spec import TableError
+    from millfmu.stress_tables.spec import TableError
 
     def failing(table, point, **k):
         raise TableError(f"grid point {point}: GeometryError: the cell holds at most 1159 beads")

@@ -9,7 +9,7 @@ import sys
 import pytest
 
 from millfmu.dem import tables as T
-from millfmu.dem.tables import table as table_module  # where read_default_table finds its files
+from millfmu.stress_tables import table as table_module  # where read_default_table finds its files
 from millfmu.mill import MillModel
 from millfmu.scene import SceneError
 from tests.conftest import make_scene

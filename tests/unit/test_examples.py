@@ -40,10 +40,11 @@ def test_rampup_follows_profile():
 
 
 def test_model_and_cli_never_import_numba():
-    """The default scene reads the DEM table (the table reader, no numba, no DEM kernels, none
-    of the table builder's modules); a simple-model scene does not even load the table reader.
-    (The command line's parser loads ``millfmu tables``'s module, millfmu.dem.tables.cli, and
-    with it the tables package, whose names load their modules only when used.)"""
+    """The default scene reads the DEM table (the table reader, millfmu.stress_tables: no
+    numba, nothing under millfmu.dem); a simple-model scene does not even load the table
+    reader, only MillModel's table rules. (The command line's parser loads ``millfmu
+    tables``'s module, millfmu.dem.tables.cli, and with it the tables package, whose names
+    load their modules only when used.)"""
     simple = resources.files("millfmu.data").joinpath("examples", "limestone_simple.toml")
     code = (
         "import sys, millfmu.cli, millfmu.mill, millfmu.runner;"
@@ -55,12 +56,14 @@ def test_model_and_cli_never_import_numba():
         "bad = [m for m in sys.modules if m.split('.')[0] == 'numba' or m in dem"
         " or m.startswith('millfmu.dem.tables.') and m != cli];"
         "assert not bad, bad;"
+        "tabs = sorted(m for m in sys.modules if m.startswith('millfmu.stress_tables.'));"
+        "assert tabs == ['millfmu.stress_tables.rules'], tabs;"
         "MillModel(load_scene()).step(1.0);"
-        "bad = [m for m in sys.modules if m.split('.')[0] == 'numba' or m in dem];"
+        "bad = [m for m in sys.modules if m.split('.')[0] == 'numba' or m in dem"
+        " or m.startswith('millfmu.dem.tables.') and m != cli];"
         "assert not bad, bad;"
-        "assert 'millfmu.dem.tables' in sys.modules;"
-        "tabs = sorted(m for m in sys.modules if m.startswith('millfmu.dem.tables.') and m != cli);"
-        "assert tabs == ['millfmu.dem.tables.' + m for m in ('files', 'spec', 'stress_source', 'table')], tabs"
+        "tabs = sorted(m for m in sys.modules if m.startswith('millfmu.stress_tables.'));"
+        "assert tabs == ['millfmu.stress_tables.' + m for m in ('files', 'rules', 'spec', 'stress_source', 'table')], tabs"
     )
     r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
     assert r.returncode == 0, r.stderr

@@ -240,7 +240,7 @@ class _Tty:
 @pytest.mark.parametrize("value", ["abc", "-5", "nan"])
 def test_a_bad_build_limit_is_refused_by_name(monkeypatch, value):
     from millfmu.dem.tables.on_demand import build_limit_s
-    from millfmu.dem.tables.spec import TableError
+    from millfmu.stress_tables.spec import TableError
 
     monkeypatch.setenv("MILLFMU_BUILD_LIMIT_S", value)
     with pytest.raises(TableError, match=f"MILLFMU_BUILD_LIMIT_S = '{value}': allowed a number of seconds >= 0, or inf"):

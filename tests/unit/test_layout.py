@@ -108,9 +108,10 @@ LAYERS = {
     "millfmu.kinetics": 0, "millfmu.dem": 0, "millfmu.dem.engine": 0, "millfmu.dem.fluid": 0,
     "millfmu.dem.coupling": 0, "millfmu.dem.mills": 0, "millfmu.fmi_xml": 0,
     "millfmu.machine": 0, "millfmu.plotstyle": 0,
-    # 1: DEM scenes, runs, analysis, tables
+    # 1: DEM scenes, runs, analysis, the table builder; the table reader (below the model,
+    # which reads tables; beside the builder, which reads and writes them through it)
     "millfmu.dem.scene": 1, "millfmu.dem.run": 1, "millfmu.dem.analysis": 1,
-    "millfmu.dem.tables": 1,
+    "millfmu.dem.tables": 1, "millfmu.stress_tables": 1,
     # 2: the model: scene, MillModel, calibration, runner and the FMU adapters
     "millfmu": 2,
     # 3: FMU building and flowsheets
@@ -135,7 +136,7 @@ LAYERS_BEFORE = {
     "fmu_build.bench": 4,
     "millfmu.dem.tables_cli": 5,
 }
-LAYER_NAMES = ("engine/kinetics", "dem scene/run/analysis/tables", "model",
+LAYER_NAMES = ("engine/kinetics", "dem scene/run/analysis/tables, table reader", "model",
                "fmu_build/flowsheets", "studies/report", "cli")
 
 
@@ -225,7 +226,7 @@ def longest_chain(graph: dict[str, dict[str, bool]]) -> list[str]:
 # The engine and the model: none of these may import a study, a CLI, the report, the
 # FMU builder or the flowsheets.
 ENGINE_AND_MODEL = ("millfmu.dem.engine", "millfmu.dem.fluid", "millfmu.dem.coupling",
-                    "millfmu.dem.mills", "millfmu.dem.tables", "millfmu.dem.analysis",
+                    "millfmu.dem.mills", "millfmu.dem.tables", "millfmu.stress_tables", "millfmu.dem.analysis",
                     "millfmu.kinetics", "millfmu.mill", "millfmu.scene")
 FORBIDDEN = ("millfmu.dem.studies", "millfmu.studies", "millfmu.cli", "millfmu.dem.cli",
              "millfmu.dem.tables.cli", "millfmu.rates", "millfmu.report", "flowsheets",
@@ -249,6 +250,22 @@ def test_engine_and_model_import_no_study_cli_report_or_builder():
            and not _under(m, ("millfmu.dem.tables.cli",))
            for d in deps if _under(d, FORBIDDEN)]
     assert not bad, bad
+
+
+def test_table_reader_imports_nothing_of_the_dem_at_module_level():
+    """millfmu.stress_tables is what an FMU carries and what a step of a table scene loads:
+    no module of it imports anything under millfmu.dem when loaded. Its on-demand builds
+    (on_outside = 'build', never in an FMU) reach the DEM's limits and the table builder
+    from inside functions only, and only these."""
+    graph = imports()
+    reader = {m: deps for m, deps in graph.items() if _under(m, ("millfmu.stress_tables",))}
+    assert "millfmu.stress_tables.stress_source" in reader
+    top = [(m, d) for m, deps in reader.items() for d, at_top in deps.items() if at_top and _under(d, ("millfmu.dem",))]
+    assert not top, top
+    lazy = {(m, d) for m, deps in reader.items() for d in deps if _under(d, ("millfmu.dem",))}
+    assert lazy == {("millfmu.stress_tables.stress_source", "millfmu.dem.limits"),
+                    ("millfmu.stress_tables.stress_source", "millfmu.dem.tables.on_demand"),
+                    ("millfmu.stress_tables.stress_source", "millfmu.dem.tables.dem_builder")}, lazy
 
 
 def test_at_most_two_imports_run_upwards():

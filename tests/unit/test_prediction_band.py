@@ -65,6 +65,6 @@ def test_result_json_carries_the_band_and_the_calibration_record(tmp_path):
     assert lo < res["outputs"][-1]["x50_m"] < hi
     prov = res["provenance"]
     assert "STAND-IN" in prov["scene"]["scene"]["calibration"] and "f_mat_kg_per_J_m" in prov["scene"]["scene"]["calibration"]
-    from millfmu.dem.tables import read_table_ref
+    from millfmu.stress_tables.table import read_table_ref
 
     assert prov["table"]["ref"] == "coupled" and prov["table"]["key"] == read_table_ref("coupled").manifest["key"]

@@ -121,7 +121,7 @@ def test_an_unknown_similar_axis_is_refused_by_load_scene_listing_the_allowed_ax
 
 
 def test_similar_axes_allowed_by_the_scene_are_those_the_table_extends():
-    from millfmu.dem.tables.table import EXTRAPOLABLE_AXES
+    from millfmu.stress_tables.table import EXTRAPOLABLE_AXES
     from millfmu.scene import StressDistribution
     from dataclasses import fields
 

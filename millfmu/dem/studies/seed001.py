@@ -122,7 +122,7 @@ def prescribed_from_table(vt: float, fill: float, table=None) -> dict | None:
     """Zone statistics of the prescribed-swirl DEM at a grid point of the shipped
     prescribed-swirl table (millfmu/data/prescribed_table.*), in the form of a run's stats.json (zones only; energies, frequencies and powers
     scaled back from the table's normalisation). None off the grid."""
-    from millfmu.dem.tables.table import read_table
+    from millfmu.stress_tables.table import read_table
 
     if table is None:
         d = Path(__file__).resolve().parents[2] / "data"  # millfmu/data

@@ -169,8 +169,8 @@ def export_table(out_dir, prefix, filling: float = 0.8):
     from millfmu.dem.tables.build import assemble, stationarity_summary
     from millfmu.dem.tables.cache import dem_kernel_version
     from millfmu.dem.tables.dem_builder import normalize_stats, recording_drift
-    from millfmu.dem.tables.spec import (TableError, TableSpec, manifest_for,
-                                         scene_at_point)
+    from millfmu.stress_tables.spec import (TableError, TableSpec, manifest_for,
+                                            scene_at_point)
 
     base = load_scene_dict("accelerator_slice")
     for sec, kv in protocol_overrides().items():

@@ -1,36 +1,37 @@
-"""Stress-energy lookup tables: DEM results on a grid of operating points, cached on disk.
+"""Building stress-energy lookup tables: DEM results on a grid of operating points, cached on disk.
 
 A DEM run takes minutes; a kinetics step takes microseconds. A table holds, for a grid of
 operating points, what the detailed breakage model needs from the DEM, per zone, with
 energies over the bead's kinetic energy at tip speed and collision rates over omega n_gb.
+Reading a table (its format, files, lookup and the kinetics' stress source) is
+:mod:`millfmu.stress_tables`, what an FMU carries; this package builds tables through it.
 
 The modules, by role:
 
-- :mod:`.spec`: the format (axes, fields, energy bins, normalization) and
-  :class:`TableSpec`, whose key names a table, with what its manifest states;
-- :mod:`.files`: canonical JSON, checksums and synced writes of a table's files;
-- :mod:`.table`: :class:`Table` and its lookup (multilinear interpolation, error
-  estimates), :func:`read_table`, which verifies a table's files, the shipped default table;
-- :mod:`.stress_source`: :class:`TableStressSource`, the kinetics' stress-energy source;
 - :mod:`.build`: a builder run over the grid (serially, process pool, Dask) and assembled;
 - :mod:`.cache`: the cache of built tables, its locks and the DEM kernel version;
 - :mod:`.equivalence`: source changes of round-off only, accepted as the tables' kernel
   version on the evidence of runs scored against the version's own realizations (the
   runs: :mod:`.equivalence_runs`);
 - :mod:`.dem_builder`: the DEM as a builder (:class:`DemBuilder`), DEM table specs and
-  rebuilds that cover a new point.
+  rebuilds that cover a new point;
+- :mod:`.on_demand`: builds that extend a table to a new point, their cost and the
+  policies for a table of another DEM kernel version;
+- :mod:`.cli`: ``millfmu tables``.
 
-An FMU carries only the first four (what reading and looking up needs: numpy, no DEM, no
-numba). This package therefore imports none of its modules until one of its names is used:
-``millfmu.dem.tables.X`` (and ``from millfmu.dem.tables import X``) loads the module that
-defines X, so the names stay importable from here as from the one module they came from.
+The names of the former single module stay importable from here, the reader's among them
+(``from millfmu.dem.tables import Table`` is :class:`millfmu.stress_tables.table.Table`),
+for the command line and the callers of that module. This package imports none of its
+modules until one of its names is used: ``millfmu.dem.tables.X`` loads the module that
+defines X.
 """
 
 from __future__ import annotations
 
 import importlib
 
-#: Name -> the module of this package that defines it.
+#: Name -> the module that defines it: one of this package, or of the reader's package
+#: (see _READER).
 _EXPORTS = {
     **dict.fromkeys((
         "AXES", "COMPONENTS", "COUPLED_SPIN_UP_S", "DEM_BUILDER_ID", "DRIFT_FIELDS", "FIELDS",
@@ -60,6 +61,8 @@ _EXPORTS = {
         "DemBuilder", "dem_spec", "normalize_stats", "rebin_density", "rebuild_including",
         "recording_drift"), "dem_builder"),
 }
+#: The modules of millfmu.stress_tables whose names are re-exported here.
+_READER = ("spec", "files", "table", "stress_source")
 #: Old private name, kept for callers of the single module.
 _ALIASES = {"_builder_id": ("spec", "builder_id_of")}
 
@@ -73,8 +76,10 @@ def __getattr__(name: str):
         mod, attr = _ALIASES[name]
     else:
         raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
-    # Relative: an FMU carries this package under another top-level name.
-    return getattr(importlib.import_module(f".{mod}", __name__), attr)
+    # Relative, as the package's own imports are; "..." is millfmu, whose stress_tables is
+    # the reader's package.
+    target = f"...stress_tables.{mod}" if mod in _READER else f".{mod}"
+    return getattr(importlib.import_module(target, __name__), attr)
 
 
 def __dir__():

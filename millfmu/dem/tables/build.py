@@ -23,10 +23,10 @@ from typing import Callable
 
 import numpy as np
 
-from .files import canonical_json, sha256_bytes, write_replacing
-from .spec import (COMPONENTS, DRIFT_FIELDS, FIELDS, FORMAT_VERSION, QUANTILE_NAMES, TableError,
+from ...stress_tables.files import canonical_json, sha256_bytes, write_replacing
+from ...stress_tables.spec import (COMPONENTS, DRIFT_FIELDS, FIELDS, FORMAT_VERSION, QUANTILE_NAMES, TableError,
                    TableSpec, scene_at_point)
-from .table import FIXED_AXIS_RTOL, Table
+from ...stress_tables.table import FIXED_AXIS_RTOL, Table
 
 
 class PointStore:

@@ -26,9 +26,9 @@ from pathlib import Path
 from typing import Callable
 
 from .build import PointStore, build_table, seconds_per_cost
-from .files import fsync_dir
-from .spec import DEM_BUILDER_ID, FORMAT_VERSION, TableError, TableSpec, manifest_for
-from .table import Table, read_table
+from ...stress_tables.files import fsync_dir
+from ...stress_tables.spec import DEM_BUILDER_ID, FORMAT_VERSION, TableError, TableSpec, manifest_for
+from ...stress_tables.table import Table, read_table
 
 
 #: Modules whose source decides the DEM's numbers: contact laws and integration (kernels,
@@ -468,7 +468,7 @@ def seed_tables(spec: TableSpec) -> list:
     """The shipped tables whose points a build of ``spec`` can reuse: same builder, kernel
     version and DEM scene (a point's key holds the scene at the point, so only equal scenes
     share points). Read without the DEM; a table that cannot be read is skipped."""
-    from .table import SHIPPED_TABLES, read_table_ref
+    from ...stress_tables.table import SHIPPED_TABLES, read_table_ref
 
     out = []
     for name in SHIPPED_TABLES:

@@ -190,7 +190,7 @@ def register(subparsers) -> argparse.ArgumentParser:
 def _load_builder(text: str | None, threads):
     from millfmu.dem.studies.work_precision import manifest_entry
     from millfmu.dem.tables.dem_builder import DemBuilder
-    from millfmu.dem.tables.spec import TableError
+    from millfmu.stress_tables.spec import TableError
 
     if not text:
         return DemBuilder(threads=threads, work_precision=manifest_entry)
@@ -440,7 +440,7 @@ def _print_check(name: str, res: dict) -> None:
 
 def _equivalence(args) -> int:
     from millfmu.dem.tables import equivalence as E
-    from millfmu.dem.tables.spec import TableError
+    from millfmu.stress_tables.spec import TableError
 
     try:
         if args.show:

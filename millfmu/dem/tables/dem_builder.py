@@ -21,10 +21,10 @@ import numpy as np
 from ..run import run_scene
 from ..scene import load_scene_dict, scene_from_dict
 from .cache import dem_kernel_version, get_table
-from .spec import (COMPONENTS, DEM_BUILDER_ID, DRIFT_FIELDS, QUANTILE_NAMES, TableError,
+from ...stress_tables.spec import (COMPONENTS, DEM_BUILDER_ID, DRIFT_FIELDS, QUANTILE_NAMES, TableError,
                    TableSpec, e_ref_J, n_gb_per_m3, norm_log10_edges,
                    scene_at_point)
-from .table import Table
+from ...stress_tables.table import Table
 
 
 def rebin_density(dem_edges_J: np.ndarray, density_per_decade: np.ndarray,

@@ -42,7 +42,7 @@ import json
 import math
 from pathlib import Path
 
-from .files import write_replacing
+from ...stress_tables.files import write_replacing
 
 #: Evidence of accepted source changes (JSON, shipped with millfmu).
 EVIDENCE_PATH = Path(__file__).resolve().parents[2] / "data" / "dem_equivalence.json"

@@ -72,7 +72,7 @@ def run_equivalence(table_ref: str = "coupled", threads=(1, 2), change: str = ""
     ``run_one(scene, point, threads)``: instead of the DEM, in this process (tests)."""
     from .build import _check_fields
     from .cache import SAME_DEM_AS, kernel_source_hash
-    from .table import read_table_ref
+    from ...stress_tables.table import read_table_ref
 
     threads = [int(t) for t in threads]
     if not threads or len(set(threads)) != len(threads) or min(threads) < 1:

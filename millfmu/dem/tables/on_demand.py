@@ -30,8 +30,8 @@ import sys
 from dataclasses import dataclass
 from . import cache as _cache
 from .build import PointStore, duration, relative_costs, seconds_per_cost, stored_results
-from .spec import DEM_BUILDER_ID, TableError, TableSpec, builder_id_of
-from .table import Table
+from ...stress_tables.spec import DEM_BUILDER_ID, TableError, TableSpec, builder_id_of
+from ...stress_tables.table import Table
 
 #: The policies where the installed DEM's kernel version is not the table's.
 STALE_POLICIES = ("refuse", "rebuild", "accept")

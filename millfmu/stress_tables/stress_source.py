@@ -19,7 +19,7 @@ from typing import Callable
 
 import numpy as np
 
-from ...kinetics.stress_distribution import Zone
+from ..kinetics.stress_distribution import Zone
 from .spec import AXES, COMPONENTS, TableError, norm_log10_edges
 from .table import EXTRAPOLABLE_AXES, FIXED_AXIS_RTOL, Lookup, OutsideGridError, Table
 
@@ -55,8 +55,8 @@ class TableStressSource:
     kernel version differs from the table's, ``on_stale`` decides: ``'refuse'`` (the
     point is refused, naming the cost of the full rebuild), ``'rebuild'`` (every point
     again with the installed DEM) or ``'accept'`` (the table's points as they are, only the
-    new ones run; :mod:`.on_demand`). ``outside_note``: words added to every refusal of a
-    point outside the grid (an FMU says that it carries no DEM).
+    new ones run; :mod:`millfmu.dem.tables.on_demand`). ``outside_note``: words added to
+    every refusal of a point outside the grid (an FMU says that it carries no DEM).
     At tip speed 0 (stirrer at rest) there are no collisions: zones with zero rate.
     """
 
@@ -134,7 +134,9 @@ class TableStressSource:
 
     def _check_buildable(self, e: OutsideGridError):
         """For on_outside='build': refuse the point of ``e`` where no build can cover it."""
-        from ..limits import outside_dem  # numbers only: no DEM engine, no numba
+        # Here, not at the top: a step (and an FMU, which never builds) loads nothing of
+        # millfmu.dem. limits holds numbers only: no DEM engine, no numba.
+        from ..dem.limits import outside_dem
 
         why = outside_dem(self.table.manifest.get("scene") or {}, e.axis, e.value)
         if why is not None:
@@ -154,7 +156,9 @@ class TableStressSource:
     def stale_line(self, point: dict) -> str | None:
         """One line where the installed DEM's kernel version is not the table's (what a build
         covering ``point`` would cost under each policy), else None; for DEM tables only."""
-        from .on_demand import stale_line  # the builder's side: not carried by an FMU
+        # The builder's side (millfmu.dem.tables), here and not at the top: a step loads
+        # nothing of millfmu.dem, and an FMU does not carry it.
+        from ..dem.tables.on_demand import stale_line
 
         return stale_line(self.table, point, self.on_stale)
 
@@ -178,7 +182,7 @@ class TableStressSource:
             # Imported here: the builder (cache, grid runs, DEM) stays out of FMUs.
             from functools import partial
 
-            from .dem_builder import rebuild_including
+            from ..dem.tables.dem_builder import rebuild_including
             rebuild = partial(rebuild_including, on_stale=self.on_stale)
         self.table = rebuild(self.table, point)
 

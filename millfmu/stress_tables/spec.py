@@ -78,7 +78,9 @@ OPTIONAL_FIELDS = ("recording_drift",)
 
 
 #: Builder id of the DEM builder (:class:`millfmu.dem.tables.dem_builder.DemBuilder`): part
-#: of every DEM table's key, so it keeps the name the builder had when tables were one module.
+#: of every DEM table's key, so it keeps the name the builder had when tables were one module
+#: (an id, not an import path: the reader's move to millfmu.stress_tables left it, and with it
+#: every shipped and cached table's key, as it was).
 DEM_BUILDER_ID = "millfmu.dem.tables.DemBuilder"
 
 

@@ -2,8 +2,8 @@
 error estimates and sampling standard deviations, slices, export), :func:`read_table`, which
 verifies a table's files before it is used, and the shipped default table.
 
-Part of what an FMU carries (with :mod:`.spec`, :mod:`.files` and :mod:`.stress_source`):
-numpy only, no DEM, no numba.
+Part of what an FMU carries (with :mod:`.spec`, :mod:`.files`, :mod:`.stress_source` and
+:mod:`.rules`): numpy only, no DEM, no numba.
 """
 
 from __future__ import annotations
