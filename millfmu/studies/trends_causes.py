@@ -28,9 +28,8 @@ energies behind them (Kwade's SE against the table's medians).
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass, replace
-from types import SimpleNamespace
-from typing import Callable
 
 import numpy as np
 from scipy.optimize import brentq
@@ -252,8 +251,8 @@ def trend_rows(ps: PairSetup) -> dict:
     rows = {}
     sm, dm = ps.simple, ps.detailed
     s_ref = rate(sm, sm.material, None, ps.op_simple, ps)
-    rows["simple"] = dict(rel=[rate(sm, sm.material, None, at(ps.op_simple, f, v), ps) / s_ref for _, f, v, _ in POINTS],
-                          constant=math.nan, ref_rate=s_ref)
+    rows["simple"] = {"rel": [rate(sm, sm.material, None, at(ps.op_simple, f, v), ps) / s_ref for _, f, v, _ in POINTS],
+                          "constant": math.nan, "ref_rate": s_ref}
     d_ref_shipped = rate(dm, dm.material, dm.source, ps.op_detailed, ps)
     target = s_ref if ps.w_feed is not None else d_ref_shipped
     for v in VARIANTS:
@@ -266,7 +265,7 @@ def trend_rows(ps: PairSetup) -> dict:
         ref = rate(dm, mat, src, op0, ps)
         rel = [rate(dm, mat, src, at(op0, f, val, v.bead_y), ps) / ref for _, f, val, _ in POINTS]
         pb = [mean_p_break(mat, src, replace(op0, d_gb_m=d), ps.x[0]) for d in (0.6e-3, 0.8e-3, 1.2e-3)]
-        rows[v.key] = dict(rel=rel, constant=const, ref_rate=ref, p=pb)
+        rows[v.key] = {"rel": rel, "constant": const, "ref_rate": ref, "p": pb}
     return rows
 
 
@@ -290,7 +289,7 @@ def energies_table(ps: PairSetup) -> list:
     rows = []
     for d in (0.6e-3, 0.8e-3, 1.2e-3):
         op = replace(ps.op_detailed, d_gb_m=d)
-        rec = dict(d=d, se=op.se_beads_J, se_p=op.se_product_J)
+        rec = {"d": d, "se": op.se_beads_J, "se_p": op.se_product_J}
         for comp in ("tn", "total"):
             zs = replace(src, component=comp).zones(op)
             rec[comp] = {z.name: z.median_energy_J for z in zs}
