@@ -401,6 +401,10 @@ def compute(scene, name: str | None = None, sizes_m=None, values: dict | None = 
         for model_name in MODELS:
             m = simple if model_name == "simple" else detailed_models[p]
             src = m.source
+            # Each model at the one operating point with its own constants (k_c, eta_E): the
+            # detailed scene's energy transfer is not the simple scene's.
+            own = m.operating_point(m.inputs)
+            base = replace(op_ref, k_c=own.k_c, energy_transfer=own.energy_transfer)
             n = len(vals)
             rates_q = {q: np.full(n, math.nan) for q in quantities}
             sf_q = {q: np.full(n, math.nan) for q in quantities}
@@ -408,7 +412,7 @@ def compute(scene, name: str | None = None, sizes_m=None, values: dict | None = 
             se, sep = np.empty(n), np.empty(n)
             sources, notes, band_q = [], [], {}
             for k, v in enumerate(vals):
-                op = replace(op_ref, **{op_field: float(v)})
+                op = replace(base, **{op_field: float(v)})
                 se[k], sep[k] = op.se_beads_J, op.se_product_J
                 label = "Kwade: SE_P per stress, SF = k_c omega n_gb P_cap / (n_p (1 - c_v))" if model_name == "simple" \
                     else coverage[p].label(float(v))
