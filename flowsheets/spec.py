@@ -183,7 +183,7 @@ class Flowsheet:
     base_dir: Path
     source: str
 
-    def with_(self, **changes) -> "Flowsheet":
+    def with_(self, **changes) -> Flowsheet:
         f = copy.copy(self)
         for k, v in changes.items():
             setattr(f, k, v)

@@ -175,10 +175,10 @@ class UnitSlave(Fmi2Slave):
             self.log("fmi2SetFMUstate: state not applied: " + traceback.format_exc(limit=3), Fmi2Status.error)
 
     # ---- model description ---------------------------------------------------------------
-    def to_xml(self, model_options=dict()) -> Element:
+    def to_xml(self, model_options=None) -> Element:
         """pythonfmu's description plus units, exact start values, output dependencies (none:
         no direct feedthrough) and InitialUnknowns."""
-        return complete_model_description(super().to_xml(model_options), self, self._units, unit_exponents, f"{type(self).description}; {self.n} size classes")
+        return complete_model_description(super().to_xml({} if model_options is None else model_options), self, self._units, unit_exponents, f"{type(self).description}; {self.n} size classes")
 
 
 # ---------------------------------------------------------------------------------------

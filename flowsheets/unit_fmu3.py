@@ -110,8 +110,8 @@ class UnitSlave3(Fmi3Base):
         self.core = core
 
     # ---- model description -------------------------------------------------------------
-    def to_xml(self, model_options=dict()) -> Element:
-        return self.complete_xml(super().to_xml(model_options), f"{self.description}; {self.n} size classes")
+    def to_xml(self, model_options=None) -> Element:
+        return self.complete_xml(super().to_xml({} if model_options is None else model_options), f"{self.description}; {self.n} size classes")
 
 
 # ---------------------------------------------------------------------------------------

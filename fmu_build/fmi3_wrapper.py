@@ -41,7 +41,6 @@ import shutil
 import subprocess
 import sys
 import sysconfig
-import tempfile
 from pathlib import Path
 
 #: The pythonfmu3 version whose sources PATCHES edit.

@@ -49,7 +49,6 @@ import subprocess
 import sys
 import sysconfig
 import tarfile
-import tempfile
 from pathlib import Path
 
 #: The pythonfmu version whose Python side the rebuilt wrapper serves.
@@ -245,7 +244,7 @@ def build_wrapper(dest: Path, progress=None) -> Path:
 _progress = None
 
 
-@functools.lru_cache(maxsize=None)
+@functools.cache
 def fixed_wrapper() -> tuple[Path | None, str]:
     """(path of the fixed wrapper for this machine, "") or (None, why it is not available);
     tried once per process. MILLFMU_STOCK_WRAPPER=1 keeps pythonfmu's own on purpose."""

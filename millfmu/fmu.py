@@ -43,7 +43,6 @@ import os
 import traceback
 from xml.etree.ElementTree import Element
 
-import numpy as np
 from pythonfmu import DefaultExperiment, Fmi2Causality, Fmi2Initial, Fmi2Slave, Fmi2Variability, Real
 from pythonfmu.enums import Fmi2Status
 
@@ -375,7 +374,7 @@ class MillSlave(Fmi2Slave):
         return {"invalid": f"fmi2DeSerializeFMUstate gave no state: {why}"}
 
     # ---- model description -----------------------------------------------------------------
-    def to_xml(self, model_options=dict()) -> Element:
+    def to_xml(self, model_options=None) -> Element:
         """pythonfmu's description completed with units, exact start values, output
         dependencies and InitialUnknowns (see :mod:`millfmu.fmi_xml`)."""
-        return complete_model_description(super().to_xml(model_options), self, self._units, UNITS.__getitem__, self._model_description)
+        return complete_model_description(super().to_xml({} if model_options is None else model_options), self, self._units, UNITS.__getitem__, self._model_description)

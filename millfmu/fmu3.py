@@ -23,7 +23,6 @@ from __future__ import annotations
 import copy
 from xml.etree.ElementTree import Element
 
-import numpy as np
 from pythonfmu3 import DefaultExperiment, Fmi3Status
 
 from .fmi3_slave import Fmi3Base
@@ -129,5 +128,5 @@ class MillSlave3(Fmi3Base):
         self.model.set_state(copy.deepcopy(state["model"]))
 
     # ---- model description -------------------------------------------------------------
-    def to_xml(self, model_options=dict()) -> Element:
-        return self.complete_xml(super().to_xml(model_options), self._model_description)
+    def to_xml(self, model_options=None) -> Element:
+        return self.complete_xml(super().to_xml({} if model_options is None else model_options), self._model_description)

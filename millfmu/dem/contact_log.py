@@ -50,7 +50,7 @@ class ContactLog:
         self._map = None
 
     @classmethod
-    def resume(cls, path, n_cols: int, state: dict) -> "ContactLog":
+    def resume(cls, path, n_cols: int, state: dict) -> ContactLog:
         """The log a checkpoint's ``state`` (:meth:`state`) names: the file cut to the
         length the checkpoint knew (rows appended after it are recorded again);
         ContactLogError naming the file where it is missing or shorter."""
@@ -70,7 +70,7 @@ class ContactLog:
         return log
 
     @classmethod
-    def from_chunks(cls, path, n_cols: int, chunks) -> "ContactLog":
+    def from_chunks(cls, path, n_cols: int, chunks) -> ContactLog:
         """A log written from in-memory chunks (a checkpoint of earlier sources kept them
         in memory)."""
         log = cls(path, n_cols)

@@ -97,7 +97,7 @@ class DemScene:
         """Stirrer speed [1/min]."""
         return self.omega_rad_s * 60.0 / (2.0 * math.pi)
 
-    def with_overrides(self, **kw) -> "DemScene":
+    def with_overrides(self, **kw) -> DemScene:
         """Copy with run-time overrides (tip_speed_m_s, filling, sector_deg, spin_up_s,
         record_s, dt_s, fluid_mode, initial_rotation, primed_s, n_theta: the coupled
         liquid's theta cells; smoothing: its smoothing (SMOOTHINGS); pressure_solver: its

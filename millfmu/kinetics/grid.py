@@ -46,7 +46,7 @@ class SizeGrid:
     edges_m: np.ndarray
 
     @classmethod
-    def geometric(cls, x_min_m: float, x_max_m: float, classes_per_octave: float) -> "SizeGrid":
+    def geometric(cls, x_min_m: float, x_max_m: float, classes_per_octave: float) -> SizeGrid:
         """Grid from x_min_m upwards with ``classes_per_octave`` classes per doubling of size.
 
         The number of classes is ceil(classes_per_octave * log2(x_max/x_min)), so the top
@@ -57,7 +57,7 @@ class SizeGrid:
         return cls(x_min_m * ratio ** np.arange(n + 1))
 
     @classmethod
-    def with_classes(cls, x_min_m: float, x_max_m: float, n_classes: int) -> "SizeGrid":
+    def with_classes(cls, x_min_m: float, x_max_m: float, n_classes: int) -> SizeGrid:
         """Grid with exactly ``n_classes`` geometric classes between x_min_m and x_max_m."""
         return cls(np.geomspace(x_min_m, x_max_m, n_classes + 1))
 

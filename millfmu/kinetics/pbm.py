@@ -195,7 +195,7 @@ class TanksInSeries:
         f = feed_matrix(self.a.shape[0], self.n_tanks, self.n_in) if self.n_in else None
         return g, f
 
-    def propagator(self, h_s: float) -> "SeriesPropagator":
+    def propagator(self, h_s: float) -> SeriesPropagator:
         return SeriesPropagator(self, float(h_s))
 
 

@@ -15,7 +15,7 @@ the scene's operating point, and the FMU carries that).
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import Callable
+from collections.abc import Callable
 
 import numpy as np
 

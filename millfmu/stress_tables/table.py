@@ -16,7 +16,7 @@ import os
 import tempfile
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Iterable
+from collections.abc import Iterable
 
 import numpy as np
 
@@ -409,7 +409,7 @@ class Table:
                 out[ax] = float(scene[sec][key])
         return out
 
-    def spec(self) -> "TableSpec":
+    def spec(self) -> TableSpec:
         """The specification this table was built from (from its manifest)."""
         m = self.manifest
         try:
@@ -420,7 +420,7 @@ class Table:
             raise TableError(f"table: manifest lacks {e}; not a cached or exported table") \
                 from None
 
-    def subset(self, bounds: dict) -> "Table":
+    def subset(self, bounds: dict) -> Table:
         """The slice of the grid that a scene needs: for each axis named in ``bounds``
         (axis -> (lo, hi)), the nodes from the last one <= lo to the first one >= hi.
         Lookups inside the bounds give the same values as on the full table (their error
@@ -695,7 +695,7 @@ def _check_field(where: str, name: str, v: np.ndarray, nan_ok=False, lo=0.0, hi=
                          f"run gives; the table's contents are refused (damaged or edited)")
 
 
-def _check_values(t: "Table", where: str):
+def _check_values(t: Table, where: str):
     d = t.data
     for k in ZONE_FIELDS:
         hi = {"volume_fraction": 1.0 + 1e-9, "filling_local": 2.0, "collision_count": 1e15}.get(k, NORM_MAX)

@@ -46,7 +46,7 @@ def test_couette_axisymmetric_profile_torque_and_order():
         p_torque = math.log2(t0 / t1)
         print(f"Couette orders: profile {p_prof:.3f}, torque {p_torque:.3f}")
         assert p_prof >= 1.8 and p_torque >= 1.8
-    print("Couette finest (32 cells): profile error %.2e, torque error %.2e" % res[-1])
+    print(f"Couette finest (32 cells): profile error {res[-1][0]:.2e}, torque error {res[-1][1]:.2e}")
     assert res[-1][1] < 5e-3
 
 

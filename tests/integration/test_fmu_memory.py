@@ -12,7 +12,7 @@ import subprocess
 
 import pytest
 
-from .fmu_support import ROOT, build, isolated_python, need_fmi3
+from .fmu_support import build, isolated_python, need_fmi3
 
 pytest.importorskip("fmpy")
 

@@ -247,7 +247,7 @@ def test_label_points_leaves_out_what_would_overlap():
     fig, ax = plt.subplots(figsize=(3, 2))
     pts = [(1.0, 1.0), (1.001, 1.001), (1.002, 1.0), (1.0, 1.002), (2.0, 2.0)]
     ax.plot([p[0] for p in pts], [p[1] for p in pts], "o")
-    placed = label_points(ax, pts, ["a long label %d" % i for i in range(len(pts))])
+    placed = label_points(ax, pts, [f"a long label {i}" for i in range(len(pts))])
     r = fig.canvas.get_renderer()
     try:
         boxes = [a.get_window_extent(r) for a in placed]

@@ -171,7 +171,6 @@ def stress_quantities(events: np.ndarray, ev_cols: dict, zones, record_s: float,
     serot) over ``record_s`` [s] in the simulated sector; powers are scaled to the full
     circle (per axial period)."""
     m_g = bead_mass_kg(bead_diameter_m, bead_density_kg_m3)
-    i_g = bead_inertia_kgm2(bead_diameter_m, bead_density_kg_m3)
     bb = events[:, ev_cols["type"]] == 0 if events.size else np.zeros(0, bool)
     ev = events[bb] if events.size else np.zeros((0, max(ev_cols.values()) + 1))
     pos = ev[:, [ev_cols["x"], ev_cols["y"], ev_cols["z"]]]

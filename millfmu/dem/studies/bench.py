@@ -466,7 +466,8 @@ def gpu_name() -> str:
 
 def _load() -> str:
     try:
-        return "load average %.2f %.2f %.2f" % os.getloadavg()
+        la = os.getloadavg()
+        return f"load average {la[0]:.2f} {la[1]:.2f} {la[2]:.2f}"
     except OSError:
         return "load average unknown"
 

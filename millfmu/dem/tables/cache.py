@@ -23,7 +23,7 @@ import shutil
 import tempfile
 import time
 from pathlib import Path
-from typing import Callable
+from collections.abc import Callable
 
 from .build import PointStore, build_table, seconds_per_cost
 from ...stress_tables.files import fsync_dir

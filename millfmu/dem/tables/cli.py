@@ -43,6 +43,11 @@ RUN_OPTIONS = {
                            "at this fraction of the stirrer's angular velocity [-]"),
 }
 
+
+def _to_stderr(msg: str) -> None:
+    print(msg, file=sys.stderr)
+
+
 def _floats(text: str) -> list:
     try:
         vals = [float(x) for x in text.split(",") if x.strip()]
@@ -238,9 +243,8 @@ def _build(args) -> int:
             spec = T.TableSpec(scene=spec.scene, grid=spec.grid,
                                kernel_version=spec.kernel_version,
                                builder_id=T.builder_id_of(builder), one_at_a_time=oat)
-        log = (lambda msg: print(msg, file=sys.stderr))
         table = T.get_table(spec, builder, cache_dir=args.cache_dir, force=args.force,
-                            log=log, executor=args.executor, workers=args.workers,
+                            log=_to_stderr, executor=args.executor, workers=args.workers,
                             scheduler=args.scheduler, progress=not args.no_progress)
     except (T.TableError, DemSceneError) as e:
         print(f"millfmu tables build: {e}", file=sys.stderr)

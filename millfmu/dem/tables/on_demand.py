@@ -78,7 +78,7 @@ def build_limit_s() -> float:
     return v
 
 
-def confirm_build(pl: "Plan", what: str, ask=None) -> None:
+def confirm_build(pl: Plan, what: str, ask=None) -> None:
     """Let the build of plan ``pl`` (described by ``what``) go on, or refuse it with
     :class:`BuildNotConfirmedError`: a build whose estimated wall time is within
     :func:`build_limit_s` goes on; a longer one (or a DEM build of unknown cost) goes on
