@@ -18,7 +18,7 @@ def _cmd_build_fmu(args) -> int:
     from .fmi3_wrapper import WrapperError
 
     if args.yes:
-        from millfmu.cli import assume_yes
+        from millfmu.dem.tables.on_demand import assume_yes
 
         assume_yes()
     t0 = time.perf_counter()

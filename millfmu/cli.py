@@ -31,6 +31,8 @@ def _cmd_run(args) -> int:
     from .scene import load_scene
 
     if args.yes:
+        from .dem.tables.on_demand import assume_yes
+
         assume_yes()
     scene = load_scene(args.scene)  # SceneError -> exit 2 before anything is written
     if args.on_stale is not None:
@@ -71,13 +73,6 @@ def _cmd_run(args) -> int:
     print(f"mass balance: relative residual {m_err:.2e}; simulated {scene.run.t_end_s:g} s in {wall:.3g} s wall")
     print("wrote " + ", ".join(str(f) for f in files))
     return 0
-
-
-def assume_yes() -> None:
-    """``--yes``: on-demand table builds of any length run without asking (this process)."""
-    from .dem.tables.on_demand import BUILD_LIMIT_ENV
-
-    os.environ[BUILD_LIMIT_ENV] = "inf"
 
 
 def _percents(errors) -> str:

@@ -62,6 +62,11 @@ DEFAULT_BUILD_LIMIT_S = 1800.0
 BUILD_LIMIT_ENV = "MILLFMU_BUILD_LIMIT_S"
 
 
+def assume_yes() -> None:
+    """``--yes``: on-demand table builds of any length run without asking (this process)."""
+    os.environ[BUILD_LIMIT_ENV] = "inf"
+
+
 def build_limit_s() -> float:
     """The wall time [s] over which an on-demand build needs confirmation: the value of
     ``MILLFMU_BUILD_LIMIT_S`` where set (a number of seconds, or inf), else 1800 s. A value
