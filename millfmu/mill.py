@@ -201,7 +201,8 @@ class MillModel:
             if self.no_dem and on_outside == "build":
                 on_outside, note = "refuse", NO_DEM_NOTE
             return TableStressSource(table, component=sd.component, similar_axes=tuple(sd.similar_axes), on_outside=on_outside,
-                                     on_stale=sd.on_stale, outside_note=note, error_multiple=self.table_error_multiple)
+                                     on_stale=sd.on_stale, outside_note=note, error_multiple=self.table_error_multiple,
+                                     collision_energy=sd.collision_energy)
         return LogNormalStressSource(sd.median_fraction, sd.sigma_ln, sd.collision_factor)
 
     def _check_source_scene(self):

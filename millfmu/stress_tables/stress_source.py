@@ -28,6 +28,15 @@ from .table import EXTRAPOLABLE_AXES, FIXED_AXIS_RTOL, Lookup, OutsideGridError,
 STALE_POLICIES = ("refuse", "rebuild", "accept")
 
 
+#: Factor from the energy a table records for a bead-bead collision, 1/2 m* v_rel^2 with the
+#: pair's reduced mass m* = m_i m_j / (m_i + m_j) (the DEM's zone statistics: the energy in
+#: the pair's centre-of-mass frame; its shear and rotational parts with m* and I* alike), to
+#: the energy counted as the collision's stress energy: ``bead_mass``, seed 001 eq. 1,
+#: SE_tn = 1/2 m_GM v_rel,n^2 with the grinding bead's mass (m_GM / m* = 2, I / I* = 2 for
+#: the equal beads of a table's DEM scene), or ``reduced_mass``, the recorded energy.
+COLLISION_ENERGY = {"bead_mass": 2.0, "reduced_mass": 1.0}
+
+
 @dataclass
 class TableStressSource:
     """Stress-energy source of the detailed model read from a table
@@ -71,6 +80,9 @@ class TableStressSource:
     #: every zone's collision rate and energies times (1 + |m| b)^sign(m), b its relative
     #: bound. 0: the table's values; +1 / -1: the upper / lower edge of the prediction band.
     error_multiple: float = 0.0
+    #: How a collision's energy is counted (:data:`COLLISION_ENERGY`): the table records
+    #: 1/2 m* v^2 with the pair's reduced mass; seed 001 eq. 1 counts 1/2 m_GM v^2.
+    collision_energy: str = "bead_mass"
     last_lookup: Lookup | None = None
     last_notes: list = field(default_factory=list)
     #: axis -> (least, largest) value [axis unit] looked up with similarity assumed (an axis
@@ -82,6 +94,8 @@ class TableStressSource:
             raise TableError(f"component = {self.component!r}: allowed {list(COMPONENTS)}")
         if self.on_outside not in ("refuse", "build"):
             raise TableError(f"on_outside = {self.on_outside!r}: allowed 'refuse', 'build'")
+        if self.collision_energy not in COLLISION_ENERGY:
+            raise TableError(f"collision_energy = {self.collision_energy!r}: allowed {', '.join(map(repr, COLLISION_ENERGY))}")
         if self.on_stale not in STALE_POLICIES:
             raise TableError(f"on_stale = {self.on_stale!r}: allowed {', '.join(map(repr, STALE_POLICIES))}")
         self.similar_axes = tuple(self.similar_axes)
@@ -241,7 +255,7 @@ class TableStressSource:
                 x = float(getattr(op, AXES[ax][3]))
                 lo, hi = self.similarity_seen.get(ax, (x, x))
                 self.similarity_seen[ax] = (min(lo, x), max(hi, x))
-        eref = float(op.se_beads_J)
+        eref = float(op.se_beads_J) * COLLISION_ENERGY[self.collision_energy]
         scale = float(op.omega_rad_per_s * op.n_gb_per_m3)
         edges = eref * 10.0 ** U
         ci = COMPONENTS.index(self.component)

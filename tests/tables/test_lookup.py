@@ -97,12 +97,14 @@ def test_table_stress_source(table):
                             * op.omega_rad_per_s * op.n_gb_per_m3, rel_tol=1e-12)
         # at the grid point the table's own reference energy is the op's SE
         assert math.isclose(op.se_beads_J, want["e_ref_J"], rel_tol=1e-12)
-        np.testing.assert_allclose(z.energy_edges_J, op.se_beads_J * 10 ** T.norm_log10_edges())
+        # the table's energies (1/2 m* v^2, reduced mass) counted as seed 001 eq. 1 counts a
+        # collision's: 1/2 m_GM v^2 with the bead's mass, m_GM / m* = 2 for equal beads
+        np.testing.assert_allclose(z.energy_edges_J, 2.0 * op.se_beads_J * 10 ** T.norm_log10_edges())
         assert math.isclose(z.energy_weights.sum(), 1.0, rel_tol=1e-12)
         # the median of the weights sits where the builder put it
         cdf = np.cumsum(z.energy_weights)
         med = z.energy_J[np.searchsorted(cdf, 0.5)]
-        q50 = want["se_quantiles_norm"][0, k, 1] * op.se_beads_J
+        q50 = 2.0 * want["se_quantiles_norm"][0, k, 1] * op.se_beads_J  # by the bead mass: twice the recorded
         assert abs(math.log10(med / q50)) < 0.2  # within one bin (0.2 decade)
     # energies scale with the op's own E_ref: twice the bead density, twice the energies
     z2 = src.zones(_op(10.0, 0.7, rho=2 * RHO_KG_M3))
@@ -223,3 +225,21 @@ def test_sampling_sigma_from_collision_counts(table):
     np.testing.assert_allclose(lk.sigma["se_quantiles_norm"][0, :, 1], approx, rtol=0.15)
     mid = table.lookup({"tip_speed_m_s": 9.0, "filling": 0.7})
     assert np.all(mid.bound("se_quantiles_norm") > mid.error["se_quantiles_norm"])
+
+
+def test_collision_energy_by_the_beads_mass_or_the_pairs_reduced_mass(table):
+    """seed 001 eq. 1 (SE_tn = 1/2 m_GM v_rel,n^2) against the recorded 1/2 m* v_rel,n^2: the
+    ratio is m_GM / m*, with m* = m_i m_j / (m_i + m_j) = m_GM / 2 for two equal beads."""
+    from millfmu.stress_tables.stress_source import COLLISION_ENERGY
+
+    m = 1.3e-6  # any bead mass [kg]
+    assert COLLISION_ENERGY["bead_mass"] == m / (m * m / (m + m)) and COLLISION_ENERGY["reduced_mass"] == 1.0
+    op = _op(10.0, 0.7)
+    by_mass = T.TableStressSource(table).zones(op)
+    reduced = T.TableStressSource(table, collision_energy="reduced_mass").zones(op)
+    for a, b in zip(by_mass, reduced):
+        np.testing.assert_array_equal(a.energy_edges_J, 2.0 * b.energy_edges_J)
+        np.testing.assert_array_equal(a.energy_weights, b.energy_weights)
+        assert a.collision_rate_per_m3_s == b.collision_rate_per_m3_s
+    with pytest.raises(T.TableError, match="collision_energy = 'x': allowed 'bead_mass', 'reduced_mass'"):
+        T.TableStressSource(table, collision_energy="x")

@@ -59,7 +59,7 @@ def test_detailed_with_narrow_distribution_equals_simple(scene_dict):
 #: The breakage energies the default scene had before its calibration on the coupled table
 #: (f_Mat = 1 kg/(J m), x W_m,min = 0.2 J m/kg; assumed): below saturation on these
 #: log-normal energies, so that the rates respond to the energies. The calibrated default
-#: (x W_m,min = 0, f_Mat = 359) breaks with probability near 1 at SE-scale energies.
+#: (x W_m,min = 0, f_Mat = 179.5) breaks with probability near 1 at SE-scale energies.
 ASSUMED_LIMESTONE = {"f_mat_kg_per_J_m": 1.0, "x_w_min_J_m_per_kg": 0.2}
 
 

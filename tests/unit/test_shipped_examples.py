@@ -45,7 +45,7 @@ def test_calibrate_and_run_take_the_shipped_examples_by_name_from_any_folder(tmp
     out, err = capsys.readouterr()
     assert rc == 0, err
     assert "shipped example" in err and "limestone_standin_batch.csv" in err
-    assert "material.f_mat_kg_per_J_m = 359.2" in out
+    assert "material.f_mat_kg_per_J_m = 179.6" in out
     cal = json.loads((tmp_path / "out-cal" / "calibration.json").read_text())
     assert "limestone_standin_batch.csv" in json.dumps(cal)
     rc = main(["run", "limestone_simple", "--out", "out-simple", "--no-plots", "-q"])
