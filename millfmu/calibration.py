@@ -592,8 +592,13 @@ def write(cal: Calibration, out_dir, scene_path=None) -> list:
     for k, c in cal.constants.items():
         ci = f"[{c.ci95[0]:.4g}, {c.ci95[1]:.4g}]" if c.ci95 else "(no interval)"
         head += f"#   {k} = {c.value:.6g} {c.unit}, 95 % interval {ci}\n"
+    # the constants with an interval, which the prediction band carries through the model
+    fitted = [(k, c.ci95) for k, c in cal.constants.items() if c.ci95]
     text = head + set_toml_values(_scene_text(cal.scene, scene_path),
-                                  {**{k: c.value for k, c in cal.constants.items()}, "scene.calibration": cal.record()})
+                                  {**{k: c.value for k, c in cal.constants.items()}, "scene.calibration": cal.record(),
+                                   "scene.fitted": [k for k, _ in fitted],
+                                   "scene.fitted_ci95_low": [float(ci[0]) for _, ci in fitted],
+                                   "scene.fitted_ci95_high": [float(ci[1]) for _, ci in fitted]})
     check = load_any(text)
     for k, c in cal.constants.items():
         if _get(check, k) != c.value:  # pragma: no cover - set_toml_values is tested

@@ -60,19 +60,40 @@ def _cmd_run(args) -> int:
             print(f"  note: {note}")
     print(summary_table(records))
     if band is not None:
-        key, f, unit = ("disrupted_fraction", 1.0, "") if "disrupted_fraction" in band["outputs"] else ("x50_m", 1e6, " um")
-        lo, hi = band["outputs"][key]
-        freq, energy = band["collision_frequency_relative_error"], band["se_median_relative_error"]
-        if all(v is None for v in freq + energy):
-            why = "no zone had collisions (the stirrer at rest): the table's error reaches no result"
-        else:
-            why = f"zones' collision frequency {_percents(freq)}, median energy {_percents(energy)}"
-        print(f"prediction band at t = {band['t_s']:g} s from the table's stated error: {key} {records[-1][key] * f:.4g}{unit} "
-              f"in [{lo * f:.4g}, {hi * f:.4g}]{unit} ({why})")
+        for line in band_lines(band, records[-1]):
+            print(line)
     m_err = abs(records[-1]["total_mass_kg"] - (model.m0_kg + model.fed_kg)) / max(model.m0_kg + model.fed_kg, 1e-300)
     print(f"mass balance: relative residual {m_err:.2e}; simulated {scene.run.t_end_s:g} s in {wall:.3g} s wall")
     print("wrote " + ", ".join(str(f) for f in files))
     return 0
+
+
+def band_lines(band: dict, last: dict) -> list:
+    """The prediction band (:func:`millfmu.runner.prediction_band`) in words: the whole, then
+    each part with what it rests on."""
+    key, f, unit = ("disrupted_fraction", 1.0, "") if "disrupted_fraction" in band["outputs"] else ("x50_m", 1e6, " um")
+
+    def rng(outputs) -> str:
+        lo, hi = outputs[key]
+        return f"[{lo * f:.4g}, {hi * f:.4g}]{unit}"
+
+    parts = band["parts"]
+    lines = [f"prediction band at t = {band['t_s']:g} s: {key} {last[key] * f:.4g}{unit} in {rng(band['outputs'])} "
+             f"({' and '.join(parts)}{'' if len(parts) == 1 else ', their worst cases together'})"]
+    if "table" in parts:
+        t = parts["table"]
+        freq, energy = t["collision_frequency_relative_error"], t["se_median_relative_error"]
+        if all(v is None for v in freq + energy):
+            why = "no zone had collisions (the stirrer at rest): the table's error reaches no result"
+        else:
+            why = f"zones' collision frequency {_percents(freq)}, median energy {_percents(energy)}"
+        lines.append(f"  from the table's stated error: {rng(t['outputs'])} ({why})")
+    if "calibration" in parts:
+        c = parts["calibration"]
+        consts = ", ".join(f"{x['key']} = {x['value']:.4g} in [{x['ci95'][0]:.4g}, {x['ci95'][1]:.4g}]" for x in c["constants"])
+        lines.append(f"  from the calibration's 95 % intervals: {rng(c['outputs'])} ({consts})")
+    lines += [f"  note: {n}" for n in band.get("notes", [])]
+    return lines
 
 
 def _percents(errors) -> str:

@@ -139,9 +139,13 @@ def process_section(out: Path, quick: bool, log=print) -> str:
     band = prediction_band(scene)
     if band is not None and "x50_m" in band["outputs"]:
         lo, hi = band["outputs"]["x50_m"]
-        zone_html = (f"<p>Prediction band from the stress-energy table's stated error: x50 after {band['t_s']:g} s "
-                     f"{records[-1]['x50_m'] * 1e6:.3g} \u00b5m in [{lo * 1e6:.3g}, {hi * 1e6:.3g}] \u00b5m (two runs with every "
-                     f"zone's collision rate and median energy at the edges of its stated error).</p>") + zone_html
+        parts = {"table": "the stress-energy table's stated error (every zone's collision rate and median energy at the "
+                          "edges of its stated error)",
+                 "calibration": "the fitted constants' 95 % intervals"}
+        said = "; ".join(f"{parts[k]}: [{v['outputs']['x50_m'][0] * 1e6:.3g}, {v['outputs']['x50_m'][1] * 1e6:.3g}] \u00b5m"
+                         for k, v in band["parts"].items())
+        zone_html = (f"<p>Prediction band: x50 after {band['t_s']:g} s {records[-1]['x50_m'] * 1e6:.3g} \u00b5m in "
+                     f"[{lo * 1e6:.3g}, {hi * 1e6:.3g}] \u00b5m, from {said}.</p>") + zone_html
     idx = np.unique(np.linspace(0, len(records) - 1, min(8, len(records))).round().astype(int))
     rows = [[f"{records[i]['t_s']:g}", _fmt(records[i]["x10_m"] * 1e6, ".3g", None), _fmt(records[i]["x50_m"] * 1e6, ".3g", None),
              _fmt(records[i]["x90_m"] * 1e6, ".3g", None), _fmt(e_m[i], ".3g", None),

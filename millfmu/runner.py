@@ -302,33 +302,93 @@ BAND_KEYS = ("x10_m", "x50_m", "x90_m", "disrupted_fraction")
 
 
 def prediction_band(scene: Scene, multiple: float = 1.0) -> dict | None:
-    """The band of the end-of-run outputs that the stress-energy table's stated error spans,
-    or None for a scene without a table. Two more runs of the scene with every zone's
-    collision frequency and median stress energy at the edges of ``multiple`` times their
-    stated relative error b (factors (1 + b)^-1 and 1 + b: the lower edge breaks least, the
-    upper most; the breakage rates grow with both, so these runs bound the box of zone
-    statistics; :meth:`TableStressSource.relative_error` says what b holds)."""
-    if scene.kinetics.model != "detailed" or scene.kinetics.stress_distribution.source != "table":
+    """The band of the end-of-run outputs from what is known of the scene's data, in parts
+    and whole, or None for a scene with neither part.
+
+    - ``table`` (a scene on a stress-energy table): two more runs with every zone's collision
+      frequency and median stress energy at the edges of ``multiple`` times their stated
+      relative error b (factors (1 + b)^-1 and 1 + b: the lower edge breaks least, the upper
+      most; the breakage rates grow with both, so these runs bound the box of zone
+      statistics; :meth:`TableStressSource.relative_error` says what b holds).
+    - ``calibration`` (a scene whose ``scene.fitted`` constants carry 95 % intervals): two
+      runs per constant, at each end of its interval, the others at their values.
+    - the whole: the parts' runs and two more, each constant at the end that breaks more
+      (less) with the table's upper (lower) edge; the band spans all runs. The parts are
+      taken as independent and their worst cases as coinciding: an upper bound of what
+      they span together, not a confidence level."""
+    has_table = scene.kinetics.model == "detailed" and scene.kinetics.stress_distribution.source == "table"
+    info = scene.scene
+    fitted, left_out = [], []
+    for k, a, b in zip(info.fitted, info.fitted_ci95_low, info.fitted_ci95_high):
+        v = _get_value(scene, k)
+        (fitted if a <= v <= b else left_out).append((k, a, b))
+    if not has_table and not fitted:
         return None
-    ends = {}
-    for sign in (-1.0, 1.0):
-        model, records, _ = simulate(scene, progress=False, table_error_multiple=sign * multiple)
-        ends[sign] = (records[-1], model.source.relative_error())
-    lo, hi = ends[-1.0][0], ends[1.0][0]
-    err = ends[1.0][1]
-    band = {k: sorted((lo[k], hi[k])) for k in BAND_KEYS if k in lo}
-    return {
-        "t_s": lo["t_s"],
-        "multiple": multiple,
-        "outputs": band,
-        "zones": err["zones"],
-        "collision_frequency_relative_error": [float(v) if np.isfinite(v) else None for v in err["collision_frequency"]],
-        "se_median_relative_error": [float(v) if np.isfinite(v) else None for v in err["se_median"]],
-        "method": ("two runs with every zone's collision frequency and median stress energy at the edges of the table's "
-                   "stated relative error b, factors (1 + b)^-1 and (1 + b); b = interpolation error + 2 sigma of the DEM "
-                   "sampling at the last operating point + the work-precision expected error (recording, spin-up, sector, "
-                   "step, coupling), per zone"),
-    }
+
+    def last(s: Scene, table_multiple: float = 0.0):
+        model, records, _ = simulate(s, progress=False, table_error_multiple=table_multiple)
+        return model, records[-1]
+
+    def span(recs) -> dict:
+        return {k: [min(r[k] for r in recs), max(r[k] for r in recs)] for k in BAND_KEYS if k in recs[0]}
+
+    runs, out = [], {"parts": {}}
+    if has_table:
+        lo, (m_hi, hi) = last(scene, -multiple)[1], last(scene, multiple)
+        err = m_hi.source.relative_error()
+        runs += [lo, hi]
+        table = {
+            "outputs": span([lo, hi]),
+            "zones": err["zones"],
+            "collision_frequency_relative_error": [float(v) if np.isfinite(v) else None for v in err["collision_frequency"]],
+            "se_median_relative_error": [float(v) if np.isfinite(v) else None for v in err["se_median"]],
+            "method": ("two runs with every zone's collision frequency and median stress energy at the edges of the table's "
+                       "stated relative error b, factors (1 + b)^-1 and (1 + b); b = interpolation error + 2 sigma of the DEM "
+                       "sampling at the last operating point + the work-precision expected error (recording, spin-up, "
+                       "sector, step, coupling), per zone"),
+        }
+        out["parts"]["table"] = table
+        out.update({k: v for k, v in table.items() if k != "outputs"})  # the table's figures at the top, as before
+    if fitted:
+        key = "disrupted_fraction" if scene.material.model == "yeast" else "x50_m"
+        sign = 1.0 if key == "disrupted_fraction" else -1.0  # more breakage: more disrupted, finer x50
+        ends, cal_runs = [], []
+        for k, a, b in fitted:
+            r_a, r_b = last(_with_value(scene, k, a))[1], last(_with_value(scene, k, b))[1]
+            cal_runs += [r_a, r_b]
+            breaks_more = b if sign * (r_b[key] - r_a[key]) >= 0.0 else a
+            ends.append((k, breaks_more, a + b - breaks_more))
+        runs += cal_runs
+        out["parts"]["calibration"] = {
+            "outputs": span(cal_runs),
+            "constants": [{"key": k, "value": float(_get_value(scene, k)), "ci95": [float(a), float(b)]} for k, a, b in fitted],
+            "method": "two runs per fitted constant, at each end of its 95 % interval (scene.fitted), the others at their values",
+        }
+        if has_table:
+            more, less = scene, scene
+            for k, hi_end, lo_end in ends:
+                more, less = _with_value(more, k, hi_end), _with_value(less, k, lo_end)
+            runs += [last(more, multiple)[1], last(less, -multiple)[1]]
+    if left_out:
+        out["notes"] = [f"{k} = {_get_value(scene, k):.6g} lies outside its recorded 95 % interval [{a:.6g}, {b:.6g}], which "
+                        f"belongs to another value of it: not carried into the band" for k, a, b in left_out]
+    out["t_s"] = runs[0]["t_s"]
+    out["multiple"] = multiple
+    out["outputs"] = span(runs)
+    return out
+
+
+def _get_value(scene: Scene, key: str):
+    sec, name = key.split(".")
+    return getattr(getattr(scene, sec), name)
+
+
+def _with_value(scene: Scene, key: str, value: float) -> Scene:
+    """The scene with the number key SECTION.KEY set to ``value`` (an end of its interval)."""
+    from dataclasses import replace
+
+    sec, name = key.split(".")
+    return replace(scene, **{sec: replace(getattr(scene, sec), **{name: float(value)})})
 
 
 def run_warnings(model: MillModel, records) -> list:

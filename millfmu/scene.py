@@ -55,6 +55,9 @@ class SceneInfo:
     name: str = _f("unnamed", doc="name of the scene")
     description: str = _f("", doc="free text")
     calibration: str = _f("", doc="what the scene's fitted constants were fitted to (data and whether they are measured or a stand-in, values with 95 % intervals); written by millfmu calibrate; carried into a run's provenance and the FMU's description")
+    fitted: list = _f([], doc="the scene's fitted constants (dotted keys, e.g. material.f_mat_kg_per_J_m) whose 95 % intervals the prediction band carries through the model; written by millfmu calibrate")
+    fitted_ci95_low: list = _f([], doc="the lower end of each fitted constant's 95 % interval, in the order of fitted and in its key's unit")
+    fitted_ci95_high: list = _f([], doc="the upper end of each fitted constant's 95 % interval, in the order of fitted and in its key's unit")
 
 
 @dataclass(frozen=True)
@@ -299,7 +302,29 @@ def _check_psd(p: PSD, key: str, source: str):
             raise SceneError(f"{key}.Q3", q, "must end at 1 (all mass below the largest size)", source)
 
 
+def _check_fitted(s: Scene, source: str):
+    """scene.fitted names numeric scene keys, each with a 95 % interval (low <= high). A value
+    set outside its interval afterwards is no error: the band then leaves that interval out
+    and says so (:func:`millfmu.runner.prediction_band`)."""
+    info = s.scene
+    keys, lo, hi = info.fitted, info.fitted_ci95_low, info.fitted_ci95_high
+    if not (len(keys) == len(lo) == len(hi)):
+        raise SceneError("scene.fitted_ci95_low", lo, f"and scene.fitted_ci95_high {hi!r} must give one value for each key of "
+                         f"scene.fitted {keys!r}", source)
+    for i, k in enumerate(keys):
+        sec, _, name = str(k).partition(".")
+        value = getattr(getattr(s, sec, None), name, None) if name and "." not in name else None
+        if isinstance(value, bool) or not isinstance(value, (int, float)):
+            raise SceneError(f"scene.fitted[{i}]", k, "must name a number key of the scene as SECTION.KEY "
+                             "(e.g. material.f_mat_kg_per_J_m)", source)
+        a, b = lo[i], hi[i]
+        if any(isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v) for v in (a, b)) or not a <= b:
+            raise SceneError(f"scene.fitted_ci95_low[{i}]", a, f"and scene.fitted_ci95_high[{i}] = {b!r} must be finite "
+                             f"numbers, low <= high ({k})", source)
+
+
 def _cross_check(s: Scene, source: str):
+    _check_fitted(s, source)
     if s.grid.x_max_m <= s.grid.x_min_m * 2 ** (1.0 / s.grid.classes_per_octave):
         raise SceneError("grid.x_max_m", s.grid.x_max_m, f"must exceed x_min_m = {s.grid.x_min_m:g} m by at least one class", source)
     n = math.ceil(s.grid.classes_per_octave * math.log2(s.grid.x_max_m / s.grid.x_min_m) - 1e-9)
@@ -397,8 +422,14 @@ def resolve_dict(d: dict) -> dict:
     # scene that sets its own, without a record of its own, has none.
     own = d.get("scene") if isinstance(d.get("scene"), dict) else {}
     mill = d.get("mill") if isinstance(d.get("mill"), dict) else {}  # not a table: refused by name below
-    if "calibration" not in own and (d.get("material") or d.get("kinetics") or "stress_frequency_factor" in mill):
+    own_constants = bool(d.get("material") or d.get("kinetics") or "stress_frequency_factor" in mill)
+    if "calibration" not in own and own_constants:
         out.setdefault("scene", {})["calibration"] = ""
+    if "calibration" in own or own_constants:
+        # The fitted constants' intervals go with the record they belong to: the scene's own.
+        info = out.setdefault("scene", {})
+        for k in ("fitted", "fitted_ci95_low", "fitted_ci95_high"):
+            info[k] = own.get(k, [])
     return out
 
 

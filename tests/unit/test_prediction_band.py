@@ -68,3 +68,56 @@ def test_result_json_carries_the_band_and_the_calibration_record(tmp_path):
     from millfmu.stress_tables.table import read_table_ref
 
     assert prov["table"]["ref"] == "coupled" and prov["table"]["key"] == read_table_ref("coupled").manifest["key"]
+
+
+def test_the_calibrations_interval_is_a_part_of_the_band_and_the_whole_holds_both(default_band):
+    """The default scene lists f_Mat's 95 % interval (scene.fitted): the calibration part is
+    the two runs at its ends; the whole spans both parts and the two worst-case corners."""
+    scene = millfmu.load_scene()
+    assert scene.scene.fitted == ["material.f_mat_kg_per_J_m"]
+    parts = default_band["parts"]
+    assert set(parts) == {"table", "calibration"}
+    ends = []
+    for v in (scene.scene.fitted_ci95_low[0], scene.scene.fitted_ci95_high[0]):
+        _, rec, _ = simulate(millfmu.load_scene(overrides={"material.f_mat_kg_per_J_m": v}), progress=False)
+        ends.append(rec[-1]["x50_m"])
+    assert parts["calibration"]["outputs"]["x50_m"] == [min(ends), max(ends)]
+    assert ends[0] > ends[1]  # a smaller f_Mat breaks less: coarser
+    assert parts["calibration"]["constants"] == [{"key": "material.f_mat_kg_per_J_m", "value": 179.5, "ci95": [141.1, 228.6]}]
+    lo, hi = default_band["outputs"]["x50_m"]
+    for part in parts.values():
+        plo, phi = part["outputs"]["x50_m"]
+        assert lo < plo and phi < hi  # the corners reach beyond either part alone
+    # the table's figures stay at the top of the band too
+    assert default_band["collision_frequency_relative_error"] == parts["table"]["collision_frequency_relative_error"]
+
+
+def test_a_simple_scene_with_a_fitted_constant_has_a_calibration_band():
+    scene = millfmu.load_scene(overrides={"kinetics.model": "simple", "scene.fitted": ["mill.stress_frequency_factor"],
+                                          "scene.fitted_ci95_low": [0.8], "scene.fitted_ci95_high": [1.25]})
+    b = prediction_band(scene)
+    assert set(b["parts"]) == {"calibration"} and "zones" not in b
+    lo, hi = b["outputs"]["x50_m"]
+    _, rec, _ = simulate(scene, progress=False)
+    assert lo < rec[-1]["x50_m"] < hi and b["outputs"] == b["parts"]["calibration"]["outputs"]
+
+
+def test_calibrate_writes_the_interval_the_band_then_carries(tmp_path):
+    r = subprocess.run([sys.executable, "-m", "millfmu.cli", "calibrate", "--data", "limestone_standin_batch.csv", "--fit",
+                        "material.f_mat_kg_per_J_m", "--out", str(tmp_path / "cal"), "-q"], capture_output=True, text=True,
+                       cwd=tmp_path)
+    assert r.returncode == 0, r.stderr
+    scene = millfmu.load_scene(tmp_path / "cal" / "calibrated.toml")
+    (lo,), (hi,) = scene.scene.fitted_ci95_low, scene.scene.fitted_ci95_high
+    assert scene.scene.fitted == ["material.f_mat_kg_per_J_m"] and lo < scene.material.f_mat_kg_per_J_m < hi
+    assert (lo, hi) == pytest.approx((141.1, 228.6), abs=0.1)
+
+
+def test_a_fitted_constant_set_outside_its_interval_is_left_out_with_a_note():
+    scene = millfmu.load_scene(overrides={"scene.calibration": "mine", "scene.fitted": ["material.f_mat_kg_per_J_m"],
+                                          "scene.fitted_ci95_low": [141.1], "scene.fitted_ci95_high": [228.6],
+                                          "material.f_mat_kg_per_J_m": 30.0})
+    b = prediction_band(scene)
+    assert set(b["parts"]) == {"table"}
+    assert b["notes"] == ["material.f_mat_kg_per_J_m = 30 lies outside its recorded 95 % interval [141.1, 228.6], which "
+                          "belongs to another value of it: not carried into the band"]
