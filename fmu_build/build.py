@@ -34,7 +34,9 @@ else:  # pragma: no cover
     import tomli as tomllib
 
 import millfmu
+from millfmu.fmu_variables import BAND_FILE
 from millfmu.mill import MillModel
+from millfmu.runner import prediction_band
 from millfmu.scene import default_scene_text, load_scene, toml_text
 from millfmu.stress_tables.table import read_table_ref
 
@@ -284,6 +286,12 @@ def build_fmu(scene_path: str | Path | None, out: str | Path, fmi_version: int =
             dst.parent.mkdir(parents=True, exist_ok=True)
             shutil.copy2(pkg_root / r, dst)
         shutil.copy2(scene_file, stage / "scene.toml")
+        band_files = []
+        band = prediction_band(scene)
+        if band is not None:
+            # the description states the band of the scene's own run (the FMU does not run it)
+            band_files.append(stage / BAND_FILE)
+            band_files[0].write_text(json.dumps(band, indent=1), encoding="utf-8")
         full_hash = hashlib.sha256((code_hash + "\0" + scene_text).encode()).hexdigest()[:8]
         ident = f"Mill_{_slug(scene.scene.name)}_{full_hash}"
         script = stage / f"{ident}.py"
@@ -292,7 +300,7 @@ def build_fmu(scene_path: str | Path | None, out: str | Path, fmi_version: int =
                                                                            stock=wrapper is None))
         dest = tmp / "fmu"
         dest.mkdir()
-        built = FmuBuilder.build_FMU(script, dest=dest / f"{ident}.fmu", project_files=[stage / package, stage / "scene.toml", *table_files],
+        built = FmuBuilder.build_FMU(script, dest=dest / f"{ident}.fmu", project_files=[stage / package, stage / "scene.toml", *table_files, *band_files],
                                      **BUILD_OPTIONS[fmi_version])
         md = zipfile.ZipFile(built).read("modelDescription.xml")
         write_fmu(built, out, fmi3_wrapper.fmu_replacements(ident, log) if fmi_version == 3 else fmi2_replacements(ident, wrapper))

@@ -49,7 +49,7 @@ from pythonfmu.enums import Fmi2Status
 from .fmi_xml import complete_model_description, get_reals
 # The variable tables live in fmu_variables (shared with the FMI 3.0 adapter); re-exported here.
 from .fmu_variables import (DISRUPTED, HeldArray, INPUTS, OUTPUTS, PARAMETERS, SCENE_FILE, TABLE_PREFIX, UNITS,  # noqa: F401
-                            model_description_text, model_with, plain as _plain, read_scene_dict, variables)
+                            model_description_text, model_with, plain as _plain, read_band, read_scene_dict, variables)
 from .mill import InputError, MillModel, StepError
 from .scene import SceneError, scene_from_dict
 
@@ -101,7 +101,8 @@ class MillSlave(Fmi2Slave):
         self.n_classes = n
         self._base_scene = scene
         # type(self): pythonfmu's __init__ set the instance's description to None.
-        self._model_description = model_description_text(type(self).description, scene, n, getattr(self.model.source, "table", None))
+        self._model_description = model_description_text(type(self).description, scene, n, getattr(self.model.source, "table", None),
+                                                         read_band(self.resources))
         run = scene.run
         self.default_experiment = DefaultExperiment(start_time=0.0, stop_time=run.t_end_s, step_size=run.dt_s)
 

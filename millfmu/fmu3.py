@@ -26,7 +26,8 @@ from xml.etree.ElementTree import Element
 from pythonfmu3 import DefaultExperiment, Fmi3Status
 
 from .fmi3_slave import Fmi3Base
-from .fmu_variables import CLASS_COUNT, SCENE_FILE, HeldArray, UNITS, model_description_text, model_with, plain, read_scene_dict, variables
+from .fmu_variables import (CLASS_COUNT, SCENE_FILE, UNITS, HeldArray, model_description_text, model_with, plain, read_band,
+                             read_scene_dict, variables)
 from .mill import InputError, MillModel, StepError
 from .scene import SceneError, scene_from_dict
 
@@ -46,7 +47,8 @@ class MillSlave3(Fmi3Base):
         self._base_scene = scene
         self._overrides: dict = {}
         n = self.model.grid.n
-        self._model_description = model_description_text(self.description, scene, n, getattr(self.model.source, "table", None))
+        self._model_description = model_description_text(self.description, scene, n, getattr(self.model.source, "table", None),
+                                                         read_band(self.resources))
         self.default_experiment = DefaultExperiment(start_time=0.0, stop_time=scene.run.t_end_s, step_size=scene.run.dt_s)
 
         # One description of the variables (millfmu.fmu_variables) serves FMI 2.0 and 3.0;

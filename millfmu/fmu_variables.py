@@ -46,6 +46,9 @@ class HeldArray:
 SCENE_FILE = "scene.toml"
 #: Prefix of the DEM table slice in the resources folder (detailed model with a table).
 TABLE_PREFIX = "table"
+#: The prediction band of the scene's own run (millfmu.runner.prediction_band), computed when
+#: the FMU is built and stated in its description; absent where the scene has none.
+BAND_FILE = "band.json"
 
 #: Units used by the variables: name -> SI base-unit exponents (BaseUnit in FMI 2.0 and 3.0).
 UNITS = {
@@ -170,10 +173,36 @@ def plain(x):
     return x
 
 
-def model_description_text(base: str, scene, n_classes: int, table=None) -> str:
+def read_band(resources: str) -> dict | None:
+    """The prediction band the build wrote into the FMU's resources (None where absent)."""
+    import json
+
+    try:
+        with open(os.path.join(resources, BAND_FILE), encoding="utf-8") as f:
+            return json.load(f)
+    except OSError:
+        return None
+
+
+def band_text(band: dict) -> str:
+    """The band of the scene's own run in words (x50 [m], or the disrupted fraction), whole
+    and per part."""
+    key, unit = ("disrupted_fraction", "") if "disrupted_fraction" in band["outputs"] else ("x50_m", " m")
+
+    def rng(outputs):
+        lo, hi = outputs[key]
+        return f"[{lo:.4g}, {hi:.4g}]{unit}"
+
+    parts = ", ".join(f"{name} {rng(p['outputs'])}" for name, p in band["parts"].items())
+    return (f"; prediction band of the scene's own run at t = {band['t_s']:g} s: {key} in {rng(band['outputs'])} "
+            f"({parts}; from the table's stated error and the fitted constants' 95 % intervals)")
+
+
+def model_description_text(base: str, scene, n_classes: int, table=None, band: dict | None = None) -> str:
     """The FMU's description: what it is, the scene, the stress-energy table it carries
-    (``table``: the model's, identified by its manifest) and what the scene's constants were
-    fitted to (``scene.calibration``). Shared by FMI 2 and 3."""
+    (``table``: the model's, identified by its manifest), what the scene's constants were
+    fitted to (``scene.calibration``) and the prediction band of the scene's own run
+    (``band``, :func:`read_band`). Shared by FMI 2 and 3."""
     text = f"{base}; scene {scene.scene.name!r}, {scene.operation.mode}, {scene.kinetics.model} model, {n_classes} size classes"
     if table is not None:
         m = table.manifest
@@ -183,4 +212,6 @@ def model_description_text(base: str, scene, n_classes: int, table=None) -> str:
                  f"component {scene.kinetics.stress_distribution.component})")
     if scene.scene.calibration:
         text += f"; calibration: {scene.scene.calibration}"
+    if band is not None:
+        text += band_text(band)
     return text

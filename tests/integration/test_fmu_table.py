@@ -51,6 +51,14 @@ def test_description_names_the_table_and_the_stand_in_calibration(table_fmu):
 
     key = read_table_ref("coupled").manifest["key"][:12]
     assert f"DEM table {key} (disc_slice, fluid coupled" in text and "STAND-IN" in text and "f_mat_kg_per_J_m" in text
+    # the band of the scene's own run, computed at the build: table, calibration and whole
+    import millfmu
+    from millfmu.runner import prediction_band
+
+    b = prediction_band(millfmu.load_scene())
+    lo, hi = b["outputs"]["x50_m"]
+    assert f"prediction band of the scene's own run at t = 1800 s: x50_m in [{lo:.4g}, {hi:.4g}] m (table [" in text
+    assert "calibration [" in text
 
 
 def test_runs_without_millfmu_and_matches_model(table_fmu):
