@@ -945,7 +945,7 @@ def _cmd_calibrate(args) -> int:
         data = read_data(args.data)
         for note in data.notes:
             print(f"millfmu calibrate: warning: {note}", file=sys.stderr)
-        cal = calibrate(scene, data, args.fit, start=start, progress=say)
+        cal = calibrate(scene, data, args.fit, start=start, progress=say, error_model=getattr(args, "errors", None))
         print(cal.summary())
         if args.out:
             files = write(cal, args.out, scene_path=args.scene or "default")
@@ -966,5 +966,8 @@ def register(sub):
     c.add_argument("--out", default=None, help="folder for calibrated.toml and calibration.json (omitted: print only)")
     c.add_argument("--start", action="append", default=[], metavar="KEY=VALUE",
                    help="start value of a fitted constant (default: the scene's); repeat for a pair")
+    c.add_argument("--errors", choices=("independent", "per-sample"), default=None,
+                   help="error model of the intervals: per-sample (an error shared by one time's values, cluster-robust; "
+                        "the default when a time has several quantities) or independent (the default otherwise)")
     c.add_argument("-q", "--quiet", action="store_true", help="no progress lines")
     c.set_defaults(func=_cmd_calibrate)
