@@ -130,7 +130,9 @@ def test_a_constant_on_a_plateau_is_refused_by_name():
 def test_coverage_with_shared_errors(truth):
     """Coverage of the 95 % interval over 100 draws of shared 5 % + independent 2 % errors:
     per-sample (cluster-robust, CR2) at least 90 %, independent well below (the issue's 70 %).
-    About 2 min."""
+    Measured with these draws: per-sample 96/100, independent 76/100; over 700 draws (seeds 58
+    and 4058) 675 (96.4 %) against 543 (77.6 %), CR1 674; with independent 3 % errors only
+    (200 draws) per-sample 188 (94 %), independent 192 (96 %). About 20 s."""
     scene, base = truth
     f_true = scene.material.f_mat_kg_per_J_m
     rng = np.random.default_rng(58)
