@@ -5,6 +5,7 @@ scene, f_Mat known) at the shipped stand-in curve's times."""
 
 import json
 import math
+from importlib import resources
 
 import numpy as np
 import pytest
@@ -89,7 +90,7 @@ def test_the_error_model_is_the_default_chosen_and_stated(truth):
 def test_cli_errors_option(tmp_path, capsys):
     from millfmu.cli import main
 
-    with __import__("importlib").resources.as_file(LIMESTONE.data_path()) as p:
+    with resources.as_file(LIMESTONE.data_path()) as p:
         assert main(["calibrate", "--data", str(p), "--fit", KEY, "-q", "--errors", "independent"]) == 0
     out = capsys.readouterr().out
     assert "errors: independent" in out and "Student's t with 20 degrees of freedom" in out
@@ -99,7 +100,7 @@ def test_lack_of_fit_is_named_on_the_shipped_limestone_fit():
     """The default scene (detailed model) fitted to the stand-in curve the simple model made:
     residuals fall with time (+0.16 at 60 s, -0.16 at 1800 s) and x90's lie above x10's at
     every time."""
-    with __import__("importlib").resources.as_file(LIMESTONE.data_path()) as p:
+    with resources.as_file(LIMESTONE.data_path()) as p:
         c = cal.calibrate(millfmu.load_scene(), cal.read_data(p), [KEY])
     text = " ".join(c.lack_of_fit)
     assert len(c.lack_of_fit) == 2, c.lack_of_fit
