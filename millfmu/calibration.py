@@ -60,7 +60,7 @@ import numpy as np
 
 from .api import load_scene as load_any
 from .mill import MillModel, StepError, q3_at_edges
-from .scene import Scene, load_scene, scene_to_dict, toml_text, toml_value
+from .scene import Scene, load_scene, number_key, scene_to_dict, toml_text, toml_value
 
 
 class CalibrationError(ValueError):
@@ -412,7 +412,7 @@ def _other_constants(scene: Scene, key: str) -> list:
     """The constants that could be freed instead of ``key`` in this scene (not those already
     at their finite upper bound, such as eta_E = 1)."""
     return [k for k, c in FITTABLE.items() if k != key and scene.kinetics.model in c.models and scene.material.model in c.materials
-            and not _get(scene, k) >= c.hi]
+            and not number_key(scene, k) >= c.hi]
 
 
 def _resolve_fit(scene: Scene, fit) -> list:
@@ -428,11 +428,6 @@ def _resolve_fit(scene: Scene, fit) -> list:
                                    f"{scene.kinetics.model!r}, material.model = {scene.material.model!r}); free one of "
                                    f"{', '.join(_other_constants(scene, k)) or '(none)'}")
     return keys
-
-
-def _get(scene: Scene, key: str) -> float:
-    sec, name = key.split(".")
-    return float(getattr(getattr(scene, sec), name))
 
 
 def calibrate(scene, data, fit, start: dict | None = None, progress=None, error_model: str | None = None) -> Calibration:
@@ -461,7 +456,7 @@ def calibrate(scene, data, fit, start: dict | None = None, progress=None, error_
     if n < p:
         raise CalibrationError(f"{data.source}: {n} measured value(s) cannot pin {p} constants ({', '.join(keys)}): "
                                f"fit one of them, or measure at more times")
-    starts = [float((start or {}).get(k, _get(scene, k))) for k in keys]
+    starts = [float((start or {}).get(k, number_key(scene, k))) for k in keys]
     for k, v in zip(keys, starts):
         if not v > 0.0:
             raise CalibrationError(f"--fit {k}: starts from {v:g} {FITTABLE[k].unit}, the scene's value; a fit in ln({k}) needs "
@@ -793,7 +788,7 @@ def write(cal: Calibration, out_dir, scene_path=None) -> list:
                                    "scene.fitted_ci95_high": [float(ci[1]) for _, ci in fitted]})
     check = load_any(text)
     for k, c in cal.constants.items():
-        if _get(check, k) != c.value:  # pragma: no cover - set_toml_values is tested
+        if number_key(check, k) != c.value:  # pragma: no cover - set_toml_values is tested
             raise CalibrationError(f"calibrated.toml: {k} did not take the fitted value")
     tmp = staging_dir(out, ".millfmu-")
     try:
@@ -930,7 +925,7 @@ def check(pair: Pair, refit: bool = True) -> dict:
         "k_c": constant(simple, "simple"),
         "energy_transfer": constant(detailed, "detailed"),
         "detailed_key": pair.detailed_key,
-        "detailed_constant": _get(detailed, pair.detailed_key),
+        "detailed_constant": number_key(detailed, pair.detailed_key),
         "detailed_data": pair.data,
         "simple": batch_value(with_model(simple, "simple"), d.quantity, d.t_s),
         "detailed": batch_value(with_model(detailed, "detailed"), d.quantity, d.t_s),

@@ -648,7 +648,8 @@ class MillModel:
             if w:
                 said.add("below_grid")
                 new += w
-        if self.source is not None:
+        # Worded only where an axis is new: on every later step this is a set comparison.
+        if not set(getattr(self.source, "similarity_seen", ())) <= said:
             for ax, w in self.similarity_warnings().items():
                 if ax not in said:
                     said.add(ax)

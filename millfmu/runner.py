@@ -26,7 +26,7 @@ import numpy as np
 
 from . import __version__
 from .mill import MillModel, q3_at_edges
-from .scene import Scene, scene_to_dict
+from .scene import Scene, number_key, scene_to_dict
 
 #: Every file a run writes into its output folder (the plots only with plots on).
 RESULT_FILES = ("result.json", "psd.csv", "psd.png", "sizes.png")
@@ -320,7 +320,7 @@ def prediction_band(scene: Scene, multiple: float = 1.0) -> dict | None:
     info = scene.scene
     fitted, left_out = [], []
     for k, a, b in zip(info.fitted, info.fitted_ci95_low, info.fitted_ci95_high):
-        v = _get_value(scene, k)
+        v = number_key(scene, k)
         (fitted if a <= v <= b else left_out).append((k, a, b))
     if not has_table and not fitted:
         return None
@@ -361,7 +361,7 @@ def prediction_band(scene: Scene, multiple: float = 1.0) -> dict | None:
         runs += cal_runs
         out["parts"]["calibration"] = {
             "outputs": span(cal_runs),
-            "constants": [{"key": k, "value": float(_get_value(scene, k)), "ci95": [float(a), float(b)]} for k, a, b in fitted],
+            "constants": [{"key": k, "value": float(number_key(scene, k)), "ci95": [float(a), float(b)]} for k, a, b in fitted],
             "method": "two runs per fitted constant, at each end of its 95 % interval (scene.fitted), the others at their values",
         }
         if has_table:
@@ -370,17 +370,12 @@ def prediction_band(scene: Scene, multiple: float = 1.0) -> dict | None:
                 more, less = _with_value(more, k, hi_end), _with_value(less, k, lo_end)
             runs += [last(more, multiple)[1], last(less, -multiple)[1]]
     if left_out:
-        out["notes"] = [f"{k} = {_get_value(scene, k):.6g} lies outside its recorded 95 % interval [{a:.6g}, {b:.6g}], which "
+        out["notes"] = [f"{k} = {number_key(scene, k):.6g} lies outside its recorded 95 % interval [{a:.6g}, {b:.6g}], which "
                         f"belongs to another value of it: not carried into the band" for k, a, b in left_out]
     out["t_s"] = runs[0]["t_s"]
     out["multiple"] = multiple
     out["outputs"] = span(runs)
     return out
-
-
-def _get_value(scene: Scene, key: str):
-    sec, name = key.split(".")
-    return getattr(getattr(scene, sec), name)
 
 
 def _with_value(scene: Scene, key: str, value: float) -> Scene:

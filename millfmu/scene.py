@@ -302,6 +302,14 @@ def _check_psd(p: PSD, key: str, source: str):
             raise SceneError(f"{key}.Q3", q, "must end at 1 (all mass below the largest size)", source)
 
 
+def number_key(s: Scene, key: str) -> float | None:
+    """The value of the number key SECTION.KEY of a scene (e.g. material.f_mat_kg_per_J_m),
+    or None where the key names no number of the scene."""
+    sec, _, name = str(key).partition(".")
+    value = getattr(getattr(s, sec, None), name, None) if name and "." not in name else None
+    return None if isinstance(value, bool) or not isinstance(value, (int, float)) else float(value)
+
+
 def _check_fitted(s: Scene, source: str):
     """scene.fitted names numeric scene keys, each with a 95 % interval (low <= high). A value
     set outside its interval afterwards is no error: the band then leaves that interval out
@@ -312,9 +320,7 @@ def _check_fitted(s: Scene, source: str):
         raise SceneError("scene.fitted_ci95_low", lo, f"and scene.fitted_ci95_high {hi!r} must give one value for each key of "
                          f"scene.fitted {keys!r}", source)
     for i, k in enumerate(keys):
-        sec, _, name = str(k).partition(".")
-        value = getattr(getattr(s, sec, None), name, None) if name and "." not in name else None
-        if isinstance(value, bool) or not isinstance(value, (int, float)):
+        if number_key(s, k) is None:
             raise SceneError(f"scene.fitted[{i}]", k, "must name a number key of the scene as SECTION.KEY "
                              "(e.g. material.f_mat_kg_per_J_m)", source)
         a, b = lo[i], hi[i]

@@ -13,6 +13,7 @@ import pytest
 import millfmu
 from millfmu import calibration as cal
 from millfmu.mill import MillModel
+from millfmu.scene import number_key
 
 YEAST, LIMESTONE = cal.SHIPPED
 TIMES = (60, 300, 900, 1800, 3600, 7200, 14400, 28800)
@@ -35,7 +36,7 @@ def _recover(true_scene, start_scene, keys, make, noise):
     c = cal.calibrate(start_scene, make(true_scene, noise), keys)
     for k in keys:
         lo, hi = c.constants[k].ci95
-        truth = cal._get(true_scene, k)
+        truth = number_key(true_scene, k)
         assert lo < truth < hi, (k, truth, lo, hi, noise)
     return c
 
