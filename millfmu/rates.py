@@ -81,6 +81,13 @@ SOLIDS_FACTORS = (0.5, 1.0, 1.5, 2.0)
 #: reference rate is negligible the output gives the rates themselves instead of ratios.
 NEGLIGIBLE_FRACTION = 0.01
 MODELS = ("simple", "detailed")
+#: Mean breakage probability per stress [-] of the detailed model at the reference below
+#: which its rate follows the collision power rather than the collision frequency: with
+#: Vogel and Peukert's P = 1 - exp(-f_Mat x k W_m), P ~ f_Mat x k W_m while P is small, so
+#: the rate sums the collisions' energies. There the detailed model's trends along bead
+#: diameter and density leave the simple model's, whose every captured stress breaks
+#: (the trend study in docs/rates-and-calibration.md measures both sides).
+ENERGY_LIMITED_P = 0.5
 #: ``value`` is in ``value_unit`` (the parameter's unit: m/s, m, kg/m3, 1); every other
 #: column names its unit (``_m``, ``_per_s``, ``_J``) or is dimensionless (``_over_ref``, p_*).
 CSV_COLUMNS = ("scene", "material", "parameter", "value", "value_unit", "value_over_ref", "model", "source", "quantity",
@@ -199,6 +206,28 @@ class RatesResult:
         ref = r[self.reference_index(parameter)]
         with np.errstate(divide="ignore", invalid="ignore"):
             return r / ref if ref > 0.0 else np.full_like(r, math.nan)
+
+    def p_break_at_reference(self) -> dict:
+        """The detailed model's mean breakage probability per stress at the reference point
+        [-], rate over stress frequency, per quantity (NaN without stresses)."""
+        p = next(iter(PARAMETERS))
+        c, i = self.curve(p, "detailed"), self.reference_index(p)
+        return {q: float(c.rates[q][i] / c.sf[q][i]) if c.sf[q][i] > 0 else math.nan for q in self.quantities}
+
+    def regime_note(self) -> str:
+        """In words, where the detailed model's breakage probability per stress at the
+        reference lies below :data:`ENERGY_LIMITED_P` (its trends then follow the collision
+        power); '' where it does not."""
+        low = {q: v for q, v in self.p_break_at_reference().items() if v < ENERGY_LIMITED_P}
+        if not low:
+            return ""
+        which = ", ".join(f"{_qlabel(q)} {v:.2g}" for q, v in low.items())
+        return (f"detailed model energy-limited: breakage probability per stress at the reference {which} "
+                f"(below {ENERGY_LIMITED_P:g}); most collisions lie on the foot of the material's breakage "
+                "curve, so its rate follows the collision power, not the collision frequency, and its trends along "
+                "bead diameter and density leave the simple model's, whose captured stresses all break. Seed 000's "
+                "measurements follow the simple model's trends; trust the detailed model's where this probability "
+                "is near 1.")
 
     def band_relative(self, parameter: str, quantity: str) -> tuple:
         """The detailed model's band (lower, upper) over its rate at the reference point [-],
@@ -496,6 +525,9 @@ def to_json(result: RatesResult, calibration: dict | None = None) -> str:
         "reference_rates_per_s": {m: {_qlabel(q): result.reference_rate(m, q) for q in result.quantities}
                                   for m in MODELS},
         "negligible_rate_per_s": result.negligible_rate_per_s,
+        "detailed_p_break_at_reference": {_qlabel(q): v for q, v in result.p_break_at_reference().items()},
+        "detailed_regime": result.regime_note() or "frequency-limited: breakage probability per stress at the "
+                           f"reference at least {ENERGY_LIMITED_P:g}",
         "shown": ("rates [1/s]: " + result.why_absolute()) if result.absolute else "rates over the reference rate [-]",
     }
     if calibration is not None:
@@ -518,13 +550,16 @@ def summary(result: RatesResult) -> str:
     lines = [f"{result.name} ({result.scene.material.model}): k_c = {result.constants['k_c']:g}, "
              f"eta_E = {result.constants['energy_transfer']:g}",
              f"rates at the reference point [1/s]: {refs}"]
-    if result.absolute:
-        import textwrap
+    import textwrap
 
+    if result.absolute:
         why = result.why_absolute()
         lines.append(textwrap.fill("Rates [1/s] below, not over the reference: " + why, 110))
     else:
         lines.append("rates over their value at the reference point [-] below")
+    note = result.regime_note()
+    if note:
+        lines.append(textwrap.fill(note, 110))
     head = f"{'parameter':22s} {'value':>10s} " + " ".join(f"{_qlabel(q) + ' ' + m[:3]:>22s}" for q in qs for m in MODELS)
     lines.append(head)
     for p in PARAMETERS:

@@ -84,6 +84,47 @@ class DroppedZones:
                 for z in self.inner.zones(op)]
 
 
+@dataclass
+class LubricatedApproach:
+    """(g) Wet collisions: a source whose collisions lose the energy the liquid film takes
+    as two beads close the gap down to the captured particle (size x).
+
+    Rigid spheres under the lubrication force 6 pi mu R*^2 v / h slow down as
+    v(h) = v0 (1 - ln(h0 / h) / St), St = m* v0 / (6 pi mu R*^2) = 2 rho_GM d_GM v0 / (9 mu)
+    for two equal beads (reduced mass m* = m_GM / 2, reduced radius R* = d_GM / 4); Davis,
+    Serayssol and Hinch (1986, J. Fluid Mech. 163:479) and Barnocky and Davis (1988, Phys.
+    Fluids 31:1324). The film starts at h0 = R* and the particle is met at h = x, so a
+    collision of energy E = 1/2 m_GM v0^2 (seed 001 eq. 1) reaches the particle with
+    E (1 - ln(R*/x) / St)^2, and not at all for St <= ln(R*/x). Restitution from the same
+    law, e/e_dry = (1 - St_c/St) - St_c/(e_dry St), has no rebound below St_c, about 10 in
+    the experiments of Joseph et al. (2001, J. Fluid Mech. 433:329) and Gondret et al.
+    (2002, Phys. Fluids 14:643)."""
+
+    inner: object
+    x_m: float
+
+    def zones(self, op):
+        mu, d, rho = op.eta_susp_Pa_s, op.d_gb_m, op.rho_gb_kg_per_m3
+        m_gb = rho * math.pi / 6.0 * d ** 3
+        st_c = math.log(max(0.25 * d / self.x_m, 1.0))
+        out = []
+        for z in self.inner.zones(op):
+            e = z.energy_edges_J
+            st = 2.0 * rho * d * np.sqrt(2.0 * e / m_gb) / (9.0 * mu)
+            moved = e * np.clip(1.0 - st_c / st, 0.0, None) ** 2
+            # a bin whose upper edge reaches no particle is lost; one that straddles the
+            # threshold keeps half its weight
+            keep = np.where(moved[1:] <= 0.0, 0.0, np.where(moved[:-1] > 0.0, 1.0, 0.5))
+            w = z.energy_weights * keep
+            if w.sum() <= 0.0:
+                out.append(replace(z, collision_rate_per_m3_s=0.0))
+                continue
+            edges = np.maximum(moved, e[0] * 1e-30)
+            edges = np.maximum.accumulate(edges * (1.0 + 1e-12 * np.arange(edges.size)))
+            out.append(Zone(z.name, z.volume_fraction, z.collision_rate_per_m3_s * w.sum(), edges, w / w.sum()))
+        return out
+
+
 def similarity_source(src):
     """The table source without its one-at-a-time side tables: bead diameter and density
     by similarity alone (energies over E_ref = pi/12 d^3 rho v_t^2 and collision
@@ -192,6 +233,9 @@ VARIANTS = (
     Variant("d_noV1V4", "(d) V1's and V4's collisions dropped", source=lambda s, ps: DroppedZones(s, ("V1", "V4"))),
     Variant("e_similar", "(e) bead d and rho by similarity (no one-at-a-time side tables)",
             source=lambda s, ps: similarity_source(s)),
+    Variant("g_wet", "(g) wet collisions: the energy left when the beads meet the particle after the lubrication "
+            "film (Davis et al. 1986), none below St = ln(d/(4x))",
+            source=lambda s, ps: LubricatedApproach(s, float(ps.x[0]))),
     Variant("kwade_E", "(f) energies at Kwade's SE scaling: each zone's distribution x SE(op)/SE(ref) (d^3 rho v_t^2)",
             source=lambda s, ps: _kwade_scaled(s, ps)),
 )
@@ -284,6 +328,27 @@ def p_cap_table(ps: PairSetup) -> list:
     return out
 
 
+def frequency_and_power(ps: PairSetup) -> list:
+    """(label, collision frequency, collision power) of the shipped detailed source at each
+    point over its value at the reference [-]: sum_z v_z f_z and sum_z v_z f_z <E>_z (v the
+    zone's volume share, f its collision rate, <E> its mean collision energy). Where the
+    breakage probability per stress is small the detailed rate follows the power; where it
+    is near 1, the frequency."""
+    src = ps.detailed.source
+
+    def sums(op):
+        zs = src.zones(op)
+        return (sum(z.volume_fraction * z.collision_rate_per_m3_s for z in zs),
+                sum(z.volume_fraction * z.collision_rate_per_m3_s * float(z.energy_J @ z.energy_weights) for z in zs))
+
+    f0, p0 = sums(ps.op_detailed)
+    out = []
+    for _, fld, val, lab in POINTS:
+        f, p = sums(at(ps.op_detailed, fld, val))
+        out.append((lab, f / f0, p / p0))
+    return out
+
+
 def energies_table(ps: PairSetup) -> list:
     """(d [m], SE [J], SE_P [J], per zone median SE_tn and SE_total [J], collision-weighted medians [J])."""
     src = ps.detailed.source
@@ -338,6 +403,10 @@ def main():
               f"omega n_gb at the reference, Kwade's fitted k_c = {ps.op_simple.k_c:g}; reference rates [1/s]: simple "
               f"{rows['simple']['ref_rate']:.4g}, detailed shipped {rows['shipped']['ref_rate']:.4g}, with the simple "
               f"scene's constants {rows['simple_op']['ref_rate']:.4g}")
+        fp = frequency_and_power(ps)
+        print("the table's collisions over the reference: frequency " +
+              ", ".join(f"{lab} {f:.3g}" for lab, f, _ in fp) + "; power " +
+              ", ".join(f"{lab} {p:.3g}" for lab, _, p in fp))
         print("capture: n_p V_act (P_cap = min(1, .)) at " +
               ", ".join(f"{lab} {val:.3g}" for lab, val in p_cap_table(ps)))
         print("energies at the detailed reference point along the bead diameter [J]:")

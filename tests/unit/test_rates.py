@@ -248,3 +248,19 @@ def test_calibrated_pair_keeps_ratios(yeast):
     assert not yeast.absolute and yeast.why_absolute() == ""
     assert yeast.reference_rate("detailed", "disruption_rate") > yeast.negligible_rate_per_s
     assert "rates over their value at the reference point" in mrates.summary(yeast)
+
+
+def test_the_detailed_models_regime_is_stated(limestone, yeast):
+    """The breakage probability per stress at the reference says which collisions the
+    detailed model's rate follows: limestone's stand-in f_Mat puts S(10 um) on the foot of the
+    breakage curve (P = 0.146, the trend study's figure; energy-limited, its rate follows the
+    collision power), the yeast pair's sourced burst energy near its top (P = 0.88)."""
+    p_lime = limestone.p_break_at_reference()[mrates._size_key(10e-6)]
+    assert p_lime == pytest.approx(0.146, abs=0.005)
+    note = limestone.regime_note()
+    assert "energy-limited" in note and "S(10 um) 0.15" in note
+    assert min(yeast.p_break_at_reference().values()) > mrates.ENERGY_LIMITED_P
+    assert yeast.regime_note() == ""
+    doc = __import__("json").loads(mrates.to_json(limestone))
+    assert doc["detailed_p_break_at_reference"]["S(10 um)"] == pytest.approx(p_lime)
+    assert doc["detailed_regime"].startswith("detailed model energy-limited")
