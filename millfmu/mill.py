@@ -164,6 +164,9 @@ class MillModel:
         self.warnings: list[str] = []
         self.source = self._stress_source(sd)
         self._check_source_scene()
+        regime = self.regime_warning()
+        if regime:
+            self.warnings.append(regime)
         self._m = self.operator.state_size
         src = scene.scene.name
         self.feed_below_grid = check_psd_on_grid(self.grid, scene.feed, "feed", src)
@@ -225,6 +228,37 @@ class MillModel:
             line = self.source.stale_line(self.source.point_of(op))
             if line is not None:
                 self.warnings.append(f"on-demand builds: {line}")
+
+    def p_break_per_stress_of_feed(self) -> float:
+        """The detailed model's breakage probability per stress [-] at the scene's operating
+        point, over the feed: sum_i w_i S_i / sum_i w_i SF_i (w the feed's class mass
+        fractions, S the class rates, SF the stress frequencies). NaN for other models, for
+        materials without a stress model and with the stirrer at rest."""
+        if self.kinetics_model != "detailed" or not getattr(self.material, "has_stress_model", False):
+            return math.nan
+        op = self.operating_point(self.inputs_of_scene())
+        if not op.tip_speed_m_per_s > 0.0:
+            return math.nan
+        nodes = self.operator.nodes_m
+        w = psd_fractions(self.grid, self.scene.feed)
+        coll = sum(z.volume_fraction * z.collision_rate_per_m3_s for z in self.source.zones(op))
+        s = self.operator.class_rates(rates.selection_per_s("detailed", self.material, op, nodes, None, self.source))
+        sf = self.operator.class_rates(op.stress_frequency_per_s(nodes, None, coll))
+        den = float(w @ sf)
+        return float(w @ s) / den if den > 0.0 else math.nan
+
+    def regime_warning(self) -> str | None:
+        """The warning for a detailed model whose breakage probability per stress over the
+        feed lies below :data:`~millfmu.kinetics.rates.ENERGY_LIMITED_P` (its rate then follows the collision power,
+        and its trends off the calibration point leave the simple model's, which seed 000's
+        measurements follow); None otherwise."""
+        p = self.p_break_per_stress_of_feed()
+        if not p < rates.ENERGY_LIMITED_P:
+            return None
+        return (f"detailed model energy-limited: breakage probability per stress over the feed {p:.2g} at the scene's "
+                f"operating point (below {rates.ENERGY_LIMITED_P:g}); its rate follows the collision power, so its trends along "
+                "bead diameter and density off this point leave the simple model's, which seed 000's measurements follow "
+                "(docs/rates-and-calibration.md, 'Which model to trust where')")
 
     def cover_scene_point(self):
         """With ``on_outside = 'build'``: build the table for the scene's own operating point

@@ -55,6 +55,8 @@ from pathlib import Path
 
 import numpy as np
 
+from .kinetics.rates import ENERGY_LIMITED_P
+
 #: Operating parameters: name -> (label, unit, scene section, scene key, OperatingPoint field,
 #: stress-energy table axis or None).
 PARAMETERS = {
@@ -81,13 +83,6 @@ SOLIDS_FACTORS = (0.5, 1.0, 1.5, 2.0)
 #: reference rate is negligible the output gives the rates themselves instead of ratios.
 NEGLIGIBLE_FRACTION = 0.01
 MODELS = ("simple", "detailed")
-#: Mean breakage probability per stress [-] of the detailed model at the reference below
-#: which its rate follows the collision power rather than the collision frequency: with
-#: Vogel and Peukert's P = 1 - exp(-f_Mat x k W_m), P ~ f_Mat x k W_m while P is small, so
-#: the rate sums the collisions' energies. There the detailed model's trends along bead
-#: diameter and density leave the simple model's, whose every captured stress breaks
-#: (the trend study in docs/rates-and-calibration.md measures both sides).
-ENERGY_LIMITED_P = 0.5
 #: ``value`` is in ``value_unit`` (the parameter's unit: m/s, m, kg/m3, 1); every other
 #: column names its unit (``_m``, ``_per_s``, ``_J``) or is dimensionless (``_over_ref``, p_*).
 CSV_COLUMNS = ("scene", "material", "parameter", "value", "value_unit", "value_over_ref", "model", "source", "quantity",

@@ -22,6 +22,14 @@ import numpy as np
 from . import stress
 
 
+#: Mean breakage probability per stress [-] of the detailed model below which its rate
+#: follows the collision power rather than the collision frequency: with Vogel and
+#: Peukert's P = 1 - exp(-f_Mat x k W_m), P ~ f_Mat x k W_m while P is small, so the rate
+#: sums the collisions' energies. There the detailed model's trends along bead diameter and
+#: density leave the simple model's, whose every captured stress breaks (the trend study in
+#: docs/rates-and-calibration.md measures both sides).
+ENERGY_LIMITED_P = 0.5
+
 @dataclass(frozen=True)
 class OperatingPoint:
     """Operating conditions and the stress model's characteristic numbers (SI).

@@ -264,3 +264,18 @@ def test_the_detailed_models_regime_is_stated(limestone, yeast):
     doc = __import__("json").loads(mrates.to_json(limestone))
     assert doc["detailed_p_break_at_reference"]["S(10 um)"] == pytest.approx(p_lime)
     assert doc["detailed_regime"].startswith("detailed model energy-limited")
+
+
+def test_a_run_warns_where_its_detailed_model_is_energy_limited():
+    """MillModel says it before anything runs: the default scene (limestone, stand-in f_Mat)
+    breaks 4.4 % of its stresses over the feed; the yeast pair's detailed scene most."""
+    from millfmu.mill import MillModel
+
+    lime = MillModel(LIMESTONE.scenes()[1])
+    assert lime.p_break_per_stress_of_feed() == pytest.approx(0.044, abs=0.003)
+    assert any(w.startswith("detailed model energy-limited") for w in lime.warnings)
+    cells = MillModel(YEAST.scenes()[1])
+    assert cells.p_break_per_stress_of_feed() > 0.5
+    assert not any("energy-limited" in w for w in cells.warnings)
+    simple = MillModel(LIMESTONE.scenes()[0])
+    assert math.isnan(simple.p_break_per_stress_of_feed()) and simple.regime_warning() is None
