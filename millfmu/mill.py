@@ -233,12 +233,20 @@ class MillModel:
         """The detailed model's breakage probability per stress [-] at the scene's operating
         point, over the feed: sum_i w_i S_i / sum_i w_i SF_i (w the feed's class mass
         fractions, S the class rates, SF the stress frequencies). NaN for other models, for
-        materials without a stress model and with the stirrer at rest."""
+        materials without a stress model, with the stirrer at rest and at a point a table
+        builds on demand that it does not yet hold."""
         if self.kinetics_model != "detailed" or not getattr(self.material, "has_stress_model", False):
             return math.nan
         op = self.operating_point(self.inputs_of_scene())
         if not op.tip_speed_m_per_s > 0.0:
             return math.nan
+        src = self.source
+        if getattr(src, "on_outside", None) == "build":
+            # not yet on the table: built when the run starts, not to state a warning
+            try:
+                src.table.lookup(src.point_of(op), src.similar_axes)
+            except ValueError:
+                return math.nan
         nodes = self.operator.nodes_m
         w = psd_fractions(self.grid, self.scene.feed)
         coll = sum(z.volume_fraction * z.collision_rate_per_m3_s for z in self.source.zones(op))

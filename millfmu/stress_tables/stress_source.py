@@ -206,7 +206,10 @@ class TableStressSource:
         (interpolation error + 2 sigma of the DEM sampling, :meth:`Lookup.bound`) plus the
         table's work-precision expected error (recording, spin-up, sector, step, coupling;
         the manifest's ``work_precision.choice.expected_error``, SE_tn's median standing for
-        the ``total`` component's), summed; NaN in a zone without collisions, and in every
+        the ``total`` component's), the spread between independent DEM realizations of one
+        point (:meth:`Table.realization_error`), and off the anchor of the one-at-a-time axes
+        their separability error measured by the table's checks
+        (:meth:`Table.separability_error`), summed; NaN in a zone without collisions, and in every
         zone where no lookup was made (the stirrer at rest throughout: no collisions, so the
         table's error reaches no result). The local filling's error acts on the kinetics only
         through the collision frequency, which is bounded itself."""
@@ -226,7 +229,11 @@ class TableStressSource:
         wp = ((self.table.manifest.get("work_precision") or {}).get("choice") or {}).get("expected_error") or {}
         f_wp = np.array([float((wp.get("collision_frequency") or {}).get(n, 0.0)) for n in names])
         e_wp = np.array([float((wp.get("se_tn_q50") or {}).get(n, 0.0)) for n in names])
-        return {"zones": list(names), "collision_frequency": f + f_wp, "se_median": e + e_wp}
+        sep = self.table.separability_error(lk.point)
+        real = self.table.realization_error()
+        return {"zones": list(names),
+                "collision_frequency": f + f_wp + sep["collision_frequency"] + real["collision_frequency"],
+                "se_median": e + e_wp + sep["se_median"] + real["se_median"]}
 
     def zones(self, op):
         names = self.table.zone_names

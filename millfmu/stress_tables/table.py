@@ -315,6 +315,77 @@ class Table:
         return shift, rel(at.error[k][..., qi], q_x) / ln10, relq / ln10
 
 
+    def separability_error(self, point: dict) -> dict:
+        """Relative error [-] per zone that scaling the grid by the one-at-a-time axes' change
+        at the anchor adds at ``point``, from the manifest's separability checks (DEM runs
+        off the anchor), for ``collision_frequency`` and ``se_median`` (SE_tn's median).
+
+        A check c of axis A measured b_c = max(l/r, r/l) - 1 per zone (l the lookup, r the
+        run; the factor the band's edges (1 + b)^(+-1) must span). At a point where A is off
+        its reference and the grid axes are off the anchor, the error is taken to grow with
+        both distances: b = max_c b_c (g / g_c) (h / h_c), g the largest distance from the
+        anchor over the grid axes in units of each axis's range, h = |ln(x / x_ref)| on A;
+        summed over the axes off their reference. 0 at the anchor and on the references. NaN
+        in every zone for an axis off its reference off the anchor that no check measured,
+        and in a zone that every check of the axis found empty."""
+        names = self.zone_names
+        out = {"collision_frequency": np.zeros(len(names)), "se_median": np.zeros(len(names))}
+        g = self._anchor_distance(point)
+        if not self.one_at_a_time or g == 0.0:
+            return out
+        checks = (self.manifest.get("separability_check") or {}).get("points") or []
+        for name, ref in self.one_at_a_time_ref.items():
+            h = abs(math.log(float(point.get(name, ref)) / ref))
+            if h <= FIXED_AXIS_RTOL:
+                continue
+            worst = {k: np.full(len(names), np.nan) for k in out}
+            for c in checks:
+                hc = abs(math.log(float(c["point"].get(name, ref)) / ref))
+                gc = self._anchor_distance(c["point"])
+                if hc <= FIXED_AXIS_RTOL or gc == 0.0:
+                    continue
+                for key, fld in (("collision_frequency", "collision_frequency_norm"),
+                                 ("se_median", "se_tn_q50_norm")):
+                    r = np.array([np.nan if v is None else float(v)
+                                  for v in c[fld]["lookup_rel_diff"]])
+                    with np.errstate(divide="ignore", invalid="ignore"):
+                        b = np.maximum(1.0 + r, 1.0 / (1.0 + r)) - 1.0
+                    worst[key] = np.fmax(worst[key], b * (g / gc) * (h / hc))
+            for k in out:
+                out[k] = out[k] + worst[k]
+        return out
+
+    def realization_error(self) -> dict:
+        """Relative error [-] per zone from the spread of independent DEM realizations of one
+        point, the manifest's ``realization_spread`` (measured at the work-precision point
+        by the kernel-equivalence reference runs): its relative standard deviation times its
+        ``prediction_factor``, t(0.975, n - 1) sqrt(2), the 95 % bound of the difference
+        between the table's value and another run; for ``collision_frequency`` and
+        ``se_median`` (SE_tn's median). Zeros where the manifest has none. The table's
+        sampling sigma counts collisions as independent; realizations differ by more where
+        the same beads collide again and again."""
+        names = self.zone_names
+        rs = self.manifest.get("realization_spread") or {}
+        k = float(rs.get("prediction_factor") or 0.0)
+        out = {}
+        for key, fld in (("collision_frequency", "collision_frequency_norm"),
+                         ("se_median", "se_tn_q50_norm")):
+            sd = (rs.get("relative_sd") or {}).get(fld)
+            out[key] = (k * np.array([np.nan if v is None else float(v) for v in sd])
+                        if sd and len(sd) == len(names) else np.zeros(len(names)))
+        return out
+
+    def _anchor_distance(self, point: dict) -> float:
+        """Largest distance of ``point`` from the anchor over the grid axes, in units of each
+        axis's range [-] (0 without an anchor)."""
+        d = 0.0
+        for name, a in self.anchor.items():
+            ax = self.axes.get(name)
+            if ax is None or ax.size < 2 or name not in point:
+                continue
+            d = max(d, abs(float(point[name]) - float(a)) / float(ax[-1] - ax[0]))
+        return d
+
     def node_sigma(self) -> dict:
         """Sampling standard deviation of each stored value, from the recorded collision
         count N of its zone (Poisson / binomial statistics; collisions treated as
@@ -454,6 +525,10 @@ class Table:
                              one_at_a_time=old.one_at_a_time)
             sub.manifest = manifest_for(spec, sub, {"slice_of": self.manifest.get("key")},
                                         work_precision=self.manifest.get("work_precision"))
+            # what the stated error reads from the full table's manifest
+            for k in ("interpolation_check", "separability_check", "realization_spread"):
+                if k in self.manifest:
+                    sub.manifest[k] = self.manifest[k]
         return sub
 
     def export(self, prefix) -> tuple[Path, Path]:

@@ -236,6 +236,49 @@ def spread(ref: dict) -> list:
     return out
 
 
+def realization_entry(ref: dict) -> dict:
+    """The table manifest's ``realization_spread`` from the evidence's reference: per
+    :data:`GATED` field and zone the standard deviation of the realizations (the table's
+    point and the reference runs) relative to the table's value [-], and the factor t
+    sqrt(2) [-] (Student's t at 97.5 % on n - 1 degrees of freedom) that turns it into the
+    95 % bound of the difference between the table's value and another run at a point:
+    what a check measures. Measured at the work-precision point only."""
+    from scipy.stats import t as student_t
+
+    sd: dict = {}
+    for f, _z, _got, s, _law in spread(ref):
+        sd.setdefault(f, []).append(s)
+    n = 1 + len(ref["runs"])
+    if n < 3:
+        raise EquivalenceError(f"reference: {n} realizations; a spread needs at least 3 (the "
+                               f"table's point and 2 runs: tables equivalence --reference)")
+    return {"measure": "standard deviation of independent realizations (the table's point and "
+                       "runs on other thread counts) relative to the table's value, per zone; "
+                       "prediction_factor = t(0.975, n - 1) sqrt(2)",
+            "point": ref["point"], "record_s": ref["record_s"], "realizations": n,
+            "kernel_version": ref["kernel_version"], "relative_sd": sd,
+            "prediction_factor": float(student_t.ppf(0.975, n - 1)) * math.sqrt(2.0)}
+
+
+def write_realization_spread(table_ref: str, path=None) -> Path:
+    """Record :func:`realization_entry` of the evidence's reference in the manifest of
+    table ``table_ref`` (its key must be the reference's) and write the table's files again;
+    returns the manifest's path."""
+    from ...stress_tables.table import read_table_ref, table_ref_prefix
+
+    ref = (read_evidence(path) or {}).get("reference")
+    if not ref:
+        raise EquivalenceError("no reference realizations in the evidence: run tables "
+                               "equivalence --reference --write first")
+    table = read_table_ref(table_ref)
+    if ref.get("table_key") != table.manifest.get("key"):
+        raise EquivalenceError(f"table {table_ref!r}: key {table.manifest.get('key')} is not "
+                               f"the reference's {ref.get('table_key')}")
+    table.manifest = dict(table.manifest, realization_spread=realization_entry(ref))
+    _npz, man = table.export(table_ref_prefix(table_ref))
+    return man
+
+
 def reference_lines(ref: dict) -> list:
     """Lines that show the reference: per statistic and zone the realizations relative to
     the table's point, their standard deviation and the law's sigma."""
