@@ -7,14 +7,15 @@ Sections (each with its measured orders, the machine it ran on and the date):
    crusher unit) on a smooth and a stiff case;
 2. the co-simulation communication step of flowsheet (a), ``circuit.toml``
    (:func:`flowsheets.wp.work_precision`);
-3. the DEM work-precision (:mod:`millfmu.dem.studies.work_precision`): a recording-length study run
-   now (``--quick``: one short coupled run) or the full study's runs (``--dem-runs DIR``,
-   made by ``millfmu dem work-precision run``), and the full study shipped with millfmu.
+3. the DEM work-precision (:mod:`millfmu.dem.analysis.precision`): a recording-length study run
+   now (``--quick``: one short coupled run) or a full study made from a checkout
+   (``--dem-runs DIR``: ``python -m validation.work_precision run|table --out DIR``), and the
+   full study shipped with millfmu.
 
 The page (``report.html``) has no external CSS or scripts; its PNG images are written
 beside it and referenced by relative name. ``--quick`` finishes in minutes (for CI); the
-full report repeats the studies of docs/performance.md (tens of minutes without the DEM runs, which take
-hours on one core and are made only when ``--dem-runs`` names a folder to make them in).
+full report repeats the studies of docs/performance.md (tens of minutes; the full DEM study's runs take
+hours on one core and are made by the study itself, outside the package, whose result ``--dem-runs`` reads).
 """
 
 from __future__ import annotations
@@ -372,7 +373,7 @@ def cosim_section(out: Path, quick: bool, log=print) -> str:
 # --- 4. DEM -----------------------------------------------------------------------------
 
 def _dem_tables(res) -> str:
-    from millfmu.dem.studies import work_precision as W
+    from millfmu.dem.analysis import precision as W
 
     head = ["setting", "run time [CPU s]"] + [f"{c}: relative error [%] (largest in {', '.join(W.TARGET_ZONES)})"
                                       for c in W.COLUMNS]
@@ -389,7 +390,9 @@ def _dem_tables(res) -> str:
 
 
 def dem_section(out: Path, quick: bool, dem_runs=None, log=print) -> str:
-    from millfmu.dem.studies import work_precision as W
+    """The DEM section; ``dem_runs``: a full study's folder (its ``work_precision.json``,
+    :func:`millfmu.dem.analysis.precision.read_study`)."""
+    from millfmu.dem.analysis import precision as W
 
     parts = [f'<h2 id="dem">4. {SECTIONS["dem"]}</h2>',
              "<p>Coupled disc slice at 10 m/s, 80 % filling, 10 degree sector, no gravity "
@@ -432,14 +435,15 @@ def dem_section(out: Path, quick: bool, dem_runs=None, log=print) -> str:
     else:
         if dem_runs is None:
             parts.append("<p><b>Not run now:</b> the full study's runs take hours on one core; "
-                         "make them with <code>millfmu dem work-precision run --out DIR</code> "
-                         "and pass <code>--dem-runs DIR</code>.</p>")
+                         "make them from a checkout with <code>python -m validation.work_precision "
+                         "run --out DIR</code>, analyse them with <code>python -m "
+                         "validation.work_precision table --out DIR</code> and pass "
+                         "<code>--dem-runs DIR</code>.</p>")
         else:
-            W.run_study(dem_runs, log=log)
-            res = W.analyse(dem_runs)
+            res = W.read_study(dem_runs)
             W.plot(res, out / "dem_work_precision.png")
             (out / "dem_work_precision.json").write_text(json.dumps(res, indent=1))
-            parts += ["<h3>Run now: the full study</h3>", _meta(res["machine"]),
+            parts += [f"<h3>The full study in {_esc(dem_runs)}</h3>", _meta(res["machine"]),
                       '<img src="dem_work_precision.png" alt="DEM work-precision">',
                       _dem_tables(res)]
     shipped = W.SUMMARY_PATH
@@ -464,8 +468,8 @@ def dem_section(out: Path, quick: bool, dem_runs=None, log=print) -> str:
 
 def _realizations() -> str:
     """The realizations of the shipped table's version at the operating point (the
-    reference of ``millfmu tables equivalence``): their spread beside the study's sampling
-    sigma of one recording."""
+    reference of ``python -m validation.equivalence_runs``): their spread beside the study's
+    sampling sigma of one recording."""
     from millfmu.dem.tables import equivalence as E
 
     try:
@@ -474,7 +478,8 @@ def _realizations() -> str:
         return f"<p>Realizations: {_esc(e)}</p>"
     if not ref:
         return ("<p>No realizations of the shipped table's version recorded "
-                "(<code>millfmu tables equivalence --reference --write</code>).</p>")
+                "(<code>python -m validation.equivalence_runs --reference --write</code>, "
+                "from a checkout).</p>")
     runs = ref["runs"]
     head = (["statistic", "zone", "table's point [%]"] +
             [f"run on {r.get('threads')} thread(s), {r.get('wall_time_s', 0):.0f} s [%]"
@@ -487,7 +492,7 @@ def _realizations() -> str:
             for f, z, got, sd, law in E.spread(ref)]
     return "\n".join([
         "<h3>Realizations of the shipped coupled table's version at the operating point "
-        "(<code>millfmu tables equivalence --show</code>)</h3>",
+        "(<code>python -m validation.equivalence_runs --show</code>)</h3>",
         f"<p>The table's point and runs of the same sources on other thread counts (each "
         f"splits the beads into other chunks: another trajectory from the same start), "
         f"spin-up and recording as the table's ({ref['record_s']:g} s recorded); values "
@@ -507,6 +512,10 @@ def build_report(out_dir, quick: bool = False, dem_runs=None, log=print) -> list
     from .runner import check_out_dir, staging_dir
 
     out = check_out_dir(out_dir)
+    if dem_runs is not None and not quick:  # a folder without a study: refused before the minutes of work
+        from .dem.analysis.precision import read_study
+
+        read_study(dem_runs)
     t0 = time.perf_counter()
     start = machine()
     tmp = staging_dir(out, ".millfmu-report-")
@@ -534,9 +543,15 @@ def build_report(out_dir, quick: bool = False, dem_runs=None, log=print) -> list
 
 
 def _cmd_report(args) -> int:
+    from .dem.analysis.precision import WorkPrecisionError
+
     t0 = time.perf_counter()
-    files = build_report(args.out, quick=args.quick, dem_runs=args.dem_runs,
-                         log=lambda m: print(m, file=sys.stderr, flush=True))
+    try:
+        files = build_report(args.out, quick=args.quick, dem_runs=args.dem_runs,
+                             log=lambda m: print(m, file=sys.stderr, flush=True))
+    except WorkPrecisionError as e:
+        print(f"millfmu report: --dem-runs: {e}", file=sys.stderr)
+        return 2
     print(f"wrote {files[[f.name for f in files].index('report.html')]} and {len(files) - 1} "
           f"files beside it in {time.perf_counter() - t0:.0f} s")
     return 0
@@ -556,8 +571,10 @@ def register(subparsers):
                    "report.html, PNGs beside it, the studies' JSON")
     r.add_argument("--quick", action="store_true", help="short versions of each study "
                    "(minutes; for CI)")
-    r.add_argument("--dem-runs", default=None, metavar="DIR", help="full report: the DEM study's "
-                   "run folder (made there where missing: hours on one core)")
+    r.add_argument("--dem-runs", default=None, metavar="DIR", help="also a full DEM "
+                   "work-precision study: its folder, with the work_precision.json that "
+                   "'python -m validation.work_precision table --out DIR' writes (from a "
+                   "checkout; the runs take hours on one core)")
     r.set_defaults(func=_cmd_report)
 
 

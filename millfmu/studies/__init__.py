@@ -1,3 +1,5 @@
-"""Studies of the model: the population-balance integrators against scipy's BDF and each
-other (:mod:`.pbm_integrators`, ``millfmu bench pbm|integrators``). They use the model;
-nothing in the model uses them. The DEM's campaigns are in :mod:`millfmu.dem.studies`."""
+"""Studies of the model that the product runs: the population-balance integrators against
+scipy's BDF and each other (:mod:`.pbm_integrators`, ``millfmu bench pbm|integrators`` and
+``millfmu report``). They use the model; nothing in the model uses them. The paper campaigns
+and peer benchmarks are not installed with the package: a checkout's ``validation/`` and
+``benchmarks/``."""

@@ -290,7 +290,7 @@ def test_short_coupled_run_has_the_papers_quantities(tmp_path):
 
 def _fake_stats(rpm, fill, eff):
     """stats.json content with every seed 002 statement holding."""
-    from millfmu.dem.studies.seed002 import ZONE_NAMES
+    from validation.seed002 import ZONE_NAMES
 
     speed = {"SEV_1": 0.3, "SEV_2": 0.4, "SEV_3": 0.6, "SEV_4": 0.55}
     filling = {"SEV_1": 0.9, "SEV_2": 0.7, "SEV_3": 0.5, "SEV_4": 0.8}
@@ -308,7 +308,7 @@ def _fake_stats(rpm, fill, eff):
 
 
 def test_seed002_table_gives_verdicts_from_the_runs(tmp_path):
-    from millfmu.dem.studies import seed002 as S
+    from validation import seed002 as S
 
     def write(case, st):
         d = S.case_dir(tmp_path, *case)
@@ -336,7 +336,7 @@ def test_campaign_table_from_short_runs(tmp_path, monkeypatch):
     """The seed 002 campaign's runs at 80 % make a table over the rotor speeds that reads,
     verifies and is refused when a run's protocol differs."""
     pytest.importorskip("numba")
-    from millfmu.dem.studies import seed002 as S
+    from validation import seed002 as S
     from millfmu.stress_tables.table import read_table
     from millfmu.stress_tables.spec import TableError
 
@@ -362,7 +362,7 @@ def test_seed002_columns_by_method_and_counting(tmp_path):
     """A campaign of the paper's method is read with its snapshot counts; two campaigns
     side by side give one row per statement with each one's verdict, and the verdict over
     all; a folder holds one campaign."""
-    from millfmu.dem.studies import seed002 as S
+    from validation import seed002 as S
 
     phys, paper = tmp_path / "phys", tmp_path / "paper"
     for folder, eff_events in ((phys, 0.03), (paper, 0.03)):
@@ -429,7 +429,7 @@ def test_model_a_pressure_gradient_timing_is_chosen_by_name():
     take; the default stays the previous interval's, seed 002's physical-A method takes the
     interval just solved; a wrong value, or the key with model B or the discrete phase
     model (no pressure-gradient force on the beads), is refused by name."""
-    from millfmu.dem.studies import seed002 as S
+    from validation import seed002 as S
 
     d = load_scene_dict("accelerator_slice")
     c = d["fluid"]["coupled"]
@@ -482,17 +482,17 @@ def test_an_unstable_run_stops_by_name_and_writes_nothing(tmp_path, monkeypatch,
 
 
 def test_seed002_cli_refuses_bad_cases_and_mixed_campaigns(tmp_path, capsys):
-    """--case names one of the paper's cases; a folder keeps the campaign it holds; a
-    comparison column needs LABEL=DIR: each refused with exit 2 and the reason."""
+    """``python -m validation.seed002``: --case names one of the paper's cases; a folder
+    keeps the campaign it holds; a comparison column needs LABEL=DIR: each refused with exit
+    2 and the reason."""
+    from validation import seed002 as S
+
     for args, want in ((["--case", "1200"], "write RPM:FILLING"),
                        (["--case", "1100:0.8"], "not one of seed 002's cases"),
                        (["--compare", "nolabel"], "write LABEL=DIR")):
-        a = _parser().parse_args(["dem", "seed002", "table", "--out", str(tmp_path / "x")] + args)
-        assert a.func(a) == 2
+        assert S.main(["table", "--out", str(tmp_path / "x")] + args) == 2
         assert want in capsys.readouterr().err
     (tmp_path / "p").mkdir()
     (tmp_path / "p" / "campaign.json").write_text(json.dumps({"method": "paper", "primed": False}))
-    a = _parser().parse_args(["dem", "seed002", "run", "--out", str(tmp_path / "p"), "--method", "physical",
-                              "--case", "1200:0.8"])
-    assert a.func(a) == 2
+    assert S.main(["run", "--out", str(tmp_path / "p"), "--method", "physical", "--case", "1200:0.8"]) == 2
     assert "holds a campaign of" in capsys.readouterr().err

@@ -13,7 +13,7 @@ from millfmu.dem.mills.geometry import (GeometryError, MillGeometry, bead_count_
 from millfmu.dem.scene import DemSceneError, load_scene
 
 MM = 1e-3
-#: seed 002's study baffles (millfmu.dem.studies.seed002.BAFFLES), written out so that a
+#: seed 002's study baffles (validation.seed002.BAFFLES), written out so that a
 #: change there does not pass unnoticed
 BAF = dict(baffle_count=6, baffle_thickness_m=0.002, baffle_inner_radius_m=0.016,
            baffle_height_m=0.004, baffle_angle_deg=32.5)
@@ -32,7 +32,7 @@ def _at(g, s_m, t_m, zb_m, angle_deg=32.5):
 
 
 def test_study_baffles_are_the_ones_tested():
-    from millfmu.dem.studies import seed002
+    from validation import seed002
 
     assert seed002.BAFFLES == BAF
 
@@ -189,7 +189,7 @@ def test_baffled_coupled_run_closes_its_angular_momentum_budget(tmp_path, monkey
     budget closes with the liquid's push on the baffles' faces counted for the stator
     (5e-4 measured); without it, it is off by more than a third (0.38)."""
     import millfmu.dem.run as R
-    from millfmu.dem.studies.seed002 import scene_for
+    from validation.seed002 import scene_for
 
     sc = scene_for(1200, 0.8, baffles=True).with_overrides(
         spin_up_s=0.0, record_s=0.01, sample_every_s=0.005, primed_s=0.0,
@@ -280,7 +280,7 @@ def test_return_leg_swirl_and_weight_ratio_by_hand():
 def test_seed002_baffled_campaign_is_its_own(tmp_path):
     """``seed002 run --baffles``: the study's baffles with 12 theta cells per 60 degrees of
     liquid, a campaign of its own (a folder of runs without baffles refuses it)."""
-    from millfmu.dem.studies import seed002 as S
+    from validation import seed002 as S
 
     sc = S.scene_for(1200.0, 0.8, baffles=True)
     assert sc.geometry.has_baffles and sc.coupling.n_theta == 12

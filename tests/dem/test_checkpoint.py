@@ -201,19 +201,22 @@ def test_gpu_device_refusals_name_the_item(tmp_path, capsys, monkeypatch):
     err = capsys.readouterr().err
     assert "disc_slice: device='gpu': numba.cuda finds no CUDA GPU" in err
     assert not (tmp_path / "c").exists()
+    # the DEM bench against its peers (python -m benchmarks.dem_peers) refuses the same way
+    from benchmarks.dem_peers import main as bench_main
+
     for argv in (["--profile"], ["--coupled", "full"]):
-        assert dem_main(["bench", "--device", "gpu"] + argv) == 2
+        assert bench_main(["--device", "gpu"] + argv) == 2
         assert "--device gpu: numba.cuda finds no CUDA GPU" in capsys.readouterr().err
-    assert dem_main(["bench", "--bed", "none"]) == 2
+    assert bench_main(["--bed", "none"]) == 2
     assert "--bed none: nothing to run without --coupled" in capsys.readouterr().err
     for argv in (["--coupled", "full"], ["--coupled", "--device", "gpu"]):
-        assert dem_main(["bench", "--bed", "none", "--profile"] + argv) == 2
+        assert bench_main(["--bed", "none", "--profile"] + argv) == 2
         assert "--profile --coupled: the 10-degree sector with the DEM on the CPU" in \
             capsys.readouterr().err
-    assert dem_main(["bench", "--coupled-start", "early"]) == 2
+    assert bench_main(["--coupled-start", "early"]) == 2
     assert "--coupled-start early: applies to the coupled row" in capsys.readouterr().err
     for argv in (["--coupled", "full"], ["--coupled", "--device", "gpu"]):
-        assert dem_main(["bench", "--bed", "none", "--coupled-start", "running"] + argv) == 2
+        assert bench_main(["--bed", "none", "--coupled-start", "running"] + argv) == 2
         assert "--coupled-start running: the 10-degree sector on the CPU only" in \
             capsys.readouterr().err
 

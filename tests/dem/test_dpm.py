@@ -110,7 +110,7 @@ def test_primed_start_puts_the_beads_into_the_bead_free_circulation():
     fluid."""
     from millfmu.dem.run import make_simulation
     from millfmu.dem.scene import DemSceneError
-    from millfmu.dem.studies import seed002 as S
+    from validation import seed002 as S
 
     for method in ("physical", "paper"):
         sc = S.scene_for(1200.0, 0.6, sector_deg=30.0, method=method, primed=True)

@@ -6,6 +6,7 @@ import json
 import math
 import subprocess
 import sys
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -22,10 +23,11 @@ PM1 = MillGeometry(shaft_radius_m=0.015, chamber_radius_m=0.045, height_m=0.028,
 
 def test_import_is_numba_free():
     code = ("import sys, millfmu.dem, millfmu.dem.cli, millfmu.dem.scene, millfmu.dem.analysis.stats,"
-            " millfmu.dem.run, millfmu.dem.mills.zones, millfmu.dem.studies.bench;"
+            " millfmu.dem.run, millfmu.dem.mills.zones, benchmarks.dem_peers;"
             " print('numba' in sys.modules)")
+    # from the checkout's root, where the benchmarks package lives
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
-                         check=True)
+                         check=True, cwd=Path(__file__).resolve().parents[2])
     assert out.stdout.strip() == "False"
 
 
@@ -38,12 +40,12 @@ def test_bench_lattice_has_the_issue_bead_count():
 
 
 def test_bench_dilute_bed_is_a_granular_gas(tmp_path, monkeypatch):
-    """The bench's second bed (dem bench --bed dilute): made once like the dense one, a
+    """The bench's second bed (python -m benchmarks.dem_peers --bed dilute): made once like the dense one, a
     gas of few contacts per bead (coordination below 0.5; the dense bed's is several),
     moving beads; the dense bed keeps its file name (its recipe's key without the gas
     speed); an unknown bed is refused by name."""
     pytest.importorskip("numba")
-    from millfmu.dem.studies import bench as B
+    from benchmarks import dem_peers as B
 
     monkeypatch.setenv("MILLFMU_BENCH_DIR", str(tmp_path))
     assert B.BED.key() != B.DILUTE_BED.key()
@@ -66,7 +68,7 @@ def test_bench_ke_table_sets_the_references_beside_ours_and_flags_over_3_percent
     """The bench's kinetic-energy lines (no LAMMPS needed): each run's energies and their
     differences from LAMMPS' and LIGGGHTS' in %, '!' above 3 %; the figures are the
     bench's 1000-step energies of issue 28 (1 core each)."""
-    from millfmu.dem.studies import bench as B
+    from benchmarks import dem_peers as B
 
     def run(code, et, er):
         return B.RunResult(code=code, cores=1, device="cpu", beads=52312, steps=1000,
@@ -90,7 +92,7 @@ def test_bench_ratio_lines_give_the_bests_and_each_rounds_ratio():
     """The bench's speed ratios (no LAMMPS needed): ours against the faster reference's
     best run, then round by round (runs of a round follow each other within seconds) with
     their median; a core count without a reference gives no line."""
-    from millfmu.dem.studies import bench as B
+    from benchmarks import dem_peers as B
 
     def run(code, nc, loop_s):
         return B.RunResult(code=code, cores=nc, device="cpu", beads=1000, steps=100,
@@ -216,14 +218,15 @@ def _parser():
     return p
 
 
-def test_cli_registers_run_and_bench_and_rejects_bad_values(capsys, tmp_path):
+def test_cli_registers_run_not_the_bench_and_rejects_bad_values(capsys, tmp_path):
     p = _parser()
     a = p.parse_args(["dem", "run", "disc_slice", "--out", str(tmp_path), "--tip-speed",
                       "30"])
     assert a.func(a) == 2
     assert "tip_speed_m_s = 30.0" in capsys.readouterr().err
-    a = p.parse_args(["dem", "bench", "--steps", "10"])
-    assert callable(a.func)
+    with pytest.raises(SystemExit):  # the bench is python -m benchmarks.dem_peers now
+        p.parse_args(["dem", "bench", "--steps", "10"])
+    capsys.readouterr()
     a = p.parse_args(["dem", "run", "disc_slice"])  # --out is required (unless --resume)
     assert a.func(a) == 2
     assert "a scene and --out are required" in capsys.readouterr().err

@@ -1,12 +1,9 @@
-"""The seed 001 deviation table: its verdicts on synthetic results, and the coupled bench
-row's structure (timings are printed, never asserted)."""
+"""The seed 001 deviation table (validation.seed001): its verdicts on synthetic results, the
+campaign's protocol and its command."""
 
 import json
 
-import numpy as np
-import pytest
-
-from millfmu.dem.studies import seed001
+from validation import seed001
 
 
 def fake_stats(vt, fill, speeds=(0.13, 0.095, 0.085, 0.10), layer=0.22, secondary=None):
@@ -59,45 +56,6 @@ def test_deviation_table_names_what_is_missed(tmp_path):
     assert any("secondary vortex" in k for k in missed)
 
 
-@pytest.mark.bench
-def test_coupled_bench_row_prints_its_ratio():
-    pytest.importorskip("numba")
-    from millfmu.dem.studies.coupled_bench import run_coupled_bench
-
-    r = run_coupled_bench(steps=200, repeats=1, start="early")
-    print(r.as_dict())
-    assert r.beads > 1000 and r.fluid_cells > 100 and r.coupling_steps == 10
-    assert r.dem_particle_steps_per_s > 0 and r.coupled_particle_steps_per_s > 0
-    assert r.start == "early" and len(r.block_added_costs) == 1
-    assert r.as_dict()["added_cost_median"] == r.block_added_costs[0]
-
-
-def test_coupled_bench_running_state_is_made_once_and_reloaded(tmp_path, monkeypatch):
-    """The coupled row's running mill: made once in the bench folder, then loaded as it was
-    left (the same beads, step count and liquid), for these sources and thread count; a
-    start it cannot take is refused by name."""
-    pytest.importorskip("numba")
-    from millfmu.dem.studies import coupled_bench as CB
-
-    monkeypatch.setenv("MILLFMU_BENCH_DIR", str(tmp_path))
-    said = []
-    sim, cpl = CB.running_state(threads=1, running_s=2e-4, out=said.append)
-    assert any("making the running coupled sector" in m for m in said)
-    files = list(tmp_path.glob("coupled_sector_running_*.pkl"))
-    assert len(files) == 1 and sim.step_count == 40 and cpl.intervals == 4
-    said.clear()
-    sim2, cpl2 = CB.running_state(threads=1, running_s=2e-4, out=said.append)
-    assert not said and sim2.step_count == 40 and cpl2.intervals == 4
-    assert np.array_equal(sim2.x, sim.x) and np.array_equal(cpl2.solver.ut, cpl.solver.ut)
-    # another running time is another state
-    CB.running_state(threads=1, running_s=1e-4, out=said.append)
-    assert len(list(tmp_path.glob("coupled_sector_running_*.pkl"))) == 2
-    with pytest.raises(ValueError, match="the sector on the CPU only"):
-        CB.run_coupled_bench(steps=10, repeats=1, scene="full", start="running")
-    with pytest.raises(ValueError, match="start = 'late'"):
-        CB.run_coupled_bench(steps=10, repeats=1, start="late")
-
-
 def test_campaign_runs_the_stated_protocol(tmp_path, monkeypatch):
     """seed001 run: the protocol of the README's table (no gravity, 10 degree sector,
     coupled: start at 0.1 of the stirrer's rotation, 1.0 s spin-up; 0.3 s recording in
@@ -122,32 +80,11 @@ def test_campaign_runs_the_stated_protocol(tmp_path, monkeypatch):
         assert sc.tip_speed_m_s == vt and round(sc.filling * 100) == fill
 
 
-def test_coupled_interval_profile_names_every_part():
-    """``dem bench --coupled --profile``: every part of a coupled interval timed inside the
-    run, then the exchange in one compiled call, and the coupling's kernels, methods and
-    choice of path given back afterwards."""
-    pytest.importorskip("numba")
-    from millfmu.dem.coupling import exchange_kernels as EK
-    from millfmu.dem.fluid import step_kernels as SK
-    from millfmu.dem.run import make_simulation
-    from millfmu.dem.studies import coupled_bench as CB
-
-    sim, cpl = make_simulation(CB._scene("sector"), 1, "cpu")
-    said = []
-    res = CB.profile_coupled(steps=40, out=said.append, state=(sim, cpl))
-    labels = [label for label, _, _ in CB.COUPLED_PARTS]
-    assert list(res)[:len(labels)] == labels and "DEM alone, 10 steps" in res
-    for label, (med, mean) in res.items():
-        assert med > 0.0 and mean > 0.0, label
-    # the parts of the exchange (not the liquid's substeps, within its whole interval)
-    parts = sum(res[label][1] for label in labels[:5] + labels[8:12])
-    assert parts <= res["exchange, whole"][1]
-    assert any("against the DEM's interval alone: the exchange" in line for line in said)
-    assert ", 10 deg sector, 6536 beads," in said[0]  # the heading names what it profiled
-    assert cpl.EK is EK and cpl.solver.SK is SK
-    assert "exchange" not in vars(cpl) and "run" not in vars(sim)
-    assert "solve" not in vars(cpl.solver.pressure) and "advance" not in vars(cpl.solver)
-    assert cpl.fused and res["exchange, whole, in one call"][0] > 0.0
-    assert sim.step_count == 20 + 40 + 40 + 200  # compiled, profiled, one call, DEM alone
-    with pytest.raises(ValueError, match="start = 'late'"):
-        CB.profile_coupled(steps=10, start="late")
+def test_command_refuses_an_unknown_fluid_and_prints_the_table(tmp_path, capsys):
+    """``python -m validation.seed001``: the former ``millfmu dem seed001`` with its
+    arguments; a fluid model it does not know is refused before anything runs."""
+    assert seed001.main(["run", "--out", str(tmp_path), "--fluid", "coupled,water"]) == 2
+    assert "--fluid 'coupled,water': allowed ['coupled', 'prescribed']" in capsys.readouterr().err
+    assert not any(tmp_path.iterdir())
+    assert seed001.main(["table", "--out", str(tmp_path)]) == 0
+    assert "| seed 001 statement |" in capsys.readouterr().out

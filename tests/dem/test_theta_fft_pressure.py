@@ -72,7 +72,7 @@ def test_chosen_by_name_and_a_coupled_disc_run_with_it(tmp_path):
         assert np.allclose(fb[k], fa[k], rtol=1e-7, atol=1e-9 * scale, equal_nan=True), k
     # stationary baffles are solid cells in some theta columns: refused by name before the
     # run's folder is made (the accelerator's vanes are driven nodes, not solids: allowed)
-    from millfmu.dem.studies.seed002 import BAFFLES
+    from validation.seed002 import BAFFLES
 
     acc = load_scene("accelerator_slice").with_overrides(
         sector_deg=60.0, n_theta=12, baffles=BAFFLES, pressure_solver="theta_fft")

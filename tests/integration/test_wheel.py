@@ -64,6 +64,17 @@ def test_the_wheel_holds_every_file_of_the_packages(wheel):
     assert not missing, f"not in the wheel (pyproject.toml's package-data): {missing}"
 
 
+def test_the_wheel_leaves_out_the_checkouts_measuring_code(wheel):
+    """The paper campaigns, equivalence runs and peer benches (validation/, benchmarks/) run
+    from a checkout: no file of theirs ships, nor the tests."""
+    names = zipfile.ZipFile(wheel).namelist()
+    tracked = _tracked_files()
+    assert any(f.startswith("validation/") for f in tracked) and any(f.startswith("benchmarks/") for f in tracked)
+    shipped = sorted({n.split("/")[0] for n in names if n.split("/")[0] in ("validation", "benchmarks", "tests")})
+    assert not shipped, shipped
+    assert not [n for n in names if n.startswith("millfmu/dem/studies/")]
+
+
 def readme_tour() -> list[list[str]]:
     """The millfmu and Python commands of the README's quick start (its first code block) and
     of its tour, each as an argument list with ``.venv/bin/`` left in front. Installs are

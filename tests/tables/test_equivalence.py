@@ -1,5 +1,6 @@
 """A change of the DEM's sources that alters only round-off, accepted on the evidence of its
-statistics (millfmu.dem.tables.equivalence): the scores, the reference and the accepted
+statistics (millfmu.dem.tables.equivalence; the runs and their command in a checkout's
+validation.equivalence_runs): the scores, the reference and the accepted
 changes in the evidence file, and the kernel version they give. The DEM is replaced by
 runners that draw the statistics around the table's values."""
 
@@ -9,13 +10,15 @@ import json
 import random
 import subprocess
 import sys
+from pathlib import Path
 
 import pytest
 
 from millfmu.dem.tables import cache
 from millfmu.dem.tables import equivalence as E
-from millfmu.dem.tables import equivalence_runs as R
+from validation import equivalence_runs as R
 
+ROOT = Path(__file__).resolve().parents[2]
 ZONES = ["V1", "V2", "V3", "V4"]
 TABLE = {"filling_local": [0.2, 0.7, 0.9, 0.1], "collision_frequency_norm": [1.0, 7.0, 7.5, 0.5],
          "se_tn_q50_norm": [0.01, 0.02, 0.03, 0.04], "speed_over_tip_speed": [0.4, 0.3, 0.2, 0.1]}
@@ -166,10 +169,21 @@ def test_a_table_of_another_scene_is_refused(evidence):
 
 
 def test_cli_names_bad_thread_counts(tmp_path):
-    r = subprocess.run([sys.executable, "-m", "millfmu.cli", "tables", "equivalence",
+    """``python -m validation.equivalence_runs`` from the checkout's root (the former
+    ``millfmu tables equivalence``, with its arguments)."""
+    r = subprocess.run([sys.executable, "-m", "validation.equivalence_runs",
                         "--reference", "--threads", "2", "2", "--evidence",
-                        str(tmp_path / "e.json")], capture_output=True, text=True)
+                        str(tmp_path / "e.json")], capture_output=True, text=True, cwd=ROOT)
     assert r.returncode == 2 and "distinct counts" in r.stderr, r.stderr
+    assert r.stderr.startswith("python -m validation.equivalence_runs: ")
+
+
+def test_cli_shows_an_empty_evidence_file(tmp_path, capsys):
+    assert R.main(["--show", "--evidence", str(tmp_path / "none.json")]) == 0
+    assert capsys.readouterr().out == "no reference runs recorded\n"
+    (tmp_path / "bad.json").write_text("[]")
+    assert R.main(["--show", "--evidence", str(tmp_path / "bad.json")]) == 2
+    assert "format None" in capsys.readouterr().err
 
 
 def test_shipped_evidence_reads_and_its_changes_pass():
@@ -198,6 +212,6 @@ def test_report_shows_the_realizations(tmp_path, monkeypatch):
 
 
 def test_work_precision_summary_is_the_studys():
-    from millfmu.dem.studies.work_precision import SUMMARY_PATH
+    from millfmu.dem.analysis.precision import SUMMARY_PATH
 
     assert E.WORK_PRECISION_PATH == SUMMARY_PATH and SUMMARY_PATH.is_file()

@@ -108,7 +108,7 @@ def test_benchmark_results_are_machine_readable():
         d = json.loads(f.read_text())
         assert {"commit", "host", "date", "command", "figures"} <= set(d), f.name
         assert re.fullmatch(r"[0-9a-f]{7,40}", d["commit"]) and re.fullmatch(r"\d{4}-\d\d-\d\d", d["date"]), f.name
-        assert d["command"].startswith("millfmu ") and _numbers(d["figures"]), f.name
+        assert d["command"].startswith(("millfmu ", "python -m benchmarks.")) and _numbers(d["figures"]), f.name
 
 
 def test_each_figure_of_the_readme_is_its_measurement():
@@ -169,6 +169,45 @@ def test_every_command_of_the_readme_table_exists():
     assert r.returncode == 0, r.stderr
     codes = json.loads(r.stdout.splitlines()[-1])
     assert not {c: v for c, v in codes.items() if v != 0}, codes
+
+
+#: The measuring code's commands, run from a checkout's root (not installed with millfmu).
+CHECKOUT_COMMAND = re.compile(r"python -m ((?:validation|benchmarks)\.[a-z][a-z0-9_]*)")
+#: Commands that moved out of the package: no page may name them any more.
+MOVED = ("millfmu dem bench", "millfmu dem seed001", "millfmu dem seed002", "millfmu dem work-precision",
+         "millfmu tables equivalence")
+
+
+def test_every_checkout_command_of_the_readme_and_docs_exists():
+    """Each ``python -m validation.X`` and ``python -m benchmarks.X`` of the README and docs/
+    names a module of the checkout, and each of the README's takes ``--help`` (one
+    interpreter, from the checkout's root, as a reader runs it)."""
+    readme = sorted(set(CHECKOUT_COMMAND.findall((ROOT / "README.md").read_text())))
+    assert {"validation.seed001", "validation.work_precision", "benchmarks.dem_peers"} <= set(readme)
+    named = {m for p in PAGES for m in CHECKOUT_COMMAND.findall(p.read_text())}
+    missing = [m for m in sorted(named) if not (ROOT / (m.replace(".", "/") + ".py")).is_file()]
+    assert not missing, missing
+    code = ("import contextlib, importlib, io, json, sys\n"
+            "codes = {}\n"
+            "for m in json.loads(sys.argv[1]):\n"
+            "    try:\n"
+            "        with contextlib.redirect_stdout(io.StringIO()):\n"
+            "            r = importlib.import_module(m).main(['--help'])\n"
+            "    except SystemExit as e:\n"
+            "        r = e.code\n"
+            "    codes[m] = r or 0\n"
+            "print(json.dumps(codes))\n")
+    r = subprocess.run([sys.executable, "-c", code, json.dumps(readme)], capture_output=True, text=True, cwd=ROOT)
+    assert r.returncode == 0, r.stderr
+    codes = json.loads(r.stdout.splitlines()[-1])
+    assert not {m: v for m, v in codes.items() if v != 0}, codes
+
+
+def test_no_page_names_a_command_that_moved_out_of_the_package():
+    """The benches and campaigns that left the ``millfmu`` command are named by their
+    checkout commands (CHANGELOG.md keeps the history)."""
+    found = [f"{p.relative_to(ROOT)}: {c}" for p in PAGES for c in MOVED if c in p.read_text().replace("\n", " ")]
+    assert not found, found
 
 
 # ---- the glossary (issue 55) ------------------------------------------------------------------

@@ -1,8 +1,10 @@
 """The package's import structure, read from the source with ``ast``.
 
 Guards the layout rules of the architecture: imports run downwards only (a study, a CLI
-or a report may import the engine and the model, never the other way round), and there
-is no import circle of more than two modules nor one that crosses packages.
+or a report may import the engine and the model, never the other way round), there is no
+import circle of more than two modules nor one that crosses packages, and the installed
+packages (millfmu, fmu_build, flowsheets) never import the checkout's measuring code
+(validation, benchmarks), which the wheel leaves out.
 
 Run as a script (``python tests/unit/test_layout.py``) it prints the figures: module
 count, import circles, imports from a lower layer to a higher one, longest import chain.
@@ -15,7 +17,10 @@ import sys
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[2]
-PACKAGES = ("millfmu", "fmu_build", "flowsheets")
+#: The installed packages, then the measuring code that runs from a checkout only.
+INSTALLED = ("millfmu", "fmu_build", "flowsheets")
+CHECKOUT_ONLY = ("validation", "benchmarks")
+PACKAGES = INSTALLED + CHECKOUT_ONLY
 
 
 def _module_name(path: Path) -> str:
@@ -26,7 +31,7 @@ def _module_name(path: Path) -> str:
 
 
 def modules() -> dict[str, Path]:
-    """Every module of the three packages, by dotted name."""
+    """Every module of :data:`PACKAGES`, by dotted name."""
     out = {}
     for pkg in PACKAGES:
         for path in sorted((ROOT / pkg).rglob("*.py")):
@@ -45,7 +50,7 @@ def _resolve(name: str, known: dict[str, Path]) -> str | None:
 
 def imports(known: dict[str, Path] | None = None) -> dict[str, dict[str, bool]]:
     """module -> {imported module: True if at module level}; module- and function-level
-    imports alike, relative ones resolved; only modules of the three packages."""
+    imports alike, relative ones resolved; only modules of :data:`PACKAGES`."""
     known = modules() if known is None else known
     graph: dict[str, dict[str, bool]] = {}
     for mod, path in known.items():
@@ -124,8 +129,8 @@ LAYERS = {
     "millfmu": 2,
     # 3: FMU building and flowsheets
     "fmu_build": 3, "flowsheets": 3,
-    # 4: studies, benchmarks, the report
-    "millfmu.dem.studies": 4, "millfmu.studies": 4, "millfmu.report": 4,
+    # 4: studies, benchmarks, the report; the paper campaigns and peer benches of a checkout
+    "millfmu.studies": 4, "millfmu.report": 4, "validation": 4, "benchmarks": 4,
     "fmu_build.step_cost": 4, "fmu_build.exit_study": 4, "flowsheets.wp": 4,
     # 5: command-line modules
     "millfmu.cli": 5, "millfmu.dem.cli": 5, "millfmu.dem.tables.cli": 5, "fmu_build.cli": 5,
@@ -221,7 +226,7 @@ def longest_chain(graph: dict[str, dict[str, bool]]) -> list[str]:
 ENGINE_AND_MODEL = ("millfmu.dem.engine", "millfmu.dem.fluid", "millfmu.dem.coupling",
                     "millfmu.dem.mills", "millfmu.dem.tables", "millfmu.stress_tables", "millfmu.dem.analysis",
                     "millfmu.kinetics", "millfmu.mill", "millfmu.scene")
-FORBIDDEN = ("millfmu.dem.studies", "millfmu.studies", "millfmu.cli", "millfmu.dem.cli",
+FORBIDDEN = ("validation", "benchmarks", "millfmu.studies", "millfmu.cli", "millfmu.dem.cli",
              "millfmu.dem.tables.cli", "millfmu.rates", "millfmu.report", "flowsheets",
              "fmu_build")
 
@@ -262,17 +267,28 @@ PACKAGE_CIRCLES_LEFT = {
     # fmu_build and flowsheets, which use the model of millfmu: the command belongs in a
     # package of its own above the three
     ("flowsheets", "fmu_build", "millfmu"),
-    # the table reader reaches the builder (millfmu.dem.tables) and the DEM's limits from
-    # inside functions, for on-demand builds; the tables' CLI runs the work-precision study
-    # (millfmu.dem.studies), which builds tables: the on-demand entry and the tables' CLI
-    # belong above the reader and the studies
-    ("millfmu.dem", "millfmu.dem.studies", "millfmu.dem.tables", "millfmu.stress_tables"),
+    # the table reader reaches the builder (millfmu.dem.tables) from inside functions, for
+    # on-demand builds, and the builder reads and writes tables through the reader: the
+    # on-demand entry belongs above both
+    ("millfmu.dem.tables", "millfmu.stress_tables"),
 }
 
 
 def test_no_import_circle_between_sub_packages_but_those_named():
     circles = {tuple(c) for c in strongly_connected(package_graph(imports()))}
     assert circles <= PACKAGE_CIRCLES_LEFT, sorted(circles - PACKAGE_CIRCLES_LEFT)
+
+
+def test_installed_packages_import_no_checkout_only_code():
+    """millfmu, fmu_build and flowsheets never import validation or benchmarks, at module
+    level or inside a function: the wheel leaves those out, so an installed millfmu would
+    fail where it reached them. The measuring code imports the product, not the reverse."""
+    graph = imports()
+    assert {"validation.work_precision", "benchmarks.dem_peers"} <= set(graph)
+    assert "millfmu.dem.analysis.precision" in graph["validation.work_precision"]  # the scan sees them
+    bad = [(m, d) for m, deps in graph.items() if _under(m, INSTALLED)
+           for d in deps if _under(d, CHECKOUT_ONLY)]
+    assert not bad, bad
 
 
 def test_the_cli_plugins_are_seen_as_imports():

@@ -1,4 +1,5 @@
-"""ruff's rule set of pyproject.toml ([tool.ruff.lint]) holds over the packages and tests."""
+"""ruff's rule set of pyproject.toml ([tool.ruff.lint]) holds over the packages, the checkout's
+measuring code (validation, benchmarks) and the tests."""
 
 import shutil
 import subprocess
@@ -19,8 +20,8 @@ def test_ruff_finds_nothing():
     ruff = _ruff()
     if ruff is None:
         pytest.skip("ruff is not installed (pip install -e '.[test]' brings it)")
-    r = subprocess.run([ruff, "check", "--no-cache", "millfmu", "fmu_build", "flowsheets", "tests"], cwd=ROOT,
-                       capture_output=True, text=True)
+    r = subprocess.run([ruff, "check", "--no-cache", "millfmu", "fmu_build", "flowsheets", "validation", "benchmarks",
+                        "tests"], cwd=ROOT, capture_output=True, text=True)
     assert r.returncode == 0, r.stdout[-4000:] + r.stderr[-2000:]
 
 

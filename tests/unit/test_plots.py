@@ -209,7 +209,7 @@ def test_flowsheet_work_precision_ticks_are_plain(saved, tmp_path):
 def _shipped_dem_study():
     import json
 
-    from millfmu.dem.studies import work_precision as W
+    from millfmu.dem.analysis import precision as W
 
     if not W.SUMMARY_PATH.is_file():
         pytest.skip("no DEM study shipped")

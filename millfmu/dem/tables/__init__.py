@@ -12,7 +12,7 @@ The modules, by role:
 - :mod:`.cache`: the cache of built tables, its locks and the DEM kernel version;
 - :mod:`.equivalence`: source changes of round-off only, accepted as the tables' kernel
   version on the evidence of runs scored against the version's own realizations (the
-  runs: :mod:`.equivalence_runs`);
+  runs, made from a checkout: ``python -m validation.equivalence_runs``);
 - :mod:`.dem_builder`: the DEM as a builder (:class:`DemBuilder`), DEM table specs and
   rebuilds that cover a new point;
 - :mod:`.on_demand`: builds that extend a table to a new point, their cost and the

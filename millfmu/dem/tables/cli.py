@@ -1,4 +1,4 @@
-"""``millfmu tables build|status|verify|check|equivalence|clear``: the stress-energy lookup tables' cache.
+"""``millfmu tables build|status|verify|check|clear``: the stress-energy lookup tables' cache.
 
 The main CLI calls :func:`register` with its subparsers object. Nothing here imports numba;
 the DEM loads only in the processes that build grid points.
@@ -11,7 +11,10 @@ Examples::
     millfmu tables status
     millfmu tables verify --default
     millfmu tables clear --stale
-    millfmu tables equivalence --threads 1 2 --change "fused multiply-adds" --write
+
+A change of the DEM's sources that alters only round-off is accepted as the tables' kernel
+version by runs made from a checkout (``python -m validation.equivalence_runs``); the cache
+reads the evidence they write (:mod:`millfmu.dem.tables.equivalence`).
 """
 
 from __future__ import annotations
@@ -73,18 +76,42 @@ def _axis_names(text: str) -> list:
     return out
 
 
+def _cache_opt(q) -> None:
+    q.add_argument("--cache-dir", metavar="DIR", help="tables cache folder (default: "
+                   "$MILLFMU_CACHE_DIR, else $XDG_CACHE_HOME/millfmu/tables, else "
+                   "~/.cache/millfmu/tables)")
+
+
 def register(subparsers) -> argparse.ArgumentParser:
     """Add the ``tables`` command group to an argparse subparsers object."""
     p = subparsers.add_parser("tables", help="stress-energy lookup tables: build, status, "
                               "verify, check, clear", description=__doc__.split("\n\n")[0])
     sub = p.add_subparsers(dest="tables_command", metavar="{build,status,verify,check,clear}")
     sub.required = True
+    _register_build(sub)
 
-    def cache_opt(q):
-        q.add_argument("--cache-dir", metavar="DIR", help="tables cache folder (default: "
-                       "$MILLFMU_CACHE_DIR, else $XDG_CACHE_HOME/millfmu/tables, else "
-                       "~/.cache/millfmu/tables)")
+    s = sub.add_parser("status", help="list cache entries: ok, stale or bad")
+    _cache_opt(s)
+    s.add_argument("--json", action="store_true", help="print JSON")
+    s.set_defaults(func=_status)
 
+    v = sub.add_parser("verify", help="verify cache entries, table files, the default table")
+    _cache_opt(v)
+    v.add_argument("paths", nargs="*", help="cache entry folders or PREFIX of PREFIX.npz/.json "
+                   "(default: every cache entry)")
+    v.add_argument("--default", action="store_true", help="verify the shipped default table")
+    v.set_defaults(func=_verify)
+
+    _register_check(sub)
+
+    c = sub.add_parser("clear", help="remove cache entries")
+    _cache_opt(c)
+    c.add_argument("--stale", action="store_true", help="remove only stale and bad entries")
+    c.set_defaults(func=_clear)
+    return p
+
+
+def _register_build(sub) -> None:
     b = sub.add_parser("build", help="build (or find) the table of a DEM scene and grid")
     b.add_argument("--scene", default="disc_slice",
                    help="shipped DEM scene name or a .toml path (default disc_slice)")
@@ -101,7 +128,7 @@ def register(subparsers) -> argparse.ArgumentParser:
     b.add_argument("--fluid", choices=("coupled", "prescribed", "none"),
                    help="fluid model of the DEM runs (default: the scene's [fluid] mode; "
                         "disc_slice: coupled)")
-    cache_opt(b)
+    _cache_opt(b)
     b.add_argument("--executor", choices=("processes", "dask", "serial"), default="processes",
                    help="where grid points run: a local process pool (default), a Dask "
                         "LocalCluster on 127.0.0.1, or one after the other")
@@ -119,18 +146,8 @@ def register(subparsers) -> argparse.ArgumentParser:
     b.add_argument("--no-progress", action="store_true", help="no progress bar")
     b.set_defaults(func=_build)
 
-    s = sub.add_parser("status", help="list cache entries: ok, stale or bad")
-    cache_opt(s)
-    s.add_argument("--json", action="store_true", help="print JSON")
-    s.set_defaults(func=_status)
 
-    v = sub.add_parser("verify", help="verify cache entries, table files, the default table")
-    cache_opt(v)
-    v.add_argument("paths", nargs="*", help="cache entry folders or PREFIX of PREFIX.npz/.json "
-                   "(default: every cache entry)")
-    v.add_argument("--default", action="store_true", help="verify the shipped default table")
-    v.set_defaults(func=_verify)
-
+def _register_check(sub) -> None:
     k = sub.add_parser("check", help="run the DEM at one point and compare the table's "
                        "lookup there with it (interpolation; one-at-a-time separability)")
     k.add_argument("table", help="a shipped table's name (default, coupled, accelerator) or "
@@ -152,48 +169,9 @@ def register(subparsers) -> argparse.ArgumentParser:
                         "(e.g. the table's manifest before a rebuild or refinement)")
     k.set_defaults(func=_check)
 
-    q = sub.add_parser(
-        "equivalence", help="accept a change of the DEM's sources that alters only round-off: "
-        "runs at the work-precision operating point judged against realizations of the "
-        "table's own version",
-        description="A change of the DEM's sources that alters only round-off (another "
-        "order of a sum, fused multiply-adds) gives other trajectories and so other numbers, "
-        "but the same statistics. At the operating point of the work-precision study, "
-        "--reference runs the table's own sources once per thread count (each count splits "
-        "the 10-degree sector's beads differently: another realization) and records them "
-        "beside the table's point; without it, the changed sources run there and each "
-        "statistic per zone is scored, (mean of the runs - mean of the reference) / "
-        "(s sqrt(1/n + 1/m)), s the larger of the realizations' pooled standard deviation "
-        "and the study's sampling sigma. With --write, a change that passes is added to "
-        "millfmu/data/dem_equivalence.json, and its sources then take the table's kernel "
-        "version. Not for changes of the physics: those need a rebuilt table.")
-    q.add_argument("table", nargs="?", default="coupled", help="the table judged against "
-                   "(default: coupled, the default scene's)")
-    q.add_argument("--threads", type=int, nargs="+", default=[1, 2], metavar="N",
-                   help="one run per thread count, in parallel processes (distinct counts; "
-                        "default: 1 2)")
-    q.add_argument("--change", default="", help="what the change is (kept with the "
-                   "evidence)")
-    q.add_argument("--reference", action="store_true", help="the installed sources are the "
-                   "table's version: add their runs to the reference realizations (the noise "
-                   "a change is judged by)")
-    q.add_argument("--write", action="store_true", help="record the reference runs, or a "
-                   "passing change, in the evidence file")
-    q.add_argument("--evidence", metavar="FILE.json", help="the evidence file (default: "
-                   "millfmu/data/dem_equivalence.json)")
-    q.add_argument("--show", action="store_true", help="instead: print the recorded "
-                   "reference and the accepted changes with their recomputed scores")
-    q.set_defaults(func=_equivalence)
-
-    c = sub.add_parser("clear", help="remove cache entries")
-    cache_opt(c)
-    c.add_argument("--stale", action="store_true", help="remove only stale and bad entries")
-    c.set_defaults(func=_clear)
-    return p
-
 
 def _load_builder(text: str | None, threads):
-    from millfmu.dem.studies.work_precision import manifest_entry
+    from millfmu.dem.analysis.precision import manifest_entry
     from millfmu.dem.tables.dem_builder import DemBuilder
     from millfmu.stress_tables.spec import TableError
 
@@ -440,54 +418,6 @@ def _print_check(name: str, res: dict) -> None:
                  for a, b in zip(e["lookup_rel_diff"],
                                  e.get("grid_only_rel_diff", e["lookup_rel_diff"]))]
         print(f"  {k:26s} " + " ".join(f"{c:>22s}" for c in cells))
-
-
-def _equivalence(args) -> int:
-    from millfmu.dem.tables import equivalence as E
-    from millfmu.stress_tables.spec import TableError
-
-    try:
-        if args.show:
-            data = E.read_evidence(args.evidence)
-            ref = data.get("reference")
-            if ref is None:
-                print("no reference runs recorded")
-                return 0
-            for line in E.reference_lines(ref):
-                print(line)
-            if not data["accepted"]:
-                print("no accepted changes")
-            for e in data["accepted"]:
-                print(f"{e['source_hash'][:19]}... accepted as {e['accepted_as'][:19]}... "
-                      f"({e.get('change') or 'no description'})")
-                for line in E.change_lines(e, ref):
-                    print("  " + line)
-            return 0
-        from millfmu.dem.tables.equivalence_runs import run_equivalence
-
-        res = run_equivalence(args.table, args.threads, args.change,
-                              reference=args.reference, evidence_path=args.evidence)
-        if res["kind"] == "reference":
-            shown = dict(res)
-            if args.write:
-                E.record(res, args.evidence)
-                shown = E.read_evidence(args.evidence)["reference"]
-            for line in E.reference_lines(shown):
-                print(line)
-            print("recorded" if args.write else "not recorded (--write records)")
-            return 0
-        for line in E.change_lines(res, E.read_evidence(args.evidence)["reference"]):
-            print(line)
-        if not res["judgement"]["passed"]:
-            print("not accepted: nothing written" if args.write else "not accepted")
-            return 1
-        if args.write:
-            p = E.record(res, args.evidence)
-            print(f"accepted: {res['source_hash']} recorded in {p} as {res['accepted_as']}")
-        return 0
-    except (E.EquivalenceError, TableError) as e:
-        print(f"millfmu tables equivalence: {e}", file=sys.stderr)
-        return 2
 
 
 def _clear(args) -> int:

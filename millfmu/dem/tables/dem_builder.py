@@ -84,8 +84,8 @@ class DemBuilder:
     the scene with the point's values and returns the normalized fields. ``threads``: numba
     threads per run (1 when grid points run in parallel). ``work_precision``: what the
     table's manifest states as its work-precision entry (see
-    :func:`~.spec.manifest_for`), handed in by the caller: the tables CLI gives the study's
-    ``manifest_entry``."""
+    :func:`~.spec.manifest_for`), handed in by the caller: the tables CLI gives the shipped
+    study's :func:`millfmu.dem.analysis.precision.manifest_entry`."""
 
     threads: int | None = None
     work_precision: object = field(default=None, compare=False)

@@ -32,8 +32,9 @@ The evidence (:data:`EVIDENCE_PATH`): the reference (the table's values at the p
 law's sigmas, the runs' values) and the accepted changes (source hash, version accepted
 as, runs); :func:`accepted_versions` recomputes every change's scores on reading and
 ignores one that does not pass. Reading it needs no numba and no numpy, and this module
-imports nothing of the DEM's (the cache reads it for the kernel version); the runs are in
-:mod:`.equivalence_runs`.
+imports nothing of the DEM's (the cache reads it for the kernel version); the runs are made
+from a checkout (``validation/equivalence_runs.py``, ``python -m validation.equivalence_runs``),
+outside the installed package.
 """
 
 from __future__ import annotations
@@ -47,8 +48,8 @@ from ...stress_tables.files import write_replacing
 #: Evidence of accepted source changes (JSON, shipped with millfmu).
 EVIDENCE_PATH = Path(__file__).resolve().parents[2] / "data" / "dem_equivalence.json"
 #: The work-precision study's summary shipped with millfmu (the file that
-#: ``millfmu.dem.studies.work_precision.SUMMARY_PATH`` names; named here, not imported:
-#: the tables import no study)
+#: ``millfmu.dem.analysis.precision.SUMMARY_PATH`` names; named here, not imported: reading
+#: the evidence needs no numpy, which that module loads)
 WORK_PRECISION_PATH = Path(__file__).resolve().parents[2] / "data" / "dem_work_precision.json"
 
 #: Table check field (:data:`~.build.CHECK_FIELDS`) -> the work-precision statistic whose
@@ -190,7 +191,7 @@ def _write(data: dict, path=None) -> Path:
 
 
 def record(result: dict, path=None) -> Path:
-    """Add what :func:`~.equivalence_runs.run_equivalence` gave to the evidence: reference
+    """Add what ``run_equivalence`` (validation/equivalence_runs.py) gave to the evidence: reference
     runs to the reference (started with the first), an accepted change to ``accepted``
     (replacing an entry of the same source hash; refused unless it passed)."""
     data = read_evidence(path)

@@ -1,9 +1,10 @@
 """Seed 001 side by side: the statements of its section 3 against millfmu's disc slice,
 with the coupled fluid and with the prescribed swirl.
 
-``millfmu dem seed001 run --out DIR`` runs the cases (disc_slice, rotationally periodic
-sector without gravity; 80 % filling at 6, 8, 10, 12, 14 m/s, and 50 % and 90 % at 6 m/s)
-into ``DIR/<c|p>_v<tip speed>_f<filling %>``; ``millfmu dem seed001 table --out DIR`` reads
+From a checkout's root, ``python -m validation.seed001 run --out DIR`` runs the cases
+(disc_slice, rotationally periodic sector without gravity; 80 % filling at 6, 8, 10, 12,
+14 m/s, and 50 % and 90 % at 6 m/s) into ``DIR/<c|p>_v<tip speed>_f<filling %>``;
+``python -m validation.seed001 table --out DIR`` reads
 their ``stats.json`` and prints one row per statement: the paper's value, ours (coupled),
 ours (prescribed), verdict. The verdict compares the coupled runs; a quantitative statement
 counts as met within the tolerance named in its row.
@@ -11,8 +12,10 @@ counts as met within the tolerance named in its row.
 
 from __future__ import annotations
 
+import argparse
 import json
 import math
+import sys
 from pathlib import Path
 
 import numpy as np
@@ -122,10 +125,11 @@ def prescribed_from_table(vt: float, fill: float, table=None) -> dict | None:
     """Zone statistics of the prescribed-swirl DEM at a grid point of the shipped
     prescribed-swirl table (millfmu/data/prescribed_table.*), in the form of a run's stats.json (zones only; energies, frequencies and powers
     scaled back from the table's normalisation). None off the grid."""
+    import millfmu
     from millfmu.stress_tables.table import read_table
 
     if table is None:
-        d = Path(__file__).resolve().parents[2] / "data"  # millfmu/data
+        d = Path(millfmu.__file__).resolve().parent / "data"  # the package's data, wherever installed
         table = read_table(npz=d / "prescribed_table.npz", manifest_path=d / "prescribed_table.json")
     ax = table.axes
     try:
@@ -317,3 +321,39 @@ def markdown(rows) -> str:
         lines.append("")
         lines.append(f"Prescribed column: {rows[0]['prescribed_source']}.")
     return "\n".join(lines)
+
+
+# --- the command: python -m validation.seed001 -------------------------------------------
+
+def parser() -> argparse.ArgumentParser:
+    """The campaign's options (those of the former ``millfmu dem seed001``)."""
+    s = argparse.ArgumentParser(prog="python -m validation.seed001",
+                                description="Seed 001 side by side: run its cases, print the "
+                                            "deviation table. Run from a checkout's root.")
+    s.add_argument("action", choices=("run", "table"), help="run the cases (skipping those "
+                   "done) or print the table from their results")
+    s.add_argument("--out", required=True, help="folder of the case runs")
+    s.add_argument("--fluid", default="coupled,prescribed",
+                   help="fluid models to run (comma-separated; default both)")
+    s.add_argument("--threads", type=int, help="numba threads (default: all cores)")
+    return s
+
+
+def main(argv=None) -> int:
+    """``python -m validation.seed001 run|table --out DIR``: print the deviation table (after
+    running the missing cases with ``run``); 2 for a fluid model it does not know."""
+    args = parser().parse_args(argv)
+    if args.action == "run":
+        fluids = [f.strip() for f in args.fluid.split(",") if f.strip()]
+        bad = [f for f in fluids if f not in FLUIDS]
+        if bad:
+            print(f"python -m validation.seed001: --fluid {args.fluid!r}: allowed "
+                  f"{sorted(FLUIDS)}", file=sys.stderr)
+            return 2
+        run_campaign(args.out, fluids=fluids, threads=args.threads)
+    print(markdown(deviation_rows(args.out)))
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

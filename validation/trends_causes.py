@@ -21,25 +21,27 @@ pair's reference (bead diameter 0.6 and 1.2 mm, bead density 6040 kg/m3, tip spe
   S(10 um) at the reference stays the shipped detailed model's), and the fitted value is
   printed: the yeast burst energy's sourced range is about 1-5e-10 J.
 
-Run: ``python -m millfmu.studies.trends_causes`` (about half a minute). Prints the trend
+Run from a checkout's root: ``python -m validation.trends_causes`` (about half a minute). Prints the trend
 table per pair, the breakage probability per stress at three bead sizes, and the stress
 energies behind them (Kwade's SE against the table's medians).
 """
 
 from __future__ import annotations
 
+import argparse
 import math
+import sys
 from collections.abc import Callable
 from dataclasses import dataclass, replace
 
 import numpy as np
 from scipy.optimize import brentq
 
-from .. import calibration as cal
-from ..kinetics import rates as krates
-from ..kinetics import stress as kstress
-from ..kinetics.stress_distribution import Zone
-from ..mill import MillModel, psd_fractions
+from millfmu import calibration as cal
+from millfmu.kinetics import rates as krates
+from millfmu.kinetics import stress as kstress
+from millfmu.kinetics.stress_distribution import Zone
+from millfmu.mill import MillModel, psd_fractions
 
 #: The points off the reference: (parameter, OperatingPoint field, value, label).
 POINTS = (
@@ -369,7 +371,10 @@ def energies_table(ps: PairSetup) -> list:
     return rows
 
 
-def main():
+def main(argv=None) -> int:
+    """``python -m validation.trends_causes``: print the tables (no options)."""
+    argparse.ArgumentParser(prog="python -m validation.trends_causes",
+                            description=__doc__.split("\n\n")[0]).parse_args(argv)
     heads = [lab for *_, lab in POINTS]
     for ps in setups():
         rows = trend_rows(ps)
@@ -416,7 +421,8 @@ def main():
                   + f" (all {rec['tn_all']:.2g} = {rec['tn_all'] / rec['se']:.2g} SE); median SE_total "
                   + ", ".join(f"{k} {v:.2g}" for k, v in rec["total"].items())
                   + f" (all {rec['total_all']:.2g} = {rec['total_all'] / rec['se']:.2g} SE)")
+    return 0
 
 
 if __name__ == "__main__":
-    main()
+    sys.exit(main())

@@ -21,7 +21,7 @@ about 0.35 s on, 3.5 at the spin-up's peak near 0.1 s), and its DEM steps cost 0
 the running mill's. The sector row therefore starts by default from the running mill
 (``start="running"``): the state after :data:`RUNNING_S` of coupled motion, made once
 (about 2.5 minutes on 2 threads) and kept in the bench folder
-(:func:`millfmu.dem.studies.bench.bench_dir`) for these sources and thread count;
+(:func:`benchmarks.dem_peers.bench_dir`) for these sources and thread count;
 ``start="early"`` times the bed ``warm_s`` after the start, as this bench did before, and
 the full slice (hours to spin up on 2 cores) always does. The coupling's share is not
 smaller in the running mill (2 threads, two runs each: 30-31 % against 24-28 % early):
@@ -43,9 +43,11 @@ With the axisymmetric grid's stencils 4 wide (half the stencils' memory) the exc
 
 from __future__ import annotations
 
+import argparse
 import hashlib
 import pickle
 import statistics
+import sys
 import time
 from dataclasses import asdict, dataclass, field
 
@@ -104,7 +106,7 @@ def running_state(threads: int | None = None, running_s: float = RUNNING_S, out=
     import numba
 
     from millfmu.dem.run import _write_checkpoint, make_simulation
-    from millfmu.dem.studies.bench import bench_dir
+    from benchmarks.dem_peers import bench_dir
     from millfmu.dem.tables.cache import kernel_source_hash
 
     sc = _scene("sector")
@@ -199,7 +201,7 @@ def run_coupled_bench(steps: int = 2000, repeats: int = 3, threads: int | None =
         td.append(a)
         tc.append(b)
     bd, bc = min(td), min(tc)
-    from millfmu.dem.studies.bench import threading_layer
+    from benchmarks.dem_peers import threading_layer
 
     layer = threading_layer()
     return CoupledBenchResult(scene=scene, device=device, beads=sim.n,
@@ -331,3 +333,64 @@ def profile_coupled(steps: int = 2000, threads: int | None = None, start: str = 
     out(f"  against the DEM's interval alone: the exchange {ex / base:.0%}, the DEM's steps "
         f"between exchanges {dem / base - 1:+.0%}, {(ex + dem) / base - 1:.0%} in all")
     return res
+
+
+def row_line(c: dict) -> str:
+    """The coupled row as one line (``c``: :meth:`CoupledBenchResult.as_dict`)."""
+    where = f"DEM on the GPU, liquid on {c['threads']} threads" if c["device"] == "gpu" \
+        else f"{c['threads']} threads"
+    where += f" ({c['threading_layer']})"
+    return (f"coupled row (disc_slice 10 m/s, 80 %, "
+            f"{'10 deg' if c['scene'] == 'sector' else '360 deg with gravity'}, "
+            f"{c['beads']} beads, "
+            f"{c['fluid_cells']} fluid cells, coupling every {c['coupling_steps']} steps, "
+            f"{where}, best of {len(c['dem_times_s'])}): DEM alone "
+            f"{c['dem_particle_steps_per_s']:.4g}, coupled "
+            f"{c['coupled_particle_steps_per_s']:.4g} particle-steps/s; the fluid and the "
+            f"coupling add {c['added_cost']:.0%} (median of the "
+            f"{len(c['block_added_costs'])} block pairs {c['added_cost_median']:.0%}); "
+            f"beads timed from {c['start_s']:.3f} s after the start "
+            f"({'the running mill' if c['start'] == 'running' else 'early'})")
+
+
+def main(argv=None) -> int:
+    """``python -m benchmarks.coupled_bench [sector|full]``: the coupled row alone, what
+    ``python -m benchmarks.dem_peers --bed none --coupled`` runs (its options, by the same
+    names)."""
+    from benchmarks.dem_peers import main as peers
+
+    ap = argparse.ArgumentParser(
+        prog="python -m benchmarks.coupled_bench",
+        description="The coupled DEM-CFD against the DEM alone on the same beads (disc_slice "
+                    "10 m/s, 80 %), alternating: what the liquid and the coupling add. The "
+                    "same as 'python -m benchmarks.dem_peers --bed none --coupled SCENE'.")
+    ap.add_argument("scene", nargs="?", default="sector", choices=SCENES,
+                    help="the 10-degree sector (default) or 'full', the 360-degree slice with "
+                         "gravity and 32 theta cells (235 k beads)")
+    ap.add_argument("--steps", type=int, default=None, help="DEM steps per repeat "
+                    "(default 1000)")
+    ap.add_argument("--repeats", type=int, default=None, help="rounds, best of (default 3)")
+    ap.add_argument("--cores", type=int, nargs="+", default=None, metavar="N",
+                    help="numba threads (the largest counts; default: 1 2)")
+    ap.add_argument("--device", choices=("cpu", "gpu"), default=None,
+                    help="where the DEM steps (the liquid stays on the CPU's threads)")
+    ap.add_argument("--coupled-start", choices=STARTS, default=None,
+                    help="where the beads start: the running mill (the sector's default) or "
+                         "early (see 'python -m benchmarks.dem_peers --help')")
+    ap.add_argument("--profile", action="store_true", help="instead: where a coupled "
+                    "interval's time goes, part by part (the sector on the CPU)")
+    ap.add_argument("--json", action="store_true", help="also print the row as JSON")
+    a = ap.parse_args(argv)
+    args = ["--bed", "none", "--coupled", a.scene]
+    for opt, v in (("--steps", a.steps), ("--repeats", a.repeats), ("--device", a.device),
+                   ("--coupled-start", a.coupled_start)):
+        if v is not None:
+            args += [opt, str(v)]
+    if a.cores:
+        args += ["--cores", *map(str, a.cores)]
+    args += ["--profile"] * a.profile + ["--json"] * a.json
+    return peers(args)
+
+
+if __name__ == "__main__":
+    sys.exit(main())

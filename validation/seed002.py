@@ -1,16 +1,19 @@
 """Seed 002 side by side: the statements of He et al. (2022) on the accelerator mill against
 millfmu's accelerator slice with the coupled fluid.
 
-``millfmu dem seed002 run --out DIR`` runs the cases (accelerator_slice, 60 degree sector
-without gravity (SECTOR_DEG); 800, 1000, 1200, 1400 rpm at 80 % filling and 60, 70, 80, 90 % at
-1200 rpm) into ``DIR/n<rpm>_f<filling %>``; ``millfmu dem seed002 table --out DIR`` reads
-their ``stats.json`` and prints one row per statement: the paper's, ours, the verdict.
+From a checkout's root, ``python -m validation.seed002 run --out DIR`` runs the cases
+(accelerator_slice, 60 degree sector without gravity (SECTOR_DEG); 800, 1000, 1200, 1400 rpm
+at 80 % filling and 60, 70, 80, 90 % at 1200 rpm) into ``DIR/n<rpm>_f<filling %>``;
+``python -m validation.seed002 table --out DIR`` reads their ``stats.json`` and prints one
+row per statement: the paper's, ours, the verdict.
 """
 
 from __future__ import annotations
 
+import argparse
 import json
 import math
+import sys
 from pathlib import Path
 
 import numpy as np
@@ -145,7 +148,9 @@ def run_campaign(out_dir, cases=CASES, threads=None, progress=True, method="phys
 
 
 #: Builder id of a table assembled from the campaign's runs (not the DemBuilder: the runs'
-#: windows are WINDOW_S long, not the halves of the recording, and they keep their outputs)
+#: windows are WINDOW_S long, not the halves of the recording, and they keep their outputs).
+#: It names the module where this campaign lived before (millfmu.dem.studies): the id is
+#: part of the table's key, which a move of the code must not change.
 CAMPAIGN_BUILDER_ID = "millfmu.dem.studies.seed002.campaign_runs"
 
 
@@ -165,7 +170,7 @@ def export_table(out_dir, prefix, filling: float = 0.8):
     from millfmu.dem.analysis.stats import DemStats
     from millfmu.dem.scene import scene_from_dict
     from millfmu.dem.scene import load_scene_dict
-    from millfmu.dem.studies.work_precision import manifest_entry
+    from millfmu.dem.analysis.precision import manifest_entry
     from millfmu.dem.tables.build import assemble, stationarity_summary
     from millfmu.dem.tables.cache import dem_kernel_version
     from millfmu.dem.tables.dem_builder import normalize_stats, recording_drift
@@ -184,8 +189,8 @@ def export_table(out_dir, prefix, filling: float = 0.8):
     for n, point in zip(SPEEDS, spec.points()):
         d = case_dir(out_dir, n, filling)
         if not (d / "stats.json").exists():
-            raise TableError(f"{d}: no stats.json; run 'millfmu dem seed002 run --out "
-                             f"{out_dir}' first")
+            raise TableError(f"{d}: no stats.json; run 'python -m validation.seed002 run "
+                             f"--out {out_dir}' first")
         stats = DemStats.from_json((d / "stats.json").read_text())
         sc = scene_from_dict(scene_at_point(base, point))
         if abs(stats.tip_speed_m_s - sc.tip_speed_m_s) > 1e-9 * sc.tip_speed_m_s or \
@@ -213,8 +218,8 @@ def export_table(out_dir, prefix, filling: float = 0.8):
                     f"window of {WINDOW_S} s")}
     table.manifest = manifest_for(spec, table, {
         "resolution": res,
-        "rebuild_command": (f"millfmu dem seed002 run --out DIR && millfmu dem seed002 "
-                            f"table --out DIR --export-table {prefix}")},
+        "rebuild_command": (f"python -m validation.seed002 run --out DIR && python -m "
+                            f"validation.seed002 table --out DIR --export-table {prefix}")},
         work_precision=manifest_entry)
     table.export(prefix)
     return table
@@ -458,3 +463,101 @@ def markdown_columns(rows) -> str:
         lines.append(f"| {r['statement']} | {r['paper']} | " + " | ".join(cells) +
                      f" | {r['verdict']} |")
     return "\n".join(lines)
+
+
+# --- the command: python -m validation.seed002 -------------------------------------------
+
+def parser() -> argparse.ArgumentParser:
+    """The campaign's options (those of the former ``millfmu dem seed002``)."""
+    s2 = argparse.ArgumentParser(prog="python -m validation.seed002",
+                                 description="Seed 002 side by side (accelerator mill): run "
+                                             "its cases, print the deviation table. Run from "
+                                             "a checkout's root.")
+    s2.add_argument("action", choices=("run", "table"), help="run the cases (skipping those "
+                    "done) or print the table from their results")
+    s2.add_argument("--out", required=True, help="folder of the case runs")
+    s2.add_argument("--method", choices=("physical", "paper", "physical-A"),
+                    default="physical",
+                    help="run: physical (the slice's own coupling, every contact event "
+                         "counted), paper (seed 002's numerics: discrete phase model, CFD "
+                         "step 0.01 s, contacts counted at 20 frames per second) or "
+                         "physical-A (physical with model A's pressure-gradient force)")
+    s2.add_argument("--primed", action="store_true", help="run: start the beads in the "
+                    "bead-free liquid's circulation (primed start) instead of from rest")
+    s2.add_argument("--baffles", action="store_true", help="run: with stationary baffles "
+                    "on the chamber wall between the rotors (BAFFLES; the liquid in "
+                    "12 theta cells per 60 degrees)")
+    s2.add_argument("--case", action="append", metavar="RPM:FILLING", help="run only this "
+                    "case (e.g. 1200:0.8; repeatable; default all seven)")
+    s2.add_argument("--compare", action="append", metavar="LABEL=DIR", help="table: also "
+                    "this campaign as a column (repeatable), beside --out's")
+    s2.add_argument("--threads", type=int, help="numba threads (default: all cores)")
+    s2.add_argument("--export-table", metavar="PREFIX", help="also write the stress-energy "
+                    "table of the 80 %% runs over the rotor speeds to PREFIX.npz/.json (e.g. "
+                    "millfmu/data/accelerator_table)")
+    return s2
+
+
+def _case(text: str) -> tuple:
+    """'1200:0.8' -> (1200.0, 0.8), one of the cases."""
+    try:
+        rpm, fill = (float(x) for x in text.split(":"))
+    except ValueError:
+        raise ValueError(f"--case {text!r}: write RPM:FILLING, e.g. 1200:0.8") from None
+    for c in CASES:
+        if abs(c[0] - rpm) < 1e-9 and abs(c[1] - fill) < 1e-9:
+            return c
+    raise ValueError(f"--case {text!r}: not one of seed 002's cases "
+                     f"{[f'{n:g}:{f:g}' for n, f in CASES]}")
+
+
+def _label(folder) -> str:
+    c = campaign_of(folder)
+    return c["method"] + (", primed" if c.get("primed") else "") + \
+        (", baffles" if c.get("baffles") else "")
+
+
+def _compare_col(text: str) -> tuple:
+    label, sep, folder = text.partition("=")
+    if not sep or not label or not folder:
+        raise ValueError(f"--compare {text!r}: write LABEL=DIR")
+    return label, folder
+
+
+def main(argv=None) -> int:
+    """``python -m validation.seed002 run|table --out DIR [...]``: print the deviation table
+    (after running the cases with ``run``), export the table with ``--export-table``; 2
+    with the reason on stderr."""
+    from millfmu.dem.run import DemRunError
+
+    args = parser().parse_args(argv)
+    cases = CASES
+    try:
+        if args.case:
+            cases = tuple(_case(c) for c in args.case)
+        cols = [(_label(args.out), args.out)] + [_compare_col(c) for c in args.compare or ()]
+        if args.action == "run":
+            run_campaign(args.out, cases=cases, threads=args.threads, method=args.method,
+                         primed=args.primed, baffles=args.baffles)
+        if len(cols) == 1:
+            print(markdown(deviation_rows(args.out), f"ours ({cols[0][0]})"))
+        else:
+            print(markdown_columns(deviation_table(cols)))
+    except (ValueError, DemRunError) as e:
+        print(f"python -m validation.seed002: {e}", file=sys.stderr)
+        return 2
+    if args.export_table:
+        from millfmu.stress_tables.spec import TableError
+
+        try:
+            t = export_table(args.out, args.export_table)
+        except TableError as e:
+            print(f"python -m validation.seed002: {e}", file=sys.stderr)
+            return 2
+        print(f"exported {args.export_table}.npz/.json ({t.axes['tip_speed_m_s'].size} "
+              f"tip speeds)")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

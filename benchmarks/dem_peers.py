@@ -22,6 +22,7 @@ excluded, as LAMMPS' and LIGGGHTS' "Loop time").
 
 from __future__ import annotations
 
+import argparse
 import hashlib
 import json
 import math
@@ -29,6 +30,7 @@ import os
 import re
 import shutil
 import subprocess
+import sys
 import tempfile
 import time
 from dataclasses import asdict, dataclass, field
@@ -89,7 +91,7 @@ BED = BedRecipe()
 #: zones, where the rebuilds, not the contacts, cost most
 DILUTE_BED = BedRecipe(solid_fraction=0.3, grow_stages=4, relax_stages=1,
                        spin_up_steps=2000, gas_speed_m_s=1.0)
-#: the beds by name (``dem bench --bed``)
+#: the beds by name (``--bed``)
 BEDS = {"dense": BED, "dilute": DILUTE_BED}
 
 
@@ -477,8 +479,6 @@ def threading_layer() -> str:
     numba was never loaded): the bench prints it, since it moves millfmu.dem's figures (the
     coupled 10-degree sector's DEM on 2 threads: 4.57 and 4.32 M particle-steps/s on TBB
     against 5.47 and 5.04 on OpenMP, two benches each, alternating)."""
-    import sys
-
     if "numba" not in sys.modules:
         return "none"
     import numba
@@ -800,3 +800,115 @@ def profile_gpu(path, steps: int = BENCH_STEPS, out=print) -> dict:
     out(f"  one kernel launch on the host: {launch * 1e6:.1f} us")
     return dict(tm, total=total, plain=plain, launch_s=launch, builds=builds,
                 dropped=dropped)
+
+
+# ---- the command: python -m benchmarks.dem_peers ------------------------------------------
+def parser() -> argparse.ArgumentParser:
+    """The bench's options (those of the former ``millfmu dem bench``)."""
+    b = argparse.ArgumentParser(
+        prog="python -m benchmarks.dem_peers",
+        description="The dense sheared bed: ours (1 and 2 threads), LAMMPS and LIGGGHTS when "
+                    "installed, the GPU when present; ratios. Run from a checkout's root.")
+    b.add_argument("--steps", type=int, default=None, help="steps per run (default 1000)")
+    b.add_argument("--repeats", type=int, default=None,
+                   help="rounds, codes alternating; each code's fastest run counts (default 3)")
+    b.add_argument("--cores", type=int, nargs="+", default=None, metavar="N",
+                   help="numba threads and MPI ranks to run (default: 1 2)")
+    b.add_argument("--ours-only", action="store_true", help="do not run LAMMPS and LIGGGHTS")
+    b.add_argument("--device", choices=("cpu", "gpu"), default=None,
+                   help="only the CPU rows (with LAMMPS and LIGGGHTS) or only the GPU rows "
+                        "(the bed and a million beads; numba.cuda); default: both, the "
+                        "GPU rows where a GPU is present")
+    b.add_argument("--profile", action="store_true",
+                   help="instead: where millfmu.dem's time goes, per kernel (1 and 2 threads; "
+                        "with --device gpu, or where a GPU is present, per GPU phase); with "
+                        "--coupled, where a coupled interval's time goes, part by part, "
+                        "inside the coupled run (the sector; --bed none for it alone)")
+    b.add_argument("--regenerate-bed", action="store_true",
+                   help="make the bed again (it is made once and cached)")
+    b.add_argument("--json", action="store_true", help="also print every run as JSON")
+    b.add_argument("--bed", choices=("dense", "dilute", "both", "none"), default="dense",
+                   help="the dense sheared bed (default), the dilute one (a granular gas: "
+                        "few contacts, frequent neighbour rebuilds), both in turn, or none "
+                        "(with --coupled: the coupled row alone)")
+    b.add_argument("--coupled", nargs="?", const="sector", default=None,
+                   choices=("sector", "full"),
+                   help="also the coupled row (benchmarks.coupled_bench): disc_slice with the "
+                        "coupled fluid against the DEM alone on the same beads, alternating, "
+                        "best of 3 (on the largest of --cores threads; the DEM on the GPU with "
+                        "--device gpu): the 10-degree sector (default) or 'full', the "
+                        "360-degree slice with gravity and 32 theta cells (235 k beads)")
+    b.add_argument("--coupled-start", choices=("running", "early"), default=None,
+                   help="where the coupled row's beads start: 'running', the running mill "
+                        "(the sector's default: after 0.4 s of coupled motion, made once and "
+                        "cached beside the bench bed) or 'early', 0.01 s after the start at "
+                        "0.1 of the stirrer's rotation, when the bed has about a third of "
+                        "the running mill's contacts (the full slice and the GPU always)")
+    return b
+
+
+def _refusal(args) -> str | None:
+    """Why these options cannot run together (None: they can)."""
+    if args.bed == "none" and not args.coupled:
+        return "--bed none: nothing to run without --coupled"
+    if args.profile and args.coupled and (args.coupled == "full" or args.device == "gpu"):
+        return (f"--profile --coupled: the 10-degree sector with the DEM on the CPU (here "
+                f"--coupled {args.coupled}{', --device gpu' if args.device == 'gpu' else ''})")
+    if args.coupled_start and not args.coupled:
+        return (f"--coupled-start {args.coupled_start}: applies to the coupled row; add "
+                f"--coupled")
+    if args.coupled_start == "running" and (args.coupled == "full" or args.device == "gpu"):
+        return (f"--coupled-start running: the 10-degree sector on the CPU only (here "
+                f"--coupled {args.coupled}{', --device gpu' if args.device == 'gpu' else ''}; "
+                f"the full slice takes hours to spin up on 2 cores): use --coupled-start early")
+    if args.device == "gpu" and (args.profile or args.coupled) and not gpu_available():
+        return ("--device gpu: numba.cuda finds no CUDA GPU (numba's simulator is for tests, "
+                "not for timing)")
+    return None
+
+
+def main(argv=None) -> int:
+    """``python -m benchmarks.dem_peers [OPTIONS]``: print the bench (see :func:`parser`)."""
+    args = parser().parse_args(argv)
+    why = _refusal(args)
+    if why:
+        print(f"python -m benchmarks.dem_peers: {why}", file=sys.stderr)
+        return 2
+    steps = args.steps or BENCH_STEPS
+    cores = tuple(args.cores or (1, 2))
+    beds = dict(both=("dense", "dilute"), none=()).get(args.bed, (args.bed,))
+    if args.profile:
+        if args.coupled:
+            from benchmarks.coupled_bench import profile_coupled
+
+            profile_coupled(steps=args.steps or 2000, threads=max(cores),
+                            start=args.coupled_start or "running")
+        for bed in beds:
+            path = bed_file(BEDS[bed], regenerate=args.regenerate_bed)
+            if args.device != "gpu":
+                for nc in cores:
+                    profile(path, nc, steps)
+            if args.device == "gpu" or (args.device is None and gpu_available()):
+                profile_gpu(path, steps)
+        return 0
+    runs = []
+    for bed in beds:
+        runs += bench(steps=steps, repeats=args.repeats or BENCH_REPEATS, cores=cores,
+                      others=not args.ours_only, regenerate=args.regenerate_bed,
+                      devices=(args.device,) if args.device else ("cpu", "gpu"), bed=bed)
+    out = {"runs": [dict(r.__dict__, rate=r.rate) for r in runs]}
+    if args.coupled:
+        from benchmarks.coupled_bench import row_line, run_coupled_bench
+
+        out["coupled"] = run_coupled_bench(
+            steps=steps, repeats=args.repeats or 3, threads=max(cores), scene=args.coupled,
+            device="gpu" if args.device == "gpu" else "cpu",
+            start=args.coupled_start).as_dict()
+        print(row_line(out["coupled"]))
+    if args.json:
+        print(json.dumps(out))
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
