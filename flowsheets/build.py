@@ -33,14 +33,14 @@ CODE = {
         "unit_vars.py": HERE / "unit_vars.py",
         "units.py": HERE / "units.py",
         "grid.py": _MILLFMU / "kinetics" / "grid.py",
-        "fmi_xml.py": _MILLFMU / "fmi_xml.py",
+        "base2.py": _MILLFMU / "fmi" / "base2.py",
     },
     3: {
         "unit_fmu3.py": HERE / "unit_fmu3.py",
         "unit_vars.py": HERE / "unit_vars.py",
         "units.py": HERE / "units.py",
         "grid.py": _MILLFMU / "kinetics" / "grid.py",
-        "fmi3_slave.py": _MILLFMU / "fmi3_slave.py",
+        "base3.py": _MILLFMU / "fmi" / "base3.py",
     },
 }
 

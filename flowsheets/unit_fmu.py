@@ -7,7 +7,7 @@ size-grid module (renamed, like the mill FMU's code) and its configuration
 unit's parameters, so the FMU runs in any master without parameter settings. Parameters are
 also FMI parameters (start = the configured value); tunable ones may change between steps.
 
-Conventions as in the mill FMU (millfmu.fmu): every Real has a unit (UnitDefinitions); a
+Conventions as in the mill FMU (millfmu.fmi.mill2): every Real has a unit (UnitDefinitions); a
 mass-flow output [kg/s] is the mean over the last step; outputs depend on no input within a
 step (no direct feedthrough); bad input or a refused step answers fmi2Discard with a logged
 message naming the variable, the value and what is allowed, and leaves the state as it was;
@@ -25,9 +25,9 @@ from pythonfmu import Fmi2Causality, Fmi2Initial, Fmi2Slave, Fmi2Variability, Re
 from pythonfmu.enums import Fmi2Status
 
 try:  # carried into a unit FMU, the module sits next to this one
-    from .fmi_xml import complete_model_description, get_reals
+    from .base2 import complete_model_description, get_reals
 except ImportError:
-    from millfmu.fmi_xml import complete_model_description, get_reals
+    from millfmu.fmi.base2 import complete_model_description, get_reals
 from .unit_vars import ClassifierUnit, FeedUnit, PIControllerUnit, TankUnit, psd_description, read_config, unit_exponents
 from .units import StepDiscarded, UnitInputError
 

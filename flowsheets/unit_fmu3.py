@@ -3,15 +3,15 @@
 
 A unit FMU built by ``flowsheets.build`` with FMI version 3 carries this module,
 :mod:`unit_vars`, :mod:`units`, millfmu's size-grid module and millfmu's FMI 3.0 base
-(:mod:`millfmu.fmi3_slave`), its configuration ``resources/unit.json`` and pythonfmu3's
+(:mod:`millfmu.fmi.base3`), its configuration ``resources/unit.json`` and pythonfmu3's
 wrapper with millfmu's fixes. The variables are those of the FMI 2.0 unit FMU, all Float64
 with units, plus ``time`` and the structural parameter ``n_classes``: every size
 distribution is one array of ``n_classes`` values.
 
-Statuses as in the FMI 3.0 mill FMU (millfmu.fmu3): bad input or a refused step (the feed
+Statuses as in the FMI 3.0 mill FMU (millfmu.fmi.mill3): bad input or a refused step (the feed
 holding a jump of its profile) is fmi3Discard from ``fmi3DoStep`` with the state unchanged;
 a parameter value the unit refuses is fmi3Error from ``fmi3ExitInitializationMode`` (and
-from every later step); illegal calls are fmi3Error (millfmu.fmi3_slave).
+from every later step); illegal calls are fmi3Error (millfmu.fmi.base3).
 """
 
 from __future__ import annotations
@@ -22,9 +22,9 @@ from xml.etree.ElementTree import Element
 import numpy as np
 
 try:  # carried into a unit FMU, the module sits next to this one
-    from .fmi3_slave import Fmi3Base
+    from .base3 import Fmi3Base
 except ImportError:
-    from millfmu.fmi3_slave import Fmi3Base
+    from millfmu.fmi.base3 import Fmi3Base
 from .unit_vars import ClassifierUnit, FeedUnit, PIControllerUnit, TankUnit, psd_description, read_config, unit_exponents
 from .units import StepDiscarded, UnitInputError
 

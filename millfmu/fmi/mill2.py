@@ -46,12 +46,12 @@ from xml.etree.ElementTree import Element
 from pythonfmu import DefaultExperiment, Fmi2Causality, Fmi2Initial, Fmi2Slave, Fmi2Variability, Real
 from pythonfmu.enums import Fmi2Status
 
-from .fmi_xml import complete_model_description, get_reals
-# The variable tables live in fmu_variables (shared with the FMI 3.0 adapter); re-exported here.
-from .fmu_variables import (DISRUPTED, HeldArray, INPUTS, OUTPUTS, PARAMETERS, SCENE_FILE, TABLE_PREFIX, UNITS,  # noqa: F401
+from .base2 import complete_model_description, get_reals
+# The variable tables live in millfmu.fmi.variables (shared with the FMI 3.0 adapter); re-exported here.
+from .variables import (DISRUPTED, HeldArray, INPUTS, OUTPUTS, PARAMETERS, SCENE_FILE, TABLE_PREFIX, UNITS,  # noqa: F401
                             model_description_text, model_with, plain as _plain, read_band, read_scene_dict, variables)
-from .mill import InputError, MillModel, StepError
-from .scene import SceneError, scene_from_dict
+from ..mill import InputError, MillModel, StepError
+from ..scene import SceneError, scene_from_dict
 
 #: Written by the build into the resources: "fixed" when the FMU carries millfmu's rebuilt
 #: pythonfmu wrapper (exceptions -> fmi2Error), "stock" for pythonfmu's own.
@@ -132,7 +132,7 @@ class MillSlave(Fmi2Slave):
                 self._scene_key[vr] = scene_key
             return vr
 
-        # One description of the variables (millfmu.fmu_variables) serves FMI 2.0 and 3.0;
+        # One description of the variables (millfmu.fmi.variables) serves FMI 2.0 and 3.0;
         # here an array is n Reals name[1] ... name[n].
         self._vr_param, self._vr_in, self._psd_in_vr0 = {}, {}, None
         self._psd_in = HeldArray()
@@ -377,5 +377,5 @@ class MillSlave(Fmi2Slave):
     # ---- model description -----------------------------------------------------------------
     def to_xml(self, model_options=None) -> Element:
         """pythonfmu's description completed with units, exact start values, output
-        dependencies and InitialUnknowns (see :mod:`millfmu.fmi_xml`)."""
+        dependencies and InitialUnknowns (see :mod:`millfmu.fmi.base2`)."""
         return complete_model_description(super().to_xml({} if model_options is None else model_options), self, self._units, UNITS.__getitem__, self._model_description)
