@@ -34,7 +34,7 @@ else:  # pragma: no cover
     import tomli as tomllib
 
 import millfmu
-from millfmu.fmi.variables import BAND_FILE
+from millfmu.fmi.variables import BAND_FILE, TABLE_PREFIX
 from millfmu.mill import MillModel
 from millfmu.runner import prediction_band
 from millfmu.scene import default_scene_text, load_scene, toml_text
@@ -49,8 +49,6 @@ from .wrapper import choose_wrapper, fmi2_replacements
 #: detailed model is millfmu.stress_tables, outside millfmu.dem: nothing under millfmu.dem
 #: (the DEM, the table builder, the cache) may be carried.
 FORBIDDEN = ("numba", "millfmu.dem", "matplotlib", "tqdm")
-#: Prefix of the table files in the FMU's resources (TABLE_PREFIX.npz, TABLE_PREFIX.json).
-TABLE_PREFIX = "table"
 
 #: FMI version -> the adapter module the FMU runs.
 ADAPTERS = {2: "millfmu.fmi.mill2", 3: "millfmu.fmi.mill3"}
