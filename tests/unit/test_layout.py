@@ -128,7 +128,7 @@ LAYERS = {
     "millfmu.dem.studies": 4, "millfmu.studies": 4, "millfmu.report": 4,
     "fmu_build.step_cost": 4, "fmu_build.exit_study": 4, "flowsheets.wp": 4,
     # 5: command-line modules
-    "millfmu.cli": 5, "millfmu.dem.cli": 5, "millfmu.dem.tables.cli": 5, "fmu_build.cli": 5,
+    "millfmu.cli": 5, "millfmu.dem.cli": 5, "millfmu.dem.tables.cli": 5, "millfmu.calibration.cli": 5, "fmu_build.cli": 5,
     "flowsheets.cli": 5, "millfmu.rates": 5,  # millfmu.rates: the `millfmu rates` command
 }
 LAYER_NAMES = ("engine/kinetics", "dem scene/run/analysis/tables, table reader", "model",
@@ -220,10 +220,10 @@ def longest_chain(graph: dict[str, dict[str, bool]]) -> list[str]:
 # FMU builder or the flowsheets.
 ENGINE_AND_MODEL = ("millfmu.dem.engine", "millfmu.dem.fluid", "millfmu.dem.coupling",
                     "millfmu.dem.mills", "millfmu.dem.tables", "millfmu.stress_tables", "millfmu.dem.analysis",
-                    "millfmu.kinetics", "millfmu.mill", "millfmu.scene")
+                    "millfmu.kinetics", "millfmu.mill", "millfmu.scene", "millfmu.fmi")
 FORBIDDEN = ("millfmu.dem.studies", "millfmu.studies", "millfmu.cli", "millfmu.dem.cli",
-             "millfmu.dem.tables.cli", "millfmu.rates", "millfmu.report", "flowsheets",
-             "fmu_build")
+             "millfmu.dem.tables.cli", "millfmu.calibration.cli", "millfmu.rates", "millfmu.report",
+             "flowsheets", "fmu_build")
 
 
 def _under(mod: str, prefixes) -> bool:
@@ -277,7 +277,7 @@ def test_no_import_circle_between_sub_packages_but_those_named():
 
 def test_the_cli_plugins_are_seen_as_imports():
     graph = imports()
-    assert {"millfmu.dem.cli", "fmu_build.cli", "flowsheets.cli", "millfmu.report"} <= set(graph["millfmu.cli"])
+    assert {"millfmu.dem.cli", "fmu_build.cli", "flowsheets.cli", "millfmu.report", "millfmu.calibration.cli"} <= set(graph["millfmu.cli"])
 
 
 def test_engine_and_model_import_no_study_cli_report_or_builder():
