@@ -3,7 +3,8 @@ self-contained.
 
 Like ``millfmu build-fmu`` (fmu_build.build), the FMU's resources hold the code it runs
 under a package name derived from the code's contents (``_flowunits_<hash>/``: the adapter,
-unit_vars.py, units.py and millfmu's size-grid module as grid.py), the configuration
+unit_vars.py, units.py, millfmu's size-grid module as grid.py and millfmu's FMI base of the
+version, base2.py or base3.py, which the mill FMU runs on too), the configuration
 ``unit.json`` and a slave script whose module name is unique per code and configuration, so
 FMUs built from different code or for different units never share a module in one process.
 The host's Python needs only numpy and pythonfmu's runtime part (which the FMU carries). An
@@ -33,14 +34,14 @@ CODE = {
         "unit_vars.py": HERE / "unit_vars.py",
         "units.py": HERE / "units.py",
         "grid.py": _MILLFMU / "kinetics" / "grid.py",
-        "fmi_xml.py": _MILLFMU / "fmi_xml.py",
+        "base2.py": _MILLFMU / "fmi" / "base2.py",
     },
     3: {
         "unit_fmu3.py": HERE / "unit_fmu3.py",
         "unit_vars.py": HERE / "unit_vars.py",
         "units.py": HERE / "units.py",
         "grid.py": _MILLFMU / "kinetics" / "grid.py",
-        "fmi3_slave.py": _MILLFMU / "fmi3_slave.py",
+        "base3.py": _MILLFMU / "fmi" / "base3.py",
     },
 }
 

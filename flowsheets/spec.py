@@ -228,6 +228,29 @@ def load_flowsheet(path) -> Flowsheet:
 
 
 def flowsheet_from_dict(d: dict, source: str = "flowsheet", base_dir: Path | None = None) -> Flowsheet:
+    vals = _flowsheet_section(d, source)
+    units_d = d.get("units")
+    if not isinstance(units_d, dict) or not units_d:
+        raise FlowsheetError("units", units_d if units_d is not None else _MISSING, "must be a table with at least one unit ([units.NAME] with type = ...)", source)
+    units = {}
+    mill_scene = None
+    for name, u in units_d.items():
+        units[name], sd = _unit(name, u, mill_scene, source)
+        mill_scene = sd if mill_scene is None else mill_scene
+    if mill_scene is None:
+        mill_scene = tomllib.loads(default_scene_text())
+
+    order = vals["order"] or list(units)
+    if sorted(order) != sorted(units):
+        raise FlowsheetError("flowsheet.order", order, "must name every unit once: " + ", ".join(units), source)
+    parsed, products = _links(d, units, source)
+    return Flowsheet(vals["name"], vals["description"], float(vals["t_end_s"]), float(vals["step_s"]), vals["algorithm"], order,
+                     vals["max_halvings"], float(vals["output_interval_s"]), units, parsed, products, mill_scene,
+                     base_dir or Path("."), source)
+
+
+def _flowsheet_section(d: dict, source: str) -> dict:
+    """The file's top-level keys checked, and its [flowsheet] values (with their defaults)."""
     allowed_top = {"connections", "products", "flowsheet", "units"}
     for k in d:
         if k not in allowed_top:
@@ -250,85 +273,93 @@ def flowsheet_from_dict(d: dict, source: str = "flowsheet", base_dir: Path | Non
         raise FlowsheetError("flowsheet.step_s", vals["step_s"], f"must divide t_end_s = {vals['t_end_s']!r} s into whole steps", source)
     if vals["output_interval_s"] is None:
         vals["output_interval_s"] = vals["step_s"]
+    return vals
 
-    units_d = d.get("units")
-    if not isinstance(units_d, dict) or not units_d:
-        raise FlowsheetError("units", units_d if units_d is not None else _MISSING, "must be a table with at least one unit ([units.NAME] with type = ...)", source)
-    units = {}
-    mill_scene = None
-    for name, u in units_d.items():
-        key = f"units.{name}"
-        if not _NAME.match(name):
-            raise FlowsheetError(key, name, "unit names are letters, digits and '_', not starting with a digit", source)
-        if not isinstance(u, dict):
-            raise FlowsheetError(key, u, "must be a table", source)
-        t = u.get("type", _MISSING)
-        if t not in UNIT_TYPES:
-            raise FlowsheetError(f"{key}.type", t, "allowed: " + ", ".join(UNIT_TYPES), source)
-        spec = UNIT_KEYS[t]
-        for k in u:
-            if k not in spec and k not in COMMON_KEYS:
-                raise FlowsheetError(f"{key}.{k}", u[k], f"unknown key for a {t}; allowed: " + ", ".join(list(spec) + sorted(COMMON_KEYS)), source)
-        params = _take(u, spec, key, source)
-        start = u.get("start", {})
-        if not isinstance(start, dict) or not all(isinstance(x, (int, float)) and not isinstance(x, bool) for x in start.values()):
-            raise FlowsheetError(f"{key}.start", start, "must be a table of variable = number", source)
-        if t == "mill":
-            sd = tomllib.loads(default_scene_text())
-            for sec, vals_ in params["scene"].items():
-                if isinstance(vals_, dict) and isinstance(sd.get(sec), dict):
-                    sd[sec].update(vals_)
-                else:
-                    sd[sec] = vals_
-            try:
-                scene = scene_from_dict(sd, f"{source}: {key}.scene")
-            except SceneError as e:
-                raise FlowsheetError(f"{key}.scene.{e.key}", e.value, e.allowed, source) from None
-            if scene.operation.mode != "continuous":
-                raise FlowsheetError(f"{key}.scene.operation.mode", scene.operation.mode, "must be 'continuous' in a flowsheet (a batch mill has no feed)", source)
-            if mill_scene is not None and sd["grid"] != mill_scene["grid"]:
-                raise FlowsheetError(f"{key}.scene.grid", sd["grid"], f"must equal the other mills' grid {mill_scene['grid']!r}: all units share one size grid", source)
-            mill_scene = sd if mill_scene is None else mill_scene
-            params["scene_dict"] = sd
-        if t == "feed":
-            mf = params["mass_flow_kg_per_s"]
-            if isinstance(mf, (int, float)) and not isinstance(mf, bool):
-                if not (math.isfinite(mf) and 0.0 <= mf <= 1e3):
-                    raise FlowsheetError(f"{key}.mass_flow_kg_per_s", mf, "must lie in [0, 1000] kg/s", source)
-                params["profile"] = [[0.0, float(mf)]]
-            else:
-                ok = isinstance(mf, list) and mf and all(isinstance(p, list) and len(p) == 2 and all(isinstance(x, (int, float)) and not isinstance(x, bool) for x in p) for p in mf)
-                if not ok:
-                    raise FlowsheetError(f"{key}.mass_flow_kg_per_s", mf, "must be a number or a list of [t_s, kg/s] pairs", source)
-                ts = [float(p[0]) for p in mf]
-                if any(b < a for a, b in zip(ts, ts[1:])) or ts[0] < 0:
-                    raise FlowsheetError(f"{key}.mass_flow_kg_per_s", mf, "times must be >= 0 and non-decreasing", source)
-                if any(not (0.0 <= p[1] <= 1e3) for p in mf):
-                    raise FlowsheetError(f"{key}.mass_flow_kg_per_s", mf, "flows must lie in [0, 1000] kg/s", source)
-                if any(a == b == c for a, b, c in zip(ts, ts[1:], ts[2:])):
-                    raise FlowsheetError(f"{key}.mass_flow_kg_per_s", mf, "at most two points may share a time (a step)", source)
-                params["profile"] = [[float(a), float(b)] for a, b in mf]
-            psd = params["psd"]
-            segs = psd if isinstance(psd, list) else [psd]
-            for i, s in enumerate(segs):
-                if s is not None:
-                    _check_psd_table(s, f"{key}.psd" + (f"[{i}]" if isinstance(psd, list) else ""), source)
-            if isinstance(psd, list):
-                ts = [s.get("t_s", 0.0) for s in segs]
-                if not psd or ts[0] != 0.0 or any(b <= a for a, b in zip(ts, ts[1:])):
-                    raise FlowsheetError(f"{key}.psd", [s.get("t_s") for s in segs], "a list of size distributions needs t_s increasing from 0", source)
-        if t == "tank" and params["initial_psd"] is not None:
-            _check_psd_table(params["initial_psd"], f"{key}.initial_psd", source)
-        if t == "pi" and not params["u_min"] < params["u_max"]:
-            raise FlowsheetError(f"{key}.u_min", params["u_min"], f"must be below u_max = {params['u_max']!r}", source)
-        units[name] = Unit(name, t, params, dict(start))
-    if mill_scene is None:
-        mill_scene = tomllib.loads(default_scene_text())
 
-    order = vals["order"] or list(units)
-    if sorted(order) != sorted(units):
-        raise FlowsheetError("flowsheet.order", order, "must name every unit once: " + ", ".join(units), source)
+def _unit(name: str, u, mill_scene: dict | None, source: str) -> tuple[Unit, dict | None]:
+    """[units.NAME] checked: the Unit, and for a mill its scene as a dict (None otherwise);
+    ``mill_scene``: the first mill's scene so far, whose grid every mill shares."""
+    key = f"units.{name}"
+    if not _NAME.match(name):
+        raise FlowsheetError(key, name, "unit names are letters, digits and '_', not starting with a digit", source)
+    if not isinstance(u, dict):
+        raise FlowsheetError(key, u, "must be a table", source)
+    t = u.get("type", _MISSING)
+    if t not in UNIT_TYPES:
+        raise FlowsheetError(f"{key}.type", t, "allowed: " + ", ".join(UNIT_TYPES), source)
+    spec = UNIT_KEYS[t]
+    for k in u:
+        if k not in spec and k not in COMMON_KEYS:
+            raise FlowsheetError(f"{key}.{k}", u[k], f"unknown key for a {t}; allowed: " + ", ".join(list(spec) + sorted(COMMON_KEYS)), source)
+    params = _take(u, spec, key, source)
+    start = u.get("start", {})
+    if not isinstance(start, dict) or not all(isinstance(x, (int, float)) and not isinstance(x, bool) for x in start.values()):
+        raise FlowsheetError(f"{key}.start", start, "must be a table of variable = number", source)
+    sd = None
+    if t == "mill":
+        sd = params["scene_dict"] = _mill_scene(params["scene"], key, mill_scene, source)
+    if t == "feed":
+        _feed(params, key, source)
+    if t == "tank" and params["initial_psd"] is not None:
+        _check_psd_table(params["initial_psd"], f"{key}.initial_psd", source)
+    if t == "pi" and not params["u_min"] < params["u_max"]:
+        raise FlowsheetError(f"{key}.u_min", params["u_min"], f"must be below u_max = {params['u_max']!r}", source)
+    return Unit(name, t, params, dict(start)), sd
 
+
+def _mill_scene(scene_d: dict, key: str, mill_scene: dict | None, source: str) -> dict:
+    """A mill's scene: the default scene with the unit's sections over it, continuous and on
+    the grid of the other mills (``mill_scene``)."""
+    sd = tomllib.loads(default_scene_text())
+    for sec, vals_ in scene_d.items():
+        if isinstance(vals_, dict) and isinstance(sd.get(sec), dict):
+            sd[sec].update(vals_)
+        else:
+            sd[sec] = vals_
+    try:
+        scene = scene_from_dict(sd, f"{source}: {key}.scene")
+    except SceneError as e:
+        raise FlowsheetError(f"{key}.scene.{e.key}", e.value, e.allowed, source) from None
+    if scene.operation.mode != "continuous":
+        raise FlowsheetError(f"{key}.scene.operation.mode", scene.operation.mode, "must be 'continuous' in a flowsheet (a batch mill has no feed)", source)
+    if mill_scene is not None and sd["grid"] != mill_scene["grid"]:
+        raise FlowsheetError(f"{key}.scene.grid", sd["grid"], f"must equal the other mills' grid {mill_scene['grid']!r}: all units share one size grid", source)
+    return sd
+
+
+def _feed(params: dict, key: str, source: str):
+    """A feed's mass flow [kg/s] as ``params["profile"]`` ([t_s, kg/s] points) and its size
+    distributions checked."""
+    mf = params["mass_flow_kg_per_s"]
+    if isinstance(mf, (int, float)) and not isinstance(mf, bool):
+        if not (math.isfinite(mf) and 0.0 <= mf <= 1e3):
+            raise FlowsheetError(f"{key}.mass_flow_kg_per_s", mf, "must lie in [0, 1000] kg/s", source)
+        params["profile"] = [[0.0, float(mf)]]
+    else:
+        ok = isinstance(mf, list) and mf and all(isinstance(p, list) and len(p) == 2 and all(isinstance(x, (int, float)) and not isinstance(x, bool) for x in p) for p in mf)
+        if not ok:
+            raise FlowsheetError(f"{key}.mass_flow_kg_per_s", mf, "must be a number or a list of [t_s, kg/s] pairs", source)
+        ts = [float(p[0]) for p in mf]
+        if any(b < a for a, b in zip(ts, ts[1:])) or ts[0] < 0:
+            raise FlowsheetError(f"{key}.mass_flow_kg_per_s", mf, "times must be >= 0 and non-decreasing", source)
+        if any(not (0.0 <= p[1] <= 1e3) for p in mf):
+            raise FlowsheetError(f"{key}.mass_flow_kg_per_s", mf, "flows must lie in [0, 1000] kg/s", source)
+        if any(a == b == c for a, b, c in zip(ts, ts[1:], ts[2:])):
+            raise FlowsheetError(f"{key}.mass_flow_kg_per_s", mf, "at most two points may share a time (a step)", source)
+        params["profile"] = [[float(a), float(b)] for a, b in mf]
+    psd = params["psd"]
+    segs = psd if isinstance(psd, list) else [psd]
+    for i, s in enumerate(segs):
+        if s is not None:
+            _check_psd_table(s, f"{key}.psd" + (f"[{i}]" if isinstance(psd, list) else ""), source)
+    if isinstance(psd, list):
+        ts = [s.get("t_s", 0.0) for s in segs]
+        if not psd or ts[0] != 0.0 or any(b <= a for a, b in zip(ts, ts[1:])):
+            raise FlowsheetError(f"{key}.psd", [s.get("t_s") for s in segs], "a list of size distributions needs t_s increasing from 0", source)
+
+
+def _links(d: dict, units: dict, source: str) -> tuple[list, list]:
+    """The connections, as (line, parsed), and the products, as (unit, variable)."""
     conns = d.get("connections", [])
     if not isinstance(conns, list):
         raise FlowsheetError("connections", conns, "must be a list of 'unit.variable -> unit.variable' strings", source)
@@ -348,9 +379,7 @@ def flowsheet_from_dict(d: dict, source: str = "flowsheet", base_dir: Path | Non
         if not m or m.group(1) not in units:
             raise FlowsheetError(f"products[{i}]", p, "must be 'unit.variable' with a unit of [units]", source)
         products.append((m.group(1), m.group(2)))
-    return Flowsheet(vals["name"], vals["description"], float(vals["t_end_s"]), float(vals["step_s"]), vals["algorithm"], order,
-                     vals["max_halvings"], float(vals["output_interval_s"]), units, parsed, products, mill_scene,
-                     base_dir or Path("."), source)
+    return parsed, products
 
 
 def shared_grid(fs: Flowsheet):

@@ -3,18 +3,22 @@ version. No FMI library, no process logic (that is :mod:`units`).
 
 Each unit class declares its variables with the adapter's helpers (``param``, ``input``,
 ``output``, ``psd_vars``), builds its core from the parameters (``_make_core``) and steps it
-with the current inputs (``_step``, reading values with ``value`` and ``vec``). The FMI 2.0
-adapter (:mod:`unit_fmu`) writes a size distribution as n Reals ``psd[1]`` ... ``psd[n]``,
-the FMI 3.0 adapter (:mod:`unit_fmu3`) as one Float64 array of ``n_classes`` values.
+with the current inputs (``_step``, reading values with ``value`` and ``vec``).
+:class:`UnitAdapter` connects them to the FMI bases of millfmu (``millfmu.fmi.base2`` and
+``base3``), whose values, statuses and states the unit FMUs share with the mill FMU. The
+FMI 2.0 adapter (:mod:`unit_fmu`) writes a size distribution as n Reals ``psd[1]`` ...
+``psd[n]``, the FMI 3.0 adapter (:mod:`unit_fmu3`) as one Float64 array of ``n_classes``
+values.
 """
-
 from __future__ import annotations
 
 import json
 import math
 import os
 
-from .units import Classifier, Feed, PIController, Tank, UnitInputError
+import numpy as np
+
+from .units import Classifier, Feed, PIController, StepDiscarded, Tank, UnitInputError
 
 #: SI base-unit exponents of the units used (BaseUnit in FMI 2.0 and 3.0).
 BASE_UNITS = {
@@ -52,6 +56,88 @@ def read_config(resources: str) -> dict:
     """A unit FMU's configuration (``<resources>/unit.json``): kind, edges_m, params, ..."""
     with open(os.path.join(resources, CONFIG_FILE)) as f:
         return json.load(f)
+
+
+# ---------------------------------------------------------------------------------------
+class UnitAdapter:
+    """What a unit's FMU does in every FMI version, on top of the version's base (which
+    gives ``_v``, the value list, ``refuse_configuration`` and the statuses): the
+    configuration, the unit's variables by name, its core built from the parameters and
+    stepped with the inputs, and its part of the FMU state.
+
+    The version's adapter provides ``_add(name, unit, description, start, causality,
+    variability) -> position`` and ``psd_vars``, which put a size distribution's positions
+    in ``_at`` as one slice of the value list.
+    """
+
+    kind = ""
+    #: Exceptions of a step that refuse it (discard): the state is unchanged.
+    REFUSED = (UnitInputError, StepDiscarded)
+
+    def _set_up(self):
+        """Read ``unit.json``, declare the variables and build the core at the configured parameters."""
+        self.cfg = read_config(self.resources)
+        self.edges_m = np.asarray(self.cfg["edges_m"], float)
+        self.n = len(self.edges_m) - 1
+        self._at: dict = {}  # variable name -> position (a slice for a size distribution) in the value list
+        self._params: dict = {}  # parameter name -> position in the value list
+        self._declare()
+        self.core = self._make_core(self._param_values())
+        self._publish()
+
+    # ---- declaration helpers -----------------------------------------------------------
+    def param(self, name, unit, desc, tunable=False):
+        self._params[name] = self._add(name, unit, desc, self.cfg["params"][name], "parameter", "tunable" if tunable else "fixed")
+
+    def input(self, name, unit, desc, start):
+        self._add(name, unit, desc, start, "input", "continuous")
+
+    def output(self, name, unit, desc):
+        self._add(name, unit, desc, 0.0, "output", "continuous")
+
+    # ---- values ------------------------------------------------------------------------
+    def value(self, name) -> float:
+        return self._v[self._at[name]]
+
+    def vec(self, prefix) -> np.ndarray:
+        return np.array(self._v[self._at[prefix]])
+
+    def _param_values(self) -> dict:
+        return {name: self._v[at] for name, at in self._params.items()}
+
+    def _publish(self):
+        for name, val in self.core.outputs().items():
+            self._v[self._at[name]] = val.tolist() if isinstance(val, np.ndarray) else float(val)
+
+    # ---- life cycle --------------------------------------------------------------------
+    def _configure(self):
+        """The core at the parameters set before initialization ended; a value the unit
+        refuses is refused by name (the base's ``refuse_configuration``)."""
+        try:
+            core = self._make_core(self._param_values())
+        except UnitInputError as e:
+            self.refuse_configuration(f"parameter {e}")
+        self.core = core
+        self._config_error = None
+        self._publish()
+
+    def _take_step(self, h):
+        if not (math.isfinite(h) and h > 0.0):
+            raise UnitInputError("communicationStepSize", h, "must be finite and > 0 s")
+        self._step(float(h))
+        self._publish()
+
+    def _refusal(self, e: Exception) -> str:
+        return f"input {e}" if isinstance(e, UnitInputError) else str(e)
+
+    # ---- FMU state ---------------------------------------------------------------------
+    def _state(self) -> dict:
+        return {"core": self.core.get_state(), "params": self._param_values()}
+
+    def _restore(self, state: dict):
+        core = self._make_core(state["params"])
+        core.set_state(state["core"])
+        self.core = core
 
 
 # ---------------------------------------------------------------------------------------

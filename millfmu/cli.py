@@ -22,7 +22,7 @@ for _var in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
 #: imported only to register their parsers; heavy imports (numba, pythonfmu) stay inside
 #: their handlers.
 PLUGINS = ("millfmu.dem.cli", "millfmu.dem.tables.cli", "fmu_build.cli", "flowsheets.cli", "millfmu.rates",
-           "millfmu.report", "millfmu.calibration")
+           "millfmu.report", "millfmu.calibration.cli")
 
 
 def _cmd_run(args) -> int:

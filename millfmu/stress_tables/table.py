@@ -662,6 +662,18 @@ def read_table(folder=None, *, npz=None, manifest_path=None, expect_key: str | N
     else:
         npz, manifest_path = Path(npz), Path(manifest_path)
         sum_path = Path(str(manifest_path) + ".sha256")
+    m = _read_manifest(manifest_path, sum_path)
+    spec = _manifest_spec(m, manifest_path, expect_key, expect_kernel)
+    arrs = _read_arrays(npz, m, manifest_path)
+    t = _table_from_arrays(arrs, spec, m, npz)
+    t.check_shapes()
+    t.check_values(str(npz))
+    return t
+
+
+def _read_manifest(manifest_path: Path, sum_path: Path) -> dict:
+    """The manifest, checked against its checksum (the .sha256 file or the one it holds) and
+    the format version."""
     if not manifest_path.exists():
         raise TableError(f"{manifest_path}: missing")
     text = manifest_path.read_bytes()
@@ -685,6 +697,12 @@ def read_table(folder=None, *, npz=None, manifest_path=None, expect_key: str | N
     if m.get("format") != FORMAT_VERSION:
         raise TableError(f"{manifest_path}: format = {m.get('format')!r}, this millfmu "
                          f"reads format {FORMAT_VERSION}: stale")
+    return m
+
+
+def _manifest_spec(m: dict, manifest_path: Path, expect_key: str | None, expect_kernel: str | None) -> TableSpec:
+    """The manifest's TableSpec, its key checked against its content (and ``expect_key``) and
+    its kernel version against ``expect_kernel``."""
     try:
         spec = TableSpec(scene=m["scene"], grid=m["grid"], kernel_version=m["kernel_version"],
                          builder_id=m["builder"], one_at_a_time=m.get("one_at_a_time") or {})
@@ -703,6 +721,11 @@ def read_table(folder=None, *, npz=None, manifest_path=None, expect_key: str | N
     if expect_kernel is not None and m["kernel_version"] != expect_kernel:
         raise TableError(f"{manifest_path}: built with DEM kernel version "
                          f"{m['kernel_version']}, current is {expect_kernel}: stale")
+    return spec
+
+
+def _read_arrays(npz: Path, m: dict, manifest_path: Path) -> dict:
+    """The table file's arrays, after its size and sha256 matched the manifest's."""
     info = (m.get("files") or {}).get(TABLE_FILE)
     if not isinstance(info, dict) or not {"bytes", "sha256"} <= set(info):
         raise TableError(f"{manifest_path}: no checksum for {TABLE_FILE}")
@@ -718,9 +741,14 @@ def read_table(folder=None, *, npz=None, manifest_path=None, expect_key: str | N
                          f"({info['sha256'][:16]}...): corrupted")
     try:
         with np.load(npz, allow_pickle=False) as f:
-            arrs = {k: f[k] for k in f.files}
+            return {k: f[k] for k in f.files}
     except Exception as e:  # a zip/npy error: the file is not a table
         raise TableError(f"{npz}: cannot be read as .npz ({type(e).__name__}: {e})") from None
+
+
+def _table_from_arrays(arrs: dict, spec: TableSpec, m: dict, npz: Path) -> Table:
+    """The Table of the arrays: axes as the manifest's grid, the one-at-a-time tables and the
+    anchor as its scene says."""
     axes = {}
     for name in spec.grid:
         a = arrs.get(f"axis_{name}")
@@ -743,8 +771,6 @@ def read_table(folder=None, *, npz=None, manifest_path=None, expect_key: str | N
         if t.anchor != spec.anchor():
             raise TableError(f"{npz}: anchor {t.anchor} differs from the manifest scene's "
                              f"{spec.anchor()}")
-    t.check_shapes()
-    t.check_values(str(npz))
     return t
 
 

@@ -273,81 +273,88 @@ def integrator_study(quick: bool = False, repeats: int | None = None, out=print)
     repeats = repeats or (1 if quick else 3)
     res = {}
     for case, c in INTEGRATOR_CASES.items():
-        a_lo, a_hi, m0 = _case_operators(case)
-        per, t_end = c["period_s"], c["t_end_s"]
-        w = 2.0 * np.pi / per
-
-        def a_of_t(t):
-            th = 0.5 * (1.0 + np.sin(w * t))
-            return (1.0 - th) * a_lo + th * a_hi
-
-        total = float(m0.sum())
-        n_ref = 2 ** (8 if quick else 12)
-        t0 = time.perf_counter()
-        y = [_exact_steps(a_of_t, m0, t_end, n_ref * 2 ** k) for k in range(3)]
-        ref = (4.0 * y[2] - y[1]) / 3.0
-        # the same extrapolation one level coarser: their difference bounds the reference's
-        # error, and only errors well above it count for the orders
-        ref_err = float(np.max(np.abs(ref - (4.0 * y[1] - y[0]) / 3.0)) / total)
-        t_ref = time.perf_counter() - t0
-        floor = max(1e-15, ref_err)
-        s_max = float(max(-np.diag(a_lo).min(), -np.diag(a_hi).min()))
-        rows = []
-
-        def err(y):
-            return float(np.max(np.abs(y - ref)) / total) if np.all(np.isfinite(y)) else float("inf")
-
-        def mmin(y):
-            return float(np.min(y) / total) if np.all(np.isfinite(y)) else float("nan")
-
-        n_steps = [2 ** k for k in ((2, 4, 6) if quick else range(2, 11))]
-        for name, kind in (("exact step", 0), ("Taylor 1", 1), ("Taylor 2", 2)):
-            for n in n_steps:
-                h = t_end / n
-
-                def run(h=h, n=n, kind=kind):
-                    if kind == 0:
-                        return _exact_steps(a_of_t, m0, t_end, n)
-                    y = m0.copy()
-                    with np.errstate(over="ignore", invalid="ignore"):
-                        for k in range(n):
-                            y = taylor_step(a_of_t((k + 0.5) * h), y, h, kind)
-                    return y
-
-                t, y = _best(run, repeats)
-                rows.append(dict(method=name, steps=n, step_s=h, error=err(y), wall_s=t,
-                                 min_mass=mmin(y), h_times_max_rate=h * s_max))
-
-        def system(t, y):
-            return pbm.TanksInSeries(a_of_t(t), 1, 0.0), None
-
-        y0 = np.concatenate(([0.0], m0))
-        for rtol in ((1e-3, 1e-4, 1e-5) if quick else (1e-2, 1e-3, 1e-4, 1e-5, 1e-6, 1e-7, 1e-8)):
-            t, (y, n_sub) = _best(lambda: pbm.adaptive_exponential_step(y0, 0.0, t_end, system, rtol=rtol, atol=rtol * 1e-6 * total), repeats)
-            rows.append(dict(method="adaptive exponential", rtol=rtol, steps=int(n_sub), step_s=t_end / n_sub,
-                             error=err(y[1:]), wall_s=t, min_mass=mmin(y)))
-        for rtol in ((1e-4, 1e-6, 1e-8) if quick else (1e-3, 1e-4, 1e-5, 1e-6, 1e-7, 1e-8, 1e-9, 1e-10)):
-            def bdf():
-                return solve_ivp(lambda t, m: a_of_t(t) @ m, (0.0, t_end), m0, method="BDF",
-                                 jac=lambda t, m: a_of_t(t), rtol=rtol, atol=rtol * 1e-3 * total)
-            t, sol = _best(bdf, repeats)
-            y = sol.y[:, -1]
-            rows.append(dict(method="scipy BDF", rtol=rtol, steps=int(sol.t.size - 1), step_s=t_end / max(sol.t.size - 1, 1),
-                             error=err(y), wall_s=t, min_mass=mmin(y), nfev=int(sol.nfev)))
-        orders = {}
-        for name in ("exact step", "Taylor 1", "Taylor 2", "adaptive exponential", "scipy BDF"):
-            # Taylor steps: only h S_max <= 1, where they keep masses positive (asymptotic range)
-            rr = [r for r in rows if r["method"] == name and
-                  (not name.startswith("Taylor") or r["h_times_max_rate"] <= 1.0)]
-            orders[name] = _order([r["step_s"] for r in rr], [r["error"] for r in rr], floor)
-        res[case] = dict(rows=rows, orders=orders, states=int(a_lo.shape[0]), t_end_s=t_end,
-                         period_s=per, max_rate_per_s=s_max, reference_steps=4 * n_ref,
-                         reference_wall_s=t_ref, reference_error=ref_err)
-        out(f"{case}: {a_lo.shape[0]} states, operator swinging between two operating points with period {per:g} s, "
-            f"{t_end:g} s simulated, largest rate {s_max:.3g} 1/s; reference: exact steps at {2 * n_ref} and {4 * n_ref}, "
-            f"extrapolated (error estimate {ref_err:.1e})")
+        r = res[case] = _integrator_case(case, c, quick, repeats)
+        out(f"{case}: {r['states']} states, operator swinging between two operating points with period {r['period_s']:g} s, "
+            f"{r['t_end_s']:g} s simulated, largest rate {r['max_rate_per_s']:.3g} 1/s; reference: exact steps at "
+            f"{r['reference_steps'] // 2} and {r['reference_steps']}, extrapolated (error estimate {r['reference_error']:.1e})")
         out(f"  {'method':22s} {'steps':>7s} {'rtol':>7s} {'error':>9s} {'wall [s]':>9s} {'min mass':>9s}")
-        for r in rows:
-            out(f"  {r['method']:22s} {r['steps']:7d} {r.get('rtol', float('nan')):7.0e} {r['error']:9.2e} {r['wall_s']:9.3g} {r['min_mass']:9.1e}")
-        out("  measured orders: " + ", ".join(f"{k} {v:.2f}" for k, v in orders.items()))
+        for row in r["rows"]:
+            out(f"  {row['method']:22s} {row['steps']:7d} {row.get('rtol', float('nan')):7.0e} {row['error']:9.2e} {row['wall_s']:9.3g} "
+                f"{row['min_mass']:9.1e}")
+        out("  measured orders: " + ", ".join(f"{k} {v:.2f}" for k, v in r["orders"].items()))
     return res
+
+
+def _integrator_case(case: str, c: dict, quick: bool, repeats: int) -> dict:
+    """:func:`integrator_study` of one case of :data:`INTEGRATOR_CASES`: its rows (one per
+    method and step count or tolerance), measured orders and reference."""
+    a_lo, a_hi, m0 = _case_operators(case)
+    per, t_end = c["period_s"], c["t_end_s"]
+    w = 2.0 * np.pi / per
+
+    def a_of_t(t):
+        th = 0.5 * (1.0 + np.sin(w * t))
+        return (1.0 - th) * a_lo + th * a_hi
+
+    total = float(m0.sum())
+    n_ref = 2 ** (8 if quick else 12)
+    t0 = time.perf_counter()
+    y = [_exact_steps(a_of_t, m0, t_end, n_ref * 2 ** k) for k in range(3)]
+    ref = (4.0 * y[2] - y[1]) / 3.0
+    # the same extrapolation one level coarser: their difference bounds the reference's
+    # error, and only errors well above it count for the orders
+    ref_err = float(np.max(np.abs(ref - (4.0 * y[1] - y[0]) / 3.0)) / total)
+    t_ref = time.perf_counter() - t0
+    floor = max(1e-15, ref_err)
+    s_max = float(max(-np.diag(a_lo).min(), -np.diag(a_hi).min()))
+    rows = []
+
+    def err(y):
+        return float(np.max(np.abs(y - ref)) / total) if np.all(np.isfinite(y)) else float("inf")
+
+    def mmin(y):
+        return float(np.min(y) / total) if np.all(np.isfinite(y)) else float("nan")
+
+    n_steps = [2 ** k for k in ((2, 4, 6) if quick else range(2, 11))]
+    for name, kind in (("exact step", 0), ("Taylor 1", 1), ("Taylor 2", 2)):
+        for n in n_steps:
+            h = t_end / n
+
+            def run(h=h, n=n, kind=kind):
+                if kind == 0:
+                    return _exact_steps(a_of_t, m0, t_end, n)
+                y = m0.copy()
+                with np.errstate(over="ignore", invalid="ignore"):
+                    for k in range(n):
+                        y = taylor_step(a_of_t((k + 0.5) * h), y, h, kind)
+                return y
+
+            t, y = _best(run, repeats)
+            rows.append(dict(method=name, steps=n, step_s=h, error=err(y), wall_s=t,
+                             min_mass=mmin(y), h_times_max_rate=h * s_max))
+
+    def system(t, y):
+        return pbm.TanksInSeries(a_of_t(t), 1, 0.0), None
+
+    y0 = np.concatenate(([0.0], m0))
+    for rtol in ((1e-3, 1e-4, 1e-5) if quick else (1e-2, 1e-3, 1e-4, 1e-5, 1e-6, 1e-7, 1e-8)):
+        t, (y, n_sub) = _best(lambda: pbm.adaptive_exponential_step(y0, 0.0, t_end, system, rtol=rtol, atol=rtol * 1e-6 * total), repeats)
+        rows.append(dict(method="adaptive exponential", rtol=rtol, steps=int(n_sub), step_s=t_end / n_sub,
+                         error=err(y[1:]), wall_s=t, min_mass=mmin(y)))
+    for rtol in ((1e-4, 1e-6, 1e-8) if quick else (1e-3, 1e-4, 1e-5, 1e-6, 1e-7, 1e-8, 1e-9, 1e-10)):
+        def bdf():
+            return solve_ivp(lambda t, m: a_of_t(t) @ m, (0.0, t_end), m0, method="BDF",
+                             jac=lambda t, m: a_of_t(t), rtol=rtol, atol=rtol * 1e-3 * total)
+        t, sol = _best(bdf, repeats)
+        y = sol.y[:, -1]
+        rows.append(dict(method="scipy BDF", rtol=rtol, steps=int(sol.t.size - 1), step_s=t_end / max(sol.t.size - 1, 1),
+                         error=err(y), wall_s=t, min_mass=mmin(y), nfev=int(sol.nfev)))
+    orders = {}
+    for name in ("exact step", "Taylor 1", "Taylor 2", "adaptive exponential", "scipy BDF"):
+        # Taylor steps: only h S_max <= 1, where they keep masses positive (asymptotic range)
+        rr = [r for r in rows if r["method"] == name and
+              (not name.startswith("Taylor") or r["h_times_max_rate"] <= 1.0)]
+        orders[name] = _order([r["step_s"] for r in rr], [r["error"] for r in rr], floor)
+    return dict(rows=rows, orders=orders, states=int(a_lo.shape[0]), t_end_s=t_end,
+                period_s=per, max_rate_per_s=s_max, reference_steps=4 * n_ref,
+                reference_wall_s=t_ref, reference_error=ref_err)

@@ -140,6 +140,23 @@ def test_a_discarded_step_is_retried_with_a_smaller_step(tmp_path, fmu_dir):
     assert not (tmp_path / "out0").exists()
 
 
+def test_a_refused_parameter_stops_the_run_at_initialization_naming_unit_and_value(tmp_path, fmu_dir):
+    """FMI 2.0 as FMI 3.0 (test_flowsheets_fmi3): the tank answers a negative pump flow with
+    fmi2Error at fmi2ExitInitializationMode (under millfmu's fixed wrapper; under pythonfmu's
+    own it logs the refusal and refuses every step); the master stops, names the unit and
+    the value, and writes nothing."""
+    import zipfile
+
+    f = tmp_path / "bad.toml"
+    f.write_text((FLOWSHEETS / "circuit.toml").read_text() + "\n[units.tank.start]\npump_mass_flow = -1.0\n")
+    r = cli("run", f, "--out", tmp_path / "out", "--fmu-dir", fmu_dir, "--no-plots")
+    assert r.returncode == 1 and "pump_mass_flow = -1.0: must be >= 0 kg/s" in r.stderr, r.stderr
+    tank = next(fmu_dir.glob("tank_*.fmu"))
+    if zipfile.ZipFile(tank).read("resources/wrapper.txt").strip() == b"fixed":
+        assert "unit tank refused its initialization (status 3)" in r.stderr, r.stderr
+    assert not (tmp_path / "out").exists()
+
+
 def test_communication_step_error_decreases_with_measured_order(tmp_path, fmu_dir):
     r = cli("wp", FLOWSHEETS / "circuit.toml", "--t-end", "300", "--steps", "2.5", "5", "10", "--reference", "0.625",
             "--out", tmp_path / "wp", "--fmu-dir", fmu_dir)

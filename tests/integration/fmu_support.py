@@ -107,7 +107,7 @@ def run_py(python: str, code: str, cwd: Path, timeout=300, fmi_version: int = 2)
 
 def reference(scene_path, steps, inputs_per_step=None):
     """MillModel run directly: outputs after each step, as FMI name -> list."""
-    from millfmu.fmu_variables import DISRUPTED, OUTPUTS
+    from millfmu.fmi.variables import DISRUPTED, OUTPUTS
 
     model = MillModel(load_scene(scene_path))
     keys = OUTPUTS + ((DISRUPTED,) if "disrupted_fraction" in model.outputs() else ())

@@ -12,7 +12,7 @@ import xml.etree.ElementTree as ET
 import numpy as np
 import pytest
 
-from millfmu.fmu_variables import UNITS
+from millfmu.fmi.variables import UNITS
 from millfmu.mill import MillModel
 from millfmu.scene import load_scene
 
@@ -121,8 +121,8 @@ def test_fmu_carries_its_scene_and_only_the_code_it_needs(work, kind):
     names = z.namelist()
     code = [n for n in names if n.startswith("resources/_millfmu_")]
     mods = sorted(n.split("/", 2)[2] for n in code)
-    assert "fmu3.py" in mods and "fmi3_slave.py" in mods and "fmu_variables.py" in mods
-    assert "fmu.py" not in mods and "fmi_xml.py" not in mods  # the FMI 2.0 adapter stays out
+    assert "fmi/mill3.py" in mods and "fmi/base3.py" in mods and "fmi/variables.py" in mods
+    assert "fmi/mill2.py" not in mods and "fmi/base2.py" not in mods  # the FMI 2.0 adapter stays out
     assert not any(n.startswith("resources/pythonfmu/") for n in names)  # pythonfmu3 only
     assert not [m for m in mods if m.startswith("dem/")]  # nothing of the DEM nor of the table builder
     tables = sorted(m for m in mods if m.startswith("stress_tables/"))
@@ -540,9 +540,9 @@ done({{"off": off, "near": near, "same": same, "t_now": t_now, "back": back, "st
 def test_fmi3_time_tolerance_is_the_fmi2_one():
     pytest.importorskip("pythonfmu3")
     pytest.importorskip("pythonfmu")
-    from millfmu import fmi3_slave, fmu
+    from millfmu.fmi import base2, base3
 
-    assert fmi3_slave.TIME_RTOL == fmu.TIME_RTOL
+    assert base3.TIME_RTOL == base2.TIME_RTOL
 
 
 def test_tip_speeds_beyond_the_table_are_a_warning_once(work):

@@ -124,7 +124,7 @@ def test_random_input_sequences_refuse_by_name_and_keep_the_state(data):
 @pytest.fixture(scope="module")
 def slave_class(tmp_path_factory):
     pytest.importorskip("pythonfmu")
-    from millfmu.fmu import MillSlave
+    from millfmu.fmi.mill2 import MillSlave
 
     res = tmp_path_factory.mktemp("resources")
     from fmu_build.build import toml_text
@@ -138,7 +138,7 @@ def test_random_fmu_call_sequences_never_raise_but_fmi2error(slave_class, wrappe
     """The adapter driven in-process as a host would: set_real on any value reference with any
     value, doStep at any time, states got, serialized (and damaged) and set. Under the fixed
     wrapper only FMUCallError (-> fmi2Error) may leave a call; under the stock one nothing."""
-    from millfmu.fmu import FMUCallError
+    from millfmu.fmi.base2 import FMUCallError
 
     cls, res = slave_class
     (res / "wrapper.txt").write_text(wrapper + "\n")

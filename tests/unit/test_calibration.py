@@ -3,6 +3,7 @@
 
 import json
 import math
+import re
 import subprocess
 import sys
 from importlib import resources
@@ -16,6 +17,7 @@ from millfmu.mill import MillModel
 from millfmu.scene import number_key
 
 YEAST, LIMESTONE = cal.SHIPPED
+ROOT_PKG = resources.files("millfmu.calibration")
 TIMES = (60, 300, 900, 1800, 3600, 7200, 14400, 28800)
 
 
@@ -206,6 +208,32 @@ def test_cli_refusal_exits_2_and_writes_nothing(tmp_path):
                         "material.f_mat_kg_per_J_m,material.x_w_min_J_m_per_kg", "--out", str(out)], capture_output=True, text=True)
     assert r.returncode == 2 and "cannot pin 2 constants" in r.stderr and "Traceback" not in r.stderr
     assert not out.exists()
+
+
+def test_refusals_name_the_api_arguments_and_the_command_its_options(tmp_path, capsys):
+    """The library's refusal names calibrate's arguments (fit, start, data, error_model) and
+    scene keys; `millfmu calibrate` words the same refusal with its options."""
+    from millfmu.cli import main
+
+    key = "material.x_w_min_J_m_per_kg"  # 0 in the default scene: no start for a fit in ln(key)
+    with pytest.raises(cal.CalibrationError) as e:
+        cal.calibrate(millfmu.load_scene(), "t_s,x50_m\n60,5e-6\n", [key])
+    assert str(e.value) == (f"fit {key}: starts from 0 J m/kg, the scene's value; a fit in ln({key}) needs a positive start: "
+                            f"set one in the scene (or start={{{key!r}: VALUE}})")
+    assert (e.value.argument, e.value.subject, e.value.start_key) == ("fit", key, key)
+    f = tmp_path / "d.csv"
+    f.write_text("t_s,x50_m\n60,5e-6\n")
+    assert main(["calibrate", "--data", str(f), "--fit", key, "-q"]) == 2
+    assert capsys.readouterr().err.strip() == (f"millfmu: error: --fit {key}: starts from 0 J m/kg, the scene's value; a fit in "
+                                               f"ln({key}) needs a positive start: set one in the scene (or --start {key}=VALUE)")
+    with pytest.raises(cal.CalibrationError, match=r"^fit 'a,b,c': give one or two"):
+        cal.calibrate(millfmu.load_scene(), "t_s,x50_m\n60,5e-6\n", "a,b,c")
+    with pytest.raises(cal.CalibrationError, match=r"^data .*missing.csv: cannot be read"):
+        cal.read_data(tmp_path / "missing.csv")
+    assert main(["calibrate", "--data", str(tmp_path / "missing.csv"), "--fit", key, "-q"]) == 2
+    assert f"millfmu: error: --data {tmp_path / 'missing.csv'}: cannot be read" in capsys.readouterr().err
+    for name in ("__init__", "measured", "fitting", "intervals", "scene_file", "shipped"):  # the library names no option
+        assert not re.search(r"--(fit|data|start|errors|out)\b", (ROOT_PKG / f"{name}.py").read_text()), name
 
 
 def test_set_toml_values_keeps_comments_and_adds_missing_keys():

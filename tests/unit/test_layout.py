@@ -119,7 +119,7 @@ def _package(mod: str) -> str:
 LAYERS = {
     # 0: the PBM kinetics; the DEM engine, its fluid, coupling and mills; neutral helpers
     "millfmu.kinetics": 0, "millfmu.dem": 0, "millfmu.dem.engine": 0, "millfmu.dem.fluid": 0,
-    "millfmu.dem.coupling": 0, "millfmu.dem.mills": 0, "millfmu.fmi_xml": 0,
+    "millfmu.dem.coupling": 0, "millfmu.dem.mills": 0, "millfmu.fmi.base2": 0, "millfmu.fmi.base3": 0,
     "millfmu.machine": 0, "millfmu.plotstyle": 0,
     # 1: DEM scenes, runs, analysis, the table builder; the table reader (below the model,
     # which reads tables; beside the builder, which reads and writes them through it)
@@ -133,7 +133,7 @@ LAYERS = {
     "millfmu.studies": 4, "millfmu.report": 4, "validation": 4, "benchmarks": 4,
     "fmu_build.step_cost": 4, "fmu_build.exit_study": 4, "flowsheets.wp": 4,
     # 5: command-line modules
-    "millfmu.cli": 5, "millfmu.dem.cli": 5, "millfmu.dem.tables.cli": 5, "fmu_build.cli": 5,
+    "millfmu.cli": 5, "millfmu.dem.cli": 5, "millfmu.dem.tables.cli": 5, "millfmu.calibration.cli": 5, "fmu_build.cli": 5,
     "flowsheets.cli": 5, "millfmu.rates": 5,  # millfmu.rates: the `millfmu rates` command
 }
 LAYER_NAMES = ("engine/kinetics", "dem scene/run/analysis/tables, table reader", "model",
@@ -225,10 +225,10 @@ def longest_chain(graph: dict[str, dict[str, bool]]) -> list[str]:
 # FMU builder or the flowsheets.
 ENGINE_AND_MODEL = ("millfmu.dem.engine", "millfmu.dem.fluid", "millfmu.dem.coupling",
                     "millfmu.dem.mills", "millfmu.dem.tables", "millfmu.stress_tables", "millfmu.dem.analysis",
-                    "millfmu.kinetics", "millfmu.mill", "millfmu.scene")
+                    "millfmu.kinetics", "millfmu.mill", "millfmu.scene", "millfmu.fmi")
 FORBIDDEN = ("validation", "benchmarks", "millfmu.studies", "millfmu.cli", "millfmu.dem.cli",
-             "millfmu.dem.tables.cli", "millfmu.rates", "millfmu.report", "flowsheets",
-             "fmu_build")
+             "millfmu.dem.tables.cli", "millfmu.calibration.cli", "millfmu.rates", "millfmu.report",
+             "flowsheets", "fmu_build")
 
 
 def _under(mod: str, prefixes) -> bool:
@@ -293,7 +293,7 @@ def test_installed_packages_import_no_checkout_only_code():
 
 def test_the_cli_plugins_are_seen_as_imports():
     graph = imports()
-    assert {"millfmu.dem.cli", "fmu_build.cli", "flowsheets.cli", "millfmu.report"} <= set(graph["millfmu.cli"])
+    assert {"millfmu.dem.cli", "fmu_build.cli", "flowsheets.cli", "millfmu.report", "millfmu.calibration.cli"} <= set(graph["millfmu.cli"])
 
 
 def test_engine_and_model_import_no_study_cli_report_or_builder():

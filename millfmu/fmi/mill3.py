@@ -3,7 +3,7 @@
 The FMU built by ``millfmu build-fmu --fmi-version 3`` carries this package (renamed, see
 ``fmu_build``), its scene (``resources/scene.toml``) and pythonfmu3's wrapper with millfmu's
 fixes. The variables are those of the FMI 2.0 FMU (one description:
-:mod:`millfmu.fmu_variables`), all Float64 with SI units, plus FMI 3.0's independent
+:mod:`millfmu.fmi.variables`), all Float64 with SI units, plus FMI 3.0's independent
 variable ``time`` [s] and the structural parameter ``n_classes``: the size distributions
 ``psd_in`` (continuous scenes) and ``psd`` are arrays of ``n_classes`` values.
 
@@ -13,7 +13,7 @@ direct feedthrough). Statuses, as FMI 3.0 intends them:
 
 - fmi3Discard from ``fmi3DoStep``: an input value the model refuses (named with its value and
   what is allowed) or a step it cannot take; the state is unchanged and the master may retry;
-- fmi3Error: an illegal call (see :mod:`millfmu.fmi3_slave`); a parameter value the scene
+- fmi3Error: an illegal call (see :mod:`millfmu.fmi.base3`); a parameter value the scene
   refuses, from ``fmi3ExitInitializationMode`` (and from every step after it); a state from
   another FMU given to ``fmi3SetFMUState``; the instance stays usable.
 """
@@ -25,11 +25,11 @@ from xml.etree.ElementTree import Element
 
 from pythonfmu3 import DefaultExperiment, Fmi3Status
 
-from .fmi3_slave import Fmi3Base
-from .fmu_variables import (CLASS_COUNT, SCENE_FILE, UNITS, HeldArray, model_description_text, model_with, plain, read_band,
+from .base3 import Fmi3Base
+from .variables import (CLASS_COUNT, SCENE_FILE, UNITS, HeldArray, model_description_text, model_with, plain, read_band,
                              read_scene_dict, variables)
-from .mill import InputError, MillModel, StepError
-from .scene import SceneError, scene_from_dict
+from ..mill import InputError, MillModel, StepError
+from ..scene import SceneError, scene_from_dict
 
 
 class MillSlave3(Fmi3Base):
@@ -51,7 +51,7 @@ class MillSlave3(Fmi3Base):
                                                          read_band(self.resources))
         self.default_experiment = DefaultExperiment(start_time=0.0, stop_time=scene.run.t_end_s, step_size=scene.run.dt_s)
 
-        # One description of the variables (millfmu.fmu_variables) serves FMI 2.0 and 3.0;
+        # One description of the variables (millfmu.fmi.variables) serves FMI 2.0 and 3.0;
         # here an array is one Float64 of n_classes values.
         self.declare_class_count(n, CLASS_COUNT[1], CLASS_COUNT[0])
         described = variables(self.model)

@@ -27,7 +27,8 @@ from pythonfmu3 import Dimension, Fmi3Causality, Fmi3Initial, Fmi3Slave, Fmi3Sta
 STATE_FORMAT = "millfmu-fmi3-state-1"
 #: Largest difference between currentCommunicationPoint and the FMU's time that is taken
 #: as the masters' round-off of accumulated time [s]: relative to the time and the step.
-#: The FMI 2.0 adapter's (millfmu.fmu.TIME_RTOL), which this module cannot import.
+#: The FMI 2.0 base's (millfmu.fmi.base2.TIME_RTOL), which this module cannot import (an FMI 3.0
+#: FMU carries no pythonfmu).
 TIME_RTOL = 1e-9
 
 
@@ -98,7 +99,7 @@ class Fmi3Base(Fmi3Slave):
         if causality in ("input", "parameter"):
             self._settable[vr] = "input" if causality == "input" else variability
         initial = {"parameter": Fmi3Initial.exact, "output": Fmi3Initial.calculated}.get(causality)
-        # the getter holds the value list, not self (no reference cycle: see millfmu.fmu)
+        # the getter holds the value list, not self (no reference cycle: see millfmu.fmi.base2)
         v = self._v
         self.register_variable(Float64(
             name, causality=getattr(Fmi3Causality, causality), variability=getattr(Fmi3Variability, variability), initial=initial,

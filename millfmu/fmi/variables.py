@@ -1,8 +1,8 @@
 """The mill FMU's variables, described once for every FMI version. No FMI library, no physics.
 
 :func:`variables` lists them for a model in value-reference order. The FMI 2.0 adapter
-(:mod:`millfmu.fmu`) writes a size-distribution variable as n Reals ``psd[1]`` ...
-``psd[n]``; the FMI 3.0 adapter (:mod:`millfmu.fmu3`) as one Float64 array whose length is
+(:mod:`millfmu.fmi.mill2`) writes a size-distribution variable as n Reals ``psd[1]`` ...
+``psd[n]``; the FMI 3.0 adapter (:mod:`millfmu.fmi.mill3`) as one Float64 array whose length is
 the structural parameter ``n_classes``. Units are SI; every variable has one.
 """
 
@@ -20,8 +20,8 @@ else:  # pragma: no cover
 
 import numpy as np
 
-from .mill import PSD_SUM_TOL, MillModel
-from .scene import scene_from_dict
+from ..mill import PSD_SUM_TOL, MillModel
+from ..scene import scene_from_dict
 
 
 class HeldArray:
