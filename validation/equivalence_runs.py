@@ -156,7 +156,7 @@ def run_equivalence(table_ref: str = "coupled", threads=(1, 2), change: str = ""
 # --- the command: python -m validation.equivalence_runs ----------------------------------
 
 def parser() -> argparse.ArgumentParser:
-    """The command's options (those of the former ``millfmu tables equivalence``)."""
+    """The command's options."""
     q = argparse.ArgumentParser(
         prog="python -m validation.equivalence_runs",
         description="Accept a change of the DEM's sources that alters only round-off (another "
@@ -187,6 +187,9 @@ def parser() -> argparse.ArgumentParser:
                    "millfmu/data/dem_equivalence.json)")
     q.add_argument("--show", action="store_true", help="instead: print the recorded "
                    "reference and the accepted changes with their recomputed scores")
+    q.add_argument("--record-spread", action="store_true", help="instead: record the "
+                   "reference realizations' spread in the table's manifest (the realization "
+                   "part of a lookup's stated error; --reference --write records it too)")
     return q
 
 
@@ -218,6 +221,10 @@ def main(argv=None) -> int:
     try:
         if args.show:
             return _show(args.evidence)
+        if args.record_spread:
+            print(f"recorded the realizations' spread in "
+                  f"{E.write_realization_spread(args.table, args.evidence)}")
+            return 0
         res = run_equivalence(args.table, args.threads, args.change,
                               reference=args.reference, evidence_path=args.evidence)
         if res["kind"] == "reference":
@@ -225,6 +232,7 @@ def main(argv=None) -> int:
             if args.write:
                 E.record(res, args.evidence)
                 shown = E.read_evidence(args.evidence)["reference"]
+                E.write_realization_spread(args.table, args.evidence)
             for line in E.reference_lines(shown):
                 print(line)
             print("recorded" if args.write else "not recorded (--write records)")

@@ -348,7 +348,7 @@ def export(res, path) -> Path:
 # --- the command: python -m validation.work_precision ------------------------------------
 
 def parser() -> argparse.ArgumentParser:
-    """The study's options (those of the former ``millfmu dem work-precision``)."""
+    """The study's options."""
     w = argparse.ArgumentParser(
         prog="python -m validation.work_precision",
         description="Error of the tabulated statistics against recording length, spin-up, "

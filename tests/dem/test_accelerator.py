@@ -303,7 +303,7 @@ def _fake_stats(rpm, fill, eff):
     return dict(zones=[dict(name=z, filling=filling[z], speed_over_tip_speed=speed[z])
                        for z in ZONE_NAMES],
                 flow=dict(seed002=dict(zones=zq, radial_speed_profile=prof, total=dict(
-                    SN_g_per_m3_s=1e11 * fill, SE_ts_sum_w=10.0, SE_tn_sum_w=1.0,
+                    SN_g_per_m3_s=1e10 * fill, SE_ts_sum_w=10.0, SE_tn_sum_w=1.0,
                     ts_share=10.0 / 11.0, efficiency=eff))))
 
 
@@ -321,8 +321,11 @@ def test_seed002_table_gives_verdicts_from_the_runs(tmp_path):
             eff = 0.0044
         write(case, _fake_stats(*case, eff))
     rows = S.deviation_rows(tmp_path)
-    assert len(rows) == 12
-    assert all(r["verdict"].startswith("matches") for r in rows), S.markdown(rows)
+    assert len(rows) == 15  # the twelve and the three they left out
+    judged = [r for r in rows if not r["verdict"].startswith("not evaluated")]
+    assert len(judged) == 14  # the circumferential maximum needs gravity
+    assert all(r["verdict"].startswith("matches") for r in judged), S.markdown(rows)
+    assert S.markdown(rows).endswith("On the paper's mill: 14 of 15 statements match.")
     bad = _fake_stats(800.0, 0.8, 0.01)  # 1 % efficiency, and SEV_3 the slowest
     bad["zones"][2]["speed_over_tip_speed"] = 0.1
     write((800.0, 0.8), bad)
@@ -386,7 +389,10 @@ def test_seed002_columns_by_method_and_counting(tmp_path):
     assert e["verdict"] == "matches under paper"
     assert e["cells"]["physical"]["verdict"].startswith("missed")
     md = S.markdown_columns(rows)
-    assert md.splitlines()[0].count("|") == 6 and len(md.splitlines()) == 14
+    assert md.splitlines()[0].count("|") == 6 and len(md.splitlines()) == 19
+    assert S.count(rows) == {"statements": 15, "per_campaign": {"physical": 12, "paper": 13},
+                             "together": 13}
+    assert md.endswith("of 15 statements: physical 12, paper 13; 13 under these together.")
     # a variant run at one point is judged on it; statements across cases are not
     one = tmp_path / "primed"
     d = S.case_dir(one, 1200.0, 0.8)
@@ -401,6 +407,43 @@ def test_seed002_columns_by_method_and_counting(tmp_path):
     with pytest.raises(ValueError, match="counting = 'frames'"):
         S.counted(json.loads((S.case_dir(paper, 1200.0, 0.8) / "stats.json").read_text()),
                   "frames")
+
+
+def test_seed002_baffled_variant_is_shown_never_counted(tmp_path):
+    """Seed 002's mill has no baffles: a baffled campaign gets its own column, marked as a
+    variant, and what holds only there is not counted as a match of the paper's statement,
+    in the verdict and in the count."""
+    from millfmu.dem.studies import seed002 as S
+
+    plain, baffled = tmp_path / "plain", tmp_path / "baffled"
+    for folder in (plain, baffled):
+        for case in S.CASES:
+            st = _fake_stats(*case, {(1000.0, 0.8): 0.0044, (1200.0, 0.8): 0.004}.get(case,
+                                                                                     0.003))
+            if folder == plain:  # SEV_2 the slowest zone: the speed order missed
+                st["zones"][1]["speed_over_tip_speed"] = 0.2
+            d = S.case_dir(folder, *case)
+            d.mkdir(parents=True)
+            (d / "stats.json").write_text(json.dumps(st))
+    (baffled / "campaign.json").write_text(json.dumps({"method": "physical", "primed": False,
+                                                       "baffles": True}))
+    assert S.variant_of(plain) is None and S.variant_of(baffled) == "baffles"
+    rows = S.deviation_table([("physical", plain), ("baffles", baffled)])
+    r = next(r for r in rows if r["statement"].startswith("beads fastest in SEV_3"))
+    assert r["cells"]["baffles"]["verdict"] == "matches"
+    assert r["verdict"] == "missed under all; not counted: holds under the variant baffles"
+    both = next(r for r in rows if r["statement"].startswith("SE_cs follows SN_g"))
+    assert both["verdict"] == "matches under physical; not counted: holds under the " \
+                              "variant baffles"
+    assert S.count(rows) == {"statements": 15, "per_campaign": {"physical": 13},
+                             "together": 13}
+    md = S.markdown_columns(rows)
+    assert "| baffles (variant: baffles, not counted) |" in md.splitlines()[0]
+    assert md.endswith("physical 13; 13 under these together. Variants are shown, not "
+                       "counted.")
+    alone = S.markdown(S.deviation_rows(baffled))
+    assert alone.endswith("Variant (baffles; seed 002's mill has none): 14 of 15 statements "
+                          "hold here, none counted as a match of the paper's.")
 
 
 def test_model_a_runs_in_the_rotor():

@@ -37,14 +37,19 @@ def write(tmp_path, fluid, **kw):
 def test_deviation_table_verdicts(tmp_path):
     write(tmp_path, "coupled")
     rows = seed001.deviation_rows(tmp_path)
-    assert len(rows) == 11
-    assert all(r["verdict"].startswith("matches") for r in rows), \
-        [r for r in rows if not r["verdict"].startswith("matches")]
+    assert len(rows) == 14
+    # the two statements on the local maps are listed, not judged
+    judged = [r for r in rows if not r["verdict"].startswith("not evaluated")]
+    assert len(judged) == 12 and all(r["verdict"].startswith("matches") for r in judged), \
+        [r for r in judged if not r["verdict"].startswith("matches")]
+    assert seed001.count(rows) == {"statements": 14, "matches": 12, "missed": 0,
+                                   "not evaluated": 2}
     # without prescribed runs in the folder the column comes from the shipped table
     assert rows[0]["prescribed_source"] == seed001.TABLE_NOTE
     assert "10 m/s 80 %: 0.325" in rows[0]["prescribed"]
     md = seed001.markdown(rows)
-    assert md.count("\n") == 14 and "| verdict |" in md and seed001.TABLE_NOTE in md
+    assert md.count("\n") == 19 and "| verdict |" in md and seed001.TABLE_NOTE in md
+    assert "Coupled runs: 12 of 14 statements match, 0 missed, 2 not evaluated." in md
 
 
 def test_deviation_table_names_what_is_missed(tmp_path):
@@ -54,6 +59,18 @@ def test_deviation_table_names_what_is_missed(tmp_path):
     assert any("V1 at 80" in k for k in missed) and any("first bead layer" in k
                                                         for k in missed)
     assert any("secondary vortex" in k for k in missed)
+
+
+def test_v3_slowest_is_judged_in_every_case(tmp_path):
+    """Seed 001: the mean bead speed is lowest in V3 in all cases; a run whose V2 is the
+    slowest misses it, and the count says so."""
+    write(tmp_path, "coupled", speeds=(0.13, 0.09, 0.095, 0.10))
+    rows = seed001.deviation_rows(tmp_path)
+    row = next(r for r in rows if r["statement"].startswith("mean bead speed lowest in V3"))
+    assert row["verdict"] == "missed" and "10 m/s 80 %: slowest V2" in row["coupled"]
+    # V3 at 0.095 is within 15 % of seed 001's 0.085, yet not the slowest zone
+    assert seed001.count(rows) == {"statements": 14, "matches": 11, "missed": 1,
+                                   "not evaluated": 2}
 
 
 def test_campaign_runs_the_stated_protocol(tmp_path, monkeypatch):
