@@ -804,7 +804,7 @@ def profile_gpu(path, steps: int = BENCH_STEPS, out=print) -> dict:
 
 # ---- the command: python -m benchmarks.dem_peers ------------------------------------------
 def parser() -> argparse.ArgumentParser:
-    """The bench's options (those of the former ``millfmu dem bench``)."""
+    """The bench's options."""
     b = argparse.ArgumentParser(
         prog="python -m benchmarks.dem_peers",
         description="The dense sheared bed: ours (1 and 2 threads), LAMMPS and LIGGGHTS when "
