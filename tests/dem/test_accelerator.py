@@ -413,7 +413,7 @@ def test_seed002_baffled_variant_is_shown_never_counted(tmp_path):
     """Seed 002's mill has no baffles: a baffled campaign gets its own column, marked as a
     variant, and what holds only there is not counted as a match of the paper's statement,
     in the verdict and in the count."""
-    from millfmu.dem.studies import seed002 as S
+    from validation import seed002 as S
 
     plain, baffled = tmp_path / "plain", tmp_path / "baffled"
     for folder in (plain, baffled):
