@@ -345,7 +345,8 @@ def prediction_band(scene: Scene, multiple: float = 1.0) -> dict | None:
             "method": ("two runs with every zone's collision frequency and median stress energy at the edges of the table's "
                        "stated relative error b, factors (1 + b)^-1 and (1 + b); b = interpolation error + 2 sigma of the DEM "
                        "sampling at the last operating point + the work-precision expected error (recording, spin-up, "
-                       "sector, step, coupling), per zone"),
+                       "sector, step, coupling) + the spread of independent DEM realizations + off the anchor the "
+                       "one-at-a-time axes' separability error measured by the table's checks, per zone"),
         }
         out["parts"]["table"] = table
         out.update({k: v for k, v in table.items() if k != "outputs"})  # the table's figures at the top, as before

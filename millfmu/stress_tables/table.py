@@ -183,8 +183,9 @@ class Table:
         Error estimate per field: for each axis with at least 3 points, the linear
         interpolation error t (1 - t) h^2 / 2 |f''| with f'' from the second divided
         difference at the interval's end nodes (the larger), summed over axes and multiplied
-        by ERROR_SAFETY, plus 16 ulps of the value for rounding; zero at grid points; NaN
-        when an axis with 2 points has t in (0, 1). This is the error of interpolating
+        by ERROR_SAFETY, plus 16 ulps of the value for rounding; zero at grid points; on an
+        axis with 2 points, where no curvature can be estimated, the field is taken as
+        monotone between them: max(t, 1 - t) |f1 - f0|. This is the error of interpolating
         between the stored values. The DEM's own sampling noise is separate:
         ``Lookup.sigma`` (see :meth:`node_sigma`) propagated through the weights,
         sqrt(sum w_c^2 sigma_c^2); :meth:`Lookup.bound` combines the two.
@@ -450,10 +451,15 @@ class Table:
             t = ts[a]
             if ax.size == 1 or t == 0.0 or t == 1.0:
                 continue
-            if ax.size < 3:
-                err = err + np.nan
-                continue
             i = idx[a]
+            if ax.size < 3:
+                # Two nodes hold no curvature: the field is taken as monotone between them,
+                # so the truth lies between the nodes' values and the linear interpolant is
+                # off by at most max(t, 1 - t) |f1 - f0| (the other axes at the cell's corners).
+                step = np.abs(np.take(arr, i + 1, axis=a) - np.take(arr, i, axis=a))
+                err = err + max(t, 1.0 - t) * _corner_max(step, idx[:a] + idx[a + 1:],
+                                                         ts[:a] + ts[a + 1:])
+                continue
             h = ax[i + 1] - ax[i]
             curv = np.zeros(tail)
             # Second divided differences at the nodes i and i+1 where they exist; the

@@ -60,11 +60,22 @@ def test_held_back_grid_node(tmp_path):
     assert rel["se_quantiles_norm"] < 0.05
 
 
-def test_two_point_axis_has_no_error_estimate():
+def test_two_point_axis_bounds_a_monotone_field():
+    """Two nodes hold no curvature: the stated error is the largest the linear interpolant can
+    be off while the field stays between the nodes' values, max(t, 1 - t) |f1 - f0| (the
+    largest over the interpolation cell's corners), and it covers the analytic builder's
+    (monotone) truth."""
     t = T.build_table(spec(grid={"tip_speed_m_s": [6.0, 14.0], "filling": [0.5, 0.7, 0.9]}),
                       analytic_builder, executor="serial", progress=False)
-    lk = t.lookup({"tip_speed_m_s": 10.0, "filling": 0.7})
-    assert np.all(np.isnan(lk.error["collision_frequency_norm"]))
+    lk = t.lookup({"tip_speed_m_s": 8.0, "filling": 0.7})
+    f0 = t.lookup({"tip_speed_m_s": 6.0, "filling": 0.7}).values["collision_frequency_norm"]
+    f1 = t.lookup({"tip_speed_m_s": 14.0, "filling": 0.7}).values["collision_frequency_norm"]
+    err = lk.error["collision_frequency_norm"]
+    # at least the step at the point's own filling (the cell's corners take the largest)
+    assert np.all(err >= 0.75 * np.abs(f1 - f0) - 1e-12)
+    truth = analytic_builder({}, {"tip_speed_m_s": 8.0, "filling": 0.7})
+    actual = np.abs(lk.values["collision_frequency_norm"] - truth["collision_frequency_norm"])
+    assert np.all(np.isfinite(err)) and np.all(actual <= err)
 
 
 def test_outside_grid_refused_with_bounds(table):
