@@ -207,7 +207,8 @@ class TableStressSource:
         table's work-precision expected error (recording, spin-up, sector, step, coupling;
         the manifest's ``work_precision.choice.expected_error``, SE_tn's median standing for
         the ``total`` component's), the spread between independent DEM realizations of one
-        point (:meth:`Table.realization_error`), and off the anchor of the one-at-a-time axes
+        point (:meth:`Table.realization_error`) and, near a node the DEM ran again, that
+        node's measured difference (:meth:`Table.node_check_error`), and off the anchor of the one-at-a-time axes
         their separability error measured by the table's checks
         (:meth:`Table.separability_error`), summed; NaN in a zone without collisions, and in every
         zone where no lookup was made (the stirrer at rest throughout: no collisions, so the
@@ -231,9 +232,11 @@ class TableStressSource:
         e_wp = np.array([float((wp.get("se_tn_q50") or {}).get(n, 0.0)) for n in names])
         sep = self.table.separability_error(lk.point)
         real = self.table.realization_error()
+        node = self.table.node_check_error(lk.point)
         return {"zones": list(names),
-                "collision_frequency": f + f_wp + sep["collision_frequency"] + real["collision_frequency"],
-                "se_median": e + e_wp + sep["se_median"] + real["se_median"]}
+                "collision_frequency": f + f_wp + sep["collision_frequency"] + real["collision_frequency"]
+                + node["collision_frequency"],
+                "se_median": e + e_wp + sep["se_median"] + real["se_median"] + node["se_median"]}
 
     def zones(self, op):
         names = self.table.zone_names

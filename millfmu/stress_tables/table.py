@@ -356,6 +356,80 @@ class Table:
                 out[k] = out[k] + worst[k]
         return out
 
+    def node_check_error(self, point: dict) -> dict:
+        """Relative error [-] per zone from the checks that ran the DEM again at a grid node
+        (the one-at-a-time axes at their references): another realization of that node. At
+        each such node the measured difference |l - r| (l the node's value, r the check's
+        run) is taken as the node's error and carried to ``point`` through the
+        interpolation weights, sum_c w_c |l - r|_c, over the grid's own interpolant there;
+        for ``collision_frequency`` and ``se_median`` (SE_tn's median). Zeros where no
+        node of the point's cell was checked. Where a zone does not settle to one state in
+        a run (a slice's outer zone at 60 % filling, filled in one realization and empty in
+        another), this is what states it."""
+        names = self.zone_names
+        out = {"collision_frequency": np.zeros(len(names)), "se_median": np.zeros(len(names))}
+        checks = (self.manifest.get("interpolation_check") or {}).get("points") or []
+        nodes = {}
+        for c in checks:
+            at = self._node_of(c["point"])
+            if at is not None:
+                nodes[at] = c
+        if not nodes:
+            return out
+        cell = self._cell(point)
+        if cell is None:
+            return out
+        ci = COMPONENTS.index("tn")
+        qi = QUANTILE_NAMES.index("q50")
+        for key, fld in (("collision_frequency", "collision_frequency_norm"),
+                         ("se_median", "se_tn_q50_norm")):
+            num, den = np.zeros(len(names)), np.zeros(len(names))
+            for corner, w in cell:
+                node = self.data["collision_frequency_norm"][corner] if key == "collision_frequency" \
+                    else self.data["se_quantiles_norm"][corner][ci, :, qi]
+                node = np.nan_to_num(np.asarray(node, float))
+                den = den + w * np.abs(node)
+                c = nodes.get(corner)
+                if c is not None:
+                    run = np.array([np.nan if v is None else float(v) for v in c[fld]["run"]])
+                    num = num + w * np.nan_to_num(np.abs(node - run))
+            with np.errstate(divide="ignore", invalid="ignore"):
+                out[key] = np.where(den > 0.0, num / den, np.where(num > 0.0, np.inf, 0.0))
+        return out
+
+    def _node_of(self, point: dict):
+        """The grid index of ``point`` if it is a node with every one-at-a-time axis at its
+        reference, else None."""
+        for name, ref in self.one_at_a_time_ref.items():
+            if name in point and not math.isclose(float(point[name]), ref, rel_tol=FIXED_AXIS_RTOL):
+                return None
+        idx = []
+        for name, ax in self.axes.items():
+            if name not in point:
+                return None
+            hit = np.nonzero(np.isclose(ax, float(point[name]), rtol=FIXED_AXIS_RTOL, atol=0.0))[0]
+            if hit.size == 0:
+                return None
+            idx.append(int(hit[0]))
+        return tuple(idx)
+
+    def _cell(self, point: dict):
+        """[(grid index, weight)] of the multilinear interpolation at ``point`` (None where a
+        grid axis is missing or outside its range)."""
+        idx, ts = [], []
+        for name, ax in self.axes.items():
+            if name not in point:
+                return None
+            x = float(point[name])
+            if ax.size == 1:
+                idx.append(0), ts.append(0.0)
+                continue
+            if not ax[0] <= x <= ax[-1]:
+                return None
+            i = min(max(int(np.searchsorted(ax, x, side="right") - 1), 0), ax.size - 2)
+            idx.append(i), ts.append(float((x - ax[i]) / (ax[i + 1] - ax[i])))
+        return [(c, w) for c, w in _corners(idx, ts) if w > 0.0]
+
     def realization_error(self) -> dict:
         """Relative error [-] per zone from the spread of independent DEM realizations of one
         point, the manifest's ``realization_spread`` (measured at the work-precision point

@@ -40,9 +40,11 @@ def test_coupled_table_verifies_and_states_its_build(table):
     assert list(table.axes["filling"]) == [0.5, 0.6, 0.7, 0.8, 0.9]
     assert list(table.axes["tip_speed_m_s"]) == [6.0, 8.0, 10.0, 12.0, 14.0]
     assert m["points_run"] + m["points_reused"] == 28  # 25 grid points, 3 one at a time
-    # the checks of the earlier 3 x 3 table, carried over with their runs
-    for key in ("interpolation_check", "separability_check"):
-        assert len(m[key]["points"]) == 2 and all(p["run_from"] for p in m[key]["points"])
+    # checks: DEM runs between and on the nodes and off the anchor (their kernels and what
+    # they measure: tests/tables/test_stated_error.py)
+    assert len(m["interpolation_check"]["points"]) >= 2
+    assert len(m["separability_check"]["points"]) == 2
+    assert m["realization_spread"]["realizations"] >= 3
     # every point recorded collisions in the zones that hold beads
     assert np.all(table.data["collision_count"].sum(axis=-1) > 1000)
 

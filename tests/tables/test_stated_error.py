@@ -82,3 +82,70 @@ def test_realization_error_is_the_manifests_spread_times_its_factor(coupled):
     without = TableStressSource(_with_checks(coupled, [])).relative_error(t.lookup(at))
     assert np.allclose(with_spread["collision_frequency"] - without["collision_frequency"],
                        e["collision_frequency"])
+
+
+def _kernel_versions_of(table) -> set:
+    """The table's kernel version and the source hashes accepted as it."""
+    from millfmu.dem.tables.cache import SAME_DEM_AS
+    from millfmu.dem.tables.equivalence import accepted_versions
+
+    v = table.manifest["kernel_version"]
+    return {v} | {s for s, t in SAME_DEM_AS.items() if t == v} | \
+        {s for s, t in accepted_versions().items() if t == v}
+
+
+def test_every_check_of_the_shipped_coupled_table_ran_on_its_kernels(coupled):
+    """A check measures the table's error only with the table's own DEM: no check of another
+    kernel version is kept."""
+    versions = _kernel_versions_of(coupled)
+    checks = [c for k in ("interpolation_check", "separability_check")
+              for c in coupled.manifest[k]["points"]]
+    assert len(checks) >= 4
+    for c in checks:
+        assert c.get("run_kernel_version") in versions, c["point"]
+
+
+def test_the_stated_error_covers_every_check_of_the_shipped_coupled_table(coupled):
+    """At each check's point the stated error b (per zone, collision frequency and median
+    SE_tn) spans the run: max(l/r, r/l) - 1 <= b, l the lookup now, r the check's DEM run (a
+    zone the run found empty has no factor to check)."""
+    src = TableStressSource(coupled)
+    for kind in ("interpolation_check", "separability_check"):
+        for c in coupled.manifest[kind]["points"]:
+            lk = coupled.lookup(c["point"])
+            b = src.relative_error(lk)
+            for key, fld, look in (
+                    ("collision_frequency", "collision_frequency_norm",
+                     lk.values["collision_frequency_norm"]),
+                    ("se_median", "se_tn_q50_norm", lk.values["se_quantiles_norm"][0, :, 1])):
+                run = np.array([np.nan if v is None else float(v) for v in c[fld]["run"]])
+                with np.errstate(divide="ignore", invalid="ignore"):
+                    measured = np.maximum(look / run, run / look) - 1.0
+                ok = np.isfinite(measured) & (run > 0)
+                assert np.all(measured[ok] <= b[key][ok]), (kind, c["point"], key, measured, b[key])
+
+
+def test_a_node_run_again_states_its_difference_and_carries_it_to_its_cell(coupled):
+    """A check at a grid node (another realization of it): at the node the stated part is
+    |l - r| / l per zone, halfway to the next node the weighted |l - r| over the grid's
+    interpolant there; a point whose cell holds no checked node gets none."""
+    node = {"tip_speed_m_s": 12.0, "filling": 0.6, "bead_diameter_m": 0.8e-3,
+            "bead_density_kg_m3": 2510.0}
+    cf = np.array(coupled.lookup(node).values["collision_frequency_norm"], float)
+    run = [float(v) for v in cf * np.array([2.0, 1.0, 0.5, 1.0])]
+    run[3] = 0.5  # a zone empty in the table's run, filled in the other
+    t = copy.copy(coupled)
+    t.manifest = dict(coupled.manifest, interpolation_check={"measure": "test", "points": [
+        {"point": node, "collision_frequency_norm": {"run": run},
+         "se_tn_q50_norm": {"run": [None, None, None, None]}}]})
+    e = t.node_check_error(node)
+    want = np.abs(cf - np.array(run)) / cf
+    np.testing.assert_allclose(e["collision_frequency"], want)
+    assert np.all(e["se_median"] == 0.0)  # no run value: nothing measured
+    half = dict(node, tip_speed_m_s=13.0)
+    cf14 = coupled.lookup(dict(node, tip_speed_m_s=14.0)).values["collision_frequency_norm"]
+    e = t.node_check_error(half)
+    np.testing.assert_allclose(e["collision_frequency"],
+                               0.5 * np.abs(cf - np.array(run)) / (0.5 * cf + 0.5 * cf14))
+    far = t.node_check_error(dict(node, tip_speed_m_s=8.0, filling=0.8))
+    assert np.all(far["collision_frequency"] == 0.0)
