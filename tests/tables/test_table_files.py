@@ -95,7 +95,8 @@ def test_table_from_a_short_recording_warns(tmp_path, scene_dict):
     t.export(tmp_path / "short")
     m = MillModel(make_scene(scene_dict, kinetics={"stress_distribution": {"table": str(tmp_path / "short")}}))
     assert any("0.004 s" in w and "stirrer revolution" in w for w in m.warnings), m.warnings
-    assert MillModel(make_scene(scene_dict)).warnings == []  # 0.1 s recordings: no warning
+    # 0.1 s recordings: no warning about them (the default scene's one warning is its regime)
+    assert not [w for w in MillModel(make_scene(scene_dict)).warnings if "stirrer revolution" in w]
     r = subprocess.run([sys.executable, "-m", "millfmu.cli", "run", "-q", str(_scene_file(tmp_path, tmp_path / "short")),
                         "--out", str(tmp_path / "out")], capture_output=True, text=True)
     assert r.returncode == 0 and "warning: stress-energy table" in r.stderr and "0.004 s" in r.stderr

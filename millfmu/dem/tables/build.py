@@ -24,7 +24,7 @@ from collections.abc import Callable
 import numpy as np
 
 from ...stress_tables.files import canonical_json, sha256_bytes, write_replacing
-from ...stress_tables.spec import (COMPONENTS, DRIFT_FIELDS, FIELDS, FORMAT_VERSION, QUANTILE_NAMES, TableError,
+from ...stress_tables.spec import (COMPONENTS, DEM_BUILDER_ID, DRIFT_FIELDS, FIELDS, FORMAT_VERSION, QUANTILE_NAMES, TableError,
                    TableSpec, scene_at_point)
 from ...stress_tables.table import FIXED_AXIS_RTOL, Table
 
@@ -520,7 +520,9 @@ def check_point(table: Table, point: dict, builder: Callable) -> dict:
     the table has one-at-a-time axes, of the grid alone with those axes at their references
     (``grid_only_rel_diff``): how much the one-at-a-time scaling (its separability
     assumption) gains or loses there. Returns a JSON-ready dict (``point``, ``zones``, one
-    entry per quantity, ``wall_time_s`` of the run)."""
+    entry per quantity, ``wall_time_s`` of the run, and for the DEM builder
+    ``run_kernel_version``, the installed DEM's: a check measures the table's error only
+    where it is the table's)."""
     if "scene" not in table.manifest:
         raise TableError("check: the table's manifest names no scene to run")
     spec = table.spec()
@@ -530,6 +532,10 @@ def check_point(table: Table, point: dict, builder: Callable) -> dict:
     run = builder(spec.scene, full)
     wall = time.perf_counter() - t0
     out = {"point": full, "zones": list(table.zone_names), "wall_time_s": round(wall, 1)}
+    if getattr(builder, "builder_id", None) == spec.builder_id and spec.builder_id == DEM_BUILDER_ID:
+        from .cache import dem_kernel_version
+
+        out["run_kernel_version"] = dem_kernel_version()
     return _compare(table, out, _check_fields(run))
 
 
