@@ -5,7 +5,7 @@ and coupling 5e-5 s):
 
 1. beads -> grid (:mod:`millfmu.dem.coupling.projection`): bead volumes give the void
    fraction; each bead's drag coefficient c_i = V_i beta_i (Koch & Hill 2001 at its local
-   void fraction and relative speed, :mod:`millfmu.dem.coupling.koch_hill2001`; held
+   void fraction and relative speed, :mod:`millfmu.dem.engine.koch_hill2001`; held
    explicitly over the interval, or relaxed exactly where a bead's relaxation time is
    shorter than the interval) and
    c_i v_i give the implicit drag coefficient K and the explicit source per velocity node;

@@ -29,7 +29,8 @@ gamma = -2 sqrt(5/6) beta sqrt(S m*), beta = ln e / sqrt(ln^2 e + pi^2), Coulomb
 on the tangential history spring, constant directional torque rolling friction
 |M_r| = mu_r k_n d_n R*. Lubrication between beads not in contact,
 F = -6 pi eta R*^2 v_n / max(h, h_min) for h < h_cut. Drag after Koch & Hill (2001)
-in the CFDEM form ("model A", not divided by the void fraction).
+in the CFDEM form ("model A", not divided by the void fraction;
+:mod:`millfmu.dem.engine.koch_hill2001`).
 """
 
 import math
@@ -39,6 +40,7 @@ from numba import get_thread_id, prange
 
 from millfmu.dem.engine._jit import contact, device, kernel, nonneg, serial
 from millfmu.dem.engine.chunk_claims import claim, reset_claims
+from millfmu.dem.engine.koch_hill2001 import beta_of_terms
 
 # ---- layout of the parameter vector prm (float64) -------------------------------------
 P_DT = 0  # time step [s]
@@ -269,19 +271,6 @@ def swirl_velocity(x, y, z, prm):
 
 
 @device
-def koch_hill_beta(d, eps, mu_f, rho_f, urel, f0, f3):
-    """Interphase momentum coefficient beta [kg/(m3 s)] after Koch & Hill (2001), CFDEM form.
-
-    d: bead diameter [m]; eps: void fraction [-]; mu_f [Pa s]; rho_f [kg/m3];
-    urel: |U_f - U_p| [m/s]; f0, f3: the void-fraction terms F0, F3 of
-    :func:`millfmu.dem.engine.params.koch_hill_f0_f3`. Drag on a bead = V_p beta (U_f - U_p).
-    """
-    re = d * eps * urel * rho_f / mu_f
-    ff = eps * (f0 + 0.5 * f3 * re)
-    return 18.0 * mu_f * eps * ff / (d * d)
-
-
-@device
 def wall_gap(x, y, z, rad, w, prm):
     """Distance geometry of bead (x, y, z), radius rad [m], to wall w.
 
@@ -474,8 +463,8 @@ def body_force(xi, yi, zi, vix, viy, viz, ri, mi, fr, tzh, fzh, prm):
         uy -= viy
         uz -= viz
         um = math.sqrt(ux * ux + uy * uy + uz * uz)
-        bt = koch_hill_beta(2.0 * ri, prm[P_EPSF], prm[P_MUF], prm[P_RHOF], um,
-                            prm[P_KH_F0], prm[P_KH_F3])
+        bt = beta_of_terms(2.0 * ri, prm[P_EPSF], prm[P_MUF], prm[P_RHOF], um,
+                           prm[P_KH_F0], prm[P_KH_F3])
         vp = 4.0 / 3.0 * math.pi * ri ** 3
         fx += vp * bt * ux
         fy += vp * bt * uy

@@ -11,7 +11,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from millfmu.dem.engine.params import BeadMaterial, koch_hill_f0_f3
+from millfmu.dem.engine.params import BeadMaterial
 from millfmu.dem.mills.geometry import MillGeometry
 
 
@@ -90,6 +90,7 @@ class DemSimulation:
 
         from millfmu.dem.engine import kernels as K
         from millfmu.dem.engine._jit import use_threads
+        from millfmu.dem.engine.koch_hill2001 import f0_f3_python
 
         self.K = K
         self.geometry = geometry
@@ -152,7 +153,7 @@ class DemSimulation:
             prm[K.P_KCORE] = fluid.swirl_core_fraction
             prm[K.P_DELTA] = fluid.swirl_layer_m
             prm[K.P_RHOF] = fluid.density_kg_m3
-            prm[K.P_KH_F0], prm[K.P_KH_F3] = koch_hill_f0_f3(fluid.void_fraction)
+            prm[K.P_KH_F0], prm[K.P_KH_F3] = f0_f3_python(fluid.void_fraction)
         prm[K.P_GX:K.P_GZ + 1] = g
         prm[K.P_LZ] = geometry.height_m
         prm[K.P_SECTOR] = geometry.sector_rad

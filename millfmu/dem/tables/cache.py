@@ -48,7 +48,7 @@ KERNEL_MODULES = {
     "millfmu.dem.fluid.pressure": "millfmu.dem.fluid.pressure",
     "millfmu.dem.fluid.solver": "millfmu.dem.fluid.solver",
     "millfmu.dem.coupling.projection": "millfmu.dem.coupling.projection",
-    "millfmu.dem.coupling.koch_hill2001": "millfmu.dem.coupling.koch_hill2001",
+    "millfmu.dem.coupling.koch_hill2001": "millfmu.dem.engine.koch_hill2001",
     "millfmu.dem.coupling.cfd_dem": "millfmu.dem.coupling.cfd_dem",
     "millfmu.dem.coupling.settings": "millfmu.dem.coupling.settings",
     "millfmu.dem.coupling.dpm": "millfmu.dem.coupling.dpm",
