@@ -25,8 +25,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from millfmu.dem.fluid.grid import FLUID, ROTOR, STATOR, CylGrid
-from millfmu.dem.coupling.settings import DEFAULT_PRESSURE_SOLVER
 from millfmu.dem.fluid.pressure import PressureSolver
+from millfmu.dem.fluid.settings import DEFAULT_PRESSURE_SOLVER
 
 MODELS = ("A", "B")
 #: Slip time [s] of the liquid between a rotor's vanes (driven cells): the vanes hold the
@@ -35,7 +35,8 @@ MODELS = ("A", "B")
 #: value stable, and the torque it takes is the vanes' share of the rotor torque.
 VANE_SLIP_TIME_S = 1e-5
 TURBULENCE = ("k_epsilon", "laminar")
-#: what a run's description says of each pressure solver (settings.PRESSURE_SOLVERS)
+#: what a run's description says of each pressure solver
+#: (:data:`millfmu.dem.fluid.settings.PRESSURE_SOLVERS`)
 PRESSURE_DESCRIPTIONS = {
     "direct_lu": "direct sparse LU of the constant projection operator",
     "theta_fft": "FFT in theta and a direct sparse LU of each mode's 2D operator (theta_fft)",

@@ -51,6 +51,8 @@ KERNEL_MODULES = {
     "millfmu.dem.coupling.koch_hill2001": "millfmu.dem.engine.koch_hill2001",
     "millfmu.dem.coupling.cfd_dem": "millfmu.dem.coupling.cfd_dem",
     "millfmu.dem.coupling.settings": "millfmu.dem.coupling.settings",
+    # the pressure equation's solvers and default, moved out of coupling.settings
+    "millfmu.dem.fluid.settings": "millfmu.dem.fluid.settings",
     "millfmu.dem.coupling.dpm": "millfmu.dem.coupling.dpm",
     "millfmu.dem.coupling.schiller_naumann": "millfmu.dem.coupling.schiller_naumann",
     "millfmu.dem.coupling.split_implicit_smoothing":
