@@ -90,7 +90,6 @@ class DemSimulation:
 
         from millfmu.dem.engine import kernels as K
         from millfmu.dem.engine._jit import use_threads
-        from millfmu.dem.engine.koch_hill2001 import f0_f3_python
 
         self.K = K
         self.geometry = geometry
@@ -123,8 +122,8 @@ class DemSimulation:
         self.xref = x.copy()
         rmax = float(self.rad.max())
         hcut = fluid.lubrication_cutoff_m if (fluid and fluid.lubrication) else 0.0
-        # default skin 0.375 d: on the annulus bench (2 threads) skins of 0.25, 0.375 and
-        # 0.5 d gave 17, 22 and 19 M particle-steps/s (fewer builds against more pairs)
+        # skin 0.375 d: on the annulus bench (2 threads) the fastest of 0.25, 0.375 and
+        # 0.5 d (fewer builds against more pairs)
         self.skin_m = 0.375 * rmax * 2.0 if skin_m is None else float(skin_m)
         self.cutoff_m = 2.0 * rmax + hcut + self.skin_m
         if geometry.height_m / self.cutoff_m < 3.0:
@@ -132,6 +131,47 @@ class DemSimulation:
                 f"height_m = {geometry.height_m!r}: the axial period must hold at least "
                 f"three neighbour cells of {self.cutoff_m:.3e} m (bead diameter + "
                 f"lubrication cutoff + skin)")
+        prm = self._parameters(gravity_m_s2)
+        if tangential_history not in self.TANGENTIAL_HISTORIES:
+            raise ValueError(f"tangential_history = {tangential_history!r}: one of "
+                             f"{sorted(self.TANGENTIAL_HISTORIES)}")
+        self.tangential_history = tangential_history
+        prm[K.P_THIST] = self.TANGENTIAL_HISTORIES[tangential_history]
+        if history_at_start not in self.HISTORIES_AT_START:
+            raise ValueError(f"history_at_start = {history_at_start!r}: one of "
+                             f"{list(self.HISTORIES_AT_START)}")
+        self.history_at_start = history_at_start
+        self.prm = prm
+        self._allocate(max_neighbours)
+        self.step_count = 0
+        self.ids = np.arange(n)
+        if sort_every_steps is None:
+            sort_every_steps = 200 if n >= 2000 else 0
+        self.sort_every_steps = int(sort_every_steps)
+        self._last_sort = 0
+        if device not in ("cpu", "gpu"):
+            raise ValueError(f"device = {device!r}: 'cpu' or 'gpu'")
+        self.device = device
+        self._gpu = None
+        if device == "gpu" and geometry.vane_count:
+            raise ValueError(f"device = 'gpu': the GPU stepper does not turn vanes "
+                             f"(vane_count = {geometry.vane_count}); use device 'cpu'")
+        if device == "gpu":
+            from millfmu.dem.engine.gpu import GpuStepper  # numba.cuda only for the GPU
+
+            self.sort_every_steps = 0
+            self._gpu = GpuStepper(self, max_neighbours)  # builds and computes f, t
+            return
+        self._start_cpu()
+
+    def _parameters(self, gravity_m_s2) -> np.ndarray:
+        """The kernels' parameter vector (layout ``P_*`` of
+        :mod:`millfmu.dem.engine.kernels`) of this simulation's material, fluid, geometry,
+        stirrer speed, time step and skin; the tangential history's code is set by the
+        caller. Gravity [m/s2] is reduced by the fluid's buoyancy."""
+        from millfmu.dem.engine.koch_hill2001 import f0_f3_python
+
+        K, material, fluid, geometry = self.K, self.material, self.fluid, self.geometry
         prm = np.zeros(K.N_PRM)
         prm[K.P_DT] = self.dt_s
         prm[K.P_YSTAR] = material.effective_youngs_pa
@@ -142,7 +182,7 @@ class DemSimulation:
         g = np.asarray(gravity_m_s2, dtype=float)
         if fluid is not None:
             # buoyancy: the fluid's pressure gradient carries rho_f / rho_p of the weight
-            g = g * (1.0 - fluid.density_kg_m3 / rho)
+            g = g * (1.0 - fluid.density_kg_m3 / material.density_kg_m3)
             if fluid.lubrication:
                 prm[K.P_LUB_ETA] = fluid.viscosity_pa_s
                 prm[K.P_LUB_HCUT] = fluid.lubrication_cutoff_m
@@ -174,16 +214,13 @@ class DemSimulation:
         prm[K.P_HBAF] = geometry.baffle_height_m
         prm[K.P_ABAF] = math.radians(geometry.baffle_angle_deg)
         prm[K.P_SKIN] = self.skin_m
-        if tangential_history not in self.TANGENTIAL_HISTORIES:
-            raise ValueError(f"tangential_history = {tangential_history!r}: one of "
-                             f"{sorted(self.TANGENTIAL_HISTORIES)}")
-        self.tangential_history = tangential_history
-        prm[K.P_THIST] = self.TANGENTIAL_HISTORIES[tangential_history]
-        if history_at_start not in self.HISTORIES_AT_START:
-            raise ValueError(f"history_at_start = {history_at_start!r}: one of "
-                             f"{list(self.HISTORIES_AT_START)}")
-        self.history_at_start = history_at_start
-        self.prm = prm
+        return prm
+
+    def _allocate(self, max_neighbours: int) -> None:
+        """The chunks of beads and the kernels' buffers: neighbour lists of
+        ``max_neighbours`` per bead of the largest chunk, walls' histories, recorded
+        contacts, accumulators, the held fluid force."""
+        K, n = self.K, self.n
         # chunks of beads, each with its own force buffer: a fixed number for a given bead
         # count (about 4096 beads each), so that results do not depend on the thread count
         # (while threads <= chunks) and a thread held up on a shared machine leaves its
@@ -211,25 +248,12 @@ class DemSimulation:
         self.fext = np.zeros((n, 3))
         # further per-bead arrays of a coupling, permuted with the beads (register_per_bead)
         self.per_bead = {}
-        self.step_count = 0
-        self.ids = np.arange(n)
-        if sort_every_steps is None:
-            sort_every_steps = 200 if n >= 2000 else 0
-        self.sort_every_steps = int(sort_every_steps)
-        self._last_sort = 0
-        if device not in ("cpu", "gpu"):
-            raise ValueError(f"device = {device!r}: 'cpu' or 'gpu'")
-        self.device = device
-        self._gpu = None
-        if device == "gpu" and geometry.vane_count:
-            raise ValueError(f"device = 'gpu': the GPU stepper does not turn vanes "
-                             f"(vane_count = {geometry.vane_count}); use device 'cpu'")
-        if device == "gpu":
-            from millfmu.dem.engine.gpu import GpuStepper  # numba.cuda only for the GPU
 
-            self.sort_every_steps = 0
-            self._gpu = GpuStepper(self, max_neighbours)  # builds and computes f, t
-            return
+    def _start_cpu(self) -> None:
+        """The first neighbour lists (made to fit where ``max_neighbours`` was generous),
+        the first sort and the forces of the initial state, whose contacts are not "new"
+        later."""
+        K = self.K
         self._build()
         if self.pair_capacity > 1.5 * self.need.max() + 64:
             # max_neighbours was generous: lists that fit (nothing to carry over yet)
@@ -237,10 +261,9 @@ class DemSimulation:
             self._build(do_wrap=False)
         if self.sort_every_steps:
             self._sort()
-        # forces of the initial state; contacts present now are not "new" later
-        # ("zero": the contact law uses dt only for the spring's increment, none at the start)
+        # "zero": the contact law uses dt only for the spring's increment, none at the start
         dt = self.prm[K.P_DT]
-        if history_at_start == "zero":
+        if self.history_at_start == "zero":
             self.prm[K.P_DT] = 0.0
         self._finish(record=False, kick=0.0)
         self.prm[K.P_DT] = dt
