@@ -225,7 +225,7 @@ def held_sums(fext):
     """Sums of T_z [N m] and F_z [N] of the held forces fext over the beads, in bead order.
     Summed after the parallel loop that sets them, not as its reduction: numba's parfor
     pass fails to compile a prange loop with a scalar reduction beside an inner loop with
-    a conditional read (numba issue 10132, on Python 3.12); and the sum no longer depends
+    a conditional read (numba issue 10132, on Python 3.12); and so the sum does not depend
     on the thread count."""
     tsum = 0.0
     fsum = 0.0

@@ -219,8 +219,7 @@ def history_frame_pair(s0, s1, s2, dx, dy, dz, ir2, ir):
     [1/m2], ir = 1 / |d| [1/m]): |s - (s.n) n|^2 = |s|^2 - (s.d)^2 / |d|^2, which needs no
     root, so the length ratio's division and root wait for a division of |d|^2 only, not
     for the root of |d|^2 and a division after it (the longest chain of dependent operations in the
-    contact law; this form made the law alone 20 % faster on the bench bed). The two
-    forms differ by round-off: the history lies in the previous step's tangent plane, so
+    contact law, which this form shortens). The two forms differ by round-off: the history lies in the previous step's tangent plane, so
     |s.n| << |s| and the difference does not cancel."""
     sm0 = s0 * s0 + s1 * s1 + s2 * s2
     sdd = s0 * dx + s1 * dy + s2 * dz
@@ -786,8 +785,8 @@ def build_nlist(x, ej, es, ex, start, cmax, lo, cs, ncx, ncy, ncz, cut2, prm, wr
                 # after them: the force loop's branch on overlap then changes once per row
                 # instead of at random (about 45 % of listed pairs overlap), which the
                 # processor predicts, and contacts mostly keep their overlap until the next
-                # build (force loop on the bench bed 10 % faster). First each pair's index in
-                # the old lists where it was in contact, else -1.
+                # build. First each pair's index in the old lists where it was in contact,
+                # else -1.
                 nc = 0
                 for h in range(nh):
                     e = nonneg(hit[h])
@@ -907,8 +906,8 @@ def compute_forces(x, v, w, fb, tb, rad, mass, inertia, pst, nnb, pj, pim, psh, 
     # Equal beads (one radius and mass, as in most mill runs): R*, m* and the partner's
     # radius are the same for every pair, computed once, as the general formulas give
     # them; this saves the pair loop two divisions per contact and a load per pair.
-    # (counted without an early exit, so that the compiler vectorises the pass: 5 against
-    # 25 us a step on the bench bed's 52 k beads, serial before the threads start)
+    # (counted without an early exit, so that the compiler vectorises this pass, which runs
+    # serially before the threads start)
     nb = x.shape[0]
     r0 = rad[0] if nb > 0 else 0.0
     m0 = mass[0] if nb > 0 else 0.0
@@ -1197,8 +1196,8 @@ def reduce_kick(fb, tb, cb, maxj, f, t, v, w, x, inv_m, inv_i, kick, dt, drift, 
     w += kick t/I and, with drift, x += dt v; dmax[c] receives the largest squared
     displacement [m2] since the last neighbour build of chunk c's beads. f and t are
     stored only without drift (a run's last step, finish_step): within a run the next step
-    needs the sums only for this kick, and the two arrays' stores were a quarter of this
-    memory-bound pass's traffic on the dilute bench bed. With deferred (after
+    needs the sums only for this kick, and the two arrays' stores would be a quarter of
+    this memory-bound pass's traffic on the dilute bench bed. With deferred (after
     ``compute_forces(..., fuse=True)``, which kicked the other beads), only the beads that
     an earlier chunk's rows reach, and dmax[c] keeps the larger of its value and theirs."""
     nch = cb.shape[0] - 1

@@ -65,9 +65,9 @@ class DemSimulation:
     springs of the contacts present at construction (positions carry no history) when the
     initial forces are evaluated: ``"zero"`` (the default, as LAMMPS and LIGGGHTS, which
     update no history in their set-up: zero at the start, v_t dt after the first step) or
-    ``"advanced"`` (the start before this choice existed, kept to repeat earlier runs: the
-    initial evaluation already added one step of sliding, v_t dt, to each spring, and the
-    first step the next, one step of sliding too many). Scenes place their beads without
+    ``"advanced"`` (to repeat runs made so: the initial evaluation already adds one step of
+    sliding, v_t dt, to each spring, and the first step the next, one step of sliding too
+    many). Scenes place their beads without
     overlap, so a scene's run starts the same either way (the shipped tables are
     unchanged); a moving, packed start shows the difference: on the DEM bench bed, whose
     shaft layer slides at several m/s, "advanced" gave a kinetic energy after 1000 steps
@@ -442,14 +442,13 @@ class DemSimulation:
 
         use_threads(self.threads)
         # every parallel loop of a DEM step runs over the chunks, whose work differs (their
-        # pairs and wall contacts): hand them out one at a time
-        # as threads come free instead of numba's equal static blocks (the force loop, the
-        # reduction and the neighbour build take them from counters of their own instead,
-        # each thread its region first: chunk_claims) (dilute bench bed on
-        # 2 threads, four alternating pairs: 23.8-24.4 M particle-steps/s against
-        # 23.1-23.8); the results do not change,
-        # since each chunk sums into its own buffer. Set per call, as numba keeps it per
-        # calling thread, and restored after, for the coupled liquid's loops over cells.
+        # pairs and wall contacts): hand them out one at a time as threads come free
+        # instead of numba's equal static blocks, so that no thread waits with its block
+        # done (the force loop, the reduction and the neighbour build take them from
+        # counters of their own instead, each thread its region first: chunk_claims); the
+        # results do not change, since each chunk sums into its own buffer. Set per call,
+        # as numba keeps it per calling thread, and restored after, for the coupled
+        # liquid's loops over cells.
         with numba.parallel_chunksize(1):
             return fn(*args)
 
