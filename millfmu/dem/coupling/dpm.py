@@ -47,9 +47,9 @@ def particle_drag(x, v, rad, mass, cellv, mu, rho, interval, rc, rtab, rh, dth, 
     the liquid's velocity read there (cellv[0:3], smoothed cell values), Schiller-Naumann
     coefficient c at the present relative speed (held over the interval by
     :func:`~millfmu.dem.coupling.exchange_kernels.held_coefficient`), the force held over
-    the next ``interval`` [s], fext = (F_r [N], T_z [N m], F_z [N]), the deposit columns q (0, c, c r, c v_r,
-    r c v_theta, c v_z) and fab[:, 0:3] the liquid's velocity at the bead. Returns the sums
-    of T_z and F_z."""
+    the next ``interval`` [s], fext = (F_r [N], T_z [N m], F_z [N]), the deposit columns
+    q (0, c, c r, c v_r, r c v_theta, c v_z) and fab[:, 0:3] the liquid's velocity at the
+    bead. Returns the sums of T_z and F_z."""
     for b in prange(x.shape[0]):
         r = stencil_one(b, x, rc, rtab, rh, dth, nt, dz, nz, lz, solid, idx, w)
         inv = 1.0 / r if r > 0.0 else 0.0

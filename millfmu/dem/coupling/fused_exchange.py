@@ -11,10 +11,10 @@ deposit, the totals' smoothing and their split onto the nodes run likewise as tw
 one per half of the six columns (:func:`beads_to_nodes`).
 
 Why: each call of a numba kernel from Python checks the types of its arguments, and inside
-the coupled run, where the DEM's ten steps come between two exchanges, that check is slow
-(the kernel's dispatch data has left the caches): on the 10-degree disc sector the
-thirteen calls' checks are a tenth of the exchange, and the Python between them (the
-liquid's substep loop, reshapes, copies, the largest stiffness) more.
+the coupled run, where the DEM's ten steps come between two exchanges, that check is
+several times slower than in a loop of calls: on the 10-degree disc sector the thirteen
+calls' checks are a tenth of the exchange, and the Python between them (the liquid's
+substep loop, reshapes, copies, the largest stiffness) more.
 
 Taken where the exchange is of that form: the explicit smoothing sweeps (or none), the
 pressure by ``direct_ldl``, no stator plates with theta faces (whose torque the liquid's

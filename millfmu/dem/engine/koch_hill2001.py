@@ -15,8 +15,9 @@ Two evaluations of the law, one per user:
   :func:`beta`, compiled into the exchange's kernels;
 - at the one void fraction of a prescribed swirl: :func:`f0_f3_python` once per run, in
   Python, and :func:`beta_of_terms` per bead in the force loop.
-They round differently (F0's powers as products against Python's ``**``, which calls the
-C library's pow; the second factor eps taken into beta last against first). The DEM is
+They round differently: the powers of phi and eps are products in the kernels and the C
+library's pow in Python's ``**``, and beta's factors are grouped ((18 mu eps) eps) (F0 +
+0.5 F3 Re_p) per bead but (18 mu eps) (eps (F0 + 0.5 F3 Re_p)) in the swirl. The DEM is
 chaotic, so a force changed in its last bit is another trajectory, and each path's
 results are fixed to the bit by the tables' kernel version
 (:data:`millfmu.dem.tables.cache.SAME_DEM_AS`): neither evaluation is rewritten as the
