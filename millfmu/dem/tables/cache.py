@@ -396,9 +396,10 @@ SAME_DEM_AS = {
     # evaluation order kept), the held drag's fallback one helper, the pressure solvers'
     # names in fluid/settings.py, the set-up functions cut into parts and the docstrings
     # without their history (coupled, 4-theta-cell, discrete-phase and plain sectors from
-    # rest and turning, prescribed swirl at eps 0.52 and 0.7, a coupled accelerator slice,
-    # on 1 and 2 threads: stats.json, the other outputs and the state, the same to the bit)
-    "sha256:101969afd7fc07a72ac53d4ec86cd5cf1ac7405fb165357535fd4221a46025d3":
+    # rest and turning, prescribed swirl at eps 0.52 and 0.7, a coupled accelerator slice
+    # in water and at 0.4 Pa s, on 1 and 2 threads: stats.json, the other outputs and the
+    # state, the same to the bit)
+    "sha256:d06d486a7a2818b4f5d8ac4de1a8a982061088390199145cf6bf727f62ac87e8":
         "sha256:97f753cea048d151d29bfc09ed08fc9161f206eb44b7bf748a0474d96810be97",
 }
 
