@@ -249,13 +249,50 @@ def run_scene(scene: DemScene, out_dir, progress: bool = True, threads: int | No
     """
     from millfmu.dem.engine import kernels as K  # numba: compiled when a run is made
 
-    EV_COLS = dict(type=K.EV_TYPE, x=K.EV_X, y=K.EV_Y, z=K.EV_Z, setn=K.EV_SETN,
+    out = Path(out_dir)
+    _check_request(out, checkpoint_every_s, device, resuming=_state is not None)
+    sim, cpl = _simulation(scene, threads, device, _state)
+    out.mkdir(parents=True, exist_ok=True)
+    unit = cpl.unit_steps if cpl is not None else 1
+    n_spin = _whole_steps(scene.spin_up_s, scene.dt_s, unit)
+    n_rec = _whole_steps(scene.record_s, scene.dt_s, unit, unit)
+    every = _whole_steps(scene.sample_every_s, scene.dt_s, unit, unit)
+    steps = (n_spin, n_spin + n_rec, every)
+    loop = _state["loop"] if _state is not None else _new_loop(scene)
+    events = _contact_log(out, K.EV_NF, _state, loop)
+    checkpoint = None
+    if checkpoint_every_s is not None:
+        # the sources this run was compiled from, not those on disk at a later checkpoint
+        checkpoint = dict(format=CHECKPOINT_FORMAT, kernel_version=_kernel_version(),
+                          scene=scene, window_s=window_s, contacts=contacts,
+                          checkpoint_every_s=checkpoint_every_s, sim=sim, cpl=cpl, loop=loop)
+    wall = _record(scene, sim, cpl, out, loop, events, steps, progress, checkpoint,
+                   resumed=_state is not None)
+    ev_cols = dict(type=K.EV_TYPE, x=K.EV_X, y=K.EV_Y, z=K.EV_Z, setn=K.EV_SETN,
                    sets=K.EV_SETS, serot=K.EV_SEROT)
+    zones = zones_for(scene)
+    stats, fields, bead_fields, ev = _run_statistics(scene, zones, sim, cpl, loop, events,
+                                                     steps, wall, ev_cols)
+    if window_s is not None:
+        _write_windows(out / "windows.csv", _window_rows(scene, zones, sim, loop, events,
+                                                         steps, window_s, ev_cols))
+    if contacts:
+        write_contacts(out / "contacts.npz", events, [t[0] for t in loop["torques"]],
+                       zones, n_spin * scene.dt_s, scene.dt_s, K.EV_TYPE,
+                       [K.EV_X, K.EV_Y, K.EV_Z], K.EV_SETN, [K.EV_SETN, K.EV_SETS, K.EV_SEROT])
+    _write_outputs(out, scene, sim, loop, stats, ev, ev_cols, fields, bead_fields)
+    if (out / CHECKPOINT).exists():  # the outputs are written: the run needs no resuming
+        (out / CHECKPOINT).unlink()
+    del ev
+    events.remove()
+    return stats
 
+
+def _check_request(out: Path, checkpoint_every_s, device: str, resuming: bool) -> None:
+    """Refuse by name (DemRunError) a run that :func:`run_scene` cannot make as asked."""
     if checkpoint_every_s is not None and not checkpoint_every_s > 0.0:
         raise DemRunError(f"checkpoint_every_s = {checkpoint_every_s!r}: must be > 0 s")
-    out = Path(out_dir)
-    if _state is None and (out / CHECKPOINT).exists():
+    if not resuming and (out / CHECKPOINT).exists():
         # a new run would overwrite the stopped one's state at its first checkpoint
         raise DemRunError(f"{out}: holds the checkpoint of a stopped run; go on with it "
                           f"(resume_run, dem run --resume {out}) or remove "
@@ -265,9 +302,13 @@ def run_scene(scene: DemScene, out_dir, progress: bool = True, threads: int | No
     if checkpoint_every_s is not None and device != "cpu":
         raise DemRunError("checkpoints are written for runs on the CPU only (device = "
                           f"{device!r})")
-    if _state is None:
+
+
+def _simulation(scene: DemScene, threads, device: str, state: dict | None):
+    """The DEM and its coupling (or None) of a new run, or of the checkpoint ``state``."""
+    if state is None:
         try:
-            sim, cpl = make_simulation(scene, threads, device)
+            return make_simulation(scene, threads, device)
         except GridError as e:  # a liquid's grid the scene's values cannot make
             raise DemRunError(f"{scene.name}: the coupled liquid's grid: {e}") from None
         except Exception as e:
@@ -276,106 +317,117 @@ def run_scene(scene: DemScene, out_dir, progress: bool = True, threads: int | No
             # no CUDA GPU or numba.cuda, a scene the GPU stepper does not model (vanes),
             # or the driver's refusal (out of device memory)
             raise DemRunError(f"{scene.name}: {e}") from None
-    else:
-        sim, cpl = _state["sim"], _state["cpl"]
-        import numba
+    sim, cpl = state["sim"], state["cpl"]
+    import numba
 
-        from millfmu.dem.engine._jit import use_threads
+    from millfmu.dem.engine._jit import use_threads
 
-        # a machine with fewer cores: fewer threads, the same chunks and results
-        sim.threads = min(sim.threads, numba.config.NUMBA_NUM_THREADS)
-        use_threads(sim.threads)
-    out.mkdir(parents=True, exist_ok=True)
-    zones = zones_for(scene)
+    # a machine with fewer cores: fewer threads, the same chunks and results
+    sim.threads = min(sim.threads, numba.config.NUMBA_NUM_THREADS)
+    use_threads(sim.threads)
+    return sim, cpl
+
+
+def _whole_steps(t_s: float, dt_s: float, unit: int, at_least: int = 0) -> int:
+    """DEM steps of ``t_s`` [s], rounded up to whole units of ``unit`` steps (a coupling
+    interval), at least ``at_least``."""
+    return max(at_least, unit * int(math.ceil(round(t_s / dt_s, 6) / unit)))
+
+
+def _new_loop(scene: DemScene) -> dict:
+    """What a new run has recorded (none yet), as a checkpoint keeps it."""
+    return dict(
+        done=0, ke_t=[], ke=[], sx=[], sv=[], torques=[],
+        # accelerator slices: the contacts present at every sample, for seed 002's counting
+        frames=[] if scene.kind == "accelerator_slice" else None,
+        dropped=0, builds=0, fluid_acc={}, fluid_samples=0, substeps=[], budget0=None,
+        wall_s=0.0)
+
+
+def _contact_log(out: Path, n_cols: int, state: dict | None, loop: dict) -> ContactLog:
+    """The run's recorded contacts, one chunk per sample, on disk (module docstring): a new
+    log, or the one a checkpoint names (layout 1 kept the chunks in the checkpoint)."""
+    if state is None:
+        return ContactLog(out / CONTACT_LOG, n_cols)
+    if "events" in loop:
+        return ContactLog.from_chunks(out / CONTACT_LOG, n_cols, loop.pop("events"))
+    try:
+        return ContactLog.resume(out / CONTACT_LOG, n_cols, loop["contact_log"])
+    except ContactLogError as e:
+        raise DemRunError(f"cannot go on with the run: {e}") from None
+
+
+def _advance(scene: DemScene, sim, cpl, k: int, record: bool) -> list:
+    """``k`` steps of the DEM (and of its coupling), recording contacts with ``record``;
+    the steps' statistics. A coupled run is checked every CHECK_EVERY_STEPS steps (whole
+    coupling intervals, which the coupling steps one by one anyway: the same run), so that
+    beads flying apart are caught before their neighbour lists take the machine's memory;
+    an unstable run is refused by name (DemRunError)."""
     dt = scene.dt_s
-    unit = cpl.unit_steps if cpl is not None else 1
+    t0 = sim.step_count * dt
+    out = []
+    try:
+        if cpl is None:
+            out.append(sim.run(k, record=record))
+        else:
+            piece = cpl.unit_steps * max(1, round(CHECK_EVERY_STEPS / cpl.unit_steps))
+            left = k
+            while left:
+                m = min(piece, left)
+                out.extend(cpl.run(m, record=record))
+                left -= m
+                why = _instability(sim, scene) if left else None
+                if why is not None:
+                    break
+    except MemoryError:
+        # the neighbour lists of beads thrown far apart or onto each other outgrow memory
+        why = _instability(sim, scene) or "the neighbour lists outgrew the memory"
+        raise DemRunError(f"{scene.name}: the run became unstable between t = {t0:.4g} and "
+                          f"{t0 + k * dt:.4g} s ({why}); fluid: {scene.fluid_description}; "
+                          f"nothing written") from None
+    why = _instability(sim, scene)
+    if why is not None:
+        raise DemRunError(f"{scene.name}: the run became unstable by t = "
+                          f"{sim.step_count * dt:.4g} s ({why}); fluid: "
+                          f"{scene.fluid_description}; nothing written")
+    return out
 
-    def whole(t_s, at_least=0):
-        return max(at_least, unit * int(math.ceil(round(t_s / dt, 6) / unit)))
 
-    n_spin = whole(scene.spin_up_s)
-    n_rec = whole(scene.record_s, unit)
-    every = whole(scene.sample_every_s, unit)
-    total = n_spin + n_rec
+def _record(scene: DemScene, sim, cpl, out: Path, loop: dict, events: ContactLog,
+            steps: tuple, progress: bool, checkpoint: dict | None, resumed: bool) -> float:
+    """Spin-up and recording from ``loop['done']`` steps on (``steps``: spin-up steps, all
+    steps, steps per sample), appending the samples to ``loop`` and the contacts to
+    ``events``; ``checkpoint``: what a checkpoint holds besides ``loop`` (None: no
+    checkpoints). Returns the run's wall time [s]."""
+    n_spin, total, every = steps
+    dt = scene.dt_s
     bar = None
     if progress:
         from tqdm import tqdm
         bar = tqdm(total=total, unit="step", desc=f"dem {scene.name} ({sim.n} beads)",
                    smoothing=0.1, bar_format="{l_bar}{bar}| {n_fmt}/{total_fmt} "
                    "[{elapsed}<{remaining}, {rate_fmt}]")
-    loop = _state["loop"] if _state is not None else dict(
-        done=0, ke_t=[], ke=[], sx=[], sv=[], torques=[],
-        # accelerator slices: the contacts present at every sample, for seed 002's counting
-        frames=[] if scene.kind == "accelerator_slice" else None,
-        dropped=0, builds=0, fluid_acc={}, fluid_samples=0, substeps=[], budget0=None,
-        wall_s=0.0)
     ke_t, ke, sx, sv = loop["ke_t"], loop["ke"], loop["sx"], loop["sv"]
     torques, frames = loop["torques"], loop["frames"]
-    # the recorded contacts, one chunk per sample, on disk (module docstring)
-    if _state is None:
-        events = ContactLog(out / CONTACT_LOG, K.EV_NF)
-    elif "events" in loop:  # a layout 1 checkpoint kept them in memory
-        events = ContactLog.from_chunks(out / CONTACT_LOG, K.EV_NF, loop.pop("events"))
-    else:
-        try:
-            events = ContactLog.resume(out / CONTACT_LOG, K.EV_NF, loop["contact_log"])
-        except ContactLogError as e:
-            raise DemRunError(f"cannot go on with the run: {e}") from None
     dropped, builds = loop["dropped"], loop["builds"]
     fluid_acc, fluid_samples = loop["fluid_acc"], loop["fluid_samples"]
     substeps, budget0 = loop["substeps"], loop["budget0"]
     t_wall = time.perf_counter() - loop["wall_s"]
     # CPU time of all threads, for the cost of a run that was stopped or shared the machine;
-    # counted from the step in cpu_from_step (a checkpoint of earlier sources has none: from
-    # the resume on)
+    # counted from the step in cpu_from_step (a checkpoint without it: from the resume on)
     if "cpu_s" not in loop:
         loop.update(cpu_s=0.0, cpu_from_step=sim.step_count)
     t_cpu = time.process_time() - loop["cpu_s"]
     t_check = time.perf_counter()
     ckpt = out / CHECKPOINT
-    # the sources this run was compiled from, not those on disk at a later checkpoint
-    version = _kernel_version() if checkpoint_every_s is not None else None
 
     def sample():
         et, er = sim.kinetic_energy_j()
         ke_t.append(sim.step_count * dt)
         ke.append(et + er)
 
-    # coupled runs are checked every `piece` steps (whole coupling intervals, which the
-    # coupling steps one by one anyway: the same run), so that beads flying apart are
-    # caught before their neighbour lists take the machine's memory
-    piece = unit * max(1, round(CHECK_EVERY_STEPS / unit))
-
-    def advance(k, record):
-        t0 = sim.step_count * dt
-        out = []
-        try:
-            if cpl is None:
-                out.append(sim.run(k, record=record))
-            else:
-                left = k
-                while left:
-                    m = min(piece, left)
-                    out.extend(cpl.run(m, record=record))
-                    left -= m
-                    why = _instability(sim, scene) if left else None
-                    if why is not None:
-                        break
-        except MemoryError:
-            # the neighbour lists of beads thrown far apart or onto each other outgrow memory
-            why = _instability(sim, scene) or "the neighbour lists outgrew the memory"
-            raise DemRunError(f"{scene.name}: the run became unstable between t = {t0:.4g} and "
-                              f"{t0 + k * dt:.4g} s ({why}); fluid: {scene.fluid_description}; "
-                              f"nothing written") from None
-        why = _instability(sim, scene)
-        if why is not None:
-            raise DemRunError(f"{scene.name}: the run became unstable by t = "
-                              f"{sim.step_count * dt:.4g} s ({why}); fluid: "
-                              f"{scene.fluid_description}; nothing written")
-        return out
-
     done = loop["done"]
-    if _state is None:
+    if not resumed:
         sample()
     elif bar is not None:
         bar.update(done)
@@ -385,7 +437,7 @@ def run_scene(scene: DemScene, out_dir, progress: bool = True, threads: int | No
             budget0 = _budget_reading(sim, cpl)
         k = min(every, (n_spin - done) if not recording else total - done)
         try:
-            sts = advance(k, recording)
+            sts = _advance(scene, sim, cpl, k, recording)
         except DemRunError:
             if not ckpt.exists():  # nothing to resume: nothing left behind
                 events.remove()
@@ -410,8 +462,8 @@ def run_scene(scene: DemScene, out_dir, progress: bool = True, threads: int | No
         sample()
         if bar is not None:
             bar.update(k)
-        if checkpoint_every_s is not None and done < total and \
-                time.perf_counter() - t_check >= checkpoint_every_s:
+        if checkpoint is not None and done < total and \
+                time.perf_counter() - t_check >= checkpoint["checkpoint_every_s"]:
             loop.update(done=done, dropped=dropped, builds=builds, fluid_acc=fluid_acc,
                         contact_log=events.state(),
                         fluid_samples=fluid_samples, budget0=budget0,
@@ -421,15 +473,17 @@ def run_scene(scene: DemScene, out_dir, progress: bool = True, threads: int | No
             # (the mean since the start mixes in any slower or paused stretch)
             loop.setdefault("checkpoints", []).append(
                 (sim.step_count, loop["wall_s"], loop["cpu_s"]))
-            _write_checkpoint(ckpt, dict(
-                format=CHECKPOINT_FORMAT, kernel_version=version, scene=scene,
-                window_s=window_s, contacts=contacts, checkpoint_every_s=checkpoint_every_s,
-                sim=sim, cpl=cpl, loop=loop))
+            _write_checkpoint(ckpt, checkpoint)
             t_check = time.perf_counter()
     if bar is not None:
         bar.close()
-    wall = time.perf_counter() - t_wall
-    ev = events.chunks(0, len(events))
+    loop.update(done=done, dropped=dropped, builds=builds, fluid_samples=fluid_samples,
+                budget0=budget0)
+    return time.perf_counter() - t_wall
+
+
+def _run_notes(scene: DemScene, sim) -> list:
+    """The notes of a run's statistics: what was simulated and how it was counted."""
     notes = [
         "fluid: " + scene.fluid_description,
         "spin-up excluded from all statistics; samples and contacts from the recording "
@@ -443,68 +497,98 @@ def run_scene(scene: DemScene, out_dir, progress: bool = True, threads: int | No
     if sim.device != "cpu":
         notes.append(f"DEM stepped on the {sim.device.upper()} (numba.cuda), the liquid and "
                      f"the exchange on {sim.threads} CPU threads")
+    return notes
 
-    def stats_of(chunks: range, t0_s, counts=None):
-        # Statistics of the recording chunks ``chunks`` (consecutive), which start at t0_s:
-        # their contacts a view of the log's file
-        e = events.chunks(chunks.start, chunks.stop)
-        n = sum(torques[i][0] for i in chunks)
-        return compute_stats(
-            scene=scene.name, zones=zones, events=e, ev_cols=EV_COLS,
-            sample_x=[sx[i] for i in chunks], sample_v=[sv[i] for i in chunks],
-            radii_m=sim.rad, record_s=n * dt, tip_speed_m_s=scene.tip_speed_m_s,
-            omega_rad_s=scene.omega_rad_s,
-            torque_on_stirrer_nm=sum(torques[i][1] for i in chunks) / max(n, 1),
-            ke_t_s=np.array(ke_t), ke_j=np.array(ke), spin_up_s=t0_s, dt_s=dt,
-            filling=scene.filling, bulk_porosity=scene.bulk_porosity,
-            fluid_model=scene.fluid_description, notes=notes,
-            counts=counts or {})
 
-    stats = stats_of(range(len(events)), n_spin * dt, counts=dict(
+def _chunk_stats(scene: DemScene, zones, sim, loop: dict, events: ContactLog,
+                 ev_cols: dict, chunks: range, t0_s: float, counts=None) -> DemStats:
+    """Statistics of the recording chunks ``chunks`` (consecutive), which start at t0_s
+    [s]: their contacts a view of the log's file."""
+    torques, sx, sv = loop["torques"], loop["sx"], loop["sv"]
+    dt = scene.dt_s
+    e = events.chunks(chunks.start, chunks.stop)
+    n = sum(torques[i][0] for i in chunks)
+    return compute_stats(
+        scene=scene.name, zones=zones, events=e, ev_cols=ev_cols,
+        sample_x=[sx[i] for i in chunks], sample_v=[sv[i] for i in chunks],
+        radii_m=sim.rad, record_s=n * dt, tip_speed_m_s=scene.tip_speed_m_s,
+        omega_rad_s=scene.omega_rad_s,
+        torque_on_stirrer_nm=sum(torques[i][1] for i in chunks) / max(n, 1),
+        ke_t_s=np.array(loop["ke_t"]), ke_j=np.array(loop["ke"]), spin_up_s=t0_s, dt_s=dt,
+        filling=scene.filling, bulk_porosity=scene.bulk_porosity,
+        fluid_model=scene.fluid_description, notes=_run_notes(scene, sim),
+        counts=counts or {})
+
+
+def _run_statistics(scene: DemScene, zones, sim, cpl, loop: dict, events: ContactLog,
+                    steps: tuple, wall: float, ev_cols: dict):
+    """The whole recording's statistics with their flow summary, the liquid's time-mean
+    section fields (None without the coupled liquid), the beads' (None where the mill has
+    none) and every recorded contact."""
+    n_spin, total, every = steps
+    dt = scene.dt_s
+    ev = events.chunks(0, len(events))
+    counts = dict(
         contacts_recorded=int(ev.shape[0]),
-        bead_bead=int((ev[:, K.EV_TYPE] == 0).sum()) if ev.size else 0,
-        bead_wall=int((ev[:, K.EV_TYPE] > 0).sum()) if ev.size else 0,
-        dropped_contacts=int(dropped), neighbour_builds=int(builds),
+        bead_bead=int((ev[:, ev_cols["type"]] == 0).sum()) if ev.size else 0,
+        bead_wall=int((ev[:, ev_cols["type"]] > 0).sum()) if ev.size else 0,
+        dropped_contacts=int(loop["dropped"]), neighbour_builds=int(loop["builds"]),
         steps=int(total), wall_time_s=wall, threads=int(sim.threads),
-        particle_steps_per_s=sim.n * total / wall))
+        particle_steps_per_s=sim.n * total / wall)
+    stats = _chunk_stats(scene, zones, sim, loop, events, ev_cols, range(len(events)),
+                         n_spin * dt, counts=counts)
     fields = None
-    if cpl is not None and fluid_samples:
-        fields = {k: v / fluid_samples for k, v in fluid_acc.items()}
+    if cpl is not None and loop["fluid_samples"]:
+        fields = {k: v / loop["fluid_samples"] for k, v in loop["fluid_acc"].items()}
         fields["r_m"] = cpl.grid.r_centres_m
         fields["zeta_m"] = _zeta_of_grid(cpl.grid, scene.geometry)
-    flow = flow_summary(scene, sim, cpl, sx, sv, torques, budget0, fields, substeps)
+    sx, sv = loop["sx"], loop["sv"]
+    flow = flow_summary(scene, sim, cpl, sx, sv, loop["torques"], loop["budget0"], fields,
+                        loop["substeps"])
     bead_fields = flow.pop("_bead_fields", None)
     if scene.kind == "accelerator_slice":
-        flow["seed002"] = accelerator_summary(scene, sim, zones, ev, EV_COLS, stats.record_s,
-                                              sx, sv, fields, frames, every * dt)
+        flow["seed002"] = accelerator_summary(scene, sim, zones, ev, ev_cols,
+                                              stats.record_s, sx, sv, fields, loop["frames"],
+                                              every * dt)
     stats.flow = _finite(flow)
-    if window_s is not None:
-        per = max(1, int(round(window_s / (every * dt))))
-        rows = []
-        for w0 in range(0, len(events), per):
-            chunks = range(w0, min(w0 + per, len(events)))
-            t0 = (n_spin + w0 * every) * dt
-            rows.append((t0, t0 + sum(torques[i][0] for i in chunks) * dt,
-                         stats_of(chunks, t0)))
-        _write_windows(out / "windows.csv", rows)
-    if contacts:
-        write_contacts(out / "contacts.npz", events, [t[0] for t in torques], zones,
-                       n_spin * dt, dt, K.EV_TYPE, [K.EV_X, K.EV_Y, K.EV_Z], K.EV_SETN,
-                       [K.EV_SETN, K.EV_SETS, K.EV_SEROT])
+    return stats, fields, bead_fields, ev
+
+
+def _window_rows(scene: DemScene, zones, sim, loop: dict, events: ContactLog,
+                 steps: tuple, window_s: float, ev_cols: dict) -> list:
+    """(start [s], end [s], statistics) of each consecutive window of ``window_s`` [s] (a
+    whole number of samples) of the recording."""
+    n_spin, total, every = steps
+    dt = scene.dt_s
+    torques = loop["torques"]
+    per = max(1, int(round(window_s / (every * dt))))
+    rows = []
+    for w0 in range(0, len(events), per):
+        chunks = range(w0, min(w0 + per, len(events)))
+        t0 = (n_spin + w0 * every) * dt
+        rows.append((t0, t0 + sum(torques[i][0] for i in chunks) * dt,
+                     _chunk_stats(scene, zones, sim, loop, events, ev_cols, chunks, t0)))
+    return rows
+
+
+def _write_outputs(out: Path, scene: DemScene, sim, loop: dict, stats: DemStats, ev,
+                   ev_cols: dict, fields, bead_fields) -> None:
+    """stats.json, the histograms, the kinetic energy, the maps and figures, and the bead
+    and liquid fields (module docstring)."""
     (out / "stats.json").write_text(stats.to_json())
     _write_histograms(out / "se_histograms.csv", stats)
-    np.savetxt(out / "kinetic_energy.csv", np.column_stack([ke_t, ke]), delimiter=",",
-               header="t_s,kinetic_energy_j", comments="")
-    plots.write_maps(out, scene, ev, EV_COLS)
+    np.savetxt(out / "kinetic_energy.csv", np.column_stack([loop["ke_t"], loop["ke"]]),
+               delimiter=",", header="t_s,kinetic_energy_j", comments="")
+    plots.write_maps(out, scene, ev, ev_cols)
     if scene.kind == "accelerator_slice":
-        plots.write_seed002_maps(out, scene, ev, EV_COLS)
+        plots.write_seed002_maps(out, scene, ev, ev_cols)
         plots.write_speed_profiles(out / "speed_profiles.png", stats.flow["seed002"])
     plots.write_distributions(out / "se_distributions.png", stats)
     if bead_fields is not None:
         np.savez(out / "bead_fields.npz", **bead_fields)
         # the recorded bead samples, for measures of the bead motion made later
-        np.savez_compressed(out / "bead_samples.npz", x_m=np.array(sx, np.float32),
-                            v_m_s=np.array(sv, np.float32), radii_m=sim.rad)
+        np.savez_compressed(out / "bead_samples.npz", x_m=np.array(loop["sx"], np.float32),
+                            v_m_s=np.array(loop["sv"], np.float32), radii_m=sim.rad)
     if fields is not None:
         np.savez(out / "fluid_fields.npz", **fields)
         plots.write_fluid_maps(out, scene, fields)
@@ -514,11 +598,6 @@ def run_scene(scene: DemScene, out_dir, progress: bool = True, threads: int | No
     if "swirl_profile_at_disc_radius" in stats.flow:
         plots.write_swirl_profile(out / "swirl_profile.png", scene,
                                   stats.flow["swirl_profile_at_disc_radius"])
-    if ckpt.exists():  # the outputs are written: the run needs no resuming
-        ckpt.unlink()
-    del ev
-    events.remove()
-    return stats
 
 
 def accelerator_summary(scene, sim, zones, ev, ev_cols, record_s, sx, sv, fields,
@@ -607,48 +686,8 @@ def flow_summary(scene, sim, cpl, sx, sv, torques, budget0, fields, substeps) ->
               "chamber_bead_contacts_nm": tb_sta / frac}
     b1 = _budget_reading(sim, cpl)
     if cpl is not None and budget0 is not None and t_rec > 0:
-        jf_rot = (b1["shaft"] - budget0["shaft"]) + (b1["rotor_cells"] - budget0["rotor_cells"])
-        jf_sta = b1["stator"] - budget0["stator"]
-        torque["stirrer_fluid_shear_nm"] = -jf_rot / t_rec / frac
-        torque["chamber_fluid_shear_nm"] = jf_sta / t_rec / frac
-        torque["stirrer_total_nm"] = torque["stirrer_fluid_shear_nm"] +             torque["stirrer_bead_contacts_nm"]
-        drive = -(jf_rot + tb_rot * t_rec)
-        walls = jf_sta + tb_sta * t_rec
-        change = (b1["fluid"] - budget0["fluid"]) + (b1["beads"] - budget0["beads"])
-        # the beads' weight about the axis (gravity across the axis of a full slice); a
-        # run resumed from a checkpoint of earlier sources does not know it (NaN): left out
-        weight = b1.get("gravity", math.nan) - budget0.get("gravity", math.nan)
-        known = math.isfinite(weight)
-        scale = max(abs(drive), abs(walls), abs(change), abs(weight) if known else 0.0,
-                    1e-300)
-        out["angular_momentum_budget"] = dict(
-            note="simulated sector over the recording [N m s, kg m2/s]: stirrer drive + "
-                 "angular impulse of the beads' buoyancy-reduced weight = change of fluid "
-                 "+ bead angular momentum + impulse taken by the chamber wall",
-            stirrer_drive_nms=drive, gravity_nms=weight if known else None,
-            chamber_nms=walls,
-            change_fluid=b1["fluid"] - budget0["fluid"],
-            change_beads=b1["beads"] - budget0["beads"],
-            closure_rel=(drive + (weight if known else 0.0) - change - walls) / scale)
-        rho = scene.fluid.density_kg_m3
-        n_rev = om / (2.0 * math.pi)
-        p_tot = torque["stirrer_total_nm"] * om
-        d_disc = 2.0 * (g.disc_radius_m if g.has_disc else g.shaft_radius_m)
-        out["power_number"] = dict(
-            value=p_tot / (rho * n_rev ** 3 * d_disc ** 5),
-            definition="Ne = P / (rho_liquid n^3 d^5): P the stirrer power of one axial "
-                       "period (fluid shear + bead contacts), n [1/s] the stirrer speed, "
-                       "d the disc (annulus: shaft) diameter")
-        sub = np.asarray(substeps, float)
-        out["fluid"] = dict(
-            model=scene.fluid_description, grid=cpl.grid.describe(),
-            coupling_interval_s=cpl.interval_s,
-            cfd_substeps_per_interval=float(sub.mean()) if sub.size else None,
-            cfd_dt_s=cpl.interval_s / float(sub.mean()) if sub.size else None,
-            void_fraction_min=float(np.nanmin(fields["eps"])) if fields else None,
-            void_fraction_mean=float(np.nanmean(fields["eps"])) if fields else None,
-            clipped_cells_last=int(cpl.clipped_cells),
-            turbulent_viscosity_max_m2_s=float(np.nanmax(fields["nu_t"])) if fields else None)
+        out.update(_coupled_flow(scene, cpl, torque, tb_rot, tb_sta, budget0, b1, t_rec,
+                                 fields, substeps))
     out["power_w"] = {k.replace("_nm", "_w"): v * om for k, v in torque.items()}
     out["torque"] = torque
     # a full slice with gravity across the axis: where the beads sit round the circle, time
@@ -663,6 +702,74 @@ def flow_summary(scene, sim, cpl, sx, sv, torques, budget0, fields, substeps) ->
         # apply; its bead fields (section maps) are written as for a disc slice
         out["_bead_fields"] = _section_bead_fields(scene, sim, cpl, sx, sv, fields)
         return out
+    out.update(_disc_flow(scene, sim, cpl, sx, sv, fields))
+    return out
+
+
+def _coupled_flow(scene, cpl, torque: dict, tb_rot: float, tb_sta: float, budget0: dict,
+                  b1: dict, t_rec: float, fields, substeps) -> dict:
+    """The coupled liquid's part of :func:`flow_summary`: its shear torques (added to
+    ``torque``), the angular-momentum budget of the simulated sector between the readings
+    budget0 and b1 (:func:`_budget_reading`), the power number and the liquid's numbers.
+    tb_rot, tb_sta [N m]: the beads' mean torques on stirrer and chamber (sector); t_rec [s]
+    the recording's length."""
+    g = scene.geometry
+    frac = g.sector_fraction
+    om = scene.omega_rad_s
+    out = {}
+    jf_rot = (b1["shaft"] - budget0["shaft"]) + (b1["rotor_cells"] - budget0["rotor_cells"])
+    jf_sta = b1["stator"] - budget0["stator"]
+    torque["stirrer_fluid_shear_nm"] = -jf_rot / t_rec / frac
+    torque["chamber_fluid_shear_nm"] = jf_sta / t_rec / frac
+    torque["stirrer_total_nm"] = torque["stirrer_fluid_shear_nm"] + \
+        torque["stirrer_bead_contacts_nm"]
+    drive = -(jf_rot + tb_rot * t_rec)
+    walls = jf_sta + tb_sta * t_rec
+    change = (b1["fluid"] - budget0["fluid"]) + (b1["beads"] - budget0["beads"])
+    # the beads' weight about the axis (gravity across the axis of a full slice); a
+    # checkpoint that did not integrate it gives NaN: left out
+    weight = b1.get("gravity", math.nan) - budget0.get("gravity", math.nan)
+    known = math.isfinite(weight)
+    scale = max(abs(drive), abs(walls), abs(change), abs(weight) if known else 0.0,
+                1e-300)
+    out["angular_momentum_budget"] = dict(
+        note="simulated sector over the recording [N m s, kg m2/s]: stirrer drive + "
+             "angular impulse of the beads' buoyancy-reduced weight = change of fluid "
+             "+ bead angular momentum + impulse taken by the chamber wall",
+        stirrer_drive_nms=drive, gravity_nms=weight if known else None,
+        chamber_nms=walls,
+        change_fluid=b1["fluid"] - budget0["fluid"],
+        change_beads=b1["beads"] - budget0["beads"],
+        closure_rel=(drive + (weight if known else 0.0) - change - walls) / scale)
+    rho = scene.fluid.density_kg_m3
+    n_rev = om / (2.0 * math.pi)
+    p_tot = torque["stirrer_total_nm"] * om
+    d_disc = 2.0 * (g.disc_radius_m if g.has_disc else g.shaft_radius_m)
+    out["power_number"] = dict(
+        value=p_tot / (rho * n_rev ** 3 * d_disc ** 5),
+        definition="Ne = P / (rho_liquid n^3 d^5): P the stirrer power of one axial "
+                   "period (fluid shear + bead contacts), n [1/s] the stirrer speed, "
+                   "d the disc (annulus: shaft) diameter")
+    sub = np.asarray(substeps, float)
+    out["fluid"] = dict(
+        model=scene.fluid_description, grid=cpl.grid.describe(),
+        coupling_interval_s=cpl.interval_s,
+        cfd_substeps_per_interval=float(sub.mean()) if sub.size else None,
+        cfd_dt_s=cpl.interval_s / float(sub.mean()) if sub.size else None,
+        void_fraction_min=float(np.nanmin(fields["eps"])) if fields else None,
+        void_fraction_mean=float(np.nanmean(fields["eps"])) if fields else None,
+        clipped_cells_last=int(cpl.clipped_cells),
+        turbulent_viscosity_max_m2_s=float(np.nanmax(fields["nu_t"])) if fields else None)
+    return out
+
+
+def _disc_flow(scene, sim, cpl, sx, sv, fields) -> dict:
+    """A disc slice's part of :func:`flow_summary`: the first bead layer's angular
+    velocity, the section's bead fields (``_bead_fields``), the vortices of the beads' and
+    the liquid's mean flow and the swirl profiles across the gap at the disc radius."""
+    g = scene.geometry
+    om = scene.omega_rad_s
+    out = {}
     d = scene.bead_diameter_m
     # seed 001's first layer: bead centres within 0.6 mm of the disc face (its stated
     # distance, 0.75 d for its 0.8 mm beads); also the layer one bead diameter thick
@@ -672,10 +779,9 @@ def flow_summary(scene, sim, cpl, sx, sv, torques, budget0, fields, substeps) ->
     out["bead_layer_1d_angular_velocity_ratio"] = FS.first_layer_angular_velocity(
         sx, sv, g, om, d)[0]
     # bead fields on the fluid's section grid (or a 0.75 mm grid without fluid)
-    out["_bead_fields"] = bf = _section_bead_fields(scene, sim, cpl, sx, sv, fields)
-    beads = bf
-    r_edges = bf["r_edges_m"]
-    zs = bf["zeta_centres_m"]
+    out["_bead_fields"] = beads = _section_bead_fields(scene, sim, cpl, sx, sv, fields)
+    r_edges = beads["r_edges_m"]
+    zs = beads["zeta_centres_m"]
     order = np.argsort(fields["zeta_m"]) if fields is not None else None
     r_c = 0.5 * (r_edges[1:] + r_edges[:-1])
     dr = np.diff(r_edges)

@@ -26,11 +26,11 @@ if sys.version_info >= (3, 11):
 else:  # pragma: no cover
     import tomli as tomllib
 
-from millfmu.dem.coupling.settings import (DEFAULT_PRESSURE_SOLVER,
-                                           PRESSURE_GRADIENT_TIMINGS, PRESSURE_SOLVERS,
-                                           SMOOTHINGS, CouplingSettings)
+from millfmu.dem.coupling.settings import (PRESSURE_GRADIENT_TIMINGS, SMOOTHINGS,
+                                           CouplingSettings)
 from millfmu.dem.engine.params import BeadMaterial
 from millfmu.dem.engine.sim import FluidSettings
+from millfmu.dem.fluid.settings import DEFAULT_PRESSURE_SOLVER, PRESSURE_SOLVERS
 from millfmu.dem.mills.accelerator import SevSpec
 from millfmu.dem.mills.geometry import MillGeometry
 from millfmu.dem.mills.zones import ZoneSpec
@@ -322,6 +322,9 @@ def load_scene(name_or_path: str) -> DemScene:
 
 
 def scene_from_dict(d: dict, default_name: str = "scene") -> DemScene:
+    """The scene of a scene file's tables (``d``: parsed TOML), validated: unknown keys,
+    missing required values and values out of range are refused by name
+    (DemSceneError)."""
     known = {"name", "kind", "mill", "beads", "fluid", "run", "zones", "output"}
     for k in d:
         if k not in known:
@@ -331,10 +334,44 @@ def scene_from_dict(d: dict, default_name: str = "scene") -> DemScene:
         raise DemSceneError(f"scene.kind = {kind!r}: allowed {list(KINDS)}")
     mill = d.get("mill", {})
     beads = d.get("beads", {})
-    fluid = d.get("fluid", {})
     run = d.get("run", {})
-    zones = d.get("zones", {})
     output = d.get("output", {})
+    f = float
+    geo = _geometry_from_dict(kind, mill)
+    dia = _get(beads, "diameter_m", "beads", f, 0.8e-3)
+    _positive("beads.diameter_m", dia)
+    mat = _material_from_dict(beads)
+    placement, filling, spacing_m, r_range = _placement_from_dict(beads, dia, geo)
+    mode, fl, cpl = _fluid_from_dict(d.get("fluid", {}), dia)
+    grav = _get(run, "gravity_m_s2", "run", list, [0.0, 0.0, 0.0])
+    if len(grav) != 3:
+        raise DemSceneError(f"run.gravity_m_s2 = {grav!r}: must be a list of 3 numbers")
+    zs = _zones_from_dict(kind, d.get("zones", {}))
+    tip = _tip_speed(kind, mill, geo)
+    s = DemScene(
+        name=_get(d, "name", "scene", str, default_name), kind=kind, geometry=geo,
+        material=mat, bead_diameter_m=dia,
+        tip_speed_m_s=tip,
+        placement=placement, filling=filling,
+        bulk_porosity=_get(beads, "bulk_porosity", "beads", f, 0.4),
+        lattice_spacing_m=spacing_m, lattice_r_range_m=r_range, fluid=fl,
+        fluid_mode=mode, coupling=cpl, gravity_m_s2=tuple(float(g) for g in grav),
+        dt_s=_get(run, "dt_s", "run", f, 5e-6),
+        spin_up_s=_get(run, "spin_up_s", "run", f, 2.0),
+        record_s=_get(run, "record_s", "run", f, 1.0),
+        sample_every_s=_get(run, "sample_every_s", "run", f, 0.02),
+        seed=_get(run, "seed", "run", int, 1), zones=zs,
+        initial_rotation=_get(run, "initial_rotation", "run", f, 0.0),
+        primed_s=_get(run, "primed_s", "run", f, 0.0),
+        map_bins_r=_get(output, "map_bins_r", "output", int, 30),
+        map_bins_z=_get(output, "map_bins_z", "output", int, 28))
+    _check_ranges(s)
+    return s
+
+
+def _geometry_from_dict(kind: str, mill: dict) -> MillGeometry:
+    """The mill's geometry of a ``[mill]`` table for a scene of ``kind`` (with its
+    stationary baffles where the table names them)."""
     f = float
     rsh = _get(mill, "shaft_radius_m", "mill", f, 0.015)
     rch = _get(mill, "chamber_radius_m", "mill", f, 0.045)
@@ -361,8 +398,12 @@ def scene_from_dict(d: dict, default_name: str = "scene") -> DemScene:
         geo = _geometry_or_error(MillGeometry, rsh, rch, h, 0.0, 0.0, 0.0, sector)
     if any(k in mill for k in BAFFLE_KEYS):
         geo = _with_baffles(geo, {k: mill[k] for k in BAFFLE_KEYS if k in mill}, "mill")
-    dia = _get(beads, "diameter_m", "beads", f, 0.8e-3)
-    _positive("beads.diameter_m", dia)
+    return geo
+
+
+def _material_from_dict(beads: dict) -> BeadMaterial:
+    """The bead material of a ``[beads]`` table (defaults: seed 001's glass)."""
+    f = float
     mat = BeadMaterial(
         density_kg_m3=_get(beads, "density_kg_m3", "beads", f, 2510.0),
         youngs_modulus_pa=_get(beads, "youngs_modulus_pa", "beads", f, 6.3e6),
@@ -372,6 +413,14 @@ def scene_from_dict(d: dict, default_name: str = "scene") -> DemScene:
         rolling_friction=_get(beads, "rolling_friction", "beads", f, 0.10))
     _positive("beads.density_kg_m3", mat.density_kg_m3)
     _positive("beads.youngs_modulus_pa", mat.youngs_modulus_pa)
+    return mat
+
+
+def _placement_from_dict(beads: dict, dia: float, geo: MillGeometry):
+    """(placement, filling, lattice spacing [m], lattice radii (r_min, r_max) [m]) of a
+    ``[beads]`` table: ``filling`` needs the filling, ``lattice`` its spacing (at least
+    the bead diameter ``dia`` [m]) and radii between shaft and chamber."""
+    f = float
     placement = _get(beads, "placement", "beads", str, "filling")
     if placement not in ("filling", "lattice"):
         raise DemSceneError(f"beads.placement = {placement!r}: allowed 'filling', 'lattice'")
@@ -380,37 +429,47 @@ def scene_from_dict(d: dict, default_name: str = "scene") -> DemScene:
     if placement == "filling":
         if filling is None:
             raise DemSceneError("beads.filling: missing (required with placement 'filling')")
-    else:
-        spacing_m = _get(beads, "lattice_spacing_m", "beads", f, required=True)
-        r_range = _get(beads, "lattice_r_range_m", "beads", list, required=True)
-        if len(r_range) != 2 or not rsh < float(r_range[0]) < float(r_range[1]) < rch:
-            raise DemSceneError(f"beads.lattice_r_range_m = {r_range!r}: need [r_min, r_max] "
-                                f"with shaft radius < r_min < r_max < chamber radius")
-        r_range = (float(r_range[0]), float(r_range[1]))
-        if spacing_m < dia:
-            raise DemSceneError(f"beads.lattice_spacing_m = {spacing_m!r}: must be >= the "
-                                f"bead diameter {dia}")
-    mode, fl, cpl = _fluid_from_dict(fluid, dia)
-    grav = _get(run, "gravity_m_s2", "run", list, [0.0, 0.0, 0.0])
-    if len(grav) != 3:
-        raise DemSceneError(f"run.gravity_m_s2 = {grav!r}: must be a list of 3 numbers")
-    if kind == "accelerator_slice":
-        for k in zones:
-            if k not in ("sev_z1", "sev_z2", "sev_x3"):
-                raise DemSceneError(f"zones.{k}: unknown key for accelerator_slice; allowed: "
-                                    f"['sev_x3', 'sev_z1', 'sev_z2']")
-        zs = SevSpec(z1=_get(zones, "sev_z1", "zones", f, 0.39),
-                     z2=_get(zones, "sev_z2", "zones", f, 0.69),
-                     x3=_get(zones, "sev_x3", "zones", f, 0.40))
-        if not 0.0 < zs.z1 < zs.z2 < 1.0 or not 0.0 < zs.x3 < 1.0:
-            raise DemSceneError(f"zones.sev_z1 = {zs.z1!r}, sev_z2 = {zs.z2!r}, sev_x3 = "
-                                f"{zs.x3!r}: need 0 < z1 < z2 < 1 and 0 < x3 < 1")
-    else:
-        zs = ZoneSpec(v1_width_m=_get(zones, "v1_width_m", "zones", f, 2.5e-3),
-                      r_v1_over_disc_radius=_get(zones, "r_v1_over_disc_radius", "zones", f,
-                                                 0.55),
-                      r_v3_over_disc_radius=_get(zones, "r_v3_over_disc_radius", "zones", f,
-                                                 0.80))
+        return placement, filling, spacing_m, r_range
+    rsh, rch = geo.shaft_radius_m, geo.chamber_radius_m
+    spacing_m = _get(beads, "lattice_spacing_m", "beads", f, required=True)
+    r_range = _get(beads, "lattice_r_range_m", "beads", list, required=True)
+    if len(r_range) != 2 or not rsh < float(r_range[0]) < float(r_range[1]) < rch:
+        raise DemSceneError(f"beads.lattice_r_range_m = {r_range!r}: need [r_min, r_max] "
+                            f"with shaft radius < r_min < r_max < chamber radius")
+    r_range = (float(r_range[0]), float(r_range[1]))
+    if spacing_m < dia:
+        raise DemSceneError(f"beads.lattice_spacing_m = {spacing_m!r}: must be >= the "
+                            f"bead diameter {dia}")
+    return placement, filling, spacing_m, r_range
+
+
+def _zones_from_dict(kind: str, zones: dict):
+    """The zone set of a ``[zones]`` table: seed 002's SEV_1-4 bounds for an accelerator
+    slice, else seed 001's V1-V4."""
+    f = float
+    if kind != "accelerator_slice":
+        return ZoneSpec(v1_width_m=_get(zones, "v1_width_m", "zones", f, 2.5e-3),
+                        r_v1_over_disc_radius=_get(zones, "r_v1_over_disc_radius", "zones",
+                                                   f, 0.55),
+                        r_v3_over_disc_radius=_get(zones, "r_v3_over_disc_radius", "zones",
+                                                   f, 0.80))
+    for k in zones:
+        if k not in ("sev_z1", "sev_z2", "sev_x3"):
+            raise DemSceneError(f"zones.{k}: unknown key for accelerator_slice; allowed: "
+                                f"['sev_x3', 'sev_z1', 'sev_z2']")
+    zs = SevSpec(z1=_get(zones, "sev_z1", "zones", f, 0.39),
+                 z2=_get(zones, "sev_z2", "zones", f, 0.69),
+                 x3=_get(zones, "sev_x3", "zones", f, 0.40))
+    if not 0.0 < zs.z1 < zs.z2 < 1.0 or not 0.0 < zs.x3 < 1.0:
+        raise DemSceneError(f"zones.sev_z1 = {zs.z1!r}, sev_z2 = {zs.z2!r}, sev_x3 = "
+                            f"{zs.x3!r}: need 0 < z1 < z2 < 1 and 0 < x3 < 1")
+    return zs
+
+
+def _tip_speed(kind: str, mill: dict, geo: MillGeometry) -> float:
+    """The stirrer's tip speed [m/s]: ``mill.tip_speed_m_s``, or for an accelerator slice
+    ``mill.rotor_speed_rpm`` at the rotor radius (one of the two, never both)."""
+    f = float
     tip = _get(mill, "tip_speed_m_s", "mill", f, None)
     rpm = _get(mill, "rotor_speed_rpm", "mill", f, None) if kind == "accelerator_slice" \
         else None
@@ -424,25 +483,7 @@ def scene_from_dict(d: dict, default_name: str = "scene") -> DemScene:
         raise DemSceneError("mill.tip_speed_m_s: missing (required" +
                             (", or mill.rotor_speed_rpm)" if kind == "accelerator_slice"
                              else ")"))
-    s = DemScene(
-        name=_get(d, "name", "scene", str, default_name), kind=kind, geometry=geo,
-        material=mat, bead_diameter_m=dia,
-        tip_speed_m_s=tip,
-        placement=placement, filling=filling,
-        bulk_porosity=_get(beads, "bulk_porosity", "beads", f, 0.4),
-        lattice_spacing_m=spacing_m, lattice_r_range_m=r_range, fluid=fl,
-        fluid_mode=mode, coupling=cpl, gravity_m_s2=tuple(float(g) for g in grav),
-        dt_s=_get(run, "dt_s", "run", f, 5e-6),
-        spin_up_s=_get(run, "spin_up_s", "run", f, 2.0),
-        record_s=_get(run, "record_s", "run", f, 1.0),
-        sample_every_s=_get(run, "sample_every_s", "run", f, 0.02),
-        seed=_get(run, "seed", "run", int, 1), zones=zs,
-        initial_rotation=_get(run, "initial_rotation", "run", f, 0.0),
-        primed_s=_get(run, "primed_s", "run", f, 0.0),
-        map_bins_r=_get(output, "map_bins_r", "output", int, 30),
-        map_bins_z=_get(output, "map_bins_z", "output", int, 28))
-    _check_ranges(s)
-    return s
+    return tip
 
 
 _FLUID_KEYS = {"mode", "enabled", "density_kg_m3", "viscosity_pa_s", "drag", "lubrication",

@@ -13,7 +13,8 @@ from millfmu.dem.coupling import exchange_kernels as EK  # noqa: E402
 from millfmu.dem.coupling import projection as PJ  # noqa: E402
 from millfmu.dem.coupling.cfd_dem import CfdDem  # noqa: E402
 from millfmu.dem.coupling.settings import CouplingSettings  # noqa: E402
-from millfmu.dem.engine.params import BeadMaterial, koch_hill_f0_f3  # noqa: E402
+from millfmu.dem.engine.koch_hill2001 import f0_f3_python  # noqa: E402
+from millfmu.dem.engine.params import BeadMaterial  # noqa: E402
 from millfmu.dem.engine.sim import DemSimulation, FluidSettings  # noqa: E402
 from millfmu.dem.fluid.grid import mill_grid  # noqa: E402
 from millfmu.dem.fluid.solver import FluidProperties, FluidSolver  # noqa: E402
@@ -152,7 +153,7 @@ def test_settling_bead_terminal_velocity_and_exchange(model, n_theta, timing):
     v, cpl, sim, weight = settling(model, n_theta, timing)
     # the drag law at the bead's local void fraction: (rho_p - rho_f) V g = V beta u
     eps = float(cpl.void_fraction_at_beads()[0])
-    f0, f3 = koch_hill_f0_f3(eps)
+    f0, f3 = f0_f3_python(eps)
     uf = float(sim.per_bead["fluid_at_bead"][0, 2])
 
     def drag(u):
@@ -195,7 +196,7 @@ def test_fixed_bed_pressure_drop_koch_hill():
                  0.0)
     s = cpl.solver
     eps = 1.0 - x.shape[0] * math.pi / 6 * D ** 3 / geo.free_volume_m3()
-    f0, f3 = koch_hill_f0_f3(eps)
+    f0, f3 = f0_f3_python(eps)
     for g_pa_m in (2e3, 2e4, 2e5):
         s.body_z = g_pa_m
         for _ in range(300):

@@ -169,7 +169,7 @@ def test_ldl_pressure_is_the_direct_solution(n_theta):
     if n_theta == 1:
         # a fluid's description names the solver it has
         from millfmu.dem.fluid.solver import PRESSURE_DESCRIPTIONS, FluidSolver
-        from millfmu.dem.coupling.settings import PRESSURE_SOLVERS
+        from millfmu.dem.fluid.settings import PRESSURE_SOLVERS
 
         assert set(PRESSURE_DESCRIPTIONS) == set(PRESSURE_SOLVERS)
         d = FluidSolver(g, pressure_solver="direct_ldl").describe()["pressure"]

@@ -260,9 +260,6 @@ def package_graph(graph: dict[str, dict[str, bool]]) -> dict[str, dict[str, bool
 
 #: Circles between sub-packages still to be broken, each with its reason.
 PACKAGE_CIRCLES_LEFT = {
-    # the liquid's solver reads the coupling's settings (its pressure solver and smoothing by
-    # name), and the coupling drives the liquid: the settings belong below both
-    ("millfmu.dem.coupling", "millfmu.dem.fluid"),
     # the command (millfmu.cli) lives in the package millfmu and gathers the commands of
     # fmu_build and flowsheets, which use the model of millfmu: the command belongs in a
     # package of its own above the three

@@ -34,8 +34,7 @@ from numba import prange
 from millfmu.dem.coupling import exchange_kernels as EK
 from millfmu.dem.coupling import projection as PJ
 from millfmu.dem.coupling.cfd_dem import CfdDem
-from millfmu.dem.coupling.exchange_kernels import held_sums
-from millfmu.dem.coupling.koch_hill2001 import STIFF_RATIO
+from millfmu.dem.coupling.exchange_kernels import held_coefficient, held_sums
 from millfmu.dem.coupling.projection import stencil_one
 from millfmu.dem.coupling.schiller_naumann import drag_coefficient
 from millfmu.dem.engine._jit import kernel, nonneg
@@ -46,11 +45,11 @@ def particle_drag(x, v, rad, mass, cellv, mu, rho, interval, rc, rtab, rh, dth, 
                   lz, solid, idx, w, fab, q, fext, xmax):
     """Drag of every bead in the frozen liquid: stencil at the bead's present position,
     the liquid's velocity read there (cellv[0:3], smoothed cell values), Schiller-Naumann
-    coefficient c at the present relative speed (the exact mean drag of relaxation where
-    interval c / m > STIFF_RATIO), the force held over the next ``interval`` [s],
-    fext = (F_r [N], T_z [N m], F_z [N]), the deposit columns q (0, c, c r, c v_r,
-    r c v_theta, c v_z) and fab[:, 0:3] the liquid's velocity at the bead. Returns the sums
-    of T_z and F_z."""
+    coefficient c at the present relative speed (held over the interval by
+    :func:`~millfmu.dem.coupling.exchange_kernels.held_coefficient`), the force held over
+    the next ``interval`` [s], fext = (F_r [N], T_z [N m], F_z [N]), the deposit columns
+    q (0, c, c r, c v_r, r c v_theta, c v_z) and fab[:, 0:3] the liquid's velocity at the
+    bead. Returns the sums of T_z and F_z."""
     for b in prange(x.shape[0]):
         r = stencil_one(b, x, rc, rtab, rh, dth, nt, dz, nz, lz, solid, idx, w)
         inv = 1.0 / r if r > 0.0 else 0.0
@@ -68,10 +67,8 @@ def particle_drag(x, v, rad, mass, cellv, mu, rho, interval, rc, rtab, rh, dth, 
                 u1 += ww * cellv[1, cc]
                 u2 += ww * cellv[2, cc]
         urel = math.sqrt((u0 - vr) ** 2 + (u1 - vt) ** 2 + (u2 - vz) ** 2)
-        c = drag_coefficient(2.0 * rad[b], mu, rho, urel)
-        xx = interval * c / mass[b]
-        if xx > STIFF_RATIO:
-            c = mass[b] * (1.0 - math.exp(-xx)) / interval
+        c, xx = held_coefficient(drag_coefficient(2.0 * rad[b], mu, rho, urel), mass[b],
+                                 interval)
         xmax[b] = xx
         fr = c * (u0 - vr)
         tz = r * c * (u1 - vt)

@@ -13,12 +13,30 @@ import math
 
 from numba import prange
 
-from millfmu.dem.coupling.koch_hill2001 import STIFF_RATIO, beta
 from millfmu.dem.coupling.projection import stencil_one
 from millfmu.dem.engine._jit import inlined, kernel, nonneg, serial
+from millfmu.dem.engine.koch_hill2001 import beta
 from millfmu.dem.fluid.vans_kernels import wrap
 
 NQ = 6
+
+#: Largest ratio x = interval c / m of a coupling interval to a bead's drag relaxation
+#: time m / c [-] for which the drag c (u - v) is held over the interval as it is; beyond
+#: it a held force would overshoot the liquid's velocity (:func:`held_coefficient`).
+STIFF_RATIO = 0.5
+
+
+@inlined
+def held_coefficient(c, m, interval):
+    """The drag coefficient [kg/s] that a bead of mass m [kg] holds over ``interval`` [s]
+    for its coefficient c [kg/s], and x = interval c / m [-] (a stiffness diagnostic).
+    Where x > STIFF_RATIO (a viscous suspension; never water with sub-millimetre beads at
+    5e-5 s) the coefficient is m (1 - exp(-x)) / interval, the exact mean drag over the
+    interval of a bead relaxing under drag alone."""
+    x = interval * c / m
+    if x > STIFF_RATIO:
+        c = m * (1.0 - math.exp(-x)) / interval
+    return c, x
 
 
 @inlined
@@ -37,9 +55,9 @@ def beads_in(x, v, rad, mass, fab, eps_cells, body_z, pf, model_b, mu, rho, inte
              rc, rtab, rh, dth, nt, dz, nz, lz, solid, idx, w, cyl, c, q, xmax):
     """Stencils, cylindrical coordinates cyl = (r, v_r, v_theta, v_z), drag coefficients
     c (Koch-Hill at the void fraction read from eps_cells and the relative speed to the
-    fluid velocity of the last interval, fab[:, 0:3]; see
-    :func:`millfmu.dem.coupling.koch_hill2001.bead_coefficients` for the stiff case) and
-    the deposit columns q of every bead; xmax[b] = interval c / m."""
+    fluid velocity of the last interval, fab[:, 0:3]; held over the interval by
+    :func:`held_coefficient`) and the deposit columns q of every bead; xmax[b] =
+    interval c / m."""
     for b in prange(x.shape[0]):
         r = stencil_one(b, x, rc, rtab, rh, dth, nt, dz, nz, lz, solid, idx, w)
         inv = 1.0 / r if r > 0.0 else 0.0
@@ -56,10 +74,7 @@ def beads_in(x, v, rad, mass, fab, eps_cells, body_z, pf, model_b, mu, rho, inte
         bt = beta(d, eb, mu, rho, urel)
         if model_b:
             bt /= eb
-        cc = vol * bt
-        xx = interval * cc / mass[b]
-        if xx > STIFF_RATIO:
-            cc = mass[b] * (1.0 - math.exp(-xx)) / interval
+        cc, xx = held_coefficient(vol * bt, mass[b], interval)
         xmax[b] = xx
         c[b] = cc
         cyl[b, 0] = r
@@ -210,7 +225,7 @@ def held_sums(fext):
     """Sums of T_z [N m] and F_z [N] of the held forces fext over the beads, in bead order.
     Summed after the parallel loop that sets them, not as its reduction: numba's parfor
     pass fails to compile a prange loop with a scalar reduction beside an inner loop with
-    a conditional read (numba issue 10132, on Python 3.12); and the sum no longer depends
+    a conditional read (numba issue 10132, on Python 3.12); and so the sum does not depend
     on the thread count."""
     tsum = 0.0
     fsum = 0.0

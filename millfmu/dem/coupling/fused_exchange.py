@@ -11,12 +11,10 @@ deposit, the totals' smoothing and their split onto the nodes run likewise as tw
 one per half of the six columns (:func:`beads_to_nodes`).
 
 Why: each call of a numba kernel from Python checks the types of its arguments, and inside
-the coupled run, where the DEM's ten steps come between two exchanges, that check is slow:
-an empty kernel with the liquid predictor's arguments (tuples of 27 and 30 arrays) took
-87 us after the DEM's steps against 19 us called again at once, one with a single array
-15 us against 1.6 (the 10-degree disc sector, 2 threads, medians of 150). The thirteen
-calls' checks added up to 0.25 ms of the 2.55 ms exchange, and the Python between them
-(the liquid's substep loop, reshapes, copies, the largest stiffness) to more.
+the coupled run, where the DEM's ten steps come between two exchanges, that check is
+several times slower than in a loop of calls: on the 10-degree disc sector the thirteen
+calls' checks are a tenth of the exchange, and the Python between them (the liquid's
+substep loop, reshapes, copies, the largest stiffness) more.
 
 Taken where the exchange is of that form: the explicit smoothing sweeps (or none), the
 pressure by ``direct_ldl``, no stator plates with theta faces (whose torque the liquid's
@@ -206,9 +204,9 @@ def solve_beside_sums(F, W, K, rf, rc, dr, vc, dth, dz, rho, dt, interval, acc, 
     impulses, the mean velocities) on another. Neither reads what the other writes.
 
     Why: the solve is serial, and a stretch of serial work longer than OpenMP's spinning
-    (about 20-25 us on this 2-core host with 1000 spins) lets the idle thread fall asleep;
-    the next parallel loop then waits about 22 us for it to wake. With the sums beside it,
-    that stretch is shorter."""
+    (tens of microseconds with 1000 spins, :mod:`millfmu.dem.engine._jit`) lets the idle
+    thread fall asleep, and the next parallel loop waits for it to wake. With the sums
+    beside it, that stretch is shorter."""
     for h in prange(2):
         if h == 0:
             projection_rhs(F, W, rf, dr, vc, dth, dz, rho, dt, interval)
@@ -284,8 +282,8 @@ def coupled_intervals(m, k, groups, dt_stable, time_s, dem, dem_swapped, evcount
     not the first exchange) and then the DEM's ``advance`` (no contacts recorded), as
     :meth:`CfdDem.exchange` and ``DemSimulation.run`` make them one after the other, the
     same kernels on the same arrays in the same order (the same results to the bit),
-    without returning to Python in between: on the 10-degree disc sector (2 threads)
-    the Python and the argument checks between the calls took 0.1-0.2 ms an interval.
+    without returning to Python in between, whose code and argument checks between the
+    calls cost a noticeable part of a short interval.
 
     groups: the exchange's nine argument groups (``CfdDem._fused_groups``); dt_stable [s],
     time_s [s]: the liquid's last stable substep and clock; dem, dem_swapped: ``advance``'s

@@ -153,12 +153,10 @@ def deposit(idx, w, q, out):
     """out[m, cell] = sum over beads of w q[bead, m] (totals per cell; out (m, ncells)).
     Each column is summed over the beads in their order: the same totals on any thread
     count. Six columns (the coupling's): two halves of three on the threads, each reading
-    a bead's three values once before its corners and adding into its three rows (a
-    10-degree disc sector, 6,536 beads, back to back: 0.115 ms against 0.176 for one
-    serial pass over all six; the full slice, 235 k beads: 8.2 against 11.9 ms; earlier
-    the columns one per thread, which read a column's values again after every store, took
-    0.20-0.30 ms against the serial pass's 0.10); any other column count, column by
-    column."""
+    a bead's three values once before its corners and adding into its three rows (two
+    thirds of one serial pass's time; a thread per column would read a column's values
+    again after every store, slower than the serial pass); any other column count, column
+    by column."""
     nm = q.shape[1]
     nb = idx.shape[0]
     ns = idx.shape[1]
@@ -310,9 +308,9 @@ def diffuse(q, vol, ar, at, az, sweeps, totals, tmp, ncols):
 
     Along a row (fixed i, j) the cell being visited and the next one are carried in
     registers: each receives the same additions in the same order as through memory (the
-    same bits), but the next cell's value no longer waits for the store of the face flux
-    just added to it (10-degree disc sector, 11 sweeps: 15 % faster on one thread). The
-    row's last cell, whose +z face wraps to its first, goes through memory as before."""
+    same bits), and the next cell's value need not wait for the store of the face flux just
+    added to it. The row's last cell, whose +z face wraps to its first, goes through
+    memory."""
     for c in prange(ncols):
         diffuse_field(c, q, vol, ar, at, az, sweeps, totals, tmp)
 

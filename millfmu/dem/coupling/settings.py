@@ -1,8 +1,15 @@
-"""Options of the coupled fluid (plain data; no numba, no scipy)."""
+"""Options of the coupled fluid (plain data; no numba, no scipy). The pressure equation's
+solvers are the liquid's (:mod:`millfmu.dem.fluid.settings`), named here too beside the
+coupling's other choices."""
 
 from __future__ import annotations
 
 from dataclasses import dataclass
+
+from millfmu.dem.fluid.settings import DEFAULT_PRESSURE_SOLVER, PRESSURE_SOLVERS
+
+__all__ = ["PRESSURE_GRADIENT_TIMINGS", "SMOOTHINGS", "PRESSURE_SOLVERS",
+           "DEFAULT_PRESSURE_SOLVER", "CouplingSettings"]
 
 
 #: Model A's pressure-gradient force on the beads, by the interval whose gradient it takes:
@@ -23,25 +30,9 @@ PRESSURE_GRADIENT_TIMINGS = ("previous_interval", "this_interval")
 #:   needs (the kernel approaches a Gaussian);
 #: - ``split_implicit``: ``smoothing_steps`` backward-Euler steps split by direction
 #:   (:mod:`millfmu.dem.coupling.split_implicit_smoothing`), a cost independent of the
-#:   cell size; with theta cells (a full slice) the explicit sweeps were the largest part
-#:   of a coupling interval.
+#:   cell size; with theta cells (a full slice) the explicit sweeps, whose count grows as
+#:   the smallest cell shrinks, are the largest part of a coupling interval.
 SMOOTHINGS = ("explicit_diffusion", "split_implicit")
-
-#: How the liquid's pressure equation is solved (the same solution to round-off):
-#: - ``direct_lu``: one sparse LU of the whole operator (millfmu.dem.fluid.pressure);
-#: - ``theta_fft``: an FFT in theta and one LU per mode (millfmu.dem.fluid.theta_fft_pressure),
-#:   for grids with theta cells whose solids do not vary with theta (disc mills, the
-#:   accelerator: its vanes are driven nodes; not stationary baffles). On the disc full
-#:   slice 63 ms per solve fall to a few;
-#: - ``direct_ldl`` (the default): a symmetric factorisation L D L^T on a minimum-degree
-#:   ordering, solved by a numba kernel (millfmu.dem.fluid.ldl_pressure): on the 10-degree
-#:   disc sector a third of direct_lu's factor entries and of its time per solve inside the
-#:   coupled run; on the disc full slice's 3D grid 15.8 M entries against 68 M, no slower.
-#:   The default since 2026-11-27 (before: direct_lu), a change of round-off only, judged
-#:   by ``millfmu tables equivalence`` at the shipped table's point (docs/tables.md).
-PRESSURE_SOLVERS = ("direct_lu", "theta_fft", "direct_ldl")
-#: the solver a scene gets when it names none
-DEFAULT_PRESSURE_SOLVER = "direct_ldl"
 
 
 @dataclass(frozen=True)

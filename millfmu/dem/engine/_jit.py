@@ -13,43 +13,28 @@ Only the kernel modules import this file, and only when a DEM run is requested, 
   (the same flags without ``parallel``, because a parallel region must not nest).
 - ``contact``: ``device`` for the helpers called once per contact in the force loop
   (contact law, pair and wall response), inlined into the loop by numba: as calls they
-  made the force loop on the bench bed 28 % slower.
+  cost the force loop on the bench bed about a quarter more time.
 - ``serial``: the same flags for serial drivers and bookkeeping (binning, wrapping).
 - ``set_chunksize``: numba's parallel chunk size set from jitted code, cached (the
   coupling's compiled run of intervals switches it between the liquid and the DEM).
 - ``inlined``: ``contact``'s inlining for the liquid's per-node and per-edge helpers
   (gradients, edge viscosities, wall functions, fluxes) and the exchange's per-bead ones
-  (stencil, drag law): as calls returning tuples they made the edge-stress kernel several
+  (stencil, drag law): as calls returning tuples they make the edge-stress kernel several
   times slower and the beads' deposit pass 1.6 times.
 
 Threading layer: OpenMP (numba's ``omp`` layer), else ``workqueue``, unless
 NUMBA_THREADING_LAYER or NUMBA_THREADING_LAYER_PRIORITY is set; numba settles the layer
 at a process's first parallel launch or thread-count setting, so the package sets its
-thread counts only through :func:`use_threads`; OpenMP's idle threads spin briefly, then sleep
-(GOMP_SPINCOUNT=1000 unless it or OMP_WAIT_POLICY is set). Measured on the DEM bench bed
-(1000 steps, shared 2-core machine, M particle-steps/s):
-- TBB, which numba picks by default where libtbb is installed (numba 0.68, libtbb
-  2021/2022), keeps about 7 kB per parallel launch and makes every launch slower than the
-  one before: a DEM run launches two or three per step, so its cost grew with the square
-  of its length (a 0.4 s disc_slice run had not finished after 29 minutes). Never chosen.
-- workqueue costs about 100 us per launch (two handshakes with each thread) and left the
-  second core idle much of the time: one 2-thread run 5.4-6.2, while two such runs side
-  by side made 4.2 each.
-- OpenMP with its default active waiting (threads spin after a launch): 7.7-8.3 for one
-  run, but 2.2 each for two runs side by side, since the spinning takes the other run's
-  core.
-- OpenMP with passive waiting: 7.5 for one run and 4.4 each for two. A sleeping thread
-  takes about 45 us to wake on this (virtual) machine, against 1.2 us for a spinning one
-  (an empty 2-thread launch): nothing on a bed of 52 k beads (a step of about 6 ms), but a
-  10-degree disc_slice sector of 6,536 beads takes about 0.4 ms per step, two launches.
-- OpenMP spinning 1000 times before it sleeps (tens of microseconds) on that sector, 2
-  threads, 200 steps after the start: DEM 15.5 M particle-steps/s against 13.1 passive,
-  coupled 10.8 against 9.4; 2000 steps later, with more contacts per step, 11.3 against
-  10.2 and 9.2 against 9.0 (the host's noise is of that size); the bench beds of 25 and 52 k
-  beads: no difference beyond the noise. Two such runs side by side (four threads on two
-  cores) 7.4 each against 8.3 passive (3000 spins: 6.0; 30000: 1.7). One run per machine is
-  the usual case, and a build's workers run one thread each, so the short spin is the
-  default; OMP_WAIT_POLICY=passive restores sleeping at once.
+thread counts only through :func:`use_threads`. Why (the DEM launches two or three
+parallel loops per step, a 10-degree disc sector's step takes about 0.4 ms):
+- TBB, numba's default where libtbb is installed, keeps memory per parallel launch and
+  makes every launch slower than the one before: a run's cost grows with the square of its
+  length. Never chosen.
+- workqueue costs about 100 us per launch (two handshakes with each thread): the fallback.
+- OpenMP's idle threads spin GOMP_SPINCOUNT=1000 times (tens of microseconds) after a
+  launch, then sleep, unless GOMP_SPINCOUNT or OMP_WAIT_POLICY is set: a sleeping thread
+  takes about 45 us to wake, a spinning one about 1 us, and threads that spin without end
+  take the cores of a second run beside them. OMP_WAIT_POLICY=passive sleeps at once.
 - One thread per process (the tables' builds) runs no team, so the layers do not differ.
 GNU OpenMP is not fork safe: a process that has run a parallel kernel must not fork a
 child that runs one (numba stops such a child). The tables' process pool therefore spawns
@@ -69,8 +54,8 @@ from llvmlite import ir
 from numba.core import cgutils, types
 from numba.extending import intrinsic
 
-#: the threading layers in the order tried (numba wants all three named; workqueue always
-#: loads, so TBB is never reached)
+#: the threading layers in the order numba tries them (it wants all three named;
+#: workqueue always loads, so TBB is never reached)
 LAYER_PRIORITY = ("omp", "workqueue", "tbb")
 if "NUMBA_THREADING_LAYER" not in os.environ and \
         "NUMBA_THREADING_LAYER_PRIORITY" not in os.environ:
@@ -132,8 +117,8 @@ def use_threads(n: int) -> None:
     """numba's thread count for the parallel loops that follow: the one way the package
     sets it. The layer is chosen at the first launch or thread-count setting in a process
     and cannot change afterwards; importing this module first is what puts OpenMP before
-    TBB. A study that set the count with numba's own call before any kernel module was
-    imported (the DEM bench did, up to 2026-11) ran every later kernel on TBB."""
+    TBB: a count set with numba's own call before any kernel module is imported would run
+    every later kernel on TBB."""
     numba.set_num_threads(int(n))
 
 FLAGS = dict(cache=True, nogil=True, fastmath=False, error_model="numpy",

@@ -13,11 +13,10 @@ through its domain: the beads it sums forces for in the force loop, the buffers 
 reduction reads and the rows the neighbour build writes stay in its own core's caches.
 A thread whose region is done takes the other regions' remaining chunks, one at a time,
 from their atomic counters, so that a thread held up on a shared machine still leaves its
-work to the others. On the DEM bench's dense bed (52,312 beads, 12 chunks, 2 threads),
-alternating blocks with chunks one at a time: the typical block 0-9 % faster (9 of 10
-comparisons, mean 4 %), the fastest blocks, at quiet moments, no faster (their times
-1-4 % longer); the dilute bed (6 chunks) the same. The same results to the bit either way
-(docs/dem.md, "Each thread its own region of the chunks").
+work to the others. On the DEM bench's dense bed (52,312 beads, 12 chunks, 2 threads) a
+typical block of steps runs a few per cent faster so than with the chunks handed out one
+at a time, and the results are the same to the bit either way (docs/dem.md, "Each thread
+its own region of the chunks").
 
 The counters live in an int64 array of ``CLAIM_STRIDE`` slots per region (one cache line
 each, so that two threads' counters never share a line); its length sets the number of

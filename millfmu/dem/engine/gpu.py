@@ -35,6 +35,7 @@ import numpy as np
 from numba import cuda
 
 from millfmu.dem.engine import kernels as K
+from millfmu.dem.engine import koch_hill2001 as KH
 from millfmu.dem.engine._jit import gpu_device, gpu_kernel
 
 axial_image = gpu_device(K.axial_image)
@@ -50,7 +51,7 @@ wall_response = gpu_device(K.wall_response, hertz_mindlin=hertz_mindlin,
                                K.wall_gap, plate_gap=_plate_gap,
                                baffle_gap=gpu_device(K.baffle_gap, plate_gap=_plate_gap)))
 body_force = gpu_device(K.body_force, swirl_velocity=gpu_device(K.swirl_velocity),
-                        koch_hill_beta=gpu_device(K.koch_hill_beta))
+                        beta_of_terms=gpu_device(KH.beta_of_terms))
 lubrication_force = gpu_device(K.lubrication_force)
 write_event = gpu_device(K.write_event)
 wrap_one = gpu_device(K.wrap_one)

@@ -29,7 +29,8 @@ gamma = -2 sqrt(5/6) beta sqrt(S m*), beta = ln e / sqrt(ln^2 e + pi^2), Coulomb
 on the tangential history spring, constant directional torque rolling friction
 |M_r| = mu_r k_n d_n R*. Lubrication between beads not in contact,
 F = -6 pi eta R*^2 v_n / max(h, h_min) for h < h_cut. Drag after Koch & Hill (2001)
-in the CFDEM form ("model A", not divided by the void fraction).
+in the CFDEM form ("model A", not divided by the void fraction;
+:mod:`millfmu.dem.engine.koch_hill2001`).
 """
 
 import math
@@ -39,6 +40,7 @@ from numba import get_thread_id, prange
 
 from millfmu.dem.engine._jit import contact, device, kernel, nonneg, serial
 from millfmu.dem.engine.chunk_claims import claim, reset_claims
+from millfmu.dem.engine.koch_hill2001 import beta_of_terms
 
 # ---- layout of the parameter vector prm (float64) -------------------------------------
 P_DT = 0  # time step [s]
@@ -217,8 +219,7 @@ def history_frame_pair(s0, s1, s2, dx, dy, dz, ir2, ir):
     [1/m2], ir = 1 / |d| [1/m]): |s - (s.n) n|^2 = |s|^2 - (s.d)^2 / |d|^2, which needs no
     root, so the length ratio's division and root wait for a division of |d|^2 only, not
     for the root of |d|^2 and a division after it (the longest chain of dependent operations in the
-    contact law; this form made the law alone 20 % faster on the bench bed). The two
-    forms differ by round-off: the history lies in the previous step's tangent plane, so
+    contact law, which this form shortens). The two forms differ by round-off: the history lies in the previous step's tangent plane, so
     |s.n| << |s| and the difference does not cancel."""
     sm0 = s0 * s0 + s1 * s1 + s2 * s2
     sdd = s0 * dx + s1 * dy + s2 * dz
@@ -266,19 +267,6 @@ def swirl_velocity(x, y, z, prm):
         if r > rd:
             u *= max(rch - r, 0.0) / (rch - rd)
     return -u * y / r, u * x / r, 0.0
-
-
-@device
-def koch_hill_beta(d, eps, mu_f, rho_f, urel, f0, f3):
-    """Interphase momentum coefficient beta [kg/(m3 s)] after Koch & Hill (2001), CFDEM form.
-
-    d: bead diameter [m]; eps: void fraction [-]; mu_f [Pa s]; rho_f [kg/m3];
-    urel: |U_f - U_p| [m/s]; f0, f3: the void-fraction terms F0, F3 of
-    :func:`millfmu.dem.engine.params.koch_hill_f0_f3`. Drag on a bead = V_p beta (U_f - U_p).
-    """
-    re = d * eps * urel * rho_f / mu_f
-    ff = eps * (f0 + 0.5 * f3 * re)
-    return 18.0 * mu_f * eps * ff / (d * d)
 
 
 @device
@@ -474,8 +462,8 @@ def body_force(xi, yi, zi, vix, viy, viz, ri, mi, fr, tzh, fzh, prm):
         uy -= viy
         uz -= viz
         um = math.sqrt(ux * ux + uy * uy + uz * uz)
-        bt = koch_hill_beta(2.0 * ri, prm[P_EPSF], prm[P_MUF], prm[P_RHOF], um,
-                            prm[P_KH_F0], prm[P_KH_F3])
+        bt = beta_of_terms(2.0 * ri, prm[P_EPSF], prm[P_MUF], prm[P_RHOF], um,
+                           prm[P_KH_F0], prm[P_KH_F3])
         vp = 4.0 / 3.0 * math.pi * ri ** 3
         fx += vp * bt * ux
         fy += vp * bt * uy
@@ -797,8 +785,8 @@ def build_nlist(x, ej, es, ex, start, cmax, lo, cs, ncx, ncy, ncz, cut2, prm, wr
                 # after them: the force loop's branch on overlap then changes once per row
                 # instead of at random (about 45 % of listed pairs overlap), which the
                 # processor predicts, and contacts mostly keep their overlap until the next
-                # build (force loop on the bench bed 10 % faster). First each pair's index in
-                # the old lists where it was in contact, else -1.
+                # build. First each pair's index in the old lists where it was in contact,
+                # else -1.
                 nc = 0
                 for h in range(nh):
                     e = nonneg(hit[h])
@@ -918,8 +906,8 @@ def compute_forces(x, v, w, fb, tb, rad, mass, inertia, pst, nnb, pj, pim, psh, 
     # Equal beads (one radius and mass, as in most mill runs): R*, m* and the partner's
     # radius are the same for every pair, computed once, as the general formulas give
     # them; this saves the pair loop two divisions per contact and a load per pair.
-    # (counted without an early exit, so that the compiler vectorises the pass: 5 against
-    # 25 us a step on the bench bed's 52 k beads, serial before the threads start)
+    # (counted without an early exit, so that the compiler vectorises this pass, which runs
+    # serially before the threads start)
     nb = x.shape[0]
     r0 = rad[0] if nb > 0 else 0.0
     m0 = mass[0] if nb > 0 else 0.0
@@ -1208,8 +1196,8 @@ def reduce_kick(fb, tb, cb, maxj, f, t, v, w, x, inv_m, inv_i, kick, dt, drift, 
     w += kick t/I and, with drift, x += dt v; dmax[c] receives the largest squared
     displacement [m2] since the last neighbour build of chunk c's beads. f and t are
     stored only without drift (a run's last step, finish_step): within a run the next step
-    needs the sums only for this kick, and the two arrays' stores were a quarter of this
-    memory-bound pass's traffic on the dilute bench bed. With deferred (after
+    needs the sums only for this kick, and the two arrays' stores would be a quarter of
+    this memory-bound pass's traffic on the dilute bench bed. With deferred (after
     ``compute_forces(..., fuse=True)``, which kicked the other beads), only the beads that
     an earlier chunk's rows reach, and dmax[c] keeps the larger of its value and theirs."""
     nch = cb.shape[0] - 1

@@ -54,22 +54,3 @@ def hertz_contact_time_s(m_star_kg: float, r_star_m: float, y_star_pa: float,
 def bead_mass_kg(diameter_m: float, density_kg_m3: float) -> float:
     """Mass [kg] of a sphere."""
     return math.pi / 6.0 * diameter_m ** 3 * density_kg_m3
-
-
-def koch_hill_f0_f3(void_fraction: float) -> tuple[float, float]:
-    """Void-fraction terms of the Koch & Hill (2001) drag law as in CFDEM (project
-    REFERENCE, "Koch-Hill drag"): phi = 1 - eps;
-    F0 = (1 + 3 sqrt(phi/2) + 135/64 phi ln phi + 16.14 phi) /
-         (1 + 0.681 phi - 8.48 phi^2 + 8.16 phi^3) for phi < 0.4, else 10 phi / eps^3;
-    F3 = 0.0673 + 0.212 phi + 0.0232 / eps^5. The kernel completes
-    F = eps (F0 + 0.5 F3 Re_p), beta = 18 mu eps F / d^2."""
-    eps = void_fraction
-    phi = 1.0 - eps
-    if phi < 0.4:
-        lg = phi * math.log(phi) if phi > 0 else 0.0
-        f0 = (1.0 + 3.0 * math.sqrt(phi / 2.0) + 135.0 / 64.0 * lg + 16.14 * phi) / (
-            1.0 + 0.681 * phi - 8.48 * phi ** 2 + 8.16 * phi ** 3)
-    else:
-        f0 = 10.0 * phi / eps ** 3
-    f3 = 0.0673 + 0.212 * phi + 0.0232 / eps ** 5
-    return f0, f3

@@ -3,13 +3,12 @@
 each pair read out of the old lists with its owner and partner under the new names, then
 written into the new rows, each row's pairs in the order they had, the rows of each chunk
 one after the other in its region of the lists. A permutation: the same lists, in the
-same order, as the numpy passes that did it before (so the same runs to the bit), in three
-serial loops instead of some thirty array passes and an unbuffered ``np.maximum.at``
-(the 10-degree disc sector, 6,536 beads and 38,800 pairs: those took 7-10 ms per
-reordering, 3 % of the DEM's time between two reorderings).
+same order, as the numpy reference that tests/dem/test_reorder.py keeps, in three serial
+loops instead of some thirty array passes and an unbuffered ``np.maximum.at`` (which cost
+a few per cent of the DEM's time between two reorderings).
 
 The spring of a pair whose owner changes (the lower new index) is turned to the other
-bead's view by the caller, in numpy, as before (its rotation's cosines are numpy's).
+bead's view by the caller, in numpy (its rotation's cosines are numpy's).
 """
 
 import numpy as np

@@ -11,7 +11,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from millfmu.dem.engine.params import BeadMaterial, koch_hill_f0_f3
+from millfmu.dem.engine.params import BeadMaterial
 from millfmu.dem.mills.geometry import MillGeometry
 
 
@@ -65,9 +65,9 @@ class DemSimulation:
     springs of the contacts present at construction (positions carry no history) when the
     initial forces are evaluated: ``"zero"`` (the default, as LAMMPS and LIGGGHTS, which
     update no history in their set-up: zero at the start, v_t dt after the first step) or
-    ``"advanced"`` (the start before this choice existed, kept to repeat earlier runs: the
-    initial evaluation already added one step of sliding, v_t dt, to each spring, and the
-    first step the next, one step of sliding too many). Scenes place their beads without
+    ``"advanced"`` (to repeat runs made so: the initial evaluation already adds one step of
+    sliding, v_t dt, to each spring, and the first step the next, one step of sliding too
+    many). Scenes place their beads without
     overlap, so a scene's run starts the same either way (the shipped tables are
     unchanged); a moving, packed start shows the difference: on the DEM bench bed, whose
     shaft layer slides at several m/s, "advanced" gave a kinetic energy after 1000 steps
@@ -122,8 +122,8 @@ class DemSimulation:
         self.xref = x.copy()
         rmax = float(self.rad.max())
         hcut = fluid.lubrication_cutoff_m if (fluid and fluid.lubrication) else 0.0
-        # default skin 0.375 d: on the annulus bench (2 threads) skins of 0.25, 0.375 and
-        # 0.5 d gave 17, 22 and 19 M particle-steps/s (fewer builds against more pairs)
+        # skin 0.375 d: on the annulus bench (2 threads) the fastest of 0.25, 0.375 and
+        # 0.5 d (fewer builds against more pairs)
         self.skin_m = 0.375 * rmax * 2.0 if skin_m is None else float(skin_m)
         self.cutoff_m = 2.0 * rmax + hcut + self.skin_m
         if geometry.height_m / self.cutoff_m < 3.0:
@@ -131,6 +131,47 @@ class DemSimulation:
                 f"height_m = {geometry.height_m!r}: the axial period must hold at least "
                 f"three neighbour cells of {self.cutoff_m:.3e} m (bead diameter + "
                 f"lubrication cutoff + skin)")
+        prm = self._parameters(gravity_m_s2)
+        if tangential_history not in self.TANGENTIAL_HISTORIES:
+            raise ValueError(f"tangential_history = {tangential_history!r}: one of "
+                             f"{sorted(self.TANGENTIAL_HISTORIES)}")
+        self.tangential_history = tangential_history
+        prm[K.P_THIST] = self.TANGENTIAL_HISTORIES[tangential_history]
+        if history_at_start not in self.HISTORIES_AT_START:
+            raise ValueError(f"history_at_start = {history_at_start!r}: one of "
+                             f"{list(self.HISTORIES_AT_START)}")
+        self.history_at_start = history_at_start
+        self.prm = prm
+        self._allocate(max_neighbours)
+        self.step_count = 0
+        self.ids = np.arange(n)
+        if sort_every_steps is None:
+            sort_every_steps = 200 if n >= 2000 else 0
+        self.sort_every_steps = int(sort_every_steps)
+        self._last_sort = 0
+        if device not in ("cpu", "gpu"):
+            raise ValueError(f"device = {device!r}: 'cpu' or 'gpu'")
+        self.device = device
+        self._gpu = None
+        if device == "gpu" and geometry.vane_count:
+            raise ValueError(f"device = 'gpu': the GPU stepper does not turn vanes "
+                             f"(vane_count = {geometry.vane_count}); use device 'cpu'")
+        if device == "gpu":
+            from millfmu.dem.engine.gpu import GpuStepper  # numba.cuda only for the GPU
+
+            self.sort_every_steps = 0
+            self._gpu = GpuStepper(self, max_neighbours)  # builds and computes f, t
+            return
+        self._start_cpu()
+
+    def _parameters(self, gravity_m_s2) -> np.ndarray:
+        """The kernels' parameter vector (layout ``P_*`` of
+        :mod:`millfmu.dem.engine.kernels`) of this simulation's material, fluid, geometry,
+        stirrer speed, time step and skin; the tangential history's code is set by the
+        caller. Gravity [m/s2] is reduced by the fluid's buoyancy."""
+        from millfmu.dem.engine.koch_hill2001 import f0_f3_python
+
+        K, material, fluid, geometry = self.K, self.material, self.fluid, self.geometry
         prm = np.zeros(K.N_PRM)
         prm[K.P_DT] = self.dt_s
         prm[K.P_YSTAR] = material.effective_youngs_pa
@@ -141,7 +182,7 @@ class DemSimulation:
         g = np.asarray(gravity_m_s2, dtype=float)
         if fluid is not None:
             # buoyancy: the fluid's pressure gradient carries rho_f / rho_p of the weight
-            g = g * (1.0 - fluid.density_kg_m3 / rho)
+            g = g * (1.0 - fluid.density_kg_m3 / material.density_kg_m3)
             if fluid.lubrication:
                 prm[K.P_LUB_ETA] = fluid.viscosity_pa_s
                 prm[K.P_LUB_HCUT] = fluid.lubrication_cutoff_m
@@ -152,7 +193,7 @@ class DemSimulation:
             prm[K.P_KCORE] = fluid.swirl_core_fraction
             prm[K.P_DELTA] = fluid.swirl_layer_m
             prm[K.P_RHOF] = fluid.density_kg_m3
-            prm[K.P_KH_F0], prm[K.P_KH_F3] = koch_hill_f0_f3(fluid.void_fraction)
+            prm[K.P_KH_F0], prm[K.P_KH_F3] = f0_f3_python(fluid.void_fraction)
         prm[K.P_GX:K.P_GZ + 1] = g
         prm[K.P_LZ] = geometry.height_m
         prm[K.P_SECTOR] = geometry.sector_rad
@@ -173,16 +214,13 @@ class DemSimulation:
         prm[K.P_HBAF] = geometry.baffle_height_m
         prm[K.P_ABAF] = math.radians(geometry.baffle_angle_deg)
         prm[K.P_SKIN] = self.skin_m
-        if tangential_history not in self.TANGENTIAL_HISTORIES:
-            raise ValueError(f"tangential_history = {tangential_history!r}: one of "
-                             f"{sorted(self.TANGENTIAL_HISTORIES)}")
-        self.tangential_history = tangential_history
-        prm[K.P_THIST] = self.TANGENTIAL_HISTORIES[tangential_history]
-        if history_at_start not in self.HISTORIES_AT_START:
-            raise ValueError(f"history_at_start = {history_at_start!r}: one of "
-                             f"{list(self.HISTORIES_AT_START)}")
-        self.history_at_start = history_at_start
-        self.prm = prm
+        return prm
+
+    def _allocate(self, max_neighbours: int) -> None:
+        """The chunks of beads and the kernels' buffers: neighbour lists of
+        ``max_neighbours`` per bead of the largest chunk, walls' histories, recorded
+        contacts, accumulators, the held fluid force."""
+        K, n = self.K, self.n
         # chunks of beads, each with its own force buffer: a fixed number for a given bead
         # count (about 4096 beads each), so that results do not depend on the thread count
         # (while threads <= chunks) and a thread held up on a shared machine leaves its
@@ -210,25 +248,12 @@ class DemSimulation:
         self.fext = np.zeros((n, 3))
         # further per-bead arrays of a coupling, permuted with the beads (register_per_bead)
         self.per_bead = {}
-        self.step_count = 0
-        self.ids = np.arange(n)
-        if sort_every_steps is None:
-            sort_every_steps = 200 if n >= 2000 else 0
-        self.sort_every_steps = int(sort_every_steps)
-        self._last_sort = 0
-        if device not in ("cpu", "gpu"):
-            raise ValueError(f"device = {device!r}: 'cpu' or 'gpu'")
-        self.device = device
-        self._gpu = None
-        if device == "gpu" and geometry.vane_count:
-            raise ValueError(f"device = 'gpu': the GPU stepper does not turn vanes "
-                             f"(vane_count = {geometry.vane_count}); use device 'cpu'")
-        if device == "gpu":
-            from millfmu.dem.engine.gpu import GpuStepper  # numba.cuda only for the GPU
 
-            self.sort_every_steps = 0
-            self._gpu = GpuStepper(self, max_neighbours)  # builds and computes f, t
-            return
+    def _start_cpu(self) -> None:
+        """The first neighbour lists (made to fit where ``max_neighbours`` was generous),
+        the first sort and the forces of the initial state, whose contacts are not "new"
+        later."""
+        K = self.K
         self._build()
         if self.pair_capacity > 1.5 * self.need.max() + 64:
             # max_neighbours was generous: lists that fit (nothing to carry over yet)
@@ -236,10 +261,9 @@ class DemSimulation:
             self._build(do_wrap=False)
         if self.sort_every_steps:
             self._sort()
-        # forces of the initial state; contacts present now are not "new" later
-        # ("zero": the contact law uses dt only for the spring's increment, none at the start)
+        # "zero": the contact law uses dt only for the spring's increment, none at the start
         dt = self.prm[K.P_DT]
-        if history_at_start == "zero":
+        if self.history_at_start == "zero":
             self.prm[K.P_DT] = 0.0
         self._finish(record=False, kick=0.0)
         self.prm[K.P_DT] = dt
@@ -418,14 +442,13 @@ class DemSimulation:
 
         use_threads(self.threads)
         # every parallel loop of a DEM step runs over the chunks, whose work differs (their
-        # pairs and wall contacts): hand them out one at a time
-        # as threads come free instead of numba's equal static blocks (the force loop, the
-        # reduction and the neighbour build take them from counters of their own instead,
-        # each thread its region first: chunk_claims) (dilute bench bed on
-        # 2 threads, four alternating pairs: 23.8-24.4 M particle-steps/s against
-        # 23.1-23.8); the results do not change,
-        # since each chunk sums into its own buffer. Set per call, as numba keeps it per
-        # calling thread, and restored after, for the coupled liquid's loops over cells.
+        # pairs and wall contacts): hand them out one at a time as threads come free
+        # instead of numba's equal static blocks, so that no thread waits with its block
+        # done (the force loop, the reduction and the neighbour build take them from
+        # counters of their own instead, each thread its region first: chunk_claims); the
+        # results do not change, since each chunk sums into its own buffer. Set per call,
+        # as numba keeps it per calling thread, and restored after, for the coupled
+        # liquid's loops over cells.
         with numba.parallel_chunksize(1):
             return fn(*args)
 

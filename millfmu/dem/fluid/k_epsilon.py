@@ -18,11 +18,10 @@ viscosity nu_w = nu y+ kappa / ln(E y+) (kappa 0.41, E 9.8); in the sublayer eps
 equations use the same nu_w at their wall edges (:func:`millfmu.dem.fluid.vans_kernels.wall_nu`).
 
 The production and the transport step run their rows of cells in parallel, each row
-writing its own cells (the same results to the bit on any thread count; 10-degree disc
-sector, 2 threads: a transport step 30 us against 72 serial, the production 13 against 32).
-The transport computes each face's advective flux and diffusive term once, in a pass of
-their own, for the two cells beside it (the same bits; the same sector, back to back: a
-transport step 30.8 -> 19.8 us on one thread, 18.2 -> 12.6 on two).
+writing its own cells, so the results are the same to the bit on any thread count. The
+transport computes each face's advective flux and diffusive term once, in a pass of their
+own, for the two cells beside it (each cell sums its faces in a fixed order), instead of
+once per cell with its divisions.
 Their ``_serial`` twins run the same rows on the calling thread, for a caller that runs
 the turbulence as one task beside another (the coupled exchange's last substep).
 """

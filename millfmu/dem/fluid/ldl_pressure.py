@@ -6,14 +6,15 @@ The operator of :class:`millfmu.dem.fluid.pressure.PressureSolver` (the finite-v
 definite. SuperLU factorises it here with the minimum-degree ordering of A + A^T and
 diagonal pivots only (its symmetric mode), so that U = D L^T: only L's strictly lower part
 and 1/D are kept, and a numba kernel (:func:`millfmu.dem.fluid.step_kernels.ldl_solve`)
-solves. On the 10-degree disc sector's 1,344 cells L holds 15,573 entries against 51,532
-in L + U of ``direct_lu`` (COLAMD); a solve took 39 us back to back against 130 us for
-SuperLU's, and 67 us against 228 us inside the coupled run, where the factor comes back
-from memory after the DEM's steps (2026-11-27, 2 threads). The solution is direct_lu's to
-round-off (1.6e-13 of its largest value on the sector; tests/dem/test_fluid.py). It is the
-default since 2026-11-27: a run with it differs from the shipped tables' runs (made with
-``direct_lu``) by round-off, which ``millfmu tables equivalence`` judged at the coupled
-table's operating point before it became the default (docs/tables.md).
+solves. Why: on the 10-degree disc sector's 1,344 cells L holds 15,573 entries against
+51,532 in L + U of ``direct_lu`` (COLAMD), and a solve inside the coupled run, where the
+factor comes back from memory after the DEM's steps, takes about a third of SuperLU's
+time. The solution is direct_lu's to round-off (1.6e-13 of its largest value on the
+sector; tests/dem/test_fluid.py). It is the default solver
+(:data:`millfmu.dem.fluid.settings.DEFAULT_PRESSURE_SOLVER`): its round-off differs from
+``direct_lu``'s, with which the shipped coupled table was built, and ``millfmu tables
+equivalence`` accepts it as that table's kernel version on the statistics' evidence
+(docs/tables.md).
 
 Imports no numba until a solve.
 """

@@ -20,7 +20,7 @@ import numpy as np
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
-from millfmu.dem.coupling.settings import DEFAULT_PRESSURE_SOLVER, PRESSURE_SOLVERS
+from millfmu.dem.fluid.settings import DEFAULT_PRESSURE_SOLVER, PRESSURE_SOLVERS
 from millfmu.dem.fluid.grid import FLUID, CylGrid
 
 

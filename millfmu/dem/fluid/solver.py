@@ -25,8 +25,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from millfmu.dem.fluid.grid import FLUID, ROTOR, STATOR, CylGrid
-from millfmu.dem.coupling.settings import DEFAULT_PRESSURE_SOLVER
 from millfmu.dem.fluid.pressure import PressureSolver
+from millfmu.dem.fluid.settings import DEFAULT_PRESSURE_SOLVER
 
 MODELS = ("A", "B")
 #: Slip time [s] of the liquid between a rotor's vanes (driven cells): the vanes hold the
@@ -35,7 +35,8 @@ MODELS = ("A", "B")
 #: value stable, and the torque it takes is the vanes' share of the rotor torque.
 VANE_SLIP_TIME_S = 1e-5
 TURBULENCE = ("k_epsilon", "laminar")
-#: what a run's description says of each pressure solver (settings.PRESSURE_SOLVERS)
+#: what a run's description says of each pressure solver
+#: (:data:`millfmu.dem.fluid.settings.PRESSURE_SOLVERS`)
 PRESSURE_DESCRIPTIONS = {
     "direct_lu": "direct sparse LU of the constant projection operator",
     "theta_fft": "FFT in theta and a direct sparse LU of each mode's 2D operator (theta_fft)",
@@ -60,6 +61,16 @@ class FluidProperties:
         return self.viscosity_pa_s / self.density_kg_m3
 
 
+def _check_options(model: str, turbulence: str, cfl: float) -> None:
+    """Refuse by name (FluidError) a model, turbulence model or CFL number not allowed."""
+    if model not in MODELS:
+        raise FluidError(f"fluid model = {model!r}: allowed {list(MODELS)}")
+    if turbulence not in TURBULENCE:
+        raise FluidError(f"turbulence = {turbulence!r}: allowed {list(TURBULENCE)}")
+    if not 0.0 < cfl <= 0.5:
+        raise FluidError(f"cfl = {cfl!r}: allowed 0 < cfl <= 0.5")
+
+
 class FluidSolver:
     """VANS solver (model "A" or "B", turbulence "k_epsilon" or "laminar") on ``grid``,
     with the rotor (shaft if ``grid.shaft_rotates``, and ROTOR cells) turning at
@@ -73,12 +84,7 @@ class FluidSolver:
         from millfmu.dem.fluid import step_kernels as SK
         from millfmu.dem.fluid import vans_kernels as VK
 
-        if model not in MODELS:
-            raise FluidError(f"fluid model = {model!r}: allowed {list(MODELS)}")
-        if turbulence not in TURBULENCE:
-            raise FluidError(f"turbulence = {turbulence!r}: allowed {list(TURBULENCE)}")
-        if not 0.0 < cfl <= 0.5:
-            raise FluidError(f"cfl = {cfl!r}: allowed 0 < cfl <= 0.5")
+        _check_options(model, turbulence, cfl)
         self.VK = VK
         self.KE = KE
         self.SK = SK
@@ -90,7 +96,6 @@ class FluidSolver:
         self.turbulence = turbulence
         self.cfl = float(cfl)
         g = grid
-        nr, nt, nz = g.shape
         self.rf = np.ascontiguousarray(g.r_faces_m, float)
         self.rc = np.ascontiguousarray(g.r_centres_m, float)
         self.dr = np.ascontiguousarray(g.dr_m, float)
@@ -98,119 +103,11 @@ class FluidSolver:
         self.dth = float(g.dtheta_rad)
         self.dz = float(g.dz_m)
         self.solid = np.ascontiguousarray(g.solid)
-        s = self.solid != FLUID
-        # ---- node kinds: 0 solved, 1 on a wall surface, 2 inside a solid ----
-        kr = np.zeros((nr + 1, nt, nz), np.int8)
-        kr[0] = np.where(s[0], 2, 1)
-        kr[nr] = np.where(s[nr - 1], 2, 1)
-        kr[1:nr] = s[:-1].astype(np.int8) + s[1:]
-        kt = (s.astype(np.int8) + np.roll(s, -1, axis=1)).astype(np.int8)
-        kz = (s.astype(np.int8) + np.roll(s, -1, axis=2)).astype(np.int8)
-        self.kr, self.kt, self.kz = kr, kt, kz
-        rot = (self.solid == ROTOR)
-        # theta nodes fixed by a rotor (inside it or on its theta-normal face)
-        self._rot_t = (rot | np.roll(rot, -1, axis=1)) & (kt > 0)
-        # ---- control volumes, areas and distances per node (flattened use) ----
-        shp_r = (nr + 1, nt, nz)
-        vr = np.zeros(nr + 1)
-        vr[1:nr] = 0.5 * (self.vc[:-1] + self.vc[1:])
-        vr[0], vr[nr] = 0.5 * self.vc[0], 0.5 * self.vc[-1]
-        self.vol_r = np.broadcast_to(vr[:, None, None], shp_r).copy()
-        self.vol_c = np.broadcast_to(self.vc[:, None, None], g.shape).copy()
-        hr = np.ones(nr + 1)
-        hr[1:nr] = self.rc[1:] - self.rc[:-1]
-        self.area_r = np.broadcast_to((self.rf * self.dth * self.dz)[:, None, None], shp_r).copy()
-        self.h_r = np.broadcast_to(hr[:, None, None], shp_r).copy()
-        self.area_t = np.broadcast_to((self.dr * self.dz)[:, None, None], g.shape).copy()
-        self.h_t = np.broadcast_to((self.rc * self.dth)[:, None, None], g.shape).copy()
-        self.area_z = np.broadcast_to((self.vc / self.dz)[:, None, None], g.shape).copy()
-        self.h_z = np.full(g.shape, self.dz)
-        # ---- walls for the turbulence model: face d of a fluid cell on a wall ----
-        wall = np.zeros(g.shape + (6,), np.bool_)
-        wom = np.zeros(g.shape + (6,))
-        f = ~s
-        wall[0, :, :, 0] = f[0]
-        wall[1:, :, :, 0] = f[1:] & s[:-1]
-        wall[nr - 1, :, :, 1] = f[nr - 1]
-        wall[:-1, :, :, 1] |= f[:-1] & s[1:]
-        if nt > 1:
-            wall[..., 2] = f & np.roll(s, 1, axis=1)
-            wall[..., 3] = f & np.roll(s, -1, axis=1)
-        wall[..., 4] = f & np.roll(s, 1, axis=2)
-        wall[..., 5] = f & np.roll(s, -1, axis=2)
-        self.wall = wall
-        # angular velocity of each wall per unit omega (1 rotor, 0 at rest)
-        wom = np.zeros(g.shape + (6,))
-        wom[0, :, :, 0] = 1.0 if grid.shaft_rotates else 0.0
-        wom[1:, :, :, 0] = rot[:-1]
-        wom[:-1, :, :, 1] = rot[1:]
-        wom[nr - 1, :, :, 1] = 0.0  # the chamber wall is at rest
-        if nt > 1:
-            wom[..., 2] = np.roll(rot, 1, axis=1)
-            wom[..., 3] = np.roll(rot, -1, axis=1)
-        wom[..., 4] = np.roll(rot, 1, axis=2)
-        wom[..., 5] = np.roll(rot, -1, axis=2)
-        self._wom_rot = wom * wall
-        # ---- state ----
-        self.ur = np.zeros(shp_r)
-        self.ut = np.zeros(g.shape)
-        self.uz = np.zeros(g.shape)
-        self.p = np.zeros(g.shape)
-        self.k = np.zeros(g.shape)
-        self.e = np.zeros(g.shape)
-        self.nu_t = np.zeros(g.shape)
-        # ---- what the beads impose (defaults: no beads) ----
-        self.eps_c = np.ones(g.shape)
-        self.eps_c_old = np.ones(g.shape)
-        self.eps_r = np.ones(shp_r)
-        self.eps_t = np.ones(g.shape)
-        self.eps_z = np.ones(g.shape)
-        self.kd_r = np.zeros(shp_r)
-        self.kd_t = np.zeros(g.shape)
-        self.kd_z = np.zeros(g.shape)
-        self.sd_r = np.zeros(shp_r)
-        self.sd_t = np.zeros(g.shape)
-        self.sd_z = np.zeros(g.shape)
-        self.body_z = 0.0  # axial body force per unit volume [N/m3] (e.g. -dP/dz)
-        self.interval_s = None  # last coupling interval (continuity's d(eps)/dt)
-        self.fixed_t = np.zeros(g.shape)  # u_theta of fixed theta nodes [m/s]
-        # theta drag of beads and vanes together (what the predictor uses): the vanes of a
-        # driven zone hold the swirl at omega r with a slip time of VANE_SLIP_TIME_S
-        self.kd_t_all = np.zeros(g.shape)
-        self.sd_t_all = np.zeros(g.shape)
-        self._driven = (np.zeros(g.shape, np.bool_) if g.driven is None
-                        else np.asarray(g.driven, np.bool_) & (kt == 0))
-        # ---- work arrays ----
-        self._fr = np.zeros(shp_r)
-        self._ft = np.zeros(g.shape)
-        self._fz = np.zeros(g.shape)
-        self._div = np.zeros(g.shape)
-        self._trr = np.zeros(g.shape)
-        self._ttt = np.zeros(g.shape)
-        self._tzz = np.zeros(g.shape)
-        self._s2 = np.zeros(g.shape)
-        self._ert = np.zeros(shp_r)
-        self._erz = np.zeros(shp_r)
-        self._etz = np.zeros(g.shape)
-        self._grt = np.zeros(shp_r)
-        self._grz = np.zeros(shp_r)
-        self._gtz = np.zeros(g.shape)
-        self._rr = np.zeros(shp_r)
-        self._rt = np.zeros(g.shape)
-        self._rz = np.zeros(g.shape)
-        self._gpr = np.zeros(shp_r)
-        self._gpt = np.zeros(g.shape)
-        self._gpz = np.zeros(g.shape)
-        self._em = np.zeros(g.shape)
-        self._prod = np.zeros(g.shape)
-        self._ewall = np.zeros(g.shape)
-        self._knew = np.zeros(g.shape)
-        self._enew = np.zeros(g.shape)
-        self.mean_u = (np.zeros(shp_r), np.zeros(g.shape), np.zeros(g.shape))
-        self.mean_gp = (np.zeros(shp_r), np.zeros(g.shape), np.zeros(g.shape))
-        self._zero_r = np.zeros(shp_r)
-        self._zero_c = np.zeros(g.shape)
-        self._gphi = (np.zeros(shp_r), np.zeros(g.shape), np.zeros(g.shape))
+        self._make_node_kinds()
+        self._make_control_volumes()
+        self._make_walls()
+        self._make_state()
+        self._make_work_arrays()
         self._kf = self._turbulence_faces()
         self.pressure = PressureSolver(grid, pressure_solver)
         self._plate_faces = self._find_plate_faces()
@@ -240,6 +137,143 @@ class FluidSolver:
         self.exchange_axial_ns = 0.0
         self.last_substeps = 0
         self.set_omega(omega_rad_s)
+
+    def _make_node_kinds(self) -> None:
+        """Each velocity node's kind (kr, kt, kz: 0 solved, 1 on a wall surface, 2 inside
+        a solid) and the theta nodes a rotor fixes (inside it or on its theta-normal
+        face)."""
+        nr = self.grid.shape[0]
+        s = self.solid != FLUID
+        kr = np.zeros((nr + 1,) + self.grid.shape[1:], np.int8)
+        kr[0] = np.where(s[0], 2, 1)
+        kr[nr] = np.where(s[nr - 1], 2, 1)
+        kr[1:nr] = s[:-1].astype(np.int8) + s[1:]
+        kt = (s.astype(np.int8) + np.roll(s, -1, axis=1)).astype(np.int8)
+        kz = (s.astype(np.int8) + np.roll(s, -1, axis=2)).astype(np.int8)
+        self.kr, self.kt, self.kz = kr, kt, kz
+        rot = (self.solid == ROTOR)
+        self._rot_t = (rot | np.roll(rot, -1, axis=1)) & (kt > 0)
+
+    def _make_control_volumes(self) -> None:
+        """Control volumes [m3], face areas [m2] and node distances [m] per node (r nodes
+        on the radial faces, theta and z nodes with their cells)."""
+        g = self.grid
+        nr = g.shape[0]
+        shp_r = (nr + 1,) + g.shape[1:]
+        vr = np.zeros(nr + 1)
+        vr[1:nr] = 0.5 * (self.vc[:-1] + self.vc[1:])
+        vr[0], vr[nr] = 0.5 * self.vc[0], 0.5 * self.vc[-1]
+        self.vol_r = np.broadcast_to(vr[:, None, None], shp_r).copy()
+        self.vol_c = np.broadcast_to(self.vc[:, None, None], g.shape).copy()
+        hr = np.ones(nr + 1)
+        hr[1:nr] = self.rc[1:] - self.rc[:-1]
+        self.area_r = np.broadcast_to((self.rf * self.dth * self.dz)[:, None, None], shp_r).copy()
+        self.h_r = np.broadcast_to(hr[:, None, None], shp_r).copy()
+        self.area_t = np.broadcast_to((self.dr * self.dz)[:, None, None], g.shape).copy()
+        self.h_t = np.broadcast_to((self.rc * self.dth)[:, None, None], g.shape).copy()
+        self.area_z = np.broadcast_to((self.vc / self.dz)[:, None, None], g.shape).copy()
+        self.h_z = np.full(g.shape, self.dz)
+
+    def _make_walls(self) -> None:
+        """The walls the turbulence model sees: ``wall`` (face d of a fluid cell on a
+        solid or the domain's radial bounds) and each such wall's angular velocity per
+        unit omega (1 on the rotor, 0 at rest)."""
+        g = self.grid
+        nr, nt = g.shape[0], g.shape[1]
+        s = self.solid != FLUID
+        rot = (self.solid == ROTOR)
+        wall = np.zeros(g.shape + (6,), np.bool_)
+        f = ~s
+        wall[0, :, :, 0] = f[0]
+        wall[1:, :, :, 0] = f[1:] & s[:-1]
+        wall[nr - 1, :, :, 1] = f[nr - 1]
+        wall[:-1, :, :, 1] |= f[:-1] & s[1:]
+        if nt > 1:
+            wall[..., 2] = f & np.roll(s, 1, axis=1)
+            wall[..., 3] = f & np.roll(s, -1, axis=1)
+        wall[..., 4] = f & np.roll(s, 1, axis=2)
+        wall[..., 5] = f & np.roll(s, -1, axis=2)
+        self.wall = wall
+        wom = np.zeros(g.shape + (6,))
+        wom[0, :, :, 0] = 1.0 if g.shaft_rotates else 0.0
+        wom[1:, :, :, 0] = rot[:-1]
+        wom[:-1, :, :, 1] = rot[1:]
+        wom[nr - 1, :, :, 1] = 0.0  # the chamber wall is at rest
+        if nt > 1:
+            wom[..., 2] = np.roll(rot, 1, axis=1)
+            wom[..., 3] = np.roll(rot, -1, axis=1)
+        wom[..., 4] = np.roll(rot, 1, axis=2)
+        wom[..., 5] = np.roll(rot, -1, axis=2)
+        self._wom_rot = wom * wall
+
+    def _make_state(self) -> None:
+        """The liquid at rest and what the beads impose on it (no beads: void fraction 1,
+        no drag)."""
+        g = self.grid
+        shp_r = self.kr.shape
+        self.ur = np.zeros(shp_r)
+        self.ut = np.zeros(g.shape)
+        self.uz = np.zeros(g.shape)
+        self.p = np.zeros(g.shape)
+        self.k = np.zeros(g.shape)
+        self.e = np.zeros(g.shape)
+        self.nu_t = np.zeros(g.shape)
+        self.eps_c = np.ones(g.shape)
+        self.eps_c_old = np.ones(g.shape)
+        self.eps_r = np.ones(shp_r)
+        self.eps_t = np.ones(g.shape)
+        self.eps_z = np.ones(g.shape)
+        self.kd_r = np.zeros(shp_r)
+        self.kd_t = np.zeros(g.shape)
+        self.kd_z = np.zeros(g.shape)
+        self.sd_r = np.zeros(shp_r)
+        self.sd_t = np.zeros(g.shape)
+        self.sd_z = np.zeros(g.shape)
+        self.body_z = 0.0  # axial body force per unit volume [N/m3] (e.g. -dP/dz)
+        self.interval_s = None  # last coupling interval (continuity's d(eps)/dt)
+        self.fixed_t = np.zeros(g.shape)  # u_theta of fixed theta nodes [m/s]
+        # theta drag of beads and vanes together (what the predictor uses): the vanes of a
+        # driven zone hold the swirl at omega r with a slip time of VANE_SLIP_TIME_S
+        self.kd_t_all = np.zeros(g.shape)
+        self.sd_t_all = np.zeros(g.shape)
+        self._driven = (np.zeros(g.shape, np.bool_) if g.driven is None
+                        else np.asarray(g.driven, np.bool_) & (self.kt == 0))
+
+    def _make_work_arrays(self) -> None:
+        """The kernels' work arrays and the interval's means (velocities and pressure
+        gradients)."""
+        shape = self.grid.shape
+        shp_r = self.kr.shape
+        self._fr = np.zeros(shp_r)
+        self._ft = np.zeros(shape)
+        self._fz = np.zeros(shape)
+        self._div = np.zeros(shape)
+        self._trr = np.zeros(shape)
+        self._ttt = np.zeros(shape)
+        self._tzz = np.zeros(shape)
+        self._s2 = np.zeros(shape)
+        self._ert = np.zeros(shp_r)
+        self._erz = np.zeros(shp_r)
+        self._etz = np.zeros(shape)
+        self._grt = np.zeros(shp_r)
+        self._grz = np.zeros(shp_r)
+        self._gtz = np.zeros(shape)
+        self._rr = np.zeros(shp_r)
+        self._rt = np.zeros(shape)
+        self._rz = np.zeros(shape)
+        self._gpr = np.zeros(shp_r)
+        self._gpt = np.zeros(shape)
+        self._gpz = np.zeros(shape)
+        self._em = np.zeros(shape)
+        self._prod = np.zeros(shape)
+        self._ewall = np.zeros(shape)
+        self._knew = np.zeros(shape)
+        self._enew = np.zeros(shape)
+        self.mean_u = (np.zeros(shp_r), np.zeros(shape), np.zeros(shape))
+        self.mean_gp = (np.zeros(shp_r), np.zeros(shape), np.zeros(shape))
+        self._zero_r = np.zeros(shp_r)
+        self._zero_c = np.zeros(shape)
+        self._gphi = (np.zeros(shp_r), np.zeros(shape), np.zeros(shape))
 
     # ---- settings ---------------------------------------------------------------------
     def set_omega(self, omega_rad_s: float):

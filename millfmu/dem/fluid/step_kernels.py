@@ -349,7 +349,7 @@ def stable_dt(ur, ut, uz, nu_t, rc, dr, dth, dz, nu, cfl):
 def take_beads(F, K, driven, eps_c, eps_r, eps_t, eps_z, kd_r, kd_t, kd_z, sd_r, sd_t, sd_z,
                rc, rho, slip_s, omega):
     """:meth:`millfmu.dem.fluid.solver.FluidSolver.set_beads` in two passes over the nodes
-    (some twenty numpy calls before, each a pass): velocities rescaled by eps_old / eps_new
+    (instead of some twenty numpy calls, each a pass): velocities rescaled by eps_old / eps_new
     (the node momenta kept), the new void fractions, drag coefficients and sources; then
     :func:`theta_drag_and_fixed`. The same arithmetic, element by element, as the numpy
     calls."""

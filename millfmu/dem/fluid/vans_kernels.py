@@ -33,10 +33,9 @@ wall edge follows the log law (see :mod:`millfmu.dem.fluid.k_epsilon`).
 Threads: the heaviest kernels (the stresses, the three explicit rates) run their rows of
 nodes in parallel (``prange`` over i); each row writes only its own nodes from values no
 row writes, so the results are the same to the bit on any thread count. Sums over the grid
-(wall torques) stay serial, in their order. On a 10-degree disc sector (40 x 1 x 42 cells,
-2 threads, called back to back) the edge stresses took 47 us against 115 serial, each rate
-20-23 us against 42-48. :func:`stresses` (the normal and edge stresses) and :func:`rates`
-(the three rates) each make one loop over the rows of what were four and three.
+(wall torques) stay serial, in their order. :func:`stresses` (the normal and edge
+stresses) and :func:`rates` (the three rates) each make one parallel loop over the rows,
+so that a substep pays two launches instead of seven.
 
 Index conventions: cells (i, j, k); u_r[i] on r-face i (0..n_r), u_t[j] on the theta face
 between cells j and j + 1, u_z[k] on the z-face between k and k + 1 (both periodic).
@@ -190,9 +189,8 @@ def stresses(ur, ut, uz, kr, kt_, kz, em, epsc, ktur, solid, rf, rc, dr, dth, dz
     """Normal stresses at the cell centres (:func:`normal_row`) and shear stresses a tau
     [Pa] on the grid edges (layout in the module docstring) with the matching strain rates
     gamma = 2 S_ab [1/s] (g_rt, g_rz, g_tz) for the turbulence production, in one parallel
-    loop over the rows (each row's cell centres and edges; before, four loops, the first
-    serial: the same results to the bit, each row writing only its own values from values
-    no row writes). kr, kt_, kz: node kinds (0 fluid, 1 wall surface, 2 inside solid); the
+    loop over the rows (each row's cell centres and edges: the same results to the bit on
+    any thread count, each row writing only its own values from values no row writes). kr, kt_, kz: node kinds (0 fluid, 1 wall surface, 2 inside solid); the
     shaft (r = r_f[0], angular velocity om_sh) and the chamber (r = r_f[-1], at rest) are
     walls beyond the first and last radial nodes. At a wall edge the viscosity is
     rho a nu_w (:func:`wall_nu`) with the mean k of the fluid cells beside the edge."""
@@ -215,7 +213,7 @@ def rates(ur, ut, uz, fr, ft, fz, kr, kt_, kz, trr, ttt, tzz, e_rt, e_rz, e_tz, 
           rc, dr, vc, dth, dz, rho, out_r, out_t, out_z):
     """The explicit rates of eps u_r, eps u_theta and eps u_z (:func:`rhs_r_row`,
     :func:`rhs_t_row`, :func:`rhs_z_row`) into out_r, out_t, out_z, in one parallel loop
-    over the rows (before, three loops: the same results to the bit)."""
+    over the rows (the same results to the bit on any thread count)."""
     nr = ut.shape[0]
     for i in prange(nr):
         if i > 0:

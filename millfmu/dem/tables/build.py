@@ -334,88 +334,26 @@ def run_points(spec: TableSpec, builder: Callable, executor: str = "processes",
     results = list(stored) if stored is not None else stored_results(spec, point_store)
     todo = order_by_cost(spec, builder, points,
                          [i for i, r in enumerate(results) if r is None])
-    bar = None
     cost = getattr(builder, "relative_cost", None)
     n_workers = 1 if (executor == "serial" and scheduler is None) else \
         max(1, min(workers or os.cpu_count() or 1, len(todo) or 1))
     prog = BuildProgress(len(points), len(points) - len(todo),
                          {i: float(cost(spec.scene, points[i])) for i in todo} if cost else None,
                          seconds_per_cost, n_workers)
-    queue = list(todo)  # not started, in the order the executors start them
-
-    def started(k=1):
-        for _ in range(k):
-            if queue:
-                prog.start(queue.pop(0))
-        if bar is not None:
-            bar.set_postfix_str(prog.text(), refresh=True)
-
-    ticking = None
-    if progress:
-        import threading
-
-        from tqdm import tqdm
-        bar = tqdm(total=len(points), initial=len(points) - len(todo), unit="point",
-                   desc=f"table {spec.key()[:10]}")
-        # A point can run for an hour: the time left counts down between finished points.
-        ticking = threading.Event()
-
-        def tick():
-            while not ticking.wait(PROGRESS_REFRESH_S):
-                bar.set_postfix_str(prog.text(), refresh=True)
-
-        threading.Thread(target=tick, daemon=True).start()
-
-    errors = []
-
-    def done(i, f):
-        """Store the outcome of point i (``f()`` returns its result or raises); a failed
-        point is remembered and the others go on, so that they are stored for a resume."""
-        try:
-            r = f()
-        except Exception as e:  # noqa: BLE001 - re-raised below, after the others
-            errors.append((i, e))
-            return
-        results[i] = r
-        if point_store is not None:
-            point_store.put(spec, points[i], r)
-        w = r.get("wall_time_s") if isinstance(r, dict) else None
-        prog.finish(i, float(w) if isinstance(w, (int, float)) else None)
-        if bar is not None:
-            bar.update(1)
-        started(1)  # a worker took the next point
-
+    bar, ticking = _progress_bar(spec, len(points), len(points) - len(todo), prog) \
+        if progress else (None, None)
+    points_done = _PointsDone(spec, points, results, point_store, prog, todo, bar)
     try:
-        if not todo:
-            pass
-        elif scheduler is not None or executor == "dask":
-            started(n_workers)
-            _run_dask(spec, builder, points, todo, done, workers, scheduler)
-        elif executor == "serial" or len(todo) == 1:
-            started(1)
-            for i in todo:
-                done(i, lambda: builder(spec.scene, points[i]))
-                if errors:
-                    break  # one after the other: stop at the first failure
-        else:
-            import multiprocessing
-            from concurrent.futures import ProcessPoolExecutor, as_completed
-            n = min(workers or os.cpu_count() or 1, len(todo))
-            # spawned, not forked: a forked child of a process that has run the DEM's
-            # OpenMP kernels cannot run them (GNU OpenMP is not fork safe)
-            with ProcessPoolExecutor(max_workers=n,
-                                     mp_context=multiprocessing.get_context("spawn")) as pool:
-                futs = {pool.submit(builder, spec.scene, points[i]): i for i in todo}
-                started(n)
-                for f in as_completed(futs):
-                    done(futs[f], f.result)
+        _run_todo(spec, builder, points, todo, points_done, executor, workers, scheduler,
+                  n_workers)
     finally:
         if ticking is not None:
             ticking.set()
         if bar is not None:
             bar.close()
-    if errors:
-        i, e = errors[0]
+    if points_done.errors:
+        i, e = points_done.errors[0]
+        errors = points_done.errors
         more = f" ({len(errors) - 1} more failed)" if len(errors) > 1 else ""
         finished = sum(r is not None for r in results)
         kept = (f"; the {finished} finished points are kept for a resume"
@@ -423,6 +361,89 @@ def run_points(spec: TableSpec, builder: Callable, executor: str = "processes",
         raise TableError(f"grid point {points[i]}: {type(e).__name__}: {e}{more}{kept}") \
             from e
     return results
+
+
+def _progress_bar(spec: TableSpec, total: int, initial: int, prog: BuildProgress):
+    """A tqdm bar of a build's points and the event that stops its ticking: a point can
+    run for an hour, so a thread refreshes the bar's line (the time left counts down)
+    every PROGRESS_REFRESH_S between finished points."""
+    import threading
+
+    from tqdm import tqdm
+    bar = tqdm(total=total, initial=initial, unit="point", desc=f"table {spec.key()[:10]}")
+    ticking = threading.Event()
+
+    def tick():
+        while not ticking.wait(PROGRESS_REFRESH_S):
+            bar.set_postfix_str(prog.text(), refresh=True)
+
+    threading.Thread(target=tick, daemon=True).start()
+    return bar, ticking
+
+
+class _PointsDone:
+    """What :func:`run_points` does as points start and finish: the results in grid
+    order, the point store, the progress and the failures (``errors``: (index,
+    exception))."""
+
+    def __init__(self, spec, points, results, point_store, prog, todo, bar):
+        self.spec, self.points, self.results = spec, points, results
+        self.point_store, self.prog, self.bar = point_store, prog, bar
+        self.queue = list(todo)  # not started, in the order the executors start them
+        self.errors = []
+
+    def started(self, k=1):
+        for _ in range(k):
+            if self.queue:
+                self.prog.start(self.queue.pop(0))
+        if self.bar is not None:
+            self.bar.set_postfix_str(self.prog.text(), refresh=True)
+
+    def __call__(self, i, f):
+        """Store the outcome of point i (``f()`` returns its result or raises); a failed
+        point is remembered and the others go on, so that they are stored for a resume."""
+        try:
+            r = f()
+        except Exception as e:  # noqa: BLE001 - re-raised by run_points, after the others
+            self.errors.append((i, e))
+            return
+        self.results[i] = r
+        if self.point_store is not None:
+            self.point_store.put(self.spec, self.points[i], r)
+        w = r.get("wall_time_s") if isinstance(r, dict) else None
+        self.prog.finish(i, float(w) if isinstance(w, (int, float)) else None)
+        if self.bar is not None:
+            self.bar.update(1)
+        self.started(1)  # a worker took the next point
+
+
+def _run_todo(spec, builder, points, todo, done: _PointsDone, executor, workers, scheduler,
+              n_workers) -> None:
+    """Run the points ``todo`` by ``executor`` (see :func:`run_points`), each outcome to
+    ``done``."""
+    if not todo:
+        return
+    if scheduler is not None or executor == "dask":
+        done.started(n_workers)
+        _run_dask(spec, builder, points, todo, done, workers, scheduler)
+    elif executor == "serial" or len(todo) == 1:
+        done.started(1)
+        for i in todo:
+            done(i, lambda: builder(spec.scene, points[i]))
+            if done.errors:
+                break  # one after the other: stop at the first failure
+    else:
+        import multiprocessing
+        from concurrent.futures import ProcessPoolExecutor, as_completed
+        n = min(workers or os.cpu_count() or 1, len(todo))
+        # spawned, not forked: a forked child of a process that has run the DEM's
+        # OpenMP kernels cannot run them (GNU OpenMP is not fork safe)
+        with ProcessPoolExecutor(max_workers=n,
+                                 mp_context=multiprocessing.get_context("spawn")) as pool:
+            futs = {pool.submit(builder, spec.scene, points[i]): i for i in todo}
+            done.started(n)
+            for f in as_completed(futs):
+                done(futs[f], f.result)
 
 
 def _run_dask(spec, builder, points, todo, done, workers, scheduler):
