@@ -252,7 +252,7 @@ def realization_entry(ref: dict) -> dict:
     n = 1 + len(ref["runs"])
     if n < 3:
         raise EquivalenceError(f"reference: {n} realizations; a spread needs at least 3 (the "
-                               f"table's point and 2 runs: tables equivalence --reference)")
+                               f"table's point and 2 runs: python -m validation.equivalence_runs --reference --write)")
     return {"measure": "standard deviation of independent realizations (the table's point and "
                        "runs on other thread counts) relative to the table's value, per zone; "
                        "prediction_factor = t(0.975, n - 1) sqrt(2)",
@@ -269,8 +269,8 @@ def write_realization_spread(table_ref: str, path=None) -> Path:
 
     ref = (read_evidence(path) or {}).get("reference")
     if not ref:
-        raise EquivalenceError("no reference realizations in the evidence: run tables "
-                               "equivalence --reference --write first")
+        raise EquivalenceError("no reference realizations in the evidence: run python -m validation.equivalence_runs "
+                               "--reference --write first")
     table = read_table_ref(table_ref)
     if ref.get("table_key") != table.manifest.get("key"):
         raise EquivalenceError(f"table {table_ref!r}: key {table.manifest.get('key')} is not "
