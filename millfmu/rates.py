@@ -261,6 +261,48 @@ class RatesResult:
                     }
 
 
+def trend_table(pairs=None) -> tuple[list, list]:
+    """(header, rows) of both shipped calibrated pairs' rates along each parameter, each
+    model's over its rate at the reference point [-], the detailed model's band in brackets:
+    yeast the disruption rate, limestone S at the feed's x50 and x90. ``pairs``: the yeast
+    and the limestone :class:`RatesResult` (computed when None). What docs/rates-and-
+    calibration.md and the report show."""
+    if pairs is None:
+        from .calibration import SHIPPED
+
+        (ys, yd), (ls, ld) = (p.scenes() for p in SHIPPED)
+        pairs = (compute(ys, "yeast", detailed_scene=yd), compute(ls, "limestone", detailed_scene=ld))
+    y, lime = pairs
+    sizes = list(lime.quantities)
+    cols = [(y, "disruption_rate")] + [(lime, q) for q in sizes[1:]]
+
+    def cell(r, p, m, q, k):
+        v = r.relative(p, m, q)[k]
+        star = "*" if k == r.reference_index(p) else ""
+        if not math.isfinite(v):
+            return "refused"
+        txt = f"{v:.3g}{star}"
+        band = r.band_relative(p, q) if m == "detailed" else ()
+        if band and not star and all(math.isfinite(b[k]) for b in band):
+            txt += f" ({band[0][k]:.3g}-{band[1][k]:.3g})"
+        return txt
+
+    head = ["parameter", "value", "yeast simple", "yeast detailed"] + \
+        [f"limestone {float(q.split('=')[1]) * 1e6:.3g} um {m}" for q in sizes[1:] for m in MODELS]
+    rows = []
+    for p, (label, unit, *_rest) in PARAMETERS.items():
+        vals = lime.curve(p, "simple").values
+        for k, v in enumerate(vals):
+            value = ("half", "ref", "1.5 x", "2 x")[k] if p == "solids_mass_fraction" else \
+                f"{v * 1e3:g}" if p == "bead_diameter" else f"{v:g}"
+            row = [f"{label} [{'mm' if p == 'bead_diameter' else unit}]" if k == 0 else "", value]
+            for r, q in cols:
+                has = k < len(r.curve(p, "simple").values)
+                row += [cell(r, p, m, q, k) if has else "" for m in MODELS]
+            rows.append(row)
+    return head, rows
+
+
 def _g(v) -> str:
     v = float(v)
     return "" if math.isnan(v) else f"{v:.10g}"

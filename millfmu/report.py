@@ -10,7 +10,10 @@ Sections (each with its measured orders, the machine it ran on and the date):
 3. the DEM work-precision (:mod:`millfmu.dem.analysis.precision`): a recording-length study run
    now (``--quick``: one short coupled run) or a full study made from a checkout
    (``--dem-runs DIR``: ``python -m validation.work_precision run|table --out DIR``), and the
-   full study shipped with millfmu.
+   full study shipped with millfmu;
+4. the rates of both shipped calibrated pairs along each operating parameter, simple against
+   detailed model with its band (:func:`millfmu.rates.trend_table`), and the detailed
+   model's regime.
 
 The page (``report.html``) has no external CSS or scripts; its PNG images are written
 beside it and referenced by relative name. ``--quick`` finishes in minutes (for CI); the
@@ -38,6 +41,7 @@ SECTIONS = {
     "pbm": "Population-balance integrators",
     "cosim": "Co-simulation communication step",
     "dem": "DEM work-precision",
+    "trends": "Rates along the operating parameters",
 }
 #: Co-simulation study settings: (flowsheet file, t_end [s] or None for the file's,
 #: communication steps [s], reference step [s]); quick is the default tests' short version.
@@ -504,6 +508,30 @@ def _realizations() -> str:
         _table(head, rows)])
 
 
+def trends_section(out: Path, quick: bool, log=print) -> str:
+    """Both shipped pairs' rates along each parameter (the simple and the detailed model,
+    the detailed model's band) and where the detailed model is energy-limited."""
+    from . import rates as mrates
+    from .calibration import SHIPPED
+
+    t0 = time.perf_counter()
+    log("report: rates along the operating parameters (both shipped pairs)")
+    (ys, yd), (ls, ld) = (p.scenes() for p in SHIPPED)
+    pairs = (mrates.compute(ys, "yeast", detailed_scene=yd), mrates.compute(ls, "limestone", detailed_scene=ld))
+    head, rows = mrates.trend_table(pairs)
+    freq = ("detailed model frequency-limited: breakage probability per stress at the reference at "
+            f"least {mrates.ENERGY_LIMITED_P:g}.")
+    notes = [f"<p>{_esc(r.name)}: {_esc(r.regime_note() or freq)}</p>" for r in pairs]
+    wall = time.perf_counter() - t0
+    return "\n".join([
+        f'<h2 id="trends">5. {SECTIONS["trends"]}</h2>', _meta(machine(), wall),
+        "<p>Each model's rate over its rate at the reference point (* the reference; yeast: the feed's "
+        "disruption rate, limestone: S at the feed's x50 and x90), the detailed model on the coupled table with "
+        "the band of the table's stated error in brackets. Seed 000's "
+        "measurements follow the simple model's trends. The same table: <code>millfmu rates</code>.</p>",
+        _table(head, rows), *notes])
+
+
 # --- the page ---------------------------------------------------------------------------
 
 def build_report(out_dir, quick: bool = False, dem_runs=None, log=print) -> list[Path]:
@@ -521,7 +549,7 @@ def build_report(out_dir, quick: bool = False, dem_runs=None, log=print) -> list
     tmp = staging_dir(out, ".millfmu-report-")
     try:
         body = [process_section(tmp, quick, log), pbm_section(tmp, quick, log), cosim_section(tmp, quick, log),
-                dem_section(tmp, quick, dem_runs, log)]
+                dem_section(tmp, quick, dem_runs, log), trends_section(tmp, quick, log)]
         wall = time.perf_counter() - t0
         page = ["<!DOCTYPE html>", '<html lang="en"><head><meta charset="utf-8">',
                 f"<title>millfmu: error against run time</title><style>{CSS}</style></head><body>",

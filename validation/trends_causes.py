@@ -431,51 +431,13 @@ def main(argv=None) -> int:
 
 
 def markdown_trend_table() -> str:
-    """The docs' table of ``millfmu rates`` for both shipped pairs: per parameter value each
-    model's rate over its reference rate, the detailed model's band in brackets (yeast: the
-    disruption rate; limestone: S at the feed's x50 and x90)."""
+    """The docs' table of ``millfmu rates`` for both shipped pairs
+    (:func:`millfmu.rates.trend_table`) in Markdown."""
     from millfmu import rates as mrates
 
-    yeast_pair, lime_pair = cal.SHIPPED
-    ys, yd = yeast_pair.scenes()
-    ls, ld = lime_pair.scenes()
-    y = mrates.compute(ys, "yeast", detailed_scene=yd)
-    lime = mrates.compute(ls, "limestone", detailed_scene=ld)
-    sizes = [q for q in lime.quantities]
-    cols = [(y, "disruption_rate")] + [(lime, sizes[1]), (lime, sizes[2])]
-
-    def cell(r, p, m, q, k):
-        v = r.relative(p, m, q)[k]
-        star = "*" if k == r.reference_index(p) else ""
-        if not math.isfinite(v):
-            return "refused"
-        txt = f"{v:.3g}{star}"
-        band = r.band_relative(p, q) if m == "detailed" else ()
-        if band and not star and all(math.isfinite(b[k]) for b in band):
-            txt += f" ({band[0][k]:.3g}-{band[1][k]:.3g})"
-        return txt
-
-    head = ["parameter", "value", "yeast simple", "yeast detailed"] + \
-        [f"limestone {float(q.split('=')[1]) * 1e6:.3g} um {m}" for q in sizes[1:] for m in ("simple", "detailed")]
+    head, rows = mrates.trend_table()
     lines = ["| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
-    for p, (label, unit, *_rest) in mrates.PARAMETERS.items():
-        vals_y = y.curve(p, "simple").values
-        vals_l = lime.curve(p, "simple").values
-        for k in range(len(vals_l)):
-            if p == "solids_mass_fraction":
-                value = ("half", "ref", "1.5 x", "2 x")[k]
-            else:
-                v = vals_l[k] if p != "tip_speed" or k < len(vals_y) else vals_l[k]
-                value = f"{v * 1e3:g}" if p == "bead_diameter" else f"{v:g}"
-            name = f"{label} [{'mm' if p == 'bead_diameter' else unit}]" if k == 0 else ""
-            row = [name, value]
-            for r, q in cols:
-                kk = k if k < len(r.curve(p, "simple").values) else None
-                for m in ("simple", "detailed"):
-                    row.append(cell(r, p, m, q, kk) if kk is not None else "")
-            lines.append("| " + " | ".join(row) + " |")
-    return "\n".join(lines)
-
+    return "\n".join(lines + ["| " + " | ".join(r) + " |" for r in rows])
 
 if __name__ == "__main__":
     sys.exit(main())
