@@ -124,11 +124,14 @@ def build_unit_fmu(kind: str, instance: str, cfg: dict, out: str | Path, fmi_ver
         (stage / "unit.json").write_text(json.dumps(cfg, indent=1))
         script = stage / f"{ident}.py"
         wrapper = choose_wrapper() if fmi_version == 2 else None
-        script.write_text((SCRIPT3 if fmi_version == 3 else SCRIPT).format(instance=instance, kind=kind, package=package, cls=CLASS_NAMES[kind],
+        script.write_text((SCRIPT3 if fmi_version == 3 else SCRIPT).format(instance=instance, kind=kind,
+                                                                           package=package, cls=CLASS_NAMES[kind],
                                                                            ident=ident, stock=wrapper is None))
         dest = Path(tmp) / "fmu"
         dest.mkdir()
-        built = FmuBuilder.build_FMU(script, dest=dest / f"{ident}.fmu", project_files=[stage / package, stage / "unit.json"],
+        built = FmuBuilder.build_FMU(script, dest=dest / f"{ident}.fmu",
+                                     project_files=[stage / package, stage / "unit.json"],
                                      **BUILD_OPTIONS[fmi_version])
-        write_fmu(built, out, fmi3_wrapper.fmu_replacements(ident, log) if fmi_version == 3 else fmi2_replacements(ident, wrapper))
+        write_fmu(built, out,
+                  fmi3_wrapper.fmu_replacements(ident, log) if fmi_version == 3 else fmi2_replacements(ident, wrapper))
     return out

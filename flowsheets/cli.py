@@ -66,21 +66,26 @@ def cmd_run(args) -> int:
     try:
         fs = _load(args.file)
         if args.step is not None:
-            if not args.step > 0 or abs(fs.t_end_s / args.step - round(fs.t_end_s / args.step)) > 1e-9 * fs.t_end_s / args.step:
-                raise FlowsheetError("--step", args.step, f"must be > 0 s and divide t_end_s = {fs.t_end_s!r} s into whole steps", "command line")
+            if not args.step > 0 or (abs(fs.t_end_s / args.step - round(fs.t_end_s / args.step))
+                                     > 1e-9 * fs.t_end_s / args.step):
+                raise FlowsheetError("--step", args.step,
+                                     f"must be > 0 s and divide t_end_s = {fs.t_end_s!r} s into whole steps",
+                                     "command line")
             fs = fs.with_(step_s=args.step, output_interval_s=max(fs.output_interval_s, args.step))
         if args.algorithm:
             fs = fs.with_(algorithm=args.algorithm)
         if args.output_interval is not None:
             n = args.output_interval / fs.step_s
             if not args.output_interval > 0 or abs(n - round(n)) > 1e-9 * n:
-                raise FlowsheetError("--output-interval", args.output_interval, f"must be a whole multiple of the step {fs.step_s!r} s", "command line")
+                raise FlowsheetError("--output-interval", args.output_interval,
+                                     f"must be a whole multiple of the step {fs.step_s!r} s", "command line")
             fs = fs.with_(output_interval_s=args.output_interval)
         _check_out(out)
         with tempfile.TemporaryDirectory(prefix="flowsheet_") as tmp:
             # FMUs are built into the results (OUT/fmus), reusing those of earlier runs.
             fmu_dir = Path(args.fmu_dir) if args.fmu_dir else Path(tmp) / "fmus"
-            res = run_flowsheet(fs, fmu_dir, log=lambda m: print(m, flush=True), reuse=[out / "fmus"], fmi_version=args.fmi_version)
+            res = run_flowsheet(fs, fmu_dir, log=lambda m: print(m, flush=True), reuse=[out / "fmus"],
+                                fmi_version=args.fmi_version)
             write_results(res, fs, Path(tmp), plots=not args.no_plots)
             moved = _publish(Path(tmp), out)
     except FlowsheetError as e:
@@ -89,10 +94,11 @@ def cmd_run(args) -> int:
         print(f"millfmu flowsheet: failed: {e}", file=sys.stderr)
         return 1
     mb = res.mass
-    print(f"flowsheet {fs.name}: FMI {args.fmi_version}.0 units, {fs.algorithm}, step {fs.step_s:g} s, {res.steps} steps, "
-          f"{len(res.retries)} retried; {res.wall_s:.3g} s wall")
-    print(f"mass balance: fed {mb['fed_kg']:.6g} kg, products {mb['products_kg']:.6g} kg, holdup {mb['holdup0_kg']:.6g} -> {mb['holdup_kg']:.6g} kg, "
-          f"in flow buffers {mb['buffered_kg']:.3g} kg; relative residual {mb['relative_residual']:.2e}")
+    print(f"flowsheet {fs.name}: FMI {args.fmi_version}.0 units, {fs.algorithm}, step {fs.step_s:g} s, {res.steps} "
+          f"steps, {len(res.retries)} retried; {res.wall_s:.3g} s wall")
+    print(f"mass balance: fed {mb['fed_kg']:.6g} kg, products {mb['products_kg']:.6g} kg, holdup "
+          f"{mb['holdup0_kg']:.6g} -> {mb['holdup_kg']:.6g} kg, in flow buffers {mb['buffered_kg']:.3g} kg; relative "
+          f"residual {mb['relative_residual']:.2e}")
     for c in res.columns:
         if c.endswith("x50"):
             print(f"  {c:28s} {res.column(c)[0] * 1e6:9.4g} -> {res.column(c)[-1] * 1e6:9.4g} um")
@@ -110,7 +116,8 @@ def cmd_export_ssp(args) -> int:
         out = Path(args.output)
         if out.suffix != ".ssp":
             raise FlowsheetError("-o", str(out), "must end in .ssp", "command line")
-        path = export_ssp(fs, out, fmu_dir=Path(args.fmu_dir) if args.fmu_dir else None, log=lambda m: print(m, flush=True))
+        path = export_ssp(fs, out, fmu_dir=Path(args.fmu_dir) if args.fmu_dir else None,
+                          log=lambda m: print(m, flush=True))
     except FlowsheetError as e:
         return _bad(e)
     print(f"wrote {path}")
@@ -134,13 +141,18 @@ def cmd_wp(args) -> int:
         for h in steps + [args.reference]:
             n = fs.t_end_s / h
             if not h > 0 or abs(n - round(n)) > 1e-9 * n:
-                raise FlowsheetError("--steps/--reference", h, f"each must be > 0 s and divide t_end_s = {fs.t_end_s!r} s into whole steps", "command line")
+                raise FlowsheetError("--steps/--reference", h,
+                                     f"each must be > 0 s and divide t_end_s = {fs.t_end_s!r} s into whole steps",
+                                     "command line")
         if len(steps) < 2 or args.reference >= min(steps):
-            raise FlowsheetError("--steps", steps, "need at least two step sizes, all above --reference", "command line")
+            raise FlowsheetError("--steps", steps, "need at least two step sizes, all above --reference",
+                                 "command line")
         _check_out(Path(args.out))
         with tempfile.TemporaryDirectory(prefix="flowsheet_wp_") as tmp:
-            table = work_precision(fs, steps, args.reference, Path(tmp), fmu_dir=Path(args.fmu_dir) if args.fmu_dir else Path(args.out) / "fmus",
-                                   variable=args.variable, log=lambda m: print(m, flush=True), fmi_version=args.fmi_version)
+            table = work_precision(fs, steps, args.reference, Path(tmp),
+                                   fmu_dir=Path(args.fmu_dir) if args.fmu_dir else Path(args.out) / "fmus",
+                                   variable=args.variable, log=lambda m: print(m, flush=True),
+                                   fmi_version=args.fmi_version)
             moved = _publish(Path(tmp), Path(args.out))
     except FlowsheetError as e:
         return _bad(e)
@@ -153,36 +165,44 @@ def cmd_wp(args) -> int:
 
 
 def register(subparsers):
-    p = subparsers.add_parser("flowsheet", help="flowsheets: the mill with feed, tanks, classifiers and controllers (FMUs)")
+    p = subparsers.add_parser("flowsheet",
+                              help="flowsheets: the mill with feed, tanks, classifiers and controllers (FMUs)")
     sub = p.add_subparsers(dest="flowsheet_command", metavar="WHAT")
     sub.required = True
 
     r = sub.add_parser("run", help="run a flowsheet file with the fmpy master")
     r.add_argument("file", help="flowsheet file (TOML)")
-    r.add_argument("--out", default="out", help="output folder (default: ./out): results.csv, psd_<unit>.csv, summary.json, flowsheet.png")
-    r.add_argument("--fmu-dir", default=None, help="where the unit FMUs are built and reused (default: OUT/fmus, written with the results)")
+    r.add_argument("--out", default="out",
+                   help="output folder (default: ./out): results.csv, psd_<unit>.csv, summary.json, flowsheet.png")
+    r.add_argument("--fmu-dir", default=None,
+                   help="where the unit FMUs are built and reused (default: OUT/fmus, written with the results)")
     r.add_argument("--step", type=float, default=None, help="communication step [s] instead of the file's")
     r.add_argument("--algorithm", choices=("jacobi", "gauss-seidel"), default=None, help="instead of the file's")
-    r.add_argument("--output-interval", type=float, default=None, help="output interval [s] instead of the file's (a multiple of the step)")
+    r.add_argument("--output-interval", type=float, default=None,
+                   help="output interval [s] instead of the file's (a multiple of the step)")
     r.add_argument("--no-plots", action="store_true", help="skip the PNG")
-    r.add_argument("--fmi-version", type=int, choices=(2, 3), default=2, help="FMI version of all the unit FMUs (default 2)")
+    r.add_argument("--fmi-version", type=int, choices=(2, 3), default=2,
+                   help="FMI version of all the unit FMUs (default 2)")
     r.set_defaults(func=cmd_run)
 
     e = sub.add_parser("export-ssp", help="write the flowsheet as an SSP archive (SSD + the units' FMUs)")
     e.add_argument("file", help="flowsheet file (TOML)")
     e.add_argument("-o", "--output", required=True, help="the .ssp file to write")
-    e.add_argument("--fmu-dir", default=None, help="where the unit FMUs are built and reused (default: a temporary folder)")
+    e.add_argument("--fmu-dir", default=None,
+                   help="where the unit FMUs are built and reused (default: a temporary folder)")
     e.set_defaults(func=cmd_export_ssp)
 
     w = sub.add_parser("wp", help="error of a size against the communication step, with wall time (work-precision)")
     w.add_argument("file", help="flowsheet file (TOML)")
-    w.add_argument("--steps", type=float, nargs="+", default=[1.0, 2.0, 4.0, 8.0, 16.0, 32.0], help="communication steps [s]")
+    w.add_argument("--steps", type=float, nargs="+", default=[1.0, 2.0, 4.0, 8.0, 16.0, 32.0],
+                   help="communication steps [s]")
     w.add_argument("--reference", type=float, default=0.125, help="communication step [s] of the reference run")
     w.add_argument("--t-end", type=float, default=None, help="simulated time [s] instead of the file's t_end_s")
     w.add_argument("--variable", default="mill.x50", help="output compared (unit.variable; default mill.x50)")
     w.add_argument("--out", default="out_wp", help="output folder: wp.csv, wp.png")
     w.add_argument("--fmu-dir", default=None, help="where the unit FMUs are built and reused (default: OUT/fmus)")
-    w.add_argument("--fmi-version", type=int, choices=(2, 3), default=2, help="FMI version of all the unit FMUs (default 2)")
+    w.add_argument("--fmi-version", type=int, choices=(2, 3), default=2,
+                   help="FMI version of all the unit FMUs (default 2)")
     w.set_defaults(func=cmd_wp)
 
 

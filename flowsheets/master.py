@@ -89,7 +89,8 @@ def build_fmus(fs: Flowsheet, fmu_dir: Path, log=print, reuse=(), fmi_version: i
                 build_fmu(scene, path, fmi_version=fmi_version, log=log)
                 scene.unlink()
         else:
-            key = hashlib.sha256((code_hash(fmi_version) + "\0" + json.dumps(cfg, sort_keys=True)).encode()).hexdigest()[:10]
+            key = hashlib.sha256((code_hash(fmi_version) + "\0"
+                                  + json.dumps(cfg, sort_keys=True)).encode()).hexdigest()[:10]
             path = fmu_dir / f"{kind}_{tag}{key}.fmu"
             if not path.exists() and not _reuse(path, reuse):
                 log(f"building {path.name} ({kind} {name})")
@@ -139,7 +140,9 @@ def expand_connections(fs: Flowsheet, mds: dict) -> tuple:
             n_s = sum(1 for n in by[su] if n.startswith(sv + "["))
             n_d = sum(1 for n in by[du] if n.startswith(dv + "["))
             if n_s == 0 or n_s != n_d:
-                raise FlowsheetError(key, line, f"{su}.{sv}[*] has {n_s} classes and {du}.{dv}[*] has {n_d}; both must be the same non-zero number", fs.source)
+                raise FlowsheetError(key, line,
+                                     f"{su}.{sv}[*] has {n_s} classes and {du}.{dv}[*] has {n_d}; both must be the "
+                                     "same non-zero number", fs.source)
             pairs = [(f"{sv}[{k}]", f"{dv}[{k}]") for k in range(1, n_s + 1)]
         else:
             pairs = [(sv if si is None else f"{sv}[{si}]", dv if di is None else f"{dv}[{di}]")]
@@ -152,9 +155,12 @@ def expand_connections(fs: Flowsheet, mds: dict) -> tuple:
                 ins = sorted({n.split("[")[0] for n, v in by[du].items() if v.causality in ("input",)})
                 raise FlowsheetError(key, line, f"{du} has no input {b}; its inputs: {', '.join(ins)}", fs.source)
             if vb.causality == "parameter" and vb.variability != "tunable":
-                raise FlowsheetError(key, line, f"{du}.{b} is a fixed parameter; only inputs and tunable parameters can be connected", fs.source)
+                raise FlowsheetError(key, line,
+                                     f"{du}.{b} is a fixed parameter; only inputs and tunable parameters can be "
+                                     "connected", fs.source)
             if (va.unit or "1") != (vb.unit or "1"):
-                raise FlowsheetError(key, line, f"units differ: {su}.{a} is in {va.unit}, {du}.{b} in {vb.unit}", fs.source)
+                raise FlowsheetError(key, line, f"units differ: {su}.{a} is in {va.unit}, {du}.{b} in {vb.unit}",
+                                     fs.source)
             if (du, b) in seen:
                 raise FlowsheetError(key, line, f"{du}.{b} is already connected by {seen[(du, b)]!r}", fs.source)
             seen[(du, b)] = line
@@ -164,17 +170,21 @@ def expand_connections(fs: Flowsheet, mds: dict) -> tuple:
     for i, (u, v) in enumerate(fs.products):
         var = by[u].get(v)
         if var is None or var.causality != "output" or var.unit != "kg/s":
-            raise FlowsheetError(f"products[{i}]", f"{u}.{v}", "must be a mass-flow output [kg/s] of the unit", fs.source)
+            raise FlowsheetError(f"products[{i}]", f"{u}.{v}", "must be a mass-flow output [kg/s] of the unit",
+                                 fs.source)
         if (u, v) in connected:
-            raise FlowsheetError(f"products[{i}]", f"{u}.{v}", "is connected to a unit; a product leaves the flowsheet", fs.source)
+            raise FlowsheetError(f"products[{i}]", f"{u}.{v}", "is connected to a unit; a product leaves the flowsheet",
+                                 fs.source)
         products.append((u, v, var.valueReference))
     for u, vs in by.items():
         if fs.units[u].type == "feed":
             continue
         for n, var in vs.items():
-            if var.causality == "output" and var.unit == "kg/s" and (u, n) not in connected and (u, n) not in {(p[0], p[1]) for p in products}:
+            if (var.causality == "output" and var.unit == "kg/s" and (u, n) not in connected
+                    and (u, n) not in {(p[0], p[1]) for p in products}):
                 raise FlowsheetError("products", [f"{a}.{b}" for a, b in fs.products],
-                                     f"mass flow {u}.{n} leaves the flowsheet unaccounted: connect it or list it in products", fs.source)
+                                     f"mass flow {u}.{n} leaves the flowsheet unaccounted: connect it or list it in "
+                                     "products", fs.source)
     return links, products
 
 
@@ -190,7 +200,8 @@ class Instance:
         self.name, self.md = name, md
         self.fmi3 = md.fmiVersion.startswith("3")
         self.variables = flat_variables(md)
-        args = dict(guid=md.guid, unzipDirectory=unzip_dir, modelIdentifier=md.coSimulation.modelIdentifier, instanceName=name)
+        args = dict(guid=md.guid, unzipDirectory=unzip_dir, modelIdentifier=md.coSimulation.modelIdentifier,
+                    instanceName=name)
         if self.fmi3:
             from fmpy.fmi3 import FMU3Slave
 
@@ -200,7 +211,8 @@ class Instance:
             self.fmu = FMU3Slave(**args)
             self.fmu.instantiate(loggingOn=True, logMessage=log)
         else:
-            from fmpy.fmi2 import (FMU2Slave, fmi2CallbackAllocateMemoryTYPE, fmi2CallbackFreeMemoryTYPE, fmi2CallbackFunctions,
+            from fmpy.fmi2 import (FMU2Slave, fmi2CallbackAllocateMemoryTYPE, fmi2CallbackFreeMemoryTYPE,
+                                   fmi2CallbackFunctions,
                                    fmi2CallbackLoggerTYPE, calloc, free)
 
             def log(env, instance, status, category, message):
@@ -351,7 +363,8 @@ class Master:
         for u, fmu in self.fmus.items():
             into = [lk for lk in self.links if lk.dst == u]
             if into:
-                self._init_call(u, fmu.set, [lk.dst_var for lk in into], [0.0 if lk.flow else self.vals[lk.src][lk.src_var] for lk in into])
+                self._init_call(u, fmu.set, [lk.dst_var for lk in into],
+                                [0.0 if lk.flow else self.vals[lk.src][lk.src_var] for lk in into])
         for u, fmu in self.fmus.items():
             self._init_call(u, fmu.exit_initialization_mode)
             self.vals[u] = fmu.outputs()
@@ -427,7 +440,8 @@ class Master:
         states, buf, vals, fed, prod = snap
         for u, f in self.fmus.items():
             f.set_state(states[u])
-        self.buffer, self.vals, self.fed_kg, self.products_kg = list(buf), {u: dict(v) for u, v in vals.items()}, fed, prod
+        self.buffer, self.vals, self.fed_kg, self.products_kg = list(buf), {u: dict(v)
+                                                                            for u, v in vals.items()}, fed, prod
 
     def _free(self, snap):
         for u, f in self.fmus.items():
@@ -465,7 +479,8 @@ class Master:
         row = [t]
         for u in self.fs.units:
             row += [self.vals[u][n] for n in self._scalar[u]]
-        row += [self.holdup_kg(), sum(b for b, lk in zip(self.buffer, self.links) if lk.flow), self.fed_kg, self.products_kg]
+        row += [self.holdup_kg(), sum(b for b, lk in zip(self.buffer, self.links) if lk.flow), self.fed_kg,
+                self.products_kg]
         rows.append(row)
         for u, prefix in self._psd_out.items():
             psds[u].append([self.vals[u][f"{prefix}[{k}]"] for k in range(1, self.grid.n + 1)])
@@ -483,7 +498,9 @@ class Master:
         try:
             self._instantiate()
             self._scalar = {u: [n for n in self.out_names[u] if "[" not in n] for u in fs.units}
-            columns = ["t"] + [f"{u}.{n}" for u in fs.units for n in self._scalar[u]] + ["total.holdup", "total.buffered", "total.fed", "total.products"]
+            columns = ["t"] + [f"{u}.{n}" for u in fs.units for n in self._scalar[u]] + ["total.holdup",
+                                                                                         "total.buffered", "total.fed",
+                                                                                         "total.products"]
             m0 = self.holdup_kg()
             self._record(0.0, rows, psds)
             for k in range(n):
@@ -525,10 +542,12 @@ def write_results(res: Result, fs: Flowsheet, out: Path, plots=True) -> list:
     files.append(out / "results.csv")
     for u, a in res.psd.items():
         p = out / f"psd_{u}.csv"
-        hdr = "t," + ",".join(f"class{k + 1}_{res.edges_m[k]:.6g}_{res.edges_m[k + 1]:.6g}_m" for k in range(a.shape[1]))
+        hdr = "t," + ",".join(f"class{k + 1}_{res.edges_m[k]:.6g}_{res.edges_m[k + 1]:.6g}_m"
+                              for k in range(a.shape[1]))
         np.savetxt(p, np.column_stack([res.t, a]), delimiter=",", header=hdr, comments="", fmt="%.17g")
         files.append(p)
-    summary = {"flowsheet": fs.name, "fmi_version": res.fmi_version, "algorithm": fs.algorithm, "step_s": fs.step_s, "t_end_s": fs.t_end_s,
+    summary = {"flowsheet": fs.name, "fmi_version": res.fmi_version, "algorithm": fs.algorithm, "step_s": fs.step_s,
+               "t_end_s": fs.t_end_s,
                "steps": res.steps, "wall_s": res.wall_s, "mass_balance": res.mass,
                "retries": [{"t_s": t, "step_s": h, "unit": u, "message": m} for t, h, u, m in res.retries],
                "final": {c: float(res.data[-1, i]) for i, c in enumerate(res.columns)}}
@@ -555,7 +574,8 @@ def plot(res: Result, fs: Flowsheet, path: Path) -> Path:
         if c.endswith("holdup"):
             ax[0, 1].plot(t_min, res.column(c), label=c)
         if c.endswith("mass_flow") or c in ("total.buffered",):
-            ax[1, 0].plot(t_min, res.column(c) * (1e3 if c.endswith("mass_flow") else 1.0), label=c + (" [g/s]" if c.endswith("mass_flow") else " [kg]"))
+            ax[1, 0].plot(t_min, res.column(c) * (1e3 if c.endswith("mass_flow") else 1.0),
+                          label=c + (" [g/s]" if c.endswith("mass_flow") else " [kg]"))
     ax[0, 0].set(xlabel="t [min]", ylabel="x50 [um]", title="median sizes")
     ax[0, 1].set(xlabel="t [min]", ylabel="solids [kg]", title="holdups")
     ax[1, 0].set(xlabel="t [min]", title="solids mass flows")
@@ -569,7 +589,8 @@ def plot(res: Result, fs: Flowsheet, path: Path) -> Path:
         a.grid(alpha=0.3)
     plain_log_ticks(fig)
     mb = res.mass
-    fig.suptitle(f"{fs.name}: {fs.algorithm}, step {fs.step_s:g} s; mass balance residual {mb['relative_residual']:.1e} (relative)")
+    fig.suptitle(f"{fs.name}: {fs.algorithm}, step {fs.step_s:g} s; mass balance residual "
+                 f"{mb['relative_residual']:.1e} (relative)")
     fig.tight_layout()
     fig.savefig(path, dpi=90)
     plt.close(fig)

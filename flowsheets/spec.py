@@ -52,7 +52,8 @@ from millfmu.scene import SceneError, default_scene_text, scene_from_dict
 ALGORITHMS = ("jacobi", "gauss-seidel")
 UNIT_TYPES = ("mill", "feed", "tank", "classifier", "pi")
 _NAME = re.compile(r"^[A-Za-z_][A-Za-z0-9_]*$")
-_CONN = re.compile(r"^\s*([A-Za-z_]\w*)\.([A-Za-z_]\w*)(\[(\*|\d+)\])?\s*->\s*([A-Za-z_]\w*)\.([A-Za-z_]\w*)(\[(\*|\d+)\])?\s*$")
+_CONN = re.compile(
+    r"^\s*([A-Za-z_]\w*)\.([A-Za-z_]\w*)(\[(\*|\d+)\])?\s*->\s*([A-Za-z_]\w*)\.([A-Za-z_]\w*)(\[(\*|\d+)\])?\s*$")
 
 
 class FlowsheetError(ValueError):
@@ -90,9 +91,11 @@ def _num(lo=None, hi=None, lo_open=False, hi_open=False):
         if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v):
             return "must be a finite number"
         if lo is not None and (v < lo or (lo_open and v == lo)):
-            return f"must be {'>' if lo_open else '>='} {lo:g}" + (f" and {'<' if hi_open else '<='} {hi:g}" if hi is not None else "")
+            return f"must be {'>' if lo_open else '>='} {lo:g}" + (f" and {'<' if hi_open else '<='} {hi:g}"
+                                                                   if hi is not None else "")
         if hi is not None and (v > hi or (hi_open and v == hi)):
-            return f"must be {'<' if hi_open else '<='} {hi:g}" + (f" and {'>' if lo_open else '>='} {lo:g}" if lo is not None else "")
+            return f"must be {'<' if hi_open else '<='} {hi:g}" + (f" and {'>' if lo_open else '>='} {lo:g}"
+                                                                   if lo is not None else "")
         return None
     return check
 
@@ -109,22 +112,28 @@ def _any(v):
 
 UNIT_KEYS = {
     "mill": {
-        "scene": ({}, lambda v: None if isinstance(v, dict) else "must be a table of scene overrides", "overrides of the default scene"),
+        "scene": ({}, lambda v: None if isinstance(v, dict) else "must be a table of scene overrides",
+                  "overrides of the default scene"),
     },
     "feed": {
-        "mass_flow_kg_per_s": (_MISSING, _any, "solids mass flow: a number, or [[t_s, kg/s], ...] (piecewise linear; two points at one time make a step)"),
-        "psd": (None, _any, "size distribution (a scene size distribution table, default the mill's feed), or a list of them each with t_s"),
+        "mass_flow_kg_per_s": (_MISSING, _any,
+                               "solids mass flow: a number, or [[t_s, kg/s], ...] (piecewise linear; two points at one "
+                               "time make a step)"),
+        "psd": (None, _any, "size distribution (a scene size distribution table, default the mill's feed), or a list "
+                            "of them each with t_s"),
         "solids_mass_fraction": (0.2, _num(0.0, 1.0, True, True), "solids mass fraction of the fed suspension"),
         "event_tolerance_s": (0.0, _num(0.0), "refuse a step holding a jump more than this before its end (0: never)"),
     },
     "tank": {
-        "pump_mass_flow_kg_per_s": (0.0, _num(0.0, 1e3), "suspension mass flow of the outlet pump (without level control)"),
+        "pump_mass_flow_kg_per_s": (0.0, _num(0.0, 1e3),
+                                    "suspension mass flow of the outlet pump (without level control)"),
         "level_setpoint_kg": (0.0, _num(0.0, 1e7), "suspension mass held by level control of the pump (0: off)"),
         "level_time_constant_s": (60.0, _num(0.0, 1e6, True), "time constant of the level control"),
         "pump_start_s": (0.0, _num(0.0), "time from which the pump runs"),
         "initial_holdup_kg": (0.0, _num(0.0, 1e6), "solids in the tank at the start"),
         "initial_solids_mass_fraction": (0.2, _num(0.0, 1.0, True, True), "solids mass fraction at the start"),
-        "initial_psd": (None, _any, "size distribution at the start (a scene size distribution table; default the mill's feed)"),
+        "initial_psd": (None, _any,
+                        "size distribution at the start (a scene size distribution table; default the mill's feed)"),
     },
     "classifier": {
         "cut_size_m": (_MISSING, _num(0.0, 1.0, True), "cut size"),
@@ -196,16 +205,21 @@ def parse_connection(line: str, key: str, source: str) -> tuple:
         raise FlowsheetError(key, line, "must be a string 'unit.variable -> unit.variable'", source)
     m = _CONN.match(line)
     if not m:
-        raise FlowsheetError(key, line, "must read 'unit.variable -> unit.variable', with [*] on both sides for a whole size distribution", source)
+        raise FlowsheetError(key, line,
+                             "must read 'unit.variable -> unit.variable', with [*] on both sides for a whole size "
+                             "distribution", source)
     su, sv, _, si, du, dv, _, di = m.groups()
     if (si == "*") != (di == "*"):
         raise FlowsheetError(key, line, "[*] (class by class) must be on both sides or neither", source)
-    return su, sv, (None if si is None else si if si == "*" else int(si)), du, dv, (None if di is None else di if di == "*" else int(di))
+    return su, sv, (None if si is None else si if si == "*" else int(si)), du, dv, (None if di is None else di
+                                                                                    if di == "*" else int(di))
 
 
 def _check_psd_table(v, key, source):
     if not isinstance(v, dict):
-        raise FlowsheetError(key, v, "must be a size distribution table (kind = 'lognormal', 'rrsb', 'monodisperse' or 'table', with its keys)", source)
+        raise FlowsheetError(key, v,
+                             "must be a size distribution table (kind = 'lognormal', 'rrsb', 'monodisperse' or "
+                             "'table', with its keys)", source)
     try:
         scene_from_dict({"feed": {k: x for k, x in v.items() if k != "t_s"}})
     except SceneError as e:
@@ -231,7 +245,8 @@ def flowsheet_from_dict(d: dict, source: str = "flowsheet", base_dir: Path | Non
     vals = _flowsheet_section(d, source)
     units_d = d.get("units")
     if not isinstance(units_d, dict) or not units_d:
-        raise FlowsheetError("units", units_d if units_d is not None else _MISSING, "must be a table with at least one unit ([units.NAME] with type = ...)", source)
+        raise FlowsheetError("units", units_d if units_d is not None else _MISSING,
+                             "must be a table with at least one unit ([units.NAME] with type = ...)", source)
     units = {}
     mill_scene = None
     for name, u in units_d.items():
@@ -244,7 +259,8 @@ def flowsheet_from_dict(d: dict, source: str = "flowsheet", base_dir: Path | Non
     if sorted(order) != sorted(units):
         raise FlowsheetError("flowsheet.order", order, "must name every unit once: " + ", ".join(units), source)
     parsed, products = _links(d, units, source)
-    return Flowsheet(vals["name"], vals["description"], float(vals["t_end_s"]), float(vals["step_s"]), vals["algorithm"], order,
+    return Flowsheet(vals["name"], vals["description"], float(vals["t_end_s"]), float(vals["step_s"]),
+                     vals["algorithm"], order,
                      vals["max_halvings"], float(vals["output_interval_s"]), units, parsed, products, mill_scene,
                      base_dir or Path("."), source)
 
@@ -261,8 +277,10 @@ def _flowsheet_section(d: dict, source: str) -> dict:
                "t_end_s": (_MISSING, _num(0.0, 1e7, True)),
                "step_s": (_MISSING, _num(0.0, 1e5, True)),
                "algorithm": ("jacobi", _str(ALGORITHMS)),
-               "order": (None, lambda v: None if isinstance(v, list) and all(isinstance(x, str) for x in v) else "must be a list of unit names"),
-               "max_halvings": (0, lambda v: None if isinstance(v, int) and not isinstance(v, bool) and 0 <= v <= 30 else "must be an integer in [0, 30]"),
+               "order": (None, lambda v: None if isinstance(v, list) and all(isinstance(x, str) for x in v)
+                         else "must be a list of unit names"),
+               "max_halvings": (0, lambda v: None if isinstance(v, int) and not isinstance(v, bool) and 0 <= v <= 30
+                                else "must be an integer in [0, 30]"),
                "output_interval_s": (None, _num(0.0, None, True))}
     for k in fs:
         if k not in fs_keys:
@@ -270,7 +288,8 @@ def _flowsheet_section(d: dict, source: str) -> dict:
     vals = _take(fs, fs_keys, "flowsheet", source)
     n_steps = vals["t_end_s"] / vals["step_s"]
     if abs(n_steps - round(n_steps)) > 1e-9 * n_steps:
-        raise FlowsheetError("flowsheet.step_s", vals["step_s"], f"must divide t_end_s = {vals['t_end_s']!r} s into whole steps", source)
+        raise FlowsheetError("flowsheet.step_s", vals["step_s"],
+                             f"must divide t_end_s = {vals['t_end_s']!r} s into whole steps", source)
     if vals["output_interval_s"] is None:
         vals["output_interval_s"] = vals["step_s"]
     return vals
@@ -290,10 +309,12 @@ def _unit(name: str, u, mill_scene: dict | None, source: str) -> tuple[Unit, dic
     spec = UNIT_KEYS[t]
     for k in u:
         if k not in spec and k not in COMMON_KEYS:
-            raise FlowsheetError(f"{key}.{k}", u[k], f"unknown key for a {t}; allowed: " + ", ".join(list(spec) + sorted(COMMON_KEYS)), source)
+            raise FlowsheetError(f"{key}.{k}", u[k], f"unknown key for a {t}; allowed: "
+                                 + ", ".join(list(spec) + sorted(COMMON_KEYS)), source)
     params = _take(u, spec, key, source)
     start = u.get("start", {})
-    if not isinstance(start, dict) or not all(isinstance(x, (int, float)) and not isinstance(x, bool) for x in start.values()):
+    if not isinstance(start, dict) or not all(isinstance(x, (int, float)) and not isinstance(x, bool)
+                                              for x in start.values()):
         raise FlowsheetError(f"{key}.start", start, "must be a table of variable = number", source)
     sd = None
     if t == "mill":
@@ -321,9 +342,12 @@ def _mill_scene(scene_d: dict, key: str, mill_scene: dict | None, source: str) -
     except SceneError as e:
         raise FlowsheetError(f"{key}.scene.{e.key}", e.value, e.allowed, source) from None
     if scene.operation.mode != "continuous":
-        raise FlowsheetError(f"{key}.scene.operation.mode", scene.operation.mode, "must be 'continuous' in a flowsheet (a batch mill has no feed)", source)
+        raise FlowsheetError(f"{key}.scene.operation.mode", scene.operation.mode,
+                             "must be 'continuous' in a flowsheet (a batch mill has no feed)", source)
     if mill_scene is not None and sd["grid"] != mill_scene["grid"]:
-        raise FlowsheetError(f"{key}.scene.grid", sd["grid"], f"must equal the other mills' grid {mill_scene['grid']!r}: all units share one size grid", source)
+        raise FlowsheetError(f"{key}.scene.grid", sd["grid"],
+                             f"must equal the other mills' grid {mill_scene['grid']!r}: all units share one size grid",
+                             source)
     return sd
 
 
@@ -336,16 +360,21 @@ def _feed(params: dict, key: str, source: str):
             raise FlowsheetError(f"{key}.mass_flow_kg_per_s", mf, "must lie in [0, 1000] kg/s", source)
         params["profile"] = [[0.0, float(mf)]]
     else:
-        ok = isinstance(mf, list) and mf and all(isinstance(p, list) and len(p) == 2 and all(isinstance(x, (int, float)) and not isinstance(x, bool) for x in p) for p in mf)
+        ok = isinstance(mf, list) and mf and all(isinstance(p, list) and len(p) == 2
+                                                 and all(isinstance(x, (int, float)) and not isinstance(x, bool)
+                                                         for x in p)
+                                                 for p in mf)
         if not ok:
-            raise FlowsheetError(f"{key}.mass_flow_kg_per_s", mf, "must be a number or a list of [t_s, kg/s] pairs", source)
+            raise FlowsheetError(f"{key}.mass_flow_kg_per_s", mf, "must be a number or a list of [t_s, kg/s] pairs",
+                                 source)
         ts = [float(p[0]) for p in mf]
         if any(b < a for a, b in zip(ts, ts[1:])) or ts[0] < 0:
             raise FlowsheetError(f"{key}.mass_flow_kg_per_s", mf, "times must be >= 0 and non-decreasing", source)
         if any(not (0.0 <= p[1] <= 1e3) for p in mf):
             raise FlowsheetError(f"{key}.mass_flow_kg_per_s", mf, "flows must lie in [0, 1000] kg/s", source)
         if any(a == b == c for a, b, c in zip(ts, ts[1:], ts[2:])):
-            raise FlowsheetError(f"{key}.mass_flow_kg_per_s", mf, "at most two points may share a time (a step)", source)
+            raise FlowsheetError(f"{key}.mass_flow_kg_per_s", mf, "at most two points may share a time (a step)",
+                                 source)
         params["profile"] = [[float(a), float(b)] for a, b in mf]
     psd = params["psd"]
     segs = psd if isinstance(psd, list) else [psd]
@@ -355,7 +384,8 @@ def _feed(params: dict, key: str, source: str):
     if isinstance(psd, list):
         ts = [s.get("t_s", 0.0) for s in segs]
         if not psd or ts[0] != 0.0 or any(b <= a for a, b in zip(ts, ts[1:])):
-            raise FlowsheetError(f"{key}.psd", [s.get("t_s") for s in segs], "a list of size distributions needs t_s increasing from 0", source)
+            raise FlowsheetError(f"{key}.psd", [s.get("t_s") for s in segs],
+                                 "a list of size distributions needs t_s increasing from 0", source)
 
 
 def _links(d: dict, units: dict, source: str) -> tuple[list, list]:
@@ -368,7 +398,8 @@ def _links(d: dict, units: dict, source: str) -> tuple[list, list]:
         p = parse_connection(line, f"connections[{i}]", source)
         for u in (p[0], p[3]):
             if u not in units:
-                raise FlowsheetError(f"connections[{i}]", line, f"unit {u!r} is not in [units] ({', '.join(units)})", source)
+                raise FlowsheetError(f"connections[{i}]", line, f"unit {u!r} is not in [units] ({', '.join(units)})",
+                                     source)
         parsed.append((line, p))
     prods = d.get("products", [])
     if not isinstance(prods, list):
@@ -404,19 +435,28 @@ def unit_configs(fs: Flowsheet) -> dict:
             out[name] = ("mill", p["scene_dict"])
         elif u.type == "feed":
             segs = p["psd"] if isinstance(p["psd"], list) else [p["psd"]]
-            psd_segments = [[float((s or {}).get("t_s", 0.0)), psd_from_table(grid, s, fs.mill_scene).tolist()] for s in segs]
-            out[name] = ("feed", {"kind": "feed", "edges_m": edges, "profile": p["profile"], "psd_segments": psd_segments,
-                                  "solids_mass_fraction": p["solids_mass_fraction"], "params": {"event_tolerance": p["event_tolerance_s"]}})
+            psd_segments = [[float((s or {}).get("t_s", 0.0)), psd_from_table(grid, s, fs.mill_scene).tolist()]
+                            for s in segs]
+            out[name] = ("feed", {"kind": "feed", "edges_m": edges, "profile": p["profile"],
+                                  "psd_segments": psd_segments, "solids_mass_fraction": p["solids_mass_fraction"],
+                                  "params": {"event_tolerance": p["event_tolerance_s"]}})
         elif u.type == "tank":
-            out[name] = ("tank", {"kind": "tank", "edges_m": edges, "initial_psd": psd_from_table(grid, p["initial_psd"], fs.mill_scene).tolist(),
-                                  "params": {"pump_mass_flow": p["pump_mass_flow_kg_per_s"], "pump_start_time": p["pump_start_s"],
-                                             "level_setpoint": p["level_setpoint_kg"], "level_time_constant": p["level_time_constant_s"],
-                                             "initial_holdup": p["initial_holdup_kg"], "initial_solids_mass_fraction": p["initial_solids_mass_fraction"]}})
+            out[name] = ("tank", {"kind": "tank", "edges_m": edges,
+                                  "initial_psd": psd_from_table(grid, p["initial_psd"], fs.mill_scene).tolist(),
+                                  "params": {"pump_mass_flow": p["pump_mass_flow_kg_per_s"],
+                                             "pump_start_time": p["pump_start_s"],
+                                             "level_setpoint": p["level_setpoint_kg"],
+                                             "level_time_constant": p["level_time_constant_s"],
+                                             "initial_holdup": p["initial_holdup_kg"],
+                                             "initial_solids_mass_fraction": p["initial_solids_mass_fraction"]}})
         elif u.type == "classifier":
             out[name] = ("classifier", {"kind": "classifier", "edges_m": edges,
-                                        "params": {"cut_size": p["cut_size_m"], "sharpness": p["sharpness"], "bypass": p["bypass"],
+                                        "params": {"cut_size": p["cut_size_m"], "sharpness": p["sharpness"],
+                                                   "bypass": p["bypass"],
                                                    "liquid_to_coarse": p["liquid_to_coarse"]}})
         else:
-            out[name] = ("pi", {"kind": "pi", "edges_m": edges, "measurement_unit": p["measurement_unit"], "output_unit": p["output_unit"],
-                                "params": {k: float(p[k]) for k in ("setpoint", "kp", "ki", "u_min", "u_max", "bias", "direction")}})
+            out[name] = ("pi", {"kind": "pi", "edges_m": edges, "measurement_unit": p["measurement_unit"],
+                                "output_unit": p["output_unit"],
+                                "params": {k: float(p[k])
+                                           for k in ("setpoint", "kp", "ki", "u_min", "u_max", "bias", "direction")}})
     return out

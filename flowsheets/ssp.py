@@ -44,7 +44,8 @@ def ssd_xml(fs: Flowsheet, mds: dict, sources: dict, links) -> bytes:
     used_units = set()
     for u in fs.units:
         md = mds[u]
-        comp = SubElement(elements, _q("ssd", "Component"), {"name": u, "source": sources[u], "type": "application/x-fmu-sharedlibrary"})
+        comp = SubElement(elements, _q("ssd", "Component"),
+                          {"name": u, "source": sources[u], "type": "application/x-fmu-sharedlibrary"})
         conns = SubElement(comp, _q("ssd", "Connectors"))
         for v in md.modelVariables:
             if v.causality not in ("input", "output", "parameter") or v.type != "Real":
@@ -70,7 +71,8 @@ def ssd_xml(fs: Flowsheet, mds: dict, sources: dict, links) -> bytes:
                                                            "endElement": lk.dst, "endConnector": lk.dst_var})
     # Units: SSP wants the unit definitions of the connectors' units at the top level.
     units = SubElement(root, _q("ssd", "Units"))
-    mill_units = {"kg/m3": {"kg": 1, "m": -3}, "J": {"kg": 1, "m": 2, "s": -2}, "1/s": {"s": -1}, "W": {"kg": 1, "m": 2, "s": -3},
+    mill_units = {"kg/m3": {"kg": 1, "m": -3}, "J": {"kg": 1, "m": 2, "s": -2}, "1/s": {"s": -1},
+                  "W": {"kg": 1, "m": 2, "s": -3},
                   "J/kg": {"m": 2, "s": -2}, "Pa.s": {"kg": 1, "m": -1, "s": -1}}
     for name in sorted(used_units):
         try:
@@ -80,7 +82,8 @@ def ssd_xml(fs: Flowsheet, mds: dict, sources: dict, links) -> bytes:
         un = SubElement(units, _q("ssc", "Unit"), {"name": name})
         SubElement(un, _q("ssc", "BaseUnit"), {k: str(e) for k, e in exps.items()})
     de = SubElement(root, _q("ssd", "DefaultExperiment"), {"startTime": "0.0", "stopTime": repr(fs.t_end_s)})
-    ann = SubElement(SubElement(de, _q("ssd", "Annotations")), _q("ssc", "Annotation"), {"type": "com.opensimulationplatform"})
+    ann = SubElement(SubElement(de, _q("ssd", "Annotations")), _q("ssc", "Annotation"),
+                     {"type": "com.opensimulationplatform"})
     alg = SubElement(ann, _q("osp", "Algorithm"))
     SubElement(alg, _q("osp", "FixedStepAlgorithm"), {"baseStepSize": repr(fs.step_s)})
     indent(root)

@@ -25,7 +25,8 @@ try:  # carried into a unit FMU, the module sits next to this one
     from .base2 import Fmi2Base
 except ImportError:
     from millfmu.fmi.base2 import Fmi2Base
-from .unit_vars import ClassifierUnit, FeedUnit, PIControllerUnit, TankUnit, UnitAdapter, psd_description, unit_exponents
+from .unit_vars import (ClassifierUnit, FeedUnit, PIControllerUnit, TankUnit, UnitAdapter, psd_description,
+                         unit_exponents)
 
 
 class UnitSlave(UnitAdapter, Fmi2Base):

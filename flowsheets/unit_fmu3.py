@@ -22,7 +22,8 @@ try:  # carried into a unit FMU, the module sits next to this one
     from .base3 import Fmi3Base
 except ImportError:
     from millfmu.fmi.base3 import Fmi3Base
-from .unit_vars import ClassifierUnit, FeedUnit, PIControllerUnit, TankUnit, UnitAdapter, psd_description, unit_exponents
+from .unit_vars import (ClassifierUnit, FeedUnit, PIControllerUnit, TankUnit, UnitAdapter, psd_description,
+                         unit_exponents)
 
 
 class UnitSlave3(UnitAdapter, Fmi3Base):
@@ -40,12 +41,15 @@ class UnitSlave3(UnitAdapter, Fmi3Base):
 
     def psd_vars(self, prefix, causality, what):
         if self._vr_n is None:  # the structural parameter, before the first array (the PI controller has none)
-            self.declare_class_count(self.n, "number of size classes: the length of the size-distribution arrays (the mill's grid)")
+            self.declare_class_count(self.n,
+                                     "number of size classes: the length of the size-distribution arrays (the mill's "
+                                     "grid)")
         start = [1.0 / self.n] * self.n if causality == "input" else [0.0] * self.n
         self._add(prefix, "1", psd_description(what, self.edges_m), start, causality, "continuous", array=True)
 
     def to_xml(self, model_options=None) -> Element:
-        return self.complete_xml(super().to_xml({} if model_options is None else model_options), f"{self.description}; {self.n} size classes")
+        return self.complete_xml(super().to_xml({} if model_options is None else model_options),
+                                 f"{self.description}; {self.n} size classes")
 
 
 # ---------------------------------------------------------------------------------------

@@ -44,7 +44,8 @@ def psd_description(what: str, edges_m, i: int | None = None) -> str:
     """Description of a size-distribution variable: of class ``i`` (1-based; FMI 2.0's
     scalars), or of the whole array (FMI 3.0)."""
     if i is None:
-        return f"{what}: mass fraction in size class i = 1..{len(edges_m) - 1} ({edges_m[0]:.4g} to {edges_m[-1]:.4g} m, the mill's grid)"
+        return (f"{what}: mass fraction in size class i = 1..{len(edges_m) - 1} ({edges_m[0]:.4g} to "
+                f"{edges_m[-1]:.4g} m, the mill's grid)")
     return f"{what}: mass fraction in size class {i} ({edges_m[i - 1]:.4g} to {edges_m[i]:.4g} m)"
 
 
@@ -87,7 +88,8 @@ class UnitAdapter:
 
     # ---- declaration helpers -----------------------------------------------------------
     def param(self, name, unit, desc, tunable=False):
-        self._params[name] = self._add(name, unit, desc, self.cfg["params"][name], "parameter", "tunable" if tunable else "fixed")
+        self._params[name] = self._add(name, unit, desc, self.cfg["params"][name], "parameter",
+                                       "tunable" if tunable else "fixed")
 
     def input(self, name, unit, desc, start):
         self._add(name, unit, desc, start, "input", "continuous")
@@ -146,7 +148,8 @@ class FeedUnit:
     description = "Feed source: solids mass flow with steps and ramps, size distribution with steps"
 
     def _declare(self):
-        self.param("event_tolerance", "s", "a step holding a jump of the feed more than this before its end is refused (0: never)")
+        self.param("event_tolerance", "s",
+                   "a step holding a jump of the feed more than this before its end is refused (0: never)")
         self.output("mass_flow", "kg/s", "solids mass flow, mean over the last step")
         self.output("solids_mass_fraction", "1", "solids mass fraction of the fed suspension")
         self.psd_vars("psd", "output", "feed over the last step")
@@ -166,7 +169,8 @@ class TankUnit:
     description = "Stirred holding tank, perfectly mixed, two inlets and a pumped outlet"
 
     def _declare(self):
-        self.param("pump_mass_flow", "kg/s", "suspension mass flow of the outlet pump (while the tank holds suspension)", tunable=True)
+        self.param("pump_mass_flow", "kg/s",
+                   "suspension mass flow of the outlet pump (while the tank holds suspension)", tunable=True)
         self.param("pump_start_time", "s", "time from which the pump runs")
         self.param("level_setpoint", "kg", "suspension mass the pump holds by level control (0: off, fixed pump flow)")
         self.param("level_time_constant", "s", "time constant of the level control")
@@ -174,7 +178,8 @@ class TankUnit:
         self.param("initial_solids_mass_fraction", "1", "solids mass fraction of the suspension at the start")
         for k in (1, 2):
             self.input(f"inlet{k}_mass_flow", "kg/s", f"solids mass flow into inlet {k}", 0.0)
-            self.input(f"inlet{k}_solids_mass_fraction", "1", f"solids mass fraction of the suspension at inlet {k}, in (0, 1)",
+            self.input(f"inlet{k}_solids_mass_fraction", "1",
+                       f"solids mass fraction of the suspension at inlet {k}, in (0, 1)",
                        self.cfg["params"]["initial_solids_mass_fraction"])
             self.psd_vars(f"inlet{k}_psd", "input", f"inlet {k}")
         self.output("outflow_mass_flow", "kg/s", "solids mass flow out of the outlet, mean over the last step")
@@ -188,11 +193,13 @@ class TankUnit:
         if not (math.isfinite(p["pump_mass_flow"]) and p["pump_mass_flow"] >= 0.0):
             raise UnitInputError("pump_mass_flow", p["pump_mass_flow"], "must be >= 0 kg/s")
         if not 0.0 < p["initial_solids_mass_fraction"] < 1.0:
-            raise UnitInputError("initial_solids_mass_fraction", p["initial_solids_mass_fraction"], "must lie in (0, 1)")
+            raise UnitInputError("initial_solids_mass_fraction", p["initial_solids_mass_fraction"],
+                                 "must lie in (0, 1)")
         if not p["initial_holdup"] >= 0.0:
             raise UnitInputError("initial_holdup", p["initial_holdup"], "must be >= 0 kg")
         if not (p["level_setpoint"] >= 0.0 and p["level_time_constant"] > 0.0):
-            raise UnitInputError("level_setpoint, level_time_constant", (p["level_setpoint"], p["level_time_constant"]), "must be >= 0 kg and > 0 s")
+            raise UnitInputError("level_setpoint, level_time_constant", (p["level_setpoint"], p["level_time_constant"]),
+                                 "must be >= 0 kg and > 0 s")
         return Tank(self.edges_m, p["initial_holdup"], p["initial_solids_mass_fraction"], self.cfg["initial_psd"],
                     p["pump_mass_flow"], p["pump_start_time"], p["level_setpoint"], p["level_time_constant"])
 
@@ -202,7 +209,8 @@ class TankUnit:
         if not (math.isfinite(pump) and pump >= 0.0):
             raise UnitInputError("pump_mass_flow", pump, "must be >= 0 kg/s")
         self.core.pump = pump
-        inflow = [(value(f"inlet{k}_mass_flow"), value(f"inlet{k}_solids_mass_fraction"), self.vec(f"inlet{k}_psd")) for k in (1, 2)]
+        inflow = [(value(f"inlet{k}_mass_flow"), value(f"inlet{k}_solids_mass_fraction"), self.vec(f"inlet{k}_psd"))
+                  for k in (1, 2)]
         self.core.step(h, inflow)
 
 

@@ -171,7 +171,8 @@ class Tank:
     fixed ``pump_mass_flow_kg_per_s``.
     """
 
-    def __init__(self, edges_m, initial_solids_kg, initial_solids_mass_fraction, initial_psd, pump_mass_flow_kg_per_s, pump_start_s=0.0,
+    def __init__(self, edges_m, initial_solids_kg, initial_solids_mass_fraction, initial_psd, pump_mass_flow_kg_per_s,
+                 pump_start_s=0.0,
                  level_setpoint_kg=0.0, level_time_constant_s=60.0):
         self.edges_m = np.asarray(edges_m, float)
         self.n = len(self.edges_m) - 1
@@ -245,11 +246,13 @@ class Tank:
 
     def outputs(self):
         content = _split_psd(self.M, self._out_psd)
-        return {"outflow_mass_flow": self._out_flow, "solids_mass_fraction": self.solids_mass_fraction, "psd": self._out_psd,
+        return {"outflow_mass_flow": self._out_flow, "solids_mass_fraction": self.solids_mass_fraction,
+                "psd": self._out_psd,
                 "holdup": float(self.M.sum()), "suspension_mass": self.S, "x50": _x50(self.edges_m, content)}
 
     def get_state(self):
-        return {"t_s": self.t_s, "M": self.M.tolist(), "S": self.S, "out_flow": self._out_flow, "out_psd": self._out_psd.tolist(),
+        return {"t_s": self.t_s, "M": self.M.tolist(), "S": self.S, "out_flow": self._out_flow,
+                "out_psd": self._out_psd.tolist(),
                 "in_kg": self.in_kg, "out_kg": self.out_kg, "pump": self.pump}
 
     def set_state(self, s):
@@ -290,7 +293,8 @@ class Classifier:
     def reset(self):
         self.t_s = 0.0
         w0 = np.full(self.n, 1.0 / self.n)
-        self._c = {"coarse": (0.0, 0.5, _split_psd(self.T * w0, w0)), "fine": (0.0, 0.5, _split_psd((1 - self.T) * w0, w0))}
+        self._c = {"coarse": (0.0, 0.5, _split_psd(self.T * w0, w0)),
+                   "fine": (0.0, 0.5, _split_psd((1 - self.T) * w0, w0))}
         self.in_kg = 0.0
 
     def step(self, h, mass_flow, solids_mass_fraction, psd):
@@ -302,7 +306,8 @@ class Classifier:
         fine = m_in - coarse  # exact complement: the split conserves mass class by class
         liquid = mass_flow * (1.0 - solids_mass_fraction) / solids_mass_fraction
         res = {}
-        for name, m, liq in (("coarse", coarse, liquid * self.liquid_to_coarse), ("fine", fine, liquid * (1.0 - self.liquid_to_coarse))):
+        for name, m, liq in (("coarse", coarse, liquid * self.liquid_to_coarse),
+                             ("fine", fine, liquid * (1.0 - self.liquid_to_coarse))):
             tot = float(m.sum())
             c = tot / (tot + liq) if tot > 0.0 and tot + liq > 0.0 else self._c[name][1]
             res[name] = (tot, min(c, 0.999), _split_psd(m, self._c[name][2]))
@@ -373,7 +378,8 @@ class PIController:
         return {"output": self.u, "error": self.error, "integral": self.integral, "saturated": self.saturated}
 
     def get_state(self):
-        return {"t_s": self.t_s, "integral": self.integral, "error": self.error, "u": self.u, "saturated": self.saturated,
+        return {"t_s": self.t_s, "integral": self.integral, "error": self.error, "u": self.u,
+                "saturated": self.saturated,
                 "setpoint": self.setpoint}
 
     def set_state(self, s):

@@ -28,7 +28,8 @@ def _series(res, variable, times):
     return res.column(variable)[idx]
 
 
-def work_precision(fs: Flowsheet, steps, reference: float, out: Path, fmu_dir: Path, variable="mill.x50", log=print, fmi_version=2) -> str:
+def work_precision(fs: Flowsheet, steps, reference: float, out: Path, fmu_dir: Path, variable="mill.x50", log=print,
+                   fmi_version=2) -> str:
     """Run the study; write wp.csv, wp.json and wp.png into ``out``; return the table text."""
     paths = build_fmus(fs, fmu_dir, log=log, fmi_version=fmi_version)
     h_max = max(steps)
@@ -39,7 +40,8 @@ def work_precision(fs: Flowsheet, steps, reference: float, out: Path, fmu_dir: P
         f = fs.with_(step_s=h, output_interval_s=h_max if h_max % h == 0 else h)
         res = Master(f, paths, log=log).run()
         if variable not in res.columns:
-            raise FlowsheetError("--variable", variable, "must be one of the flowsheet's outputs: " + ", ".join(res.columns[1:]), "command line")
+            raise FlowsheetError("--variable", variable, "must be one of the flowsheet's outputs: "
+                                 + ", ".join(res.columns[1:]), "command line")
         runs[h] = (res, _series(res, variable, times))
     ref = runs[reference][1]
     rows = []
@@ -54,26 +56,33 @@ def work_precision(fs: Flowsheet, steps, reference: float, out: Path, fmu_dir: P
     order = float(np.polyfit(np.log(hs), np.log(es), 1)[0]) if np.all(es > 0) else math.nan
     ee = np.array([r["error_end"] for r in rows])
     order_end = float(np.polyfit(np.log(hs), np.log(ee), 1)[0]) if np.all(ee > 0) else math.nan
-    pair = [float(math.log(es[i + 1] / es[i]) / math.log(hs[i + 1] / hs[i])) if es[i] > 0 and es[i + 1] > 0 else math.nan
+    pair = [float(math.log(es[i + 1] / es[i]) / math.log(hs[i + 1] / hs[i])) if es[i] > 0 and es[i + 1] > 0
+            else math.nan
             for i in range(len(rows) - 1)]
     for r, p in zip(rows[1:], pair):
         r["order_to_previous"] = p
-    lines = [f"{fs.name} ({fs.algorithm}): error of {variable} against a reference run with step {reference:g} s ({runs[reference][0].steps} steps, "
-             f"{runs[reference][0].wall_s:.3g} s wall), max over t = k * {h_max:g} s",
-             f"{'step [s]':>9} {'steps':>6} {'max error':>11} {'relative':>9} {'order':>6} {'error at end':>12} {'wall [s]':>9} {'mass resid.':>11}"]
+    lines = [f"{fs.name} ({fs.algorithm}): error of {variable} against a reference run with step {reference:g} s "
+             f"({runs[reference][0].steps} steps, {runs[reference][0].wall_s:.3g} s wall), max over t = k * "
+             f"{h_max:g} s",
+             f"{'step [s]':>9} {'steps':>6} {'max error':>11} {'relative':>9} {'order':>6} {'error at end':>12} "
+             f"{'wall [s]':>9} {'mass resid.':>11}"]
     for r in rows:
         o = r.get("order_to_previous")
-        lines.append(f"{r['step_s']:9.4g} {r['steps']:6d} {r['error']:11.3e} {r['relative_error']:9.2e} {'' if o is None else f'{o:6.2f}':>6} {r['error_end']:12.3e} "
-                     f"{r['wall_s']:9.3g} {r['mass_residual']:11.1e}")
-    lines.append(f"measured order (least squares over all steps): {order:.3f} for the max error over t, {order_end:.3f} for the error at t_end")
+        lines.append(f"{r['step_s']:9.4g} {r['steps']:6d} {r['error']:11.3e} {r['relative_error']:9.2e} "
+                     f"{'' if o is None else f'{o:6.2f}':>6} {r['error_end']:12.3e} {r['wall_s']:9.3g} "
+                     f"{r['mass_residual']:11.1e}")
+    lines.append(f"measured order (least squares over all steps): {order:.3f} for the max error over t, "
+                 f"{order_end:.3f} for the error at t_end")
     table = "\n".join(lines)
     out = Path(out)
     with open(out / "wp.csv", "w") as f:
         f.write("step_s,steps,max_error_m,max_relative_error,error_at_end_m,wall_s,mass_relative_residual\n")
         for r in rows:
             f.write(f"{r['step_s']!r},{r['steps']},{r['error']!r},{r['relative_error']!r},{r['error_end']!r},{r['wall_s']!r},{r['mass_residual']!r}\n")
-    (out / "wp.json").write_text(json.dumps({"flowsheet": fs.name, "algorithm": fs.algorithm, "variable": variable, "reference_step_s": reference,
-                                             "reference_wall_s": runs[reference][0].wall_s, "rows": rows, "order": order, "order_at_end": order_end}, indent=1))
+    (out / "wp.json").write_text(json.dumps({"flowsheet": fs.name, "algorithm": fs.algorithm, "variable": variable,
+                                             "reference_step_s": reference,
+                                             "reference_wall_s": runs[reference][0].wall_s, "rows": rows,
+                                             "order": order, "order_at_end": order_end}, indent=1))
     (out / "wp.txt").write_text(table + "\n")
     _plot(rows, runs, reference, times, variable, fs, order, out / "wp.png")
     return table
@@ -95,10 +104,12 @@ def _plot(rows, runs, reference, times, variable, fs, order, path):
     hs = np.array([r["step_s"] for r in rows])
     ax[1].loglog(hs, e, "o-", label="measured")
     ax[1].loglog(hs, e[0] * hs / hs[0], "--", label="order 1")
-    ax[1].set(xlabel="communication step [s]", ylabel="max relative error", title=f"error against step (order {order:.2f})")
+    ax[1].set(xlabel="communication step [s]", ylabel="max relative error",
+              title=f"error against step (order {order:.2f})")
     ax[1].legend()
     for h, (res, y) in sorted(runs.items()):
-        ax[2].plot(np.array(times) / 60, y * (1e6 if variable.endswith("x50") else 1), label=f"{h:g} s" + (" (reference)" if h == reference else ""))
+        ax[2].plot(np.array(times) / 60, y * (1e6 if variable.endswith("x50") else 1),
+                   label=f"{h:g} s" + (" (reference)" if h == reference else ""))
     ax[2].set(xlabel="t [min]", ylabel=variable + (" [um]" if variable.endswith("x50") else ""), title="the runs")
     ax[2].legend(fontsize=7)
     for a in ax:

@@ -176,13 +176,15 @@ def check_output(out: Path) -> Path:
         os.close(fd)
         os.unlink(probe)
     except OSError as e:
-        raise OutputError(out, f"cannot write there ({e.strerror or e}: {base}); give a writable place for the FMU", option="-o") from None
+        raise OutputError(out, f"cannot write there ({e.strerror or e}: {base}); give a writable place for the FMU",
+                          option="-o") from None
     return out
 
 
 def _needed_modules(scene_path: Path, fmi_version: int = 2) -> dict:
     """millfmu modules imported when the scene's model is built and stepped: {name: file}."""
-    r = subprocess.run([sys.executable, "-c", _PROBE, str(scene_path), ADAPTERS[fmi_version]], capture_output=True, text=True)
+    r = subprocess.run([sys.executable, "-c", _PROBE, str(scene_path), ADAPTERS[fmi_version]], capture_output=True,
+                       text=True)
     if r.returncode != 0:
         raise RuntimeError("cannot run the scene's model to find the modules it needs:\n" + r.stderr)
     info = json.loads(r.stdout.strip().splitlines()[-1])
@@ -225,7 +227,8 @@ def _export_table_slice(scene, prefix: Path, table=None) -> list:
     if scene.kinetics.model != "detailed" or sd.source != "table":
         return []
     tab = table if table is not None else read_table_ref(sd.table)
-    fixed = {"bead_diameter_m": scene.beads.diameter_m, "bead_density_kg_m3": scene.beads.density_kg_per_m3, "viscosity_pa_s": scene.suspension.viscosity_Pa_s}
+    fixed = {"bead_diameter_m": scene.beads.diameter_m, "bead_density_kg_m3": scene.beads.density_kg_per_m3,
+             "viscosity_pa_s": scene.suspension.viscosity_Pa_s}
     bounds = {k: (v, v) for k, v in fixed.items() if k in tab.axes}
     return list((tab.subset(bounds) if bounds else tab).export(prefix))
 
@@ -294,14 +297,17 @@ def build_fmu(scene_path: str | Path | None, out: str | Path, fmi_version: int =
         ident = f"Mill_{_slug(scene.scene.name)}_{full_hash}"
         script = stage / f"{ident}.py"
         wrapper = choose_wrapper(progress=log) if fmi_version == 2 else None
-        script.write_text((SCRIPT3 if fmi_version == 3 else SCRIPT).format(scene=scene.scene.name, package=package, ident=ident,
+        script.write_text((SCRIPT3 if fmi_version == 3 else SCRIPT).format(scene=scene.scene.name, package=package,
+                                                                           ident=ident,
                                                                            stock=wrapper is None))
         dest = tmp / "fmu"
         dest.mkdir()
-        built = FmuBuilder.build_FMU(script, dest=dest / f"{ident}.fmu", project_files=[stage / package, stage / "scene.toml", *table_files, *band_files],
+        built = FmuBuilder.build_FMU(script, dest=dest / f"{ident}.fmu",
+                                     project_files=[stage / package, stage / "scene.toml", *table_files, *band_files],
                                      **BUILD_OPTIONS[fmi_version])
         md = zipfile.ZipFile(built).read("modelDescription.xml")
-        write_fmu(built, out, fmi3_wrapper.fmu_replacements(ident, log) if fmi_version == 3 else fmi2_replacements(ident, wrapper))
+        write_fmu(built, out,
+                  fmi3_wrapper.fmu_replacements(ident, log) if fmi_version == 3 else fmi2_replacements(ident, wrapper))
     return BuildResult(out, ident, package, [str(r) for r in rel], class_count(md), fmi_version)
 
 

@@ -35,8 +35,10 @@ def _cmd_build_fmu(args) -> int:
     with zipfile.ZipFile(r.fmu) as z:
         n_files = len(z.namelist())
     size = r.fmu.stat().st_size
-    print(f"wrote {r.fmu} (FMI {r.fmi_version}.0, {size / 1024:.1f} KiB, {n_files} files) in {time.perf_counter() - t0:.2f} s")
-    print(f"model identifier {r.model_identifier}; {r.n_classes} size classes; code package {r.package}: {', '.join(r.modules)}")
+    print(f"wrote {r.fmu} (FMI {r.fmi_version}.0, {size / 1024:.1f} KiB, {n_files} files) in "
+          f"{time.perf_counter() - t0:.2f} s")
+    print(f"model identifier {r.model_identifier}; {r.n_classes} size classes; code package {r.package}: "
+          f"{', '.join(r.modules)}")
     from . import fmi3_wrapper, wrapper
 
     print(f"platforms: {(wrapper if r.fmi_version == 2 else fmi3_wrapper).PLATFORM_NOTE}")
@@ -61,7 +63,8 @@ def _cmd_bench_fmu(args) -> int:
     from .fmi3_wrapper import WrapperError
 
     try:
-        return bench_fmu(classes=args.classes, steps=args.steps, repeats=args.repeats, fmi_versions=args.fmi_version or (2, 3),
+        return bench_fmu(classes=args.classes, steps=args.steps, repeats=args.repeats,
+                         fmi_versions=args.fmi_version or (2, 3),
                          required=bool(args.fmi_version))
     except WrapperError as e:
         print(f"millfmu bench fmu: error: {e}", file=sys.stderr)
@@ -69,7 +72,8 @@ def _cmd_bench_fmu(args) -> int:
 
 
 def register(subparsers) -> None:
-    b = subparsers.add_parser("build-fmu", help="build an FMI 2.0 (pythonfmu) or 3.0 (pythonfmu3) co-simulation FMU of a scene")
+    b = subparsers.add_parser("build-fmu",
+                              help="build an FMI 2.0 (pythonfmu) or 3.0 (pythonfmu3) co-simulation FMU of a scene")
     b.add_argument("scene", nargs="?", default=None, help="scene file (TOML); omitted: the embedded default scene")
     b.add_argument("-o", "--output", required=True, help="FMU file to write (.fmu)")
     b.add_argument("--fmi-version", type=int, choices=(2, 3), default=2, help="FMI version of the FMU (default 2)")
@@ -83,9 +87,12 @@ def register(subparsers) -> None:
 
 
 def register_bench(bench_subparsers) -> None:
-    f = bench_subparsers.add_parser("fmu", help="FMU doStep + reading all outputs, against a trivial FMU of the same FMI version in the same run")
+    f = bench_subparsers.add_parser("fmu",
+                                    help="FMU doStep + reading all outputs, against a trivial FMU of the same FMI "
+                                         "version in the same run")
     f.add_argument("--classes", type=int, default=100, help="size classes of the mill FMU (default 100)")
     f.add_argument("--steps", type=int, default=2000, help="steps per timing run")
     f.add_argument("--repeats", type=int, default=5, help="timing runs; the best is reported")
-    f.add_argument("--fmi-version", type=int, choices=(2, 3), action="append", help="FMI version to measure (repeatable; default: 2 and 3)")
+    f.add_argument("--fmi-version", type=int, choices=(2, 3), action="append",
+                   help="FMI version to measure (repeatable; default: 2 and 3)")
     f.set_defaults(func=_cmd_bench_fmu)

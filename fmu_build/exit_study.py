@@ -72,12 +72,13 @@ for f, v3 in fmus:
     f.terminate()
     f.freeInstance()
 print("DONE", flush=True)
-"""
+"""  # noqa: E501
 
 
 def one(python: str, fmus: list, env: dict, refused_state: bool = False) -> tuple:
     """Run the driver once: (return code, printed DONE, first stderr line)."""
-    r = subprocess.run([python, "-c", DRIVER, "1" if refused_state else "0", *map(str, fmus)], capture_output=True, text=True,
+    r = subprocess.run([python, "-c", DRIVER, "1" if refused_state else "0", *map(str, fmus)], capture_output=True,
+                       text=True,
                        env=env, timeout=600)
     err = next((ln for ln in r.stderr.splitlines() if ln.strip()), "")
     return r.returncode, "DONE" in r.stdout, err
@@ -138,7 +139,8 @@ def valgrind_errors(fmus: list, python: str | None = None, refused_state: bool =
         records.append(cur)
     # An FMU's binary is <unzip folder>/binaries/<platform>/<model identifier>.so.
     ours = [rec for rec in records
-            if not rec[0].startswith(("HEAP SUMMARY", "LEAK SUMMARY", "Memcheck", "Using Valgrind", "Command", "ERROR SUMMARY"))
+            if not rec[0].startswith(("HEAP SUMMARY", "LEAK SUMMARY", "Memcheck", "Using Valgrind", "Command",
+                                      "ERROR SUMMARY"))
             and any(re.search(r"\(in \S*/binaries/[^/]+/[^/]+\.so\)", ln) for ln in rec)]
     return r.returncode, ["\n".join(rec) for rec in ours]
 
@@ -148,12 +150,15 @@ def main(argv=None) -> int:
     p.add_argument("fmus", nargs="+", help="FMU files loaded together in every process")
     p.add_argument("--processes", type=int, default=200)
     p.add_argument("--workers", type=int, default=2, help="processes run at a time")
-    p.add_argument("--refused-state", action="store_true", help="hand each instance a state it must refuse before freeing it")
-    p.add_argument("--valgrind", action="store_true", help="instead: one process under valgrind; print the errors in the FMUs' binaries")
+    p.add_argument("--refused-state", action="store_true",
+                   help="hand each instance a state it must refuse before freeing it")
+    p.add_argument("--valgrind", action="store_true",
+                   help="instead: one process under valgrind; print the errors in the FMUs' binaries")
     a = p.parse_args(argv)
     if a.valgrind:
         rc, errors = valgrind_errors(a.fmus, refused_state=a.refused_state)
-        print(f"valgrind, one process x {len(a.fmus)} FMUs: exit status {rc}, {len(errors)} errors in the FMUs' binaries")
+        print(f"valgrind, one process x {len(a.fmus)} FMUs: exit status {rc}, {len(errors)} errors in the FMUs' "
+              "binaries")
         for e in errors:
             print(e + "\n")
         return 0 if rc == 0 and not errors else 1

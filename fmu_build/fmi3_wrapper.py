@@ -51,7 +51,8 @@ PLATFORM = "x86_64-linux"
 PLATFORM_NOTE = ("x86_64 Linux only (binaries/x86_64-linux): pythonfmu3's prebuilt Windows wrapper lacks millfmu's "
                  "fixes, and none is built or tested for Windows")
 
-_HANDLER_OLD_START = "void PySlaveInstance::handle_py_exception(const std::string& what, PyGILState_STATE gilState) const\n{"
+_HANDLER_OLD_START = ("void PySlaveInstance::handle_py_exception(const std::string& what, PyGILState_STATE gilState) "
+                      "const\n{")
 _HANDLER_OLD_END = "\nPySlaveInstance::~PySlaveInstance()"
 _HANDLER_NEW = r'''void PySlaveInstance::handle_py_exception(const std::string& what, PyGILState_STATE gilState) const
 {
@@ -128,18 +129,21 @@ PATCHES = (
      "        Py_XDECREF(reinterpret_cast<PyObject*>(state));\n"
      "        state = reinterpret_cast<fmi3FMUState*>(f);\n        clearLogBuffer();\n"),
     ("pythonfmu/PySlaveInstance.cpp",
-     '            handle_py_exception("[_set_fmu_state] PyObject_CallMethod", gilState);\n        }\n        clearLogBuffer();\n',
-     '            handle_py_exception("[_set_fmu_state] PyObject_CallMethod", gilState);\n        }\n        Py_DECREF(f);\n        clearLogBuffer();\n'),
+     '            handle_py_exception("[_set_fmu_state] PyObject_CallMethod", gilState);\n        }\n        '
+     'clearLogBuffer();\n',
+     '            handle_py_exception("[_set_fmu_state] PyObject_CallMethod", gilState);\n        }\n        '
+     'Py_DECREF(f);\n        clearLogBuffer();\n'),
     ("cppfmu/cppfmu_common.hpp",
-     "        if (m_settings->loggedCategories.empty() ||\n            detail::CanFind(m_settings->loggedCategories, category)) {\n",
+     "        if (m_settings->loggedCategories.empty() ||\n            detail::CanFind(m_settings->loggedCategories, "
+     "category)) {\n",
      "        // millfmu: a host may pass no logMessage callback.\n"
      "        if (m_fmiLogger != nullptr && (m_settings->loggedCategories.empty() ||\n"
      "            detail::CanFind(m_settings->loggedCategories, category))) {\n"),
     # fmi3EnterInitializationMode's startTime reaches the slave (setup_experiment): the FMU's
     # time starts there, and fmi3DoStep refuses a currentCommunicationPoint that is not it.
     ("cppfmu/fmi_functions.cpp",
-     "fmi3Status fmi3EnterInitializationMode(fmi3Instance c, fmi3Boolean, fmi3Float64, fmi3Float64, fmi3Boolean, fmi3Float64)\n"
-     "{\n    const auto component = reinterpret_cast<Component*>(c);\n    try {\n"
+     "fmi3Status fmi3EnterInitializationMode(fmi3Instance c, fmi3Boolean, fmi3Float64, fmi3Float64, fmi3Boolean, "
+     "fmi3Float64)\n{\n    const auto component = reinterpret_cast<Component*>(c);\n    try {\n"
      "        component->slave->EnterInitializationMode();\n",
      "fmi3Status fmi3EnterInitializationMode(fmi3Instance c, fmi3Boolean toleranceDefined, fmi3Float64 tolerance,\n"
      "    fmi3Float64 startTime, fmi3Boolean stopTimeDefined, fmi3Float64 stopTime)\n"
@@ -186,7 +190,8 @@ def patched_sources() -> dict:
         key = f"src/{rel}"
         n = texts[key].count(old)
         if n != 1:
-            raise WrapperError(f"pythonfmu3 wrapper source {key}: the text to patch occurs {n} times, expected once:\n{old}")
+            raise WrapperError(f"pythonfmu3 wrapper source {key}: the text to patch occurs {n} times, expected "
+                               f"once:\n{old}")
         texts[key] = texts[key].replace(old, new)
     key = "src/pythonfmu/PySlaveInstance.cpp"
     text = texts[key]
@@ -206,19 +211,21 @@ def _compiler() -> str:
     if os.environ.get("CXX"):
         cxx = shutil.which(os.environ["CXX"])
         if not cxx:
-            raise WrapperError(f"CXX = {os.environ['CXX']!r}: not an executable C++ compiler (needed to compile pythonfmu3's wrapper)")
+            raise WrapperError(f"CXX = {os.environ['CXX']!r}: not an executable C++ compiler (needed to compile "
+                               "pythonfmu3's wrapper)")
         return cxx
     cxx = shutil.which("g++") or shutil.which("c++") or shutil.which("clang++")
     if not cxx:
-        raise WrapperError("building an FMI 3.0 FMU compiles pythonfmu3's wrapper with millfmu's fixes: no C++17 compiler "
-                           "found (install g++, Debian: apt-get install g++, or set CXX)")
+        raise WrapperError("building an FMI 3.0 FMU compiles pythonfmu3's wrapper with millfmu's fixes: no C++17 "
+                           "compiler found (install g++, Debian: apt-get install g++, or set CXX)")
     return cxx
 
 
 def wrapper_library(log=None) -> Path:
     """The compiled wrapper (built once, then taken from the cache): a shared library path."""
     if sys.platform != "linux" or platform.machine() not in ("x86_64", "AMD64"):
-        raise WrapperError(f"FMI 3.0 FMUs are built for {PLATFORM} only; this machine is {sys.platform} {platform.machine()}")
+        raise WrapperError(f"FMI 3.0 FMUs are built for {PLATFORM} only; this machine is {sys.platform} "
+                           f"{platform.machine()}")
     texts = patched_sources()
     h = hashlib.sha256()
     for rel, text in sorted(texts.items()):
@@ -240,7 +247,8 @@ def wrapper_library(log=None) -> Path:
             (src / rel).parent.mkdir(parents=True, exist_ok=True)
             (src / rel).write_text(text)
         part = Path(tmp) / lib.name
-        cmd = [cxx, "-std=c++17", "-O2", "-fPIC", "-shared", "-s", "-DPy_LIMITED_API", f"-I{include}", f"-I{src / 'src'}",
+        cmd = [cxx, "-std=c++17", "-O2", "-fPIC", "-shared", "-s", "-DPy_LIMITED_API", f"-I{include}",
+               f"-I{src / 'src'}",
                *[str(src / "src" / u) for u in COMPILED], "-o", str(part)]
         if log:
             log(f"compiling pythonfmu3's wrapper with millfmu's fixes ({Path(cxx).name}, once; cached in {lib.parent})")

@@ -24,7 +24,8 @@ REQUIRED = ("numpy", "scipy")
 def _libpython() -> Path:
     libdir = sysconfig.get_config_var("LIBDIR") or ""
     multiarch = sysconfig.get_config_var("MULTIARCH") or ""
-    names = [n for n in (sysconfig.get_config_var("INSTSONAME"), sysconfig.get_config_var("LDLIBRARY")) if n and not n.endswith(".a")]
+    names = [n for n in (sysconfig.get_config_var("INSTSONAME"), sysconfig.get_config_var("LDLIBRARY")) if n
+             and not n.endswith(".a")]
     for name in names:
         for d in (Path(libdir), Path(libdir) / multiarch):
             if (d / name).exists():

@@ -58,7 +58,7 @@ class {name}(Fmi3Slave):
 
     def do_step(self, current_time, step_size):
         return True
-'''
+'''  # noqa: E501
 def _scene_text(n_classes: int, continuous: bool) -> str:
     import tomllib
 
@@ -81,7 +81,8 @@ def _open(path: Path, name: str):
     from fmpy import extract, read_model_description
 
     md = read_model_description(str(path))
-    args = dict(guid=md.guid, unzipDirectory=extract(str(path)), modelIdentifier=md.coSimulation.modelIdentifier, instanceName=name)
+    args = dict(guid=md.guid, unzipDirectory=extract(str(path)), modelIdentifier=md.coSimulation.modelIdentifier,
+                instanceName=name)
     outs = [v for v in md.modelVariables if v.causality == "output"]
     vrs = [v.valueReference for v in outs]
     t0 = time.perf_counter()
@@ -92,7 +93,8 @@ def _open(path: Path, name: str):
         fmu.instantiate()
         fmu.enterInitializationMode(startTime=0.0)
         fmu.exitInitializationMode()
-        n = sum(int(next(x.start for x in md.modelVariables if x.valueReference == v.dimensions[0].valueReference)) if v.dimensions else 1
+        n = sum(int(next(x.start for x in md.modelVariables if x.valueReference == v.dimensions[0].valueReference))
+                if v.dimensions else 1
                 for v in outs)
         read = lambda: fmu.getFloat64(vrs, n)  # noqa: E731
     else:
@@ -157,7 +159,8 @@ def bench_fmu(classes=100, steps=2000, repeats=5, out=print, fmi_versions=(2, 3)
 
     with tempfile.TemporaryDirectory(prefix="millfmu_bench_") as tmp:
         tmp = Path(tmp)
-        out(f"FMU doStep + reading all outputs, {classes} size classes, fmpy host; best of {repeats} x {steps} steps of 1 s")
+        out(f"FMU doStep + reading all outputs, {classes} size classes, fmpy host; best of {repeats} x {steps} steps "
+            "of 1 s")
         for v in fmi_versions:
             if v == 3 and not required:
                 from .fmi3_wrapper import WrapperError, wrapper_library
@@ -199,7 +202,8 @@ def bench_fmu(classes=100, steps=2000, repeats=5, out=print, fmi_versions=(2, 3)
                     t_model = min(t_model, (time.perf_counter() - t0) / steps)
                 label = f"mill, {load_scene(scene).operation.mode}"
                 out(f"{label:34s} {n:7d} {t_mill * 1e6:14.1f} {t_mill / t_floor:8.2f} {t_inst * 1e3:17.1f}")
-                out(f"{'  (MillModel.step alone, in-process)':34s} {'':7s} {t_model * 1e6:14.1f} {t_model / t_floor:8.2f}")
+                out(f"{'  (MillModel.step alone, in-process)':34s} {'':7s} {t_model * 1e6:14.1f} "
+                    f"{t_model / t_floor:8.2f}")
                 fmu.terminate()
                 fmu.freeInstance()
             floor.terminate()

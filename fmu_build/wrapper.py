@@ -108,8 +108,8 @@ EDITS = (
      "            int success = PyList_Insert(sys_path, 0, PyUnicode_FromString(resourceLocation().c_str()));\n",
      "            PyObject* pResources = PyUnicode_FromString(resourceLocation().c_str());\n"
      "            int success = pResources == nullptr ? -1\n"
-     "                : (PySequence_Contains(sys_path, pResources) == 1 ? 0 : PyList_Insert(sys_path, 0, pResources));\n"
-     "            Py_XDECREF(pResources);\n"),
+     "                : (PySequence_Contains(sys_path, pResources) == 1 ? 0 : PyList_Insert(sys_path, 0, "
+     "pResources));\n            Py_XDECREF(pResources);\n"),
     ("src/pythonfmu/PySlaveInstance.cpp",
      "                const char* className = PyBytes_AsString(PyUnicode_AsUTF8String(PyObject_Repr(pItem)));\n\n"
      "                std::string str(className);\n",
@@ -124,9 +124,10 @@ EDITS = (
      "                    deepestFile = PyBytes_AsString(pKeyBytes);\n"
      "                    Py_DECREF(pKeyBytes);\n"),
     ("src/pythonfmu/PySlaveInstance.cpp",
-     "                    deepestChain = i;\n                }\n            }\n        }\n        Py_DECREF(pMroAttribute);\n",
-     "                    deepestChain = i;\n                }\n            }\n            Py_DECREF(pMROList);\n        }\n"
-     "        Py_XDECREF(pMroAttribute);\n"),
+     "                    deepestChain = i;\n                }\n            }\n        }\n        "
+     "Py_DECREF(pMroAttribute);\n",
+     "                    deepestChain = i;\n                }\n            }\n            Py_DECREF(pMROList);\n      "
+     "  }\n        Py_XDECREF(pMroAttribute);\n"),
     # 5. pyState's static destructor releases it; the fini function must not touch it again.
     ("src/pythonfmu/PySlaveInstance.cpp",
      "__attribute__((destructor)) void onLibraryUnload()\n{\n    finalizePythonInterpreter();\n}",
@@ -170,7 +171,8 @@ def apply_edits(root: Path) -> None:
         text = p.read_text()
         n = text.count(old)
         if n != 1:
-            raise RuntimeError(f"{rel}: expected the text to fix once, found it {n} times: {old.splitlines()[0].strip()!r}")
+            raise RuntimeError(f"{rel}: expected the text to fix once, found it {n} times: "
+                               f"{old.splitlines()[0].strip()!r}")
         p.write_text(text.replace(old, new))
 
 
@@ -185,7 +187,8 @@ def _run(cmd, cwd=None):
 def _fetch_sources(tmp: Path) -> Path:
     """pythonfmu's sdist with the C++ sources, via pip; checked against SOURCE_SHA256."""
     # No retries and a short timeout: without a network the build falls back at once.
-    _run([sys.executable, "-m", "pip", "download", "--quiet", "--retries", "0", "--timeout", "20", "--no-binary", ":all:",
+    _run([sys.executable, "-m", "pip", "download", "--quiet", "--retries", "0", "--timeout", "20", "--no-binary",
+          ":all:",
           "--no-deps", "--dest", str(tmp), SOURCE_SDIST])
     (sdist,) = tmp.glob("pythonfmu-*.tar.gz")
     digest = hashlib.sha256(sdist.read_bytes()).hexdigest()

@@ -132,10 +132,12 @@ class Result:
 
     def write(self, folder: str | Path, plots: bool = True) -> list:
         """Write result.json, psd.csv (and the plots) as ``millfmu run`` does; returns the paths."""
-        return write_results(folder, self.scene, self.model, self._records, list(self.q3), plots=plots, wall_s=self.wall_s)
+        return write_results(folder, self.scene, self.model, self._records, list(self.q3), plots=plots,
+                             wall_s=self.wall_s)
 
 
-def run(scene: Scene | str | Path | dict | None = None, overrides: dict | None = None, progress: bool = False) -> Result:
+def run(scene: Scene | str | Path | dict | None = None, overrides: dict | None = None,
+        progress: bool = False) -> Result:
     """Run a scene (anything :func:`load_scene` takes, with ``overrides``) from t = 0 to its
     run.t_end_s at run.dt_s steps, recording every run.output_interval_s; returns a :class:`Result`."""
     if not isinstance(scene, Scene) or overrides:

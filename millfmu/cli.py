@@ -48,14 +48,18 @@ def _cmd_run(args) -> int:
     band = prediction_band(scene)
     files = write_results(args.out, scene, model, records, psds, plots=not args.no_plots, wall_s=wall, band=band)
     op = model.operating_point(model.inputs)
-    print(f"scene: {scene.scene.name}  ({scene.operation.mode}, {scene.material.model}, {scene.kinetics.model} model, {model.grid.n} classes)")
-    print(f"eta_eff = {op.eta_eff_Pa_s:.4g} Pa s, Re = {op.reynolds:.4g}, SE = {op.se_beads_J:.4g} J, SE_P = {op.se_product_J:.4g} J")
+    print(f"scene: {scene.scene.name}  ({scene.operation.mode}, {scene.material.model}, {scene.kinetics.model} model, "
+          f"{model.grid.n} classes)")
+    print(f"eta_eff = {op.eta_eff_Pa_s:.4g} Pa s, Re = {op.reynolds:.4g}, SE = {op.se_beads_J:.4g} J, SE_P = "
+          f"{op.se_product_J:.4g} J")
     if model.source is not None:
         # The detailed model's stress conditions at the final operating point, per zone.
         sd = scene.kinetics.stress_distribution
-        print(f"stress-energy source: {sd.source}" + (f" {sd.table!r}, component {sd.component}" if sd.source == "table" else ""))
+        print(f"stress-energy source: {sd.source}"
+              + (f" {sd.table!r}, component {sd.component}" if sd.source == "table" else ""))
         for z in model.source.zones(op):
-            print(f"  {z.name:4s} volume share {z.volume_fraction:.3f}, collisions {z.collision_rate_per_m3_s:.3g} 1/(m3 s), median energy {z.median_energy_J:.3g} J")
+            print(f"  {z.name:4s} volume share {z.volume_fraction:.3f}, collisions {z.collision_rate_per_m3_s:.3g} "
+                  f"1/(m3 s), median energy {z.median_energy_J:.3g} J")
         for note in getattr(model.source, "last_notes", []):
             print(f"  note: {note}")
     print(summary_table(records))
@@ -90,7 +94,8 @@ def band_lines(band: dict, last: dict) -> list:
         lines.append(f"  from the table's stated error: {rng(t['outputs'])} ({why})")
     if "calibration" in parts:
         c = parts["calibration"]
-        consts = ", ".join(f"{x['key']} = {x['value']:.4g} in [{x['ci95'][0]:.4g}, {x['ci95'][1]:.4g}]" for x in c["constants"])
+        consts = ", ".join(f"{x['key']} = {x['value']:.4g} in [{x['ci95'][0]:.4g}, {x['ci95'][1]:.4g}]"
+                           for x in c["constants"])
         lines.append(f"  from the calibration's 95 % intervals: {rng(c['outputs'])} ({consts})")
     lines += [f"  note: {n}" for n in band.get("notes", [])]
     return lines
@@ -169,13 +174,15 @@ def _cmd_examples(args) -> int:
     width = max(map(len, files))
     for name, path in files.items():
         print(f"{name:{width}s}  {path}")
-    print("Run one by name (millfmu run limestone_simple.toml; millfmu calibrate --data limestone_standin_batch.csv ...); "
-          "to change one, copy it and run the copy.")
+    print("Run one by name (millfmu run limestone_simple.toml; millfmu calibrate --data limestone_standin_batch.csv "
+          "...); to change one, copy it and run the copy.")
     return 0
 
 
 def build_parser() -> argparse.ArgumentParser:
-    p = argparse.ArgumentParser(prog="millfmu", description="Wet stirred media mill (bead mill) model: population balance with Kwade's stress model.")
+    p = argparse.ArgumentParser(prog="millfmu",
+                                description="Wet stirred media mill (bead mill) model: population balance with Kwade's "
+                                            "stress model.")
     sub = p.add_subparsers(dest="command", metavar="COMMAND")
     sub.required = True
 
@@ -185,15 +192,17 @@ def build_parser() -> argparse.ArgumentParser:
     r.add_argument("--no-plots", action="store_true", help="skip the PNG plots")
     r.add_argument("-q", "--quiet", action="store_true", help="no progress bar")
     r.add_argument("--on-stale", choices=("refuse", "rebuild", "accept"), default=None,
-                   help="a table built on demand (on_outside = 'build') whose DEM kernel version is not the installed DEM's: "
-                        "refuse, rebuild every point, or accept its points and run only the new ones "
+                   help="a table built on demand (on_outside = 'build') whose DEM kernel version is not the installed "
+                        "DEM's: refuse, rebuild every point, or accept its points and run only the new ones "
                         "(default: the scene's kinetics.stress_distribution.on_stale)")
     r.add_argument("--yes", action="store_true",
                    help="run an on-demand table build however long it is estimated to take (without it, a build "
-                        "over MILLFMU_BUILD_LIMIT_S, default 1800 s, is asked about at a terminal and refused elsewhere)")
+                        "over MILLFMU_BUILD_LIMIT_S, default 1800 s, is asked about at a terminal and refused "
+                        "elsewhere)")
     r.set_defaults(func=_cmd_run)
 
-    e = sub.add_parser("examples", help="list the shipped example scenes and data with their paths (commands take them by name)")
+    e = sub.add_parser("examples",
+                       help="list the shipped example scenes and data with their paths (commands take them by name)")
     e.set_defaults(func=_cmd_examples)
 
     k = sub.add_parser("scene-keys", help="list every scene key with unit, default and allowed values")
@@ -208,7 +217,9 @@ def build_parser() -> argparse.ArgumentParser:
     bp.add_argument("--hours", type=float, default=1.0, help="simulated batch time [h] at 1 s steps")
     bp.add_argument("--repeats", type=int, default=3)
     bp.add_argument("--tanks", type=int, default=50, help="tanks in series of the continuous row (0: leave it out)")
-    bp.add_argument("--no-dense", action="store_true", help="continuous row without the dense matrix exponential (the method before; tens of seconds at 50 tanks)")
+    bp.add_argument("--no-dense", action="store_true",
+                    help="continuous row without the dense matrix exponential (the method before; tens of seconds at "
+                         "50 tanks)")
     bp.set_defaults(func=_cmd_bench_pbm)
 
     for mod in PLUGINS:

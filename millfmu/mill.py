@@ -76,9 +76,9 @@ def check_psd_on_grid(grid: kgrid.SizeGrid, p: PSD, key: str, source: str) -> fl
         sk = PSD_SIZE_KEY[p.kind]
         e = grid.edges_m
         raise SceneError(f"{key}.{sk}", getattr(p, sk),
-                         f"puts {above:.1%} of the mass above the size grid's top edge {e[-1]:.4g} m and {below:.1%} below its "
-                         f"lowest edge {e[0]:.4g} m; at most {OUTSIDE_GRID_MAX:.0%} may lie outside: widen [grid] "
-                         f"(x_min_m, x_max_m) or move the distribution", source)
+                         f"puts {above:.1%} of the mass above the size grid's top edge {e[-1]:.4g} m and {below:.1%} "
+                         f"below its lowest edge {e[0]:.4g} m; at most {OUTSIDE_GRID_MAX:.0%} may lie outside: widen "
+                         "[grid] (x_min_m, x_max_m) or move the distribution", source)
     return below
 
 
@@ -92,11 +92,14 @@ def build_material(s: Scene):
     m = s.material
     brk = materials.AustinBreakage(m.breakage.phi, m.breakage.gamma, m.breakage.beta)
     if m.model == "mineral":
-        return materials.Mineral(m.density_kg_per_m3, m.youngs_modulus_Pa, m.f_mat_kg_per_J_m, m.x_w_min_J_m_per_kg, brk)
+        return materials.Mineral(m.density_kg_per_m3, m.youngs_modulus_Pa, m.f_mat_kg_per_J_m, m.x_w_min_J_m_per_kg,
+                                 brk)
     if m.model == "yeast":
-        return materials.Yeast(m.density_kg_per_m3, m.youngs_modulus_Pa, m.burst_energy_median_J, m.burst_energy_sigma_ln, brk)
+        return materials.Yeast(m.density_kg_per_m3, m.youngs_modulus_Pa, m.burst_energy_median_J,
+                               m.burst_energy_sigma_ln, brk)
     sel = m.selection
-    return materials.Austin(m.density_kg_per_m3, m.youngs_modulus_Pa, sel.a_per_s, sel.x0_m, sel.alpha, sel.mu_m, sel.Lambda, brk)
+    return materials.Austin(m.density_kg_per_m3, m.youngs_modulus_Pa, sel.a_per_s, sel.x0_m, sel.alpha, sel.mu_m,
+                            sel.Lambda, brk)
 
 
 #: Q3 levels of the outputs x10, x50, x90
@@ -153,7 +156,8 @@ class MillModel:
         g = scene.grid
         self.grid = grid or kgrid.SizeGrid.geometric(g.x_min_m, g.x_max_m, g.classes_per_octave)
         self.material = build_material(scene)
-        self.operator = pbm.BreakageOperator(self.grid, self.material.breakage.cdf, inert_fragments=self.material.inert_fragments)
+        self.operator = pbm.BreakageOperator(self.grid, self.material.breakage.cdf,
+                                             inert_fragments=self.material.inert_fragments)
         self.continuous = scene.operation.mode == "continuous"
         self.n_tanks = scene.operation.n_tanks if self.continuous else 1
         self.kinetics_model = scene.kinetics.model
@@ -197,13 +201,15 @@ class MillModel:
             try:
                 table = read_table_ref(sd.table)
             except TableError as e:
-                raise SceneError("kinetics.stress_distribution.table", sd.table, f"cannot be used: {e}; {rebuild_hint(sd.table)}",
+                raise SceneError("kinetics.stress_distribution.table", sd.table,
+                                 f"cannot be used: {e}; {rebuild_hint(sd.table)}",
                                  self.scene.scene.name) from None
             self.warnings.extend(recording_warnings(table.manifest))
             on_outside, note = sd.on_outside, ""
             if self.no_dem and on_outside == "build":
                 on_outside, note = "refuse", NO_DEM_NOTE
-            return TableStressSource(table, component=sd.component, similar_axes=tuple(sd.similar_axes), on_outside=on_outside,
+            return TableStressSource(table, component=sd.component, similar_axes=tuple(sd.similar_axes),
+                                     on_outside=on_outside,
                                      on_stale=sd.on_stale, outside_note=note, error_multiple=self.table_error_multiple,
                                      collision_energy=sd.collision_energy)
         return LogNormalStressSource(sd.median_fraction, sd.sigma_ln, sd.collision_factor)
@@ -264,9 +270,9 @@ class MillModel:
         if not p < rates.ENERGY_LIMITED_P:
             return None
         return (f"detailed model energy-limited: breakage probability per stress over the feed {p:.2g} at the scene's "
-                f"operating point (below {rates.ENERGY_LIMITED_P:g}); its rate follows the collision power, so its trends along "
-                "bead diameter and density off this point leave the simple model's, which seed 000's measurements follow "
-                "(docs/rates-and-calibration.md, 'Which model to trust where')")
+                f"operating point (below {rates.ENERGY_LIMITED_P:g}); its rate follows the collision power, so its "
+                "trends along bead diameter and density off this point leave the simple model's, which seed 000's "
+                "measurements follow (docs/rates-and-calibration.md, 'Which model to trust where')")
 
     def cover_scene_point(self):
         """With ``on_outside = 'build'``: build the table for the scene's own operating point
@@ -282,7 +288,8 @@ class MillModel:
                 raise SceneError(TABLE_SCENE_KEYS[e.axis], e.value, f"{e.allowed} (on_outside = 'build')",
                                  self.scene.scene.name) from None
             raise SceneError("kinetics.stress_distribution.on_outside", "build",
-                             f"the table could not be extended to the scene's operating point: {e}", self.scene.scene.name) from None
+                             f"the table could not be extended to the scene's operating point: {e}",
+                             self.scene.scene.name) from None
 
     def inputs_of_scene(self) -> dict:
         """The scene's own operating inputs (tip speed, filling, solids)."""
@@ -388,7 +395,8 @@ class MillModel:
 
     def power_W(self, op: rates.OperatingPoint) -> float:
         m = self.scene.mill
-        return stress.stirrer_power_W(op.rho_eff_kg_per_m3, op.eta_eff_Pa_s, op.tip_speed_m_per_s, m.stirrer_radius_m, m.n_discs, m.power_number_laminar, m.power_number_turbulent)
+        return stress.stirrer_power_W(op.rho_eff_kg_per_m3, op.eta_eff_Pa_s, op.tip_speed_m_per_s, m.stirrer_radius_m,
+                                      m.n_discs, m.power_number_laminar, m.power_number_turbulent)
 
     def _number_concentration(self, y, op) -> float:
         """Product particles per suspension volume from the current PSD [1/m3] (intact cells for yeast)."""
@@ -438,7 +446,8 @@ class MillModel:
             if k == "psd_in":
                 # A host passes the same feed distribution at every step: the result of its
                 # check (the normalised fractions) is remembered by content.
-                raw = v.tobytes() if isinstance(v, np.ndarray) and v.dtype == np.float64 and v.shape == cur.shape else None
+                raw = v.tobytes() if isinstance(v,
+                                                np.ndarray) and v.dtype == np.float64 and v.shape == cur.shape else None
                 if raw is not None and raw == self._psd_in_checked[0]:
                     new[k] = self._psd_in_checked[1]
                     continue
@@ -478,7 +487,8 @@ class MillModel:
         new = self.check_inputs(inputs)
         self.inputs = new
         op = self.operating_point(new)
-        keep = {k: self._last[k] for k in ("t_s", "product_mass_flow_kg_per_s", "stress_number", "specific_energy_J_per_kg") if k in self._last}
+        keep = {k: self._last[k] for k in ("t_s", "product_mass_flow_kg_per_s", "stress_number",
+                                           "specific_energy_J_per_kg") if k in self._last}
         self._last = {**self._outputs(self.y, op, new, dt_s=0.0, out_kg=0.0), **keep}
         return self._last
 
@@ -554,12 +564,14 @@ class MillModel:
             # Absolute tolerance scaled with the mass in the state: classes below a
             # millionth of the total are controlled absolutely, the rest relatively.
             rtol = self.scene.run.rtol
-            y_new, _ = pbm.adaptive_exponential_step(self.y, self.t_s, h, system, rtol=rtol, atol=rtol * 1e-6 * max(self.y.sum(), 1e-300))
+            y_new, _ = pbm.adaptive_exponential_step(self.y, self.t_s, h, system, rtol=rtol,
+                                                     atol=rtol * 1e-6 * max(self.y.sum(), 1e-300))
             op_end = self.operating_point(end_inputs or new_inputs)
             return y_new, op, op_end, self._op_numbers(op), self._op_numbers(op_end)
         else:
             # Everything that depends only on the frozen inputs and h is built once.
-            key = (new_inputs["tip_speed_m_per_s"], new_inputs["solids_mass_fraction"], new_inputs["bead_filling"], new_inputs["feed_mass_flow_kg_per_s"], h)
+            key = (new_inputs["tip_speed_m_per_s"], new_inputs["solids_mass_fraction"], new_inputs["bead_filling"],
+                   new_inputs["feed_mass_flow_kg_per_s"], h)
             last = self._last_frozen
             if last[0] == key:  # the inputs and step of the step before (a host's usual case)
                 frozen = last[1]
@@ -705,8 +717,9 @@ class MillModel:
         b = float(out.get("below_grid_fraction", 0.0))
         if b <= OUTSIDE_GRID_MAX:
             return []
-        return [f"{b:.1%} of the product mass lies below the size grid (x < {self.grid.edges_m[0]:.3g} m) at t = {out['t_s']:g} s; "
-                f"its sizes are not resolved (x10 is reported as the lowest edge when inside it): lower grid.x_min_m to resolve it"]
+        return [f"{b:.1%} of the product mass lies below the size grid (x < {self.grid.edges_m[0]:.3g} m) at t = "
+                f"{out['t_s']:g} s; its sizes are not resolved (x10 is reported as the lowest edge when inside it): "
+                "lower grid.x_min_m to resolve it"]
 
     def tank_masses_kg(self) -> np.ndarray:
         """Copy of the masses per tank (first tank first) and state entry [kg], shape (N, m)."""
@@ -725,4 +738,5 @@ class MillModel:
 
 def with_grid(scene: Scene, x_min_m: float, x_max_m: float, classes_per_octave: float) -> Scene:
     """Copy of a scene with another size grid."""
-    return replace(scene, grid=replace(scene.grid, x_min_m=x_min_m, x_max_m=x_max_m, classes_per_octave=classes_per_octave))
+    return replace(scene,
+                   grid=replace(scene.grid, x_min_m=x_min_m, x_max_m=x_max_m, classes_per_octave=classes_per_octave))

@@ -63,7 +63,8 @@ PARAMETERS = {
     "tip_speed": ("tip speed", "m/s", "mill", "tip_speed_m_per_s", "tip_speed_m_per_s", "tip_speed_m_s"),
     "bead_diameter": ("bead diameter", "m", "beads", "diameter_m", "d_gb_m", "bead_diameter_m"),
     "bead_density": ("bead density", "kg/m3", "beads", "density_kg_per_m3", "rho_gb_kg_per_m3", "bead_density_kg_m3"),
-    "solids_mass_fraction": ("solids mass fraction", "-", "suspension", "solids_mass_fraction", "solids_mass_fraction", None),
+    "solids_mass_fraction": ("solids mass fraction", "-", "suspension", "solids_mass_fraction", "solids_mass_fraction",
+                             None),
     "filling": ("bead filling", "-", "mill", "bead_filling", "filling", "filling"),
 }
 #: Default values of the variations around the reference (the reference value is added):
@@ -420,14 +421,17 @@ def _default_sizes(scene, model) -> tuple:
 def _check_value(parameter, v, scene):
     from .scene import SceneError
 
-    lo = {"tip_speed": 0.0, "bead_diameter": 1e-5, "bead_density": 500.0, "solids_mass_fraction": 0.0, "filling": 0.0}[parameter]
+    lo = {"tip_speed": 0.0, "bead_diameter": 1e-5, "bead_density": 500.0, "solids_mass_fraction": 0.0,
+          "filling": 0.0}[parameter]
     hi = {"tip_speed": 40.0, "bead_diameter": 0.05, "bead_density": 20000.0, "solids_mass_fraction": 0.8,
           "filling": min(1.0, 0.64 / (1.0 - scene.mill.bead_porosity))}[parameter]
     if not (math.isfinite(v) and lo < v < hi):
-        raise SceneError(f"--values {parameter}", v, f"must lie in ({lo:g}, {hi:g}) {PARAMETERS[parameter][1]}", "millfmu rates")
+        raise SceneError(f"--values {parameter}", v, f"must lie in ({lo:g}, {hi:g}) {PARAMETERS[parameter][1]}",
+                         "millfmu rates")
 
 
-def compute(scene, name: str | None = None, sizes_m=None, values: dict | None = None, detailed_scene=None) -> RatesResult:
+def compute(scene, name: str | None = None, sizes_m=None, values: dict | None = None,
+            detailed_scene=None) -> RatesResult:
     """Rates of both models along every parameter for ``scene`` (its operating point is the
     reference). ``sizes_m``: sizes of S(x) [m] (default: feed x10/x50/x90, cells: x50);
     ``values``: parameter -> values to use instead of :data:`DEFAULT_VALUES`;
@@ -480,8 +484,8 @@ def compute(scene, name: str | None = None, sizes_m=None, values: dict | None = 
             for k, v in enumerate(vals):
                 op = replace(base, **{op_field: float(v)})
                 se[k], sep[k] = op.se_beads_J, op.se_product_J
-                label = "Kwade: SE_P per stress, SF = k_c omega n_gb P_cap / (n_p (1 - c_v))" if model_name == "simple" \
-                    else coverage[p].label(float(v))
+                label = ("Kwade: SE_P per stress, SF = k_c omega n_gb P_cap / (n_p (1 - c_v))" if model_name == "simple"
+                         else coverage[p].label(float(v)))
                 try:
                     rate = _rates_at(model_name, m, op, x, sizes, w_feed if is_cells else None)
                     coll = None if model_name == "simple" else _collision_rate(src, op)
@@ -490,7 +494,8 @@ def compute(scene, name: str | None = None, sizes_m=None, values: dict | None = 
                     notes.append(f"refused: {e}")
                     continue
                 sf_x = op.stress_frequency_per_s(x, None, coll)
-                p_cap = kstress.capture_probability(op.class_number_concentration_per_m3(x), kstress.active_volume_m3(x, op.d_gb_m))
+                p_cap = kstress.capture_probability(op.class_number_concentration_per_m3(x),
+                                                    kstress.active_volume_m3(x, op.d_gb_m))
                 for i, xs in enumerate(sizes):
                     q = _size_key(xs)
                     sf_q[q][k], pcap_q[q][k] = sf_x[i], p_cap[i]
@@ -597,7 +602,8 @@ def summary(result: RatesResult) -> str:
     note = result.regime_note()
     if note:
         lines.append(textwrap.fill(note, 110))
-    head = f"{'parameter':22s} {'value':>10s} " + " ".join(f"{_qlabel(q) + ' ' + m[:3]:>22s}" for q in qs for m in MODELS)
+    head = f"{'parameter':22s} {'value':>10s} " + " ".join(f"{_qlabel(q) + ' ' + m[:3]:>22s}" for q in qs
+                                                           for m in MODELS)
     lines.append(head)
     for p in PARAMETERS:
         vals = result.curve(p, "simple").values
@@ -607,7 +613,8 @@ def summary(result: RatesResult) -> str:
             mark = "*" if k == result.reference_index(p) else " "
             det_src = result.curve(p, "detailed").sources[k]
             flag = " (sim.)" if "similarity" in det_src else ""
-            cells = " ".join(f"{_fmt(rel[(q, m)][k]) + (flag if m == 'detailed' else ''):>22s}" for q in qs for m in MODELS)
+            cells = " ".join(f"{_fmt(rel[(q, m)][k]) + (flag if m == 'detailed' else ''):>22s}" for q in qs
+                             for m in MODELS)
             lines.append(f"{PARAMETERS[p][0]:22s} {v:>9.4g}{mark} {cells}")
     lines.append("* reference point; (sim.): detailed model on the table with similarity assumed along that axis")
     return "\n".join(lines)
@@ -655,7 +662,8 @@ def plot(result: RatesResult, path):
                 ax.plot(xv, rel, style, color=c, label=f"{m}, {_qlabel(q)}")
                 band = shown_band(p, q) if m == "detailed" else ()
                 if band:
-                    ax.fill_between(xv, *band, color=c, alpha=0.15, lw=0, label=f"detailed, {_qlabel(q)}: table's stated error")
+                    ax.fill_between(xv, *band, color=c, alpha=0.15, lw=0,
+                                    label=f"detailed, {_qlabel(q)}: table's stated error")
                 if m == "detailed":
                     sim = np.array(["similarity" in s for s in cur.sources])
                     ax.plot(xv[~sim], rel[~sim], "s", color=c, ms=4)
@@ -772,7 +780,8 @@ def _parse_values(items) -> dict:
         try:
             out[name.strip()] = [float(v) for v in rest.split(",") if v.strip()]
         except ValueError:
-            raise SceneError("--values", item, "must be PARAMETER=V1,V2,... with numbers in SI units", "millfmu rates") from None
+            raise SceneError("--values", item, "must be PARAMETER=V1,V2,... with numbers in SI units",
+                             "millfmu rates") from None
         if not out[name.strip()]:
             raise SceneError("--values", item, "must be PARAMETER=V1,V2,... with at least one value", "millfmu rates")
     return out
@@ -789,7 +798,8 @@ def _cmd_rates(args) -> int:
     else:
         jobs = [(pair.material, *pair.scenes()) for pair in cal.SHIPPED]
     check_out_dir(args.out)
-    results = [compute(scene, name=name, sizes_m=args.sizes, values=values, detailed_scene=det) for name, scene, det in jobs]
+    results = [compute(scene, name=name, sizes_m=args.sizes, values=values, detailed_scene=det)
+               for name, scene, det in jobs]
     calibration = None
     if not args.scene:
         calibration = [cal.check(pair) for pair in cal.SHIPPED]
@@ -799,8 +809,8 @@ def _cmd_rates(args) -> int:
             print(f"  detailed model along {PARAMETERS[p][0]}: {d}")
         print()
     if calibration:
-        print("calibration at each pair's reference point (stand-in data, not measurements): the simple model's k_c fitted "
-              "to the datum, the detailed model's material constant to the stand-in curve with eta_E = 1:")
+        print("calibration at each pair's reference point (stand-in data, not measurements): the simple model's k_c "
+              "fitted to the datum, the detailed model's material constant to the stand-in curve with eta_E = 1:")
         for c in calibration:
             unit = "um" if c["quantity"] == "x50_m" else ""
             f = 1e6 if unit else 1.0
@@ -817,12 +827,14 @@ def _cmd_rates(args) -> int:
 def register(sub):
     r = sub.add_parser("rates", help="breakage rates of the simple and the detailed model against each operating "
                                      "parameter, relative to the scene's operating point (CSV, PNG)")
-    r.add_argument("scene", nargs="*", help="scene files (TOML); none: the shipped calibrated pairs of yeast and limestone")
+    r.add_argument("scene", nargs="*",
+                   help="scene files (TOML); none: the shipped calibrated pairs of yeast and limestone")
     r.add_argument("--out", default="out/rates", help="output folder (default: ./out/rates)")
     r.add_argument("--sizes", type=float, nargs="+", default=None,
                    help="sizes [m] of S(x) (default: the feed's x10, x50, x90; cells: x50)")
     r.add_argument("--values", action="append", metavar="PARAMETER=V1,V2,...",
-                   help=f"values of one parameter instead of the defaults, SI units; parameters: {', '.join(PARAMETERS)}")
+                   help="values of one parameter instead of the defaults, SI units; parameters: "
+                        f"{', '.join(PARAMETERS)}")
     r.add_argument("--no-plots", action="store_true", help="skip the PNG plots")
     r.set_defaults(func=_cmd_rates)
 

@@ -144,17 +144,20 @@ def process_section(out: Path, quick: bool, log=print) -> str:
     band = prediction_band(scene)
     if band is not None and "x50_m" in band["outputs"]:
         lo, hi = band["outputs"]["x50_m"]
-        parts = {"table": "the stress-energy table's stated error (every zone's collision rate and median energy at the "
-                          "edges of its stated error)",
+        parts = {"table": "the stress-energy table's stated error (every zone's collision rate and median energy at "
+                          "the edges of its stated error)",
                  "calibration": "the fitted constants' 95 % intervals"}
-        said = "; ".join(f"{parts[k]}: [{v['outputs']['x50_m'][0] * 1e6:.3g}, {v['outputs']['x50_m'][1] * 1e6:.3g}] \u00b5m"
+        said = "; ".join(f"{parts[k]}: [{v['outputs']['x50_m'][0] * 1e6:.3g}, {v['outputs']['x50_m'][1] * 1e6:.3g}] "
+                         "\u00b5m"
                          for k, v in band["parts"].items())
         zone_html = (f"<p>Prediction band: x50 after {band['t_s']:g} s {records[-1]['x50_m'] * 1e6:.3g} \u00b5m in "
                      f"[{lo * 1e6:.3g}, {hi * 1e6:.3g}] \u00b5m, from {said}.</p>") + zone_html
     idx = np.unique(np.linspace(0, len(records) - 1, min(8, len(records))).round().astype(int))
-    rows = [[f"{records[i]['t_s']:g}", _fmt(records[i]["x10_m"] * 1e6, ".3g", None), _fmt(records[i]["x50_m"] * 1e6, ".3g", None),
+    rows = [[f"{records[i]['t_s']:g}", _fmt(records[i]["x10_m"] * 1e6, ".3g", None),
+             _fmt(records[i]["x50_m"] * 1e6, ".3g", None),
              _fmt(records[i]["x90_m"] * 1e6, ".3g", None), _fmt(e_m[i], ".3g", None),
-             _fmt(records[i].get("power_W"), ".3g", None), _fmt(100.0 * records[i].get("below_grid_fraction", 0.0), ".2f", None)]
+             _fmt(records[i].get("power_W"), ".3g", None),
+             _fmt(100.0 * records[i].get("below_grid_fraction", 0.0), ".2f", None)]
             for i in idx]
     s = scene
     return "\n".join([
@@ -199,7 +202,8 @@ def _zone_map(out: Path, model) -> str:
     z = np.linspace(g.disc_z_m - 0.5 * g.height_m, g.disc_z_m + 0.5 * g.height_m, 300)
     rr, zz = np.meshgrid(r, z)
     zid = zones.classify(np.column_stack([rr.ravel(), np.zeros(rr.size), zz.ravel()])).reshape(rr.shape)
-    fields = (("collision rate [1/(m3 s)]", np.array([q.collision_rate_per_m3_s for q in zs]), err["collision_frequency"]),
+    fields = (("collision rate [1/(m3 s)]", np.array([q.collision_rate_per_m3_s for q in zs]),
+               err["collision_frequency"]),
               ("median stress energy SE [J]", np.array([q.median_energy_J for q in zs]), err["se_median"]))
     fig, axes = plt.subplots(1, 2, figsize=(12.5, 4.6))
     for ax, (label, vals, rel) in zip(axes, fields):
@@ -220,8 +224,9 @@ def _zone_map(out: Path, model) -> str:
                         bbox=dict(boxstyle="round,pad=0.2", fc="black", alpha=0.45, lw=0))
         ax.set(xlabel="axial position z [mm] (disc in grey)", ylabel="radius r [mm]", title=label)
         fig.colorbar(m, ax=ax, shrink=0.9)
-    fig.suptitle(f"DEM zones of the default scene's table at {op.tip_speed_m_per_s:g} m/s and {100 * model.inputs['bead_filling']:g} % "
-                 f"filling (component {src.component}; \u00b1: stated relative error)", fontsize=10)
+    fig.suptitle(f"DEM zones of the default scene's table at {op.tip_speed_m_per_s:g} m/s and "
+                 f"{100 * model.inputs['bead_filling']:g} % filling (component {src.component}; \u00b1: stated "
+                 "relative error)", fontsize=10)
     plain_log_ticks(fig)
     fig.tight_layout()
     fig.savefig(out / "process_zones.png", dpi=80)

@@ -103,7 +103,8 @@ def check_out_dir(out_dir) -> Path:
             why = "" if where == out else (
                 f"; the results are first written into a hidden folder {TEMP_PREFIX}* in {where} beside it and "
                 "switched in with one rename")
-            raise OutputError(out, f"cannot write there ({e.strerror or e}: {where}{why}); give a writable folder") from None
+            raise OutputError(out,
+                              f"cannot write there ({e.strerror or e}: {where}{why}); give a writable folder") from None
     return out
 
 
@@ -180,7 +181,8 @@ def _switch_in(tmp: Path, out: Path) -> None:
         return
     entries = list(out.iterdir())
     cwd = Path(os.getcwd()).resolve()
-    whole = all(e.is_file() and not e.is_symlink() for e in entries) and not (cwd == out.resolve() or out.resolve() in cwd.parents)
+    whole = all(e.is_file() and not e.is_symlink() for e in entries) and not (cwd == out.resolve()
+                                                                              or out.resolve() in cwd.parents)
     if whole:
         for e in entries:
             if e.name in RESULT_FILES or e.name == MARKER or (tmp / e.name).exists():
@@ -340,13 +342,15 @@ def prediction_band(scene: Scene, multiple: float = 1.0) -> dict | None:
         table = {
             "outputs": span([lo, hi]),
             "zones": err["zones"],
-            "collision_frequency_relative_error": [float(v) if np.isfinite(v) else None for v in err["collision_frequency"]],
+            "collision_frequency_relative_error": [float(v) if np.isfinite(v) else None
+                                                   for v in err["collision_frequency"]],
             "se_median_relative_error": [float(v) if np.isfinite(v) else None for v in err["se_median"]],
-            "method": ("two runs with every zone's collision frequency and median stress energy at the edges of the table's "
-                       "stated relative error b, factors (1 + b)^-1 and (1 + b); b = interpolation error + 2 sigma of the DEM "
-                       "sampling at the last operating point + the work-precision expected error (recording, spin-up, "
-                       "sector, step, coupling) + the spread of independent DEM realizations + off the anchor the "
-                       "one-at-a-time axes' separability error measured by the table's checks, per zone"),
+            "method": ("two runs with every zone's collision frequency and median stress energy at the edges of the "
+                       "table's stated relative error b, factors (1 + b)^-1 and (1 + b); b = interpolation error + 2 "
+                       "sigma of the DEM sampling at the last operating point + the work-precision expected error "
+                       "(recording, spin-up, sector, step, coupling) + the spread of independent DEM realizations + "
+                       "off the anchor the one-at-a-time axes' separability error measured by the table's checks, per "
+                       "zone"),
         }
         out["parts"]["table"] = table
         out.update({k: v for k, v in table.items() if k != "outputs"})  # the table's figures at the top, as before
@@ -362,8 +366,10 @@ def prediction_band(scene: Scene, multiple: float = 1.0) -> dict | None:
         runs += cal_runs
         out["parts"]["calibration"] = {
             "outputs": span(cal_runs),
-            "constants": [{"key": k, "value": float(number_key(scene, k)), "ci95": [float(a), float(b)]} for k, a, b in fitted],
-            "method": "two runs per fitted constant, at each end of its 95 % interval (scene.fitted), the others at their values",
+            "constants": [{"key": k, "value": float(number_key(scene, k)), "ci95": [float(a), float(b)]}
+                          for k, a, b in fitted],
+            "method": "two runs per fitted constant, at each end of its 95 % interval (scene.fitted), the others at "
+                      "their values",
         }
         if has_table:
             more, less = scene, scene
@@ -371,8 +377,8 @@ def prediction_band(scene: Scene, multiple: float = 1.0) -> dict | None:
                 more, less = _with_value(more, k, hi_end), _with_value(less, k, lo_end)
             runs += [last(more, multiple)[1], last(less, -multiple)[1]]
     if left_out:
-        out["notes"] = [f"{k} = {number_key(scene, k):.6g} lies outside its recorded 95 % interval [{a:.6g}, {b:.6g}], which "
-                        f"belongs to another value of it: not carried into the band" for k, a, b in left_out]
+        out["notes"] = [f"{k} = {number_key(scene, k):.6g} lies outside its recorded 95 % interval [{a:.6g}, {b:.6g}], "
+                        "which belongs to another value of it: not carried into the band" for k, a, b in left_out]
     out["t_s"] = runs[0]["t_s"]
     out["multiple"] = multiple
     out["outputs"] = span(runs)
@@ -414,7 +420,8 @@ def provenance(scene: Scene, model: MillModel, wall_s: float | None = None) -> d
     table = getattr(src, "table", None)
     if table is not None:
         m = table.manifest
-        ident = {"ref": scene.kinetics.stress_distribution.table, "key": m.get("key"), "manifest_sha256": m.get("manifest_sha256"),
+        ident = {"ref": scene.kinetics.stress_distribution.table, "key": m.get("key"),
+                 "manifest_sha256": m.get("manifest_sha256"),
                  "files": m.get("files"), "kernel_version": m.get("kernel_version"), "builder": m.get("builder"),
                  "grid": m.get("grid"), "resolution": m.get("resolution"), "rebuild_command": m.get("rebuild_command")}
         lk = getattr(src, "last_lookup", None)
@@ -446,8 +453,8 @@ def write_results(out_dir: str | Path, scene: Scene, model: MillModel, records, 
     out.parent.mkdir(parents=True, exist_ok=True)
     clean_leftovers(out.parent)
     if (out / MARKER).exists():
-        print(f"millfmu: warning: --out {out}: an earlier run was stopped while it replaced the result files one by one "
-              "(the folder holds sub-folders); this run replaces them all", file=sys.stderr)
+        print(f"millfmu: warning: --out {out}: an earlier run was stopped while it replaced the result files one by "
+              "one (the folder holds sub-folders); this run replaces them all", file=sys.stderr)
     tmp = staging_dir(out, f"{TEMP_PREFIX}{os.getpid()}-new-")
     try:
         op = model.operating_point(model.inputs)
@@ -600,7 +607,8 @@ def summary_table(records, rows: int = 8) -> str:
     """A short fixed-width table of the run for the terminal."""
     idx = np.unique(np.linspace(0, len(records) - 1, min(rows, len(records))).round().astype(int))
     yeast = "disrupted_fraction" in records[0]
-    head = f"{'t [s]':>9} {'x10 [um]':>9} {'x50 [um]':>9} {'x90 [um]':>9} {'SF@x50 [1/s]':>13} {'E_m [kJ/kg]':>12} {'holdup [kg]':>11}"
+    head = (f"{'t [s]':>9} {'x10 [um]':>9} {'x50 [um]':>9} {'x90 [um]':>9} {'SF@x50 [1/s]':>13} {'E_m [kJ/kg]':>12} "
+            f"{'holdup [kg]':>11}")
     if yeast:
         head += f" {'disrupted':>9}"
     lines = [head, "-" * len(head)]

@@ -36,7 +36,8 @@ class SceneError(ValueError):
         super().__init__(f"{source}: {key} = {shown}: {allowed}")
 
 
-def _f(default=MISSING, *, unit="", lo=None, hi=None, lo_open=False, hi_open=False, choices=None, allow_inf=False, doc=""):
+def _f(default=MISSING, *, unit="", lo=None, hi=None, lo_open=False, hi_open=False, choices=None, allow_inf=False,
+       doc=""):
     """Field with unit, bounds and choices kept as metadata for validation and listing;
     allow_inf: the number may be infinite (e.g. "no maximum")."""
     md = dict(unit=unit, lo=lo, hi=hi, lo_open=lo_open, hi_open=hi_open, choices=choices, allow_inf=allow_inf, doc=doc)
@@ -54,37 +55,56 @@ def _f(default=MISSING, *, unit="", lo=None, hi=None, lo_open=False, hi_open=Fal
 class SceneInfo:
     name: str = _f("unnamed", doc="name of the scene")
     description: str = _f("", doc="free text")
-    calibration: str = _f("", doc="what the scene's fitted constants were fitted to (data and whether they are measured or a stand-in, values with 95 % intervals); written by millfmu calibrate; carried into a run's provenance and the FMU's description")
-    fitted: list = _f([], doc="the scene's fitted constants (dotted keys, e.g. material.f_mat_kg_per_J_m) whose 95 % intervals the prediction band carries through the model; written by millfmu calibrate")
-    fitted_ci95_low: list = _f([], doc="the lower end of each fitted constant's 95 % interval, in the order of fitted and in its key's unit")
-    fitted_ci95_high: list = _f([], doc="the upper end of each fitted constant's 95 % interval, in the order of fitted and in its key's unit")
+    calibration: str = _f("",
+                          doc="what the scene's fitted constants were fitted to (data and whether they are measured or "
+                              "a stand-in, values with 95 % intervals); written by millfmu calibrate; carried into a "
+                              "run's provenance and the FMU's description")
+    fitted: list = _f([],
+                      doc="the scene's fitted constants (dotted keys, e.g. material.f_mat_kg_per_J_m) whose 95 % "
+                          "intervals the prediction band carries through the model; written by millfmu calibrate")
+    fitted_ci95_low: list = _f([],
+                               doc="the lower end of each fitted constant's 95 % interval, in the order of fitted and "
+                                   "in its key's unit")
+    fitted_ci95_high: list = _f([],
+                                doc="the upper end of each fitted constant's 95 % interval, in the order of fitted and "
+                                    "in its key's unit")
 
 
 @dataclass(frozen=True)
 class Mill:
-    stirrer_radius_m: float = _f(0.036, unit="m", lo=0.0, hi=5.0, lo_open=True, doc="stirrer (disc) radius R; tip speed = omega R")
+    stirrer_radius_m: float = _f(0.036, unit="m", lo=0.0, hi=5.0, lo_open=True,
+                                 doc="stirrer (disc) radius R; tip speed = omega R")
     chamber_volume_m3: float = _f(1.0e-3, unit="m3", lo=0.0, hi=100.0, lo_open=True, doc="grinding chamber volume")
     tip_speed_m_per_s: float = _f(10.0, unit="m/s", lo=0.0, hi=40.0, doc="stirrer tip speed v_t")
-    bead_filling: float = _f(0.8, lo=0.0, hi=1.0, lo_open=True, hi_open=True, doc="bead filling phi: bulk bead volume at rest over chamber volume")
+    bead_filling: float = _f(0.8, lo=0.0, hi=1.0, lo_open=True, hi_open=True,
+                             doc="bead filling phi: bulk bead volume at rest over chamber volume")
     bead_porosity: float = _f(0.4, lo=0.2, hi=0.8, doc="porosity of the bead bulk at rest eps")
     n_discs: int = _f(5, lo=1, hi=1000, doc="number of stirrer discs (stirrer power)")
-    power_number_laminar: float = _f(100.0, lo=0.0, doc="C_lam of Ne = C_lam/Re + C_turb (stirrer power characteristic; fit to the mill)")
+    power_number_laminar: float = _f(100.0, lo=0.0,
+                                     doc="C_lam of Ne = C_lam/Re + C_turb (stirrer power characteristic; fit to the "
+                                         "mill)")
     power_number_turbulent: float = _f(0.1, lo=0.0, doc="C_turb of Ne = C_lam/Re + C_turb")
-    stress_frequency_factor: float = _f(1.0, lo=0.0, doc="simple model: k_c of n_c/t = k_c omega n_gb (Kwade's proportionality constant; the simple model's fitted constant)")
+    stress_frequency_factor: float = _f(1.0, lo=0.0,
+                                        doc="simple model: k_c of n_c/t = k_c omega n_gb (Kwade's proportionality "
+                                            "constant; the simple model's fitted constant)")
 
 
 @dataclass(frozen=True)
 class Beads:
     diameter_m: float = _f(0.8e-3, unit="m", lo=1e-5, hi=0.05, doc="grinding bead diameter d_gb")
     density_kg_per_m3: float = _f(2510.0, unit="kg/m3", lo=500.0, hi=20000.0, doc="grinding bead density rho_gb")
-    youngs_modulus_Pa: float = _f(63e9, unit="Pa", lo=0.0, lo_open=True, doc="Young's modulus of the beads Y_GM (elasticity factor)")
+    youngs_modulus_Pa: float = _f(63e9, unit="Pa", lo=0.0, lo_open=True,
+                                  doc="Young's modulus of the beads Y_GM (elasticity factor)")
 
 
 @dataclass(frozen=True)
 class Suspension:
     liquid_density_kg_per_m3: float = _f(998.2, unit="kg/m3", lo=500.0, hi=3000.0, doc="liquid density")
-    viscosity_Pa_s: float = _f(1.002e-3, unit="Pa s", lo=0.0, hi=100.0, lo_open=True, doc="suspension viscosity eta_susp (Krieger-Dougherty base)")
-    solids_mass_fraction: float = _f(0.2, lo=0.0, lo_open=True, hi=0.8, hi_open=True, doc="product solids mass fraction of the suspension (> 0: a suspension without solids has no product to grind, and its feed flow no volume)")
+    viscosity_Pa_s: float = _f(1.002e-3, unit="Pa s", lo=0.0, hi=100.0, lo_open=True,
+                               doc="suspension viscosity eta_susp (Krieger-Dougherty base)")
+    solids_mass_fraction: float = _f(0.2, lo=0.0, lo_open=True, hi=0.8, hi_open=True,
+                                     doc="product solids mass fraction of the suspension (> 0: a suspension without "
+                                         "solids has no product to grind, and its feed flow no volume)")
 
 
 @dataclass(frozen=True)
@@ -107,24 +127,46 @@ class Selection:
 class Material:
     model: str = _f("mineral", choices=("mineral", "yeast", "austin"), doc="material model")
     density_kg_per_m3: float = _f(2710.0, unit="kg/m3", lo=100.0, hi=25000.0, doc="particle density rho_P")
-    youngs_modulus_Pa: float = _f(70e9, unit="Pa", lo=0.0, lo_open=True, doc="particle Young's modulus Y_P (elasticity factor)")
+    youngs_modulus_Pa: float = _f(70e9, unit="Pa", lo=0.0, lo_open=True,
+                                  doc="particle Young's modulus Y_P (elasticity factor)")
     f_mat_kg_per_J_m: float = _f(1.0, unit="kg/(J m)", lo=0.0, lo_open=True, doc="mineral: Vogel-Peukert f_Mat")
     x_w_min_J_m_per_kg: float = _f(1.0, unit="J m/kg", lo=0.0, doc="mineral: Vogel-Peukert x W_m,min")
     burst_energy_median_J: float = _f(2e-5, unit="J", lo=0.0, lo_open=True, doc="yeast: median burst energy")
-    burst_energy_sigma_ln: float = _f(1.0, lo=0.0, lo_open=True, hi=10.0, doc="yeast: std. deviation of ln(burst energy)")
+    burst_energy_sigma_ln: float = _f(1.0, lo=0.0, lo_open=True, hi=10.0,
+                                      doc="yeast: std. deviation of ln(burst energy)")
     breakage: Breakage = _f(Breakage(), doc="breakage function (fragments; debris for yeast)")
     selection: Selection = _f(Selection(), doc="austin: selection function straight from the scene")
 
 
 @dataclass(frozen=True)
 class StressDistribution:
-    source: str = _f("lognormal", choices=("lognormal", "table"), doc="stress-energy source of the detailed model: log-normal, or a DEM table")
-    table: str = _f("coupled", doc="table: a shipped table by name ('coupled': the coupled DEM-CFD disc slice, the default scene's; 'prescribed': the disc slice with a prescribed swirl, for comparison; 'accelerator'; millfmu/data/NAME_table; 'default' names the default scene's) or PREFIX of PREFIX.npz/PREFIX.json")
+    source: str = _f("lognormal", choices=("lognormal", "table"),
+                     doc="stress-energy source of the detailed model: log-normal, or a DEM table")
+    table: str = _f("coupled",
+                    doc="table: a shipped table by name ('coupled': the coupled DEM-CFD disc slice, the default "
+                        "scene's; 'prescribed': the disc slice with a prescribed swirl, for comparison; 'accelerator'; "
+                        "millfmu/data/NAME_table; 'default' names the default scene's) or PREFIX of "
+                        "PREFIX.npz/PREFIX.json")
     component: str = _f("tn", choices=("tn", "total"), doc="table: stress-energy component (tn: normal impact energy)")
-    collision_energy: str = _f("bead_mass", choices=("bead_mass", "reduced_mass"), doc="table: a bead-bead collision's energy as seed 001 eq. 1 defines SE_tn, 1/2 m_GM v_rel^2 with the bead's mass (bead_mass; twice the pair's centre-of-mass energy for equal beads), or 1/2 m* v_rel^2 with the pair's reduced mass m* = m_GM/2, as the DEM records it (reduced_mass)")
-    similar_axes: list = _f([], choices=("tip_speed_m_s", "bead_diameter_m", "bead_density_kg_m3", "viscosity_pa_s"), doc="table: axes along which similarity is assumed: an axis the table does not vary (bead_diameter_m, bead_density_kg_m3, viscosity_pa_s) may differ from the table's value, and a value outside the grid (also tip_speed_m_s) uses the nearest edge's dimensionless fields")
-    on_outside: str = _f("refuse", choices=("refuse", "build"), doc="table: operating point outside the grid: refuse, or build a covering table with the DEM (only the missing points run; a point the table's DEM scene cannot run is refused when the scene is loaded; an FMU carries the table build-fmu built and refuses outside it)")
-    on_stale: str = _f("refuse", choices=("refuse", "rebuild", "accept"), doc="table, on_outside = 'build': where the installed DEM's kernel version is not the table's (the code changed since it was built): refuse the build (the message names the cost of the full rebuild), rebuild every point with the installed DEM, or accept the table's points as they are and run only the new ones (millfmu run --on-stale overrides)")
+    collision_energy: str = _f("bead_mass", choices=("bead_mass", "reduced_mass"),
+                               doc="table: a bead-bead collision's energy as seed 001 eq. 1 defines SE_tn, 1/2 m_GM "
+                                   "v_rel^2 with the bead's mass (bead_mass; twice the pair's centre-of-mass energy "
+                                   "for equal beads), or 1/2 m* v_rel^2 with the pair's reduced mass m* = m_GM/2, as "
+                                   "the DEM records it (reduced_mass)")
+    similar_axes: list = _f([], choices=("tip_speed_m_s", "bead_diameter_m", "bead_density_kg_m3", "viscosity_pa_s"),
+                            doc="table: axes along which similarity is assumed: an axis the table does not vary "
+                                "(bead_diameter_m, bead_density_kg_m3, viscosity_pa_s) may differ from the table's "
+                                "value, and a value outside the grid (also tip_speed_m_s) uses the nearest edge's "
+                                "dimensionless fields")
+    on_outside: str = _f("refuse", choices=("refuse", "build"),
+                         doc="table: operating point outside the grid: refuse, or build a covering table with the DEM "
+                             "(only the missing points run; a point the table's DEM scene cannot run is refused when "
+                             "the scene is loaded; an FMU carries the table build-fmu built and refuses outside it)")
+    on_stale: str = _f("refuse", choices=("refuse", "rebuild", "accept"),
+                       doc="table, on_outside = 'build': where the installed DEM's kernel version is not the table's "
+                           "(the code changed since it was built): refuse the build (the message names the cost of the "
+                           "full rebuild), rebuild every point with the installed DEM, or accept the table's points as "
+                           "they are and run only the new ones (millfmu run --on-stale overrides)")
     median_fraction: float = _f(0.01, lo=0.0, hi=1.0, lo_open=True, doc="lognormal: median collision energy over SE")
     sigma_ln: float = _f(1.5, lo=0.0, hi=10.0, lo_open=True, doc="lognormal: std. deviation of ln(energy)")
     collision_factor: float = _f(1.0, lo=0.0, doc="lognormal: collisions per volume over omega n_gb")
@@ -132,22 +174,30 @@ class StressDistribution:
 
 @dataclass(frozen=True)
 class Kinetics:
-    model: str = _f("simple", choices=("simple", "detailed", "none"), doc="stress model: Kwade simple, detailed (SE distribution), none (rates from the scene)")
-    capture: str = _f("class", choices=("class", "psd"), doc="number concentration in P_cap: per size class (rates frozen) or from the current PSD (state-dependent)")
-    energy_transfer: float = _f(1.0, lo=0.0, hi=1.0, lo_open=True, doc="detailed model: share eta_E of a collision's energy that reaches a captured particle (before the elasticity factor); the detailed model's fitted constant, as mill.stress_frequency_factor is the simple model's")
+    model: str = _f("simple", choices=("simple", "detailed", "none"),
+                    doc="stress model: Kwade simple, detailed (SE distribution), none (rates from the scene)")
+    capture: str = _f("class", choices=("class", "psd"),
+                      doc="number concentration in P_cap: per size class (rates frozen) or from the current PSD "
+                          "(state-dependent)")
+    energy_transfer: float = _f(1.0, lo=0.0, hi=1.0, lo_open=True,
+                                doc="detailed model: share eta_E of a collision's energy that reaches a captured "
+                                    "particle (before the elasticity factor); the detailed model's fitted constant, as "
+                                    "mill.stress_frequency_factor is the simple model's")
     stress_distribution: StressDistribution = _f(StressDistribution(), doc="detailed model's stress-energy source")
 
 
 @dataclass(frozen=True)
 class Grid:
     x_min_m: float = _f(0.1e-6, unit="m", lo=1e-10, hi=1.0, doc="lower edge of the finest class")
-    x_max_m: float = _f(200e-6, unit="m", lo=1e-9, hi=1.0, doc="upper edge of the coarsest class (rounded up to whole classes)")
+    x_max_m: float = _f(200e-6, unit="m", lo=1e-9, hi=1.0,
+                        doc="upper edge of the coarsest class (rounded up to whole classes)")
     classes_per_octave: float = _f(4.0, lo=0.25, hi=64.0, doc="classes per doubling of size")
 
 
 @dataclass(frozen=True)
 class PSD:
-    kind: str = _f("lognormal", choices=("lognormal", "rrsb", "monodisperse", "table"), doc="size distribution by name or table")
+    kind: str = _f("lognormal", choices=("lognormal", "rrsb", "monodisperse", "table"),
+                   doc="size distribution by name or table")
     x50_m: float = _f(None, unit="m", lo=0.0, lo_open=True, doc="lognormal: median size")
     sigma_ln: float = _f(None, lo=0.0, lo_open=True, hi=10.0, doc="lognormal: std. deviation of ln x")
     x63_m: float = _f(None, unit="m", lo=0.0, lo_open=True, doc="rrsb: size at Q3 = 0.632")
@@ -169,7 +219,8 @@ class Run:
     t_end_s: float = _f(1800.0, unit="s", lo=0.0, lo_open=True, hi=1e8, doc="end time")
     dt_s: float = _f(1.0, unit="s", lo=0.0, lo_open=True, doc="step size")
     output_interval_s: float = _f(60.0, unit="s", lo=0.0, lo_open=True, doc="time between outputs")
-    integrator: str = _f("exact", choices=("exact", "adaptive"), doc="exact step with frozen rates, or adaptive (rates varying within a step)")
+    integrator: str = _f("exact", choices=("exact", "adaptive"),
+                         doc="exact step with frozen rates, or adaptive (rates varying within a step)")
     rtol: float = _f(1e-6, lo=1e-12, hi=0.1, doc="adaptive: relative tolerance")
     tip_speed_profile: list = _f(None, doc="optional [[t_s, v_t_m_per_s], ...], linear between points")
 
@@ -232,10 +283,12 @@ def _check_value(key, v, ftype, md, source):
         return v
     elif ftype in ("list", list):
         if not isinstance(v, list):
-            raise SceneError(key, v, "must be a list" + (" of " + _describe(md)[len("one of "):] if md["choices"] else ""), source)
+            raise SceneError(key, v, "must be a list"
+                             + (" of " + _describe(md)[len("one of "):] if md["choices"] else ""), source)
         for i, item in enumerate(v):
             if md["choices"] and item not in md["choices"]:
-                raise SceneError(f"{key}[{i}]", item, "not an allowed entry; allowed: " + ", ".join(repr(c) for c in md["choices"]), source)
+                raise SceneError(f"{key}[{i}]", item,
+                                 "not an allowed entry; allowed: " + ", ".join(repr(c) for c in md["choices"]), source)
         return v
     lo, hi = md["lo"], md["hi"]
     if lo is not None and (v < lo or (md["lo_open"] and v == lo)):
@@ -253,7 +306,8 @@ def _load_section(cls, table, prefix, source):
     names = {f.name for f in fields(cls)}
     for k in table:
         if k not in names:
-            raise SceneError(f"{prefix}.{k}" if prefix else k, table[k], "unknown key; allowed: " + ", ".join(sorted(names)), source)
+            raise SceneError(f"{prefix}.{k}" if prefix else k, table[k],
+                             "unknown key; allowed: " + ", ".join(sorted(names)), source)
     kw = {}
     for f in fields(cls):
         key = f"{prefix}.{f.name}" if prefix else f.name
@@ -282,7 +336,8 @@ def _section_type(f):
 
 
 def _check_psd(p: PSD, key: str, source: str):
-    need = {"lognormal": ("x50_m", "sigma_ln"), "rrsb": ("x63_m", "n"), "monodisperse": ("x_m",), "table": ("sizes_m", "Q3")}
+    need = {"lognormal": ("x50_m", "sigma_ln"), "rrsb": ("x63_m", "n"), "monodisperse": ("x_m",),
+            "table": ("sizes_m", "Q3")}
     for k in need[p.kind]:
         if getattr(p, k) is None:
             raise SceneError(f"{key}.{k}", MISSING, f"required for kind = {p.kind!r}", source)
@@ -317,38 +372,49 @@ def _check_fitted(s: Scene, source: str):
     info = s.scene
     keys, lo, hi = info.fitted, info.fitted_ci95_low, info.fitted_ci95_high
     if not (len(keys) == len(lo) == len(hi)):
-        raise SceneError("scene.fitted_ci95_low", lo, f"and scene.fitted_ci95_high {hi!r} must give one value for each key of "
+        raise SceneError("scene.fitted_ci95_low", lo,
+                         f"and scene.fitted_ci95_high {hi!r} must give one value for each key of "
                          f"scene.fitted {keys!r}", source)
     for i, k in enumerate(keys):
         if number_key(s, k) is None:
             raise SceneError(f"scene.fitted[{i}]", k, "must name a number key of the scene as SECTION.KEY "
                              "(e.g. material.f_mat_kg_per_J_m)", source)
         a, b = lo[i], hi[i]
-        if any(isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v) for v in (a, b)) or not a <= b:
-            raise SceneError(f"scene.fitted_ci95_low[{i}]", a, f"and scene.fitted_ci95_high[{i}] = {b!r} must be finite "
+        if any(isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v)
+               for v in (a, b)) or not a <= b:
+            raise SceneError(f"scene.fitted_ci95_low[{i}]", a,
+                             f"and scene.fitted_ci95_high[{i}] = {b!r} must be finite "
                              f"numbers, low <= high ({k})", source)
 
 
 def _cross_check(s: Scene, source: str):
     _check_fitted(s, source)
     if s.grid.x_max_m <= s.grid.x_min_m * 2 ** (1.0 / s.grid.classes_per_octave):
-        raise SceneError("grid.x_max_m", s.grid.x_max_m, f"must exceed x_min_m = {s.grid.x_min_m:g} m by at least one class", source)
+        raise SceneError("grid.x_max_m", s.grid.x_max_m,
+                         f"must exceed x_min_m = {s.grid.x_min_m:g} m by at least one class", source)
     n = math.ceil(s.grid.classes_per_octave * math.log2(s.grid.x_max_m / s.grid.x_min_m) - 1e-9)
     if n > 1000:
-        raise SceneError("grid.classes_per_octave", s.grid.classes_per_octave, f"gives {n} classes; at most 1000 allowed", source)
+        raise SceneError("grid.classes_per_octave", s.grid.classes_per_octave,
+                         f"gives {n} classes; at most 1000 allowed", source)
     if s.material.model == "austin" and s.kinetics.model != "none":
-        raise SceneError("kinetics.model", s.kinetics.model, "must be 'none' for material.model = 'austin' (rates straight from the scene)", source)
+        raise SceneError("kinetics.model", s.kinetics.model,
+                         "must be 'none' for material.model = 'austin' (rates straight from the scene)", source)
     if s.material.model != "austin" and s.kinetics.model == "none":
-        raise SceneError("kinetics.model", s.kinetics.model, f"must be 'simple' or 'detailed' for material.model = {s.material.model!r}; 'none' needs material.model = 'austin'", source)
+        raise SceneError("kinetics.model", s.kinetics.model,
+                         f"must be 'simple' or 'detailed' for material.model = {s.material.model!r}; 'none' needs "
+                         "material.model = 'austin'", source)
     if s.material.model == "austin":
         _check_austin_selection(s, source)
     c_v = s.mill.bead_filling * (1.0 - s.mill.bead_porosity)
     if c_v >= PHI_MAX_RCP:
-        raise SceneError("mill.bead_filling", s.mill.bead_filling, f"with bead_porosity {s.mill.bead_porosity:g} gives a bead volume fraction {c_v:.3f}; must stay below {PHI_MAX_RCP} (random close packing)", source)
+        raise SceneError("mill.bead_filling", s.mill.bead_filling,
+                         f"with bead_porosity {s.mill.bead_porosity:g} gives a bead volume fraction {c_v:.3f}; must "
+                         f"stay below {PHI_MAX_RCP} (random close packing)", source)
     _check_psd(s.feed, "feed", source)
     if s.initial is not None:
         if s.operation.mode != "continuous":
-            raise SceneError("initial", "[initial] section", f"only for operation.mode = 'continuous' (this scene is {s.operation.mode!r}): "
+            raise SceneError("initial", "[initial] section",
+                             f"only for operation.mode = 'continuous' (this scene is {s.operation.mode!r}): "
                              "a batch mill starts with its feed distribution; give it as [feed]", source)
         _check_psd(s.initial, "initial", source)
     if s.run.dt_s > s.run.t_end_s:
@@ -357,9 +423,12 @@ def _cross_check(s: Scene, source: str):
         raise SceneError("run.dt_s", s.run.dt_s, f"gives {s.run.t_end_s / s.run.dt_s:.3g} steps; at most 1e7", source)
     prof = s.run.tip_speed_profile
     if prof is not None:
-        ok = len(prof) >= 1 and all(isinstance(p, list) and len(p) == 2 and all(isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v) for v in p) for p in prof)
+        ok = len(prof) >= 1 and all(isinstance(p, list) and len(p) == 2
+                                    and all(isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v)
+                                            for v in p) for p in prof)
         if not ok or any(b[0] <= a[0] for a, b in zip(prof, prof[1:])) or any(p[1] < 0 or p[1] > 40 for p in prof):
-            raise SceneError("run.tip_speed_profile", prof, "must be [[t_s, v_t_m_per_s], ...] with ascending times and 0 <= v_t <= 40 m/s", source)
+            raise SceneError("run.tip_speed_profile", prof,
+                             "must be [[t_s, v_t_m_per_s], ...] with ascending times and 0 <= v_t <= 40 m/s", source)
 
 
 #: Largest selection rate an Austin scene may reach on its size grid [1/s]: a class broken
@@ -386,9 +455,11 @@ def _check_austin_selection(s: Scene, source: str):
             worst, at = ls, math.exp(lx)
     if worst > math.log(S_MAX_PER_S):
         raise SceneError("material.selection.a_per_s", sel.a_per_s,
-                         f"with x0_m = {sel.x0_m:g} m and alpha = {sel.alpha:g} gives S = 10^{worst / math.log(10):.1f} 1/s at "
-                         f"x = {at:.3g} m on the size grid ({s.grid.x_min_m:g} ... {s.grid.x_max_m:g} m); S must stay below "
-                         f"{S_MAX_PER_S:g} 1/s (a class broken in 1e-20 s): lower a_per_s or alpha, or raise x0_m", source)
+                         f"with x0_m = {sel.x0_m:g} m and alpha = {sel.alpha:g} gives S = "
+                         f"10^{worst / math.log(10):.1f} 1/s at x = {at:.3g} m on the size grid ({s.grid.x_min_m:g} "
+                         f"... {s.grid.x_max_m:g} m); S must stay below {S_MAX_PER_S:g} 1/s (a class broken in 1e-20 "
+                         "s): lower a_per_s or alpha, or raise x0_m",
+                         source)
 
 
 #: Sections taken whole, not key by key, when a scene gives them with another ``kind`` than
@@ -401,7 +472,8 @@ def _merged(base: dict, over: dict, path: str = "") -> dict:
     for k, v in over.items():
         key = f"{path}.{k}" if path else k
         b = out.get(k)
-        if isinstance(v, dict) and isinstance(b, dict) and not (key in _KIND_SECTIONS and v.get("kind", b.get("kind")) != b.get("kind")):
+        if isinstance(v, dict) and isinstance(b, dict) and not (key in _KIND_SECTIONS
+                                                                and v.get("kind", b.get("kind")) != b.get("kind")):
             out[k] = _merged(b, v, key)
         else:
             out[k] = copy.deepcopy(v)
@@ -523,7 +595,8 @@ def iter_keys(cls=Scene, prefix="", default_obj=MISSING):
         sub = _section_type(f)
         value = getattr(default_obj, f.name, None) if default_obj is not None else None
         if sub is not None:
-            yield from iter_keys(sub, key, value if value is not None else f.default if f.default is not MISSING else None)
+            yield from iter_keys(sub, key,
+                                 value if value is not None else f.default if f.default is not MISSING else None)
             continue
         md = f.metadata
         default = value

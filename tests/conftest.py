@@ -22,14 +22,16 @@ def pytest_configure(config):
     import subprocess
     from pathlib import Path
 
-    if os.environ.get("MILLFMU_NO_APT") == "1" or os.name != "posix" or getattr(config, "workerinput", None) is not None:
+    if (os.environ.get("MILLFMU_NO_APT") == "1" or os.name != "posix"
+            or getattr(config, "workerinput", None) is not None):
         return
     script = Path(__file__).resolve().parents[1] / ".ci" / "system-deps"
     cmake = shutil.which("cmake") or shutil.which("cmake", path=str(Path(sys.executable).parent))
     missing = ctypes.util.find_library("tbb") is None or shutil.which("c++") is None or cmake is None
     if not (missing and script.is_file() and shutil.which("apt-get") and os.geteuid() == 0):
         return
-    r = subprocess.run(["bash", str(script)], capture_output=True, text=True, env={**os.environ, "PYTHON": sys.executable})
+    r = subprocess.run(["bash", str(script)], capture_output=True, text=True,
+                       env={**os.environ, "PYTHON": sys.executable})
     for line in (r.stdout + r.stderr).splitlines():
         print(f"millfmu tests: {line} (.ci/system-deps; MILLFMU_NO_APT=1 skips this)", file=sys.stderr)
 

@@ -124,8 +124,9 @@ TABLE_NOTE = ("prescribed swirl: the shipped default table (10 degree sector, 0.
 
 def prescribed_from_table(vt: float, fill: float, table=None) -> dict | None:
     """Zone statistics of the prescribed-swirl DEM at a grid point of the shipped
-    prescribed-swirl table (millfmu/data/prescribed_table.*), in the form of a run's stats.json (zones only; energies, frequencies and powers
-    scaled back from the table's normalisation). None off the grid."""
+    prescribed-swirl table (millfmu/data/prescribed_table.*), in the form of a run's
+    stats.json (zones only; energies, frequencies and powers scaled back from the table's
+    normalisation). None off the grid."""
     import millfmu
     from millfmu.stress_tables.table import read_table
 

@@ -181,7 +181,8 @@ def mean_p_break(material, source, op, x) -> float:
         c = z.volume_fraction * z.collision_rate_per_m3_s
         if c <= 0.0:
             continue
-        p = material.breakage_probability(np.array([x])[..., None], z.energy_J * op.energy_transfer * op.elasticity_factor)
+        p = material.breakage_probability(np.array([x])[..., None],
+                                          z.energy_J * op.energy_transfer * op.elasticity_factor)
         num += c * float((p @ z.energy_weights)[0])
         den += c
     return num / den
@@ -210,7 +211,8 @@ def _ef(op):
 
 
 VARIANTS = (
-    Variant("simple_op", "detailed with the simple scene's constants (eta_E 0.0302 for yeast)", op=lambda ps: ps.op_simple,
+    Variant("simple_op", "detailed with the simple scene's constants (eta_E 0.0302 for yeast)",
+            op=lambda ps: ps.op_simple,
             refit=False),
     Variant("shipped", "detailed as shipped (own scene's eta_E)", refit=False),
     Variant("sourced", "yeast at the sourced burst energy 2.8e-10 J (no refit)", refit=False,
@@ -257,7 +259,8 @@ class ScaledRates:
 
 def dem_collisions_per_omega_ngb(src, op) -> float:
     """The source's collisions per chamber volume over omega n_gb, sum_z f_z c_z [-]."""
-    return sum(z.volume_fraction * z.collision_rate_per_m3_s for z in src.zones(op)) / (op.omega_rad_per_s * op.n_gb_per_m3)
+    return sum(z.volume_fraction * z.collision_rate_per_m3_s
+               for z in src.zones(op)) / (op.omega_rad_per_s * op.n_gb_per_m3)
 
 
 def _captured_share(src, ps):

@@ -46,15 +46,19 @@ command). Their public names are this package's.
 """
 
 
-from .fitting import FITTABLE, JAC_STEP, MAX_CORRELATION, MAX_INTERVAL_FACTOR, SEARCH_DECADES, Calibration, Constant, Fitted, calibrate, with_values
+from .fitting import (FITTABLE, JAC_STEP, MAX_CORRELATION, MAX_INTERVAL_FACTOR, SEARCH_DECADES, Calibration, Constant,
+                      Fitted, calibrate, with_values)
 from .intervals import CLUSTER_CORRECTION, ERROR_MODELS, LACK_OF_FIT_MIN, LACK_OF_FIT_P
 from .measured import MAX_SIZE_M, SIZE_COLUMNS, CalibrationError, Data, parse_data, read_data
 from .scene_file import set_toml_values, write
-from .shipped import CONSTANTS, QUANTITIES, SHIPPED, Datum, Pair, batch_value, check, constant, example_scene, fit, with_constant, with_model
+from .shipped import (CONSTANTS, QUANTITIES, SHIPPED, Datum, Pair, batch_value, check, constant, example_scene, fit,
+                      with_constant, with_model)
 
 __all__ = [
-    "CLUSTER_CORRECTION", "CONSTANTS", "ERROR_MODELS", "FITTABLE", "JAC_STEP", "LACK_OF_FIT_MIN", "LACK_OF_FIT_P", "MAX_CORRELATION",
+    "CLUSTER_CORRECTION", "CONSTANTS", "ERROR_MODELS", "FITTABLE", "JAC_STEP", "LACK_OF_FIT_MIN", "LACK_OF_FIT_P",
+           "MAX_CORRELATION",
     "MAX_INTERVAL_FACTOR", "MAX_SIZE_M", "QUANTITIES", "SEARCH_DECADES", "SHIPPED", "SIZE_COLUMNS", "Calibration",
     "CalibrationError", "Constant", "Data", "Datum", "Fitted", "Pair", "batch_value", "calibrate", "check", "constant",
-    "example_scene", "fit", "parse_data", "read_data", "set_toml_values", "with_constant", "with_model", "with_values", "write",
+    "example_scene", "fit", "parse_data", "read_data", "set_toml_values", "with_constant", "with_model", "with_values",
+           "write",
 ]

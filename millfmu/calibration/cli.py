@@ -55,8 +55,8 @@ def _cmd_calibrate(args) -> int:
 
 def register(sub):
     c = sub.add_parser("calibrate", help="fit one or two scene constants to measured batch data (with 95 %% intervals)",
-                       description="Fit scene constants to measured batch grinding data at the scene's operating point. "
-                                   f"Fittable: {', '.join(FITTABLE)}.")
+                       description="Fit scene constants to measured batch grinding data at the scene's operating "
+                                   f"point. Fittable: {', '.join(FITTABLE)}.")
     c.add_argument("scene", nargs="?", default=None, help="scene file (TOML); omitted: the embedded default scene")
     c.add_argument("--data", required=True, help="CSV: t_s and x10_m/x50_m/x90_m, or x_m and Q3, or disrupted_fraction")
     c.add_argument("--fit", required=True, help="KEY[,KEY]: the constants to fit (dotted scene keys)")
@@ -64,7 +64,8 @@ def register(sub):
     c.add_argument("--start", action="append", default=[], metavar="KEY=VALUE",
                    help="start value of a fitted constant (default: the scene's); repeat for a pair")
     c.add_argument("--errors", choices=("independent", "per-sample"), default=None,
-                   help="error model of the intervals: per-sample (an error shared by one time's values, cluster-robust; "
-                        "the default when a time has several quantities) or independent (the default otherwise)")
+                   help="error model of the intervals: per-sample (an error shared by one time's values, "
+                        "cluster-robust; the default when a time has several quantities) or independent (the default "
+                        "otherwise)")
     c.add_argument("-q", "--quiet", action="store_true", help="no progress lines")
     c.set_defaults(func=_cmd_calibrate)

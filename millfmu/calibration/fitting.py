@@ -85,8 +85,9 @@ class Predictor:
         for t, col, x, v in data.rows:
             size = x if x is not None else (v if col in SIZE_COLUMNS else None)
             if check_sizes and size is not None and not lo <= size <= hi:
-                raise CalibrationError(f"{data.source}: {('x_m' if x is not None else col)} = {size:g} m at t_s = {t:g}: outside the "
-                                       f"scene's size grid [{lo:.4g}, {hi:.4g}] m; widen [grid] (x_min_m, x_max_m)")
+                raise CalibrationError(f"{data.source}: {('x_m' if x is not None else col)} = {size:g} m at t_s = "
+                                       f"{t:g}: outside the scene's size grid [{lo:.4g}, {hi:.4g}] m; widen [grid] "
+                                       "(x_min_m, x_max_m)")
         if data.kind == "disrupted" and scene.material.model != "yeast":
             raise CalibrationError(f"{data.source}: disrupted_fraction needs a cell scene (material.model = 'yeast'), "
                                    f"not {scene.material.model!r}")
@@ -170,7 +171,8 @@ class Calibration:
             "interval_degrees_of_freedom": self.interval_dof,
             "lack_of_fit": self.lack_of_fit,
             "constants": {k: {"value": c.value, "unit": c.unit, "start": c.start,
-                              "ci95": list(c.ci95) if c.ci95 else None, "sd_ln": c.sd_ln} for k, c in self.constants.items()},
+                              "ci95": list(c.ci95) if c.ci95 else None, "sd_ln": c.sd_ln}
+                          for k, c in self.constants.items()},
             "correlation": self.correlation,
             "degrees_of_freedom": self.dof,
             "rms_residual": self.rms_residual,
@@ -187,8 +189,8 @@ class Calibration:
             ci = f" (95 % interval {c.ci95[0]:.4g} to {c.ci95[1]:.4g})" if c.ci95 else " (exact, no interval)"
             parts.append(f"{k} = {c.value:.6g} {c.unit}{ci}")
         return (f"{', '.join(parts)} fitted at this operating point to {Path(self.data_source).name} (sha256 "
-                f"{self.data_sha256[:16]}...) by millfmu calibrate on {self.date_utc}, rms residual {self.rms_residual:.3g} "
-                f"({self.residual_unit})")
+                f"{self.data_sha256[:16]}...) by millfmu calibrate on {self.date_utc}, rms residual "
+                f"{self.rms_residual:.3g} ({self.residual_unit})")
 
     def summary(self) -> str:
         out = [f"calibration of {self.scene.scene.name!r} to {self.data_source} ({len(self.residuals)} values, "
@@ -209,7 +211,8 @@ class Calibration:
 def _other_constants(scene: Scene, key: str) -> list:
     """The constants that could be freed instead of ``key`` in this scene (not those already
     at their finite upper bound, such as eta_E = 1)."""
-    return [k for k, c in FITTABLE.items() if k != key and scene.kinetics.model in c.models and scene.material.model in c.materials
+    return [k for k, c in FITTABLE.items() if k != key and scene.kinetics.model in c.models
+            and scene.material.model in c.materials
             and not number_key(scene, k) >= c.hi]
 
 
@@ -217,19 +220,21 @@ def _other_constants(scene: Scene, key: str) -> list:
 def _resolve_fit(scene: Scene, fit) -> list:
     keys = [k.strip() for k in (fit.split(",") if isinstance(fit, str) else fit) if k.strip()]
     if not 1 <= len(keys) <= 2 or len(set(keys)) != len(keys):
-        raise CalibrationError(f"give one or two different constants among {', '.join(FITTABLE)}", "fit", repr(",".join(keys)))
+        raise CalibrationError(f"give one or two different constants among {', '.join(FITTABLE)}", "fit",
+                               repr(",".join(keys)))
     for k in keys:
         c = FITTABLE.get(k)
         if c is None:
             raise CalibrationError(f"not a fittable constant; allowed {', '.join(FITTABLE)}", "fit", k)
         if scene.kinetics.model not in c.models or scene.material.model not in c.materials:
-            raise CalibrationError(f"has no effect in scene {scene.scene.name!r} (kinetics.model = {scene.kinetics.model!r}, "
-                                   f"material.model = {scene.material.model!r}); free one of "
+            raise CalibrationError(f"has no effect in scene {scene.scene.name!r} (kinetics.model = "
+                                   f"{scene.kinetics.model!r}, material.model = {scene.material.model!r}); free one of "
                                    f"{', '.join(_other_constants(scene, k)) or '(none)'}", "fit", k)
     return keys
 
 
-def calibrate(scene, data, fit, start: dict | None = None, progress=None, error_model: str | None = None) -> Calibration:
+def calibrate(scene, data, fit, start: dict | None = None, progress=None,
+              error_model: str | None = None) -> Calibration:
     """Fit the constants ``fit`` (dotted keys of :data:`FITTABLE`, one or two) of ``scene`` to
     measured batch ``data`` (a :class:`Data`, a CSV path, or CSV text) at the scene's
     operating point. ``start``: start values by key (default: the scene's). ``progress``: a
@@ -250,7 +255,8 @@ def calibrate(scene, data, fit, start: dict | None = None, progress=None, error_
                                f"fit one of them, or measure at more times")
     x0, lo, hi = _search_range(scene, keys, start)
     obj = _Objective(scene, keys, pred, hi, progress)
-    res = least_squares(obj.residuals, x0, jac=obj.jacobian, bounds=(lo, hi), method="trf", x_scale=1.0, xtol=1e-10, ftol=1e-12,
+    res = least_squares(obj.residuals, x0, jac=obj.jacobian, bounds=(lo, hi), method="trf", x_scale=1.0, xtol=1e-10,
+                        ftol=1e-12,
                         gtol=1e-12, max_nfev=200)
     x, r = res.x, res.fun
     J = obj.jacobian(x)
@@ -269,17 +275,21 @@ def calibrate(scene, data, fit, start: dict | None = None, progress=None, error_
     fitted = {}
     for j, k in enumerate(keys):
         ci = None if iv is None else (math.exp(x[j] - iv.tq * iv.sd[j]), math.exp(x[j] + iv.tq * iv.sd[j]))
-        fitted[k] = Fitted(k, FITTABLE[k].unit, math.exp(x[j]), math.exp(x0[j]), ci, None if iv is None else float(iv.sd[j]))
+        fitted[k] = Fitted(k, FITTABLE[k].unit, math.exp(x[j]), math.exp(x0[j]), ci,
+                           None if iv is None else float(iv.sd[j]))
     model_values = pred.values(obj.scene_at(x))
     unit = "ln(x_model / x_data)" if data.kind == "sizes" else ("Q3_model - Q3_data" if data.kind == "q3" else
                                                                     "f_model - f_data")
     rows = [{"t_s": t, "quantity": col, **({"x_m": xx} if xx is not None else {}), "data": v, "model": float(m),
              "residual": float(rr)} for (t, col, xx, v), m, rr in zip(data.rows, model_values, r)]
-    return Calibration(scene=obj.scene_at(x), constants=fitted, correlation=None if iv is None else iv.corr, residuals=rows,
+    return Calibration(scene=obj.scene_at(x), constants=fitted, correlation=None if iv is None else iv.corr,
+                       residuals=rows,
                        rms_residual=float(math.sqrt(np.mean(r ** 2))), residual_unit=unit, dof=n - p,
                        data_source=data.source, data_sha256=data.sha256, evaluations=obj.evals,
-                       date_utc=datetime.datetime.now(datetime.timezone.utc).strftime("%Y-%m-%dT%H:%M:%SZ"), notes=notes,
-                       error_model=model, interval_method="" if iv is None else iv.method, interval_dof=None if iv is None else iv.dof,
+                       date_utc=datetime.datetime.now(datetime.timezone.utc).strftime("%Y-%m-%dT%H:%M:%SZ"),
+                       notes=notes,
+                       error_model=model, interval_method="" if iv is None else iv.method,
+                       interval_dof=None if iv is None else iv.dof,
                        lack_of_fit=lack_of_fit(data, r, J) if iv is not None else [])
 
 
@@ -291,8 +301,8 @@ def _arguments(scene, data, fit, error_model) -> tuple[Scene, Data, list]:
         data = parse_data(data, "data") if isinstance(data, str) and "\n" in data else read_data(data)
     keys = _resolve_fit(scene, fit)
     if error_model is not None and error_model.replace("-", "_") not in ERROR_MODELS:
-        raise CalibrationError(f"allowed {', '.join(repr(m) for m in ERROR_MODELS)}, or None (per_sample where a time has "
-                               "several values, else independent)", "error_model", repr(error_model))
+        raise CalibrationError(f"allowed {', '.join(repr(m) for m in ERROR_MODELS)}, or None (per_sample where a time "
+                               "has several values, else independent)", "error_model", repr(error_model))
     return scene, data, keys
 
 
@@ -308,7 +318,8 @@ def _search_range(scene: Scene, keys: list, start: dict | None) -> tuple[np.ndar
     lo, hi = [], []
     for k, s in zip(keys, x0):
         c = FITTABLE[k]
-        hi.append(min(s + SEARCH_DECADES * math.log(10), math.log(c.hi)) if math.isfinite(c.hi) else s + SEARCH_DECADES * math.log(10))
+        hi.append(min(s + SEARCH_DECADES * math.log(10), math.log(c.hi)) if math.isfinite(c.hi) else s
+                  + SEARCH_DECADES * math.log(10))
         lo.append(s - SEARCH_DECADES * math.log(10))
     return np.minimum(x0, hi), lo, hi
 
@@ -361,13 +372,16 @@ def _refuse_wide(scene: Scene, keys: list, x, iv: Intervals):
             raise CalibrationError(f"not pinned by the data: its 95 % interval [{math.exp(max(v - tq * s, -700)):.3g}, "
                                    f"{math.exp(min(v + tq * s, 700)):.3g}] spans {span} (at most a factor "
                                    f"{MAX_INTERVAL_FACTOR:g} allowed); "
-                                   + (f"fit {next(o for o in keys if o != k)} alone with {k} set in the scene, or measure "
-                                      f"more" if p == 2 else f"fit {_others_text(scene, k, keys)} instead, or measure more"),
+                                   + (f"fit {next(o for o in keys if o != k)} alone with {k} set in the scene, or "
+                                      "measure more" if p == 2
+                                      else f"fit {_others_text(scene, k, keys)} instead, or measure more"),
                                    "fit", k)
     design = iv.design_correlation()
     if p == 2 and abs(design) > MAX_CORRELATION:
-        raise CalibrationError(f"the data cannot tell the two apart (correlation {design:+.4f}, at most {MAX_CORRELATION} "
-                               f"allowed); fit one of them alone with the other set in the scene", "fit", ",".join(keys))
+        raise CalibrationError(f"the data cannot tell the two apart (correlation {design:+.4f}, at most "
+                               f"{MAX_CORRELATION} allowed); fit one of them alone with the other set in the scene",
+                               "fit",
+                               ",".join(keys))
 
 
 def _refuse_plateau(scene, keys, x, lo, hi, fun, r, iv: Intervals):
@@ -396,10 +410,10 @@ def _refuse_plateau(scene, keys, x, lo, hi, fun, r, iv: Intervals):
                 raise CalibrationError(
                     f"lies on a plateau: at the {side} end of its search range ({math.exp(end):.3g} {c.unit}, "
                     f"{SEARCH_DECADES:g} decades from the start) the sum of squared residuals rises by only {rise:.3g} "
-                    f"above the fit's at {math.exp(x[j]):.4g} {c.unit}, less than the noise allows at the edge of a 95 % "
-                    f"interval ({allowed:.3g}): the data bound it from {bound} only (the model no longer responds to it "
-                    f"there), so no two-sided interval holds; fit {_others_text(scene, k, keys)} instead, or measure where "
-                    f"it acts (other times, sizes or operating point)", "fit", k)
+                    f"above the fit's at {math.exp(x[j]):.4g} {c.unit}, less than the noise allows at the edge of a 95 "
+                    f"% interval ({allowed:.3g}): the data bound it from {bound} only (the model no longer responds to "
+                    f"it there), so no two-sided interval holds; fit {_others_text(scene, k, keys)} instead, or "
+                    "measure where it acts (other times, sizes or operating point)", "fit", k)
 
 
 def _fmt(keys, x) -> str:
@@ -422,18 +436,19 @@ def _refuse_unpinned(scene, keys, x, lo, hi, J, pred: Predictor, scene_at):
         got = ", ".join(f"{col} {v:.4g}" for (t, col, _x, _v), v in list(zip(pred.data.rows, reach))[-3:])
         if not (at_hi or at_lo):
             raise CalibrationError(f"the model stops responding to it at {math.exp(x[j]):.4g} {c.unit} (its effect "
-                                   f"has vanished or saturated there) and gives {got}: the data need what it cannot give; free "
-                                   f"{others} instead, or start it elsewhere", "fit", k)
+                                   f"has vanished or saturated there) and gives {got}: the data need what it cannot "
+                                   f"give; free {others} instead, or start it elsewhere", "fit", k)
         if len(keys) == 2:
             other = next(o for o in keys if o != k)
             raise CalibrationError(f"the data do not pin the pair: {k} ended on the "
-                                   f"{'upper' if at_hi else 'lower'} end of its range ({math.exp(x[j]):.4g} {c.unit}); fit "
-                                   f"{other} alone with {k} set in the scene", "fit", ",".join(keys))
+                                   f"{'upper' if at_hi else 'lower'} end of its range ({math.exp(x[j]):.4g} {c.unit}); "
+                                   f"fit {other} alone with {k} set in the scene", "fit", ",".join(keys))
         if at_hi and math.isfinite(c.hi) and abs(math.exp(x[j]) - c.hi) <= 1e-9 * c.hi:
             raise CalibrationError(f"the data are out of reach; {k.rpartition('.')[2]} = {c.hi:g} (its upper bound: "
                                    f"{c.meaning}) gives {got}; free {others} instead", "fit", k)
         side = "upper" if at_hi else "lower"
         raise CalibrationError(f"ran to the {side} end of its search range ({math.exp(x[j]):.3g} {c.unit}, "
-                               f"{SEARCH_DECADES:g} decades from the start) where it stops acting: the data do not pin it "
-                               f"(there the model gives {got}); fit {others} instead or start from another value", "fit", k)
+                               f"{SEARCH_DECADES:g} decades from the start) where it stops acting: the data do not pin "
+                               f"it (there the model gives {got}); fit {others} instead or start from another value",
+                               "fit", k)
 

@@ -85,8 +85,8 @@ def _num(text, where: str, col: str) -> float:
 
 def _check_metres(x: float, where: str, col: str):
     if x > MAX_SIZE_M:
-        raise CalibrationError(f"{where}: column {col} = {x:g} m: larger than {MAX_SIZE_M:g} m, which no bead mill grinds; "
-                               f"the column is in metres (if {x:g} is in micrometres, write {x * 1e-6:g})")
+        raise CalibrationError(f"{where}: column {col} = {x:g} m: larger than {MAX_SIZE_M:g} m, which no bead mill "
+                               f"grinds; the column is in metres (if {x:g} is in micrometres, write {x * 1e-6:g})")
 
 
 def _header(reader: list, source: str) -> tuple[list, set, str]:
@@ -95,15 +95,16 @@ def _header(reader: list, source: str) -> tuple[list, set, str]:
     allowed = ("t_s",) + SIZE_COLUMNS + ("x_m", "Q3", "disrupted_fraction")
     unknown = [h for h in header if h not in allowed]
     if unknown or "t_s" not in header or len(set(header)) != len(header):
-        raise CalibrationError(f"{source}: header {','.join(header)!r}: needs t_s and either some of x10_m, x50_m, x90_m, or "
-                               f"x_m and Q3, or disrupted_fraction (each once)" + (f"; unknown column(s) {unknown}" if unknown else ""))
+        raise CalibrationError(f"{source}: header {','.join(header)!r}: needs t_s and either some of x10_m, x50_m, "
+                               "x90_m, or x_m and Q3, or disrupted_fraction (each once)"
+                               + (f"; unknown column(s) {unknown}" if unknown else ""))
     cols = set(header) - {"t_s"}
     kinds = {"sizes": cols <= set(SIZE_COLUMNS) and bool(cols), "q3": cols == {"x_m", "Q3"},
              "disrupted": cols == {"disrupted_fraction"}}
     kind = next((k for k, ok in kinds.items() if ok), None)
     if kind is None:
-        raise CalibrationError(f"{source}: columns {sorted(cols)}: give either some of x10_m, x50_m, x90_m, or x_m with Q3, "
-                               f"or disrupted_fraction, not a mix")
+        raise CalibrationError(f"{source}: columns {sorted(cols)}: give either some of x10_m, x50_m, x90_m, or x_m "
+                               "with Q3, or disrupted_fraction, not a mix")
     return header, cols, kind
 
 
@@ -133,8 +134,8 @@ def _row_values(cell: dict, kind: str, cols: set, where: str, t: float) -> list:
         given = [(c, float(cell[c])) for c in SIZE_COLUMNS if c in cell and cell[c] != ""]
         for (c1, v1), (c2, v2) in zip(given, given[1:]):
             if v1 > v2:
-                raise CalibrationError(f"{where}: {c1} = {v1:g} m is larger than {c2} = {v2:g} m: a size distribution's "
-                                       f"x10 <= x50 <= x90; check the columns' order in the header")
+                raise CalibrationError(f"{where}: {c1} = {v1:g} m is larger than {c2} = {v2:g} m: a size "
+                                       "distribution's x10 <= x50 <= x90; check the columns' order in the header")
     return rows
 
 
@@ -172,8 +173,9 @@ def parse_data(text: str, source: str = "data") -> Data:
         if key in seen and key not in dup:
             dup.append(key)
         seen.add(key)
-    notes = tuple(f"{source}: {col}{'' if x is None else f' at x_m = {x:g}'} at t_s = {t:g} is given more than once; each is "
-                  f"fitted as an independent measurement (average repeats first if they are one sample's)" for t, col, x in dup)
+    notes = tuple(f"{source}: {col}{'' if x is None else f' at x_m = {x:g}'} at t_s = {t:g} is given more than once; "
+                  "each is fitted as an independent measurement (average repeats first if they are one sample's)"
+                  for t, col, x in dup)
     return Data(kind, tuple(rows), source, hashlib.sha256(text.encode()).hexdigest(), feed, notes)
 
 

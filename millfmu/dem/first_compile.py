@@ -38,7 +38,8 @@ def say_if_compiling(coupled: bool, log=None) -> bool:
     if d is None:
         return False
     what = "with the coupled liquid" if coupled else "of the DEM"
-    line = (f"millfmu: compiling the kernels {what} for this machine first (about {MINUTES['coupled' if coupled else 'dem']} "
-            f"min on 2 cores; numba, once for these sources): later runs load them from {d} in seconds")
+    line = (f"millfmu: compiling the kernels {what} for this machine first (about "
+            f"{MINUTES['coupled' if coupled else 'dem']} min on 2 cores; numba, once for these sources): later runs "
+            f"load them from {d} in seconds")
     (log or (lambda m: print(m, file=sys.stderr, flush=True)))(line)
     return True

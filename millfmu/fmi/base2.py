@@ -102,8 +102,10 @@ class Fmi2Base(Fmi2Slave):
         # full pass (which let the heap grow by about 20 kB per instance in the first few
         # hundred instances of a process).
         values = self._v
-        self.register_variable(Real(name, causality=getattr(Fmi2Causality, causality), variability=getattr(Fmi2Variability, variability),
-                                    initial=Fmi2Initial.exact if causality == "parameter" else None, description=description,
+        self.register_variable(Real(name, causality=getattr(Fmi2Causality, causality),
+                                    variability=getattr(Fmi2Variability, variability),
+                                    initial=Fmi2Initial.exact if causality == "parameter" else None,
+                                    description=description,
                                     getter=lambda vr=vr: values[vr],
                                     setter=(lambda x, vr=vr: values.__setitem__(vr, float(x))) if settable else None))
         self._units[name] = unit
@@ -141,11 +143,12 @@ class Fmi2Base(Fmi2Slave):
             kind = self._settable.get(vr)
             if kind is None:
                 name = self.vars[vr].name if vr in self.vars else f"(value reference {vr})"
-                self.log(f"fmi2SetReal: {name} = {x!r} ignored: only parameters and inputs can be set", Fmi2Status.error)
+                self.log(f"fmi2SetReal: {name} = {x!r} ignored: only parameters and inputs can be set",
+                         Fmi2Status.error)
                 continue
             if kind == "fixed" and self._initialized:
-                self.log(f"fmi2SetReal: parameter {self.vars[vr].name} = {x!r} ignored: fixed parameters can only be set before "
-                         "initialization ends", Fmi2Status.error)
+                self.log(f"fmi2SetReal: parameter {self.vars[vr].name} = {x!r} ignored: fixed parameters can only be "
+                         "set before initialization ends", Fmi2Status.error)
                 continue
             self._v[vr] = float(x)
 
@@ -179,9 +182,11 @@ class Fmi2Base(Fmi2Slave):
 
     def do_step(self, current_time: float, step_size: float) -> bool:
         t = self._time()
-        if t is not None and not (math.isfinite(current_time) and abs(current_time - t) <= TIME_RTOL * max(abs(t), abs(step_size), 1.0)):
-            self._refuse(f"doStep refused, state unchanged: currentCommunicationPoint = {current_time!r} s is not the FMU's time "
-                         f"{t!r} s (the previous communication point plus its step, or the time of the state set last)",
+        if t is not None and not (math.isfinite(current_time)
+                                  and abs(current_time - t) <= TIME_RTOL * max(abs(t), abs(step_size), 1.0)):
+            self._refuse(f"doStep refused, state unchanged: currentCommunicationPoint = {current_time!r} s is not the "
+                         f"FMU's time {t!r} s (the previous communication point plus its step, or the time of the "
+                         "state set last)",
                          Fmi2Status.discard)
             return False
         try:
@@ -190,10 +195,12 @@ class Fmi2Base(Fmi2Slave):
                 return False
             self._take_step(step_size)
         except self.REFUSED as e:
-            self.log(f"doStep at t = {current_time!r} s refused, state unchanged: {self._refusal(e)}", Fmi2Status.discard)
+            self.log(f"doStep at t = {current_time!r} s refused, state unchanged: {self._refusal(e)}",
+                     Fmi2Status.discard)
             return False
         except Exception:
-            self.log(f"doStep at t = {current_time!r} s failed, state unchanged: " + traceback.format_exc(limit=4), Fmi2Status.error)
+            self.log(f"doStep at t = {current_time!r} s failed, state unchanged: " + traceback.format_exc(limit=4),
+                     Fmi2Status.error)
             return False
         return True
 
@@ -205,7 +212,8 @@ class Fmi2Base(Fmi2Slave):
         """The whole state as plain JSON-able data (copies; pythonfmu keeps the object),
         with the format and this FMU's identity."""
         return {"format": STATE_FORMAT, "fmu": type(self).__name__, "config_error": self._config_error,
-                "initialized": self._initialized, "start_time": self._start_time, "values": list(self._v), **self._state()}
+                "initialized": self._initialized, "start_time": self._start_time, "values": list(self._v),
+                **self._state()}
 
     @classmethod
     def _state_problem(cls, state) -> str | None:
@@ -259,7 +267,8 @@ class Fmi2Base(Fmi2Slave):
         try:
             blob = json.loads(bytes(data).decode())
             state = blob["state"]
-            why = None if blob.get("sha256") == cls._digest(state) else "its sha256 does not match its content: damaged or edited"
+            why = (None if blob.get("sha256") == cls._digest(state)
+                   else "its sha256 does not match its content: damaged or edited")
         except (ValueError, KeyError, TypeError, UnicodeDecodeError) as e:
             why, state = f"not a serialized state of this FMU ({type(e).__name__})", None
         why = why or cls._state_problem(state)

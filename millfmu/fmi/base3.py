@@ -3,8 +3,9 @@ arrays whose length is one structural parameter, every value in one flat list.
 
 FMI 3.0 statuses: a call the standard calls illegal (setting an output, or a fixed
 parameter after initialization; an unknown value reference; a wrong number of values;
-another array length; a doStep whose currentCommunicationPoint is not the FMU's time) raises :class:`FmiCallError`, which the FMU's wrapper (pythonfmu3's,
-with millfmu's fixes: fmu_build.fmi3_wrapper) answers with fmi3Error and this message; the
+another array length; a doStep whose currentCommunicationPoint is not the FMU's time)
+raises :class:`FmiCallError`, which the FMU's wrapper (pythonfmu3's, with millfmu's
+fixes: fmu_build.fmi3_wrapper) answers with fmi3Error and this message; the
 instance is left as it was. Input values are checked by the step, which refuses bad ones
 with fmi3Discard (the master may retry). No other exception may leave a call.
 
@@ -21,7 +22,8 @@ import math
 import traceback
 from xml.etree.ElementTree import Element
 
-from pythonfmu3 import Dimension, Fmi3Causality, Fmi3Initial, Fmi3Slave, Fmi3Status, Fmi3StepResult, Fmi3Variability, Float64, UInt64, Unit
+from pythonfmu3 import (Dimension, Fmi3Causality, Fmi3Initial, Fmi3Slave, Fmi3Status, Fmi3StepResult, Fmi3Variability,
+                       Float64, UInt64, Unit)
 
 #: Format of the FMU states (fmi3GetFMUState, fmi3SerializeFMUState).
 STATE_FORMAT = "millfmu-fmi3-state-1"
@@ -75,19 +77,22 @@ class Fmi3Base(Fmi3Slave):
         self._vr_n = None
         # FMI 3.0 wants exactly one independent variable: the time of the last communication
         # point, value 0 of the list.
-        self.vr_time = self.declare("time", "s", "independent", "continuous", "simulation time at the last communication point", 0.0)
+        self.vr_time = self.declare("time", "s", "independent", "continuous",
+                                    "simulation time at the last communication point", 0.0)
 
     # ---- declaration -------------------------------------------------------------------
     def declare_class_count(self, n: int, description: str, name: str = "n_classes") -> int:
         """The structural parameter giving the arrays' length (fixed: the FMU's size grid)."""
         self.n_classes = int(n)
         self._vr_n = len(self.vars)
-        self.register_variable(UInt64(name, causality=Fmi3Causality.structuralParameter, variability=Fmi3Variability.fixed,
+        self.register_variable(UInt64(name, causality=Fmi3Causality.structuralParameter,
+                                      variability=Fmi3Variability.fixed,
                                       initial=Fmi3Initial.exact, start=self.n_classes, description=description,
                                       getter=lambda n=self.n_classes: n, setter=_fixed_class_count))
         return self._vr_n
 
-    def declare(self, name: str, unit: str, causality: str, variability: str, description: str, start, array: bool = False) -> int:
+    def declare(self, name: str, unit: str, causality: str, variability: str, description: str, start,
+                array: bool = False) -> int:
         """A Float64 (an array of n_classes values when ``array``); returns its value reference."""
         vr = len(self.vars)
         values = [float(x) for x in start] if array else [float(start)]
@@ -102,7 +107,8 @@ class Fmi3Base(Fmi3Slave):
         # the getter holds the value list, not self (no reference cycle: see millfmu.fmi.base2)
         v = self._v
         self.register_variable(Float64(
-            name, causality=getattr(Fmi3Causality, causality), variability=getattr(Fmi3Variability, variability), initial=initial,
+            name, causality=getattr(Fmi3Causality, causality), variability=getattr(Fmi3Variability, variability),
+                                       initial=initial,
             description=description, unit=unit, dimensions=[Dimension(valueReference=str(self._vr_n))] if array else [],
             getter=(lambda: v[s]) if array else (lambda: v[s.start])))
         self._unit_of[name] = unit
@@ -133,8 +139,8 @@ class Fmi3Base(Fmi3Slave):
                 raise FmiCallError(f"fmi3SetFloat64: {name} = {shown} refused: {name} has causality "
                                    f"{self.vars[vr].causality.name}; only parameters and inputs can be set")
             if kind == "fixed" and self._initialized:
-                raise FmiCallError(f"fmi3SetFloat64: parameter {name} = {shown} refused: a fixed parameter can be set only "
-                                   "before fmi3ExitInitializationMode")
+                raise FmiCallError(f"fmi3SetFloat64: parameter {name} = {shown} refused: a fixed parameter can be set "
+                                   "only before fmi3ExitInitializationMode")
             plan.append((s, values[pos : pos + s.stop - s.start]))
             pos += s.stop - s.start
         if pos != len(values):
@@ -150,14 +156,15 @@ class Fmi3Base(Fmi3Slave):
 
     def set_uint64(self, vrs, values):
         if len(vrs) != len(values):
-            raise FmiCallError(f"fmi3SetUInt64: nValues = {len(values)}, but the value references name {len(vrs)} values")
+            raise FmiCallError(f"fmi3SetUInt64: nValues = {len(values)}, but the value references name {len(vrs)} "
+                               "values")
         for vr, x in zip(vrs, values):
             if vr != self._vr_n or self._vr_n is None:
                 raise FmiCallError(f"fmi3SetUInt64: no UInt64 variable has value reference {vr}")
             if x != self.n_classes:
                 name = self.vars[vr].name
-                raise FmiCallError(f"fmi3SetUInt64: {name} = {x} refused: this FMU's size grid has {self.n_classes} classes "
-                                   "(fixed when the FMU was built)")
+                raise FmiCallError(f"fmi3SetUInt64: {name} = {x} refused: this FMU's size grid has {self.n_classes} "
+                                   "classes (fixed when the FMU was built)")
 
     # ---- life cycle ----------------------------------------------------------------------
     def refuse_configuration(self, text: str):
@@ -183,19 +190,21 @@ class Fmi3Base(Fmi3Slave):
         t = self._v[0]
         scale = max(abs(t), abs(step_size) if math.isfinite(step_size) else 0.0, 1.0)
         if not (math.isfinite(current_time) and abs(current_time - t) <= TIME_RTOL * scale):
-            raise FmiCallError(f"fmi3DoStep refused, state unchanged: currentCommunicationPoint = {current_time!r} s is not the "
-                               f"FMU's time {t!r} s (the previous communication point plus its step, or the time of the state "
-                               f"set last; allowed within a relative {TIME_RTOL:g})")
+            raise FmiCallError(f"fmi3DoStep refused, state unchanged: currentCommunicationPoint = {current_time!r} s "
+                               f"is not the FMU's time {t!r} s (the previous communication point plus its step, or the "
+                               f"time of the state set last; allowed within a relative {TIME_RTOL:g})")
         if self._config_error is not None:
             self.log(f"doStep at t = {current_time!r} s refused: {self._config_error}", Fmi3Status.error)
             return Fmi3StepResult(status=Fmi3Status.error)
         try:
             self._take_step(step_size)
         except self.REFUSED as e:
-            self.log(f"doStep at t = {current_time!r} s refused, state unchanged: {self._refusal(e)}", Fmi3Status.discard)
+            self.log(f"doStep at t = {current_time!r} s refused, state unchanged: {self._refusal(e)}",
+                     Fmi3Status.discard)
             return Fmi3StepResult(status=Fmi3Status.discard)
         except Exception:
-            self.log(f"doStep at t = {current_time!r} s failed, state unchanged: " + traceback.format_exc(limit=4), Fmi3Status.error)
+            self.log(f"doStep at t = {current_time!r} s failed, state unchanged: " + traceback.format_exc(limit=4),
+                     Fmi3Status.error)
             return Fmi3StepResult(status=Fmi3Status.error)
         self._v[0] = current_time + step_size  # time: the first value (declared first)
         return True
@@ -206,12 +215,15 @@ class Fmi3Base(Fmi3Slave):
     # ---- FMU state ---------------------------------------------------------------------
     def _get_fmu_state(self):
         """The whole state as plain JSON-able data (copies: the wrapper keeps the object)."""
-        return {"format": STATE_FORMAT, "fmu": type(self).__name__, "values": list(self._v), "config_error": self._config_error,
+        return {"format": STATE_FORMAT, "fmu": type(self).__name__, "values": list(self._v),
+                "config_error": self._config_error,
                 "initialized": self._initialized, **self._state()}
 
     def _set_fmu_state(self, state):
-        if not isinstance(state, dict) or state.get("format") != STATE_FORMAT or state.get("fmu") != type(self).__name__:
-            got = f"{state.get('format')!r} of {state.get('fmu')!r}" if isinstance(state, dict) else type(state).__name__
+        if (not isinstance(state, dict) or state.get("format") != STATE_FORMAT
+                or state.get("fmu") != type(self).__name__):
+            got = (f"{state.get('format')!r} of {state.get('fmu')!r}" if isinstance(state, dict)
+                   else type(state).__name__)
             raise FmiCallError(f"fmi3SetFMUState: the state ({got}) is not a state of this FMU ({STATE_FORMAT!r} of "
                                f"{type(self).__name__!r}); nothing changed")
         keep = self._get_fmu_state()
@@ -219,7 +231,8 @@ class Fmi3Base(Fmi3Slave):
             self._apply_state(state)
         except Exception as e:
             self._apply_state(keep)
-            raise FmiCallError(f"fmi3SetFMUState: state not applied, nothing changed: {type(e).__name__}: {e}") from None
+            raise FmiCallError(
+                f"fmi3SetFMUState: state not applied, nothing changed: {type(e).__name__}: {e}") from None
 
     def _apply_state(self, state):
         if len(state["values"]) != len(self._v):
@@ -247,11 +260,11 @@ class Fmi3Base(Fmi3Slave):
             inner = blob["state"]
             digest = blob["sha256"]
         except (ValueError, KeyError, TypeError) as e:  # UnicodeDecodeError and JSONDecodeError are ValueErrors
-            raise FmiCallError(f"fmi3DeserializeFMUState: {len(state)} bytes that are not a serialized state of this FMU "
-                               f"({type(e).__name__}: {e})") from None
+            raise FmiCallError(f"fmi3DeserializeFMUState: {len(state)} bytes that are not a serialized state of this "
+                               f"FMU ({type(e).__name__}: {e})") from None
         if digest != cls._digest(inner):
-            raise FmiCallError(f"fmi3DeserializeFMUState: {len(state)} bytes refused: the state's sha256 does not match its "
-                               "content (damaged or edited); nothing changed")
+            raise FmiCallError(f"fmi3DeserializeFMUState: {len(state)} bytes refused: the state's sha256 does not "
+                               "match its content (damaged or edited); nothing changed")
         return inner
 
     # ---- model description -------------------------------------------------------------

@@ -37,7 +37,8 @@ from pythonfmu.enums import Fmi2Status
 from ..mill import InputError, MillModel, StepError
 from ..scene import SceneError, scene_from_dict
 from .base2 import Fmi2Base
-from .variables import SCENE_FILE, UNITS, HeldArray, model_description_text, model_with, plain, read_band, read_scene_dict, variables
+from .variables import (SCENE_FILE, UNITS, HeldArray, model_description_text, model_with, plain, read_band,
+                        read_scene_dict, variables)
 
 #: The slave class of each FMU script by model identifier (see fmu_build.build.SCRIPT): the
 #: script runs at every fmi2Instantiate, and this keeps it to one class per process.
@@ -61,7 +62,8 @@ class MillSlave(Fmi2Base):
         self.n_classes = n
         self._base_scene = scene
         # type(self): pythonfmu's __init__ set the instance's description to None.
-        self._model_description = model_description_text(type(self).description, scene, n, getattr(self.model.source, "table", None),
+        self._model_description = model_description_text(type(self).description, scene, n,
+                                                         getattr(self.model.source, "table", None),
                                                          read_band(self.resources))
         run = scene.run
         self.default_experiment = DefaultExperiment(start_time=0.0, stop_time=run.t_end_s, step_size=run.dt_s)
@@ -76,7 +78,8 @@ class MillSlave(Fmi2Base):
             if var.size:
                 first = len(self._v)
                 for i, x in enumerate(var.start, 1):
-                    self.declare(f"{var.name}[{i}]", var.unit, var.causality, var.variability, var.description.format(i=i), x)
+                    self.declare(f"{var.name}[{i}]", var.unit, var.causality, var.variability,
+                                 var.description.format(i=i), x)
                 if var.name == "psd_in":
                     self._psd_in_vr0 = first
                 else:
@@ -145,7 +148,8 @@ class MillSlave(Fmi2Base):
         try:
             model = model_with(self._scene_dict, over)  # a DEM table may refuse the scene's operating point
         except SceneError as e:
-            name = next((self.vars[vr].name for vr, sk in self._scene_key.items() if f"{sk[0]}.{sk[1]}" == e.key), e.key)
+            name = next((self.vars[vr].name for vr, sk in self._scene_key.items() if f"{sk[0]}.{sk[1]}" == e.key),
+                        e.key)
             return None, f"{name} = {e.value!r}: {e.allowed}"
         if model.grid.n != self.n_classes:  # pragma: no cover - no parameter changes the grid
             raise RuntimeError("size grid changed")
@@ -172,7 +176,8 @@ class MillSlave(Fmi2Base):
 
     # ---- FMU state -------------------------------------------------------------------------
     def _state(self) -> dict:
-        return {"overrides": [[sec, key, x] for (sec, key), x in self._overrides.items()], "model": plain(self.model.get_state())}
+        return {"overrides": [[sec, key, x] for (sec, key), x in self._overrides.items()],
+                "model": plain(self.model.get_state())}
 
     def _restore(self, state: dict):
         over = {(sec, key): x for sec, key, x in state["overrides"]}
@@ -186,4 +191,5 @@ class MillSlave(Fmi2Base):
     def to_xml(self, model_options=None) -> Element:
         """pythonfmu's description completed with units, exact start values, output
         dependencies and InitialUnknowns (see :meth:`Fmi2Base.complete_xml`)."""
-        return self.complete_xml(super().to_xml({} if model_options is None else model_options), UNITS.__getitem__, self._model_description)
+        return self.complete_xml(super().to_xml({} if model_options is None else model_options), UNITS.__getitem__,
+                                 self._model_description)

@@ -47,9 +47,11 @@ class MillSlave3(Fmi3Base):
         self._base_scene = scene
         self._overrides: dict = {}
         n = self.model.grid.n
-        self._model_description = model_description_text(self.description, scene, n, getattr(self.model.source, "table", None),
+        self._model_description = model_description_text(self.description, scene, n,
+                                                         getattr(self.model.source, "table", None),
                                                          read_band(self.resources))
-        self.default_experiment = DefaultExperiment(start_time=0.0, stop_time=scene.run.t_end_s, step_size=scene.run.dt_s)
+        self.default_experiment = DefaultExperiment(start_time=0.0, stop_time=scene.run.t_end_s,
+                                                    step_size=scene.run.dt_s)
 
         # One description of the variables (millfmu.fmi.variables) serves FMI 2.0 and 3.0;
         # here an array is one Float64 of n_classes values.
@@ -60,7 +62,8 @@ class MillSlave3(Fmi3Base):
         self._psd_in = HeldArray()
         for var in described:
             desc = var.description.format(i=f"i = 1..{n}") if var.size else var.description
-            s = self._slices[self.declare(var.name, var.unit, var.causality, var.variability, desc, var.start, array=bool(var.size))]
+            s = self._slices[self.declare(var.name, var.unit, var.causality, var.variability, desc, var.start,
+                                          array=bool(var.size))]
             if var.scene_key:
                 self._scene_key[s.start] = var.scene_key
             if var.settable and var.settable[0] == "input":
@@ -70,7 +73,8 @@ class MillSlave3(Fmi3Base):
             if var.output_key == "psd":
                 self._out = slice(s.start, None)  # psd, then the scalar outputs to the end of the list
         self._names = {var.settable[1]: var.name for var in described if var.settable}  # MillModel name -> FMI name
-        self._scene_names = {".".join(var.scene_key): var.name for var in described if var.scene_key}  # "section.key" -> FMI name
+        self._scene_names = {".".join(var.scene_key): var.name for var in described
+                             if var.scene_key}  # "section.key" -> FMI name
         self._out_keys = [var.output_key for var in described if var.causality == "output" and not var.size]
         self.register_used_units(UNITS.__getitem__)
         self._publish(self.model.outputs())
@@ -123,7 +127,8 @@ class MillSlave3(Fmi3Base):
 
     # ---- FMU state ---------------------------------------------------------------------
     def _state(self) -> dict:
-        return {"overrides": [[sec, key, x] for (sec, key), x in self._overrides.items()], "model": plain(self.model.get_state())}
+        return {"overrides": [[sec, key, x] for (sec, key), x in self._overrides.items()],
+                "model": plain(self.model.get_state())}
 
     def _restore(self, state: dict):
         self._configure_with({(sec, key): x for sec, key, x in state["overrides"]})
@@ -131,4 +136,5 @@ class MillSlave3(Fmi3Base):
 
     # ---- model description -------------------------------------------------------------
     def to_xml(self, model_options=None) -> Element:
-        return self.complete_xml(super().to_xml({} if model_options is None else model_options), self._model_description)
+        return self.complete_xml(super().to_xml({} if model_options is None else model_options),
+                                 self._model_description)

@@ -68,17 +68,22 @@ UNITS = {
 
 #: Parameters: FMI name, scene (section, key), unit, variability, description.
 PARAMETERS = (
-    ("bead_filling", ("mill", "bead_filling"), "1", "tunable", "bead filling: bulk bead volume at rest over chamber volume, in (0, 1)"),
+    ("bead_filling", ("mill", "bead_filling"), "1", "tunable",
+     "bead filling: bulk bead volume at rest over chamber volume, in (0, 1)"),
     ("bead_diameter", ("beads", "diameter_m"), "m", "fixed", "grinding bead diameter"),
     ("bead_density", ("beads", "density_kg_per_m3"), "kg/m3", "fixed", "grinding bead density"),
-    ("stress_frequency_factor", ("mill", "stress_frequency_factor"), "1", "fixed", "Kwade's stress-frequency constant k_c (calibration)"),
+    ("stress_frequency_factor", ("mill", "stress_frequency_factor"), "1", "fixed",
+     "Kwade's stress-frequency constant k_c (calibration)"),
 )
 
 #: Scalar inputs: FMI name, scene (section, key), MillModel input name, unit, description, continuous only.
 INPUTS = (
-    ("tip_speed", ("mill", "tip_speed_m_per_s"), "tip_speed_m_per_s", "m/s", "stirrer tip speed, in [0, 40] m/s", False),
-    ("solids_mass_fraction", ("suspension", "solids_mass_fraction"), "solids_mass_fraction", "1", "solids mass concentration of the suspension (mass fraction), in (0, 0.8)", False),
-    ("feed_mass_flow", ("operation", "feed_mass_flow_kg_per_s"), "feed_mass_flow_kg_per_s", "kg/s", "solids feed mass flow, >= 0", True),
+    ("tip_speed", ("mill", "tip_speed_m_per_s"), "tip_speed_m_per_s", "m/s", "stirrer tip speed, in [0, 40] m/s",
+     False),
+    ("solids_mass_fraction", ("suspension", "solids_mass_fraction"), "solids_mass_fraction", "1",
+     "solids mass concentration of the suspension (mass fraction), in (0, 0.8)", False),
+    ("feed_mass_flow", ("operation", "feed_mass_flow_kg_per_s"), "feed_mass_flow_kg_per_s", "kg/s",
+     "solids feed mass flow, >= 0", True),
 )
 
 #: Scalar outputs: FMI name, MillModel output key, unit, description.
@@ -87,7 +92,8 @@ OUTPUTS = (
     ("x50", "x50_m", "m", "median size of the product (by mass)"),
     ("x90", "x90_m", "m", "size with 90 % of the product mass below it"),
     ("holdup", "holdup_kg", "kg", "solids mass in the mill"),
-    ("product_mass_flow", "product_mass_flow_kg_per_s", "kg/s", "solids product mass flow, mean over the last step (0 in batch)"),
+    ("product_mass_flow", "product_mass_flow_kg_per_s", "kg/s",
+     "solids product mass flow, mean over the last step (0 in batch)"),
     ("se_beads", "se_beads_J", "J", "stress energy of the beads SE = pi/12 d^3 rho v_t^2"),
     ("se_product", "se_product_J", "J", "stress energy reaching the product SE_P"),
     ("sf", "sf_per_s", "1/s", "stress frequency at x50"),
@@ -96,7 +102,8 @@ OUTPUTS = (
     ("specific_energy", "specific_energy_J_per_kg", "J/kg", "stirrer energy per mass of solids treated"),
     ("eta_eff", "eta_eff_Pa_s", "Pa.s", "effective viscosity of the bead-suspension bulk (Krieger-Dougherty)"),
     ("reynolds", "reynolds", "1", "mill Reynolds number"),
-    ("below_grid", "below_grid_fraction", "1", "product mass fraction below the size grid's lowest edge (part of the finest class's)"),
+    ("below_grid", "below_grid_fraction", "1",
+     "product mass fraction below the size grid's lowest edge (part of the finest class's)"),
 )
 DISRUPTED = ("disrupted_fraction", "disrupted_fraction", "1", "mass fraction of disrupted cells (debris) in the mill")
 
@@ -128,15 +135,18 @@ def variables(model) -> list:
     value-reference order: parameters, scalar inputs, psd_in (continuous scenes), psd, scalar
     outputs. A batch mill has no feed, so its FMU has no feed inputs that would do nothing."""
     scene, inputs, n = model.scene, model.inputs, model.grid.n
-    out = [Variable(name, unit, "parameter", var, desc, float(getattr(getattr(scene, sec), key)), 0, ("param", key), (sec, key), None)
+    out = [Variable(name, unit, "parameter", var, desc, float(getattr(getattr(scene, sec), key)), 0, ("param", key),
+                    (sec, key), None)
            for name, (sec, key), unit, var, desc in PARAMETERS]
     out += [Variable(name, unit, "input", "continuous", desc, float(inputs[mkey]), 0, ("input", mkey), (sec, key), None)
             for name, (sec, key), mkey, unit, desc, cont_only in INPUTS if model.continuous or not cont_only]
     if model.continuous:
-        out.append(Variable(*PSD_IN[:2], "input", "continuous", PSD_IN[2], [float(x) for x in inputs["psd_in"]], n, ("input", "psd_in"), None, None))
+        out.append(Variable(*PSD_IN[:2], "input", "continuous", PSD_IN[2], [float(x) for x in inputs["psd_in"]], n,
+                            ("input", "psd_in"), None, None))
     out.append(Variable(*PSD[:2], "output", "continuous", PSD[2], [0.0] * n, n, None, None, "psd"))
     outs = OUTPUTS + ((DISRUPTED,) if "disrupted_fraction" in model.outputs() else ())
-    out += [Variable(name, unit, "output", "continuous", desc, 0.0, 0, None, None, key) for name, key, unit, desc in outs]
+    out += [Variable(name, unit, "output", "continuous", desc, 0.0, 0, None, None, key)
+            for name, key, unit, desc in outs]
     return out
 
 
@@ -203,13 +213,14 @@ def model_description_text(base: str, scene, n_classes: int, table=None, band: d
     (``table``: the model's, identified by its manifest), what the scene's constants were
     fitted to (``scene.calibration``) and the prediction band of the scene's own run
     (``band``, :func:`read_band`). Shared by FMI 2 and 3."""
-    text = f"{base}; scene {scene.scene.name!r}, {scene.operation.mode}, {scene.kinetics.model} model, {n_classes} size classes"
+    text = (f"{base}; scene {scene.scene.name!r}, {scene.operation.mode}, {scene.kinetics.model} model, {n_classes} "
+            "size classes")
     if table is not None:
         m = table.manifest
         dem = m.get("scene") or {}
         fluid = (dem.get("fluid") or {}).get("mode", "?")
-        text += (f"; stress energies from the DEM table {str(m.get('key', '?'))[:12]} ({dem.get('name', '?')}, fluid {fluid}, "
-                 f"component {scene.kinetics.stress_distribution.component})")
+        text += (f"; stress energies from the DEM table {str(m.get('key', '?'))[:12]} ({dem.get('name', '?')}, fluid "
+                 f"{fluid}, component {scene.kinetics.stress_distribution.component})")
     if scene.scene.calibration:
         text += f"; calibration: {scene.scene.calibration}"
     if band is not None:

@@ -229,7 +229,8 @@ class SeriesPropagator:
             self.gamma, self.gamma_out = self._feed(a, n, d, h_s, series.n_in, series.order)
         #: every entry finite (extreme rates can make expm's overflow; a step refuses them)
         self.finite = bool(np.isfinite(self.e).all() and np.isfinite(self.p).all() and np.isfinite(self.tail).all()
-                           and (self.gamma is None or (np.isfinite(self.gamma).all() and np.isfinite(self.gamma_out).all())))
+                           and (self.gamma is None
+                                or (np.isfinite(self.gamma).all() and np.isfinite(self.gamma_out).all())))
         if n == 1:
             # [[1, tail], [0, p0 e]] and [[gamma_out], [gamma_0]]: see apply
             self._whole = np.zeros((m + 1, m + 1))

@@ -53,15 +53,17 @@ def recording_warnings(manifest: dict) -> list:
         return []
     rec, every = float(dem.get("record_s", 0.0)), float(dem.get("sample_every_s", 0.0))
     radius = float((manifest.get("scene") or {}).get("mill", {}).get("disc_radius_m", 0.0))
-    speeds = (manifest.get("grid") or {}).get("tip_speed_m_s") or [(manifest.get("scene") or {}).get("mill", {}).get("tip_speed_m_s", 0.0)]
+    speeds = ((manifest.get("grid") or {}).get("tip_speed_m_s")
+              or [(manifest.get("scene") or {}).get("mill", {}).get("tip_speed_m_s", 0.0)])
     v_min = min(float(v) for v in speeds)
     turn = 2.0 * math.pi * radius / v_min if radius > 0.0 and v_min > 0.0 else 0.0
     out = []
     if rec < turn:
-        out.append(f"stress-energy table {manifest.get('key', '?')[:12]}: built from DEM recordings of {rec:g} s, shorter than one "
-                   f"stirrer revolution at its lowest tip speed ({turn:.3g} s at {v_min:g} m/s); its zone statistics may not be "
-                   f"representative: rebuild it with a longer --record")
+        out.append(f"stress-energy table {manifest.get('key', '?')[:12]}: built from DEM recordings of {rec:g} s, "
+                   f"shorter than one stirrer revolution at its lowest tip speed ({turn:.3g} s at {v_min:g} m/s); its "
+                   "zone statistics may not be representative: rebuild it with a longer --record")
     if every > 0.0 and rec < 4.0 * every:
-        out.append(f"stress-energy table {manifest.get('key', '?')[:12]}: {rec:g} s recordings sampled every {every:g} s give fewer "
-                   f"than 4 windows: the drift within the recordings, part of the stated error, is not measured")
+        out.append(f"stress-energy table {manifest.get('key', '?')[:12]}: {rec:g} s recordings sampled every {every:g} "
+                   "s give fewer than 4 windows: the drift within the recordings, part of the stated error, is not "
+                   "measured")
     return out

@@ -95,7 +95,8 @@ class TableStressSource:
         if self.on_outside not in ("refuse", "build"):
             raise TableError(f"on_outside = {self.on_outside!r}: allowed 'refuse', 'build'")
         if self.collision_energy not in COLLISION_ENERGY:
-            raise TableError(f"collision_energy = {self.collision_energy!r}: allowed {', '.join(map(repr, COLLISION_ENERGY))}")
+            raise TableError(f"collision_energy = {self.collision_energy!r}: allowed "
+                             f"{', '.join(map(repr, COLLISION_ENERGY))}")
         if self.on_stale not in STALE_POLICIES:
             raise TableError(f"on_stale = {self.on_stale!r}: allowed {', '.join(map(repr, STALE_POLICIES))}")
         self.similar_axes = tuple(self.similar_axes)

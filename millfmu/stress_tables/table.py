@@ -888,7 +888,8 @@ def _check_values(t: Table, where: str):
     for k, v in t.refs.items():
         _check_field(where, f"ref_{k}", v, lo=0.0, hi=1e30)
         if not (np.asarray(v) > 0).all():
-            raise TableError(f"{where}: reference {k} must be positive; the table's contents are refused (damaged or edited)")
+            raise TableError(f"{where}: reference {k} must be positive; the table's contents are refused (damaged or "
+                             "edited)")
     # Every point of a table is a run with the stirrer moving, and a moving bed collides: a
     # point without a collision in any zone is not a run's result, and a zone's frequency is
     # zero exactly where it counted no collision.
@@ -897,13 +898,14 @@ def _check_values(t: Table, where: str):
     if silent.any():
         i = tuple(int(k) for k in np.argwhere(silent)[0])
         raise TableError(f"{where}: field collision_frequency_norm is 0 in every zone at point index {i}: a DEM run "
-                         f"with the stirrer moving records collisions; the table's contents are refused (damaged or edited)")
+                         "with the stirrer moving records collisions; the table's contents are refused (damaged or "
+                         "edited)")
     mismatch = (f > 0.0) != (np.asarray(d["collision_count"], float) > 0.0)
     if mismatch.any():
         i = tuple(int(k) for k in np.argwhere(mismatch)[0])
-        raise TableError(f"{where}: at index {i} field collision_frequency_norm is {float(f[i])!r} but collision_count is "
-                         f"{float(np.asarray(d['collision_count'])[i])!r}: a zone has collisions in both or in neither; "
-                         f"the table's contents are refused (damaged or edited)")
+        raise TableError(f"{where}: at index {i} field collision_frequency_norm is {float(f[i])!r} but collision_count "
+                         f"is {float(np.asarray(d['collision_count'])[i])!r}: a zone has collisions in both or in "
+                         "neither; the table's contents are refused (damaged or edited)")
     # Each density of SE over log10 bins integrates to 1 (0 in a zone without collisions).
     integral = (np.asarray(d["se_density"], float) * np.diff(norm_log10_edges())).sum(-1)
     off = ~(np.isclose(integral, 1.0, rtol=0, atol=1e-6) | np.isclose(integral, 0.0, rtol=0, atol=1e-12))

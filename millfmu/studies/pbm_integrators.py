@@ -79,7 +79,8 @@ def bench_tanks(n_tanks=50, dt_s=1.0, repeats=3, dense=True, stiff=False, out=pr
     out(f"  block-structured: propagator {row['setup_ms']:.2f} ms, step {row['step_us']:.1f} us")
     if dense:
         out(f"  dense expm (before): propagator {row['dense_setup_s']:.2f} s, step {row['dense_step_us']:.1f} us; "
-            f"propagator {row['setup_ratio']:.0f} times slower; largest difference over 10 steps {row['max_diff']:.1e} of the total mass")
+            f"propagator {row['setup_ratio']:.0f} times slower; largest difference over 10 steps {row['max_diff']:.1e} "
+            "of the total mass")
     return row
 
 
@@ -91,8 +92,9 @@ def bench_pbm(classes=(50, 100, 200), hours=1.0, repeats=3, dt_s=1.0, out=print,
     t_eval = np.arange(n_steps + 1) * dt_s
     out(f"batch grinding, default scene's material and mill, {hours:g} h at {dt_s:g} s steps ({n_steps} steps)")
     out(f"accuracy: max |m - expm(A t) m0| / total mass over all steps and classes; target {ACCURACY_TARGET:g}")
-    head = (f"{'classes':>7} {'step [us]':>10} {'model step [us]':>15} {'expm setup [ms]':>15} {'ours total [s]':>14} {'ours err':>9} "
-            f"{'BDF rtol':>9} {'BDF err':>9} {'BDF [s]':>9} {'BDF/ours':>9} {'span rtol':>9} {'span err':>9} {'span [s]':>9} {'span/ours':>9}")
+    head = (f"{'classes':>7} {'step [us]':>10} {'model step [us]':>15} {'expm setup [ms]':>15} {'ours total [s]':>14} "
+            f"{'ours err':>9} {'BDF rtol':>9} {'BDF err':>9} {'BDF [s]':>9} {'BDF/ours':>9} {'span rtol':>9} "
+            f"{'span err':>9} {'span [s]':>9} {'span/ours':>9}")
     out("BDF: restarted at every 1 s step (as a co-simulation unit must); span: one solve_ivp call over the whole time")
     out(head)
     out("-" * len(head))
@@ -107,7 +109,8 @@ def bench_pbm(classes=(50, 100, 200), hours=1.0, repeats=3, dt_s=1.0, out=print,
 
         # Reference: the closed form m(t) = expm(A t) m0, one expm over the whole span for each
         # checked time (repeating our own 1 s propagator would compare it with itself).
-        check = np.unique(np.concatenate((np.linspace(0, n_steps // 10, 7), np.linspace(0, n_steps, 13))).round().astype(int))
+        check = np.unique(np.concatenate((np.linspace(0, n_steps // 10, 7),
+                                          np.linspace(0, n_steps, 13))).round().astype(int))
         ref = {k: expm(g * t_eval[k]) @ y0 for k in check}
 
         def ours():
@@ -131,7 +134,8 @@ def bench_pbm(classes=(50, 100, 200), hours=1.0, repeats=3, dt_s=1.0, out=print,
         t_model /= 1000
 
         def bdf_span(rtol):
-            return solve_ivp(lambda t, m: g @ m, (0.0, t_eval[-1]), y0, method="BDF", jac=g, t_eval=t_eval, rtol=rtol, atol=rtol * total * 1e-3)
+            return solve_ivp(lambda t, m: g @ m, (0.0, t_eval[-1]), y0, method="BDF", jac=g, t_eval=t_eval, rtol=rtol,
+                             atol=rtol * total * 1e-3)
 
         def bdf_steps(rtol, upto=n_steps):
             # As a co-simulation unit must: restart at every communication step, since the
@@ -139,7 +143,8 @@ def bench_pbm(classes=(50, 100, 200), hours=1.0, repeats=3, dt_s=1.0, out=print,
             y = y0.copy()
             hist = {0: y0}
             for k in range(1, upto + 1):
-                y = solve_ivp(lambda t, m: g @ m, (0.0, dt_s), y, method="BDF", jac=g, rtol=rtol, atol=rtol * total * 1e-3).y[:, -1]
+                y = solve_ivp(lambda t, m: g @ m, (0.0, dt_s), y, method="BDF", jac=g, rtol=rtol,
+                              atol=rtol * total * 1e-3).y[:, -1]
                 if k in ref:
                     hist[k] = y
             return hist
@@ -162,14 +167,17 @@ def bench_pbm(classes=(50, 100, 200), hours=1.0, repeats=3, dt_s=1.0, out=print,
         t_span, _ = _best(lambda: bdf_span(c_span[0]), repeats)
         t_steps, hist_b = _best(lambda: bdf_steps(c_steps[0]), 1)
         c_steps = (c_steps[0], max(np.max(np.abs(hist_b[k] - ref[k])) for k in check) / total)
-        row = dict(classes=n, step_us=t_step * 1e6, model_step_us=t_model * 1e6, setup_ms=t_setup * 1e3, ours_s=t_ours, ours_err=err_ours,
-                   bdf_steps_rtol=c_steps[0], bdf_steps_err=c_steps[1], bdf_steps_s=t_steps, ratio_steps=t_steps / t_ours,
+        row = dict(classes=n, step_us=t_step * 1e6, model_step_us=t_model * 1e6, setup_ms=t_setup * 1e3, ours_s=t_ours,
+                   ours_err=err_ours,
+                   bdf_steps_rtol=c_steps[0], bdf_steps_err=c_steps[1], bdf_steps_s=t_steps,
+                   ratio_steps=t_steps / t_ours,
                    bdf_span_rtol=c_span[0], bdf_span_err=c_span[1], bdf_span_s=t_span, ratio_span=t_span / t_ours)
         rows.append(row)
         out(f"{n:7d} {t_step * 1e6:10.2f} {t_model * 1e6:15.1f} {t_setup * 1e3:15.2f} {t_ours:14.4f} {err_ours:9.1e} "
             f"{c_steps[0]:9.0e} {c_steps[1]:9.1e} {t_steps:9.3f} {t_steps / t_ours:9.0f} "
             f"{c_span[0]:9.0e} {c_span[1]:9.1e} {t_span:9.4f} {t_span / t_ours:9.1f}")
-    out("ours total = expm setup + all steps; step = one exact step (matrix-vector product); ratios = BDF time / ours total;")
+    out("ours total = expm setup + all steps; step = one exact step (matrix-vector product); ratios = BDF time / ours "
+        "total;")
     out("model step = MillModel.step with all outputs (x10/x50/x90, SF, power, ...).")
     if tanks:
         for stiff in (False, True):
@@ -274,13 +282,14 @@ def integrator_study(quick: bool = False, repeats: int | None = None, out=print)
     res = {}
     for case, c in INTEGRATOR_CASES.items():
         r = res[case] = _integrator_case(case, c, quick, repeats)
-        out(f"{case}: {r['states']} states, operator swinging between two operating points with period {r['period_s']:g} s, "
-            f"{r['t_end_s']:g} s simulated, largest rate {r['max_rate_per_s']:.3g} 1/s; reference: exact steps at "
-            f"{r['reference_steps'] // 2} and {r['reference_steps']}, extrapolated (error estimate {r['reference_error']:.1e})")
+        out(f"{case}: {r['states']} states, operator swinging between two operating points with period "
+            f"{r['period_s']:g} s, {r['t_end_s']:g} s simulated, largest rate {r['max_rate_per_s']:.3g} 1/s; "
+            f"reference: exact steps at {r['reference_steps'] // 2} and {r['reference_steps']}, extrapolated (error "
+            f"estimate {r['reference_error']:.1e})")
         out(f"  {'method':22s} {'steps':>7s} {'rtol':>7s} {'error':>9s} {'wall [s]':>9s} {'min mass':>9s}")
         for row in r["rows"]:
-            out(f"  {row['method']:22s} {row['steps']:7d} {row.get('rtol', float('nan')):7.0e} {row['error']:9.2e} {row['wall_s']:9.3g} "
-                f"{row['min_mass']:9.1e}")
+            out(f"  {row['method']:22s} {row['steps']:7d} {row.get('rtol', float('nan')):7.0e} {row['error']:9.2e} "
+                f"{row['wall_s']:9.3g} {row['min_mass']:9.1e}")
         out("  measured orders: " + ", ".join(f"{k} {v:.2f}" for k, v in r["orders"].items()))
     return res
 
@@ -338,7 +347,8 @@ def _integrator_case(case: str, c: dict, quick: bool, repeats: int) -> dict:
 
     y0 = np.concatenate(([0.0], m0))
     for rtol in ((1e-3, 1e-4, 1e-5) if quick else (1e-2, 1e-3, 1e-4, 1e-5, 1e-6, 1e-7, 1e-8)):
-        t, (y, n_sub) = _best(lambda: pbm.adaptive_exponential_step(y0, 0.0, t_end, system, rtol=rtol, atol=rtol * 1e-6 * total), repeats)
+        t, (y, n_sub) = _best(lambda: pbm.adaptive_exponential_step(y0, 0.0, t_end, system, rtol=rtol,
+                                                                    atol=rtol * 1e-6 * total), repeats)
         rows.append(dict(method="adaptive exponential", rtol=rtol, steps=int(n_sub), step_s=t_end / n_sub,
                          error=err(y[1:]), wall_s=t, min_mass=mmin(y)))
     for rtol in ((1e-4, 1e-6, 1e-8) if quick else (1e-3, 1e-4, 1e-5, 1e-6, 1e-7, 1e-8, 1e-9, 1e-10)):
@@ -347,7 +357,8 @@ def _integrator_case(case: str, c: dict, quick: bool, repeats: int) -> dict:
                              jac=lambda t, m: a_of_t(t), rtol=rtol, atol=rtol * 1e-3 * total)
         t, sol = _best(bdf, repeats)
         y = sol.y[:, -1]
-        rows.append(dict(method="scipy BDF", rtol=rtol, steps=int(sol.t.size - 1), step_s=t_end / max(sol.t.size - 1, 1),
+        rows.append(dict(method="scipy BDF", rtol=rtol, steps=int(sol.t.size - 1),
+                         step_s=t_end / max(sol.t.size - 1, 1),
                          error=err(y), wall_s=t, min_mass=mmin(y), nfev=int(sol.nfev)))
     orders = {}
     for name in ("exact step", "Taylor 1", "Taylor 2", "adaptive exponential", "scipy BDF"):

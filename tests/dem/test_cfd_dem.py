@@ -338,10 +338,11 @@ def test_fused_exchange_is_the_calls_to_the_bit(cfl, two_tasks):
     impulses, over intervals in a row, the first exchange, and an interval after the DEM
     advanced alone (a gap: the beads' present void fraction first). The fused run is
     checked to take the fused path throughout; other forms of the exchange keep the calls,
-    and a velocity that is not finite raises FluidError on either path. With a CFL number of 1e-4 the liquid takes several
-    substeps in some intervals (the fused exchange leaves only the last one's turbulence
-    to run beside the values' smoothing). Both forms of the fused exchange: its two tasks
-    (taken on one or two threads, as here) and the kernels' own loops (more threads)."""
+    and a velocity that is not finite raises FluidError on either path. With a CFL number
+    of 1e-4 the liquid takes several substeps in some intervals (the fused exchange leaves
+    only the last one's turbulence to run beside the values' smoothing). Both forms of the
+    fused exchange: its two tasks (taken on one or two threads, as here) and the kernels' own
+    loops (more threads)."""
     from dataclasses import replace
 
     from millfmu.dem.fluid.solver import FluidError

@@ -18,7 +18,8 @@ FLOWSHEETS = ROOT / "flowsheets"
 def cli(*args, timeout=600):
     env = {k: v for k, v in os.environ.items() if k not in ("PYTHONPATH", "PYTHONHOME")}
     env["OPENBLAS_NUM_THREADS"] = "1"
-    return subprocess.run([sys.executable, "-m", "flowsheets.cli", *map(str, args)], capture_output=True, text=True, cwd=ROOT,
+    return subprocess.run([sys.executable, "-m", "flowsheets.cli", *map(str, args)], capture_output=True, text=True,
+                          cwd=ROOT,
                           timeout=timeout, env=env)
 
 

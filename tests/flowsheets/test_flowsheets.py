@@ -177,7 +177,8 @@ def test_bad_input_exits_2_and_writes_nothing(tmp_path):
     assert r.returncode == 2
     assert "flowsheet.algorithm = 'euler': allowed: 'jacobi', 'gauss-seidel'" in r.stderr
     assert not (tmp_path / "out").exists()
-    f.write_text((FLOWSHEETS / "circuit.toml").read_text().replace("tank.psd[*] -> mill.psd_in[*]", "tank.psd[*] -> mill.psd[*]"))
+    f.write_text((FLOWSHEETS / "circuit.toml").read_text().replace("tank.psd[*] -> mill.psd_in[*]",
+                                                                   "tank.psd[*] -> mill.psd[*]"))
     r = cli("run", f, "--out", tmp_path / "out")
     assert r.returncode == 2 and "mill has no input psd[1]" in r.stderr, r.stderr
     assert not (tmp_path / "out").exists()

@@ -37,7 +37,8 @@ def test_fmi3_units_give_the_results_and_mass_balance_of_the_fmi2_units(runs, na
     a, b = r2["data"], r3["data"]
     assert a.dtype.names == b.dtype.names
     rel = max(np.abs(a[c] - b[c]).max() / max(np.abs(a[c]).max(), 1e-300) for c in a.dtype.names)
-    print(f"{name}: largest relative difference FMI 3.0 - FMI 2.0 units {rel:.1e}; residuals {mb2['relative_residual']:.2e}, {mb3['relative_residual']:.2e}")
+    print(f"{name}: largest relative difference FMI 3.0 - FMI 2.0 units {rel:.1e}; residuals "
+          f"{mb2['relative_residual']:.2e}, {mb3['relative_residual']:.2e}")
     assert rel <= 1e-12
     assert "FMI 3.0 units" in r3["stdout"]
 
@@ -79,5 +80,6 @@ def test_a_refused_parameter_stops_the_run_at_initialization_naming_unit_and_val
     f.write_text((FLOWSHEETS / "circuit.toml").read_text() + "\n[units.tank.start]\npump_mass_flow = -1.0\n")
     r = cli("run", f, "--out", tmp_path / "out", "--fmu-dir", fmu3_dir, "--no-plots", "--fmi-version", "3")
     assert r.returncode == 1, r.stderr
-    assert "unit tank refused its initialization (status 3)" in r.stderr and "pump_mass_flow = -1.0: must be >= 0 kg/s" in r.stderr, r.stderr
+    assert ("unit tank refused its initialization (status 3)" in r.stderr
+            and "pump_mass_flow = -1.0: must be >= 0 kg/s" in r.stderr), r.stderr
     assert not (tmp_path / "out").exists()

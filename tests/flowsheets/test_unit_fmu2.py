@@ -19,7 +19,8 @@ pytest.importorskip("pythonfmu")
 
 @pytest.fixture(scope="module")
 def tank_cfg():
-    return next(cfg for kind, cfg in unit_configs(load_flowsheet(FLOWSHEETS / "circuit.toml")).values() if kind == "tank")
+    return next(cfg for kind, cfg in unit_configs(load_flowsheet(FLOWSHEETS / "circuit.toml")).values()
+                if kind == "tank")
 
 
 def _tank(tmp_path, cfg, wrapper):
@@ -50,9 +51,12 @@ def test_a_refused_parameter_is_fmi2error_at_initialization_and_refuses_every_st
             s.exit_initialization_mode()
     else:  # pythonfmu's own wrapper would make an exception fmi2Fatal: logged only
         s.exit_initialization_mode()
-    assert "fmi2ExitInitializationMode: parameter pump_mass_flow = -1.0: must be >= 0 kg/s; every step will be refused" in _messages(s, Fmi2Status.error)
+    assert ("fmi2ExitInitializationMode: parameter pump_mass_flow = -1.0: must be >= 0 kg/s; every step will be refused"
+            in _messages(s, Fmi2Status.error))
     assert s.do_step(0.0, 1.0) is False
-    assert _messages(s, Fmi2Status.discard)[-1] == "doStep at t = 0.0 s refused: parameter pump_mass_flow = -1.0: must be >= 0 kg/s"
+    assert _messages(s,
+                     Fmi2Status.discard)[
+                         -1] == "doStep at t = 0.0 s refused: parameter pump_mass_flow = -1.0: must be >= 0 kg/s"
 
 
 @pytest.mark.parametrize("wrapper", ["fixed", "stock"])
@@ -73,7 +77,8 @@ def test_states_restore_exactly_and_damaged_or_foreign_ones_are_refused(tmp_path
     assert s.do_step(1.0, 1.0) and s.get_real(range(len(s._v))) == after
     # a step size <= 0 is refused like a bad input, the state kept
     assert s.do_step(2.0, 0.0) is False
-    assert _messages(s)[-1] == "doStep at t = 2.0 s refused, state unchanged: input communicationStepSize = 0.0: must be finite and > 0 s"
+    assert _messages(s)[-1] == ("doStep at t = 2.0 s refused, state unchanged: input communicationStepSize = 0.0: "
+                                "must be finite and > 0 s")
     assert s.get_real(range(len(s._v))) == after
     i = blob.index(b'"t_s":') + len(b'"t_s":')
     edited = blob[:i] + (b"7" if blob[i:i + 1] != b"7" else b"8") + blob[i + 1:]

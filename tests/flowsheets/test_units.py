@@ -32,7 +32,8 @@ def _tank_ode(M0, S0, u, a, p, h):
     return sol.y[:-1, -1], sol.y[-1, -1]
 
 
-@pytest.mark.parametrize("inflow_solids, pump", [(0.01, 0.02), (0.01, 0.08), (0.01, 0.05), (0.0, 0.03), (0.01, 0.05 * (1 + 1e-9))])
+@pytest.mark.parametrize("inflow_solids, pump",
+                         [(0.01, 0.02), (0.01, 0.08), (0.01, 0.05), (0.0, 0.03), (0.01, 0.05 * (1 + 1e-9))])
 def test_tank_exact_step_matches_the_ode_and_conserves_mass(inflow_solids, pump):
     w0, w_in = _psd(), _psd()
     tank = Tank(GRID.edges_m, 2.0, 0.2, w0, pump)
@@ -185,12 +186,18 @@ def _fs(**over):
     (dict(connections=["tank.outflow_mass_flow -> mil.feed_mass_flow"]), "connections[0]", "'mil'"),
     (dict(connections=["tank outflow -> mill"]), "connections[0]", "unit.variable -> unit.variable"),
     (dict(units={"tank": {"type": "vat"}}), "units.tank.type", "'vat'"),
-    (dict(units={"tank": {"type": "tank", "pump_mass_flow_kg_per_s": -1.0}}), "units.tank.pump_mass_flow_kg_per_s", "-1.0"),
-    (dict(units={"tank": {"type": "tank", "initial_psd": {"kind": "lognormal", "x50_m": -2e-6, "sigma_ln": 0.5}}}), "units.tank.initial_psd.x50_m", "-2e-06"),
-    (dict(units={"m": {"type": "mill", "scene": {"operation": {"mode": "batch"}}}}), "units.m.scene.operation.mode", "'batch'"),
-    (dict(units={"m": {"type": "mill", "scene": {"mill": {"tip_speed_m_per_s": 99.0}}}}), "units.m.scene.mill.tip_speed_m_per_s", "99.0"),
-    (dict(units={"f": {"type": "feed", "mass_flow_kg_per_s": [[10.0, 1e-3], [5.0, 1e-3]]}}), "units.f.mass_flow_kg_per_s", "non-decreasing"),
-    (dict(units={"c": {"type": "pi", "setpoint": 1, "kp": 1, "ki": 1, "u_min": 5, "u_max": 4, "bias": 4}}), "units.c.u_min", "5"),
+    (dict(units={"tank": {"type": "tank", "pump_mass_flow_kg_per_s": -1.0}}), "units.tank.pump_mass_flow_kg_per_s",
+     "-1.0"),
+    (dict(units={"tank": {"type": "tank", "initial_psd": {"kind": "lognormal", "x50_m": -2e-6, "sigma_ln": 0.5}}}),
+     "units.tank.initial_psd.x50_m", "-2e-06"),
+    (dict(units={"m": {"type": "mill", "scene": {"operation": {"mode": "batch"}}}}), "units.m.scene.operation.mode",
+     "'batch'"),
+    (dict(units={"m": {"type": "mill", "scene": {"mill": {"tip_speed_m_per_s": 99.0}}}}),
+     "units.m.scene.mill.tip_speed_m_per_s", "99.0"),
+    (dict(units={"f": {"type": "feed", "mass_flow_kg_per_s": [[10.0, 1e-3], [5.0, 1e-3]]}}),
+     "units.f.mass_flow_kg_per_s", "non-decreasing"),
+    (dict(units={"c": {"type": "pi", "setpoint": 1, "kp": 1, "ki": 1, "u_min": 5, "u_max": 4, "bias": 4}}),
+     "units.c.u_min", "5"),
 ])
 def test_bad_flowsheets_are_refused_naming_key_and_value(change, key, value):
     with pytest.raises(FlowsheetError) as e:

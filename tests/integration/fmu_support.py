@@ -37,13 +37,16 @@ def scene_text(**sections) -> str:
 
 # The default scene reads the shipped DEM table; these two use no DEM data at all: Kwade's
 # simple model, and the detailed model with a log-normal stress-energy distribution.
-CONTINUOUS = dict(scene={"name": "pm1-limestone-continuous"}, operation={"mode": "continuous", "n_tanks": 3, "feed_mass_flow_kg_per_s": 1e-3},
+CONTINUOUS = dict(scene={"name": "pm1-limestone-continuous"},
+                  operation={"mode": "continuous", "n_tanks": 3, "feed_mass_flow_kg_per_s": 1e-3},
                   kinetics={"model": "simple"})
-DETAILED = dict(scene={"name": "pm1-limestone-detailed"}, kinetics={"model": "detailed", "stress_distribution": {"source": "lognormal"}})
+DETAILED = dict(scene={"name": "pm1-limestone-detailed"},
+                kinetics={"model": "detailed", "stress_distribution": {"source": "lognormal"}})
 
 
 def build(scene_path, out: Path, fmi_version: int = 2) -> Path:
-    cmd = [sys.executable, "-m", "millfmu.cli", "build-fmu"] + ([str(scene_path)] if scene_path else []) + ["-o", str(out)]
+    cmd = [sys.executable, "-m", "millfmu.cli",
+           "build-fmu"] + ([str(scene_path)] if scene_path else []) + ["-o", str(out)]
     cmd += ["--fmi-version", str(fmi_version)]
     r = subprocess.run(cmd, capture_output=True, text=True, cwd=ROOT)
     assert r.returncode == 0, r.stderr
@@ -86,7 +89,9 @@ def isolated_python(where: Path) -> str:
         site = next((env_dir / "lib").glob("python*/site-packages"))
         (site / "host_packages.pth").write_text(purelib + "\n")
     py = str(env_dir / "bin" / "python")
-    r = subprocess.run([py, "-c", "import importlib.util as u; print(u.find_spec('millfmu') is None, u.find_spec('fmpy') is not None)"],
+    r = subprocess.run([py, "-c",
+                        "import importlib.util as u; print(u.find_spec('millfmu') is None, u.find_spec('fmpy') is not "
+                        "None)"],
                        capture_output=True, text=True, cwd=str(where),
                        env={k: v for k, v in os.environ.items() if k not in ("PYTHONPATH", "PYTHONHOME")})
     assert r.stdout.split() == ["True", "True"], (r.stdout, r.stderr)
@@ -98,7 +103,8 @@ def run_py(python: str, code: str, cwd: Path, timeout=300, fmi_version: int = 2)
     the code ends with done(obj)."""
     env = {k: v for k, v in os.environ.items() if k not in ("PYTHONPATH", "PYTHONHOME")}
     prelude = {2: PRELUDE, 3: PRELUDE3}[fmi_version]
-    r = subprocess.run([python, "-c", prelude + code], capture_output=True, text=True, cwd=str(cwd), timeout=timeout, env=env)
+    r = subprocess.run([python, "-c", prelude + code], capture_output=True, text=True, cwd=str(cwd), timeout=timeout,
+                       env=env)
     assert r.returncode == 0, f"subprocess failed ({r.returncode}):\n{r.stdout[-3000:]}\n{r.stderr[-3000:]}"
     lines = [ln for ln in r.stdout.splitlines() if ln.startswith("RESULT ")]  # masters log to stdout too
     assert lines, r.stdout[-3000:]
@@ -206,7 +212,7 @@ def done(obj):
     # That is a pythonfmu/host teardown issue (see README, FMU), not one of the steps tested.
     sys.stderr.flush()
     os._exit(0)
-'''
+'''  # noqa: E501
 
 
 #: The same helpers for FMI 3.0 FMUs (fmpy's FMU3Slave): outputs() names an array's values

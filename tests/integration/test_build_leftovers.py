@@ -14,7 +14,8 @@ from .fmu_support import ROOT
 
 
 def _build(*args, env=None):
-    return subprocess.run([sys.executable, "-m", "millfmu.cli", "build-fmu", *map(str, args)], capture_output=True, text=True,
+    return subprocess.run([sys.executable, "-m", "millfmu.cli", "build-fmu", *map(str, args)], capture_output=True,
+                          text=True,
                           cwd=ROOT, env=env)
 
 

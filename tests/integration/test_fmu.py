@@ -51,7 +51,8 @@ def test_validate_fmu_reports_nothing(work, kind):
 @pytest.mark.parametrize("kind", ["batch", "continuous"])
 def test_variable_names_and_value_references_are_pinned(work, kind):
     n = _n(work["scenes"][kind])
-    inputs = ["tip_speed", "solids_mass_fraction"] + (["feed_mass_flow"] + [f"psd_in[{i}]" for i in range(1, n + 1)] if kind == "continuous" else [])
+    inputs = ["tip_speed", "solids_mass_fraction"] + (["feed_mass_flow"] + [f"psd_in[{i}]" for i in range(1, n + 1)]
+                                                      if kind == "continuous" else [])
     expected = PARAMS + inputs + [f"psd[{i}]" for i in range(1, n + 1)] + SCALAR_OUTPUTS
     root = _md(work["fmus"][kind])
     got = [(sv.get("name"), int(sv.get("valueReference"))) for sv in root.iter("ScalarVariable")]
@@ -105,7 +106,8 @@ def test_fmu_carries_its_scene_and_only_the_code_it_needs(work, kind):
         from millfmu.scene import default_scene_text
 
         assert text == default_scene_text()
-    assert not any("/dem/" in n or "numba" in n or n.endswith((".pyc", ".npz")) or "cli.py" in n or "runner.py" in n for n in names)
+    assert not any("/dem/" in n or "numba" in n or n.endswith((".pyc", ".npz")) or "cli.py" in n or "runner.py" in n
+                   for n in names)
     code = b"".join(z.read(n) for n in names if n.endswith(".py"))
     assert b"import numba" not in code and b"from numba" not in code and b"millfmu.dem" not in code
     ((md_name,),) = [[n for n in names if n.startswith("binaries/linux64/")]]
@@ -147,8 +149,10 @@ def test_irregular_steps_inputs_and_two_independent_instances(work):
     rng = np.random.default_rng(1)
     w = rng.random(n)
     w /= w.sum()
-    inputs = {1: {"tip_speed_m_per_s": 12.0}, 3: {"feed_mass_flow_kg_per_s": 2e-3, "psd_in": w}, 5: {"solids_mass_fraction": 0.3, "bead_filling": 0.7}}
-    fmi = {1: {"tip_speed": 12.0}, 3: {"feed_mass_flow": 2e-3, **{f"psd_in[{i + 1}]": float(x) for i, x in enumerate(w)}},
+    inputs = {1: {"tip_speed_m_per_s": 12.0}, 3: {"feed_mass_flow_kg_per_s": 2e-3, "psd_in": w},
+              5: {"solids_mass_fraction": 0.3, "bead_filling": 0.7}}
+    fmi = {1: {"tip_speed": 12.0},
+           3: {"feed_mass_flow": 2e-3, **{f"psd_in[{i + 1}]": float(x) for i, x in enumerate(w)}},
            5: {"solids_mass_fraction": 0.3, "bead_filling": 0.7}}
     res = run_py(work["python"], f"""
 a = open_fmu({str(work["fmus"]["continuous"])!r}, "a")
@@ -201,7 +205,7 @@ f.setupExperiment(startTime=0.0); f.enterInitializationMode(); f.exitInitializat
 after_reset = outputs(f)
 f.freeFMUstate(s)
 done({{"first": first, "second": second, "third": third, "fresh": fresh, "after_reset": after_reset, "nblob": len(blob)}})
-""", work["dir"])
+""", work["dir"])  # noqa: E501
     assert res["first"] == res["second"] == res["third"]  # bit-identical (JSON floats round-trip exactly)
     assert res["after_reset"] == res["fresh"]
     assert res["first"]["x50"][0] != res["fresh"]["x50"]
@@ -302,7 +306,9 @@ done({{"o0": o0, "o1": o1, "st": st, "st_h": st_h, "ex": [ex_g, ex_h], "log": [e
     o = m.step(2.0)
     assert res["o1"]["x50"] == o["x50_m"] and res["o1"]["power"] == o["power_W"]
     assert res["st"] == 2 and any(e[0] == "g" and "bead_diameter = -1.0" in e[3] for e in res["log"])
-    assert res["st_h"] == 2 and any(e[0] == "h" and "bead_diameter = 0.0003: outside the stress-energy table's grid; allowed 0.0005 to 0.0012 m" in e[3] for e in res["log"]), res["log"]
+    assert res["st_h"] == 2 and any(e[0] == "h"
+                                    and "bead_diameter = 0.0003: outside the stress-energy table's grid; allowed "
+                                        "0.0005 to 0.0012 m" in e[3] for e in res["log"]), res["log"]
 
 
 def test_fifty_instantiate_free_cycles_and_two_different_fmus_in_one_process(work):
@@ -322,7 +328,7 @@ for k in range(3):
     assert step(b, k, 1.0) == 0 and step(c, k, 1.0) == 0 and step(d, k, 1.0) == 0
 mods = sorted(m for m in sys.modules if m.startswith("Mill_"))
 done({{"rss_kib": rss, "b": outputs(b)["x50"], "c": outputs(c)["x50"], "d": outputs(d)["x50"], "mods": mods, "fatal": [e for e in LOG if e[1] >= 3]}})
-""", work["dir"])
+""", work["dir"])  # noqa: E501
     rss = res["rss_kib"]
     assert rss[-1] - rss[9] < 20 * 1024, rss  # bounded: no per-cycle growth of whole models
     assert res["fatal"] == []
@@ -339,7 +345,8 @@ def test_build_fmu_rejects_a_bad_scene_naming_the_key(tmp_path):
 
     bad = tmp_path / "bad.toml"
     bad.write_text(scene_text(mill={"bead_filling": 1.5}))
-    r = subprocess.run([sys.executable, "-m", "millfmu.cli", "build-fmu", str(bad), "-o", str(tmp_path / "x.fmu")], capture_output=True, text=True, cwd=ROOT)
+    r = subprocess.run([sys.executable, "-m", "millfmu.cli", "build-fmu", str(bad), "-o", str(tmp_path / "x.fmu")],
+                       capture_output=True, text=True, cwd=ROOT)
     assert r.returncode == 2 and "mill.bead_filling = 1.5" in r.stderr, r.stderr
     assert not (tmp_path / "x.fmu").exists()
 
@@ -352,7 +359,8 @@ def test_bench_fmu_command_prints_ratios_against_the_floor(tmp_path):
 
     from .fmu_support import ROOT
 
-    r = subprocess.run([sys.executable, "-m", "millfmu.cli", "bench", "fmu", "--steps", "5", "--repeats", "1"], capture_output=True, text=True, cwd=ROOT, timeout=300)
+    r = subprocess.run([sys.executable, "-m", "millfmu.cli", "bench", "fmu", "--steps", "5", "--repeats", "1"],
+                       capture_output=True, text=True, cwd=ROOT, timeout=300)
     assert r.returncode == 0, r.stderr
     lines = r.stdout.splitlines()
     # One block per FMI version, each against the trivial FMU of its own version (FMI 3.0

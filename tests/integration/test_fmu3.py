@@ -61,12 +61,14 @@ def test_validate_fmu_reports_nothing(work, kind):
 def test_variables_match_the_fmi2_fmu_with_arrays_sized_by_a_structural_parameter(work, kind):
     n = _n(work["scenes"][kind])
     root = _md(work["fmus"][kind])
-    got = [(el.tag, el.get("name"), int(el.get("valueReference")), el.get("causality")) for el in root.find("ModelVariables")]
+    got = [(el.tag, el.get("name"), int(el.get("valueReference")), el.get("causality"))
+           for el in root.find("ModelVariables")]
     inputs = ["tip_speed", "solids_mass_fraction"] + (["feed_mass_flow", "psd_in"] if kind == "continuous" else [])
     names = ["time", "n_classes"] + PARAMS + inputs + ["psd"] + SCALAR_OUTPUTS
     assert [g[1] for g in got] == names
     assert [g[2] for g in got] == list(range(len(names)))
-    assert got[0] == ("Float64", "time", 0, "independent") and got[1] == ("UInt64", "n_classes", 1, "structuralParameter")
+    assert got[0] == ("Float64", "time", 0, "independent") and got[1] == ("UInt64", "n_classes", 1,
+                                                                          "structuralParameter")
     n_el = root.find("ModelVariables/UInt64")
     assert n_el.get("start") == str(n) and n_el.get("variability") == "fixed"
     for el in root.find("ModelVariables"):
@@ -79,8 +81,10 @@ def test_variables_match_the_fmi2_fmu_with_arrays_sized_by_a_structural_paramete
     md2 = _md(work["fmi2"][kind])
     scalars2 = [sv.get("name").split("[")[0] for sv in md2.iter("ScalarVariable")]
     assert list(dict.fromkeys(scalars2)) == names[2:]
-    causality2 = {sv.get("name").split("[")[0]: (sv.get("causality"), sv.get("variability")) for sv in md2.iter("ScalarVariable")}
-    assert all((el.get("causality"), el.get("variability")) == causality2[el.get("name")] for el in root.find("ModelVariables") if el.get("name") in causality2)
+    causality2 = {sv.get("name").split("[")[0]: (sv.get("causality"), sv.get("variability"))
+                  for sv in md2.iter("ScalarVariable")}
+    assert all((el.get("causality"), el.get("variability")) == causality2[el.get("name")]
+               for el in root.find("ModelVariables") if el.get("name") in causality2)
 
 
 @pytest.mark.parametrize("kind", KINDS)
@@ -94,7 +98,8 @@ def test_every_float64_has_a_declared_si_unit_a_description_and_exact_starts(wor
     for name, exps in declared.items():
         assert exps == {k: str(v) for k, v in UNITS[name].items()}, name
     units = {el.get("name"): el.get("unit") for el in root.find("ModelVariables")}
-    assert units["time"] == "s" and units["x50"] == "m" and units["power"] == "W" and units["psd"] == "1" and units["eta_eff"] == "Pa.s"
+    assert units["time"] == "s" and units["x50"] == "m" and units["power"] == "W" and units["psd"] == "1" and units[
+        "eta_eff"] == "Pa.s"
     if kind == "continuous":
         # Start values exact (repr), all of them (pythonfmu3 alone prints 16 digits and cuts an
         # array's longer than 1000 characters to one character).
@@ -135,9 +140,12 @@ def test_fmu_carries_its_scene_and_only_the_code_it_needs(work, kind):
     blob = b"".join(z.read(n) for n in code)
     assert b"import numba" not in blob and b"from numba" not in blob
     # The wrapper with millfmu's fixes, for x86_64 Linux only, with the sources it was built from.
-    assert sorted(n for n in names if n.startswith("binaries/")) == [f"binaries/x86_64-linux/{_md(work['fmus'][kind]).find('CoSimulation').get('modelIdentifier')}.so"]
+    assert sorted(n for n in names
+                  if n.startswith("binaries/")) == [
+                      f"binaries/x86_64-linux/{_md(work['fmus'][kind]).find('CoSimulation').get('modelIdentifier')}.so"]
     assert b"millfmu:" in z.read("sources/src/pythonfmu/PySlaveInstance.cpp")
-    assert z.read("resources/scene.toml").decode() == (work["scenes"][kind].read_text() if work["scenes"][kind] else default_scene_text())
+    assert z.read("resources/scene.toml").decode() == (work["scenes"][kind].read_text() if work["scenes"][kind]
+                                                       else default_scene_text())
 
 
 # ---- runs ---------------------------------------------------------------------------------
@@ -153,8 +161,10 @@ r = simulate_fmu({path!r}, stop_time=10.5, step_size=1.0, output={names!r})
 assert not any(m.startswith("numba") or m.startswith("millfmu") for m in sys.modules)
 done({{"time": r["time"].tolist(), **{{k: np.asarray(r[k]).tolist() for k in {names!r}}}}})
 """
-    res3 = run_py(work["python"], code.format(path=str(work["fmus"]["batch"]), names=SCALAR_OUTPUTS + ["psd"]), work["dir"], fmi_version=3)
-    res2 = run_py(work["python"], code.format(path=str(work["fmi2"]["batch"]), names=SCALAR_OUTPUTS + [f"psd[{i}]" for i in range(1, n + 1)]),
+    res3 = run_py(work["python"], code.format(path=str(work["fmus"]["batch"]), names=SCALAR_OUTPUTS + ["psd"]),
+                  work["dir"], fmi_version=3)
+    res2 = run_py(work["python"], code.format(path=str(work["fmi2"]["batch"]),
+                                              names=SCALAR_OUTPUTS + [f"psd[{i}]" for i in range(1, n + 1)]),
                   work["dir"])
     assert res3["time"] == res2["time"] and res3["time"][-1] == pytest.approx(10.5)
     ref = reference(None, np.diff(res3["time"]).tolist())
@@ -194,24 +204,29 @@ def test_continuous_changing_feed_equals_the_fmi2_fmu_and_mill_model_and_instanc
     rng = np.random.default_rng(1)
     w = rng.random(n)
     w /= w.sum()
-    fmi = {1: {"tip_speed": 12.0}, 3: {"feed_mass_flow": 2e-3, "psd_in": w.tolist()}, 5: {"solids_mass_fraction": 0.3, "bead_filling": 0.7},
+    fmi = {1: {"tip_speed": 12.0}, 3: {"feed_mass_flow": 2e-3, "psd_in": w.tolist()},
+           5: {"solids_mass_fraction": 0.3, "bead_filling": 0.7},
            8: {"feed_mass_flow": 0.5e-3}}
-    model = {1: {"tip_speed_m_per_s": 12.0}, 3: {"feed_mass_flow_kg_per_s": 2e-3, "psd_in": w}, 5: {"solids_mass_fraction": 0.3, "bead_filling": 0.7},
+    model = {1: {"tip_speed_m_per_s": 12.0}, 3: {"feed_mass_flow_kg_per_s": 2e-3, "psd_in": w},
+             5: {"solids_mass_fraction": 0.3, "bead_filling": 0.7},
              8: {"feed_mass_flow_kg_per_s": 0.5e-3}}
-    res3 = run_py(work["python"], DRIVE.format(path=str(work["fmus"]["continuous"]), steps=steps, inputs=fmi), work["dir"], fmi_version=3)
-    res2 = run_py(work["python"], DRIVE.format(path=str(work["fmi2"]["continuous"]), steps=steps, inputs=fmi), work["dir"])
+    res3 = run_py(work["python"], DRIVE.format(path=str(work["fmus"]["continuous"]), steps=steps, inputs=fmi),
+                  work["dir"], fmi_version=3)
+    res2 = run_py(work["python"], DRIVE.format(path=str(work["fmi2"]["continuous"]), steps=steps, inputs=fmi),
+                  work["dir"])
     ref = reference(path, steps, model)
     a3, a2 = (np.column_stack([r["a"][k] for k in SCALAR_OUTPUTS] + [r["a"]["psd"]]) for r in (res3, res2))
     want = np.column_stack([ref[k] for k in SCALAR_OUTPUTS] + [ref["psd"]])
     scale = np.maximum(np.abs(want), 1e-300)
-    print(f"continuous, changing feed: largest relative difference FMI 3.0 - FMI 2.0 {np.max(np.abs(a3 - a2) / scale):.1e}, "
-          f"FMI 3.0 - MillModel {np.max(np.abs(a3 - want) / scale):.1e}")
+    print("continuous, changing feed: largest relative difference FMI 3.0 - FMI 2.0 "
+          f"{np.max(np.abs(a3 - a2) / scale):.1e}, FMI 3.0 - MillModel {np.max(np.abs(a3 - want) / scale):.1e}")
     for k in SCALAR_OUTPUTS:
         np.testing.assert_allclose(res3["a"][k], res2["a"][k], rtol=1e-12, atol=0, err_msg=k)
         np.testing.assert_allclose(res3["a"][k], ref[k], rtol=1e-12, atol=0, err_msg=k)
     np.testing.assert_allclose(res3["a"]["psd"], res2["a"]["psd"], rtol=1e-12, atol=1e-300)
     np.testing.assert_allclose(res3["a"]["psd"], ref["psd"], rtol=1e-12, atol=1e-300)
-    assert res3["a"]["product_mass_flow"][-1] > 0 and res3["a"]["x50"][4] != res3["a"]["x50"][2]  # the feed changes did act
+    assert res3["a"]["product_mass_flow"][-1] > 0 and res3["a"]["x50"][4] != res3["a"]["x50"][
+        2]  # the feed changes did act
     assert res3["b_x50"] == res2["b_x50"] != res3["a"]["x50"][-1]
 
 
@@ -241,17 +256,19 @@ reset(f)
 after_reset = outputs(f)
 free_state(f, s)
 done({{"first": first, "second": second, "third": third, "fresh": fresh, "after_reset": after_reset, "fatal": [e for e in LOG if e[1] >= 3]}})
-"""
+"""  # noqa: E501
 
 
 def test_state_get_set_serialize_continues_bit_identically_and_reset(work):
-    res = {v: run_py(work["python"], STATE.format(path=str(work[k]["continuous"])), work["dir"], fmi_version=v) for v, k in ((3, "fmus"), (2, "fmi2"))}
+    res = {v: run_py(work["python"], STATE.format(path=str(work[k]["continuous"])), work["dir"], fmi_version=v)
+           for v, k in ((3, "fmus"), (2, "fmi2"))}
     r = res[3]
     assert r["first"] == r["second"] == r["third"]  # bit-identical (JSON floats round-trip exactly)
     assert r["after_reset"] == r["fresh"]
     assert r["first"]["x50"][0] != r["fresh"]["x50"]
     assert r["fatal"] == []
-    assert r["first"] == res[2]["first"] and r["fresh"] == res[2]["fresh"]  # and equal to the FMI 2.0 FMU's, bit for bit
+    assert r["first"] == res[2]["first"] and r["fresh"] == res[2][
+        "fresh"]  # and equal to the FMI 2.0 FMU's, bit for bit
 
 
 BAD = [
@@ -295,7 +312,7 @@ t2 = outputs(f)
 f.setFMUState(s)
 assert step(f, t, 1.0) == 0
 done({{"bad": out, "dt": [st_dt, dt_msgs], "retry": retry, "same_as_restored": outputs(f) == t2}})
-""", work["dir"], fmi_version=3)
+""", work["dir"], fmi_version=3)  # noqa: E501
     for name, value, allowed, status, msgs, unchanged in res["bad"]:
         assert status == 2, (name, value, status)  # fmi3Discard: the master may retry
         assert unchanged, name
@@ -351,10 +368,11 @@ for k in range(4):
     record(rf, f); record(rr, ref)
 n_read = f.getUInt64([vr["n_classes"]])
 done({{"calls": out, "same_n": same_n, "equal": rf == rr, "n": n_read, "fatal": [e for e in LOG if e[1] >= 4]}})
-""", work["dir"], fmi_version=3)
+""", work["dir"], fmi_version=3)  # noqa: E501
     expect = {
         "set output": "x50 = 1.0 refused: x50 has causality output",
-        "set fixed parameter": "parameter bead_diameter = 0.001 refused: a fixed parameter can be set only before fmi3ExitInitializationMode",
+        "set fixed parameter": "parameter bead_diameter = 0.001 refused: a fixed parameter can be set only before "
+                               "fmi3ExitInitializationMode",
         "set unknown reference": "no Float64 variable has value reference 999",
         "set array with too few values": f"nValues = 2, but the value references name {n} values",
         "set time": "time = 5.0 refused: time has causality independent",
@@ -402,7 +420,9 @@ done({{"o0": o0, "o1": o1, "out": out}})
     assert res["o0"]["holdup"] == m.outputs()["holdup_kg"] and res["o0"]["se_beads"] == m.outputs()["se_beads_J"]
     o = m.step(2.0)
     assert res["o1"]["x50"] == o["x50_m"] and res["o1"]["power"] == o["power_W"]
-    for name, text in (("g", "bead_diameter = -1.0"), ("h", "bead_diameter = 0.0003: outside the stress-energy table's grid; allowed 0.0005 to 0.0012 m")):
+    for name, text in (("g", "bead_diameter = -1.0"),
+                       ("h", "bead_diameter = 0.0003: outside the stress-energy table's grid; allowed 0.0005 to 0.0012 "
+                             "m")):
         st_exit, st_step, log = res["out"][name]
         assert st_exit == 3 and st_step == 3, res["out"][name]
         assert any(e[1] == 3 and "fmi3ExitInitializationMode" in e[3] and text in e[3] for e in log), log
@@ -433,7 +453,7 @@ for k in range(3):
 mods = sorted(m for m in sys.modules if m.startswith("Mill_"))
 done({{"rss_kib": rss, "b": outputs(b)["x50"], "c": outputs(c)["x50"], "d": outputs(d)["x50"], "e": e.getReal([vr2["x50"]])[0],
        "mods": mods, "sys_path": sum(1 for p in sys.path if "resources" in p), "fatal": [x for x in LOG if x[1] >= 3]}})
-""", work["dir"], fmi_version=3)
+""", work["dir"], fmi_version=3)  # noqa: E501
     rss = res["rss_kib"]
     assert rss[-1] - rss[9] < 20 * 1024, rss  # bounded: no per-cycle growth of whole models
     assert res["fatal"] == []
@@ -448,11 +468,13 @@ def test_build_fmu_3_rejects_a_bad_scene_naming_the_key(tmp_path):
     need_fmi3()
     bad = tmp_path / "bad.toml"
     bad.write_text(scene_text(mill={"bead_filling": 1.5}))
-    r = subprocess.run([sys.executable, "-m", "millfmu.cli", "build-fmu", str(bad), "--fmi-version", "3", "-o", str(tmp_path / "x.fmu")],
+    r = subprocess.run([sys.executable, "-m", "millfmu.cli", "build-fmu", str(bad), "--fmi-version", "3", "-o",
+                        str(tmp_path / "x.fmu")],
                        capture_output=True, text=True, cwd=ROOT)
     assert r.returncode == 2 and "mill.bead_filling = 1.5" in r.stderr, r.stderr
     assert not (tmp_path / "x.fmu").exists()
-    r = subprocess.run([sys.executable, "-m", "millfmu.cli", "build-fmu", "--fmi-version", "4", "-o", str(tmp_path / "x.fmu")],
+    r = subprocess.run([sys.executable, "-m", "millfmu.cli", "build-fmu", "--fmi-version", "4", "-o",
+                        str(tmp_path / "x.fmu")],
                        capture_output=True, text=True, cwd=ROOT)
     assert r.returncode == 2 and "--fmi-version" in r.stderr and "4" in r.stderr
 

@@ -87,14 +87,15 @@ int main(int argc, char **argv) {
     printf("DONE\n");
     return 0;
 }
-"""
+"""  # noqa: E501
 
 
 @pytest.mark.skipif(shutil.which("gcc") is None and shutil.which("cc") is None, reason="no C compiler")
 @pytest.mark.skipif(not sys.platform.startswith("linux"), reason="the host test uses the linux64 binary")
 def test_c_host_loads_steps_and_reads_outputs(tmp_path):
     fmu = build(None, tmp_path / "mill.fmu")
-    r = subprocess.run([sys.executable, "-m", "millfmu.cli", "host-env", str(fmu)], capture_output=True, text=True, cwd=ROOT)
+    r = subprocess.run([sys.executable, "-m", "millfmu.cli", "host-env", str(fmu)], capture_output=True, text=True,
+                       cwd=ROOT)
     assert r.returncode == 0, r.stderr
     env = {}
     for line in r.stdout.splitlines():
@@ -113,13 +114,16 @@ def test_c_host_loads_steps_and_reads_outputs(tmp_path):
     names = ["x50", "holdup", "power", "specific_energy", "psd[5]", "psd[20]"]
     lib = d / "binaries" / "linux64" / (md.find("CoSimulation").get("modelIdentifier") + ".so")
     steps = 4
-    run = subprocess.run([str(tmp_path / "host"), str(lib), (d / "resources").as_uri(), md.get("guid"), vr["tip_speed"], str(steps)]
-                         + [vr[n] for n in names], capture_output=True, text=True, env={"PATH": "/usr/bin:/bin", **env}, timeout=120)
+    run = subprocess.run([str(tmp_path / "host"), str(lib), (d / "resources").as_uri(), md.get("guid"), vr["tip_speed"],
+                          str(steps)]
+                         + [vr[n] for n in names], capture_output=True, text=True, env={"PATH": "/usr/bin:/bin", **env},
+                         timeout=120)
     assert run.returncode == 0, run.stdout + run.stderr
     lines = run.stdout.splitlines()
     got = np.array([[float(x) for x in ln.split()[1:]] for ln in lines if ln.startswith("OUT")])
     ref = reference(None, [1.0] * steps)
-    want = np.column_stack([ref["x50"], ref["holdup"], ref["power"], ref["specific_energy"], ref["psd"][:, 4], ref["psd"][:, 19]])
+    want = np.column_stack([ref["x50"], ref["holdup"], ref["power"], ref["specific_energy"], ref["psd"][:, 4],
+                            ref["psd"][:, 19]])
     np.testing.assert_allclose(got, want, rtol=1e-12, atol=0)
     assert "BAD 2" in lines  # tip speed -5 m/s: fmi2Discard
     assert any(ln.startswith("LOG 2") and "tip_speed = -5.0" in ln for ln in lines), lines
@@ -197,7 +201,7 @@ int main(int argc, char **argv) {
     printf("DONE\n");
     return 0;
 }
-"""
+"""  # noqa: E501
 
 
 @pytest.mark.skipif(shutil.which("gcc") is None and shutil.which("cc") is None, reason="no C compiler")
@@ -208,10 +212,12 @@ def test_c_host_runs_the_fmi3_fmu(tmp_path):
     step without crashing, a wrong nValues answered with fmi3Error."""
     need_fmi3()
     fmu = build(None, tmp_path / "mill3.fmu", fmi_version=3)
-    r = subprocess.run([sys.executable, "-m", "millfmu.cli", "host-env", str(fmu)], capture_output=True, text=True, cwd=ROOT)
+    r = subprocess.run([sys.executable, "-m", "millfmu.cli", "host-env", str(fmu)], capture_output=True, text=True,
+                       cwd=ROOT)
     assert r.returncode == 0, r.stderr
     assert "binaries/x86_64-linux/" in r.stdout
-    env = {k: v.strip("'") for k, v in (ln[len("export "):].split("=", 1) for ln in r.stdout.splitlines() if ln.startswith("export "))}
+    env = {k: v.strip("'")
+           for k, v in (ln[len("export "):].split("=", 1) for ln in r.stdout.splitlines() if ln.startswith("export "))}
     cc = shutil.which("gcc") or shutil.which("cc")
     (tmp_path / "host3.c").write_text(C_HOST3)
     subprocess.run([cc, "-O1", "-o", str(tmp_path / "host3"), str(tmp_path / "host3.c"), "-ldl"], check=True)
@@ -223,8 +229,10 @@ def test_c_host_runs_the_fmi3_fmu(tmp_path):
     names = ["x50", "psd", "holdup", "power"]
     lib = d / "binaries" / "x86_64-linux" / (md.find("CoSimulation").get("modelIdentifier") + ".so")
     steps = 4
-    run = subprocess.run([str(tmp_path / "host3"), str(lib), str(d / "resources") + "/", md.get("instantiationToken"), vr["tip_speed"], str(steps),
-                          str(n + 3)] + [vr[k] for k in names], capture_output=True, text=True, env={"PATH": "/usr/bin:/bin", **env}, timeout=120)
+    run = subprocess.run([str(tmp_path / "host3"), str(lib), str(d / "resources") + "/", md.get("instantiationToken"),
+                          vr["tip_speed"], str(steps),
+                          str(n + 3)] + [vr[k] for k in names], capture_output=True, text=True,
+                         env={"PATH": "/usr/bin:/bin", **env}, timeout=120)
     assert run.returncode == 0, run.stdout + run.stderr
     lines = run.stdout.splitlines()
     got = np.array([[float(x) for x in ln.split()[1:]] for ln in lines if ln.startswith("OUT")])
@@ -234,5 +242,7 @@ def test_c_host_runs_the_fmi3_fmu(tmp_path):
     np.testing.assert_allclose(got, want, rtol=1e-12, atol=1e-300)
     assert "BAD 2" in lines and "QUIET 2" in lines  # fmi3Discard; no callback, no crash
     assert any(ln.startswith("LOG 2") and "tip_speed = -5.0" in ln for ln in lines), lines
-    assert "FEW 3" in lines and any(ln.startswith("LOG 3") and f"nValues = {n + 2}, but the value references name {n + 3} values" in ln for ln in lines), lines
+    assert "FEW 3" in lines and any(ln.startswith("LOG 3")
+                                    and f"nValues = {n + 2}, but the value references name {n + 3} values" in ln
+                                    for ln in lines), lines
     assert lines[-1] == "DONE"

@@ -22,7 +22,8 @@ STEPS = 5
 
 def _want(steps):
     ref = reference(None, [1.0] * steps)
-    return np.column_stack([ref["x50"], ref["holdup"], ref["power"], ref["specific_energy"], ref["psd"][:, 4], ref["psd"][:, 19]])
+    return np.column_stack([ref["x50"], ref["holdup"], ref["power"], ref["specific_energy"], ref["psd"][:, 4],
+                            ref["psd"][:, 19]])
 
 
 @pytest.fixture(scope="module")

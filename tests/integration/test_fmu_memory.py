@@ -74,7 +74,8 @@ def _growth(python, fmu, cwd, cycles=150):
     import os
 
     env = {k: v for k, v in os.environ.items() if k not in ("PYTHONPATH", "PYTHONHOME")}
-    r = subprocess.run([python, "-c", CYCLES, str(fmu), str(cycles)], capture_output=True, text=True, cwd=str(cwd), env=env, timeout=600)
+    r = subprocess.run([python, "-c", CYCLES, str(fmu), str(cycles)], capture_output=True, text=True, cwd=str(cwd),
+                       env=env, timeout=600)
     assert r.returncode == 0, r.stderr[-3000:]
     line = [ln for ln in r.stdout.splitlines() if ln.startswith("RESULT ")][-1]
     return json.loads(line[len("RESULT "):])
@@ -90,8 +91,8 @@ def test_instances_leave_no_more_behind_than_a_trivial_fmu(tmp_path, fmi_version
     floor = _floor(tmp_path, fmi_version, 100, 114, 14)
     python = isolated_python(tmp_path)
     m, t = _growth(python, mill, tmp_path), _growth(python, floor, tmp_path)
-    print(f"FMI {fmi_version}: RSS growth per cycle over the first 250 cycles: mill {m['first_250']:.2f} kB, trivial FMU "
-          f"{t['first_250']:.2f} kB; least of 4 windows of 150 cycles after them: mill {m['kB_per_cycle']:.2f} kB "
+    print(f"FMI {fmi_version}: RSS growth per cycle over the first 250 cycles: mill {m['first_250']:.2f} kB, trivial "
+          f"FMU {t['first_250']:.2f} kB; least of 4 windows of 150 cycles after them: mill {m['kB_per_cycle']:.2f} kB "
           f"{m['windows']}, trivial FMU {t['kB_per_cycle']:.2f} kB {t['windows']}")
     assert m["first_250"] <= t["first_250"] + 2.0, (m, t)
     assert m["kB_per_cycle"] <= t["kB_per_cycle"] + 2.0, (m, t)
@@ -145,12 +146,14 @@ def test_no_growth_per_cycle_after_a_thousand_cycles(tmp_path, fmi_version):
         need_fmi3()
     mill = build(None, tmp_path / f"mill{fmi_version}.fmu", fmi_version=fmi_version)
     env = {k: v for k, v in os.environ.items() if k not in ("PYTHONPATH", "PYTHONHOME")}
-    r = subprocess.run([isolated_python(tmp_path), "-c", LATE, str(mill), "250"], capture_output=True, text=True, cwd=str(tmp_path),
+    r = subprocess.run([isolated_python(tmp_path), "-c", LATE, str(mill), "250"], capture_output=True, text=True,
+                       cwd=str(tmp_path),
                        env=env, timeout=600)
     assert r.returncode == 0, r.stderr[-3000:]
     res = json.loads([ln for ln in r.stdout.splitlines() if ln.startswith("RESULT ")][-1][len("RESULT "):])
     print(f"FMI {fmi_version}, after 1000 cycles: RSS growth per cycle {res['windows']} kB, "
-          f"references to {res['base']} {res['base_refs']:+d} over 1000 cycles, resources in sys.path {res['in_sys_path']} x")
+          f"references to {res['base']} {res['base_refs']:+d} over 1000 cycles, resources in sys.path "
+          f"{res['in_sys_path']} x")
     assert res["in_sys_path"] == 1, res
     assert res["base_refs"] == 0, res
     assert sum(res["windows"]) / 4 <= 0.25, res

@@ -33,7 +33,8 @@ def test_carries_table_slice_and_reader_only(table_fmu):
     with zipfile.ZipFile(fmu) as z:
         z.extract("resources/table.npz", fmu.parent)
         z.extract("resources/table.json", fmu.parent)
-    t = read_table(npz=fmu.parent / "resources/table.npz", manifest_path=fmu.parent / "resources/table.json")  # verifies checksums
+    t = read_table(npz=fmu.parent / "resources/table.npz",
+                   manifest_path=fmu.parent / "resources/table.json")  # verifies checksums
     # the default scene's table is the coupled DEM-CFD one: the FMU carries a slice of it
     from millfmu.stress_tables.table import read_table_ref
 

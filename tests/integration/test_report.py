@@ -84,7 +84,8 @@ def test_report_tables_say_diverged_and_give_units():
     from millfmu.report import _fmt, _table
 
     page = _table(["method", "error [-]", "run time [s]"],
-                  [["Taylor 1", _fmt(float("inf")), _fmt(0.5, ".3g", None)], ["Taylor 2", _fmt(float("nan")), _fmt(1.0, ".3g", None)],
+                  [["Taylor 1", _fmt(float("inf")), _fmt(0.5, ".3g", None)],
+                   ["Taylor 2", _fmt(float("nan")), _fmt(1.0, ".3g", None)],
                    ["Taylor 2", _fmt(-2.4e22), _fmt(2.0, ".3g", None)], ["exact", _fmt(1e-9), _fmt(3.0, ".3g", None)]])
     assert page.count("diverged") == 3 and cell_problems(page) == []
     raw = _table(["method", "error"], [["x", "inf"], ["y", "-2.4e+22"], ["z", "1.0"]])  # as before

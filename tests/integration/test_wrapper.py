@@ -16,8 +16,10 @@ from .fmu_support import CONTINUOUS, DETAILED, build, isolated_python, scene_tex
 pytest.importorskip("pythonfmu")
 pytest.importorskip("fmpy")
 
-CAN_BUILD = W._cmake() is not None and any(shutil.which(c) for c in ("c++", "g++", "clang++")) and W._platform_dir() is not None
-needs_build = pytest.mark.skipif(not CAN_BUILD, reason="no C++ compiler or CMake (or not linux64): FMUs keep pythonfmu's own wrapper")
+CAN_BUILD = (W._cmake() is not None and any(shutil.which(c) for c in ("c++", "g++", "clang++"))
+             and W._platform_dir() is not None)
+needs_build = pytest.mark.skipif(not CAN_BUILD,
+                                 reason="no C++ compiler or CMake (or not linux64): FMUs keep pythonfmu's own wrapper")
 
 
 @pytest.fixture(scope="module")
@@ -86,7 +88,8 @@ def test_stock_wrapper_build_warns_and_refusals_are_logged_errors(tmp_path):
     from .fmu_support import ROOT, run_py
 
     out = tmp_path / "stock.fmu"
-    r = subprocess.run([sys.executable, "-m", "millfmu.cli", "build-fmu", "-o", str(out)], capture_output=True, text=True, cwd=ROOT,
+    r = subprocess.run([sys.executable, "-m", "millfmu.cli", "build-fmu", "-o", str(out)], capture_output=True,
+                       text=True, cwd=ROOT,
                        env={**os.environ, "MILLFMU_STOCK_WRAPPER": "1"})
     assert r.returncode == 0 and "pythonfmu's own C++ wrapper kept (MILLFMU_STOCK_WRAPPER=1)" in r.stderr
     assert zipfile.ZipFile(out).read("resources/wrapper.txt").decode().strip() == "stock"
@@ -107,7 +110,8 @@ done({{"errors": errors, "same": same, "off": off, "ok": ok}})
 
 
 def _binary_platforms(path) -> list:
-    return sorted(n.split("/")[1] for n in zipfile.ZipFile(path).namelist() if n.startswith("binaries/") and not n.endswith("/"))
+    return sorted(n.split("/")[1] for n in zipfile.ZipFile(path).namelist() if n.startswith("binaries/")
+                  and not n.endswith("/"))
 
 
 def test_fmi2_fmus_carry_no_windows_binary(fmus, tmp_path):
@@ -123,7 +127,8 @@ def test_fmi2_fmus_carry_no_windows_binary(fmus, tmp_path):
     for p in paths:
         assert _binary_platforms(p) == ["linux64"], p
     out = tmp_path / "stock.fmu"
-    r = subprocess.run([sys.executable, "-m", "millfmu.cli", "build-fmu", "-o", str(out)], capture_output=True, text=True, cwd=ROOT,
+    r = subprocess.run([sys.executable, "-m", "millfmu.cli", "build-fmu", "-o", str(out)], capture_output=True,
+                       text=True, cwd=ROOT,
                        env={**os.environ, "MILLFMU_STOCK_WRAPPER": "1"})
     assert r.returncode == 0, r.stderr
     assert "platforms: x86_64 Linux only" in r.stdout, r.stdout

@@ -18,7 +18,8 @@ def _check(m, m_expected):
 
 def _stiff(scene_dict, **extra):
     # S spans 1e-8 ... 1e8 1/s over the grid (0.1 ... 200 um): S = 1e8 (x / 200 um)^4.85
-    return make_scene(scene_dict, material={"model": "austin", "selection": {"a_per_s": 1e8, "x0_m": 200e-6, "alpha": 4.85, "Lambda": 0.0}},
+    return make_scene(scene_dict, material={"model": "austin", "selection": {"a_per_s": 1e8, "x0_m": 200e-6,
+                                                                             "alpha": 4.85, "Lambda": 0.0}},
                       kinetics={"model": "none"}, feed={"kind": "lognormal", "x50_m": 30e-6, "sigma_ln": 0.8}, **extra)
 
 
@@ -64,7 +65,8 @@ def test_tip_speed_zero(scene_dict):
 
 
 def test_zero_feed_continuous(scene_dict):
-    m = MillModel(make_scene(scene_dict, operation={"mode": "continuous", "n_tanks": 2, "feed_mass_flow_kg_per_s": 0.0}))
+    m = MillModel(make_scene(scene_dict,
+                             operation={"mode": "continuous", "n_tanks": 2, "feed_mass_flow_kg_per_s": 0.0}))
     h0 = m.outputs()["holdup_kg"]
     o = m.step(1000.0)
     assert o["product_mass_flow_kg_per_s"] == 0.0
@@ -107,5 +109,6 @@ def test_extreme_tip_speeds_on_the_default_table(scene_dict):
         m = MillModel(make_scene(scene_dict, mill={"tip_speed_m_per_s": v}))
         m.step(1e4)
         _check(m, m.m0_kg)
-    with pytest.raises(SceneError, match="mill.bead_filling = 1e-06: outside the stress-energy table's grid; allowed 0.5 to 0.9"):
+    with pytest.raises(SceneError,
+                       match="mill.bead_filling = 1e-06: outside the stress-energy table's grid; allowed 0.5 to 0.9"):
         MillModel(make_scene(scene_dict, mill={"bead_filling": 1e-6}))

@@ -42,7 +42,8 @@ def scenes(draw):
         "mill": {"tip_speed_m_per_s": draw(num(0.0, 40.0)), "bead_filling": draw(num(0.05, 0.95))},
         "suspension": {"solids_mass_fraction": draw(num(0.01, 0.7))},
         "material": {"model": draw(st.sampled_from(["mineral", "yeast"])), "x_w_min_J_m_per_kg": draw(num(0.0, 5.0))},
-        "kinetics": draw(st.sampled_from([{"model": "simple"}, {"model": "detailed", "stress_distribution": {"source": "lognormal"}},
+        "kinetics": draw(st.sampled_from([{"model": "simple"},
+                                          {"model": "detailed", "stress_distribution": {"source": "lognormal"}},
                                           {"model": "simple", "capture": "psd"}])),
         "grid": {"x_min_m": draw(num(1e-7, 1e-6, log=True)), "x_max_m": draw(num(2e-4, 2e-3, log=True)),
                  "classes_per_octave": draw(num(0.5, 3.0))},
@@ -53,7 +54,8 @@ def scenes(draw):
         "run": {"t_end_s": 100.0, "dt_s": draw(num(1e-3, 100.0, log=True))},
     }
     if mode == "continuous":
-        d["operation"].update(n_tanks=draw(st.integers(0, 4).flatmap(lambda i: st.integers(-3, 200) if i == 0 else st.integers(1, 12))),
+        d["operation"].update(n_tanks=draw(st.integers(0, 4).flatmap(lambda i: st.integers(-3, 200) if i == 0
+                                                                     else st.integers(1, 12))),
                               feed_mass_flow_kg_per_s=draw(num(0.0, 1e-2)))
     if draw(st.integers(0, 9)) == 0:  # a key that does not exist
         d["mill"][draw(st.sampled_from(["tip_speed", "bead_fill", "x"]))] = 1.0
@@ -73,7 +75,8 @@ def test_random_scenes_are_refused_by_name_or_run_conserving_mass(d):
     try:
         m = MillModel(scene_from_dict(d))
     except SceneError as e:
-        assert e.key in KEYS or e.key.split("[")[0] in KEYS or e.key.startswith(("mill.", "(")) or e.key == "initial", e.key
+        assert e.key in KEYS or e.key.split("[")[0] in KEYS or e.key.startswith(("mill.",
+                                                                                 "(")) or e.key == "initial", e.key
         assert e.key in str(e) and e.allowed in str(e)
         return
     for _ in range(3):
@@ -87,7 +90,8 @@ CONT = {"operation": {"mode": "continuous", "n_tanks": 4, "feed_mass_flow_kg_per
 
 @st.composite
 def inputs(draw, n):
-    k = draw(st.sampled_from(["tip_speed_m_per_s", "solids_mass_fraction", "bead_filling", "feed_mass_flow_kg_per_s", "psd_in", "bogus", None]))
+    k = draw(st.sampled_from(["tip_speed_m_per_s", "solids_mass_fraction", "bead_filling", "feed_mass_flow_kg_per_s",
+                              "psd_in", "bogus", None]))
     if k is None:
         return {}
     if k == "psd_in":
@@ -158,7 +162,8 @@ def test_random_fmu_call_sequences_never_raise_but_fmi2error(slave_class, wrappe
             try:
                 if op == "set":
                     vr = data.draw(st.integers(-2, n_vars + 2))
-                    s.set_real([vr], [data.draw(st.one_of(st.floats(-10.0, 50.0), BAD.filter(lambda v: isinstance(v, float))))])
+                    s.set_real([vr], [data.draw(st.one_of(st.floats(-10.0, 50.0),
+                                                          BAD.filter(lambda v: isinstance(v, float))))])
                 elif op in ("step", "step_off"):
                     before = s.model.get_state()
                     cur = t if op == "step" else t + data.draw(st.floats(-10.0, 10.0).filter(lambda x: abs(x) > 1e-3))

@@ -17,7 +17,8 @@ SPANS = {"mild": (1.0, 1.0), "16 decades": (1e8, 4.85)}
 
 def _scene(scene_dict, n_tanks, span):
     a, alpha = SPANS[span]
-    return make_scene(scene_dict, material={"model": "austin", "selection": {"a_per_s": a, "x0_m": 200e-6, "alpha": alpha, "Lambda": 0.0}},
+    return make_scene(scene_dict, material={"model": "austin",
+                                            "selection": {"a_per_s": a, "x0_m": 200e-6, "alpha": alpha, "Lambda": 0.0}},
                       kinetics={"model": "none"}, feed={"kind": "lognormal", "x50_m": 30e-6, "sigma_ln": 0.8},
                       operation={"mode": "continuous", "n_tanks": n_tanks, "feed_mass_flow_kg_per_s": 1e-3})
 
@@ -38,7 +39,8 @@ def test_stability_matrix(scene_dict, n_tanks, span, h):
         m_in = a.m0_kg + a.fed_kg
         assert abs(a.total_mass_kg() - m_in) <= 1e-13 * m_in
         o = a.outputs()
-        assert all(np.isfinite(o[key]) for key in ("x10_m", "x50_m", "x90_m", "holdup_kg", "product_mass_flow_kg_per_s"))
+        assert all(np.isfinite(o[key])
+                   for key in ("x10_m", "x50_m", "x90_m", "holdup_kg", "product_mass_flow_kg_per_s"))
     b.step(k * h)
     assert b.y.min() >= 0.0
     # Step invariance with frozen rates, relative to the mass in the system.
@@ -46,7 +48,8 @@ def test_stability_matrix(scene_dict, n_tanks, span, h):
 
 
 @pytest.mark.parametrize("inert", [False, True])
-@pytest.mark.parametrize("n_tanks,d,h", [(1, 0.0, 5.0), (1, 0.05, 30.0), (3, 0.0, 5.0), (7, 1e-9, 2.0), (12, 0.05, 30.0), (25, 40.0, 1e3),
+@pytest.mark.parametrize("n_tanks,d,h", [(1, 0.0, 5.0), (1, 0.05, 30.0), (3, 0.0, 5.0), (7, 1e-9, 2.0),
+                                         (12, 0.05, 30.0), (25, 40.0, 1e3),
                                          (40, 2.0, 1e-5)])
 def test_block_propagator_equals_the_dense_exponential(n_tanks, d, h, inert):
     from millfmu.kinetics.grid import SizeGrid

@@ -43,7 +43,8 @@ def test_unstack_inverts_assemble_for_the_shipped_coupled_table(tmp_path):
     for k in t.data:
         np.testing.assert_array_equal(re.data[k], t.data[k])
     for name in s.one_at_a_time:
-        np.testing.assert_array_equal(re.one_at_a_time[name].data["se_density"], t.one_at_a_time[name].data["se_density"])
+        np.testing.assert_array_equal(re.one_at_a_time[name].data["se_density"],
+                                      t.one_at_a_time[name].data["se_density"])
 
 
 def test_refining_the_coupled_table_reuses_its_points(tmp_path):

@@ -107,7 +107,8 @@ def test_coupled_table_refuses_a_filling_the_dem_cannot_run():
             "    MillModel(scene_from_dict(d))\n"
             "except SceneError as e:\n"
             "    print(e)\n"
-            "print(sorted(m for m in sys.modules if m.startswith(('numba', 'millfmu.dem.engine', 'millfmu.dem.scene'))))\n")
+            "print(sorted(m for m in sys.modules if m.startswith(('numba', 'millfmu.dem.engine', "
+            "'millfmu.dem.scene'))))\n")
     r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
     assert r.returncode == 0, r.stderr
     msg, mods = r.stdout.strip().splitlines()

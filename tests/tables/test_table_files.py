@@ -25,7 +25,8 @@ def exported(tmp_path):
 
 def _scene_file(tmp_path, prefix):
     p = tmp_path / "scene.toml"
-    p.write_text(f'[kinetics.stress_distribution]\ntable = "{prefix}"\n[run]\nt_end_s = 10.0\ndt_s = 1.0\noutput_interval_s = 5.0\n')
+    p.write_text(f'[kinetics.stress_distribution]\ntable = "{prefix}"\n[run]\nt_end_s = 10.0\ndt_s = '
+                 '1.0\noutput_interval_s = 5.0\n')
     return p
 
 
@@ -45,7 +46,8 @@ def test_damaged_table_is_refused_by_run_and_build_fmu_naming_file_and_fix(tmp_p
     prefix, npz, man = exported
     damage(npz, man)
     scene = _scene_file(tmp_path, prefix)
-    for cmd in (["run", str(scene), "--out", str(tmp_path / "out")], ["build-fmu", str(scene), "-o", str(tmp_path / "m.fmu")]):
+    for cmd in (["run", str(scene), "--out", str(tmp_path / "out")],
+                ["build-fmu", str(scene), "-o", str(tmp_path / "m.fmu")]):
         r = subprocess.run([sys.executable, "-m", "millfmu.cli", *cmd], capture_output=True, text=True)
         assert r.returncode == 2, (cmd, r.stderr)
         assert "Traceback" not in r.stderr and "kinetics.stress_distribution.table" in r.stderr
@@ -58,7 +60,8 @@ def test_damaged_default_table_names_the_rebuild_command(monkeypatch, tmp_path, 
     shutil.copy(npz, tmp_path / "coupled_table.npz")
     shutil.copy(man, tmp_path / "coupled_table.json")
     _flip(tmp_path / "coupled_table.npz", 2000)
-    monkeypatch.setattr(table_module, "default_table_paths", lambda: (tmp_path / "coupled_table.npz", tmp_path / "coupled_table.json"))
+    monkeypatch.setattr(table_module, "default_table_paths",
+                        lambda: (tmp_path / "coupled_table.npz", tmp_path / "coupled_table.json"))
     with pytest.raises(SceneError) as e:
         MillModel(make_scene(scene_dict, kinetics={"stress_distribution": {"table": "default"}}))
     assert "coupled_table.npz" in str(e.value) and "corrupted" in str(e.value)
@@ -67,12 +70,14 @@ def test_damaged_default_table_names_the_rebuild_command(monkeypatch, tmp_path, 
 
 def test_edited_export_manifest_fails_verify(tmp_path, exported):
     prefix, npz, man = exported
-    ok = subprocess.run([sys.executable, "-m", "millfmu.cli", "tables", "verify", str(prefix)], capture_output=True, text=True)
+    ok = subprocess.run([sys.executable, "-m", "millfmu.cli", "tables", "verify", str(prefix)], capture_output=True,
+                        text=True)
     assert ok.returncode == 0 and f"{prefix}: ok" in ok.stdout
     m = json.loads(man.read_text())
     m["build_wall_time_s"] = 1.0  # a harmless-looking edit, outside the key's content
     man.write_text(json.dumps(m, indent=1, sort_keys=True))
-    r = subprocess.run([sys.executable, "-m", "millfmu.cli", "tables", "verify", str(prefix)], capture_output=True, text=True)
+    r = subprocess.run([sys.executable, "-m", "millfmu.cli", "tables", "verify", str(prefix)], capture_output=True,
+                       text=True)
     assert r.returncode == 1 and "BAD" in r.stdout and "manifest_sha256" in r.stdout
 
 
@@ -97,7 +102,8 @@ def test_table_from_a_short_recording_warns(tmp_path, scene_dict):
     assert any("0.004 s" in w and "stirrer revolution" in w for w in m.warnings), m.warnings
     # 0.1 s recordings: no warning about them (the default scene's one warning is its regime)
     assert not [w for w in MillModel(make_scene(scene_dict)).warnings if "stirrer revolution" in w]
-    r = subprocess.run([sys.executable, "-m", "millfmu.cli", "run", "-q", str(_scene_file(tmp_path, tmp_path / "short")),
+    r = subprocess.run([sys.executable, "-m", "millfmu.cli", "run", "-q",
+                        str(_scene_file(tmp_path, tmp_path / "short")),
                         "--out", str(tmp_path / "out")], capture_output=True, text=True)
     assert r.returncode == 0 and "warning: stress-energy table" in r.stderr and "0.004 s" in r.stderr
     res = json.loads((tmp_path / "out" / "result.json").read_text())
@@ -155,7 +161,8 @@ def test_a_rechecksummed_table_with_impossible_values_is_refused_by_name_with_th
     r = subprocess.run([sys.executable, "-m", "millfmu.cli", "run", str(scene), "--out", str(tmp_path / "out")],
                        capture_output=True, text=True)
     assert r.returncode == 2 and "Traceback" not in r.stderr, r.stderr
-    assert words in r.stderr and "kinetics.stress_distribution.table" in r.stderr and "tables build" in r.stderr, r.stderr
+    assert (words in r.stderr and "kinetics.stress_distribution.table" in r.stderr
+            and "tables build" in r.stderr), r.stderr
     assert not (tmp_path / "out").exists()
 
 

@@ -30,7 +30,8 @@ def synthetic(scene, times, noise, columns=cal.SIZE_COLUMNS, seed=1) -> str:
         out = m.step(t - prev)
         prev = t
         vals = [out[k] * math.exp(noise * rng.standard_normal()) for k in columns]
-        lines.append(f"{t}," + ",".join(f"{min(v, 1.0) if k == 'disrupted_fraction' else v:.9e}" for k, v in zip(columns, vals)))
+        lines.append(f"{t}," + ",".join(f"{min(v, 1.0) if k == 'disrupted_fraction' else v:.9e}"
+                                        for k, v in zip(columns, vals)))
     return "\n".join(lines) + "\n"
 
 
@@ -67,7 +68,8 @@ def test_recovers_energy_transfer():
     base = cal.example_scene("yeast_disruption_detailed.toml")
     true = cal.with_values(base, {"kinetics.energy_transfer": 0.3})
     start = cal.with_values(base, {"kinetics.energy_transfer": 0.03})
-    _shrinks(true, start, ["kinetics.energy_transfer"], lambda s, e: synthetic(s, (30, 60, 120, 240, 480, 900), e, ("disrupted_fraction",), seed=2))
+    _shrinks(true, start, ["kinetics.energy_transfer"], lambda s,
+             e: synthetic(s, (30, 60, 120, 240, 480, 900), e, ("disrupted_fraction",), seed=2))
 
 
 def test_recovers_stress_frequency_factor():
@@ -184,7 +186,8 @@ def test_yeast_fit_counts_the_whole_collision_energy_the_consistent_choice():
 def test_cli_writes_a_calibrated_scene_and_the_record(tmp_path):
     with resources.as_file(LIMESTONE.data_path()) as p:
         r = subprocess.run([sys.executable, "-m", "millfmu.cli", "calibrate", "--data", str(p), "--fit",
-                            "material.f_mat_kg_per_J_m", "--start", "material.f_mat_kg_per_J_m=50", "--out", str(tmp_path / "o")],
+                            "material.f_mat_kg_per_J_m", "--start", "material.f_mat_kg_per_J_m=50", "--out",
+                            str(tmp_path / "o")],
                            capture_output=True, text=True)
         digest = cal.read_data(p).sha256
     assert r.returncode == 0, r.stderr
@@ -205,7 +208,8 @@ def test_cli_refusal_exits_2_and_writes_nothing(tmp_path):
     bad.write_text("t_s,x50_m\n1800,2.88e-6\n")
     out = tmp_path / "o"
     r = subprocess.run([sys.executable, "-m", "millfmu.cli", "calibrate", "--data", str(bad), "--fit",
-                        "material.f_mat_kg_per_J_m,material.x_w_min_J_m_per_kg", "--out", str(out)], capture_output=True, text=True)
+                        "material.f_mat_kg_per_J_m,material.x_w_min_J_m_per_kg", "--out", str(out)],
+                       capture_output=True, text=True)
     assert r.returncode == 2 and "cannot pin 2 constants" in r.stderr and "Traceback" not in r.stderr
     assert not out.exists()
 
@@ -218,21 +222,23 @@ def test_refusals_name_the_api_arguments_and_the_command_its_options(tmp_path, c
     key = "material.x_w_min_J_m_per_kg"  # 0 in the default scene: no start for a fit in ln(key)
     with pytest.raises(cal.CalibrationError) as e:
         cal.calibrate(millfmu.load_scene(), "t_s,x50_m\n60,5e-6\n", [key])
-    assert str(e.value) == (f"fit {key}: starts from 0 J m/kg, the scene's value; a fit in ln({key}) needs a positive start: "
-                            f"set one in the scene (or start={{{key!r}: VALUE}})")
+    assert str(e.value) == (f"fit {key}: starts from 0 J m/kg, the scene's value; a fit in ln({key}) needs a positive "
+                            f"start: set one in the scene (or start={{{key!r}: VALUE}})")
     assert (e.value.argument, e.value.subject, e.value.start_key) == ("fit", key, key)
     f = tmp_path / "d.csv"
     f.write_text("t_s,x50_m\n60,5e-6\n")
     assert main(["calibrate", "--data", str(f), "--fit", key, "-q"]) == 2
-    assert capsys.readouterr().err.strip() == (f"millfmu: error: --fit {key}: starts from 0 J m/kg, the scene's value; a fit in "
-                                               f"ln({key}) needs a positive start: set one in the scene (or --start {key}=VALUE)")
+    assert capsys.readouterr().err.strip() == (f"millfmu: error: --fit {key}: starts from 0 J m/kg, the scene's value; "
+                                               f"a fit in ln({key}) needs a positive start: set one in the scene (or "
+                                               f"--start {key}=VALUE)")
     with pytest.raises(cal.CalibrationError, match=r"^fit 'a,b,c': give one or two"):
         cal.calibrate(millfmu.load_scene(), "t_s,x50_m\n60,5e-6\n", "a,b,c")
     with pytest.raises(cal.CalibrationError, match=r"^data .*missing.csv: cannot be read"):
         cal.read_data(tmp_path / "missing.csv")
     assert main(["calibrate", "--data", str(tmp_path / "missing.csv"), "--fit", key, "-q"]) == 2
     assert f"millfmu: error: --data {tmp_path / 'missing.csv'}: cannot be read" in capsys.readouterr().err
-    for name in ("__init__", "measured", "fitting", "intervals", "scene_file", "shipped"):  # the library names no option
+    # the library names no option
+    for name in ("__init__", "measured", "fitting", "intervals", "scene_file", "shipped"):
         assert not re.search(r"--(fit|data|start|errors|out)\b", (ROOT_PKG / f"{name}.py").read_text()), name
 
 
@@ -256,7 +262,8 @@ def test_a_byte_order_mark_is_accepted():
 @pytest.mark.parametrize("text, words", [
     ("t_s,x10_m,x50_m,x90_m\n60,3e-6,2e-6,9e-6\n", "line 2: x10_m = 3e-06 m is larger than x50_m = 2e-06 m"),
     ("t_s,x50_m,x90_m\n60,9e-6,8e-6\n", "x50_m = 9e-06 m is larger than x90_m = 8e-06 m"),
-    ("t_s,x50_m\n60,25\n", "column x50_m = 25 m: larger than 0.01 m, which no bead mill grinds; the column is in metres "
+    ("t_s,x50_m\n60,25\n",
+     "column x50_m = 25 m: larger than 0.01 m, which no bead mill grinds; the column is in metres "
                            "(if 25 is in micrometres, write 2.5e-05)"),
     ("t_s,x_m,Q3\n60,12,0.5\n", "column x_m = 12 m: larger than 0.01 m"),
 ])

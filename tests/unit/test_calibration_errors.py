@@ -75,7 +75,8 @@ def test_the_error_model_is_the_default_chosen_and_stated(truth):
     c = cal.calibrate(scene, text, [KEY])
     assert c.error_model == "per_sample" and c.interval_dof == len(TIMES) - 1
     d = c.to_dict()
-    assert d["error_model"] == "per_sample" and "cluster-robust" in d["method"] and d["interval_degrees_of_freedom"] == 6
+    assert d["error_model"] == "per_sample" and "cluster-robust" in d["method"] and d[
+        "interval_degrees_of_freedom"] == 6
     assert "errors: per-sample" in c.summary()
     json.dumps(d)
     one = "t_s,x50_m\n" + "".join(f"{t},{v:.9e}\n" for t, v in zip(TIMES, base[:, 1]))

@@ -10,11 +10,13 @@ import pytest
 from millfmu.runner import simulate
 from millfmu.scene import load_scene
 
-EXAMPLES = sorted(p.name for p in resources.files("millfmu.data").joinpath("examples").iterdir() if p.name.endswith(".toml"))
+EXAMPLES = sorted(p.name for p in resources.files("millfmu.data").joinpath("examples").iterdir()
+                  if p.name.endswith(".toml"))
 
 
 def test_examples_present():
-    assert {"yeast_disruption.toml", "yeast_disruption_detailed.toml", "limestone_continuous.toml", "limestone_simple.toml", "limestone_rampup.toml", "austin_generic.toml"} <= set(EXAMPLES)
+    assert {"yeast_disruption.toml", "yeast_disruption_detailed.toml", "limestone_continuous.toml",
+            "limestone_simple.toml", "limestone_rampup.toml", "austin_generic.toml"} <= set(EXAMPLES)
 
 
 @pytest.mark.parametrize("name", EXAMPLES)
@@ -63,7 +65,8 @@ def test_model_and_cli_never_import_numba():
         " or m.startswith('millfmu.dem.tables.') and m != cli];"
         "assert not bad, bad;"
         "tabs = sorted(m for m in sys.modules if m.startswith('millfmu.stress_tables.'));"
-        "assert tabs == ['millfmu.stress_tables.' + m for m in ('files', 'rules', 'spec', 'stress_source', 'table')], tabs"
+        "assert tabs == ['millfmu.stress_tables.' + m for m in ('files', 'rules', 'spec', 'stress_source', 'table')], "
+        "tabs"
     )
     r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
     assert r.returncode == 0, r.stderr

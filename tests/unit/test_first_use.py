@@ -127,7 +127,8 @@ def test_output_folders_keep_the_users_umask_and_an_existing_folders_mode(tmp_pa
         assert _mode(existing) == 0o775
     assert main(["calibrate", "--data", str(EXAMPLE.parent / "limestone_standin_batch.csv"), "--fit",
                  "material.f_mat_kg_per_J_m", "--out", str(tmp_path / "a" / "b" / "cal"), "-q"]) == 0
-    assert _mode(tmp_path / "a" / "b" / "cal") == 0o750 and _mode(tmp_path / "a" / "b" / "cal" / "calibrated.toml") == 0o640
+    assert (_mode(tmp_path / "a" / "b" / "cal") == 0o750
+            and _mode(tmp_path / "a" / "b" / "cal" / "calibrated.toml") == 0o640)
     assert main(["rates", str(EXAMPLE), "--out", str(tmp_path / "rates"), "--no-plots"]) == 0
     assert {_mode(f) for f in (tmp_path / "rates").iterdir()} == {0o640}
 
@@ -243,7 +244,8 @@ def test_a_bad_build_limit_is_refused_by_name(monkeypatch, value):
     from millfmu.stress_tables.spec import TableError
 
     monkeypatch.setenv("MILLFMU_BUILD_LIMIT_S", value)
-    with pytest.raises(TableError, match=f"MILLFMU_BUILD_LIMIT_S = '{value}': allowed a number of seconds >= 0, or inf"):
+    with pytest.raises(TableError,
+                       match=f"MILLFMU_BUILD_LIMIT_S = '{value}': allowed a number of seconds >= 0, or inf"):
         build_limit_s()
 
 
@@ -259,7 +261,8 @@ def test_run_refuses_the_stale_coupled_tables_full_rebuild_without_yes(tmp_path,
                      '[kinetics.stress_distribution]\nsource = "table"\ntable = "coupled"\non_outside = "build"\n')
     assert main(["run", str(scene), "--out", str(tmp_path / "out"), "-q", "--no-plots", "--on-stale", "rebuild"]) == 2
     err = capsys.readouterr().err
-    assert "29 points, 0 already built, 29 to run" in err and "over the 30 min a build may take without confirmation" in err
+    assert ("29 points, 0 already built, 29 to run" in err
+            and "over the 30 min a build may take without confirmation" in err)
     assert "--yes" in err and "Traceback" not in err and not (tmp_path / "out").exists()
 
 

@@ -86,7 +86,8 @@ def imports(known: dict[str, Path] | None = None) -> dict[str, dict[str, bool]]:
                 # name` imports mod.
                 deps = [f"{stem}.{a.name}" if f"{stem}.{a.name}" in known
                         else _resolve(stem, known) for a in node.names]
-            elif isinstance(node, ast.Call) and getattr(node.func, "attr", getattr(node.func, "id", "")) == "import_module":
+            elif isinstance(node, ast.Call) and getattr(node.func, "attr",
+                                                        getattr(node.func, "id", "")) == "import_module":
                 # importlib.import_module("a.b"): an import by name (the CLI's plugins)
                 deps = [_resolve(a.value, known) for a in node.args[:1]
                         if isinstance(a, ast.Constant) and isinstance(a.value, str)]
@@ -133,7 +134,8 @@ LAYERS = {
     "millfmu.studies": 4, "millfmu.report": 4, "validation": 4, "benchmarks": 4,
     "fmu_build.step_cost": 4, "fmu_build.exit_study": 4, "flowsheets.wp": 4,
     # 5: command-line modules
-    "millfmu.cli": 5, "millfmu.dem.cli": 5, "millfmu.dem.tables.cli": 5, "millfmu.calibration.cli": 5, "fmu_build.cli": 5,
+    "millfmu.cli": 5, "millfmu.dem.cli": 5, "millfmu.dem.tables.cli": 5, "millfmu.calibration.cli": 5,
+          "fmu_build.cli": 5,
     "flowsheets.cli": 5, "millfmu.rates": 5,  # millfmu.rates: the `millfmu rates` command
 }
 LAYER_NAMES = ("engine/kinetics", "dem scene/run/analysis/tables, table reader", "model",
@@ -290,7 +292,8 @@ def test_installed_packages_import_no_checkout_only_code():
 
 def test_the_cli_plugins_are_seen_as_imports():
     graph = imports()
-    assert {"millfmu.dem.cli", "fmu_build.cli", "flowsheets.cli", "millfmu.report", "millfmu.calibration.cli"} <= set(graph["millfmu.cli"])
+    assert {"millfmu.dem.cli", "fmu_build.cli", "flowsheets.cli", "millfmu.report",
+            "millfmu.calibration.cli"} <= set(graph["millfmu.cli"])
 
 
 def test_engine_and_model_import_no_study_cli_report_or_builder():

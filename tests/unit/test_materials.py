@@ -10,7 +10,8 @@ from millfmu.kinetics.vogel_peukert2003 import breakage_probability
 from millfmu.mill import MillModel
 from tests.conftest import make_scene
 
-YEAST = {"model": "yeast", "density_kg_per_m3": 1100.0, "youngs_modulus_Pa": 1e8, "burst_energy_median_J": 2e-5, "burst_energy_sigma_ln": 1.0,
+YEAST = {"model": "yeast", "density_kg_per_m3": 1100.0, "youngs_modulus_Pa": 1e8, "burst_energy_median_J": 2e-5,
+         "burst_energy_sigma_ln": 1.0,
          "breakage": {"phi": 1.0, "gamma": 1.0, "beta": 1.0}}
 CELLS = {"kind": "lognormal", "x50_m": 5e-6, "sigma_ln": 0.15}
 
@@ -34,7 +35,8 @@ def test_yeast_disruption_first_order_and_tip_speed(scene_dict):
     """Monodisperse-ish cells: disrupted fraction follows 1 - exp(-k t); faster at higher tip speed."""
     out = {}
     for v in (6.0, 10.0):
-        m = MillModel(make_scene(scene_dict, material=YEAST, feed={"kind": "monodisperse", "x_m": 5e-6}, mill={"tip_speed_m_per_s": v}))
+        m = MillModel(make_scene(scene_dict, material=YEAST, feed={"kind": "monodisperse", "x_m": 5e-6},
+                                 mill={"tip_speed_m_per_s": v}))
         k = m.class_rates_per_s()[np.argmax(m.tank_masses_kg()[0][: m.grid.n])]
         o = m.step(100.0)
         assert o["disrupted_fraction"] == pytest.approx(-np.expm1(-k * 100.0), rel=1e-10)
@@ -68,16 +70,23 @@ def test_energy_transfer_scales_the_collision_energies(scene_dict):
     eta_E = 1 on the same distribution at 0.3 times the energies."""
     sd = {"source": "lognormal", "sigma_ln": 1.2, "collision_factor": 1.0}
     mat = ASSUMED_LIMESTONE
-    a = MillModel(make_scene(scene_dict, material=mat, kinetics={"model": "detailed", "energy_transfer": 0.3, "stress_distribution": {**sd, "median_fraction": 0.1}}))
-    b = MillModel(make_scene(scene_dict, material=mat, kinetics={"model": "detailed", "energy_transfer": 1.0, "stress_distribution": {**sd, "median_fraction": 0.03}}))
-    c = MillModel(make_scene(scene_dict, material=mat, kinetics={"model": "detailed", "energy_transfer": 1.0, "stress_distribution": {**sd, "median_fraction": 0.1}}))
+    a = MillModel(make_scene(scene_dict, material=mat,
+                             kinetics={"model": "detailed", "energy_transfer": 0.3,
+                                       "stress_distribution": {**sd, "median_fraction": 0.1}}))
+    b = MillModel(make_scene(scene_dict, material=mat,
+                             kinetics={"model": "detailed", "energy_transfer": 1.0,
+                                       "stress_distribution": {**sd, "median_fraction": 0.03}}))
+    c = MillModel(make_scene(scene_dict, material=mat,
+                             kinetics={"model": "detailed", "energy_transfer": 1.0,
+                                       "stress_distribution": {**sd, "median_fraction": 0.1}}))
     ra, rb, rc = a.class_rates_per_s(), b.class_rates_per_s(), c.class_rates_per_s()
     assert np.allclose(ra, rb, rtol=1e-12, atol=0.0)
     assert np.all(ra <= rc) and np.any(ra < 0.5 * rc)
 
 
 def test_detailed_distribution_lowers_rates_of_coarse_particles(scene_dict):
-    s_det = make_scene(scene_dict, material=ASSUMED_LIMESTONE, kinetics={"model": "detailed", "stress_distribution": {"source": "lognormal"}})
+    s_det = make_scene(scene_dict, material=ASSUMED_LIMESTONE,
+                       kinetics={"model": "detailed", "stress_distribution": {"source": "lognormal"}})
     a, b = MillModel(make_scene(scene_dict, material=ASSUMED_LIMESTONE, kinetics={"model": "simple"})), MillModel(s_det)
     ra, rb = a.class_rates_per_s(), b.class_rates_per_s()
     assert np.all(rb <= ra * (1 + 1e-12))

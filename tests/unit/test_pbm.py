@@ -4,7 +4,8 @@ import numpy as np
 import pytest
 
 from millfmu.kinetics import pbm
-from millfmu.kinetics.grid import SizeGrid, characteristic_size_m, characteristic_sizes_m, fractions_from_q3, q3_lognormal
+from millfmu.kinetics.grid import (SizeGrid, characteristic_size_m, characteristic_sizes_m, fractions_from_q3,
+                                   q3_lognormal)
 from millfmu.mill import InputError, MillModel
 from tests.conftest import make_scene
 
@@ -91,7 +92,8 @@ def test_continuous_mass_balance_in_out_accumulation(scene_dict):
 
 def test_feed_ramp_within_a_step_books_the_mass_fed(scene_dict):
     """A feed rate ramped within one step (adaptive path): the mass balance still closes."""
-    m = MillModel(make_scene(scene_dict, operation={"mode": "continuous", "n_tanks": 2, "feed_mass_flow_kg_per_s": 1e-3}))
+    m = MillModel(make_scene(scene_dict,
+                             operation={"mode": "continuous", "n_tanks": 2, "feed_mass_flow_kg_per_s": 1e-3}))
     m.step(10.0, inputs_end={"feed_mass_flow_kg_per_s": 3e-3}, feed_mass_flow_kg_per_s=1e-3)
     assert m.fed_kg == pytest.approx(0.02, rel=1e-15)
     assert abs(m.total_mass_kg() - (m.m0_kg + m.fed_kg)) <= 1e-12 * m.total_mass_kg()
@@ -99,7 +101,8 @@ def test_feed_ramp_within_a_step_books_the_mass_fed(scene_dict):
 
 def test_continuous_steady_state_residence_time(scene_dict):
     """With zero rates the outlet follows the N-tanks-in-series washout: holdup -> V c for any initial content."""
-    s = make_scene(scene_dict, operation={"mode": "continuous", "n_tanks": 2, "feed_mass_flow_kg_per_s": 1e-3}, mill={"tip_speed_m_per_s": 0.0})
+    s = make_scene(scene_dict, operation={"mode": "continuous", "n_tanks": 2, "feed_mass_flow_kg_per_s": 1e-3},
+                   mill={"tip_speed_m_per_s": 0.0})
     m = MillModel(s)
     op = m.operating_point(m.inputs)
     q = 1e-3 / op.solids_concentration_kg_per_m3
@@ -112,7 +115,8 @@ def test_continuous_steady_state_residence_time(scene_dict):
 
 
 def test_state_round_trip_bit_identical(scene_dict):
-    m = MillModel(make_scene(scene_dict, operation={"mode": "continuous", "n_tanks": 2, "feed_mass_flow_kg_per_s": 1e-4}))
+    m = MillModel(make_scene(scene_dict,
+                             operation={"mode": "continuous", "n_tanks": 2, "feed_mass_flow_kg_per_s": 1e-4}))
     m.step(3.0)
     st = m.get_state()
     a = [m.step(h)["x50_m"] for h in (1.0, 2.5, 0.3)]

@@ -64,7 +64,8 @@ def test_result_json_carries_the_band_and_the_calibration_record(tmp_path):
     lo, hi = res["prediction_band"]["outputs"]["x50_m"]
     assert lo < res["outputs"][-1]["x50_m"] < hi
     prov = res["provenance"]
-    assert "STAND-IN" in prov["scene"]["scene"]["calibration"] and "f_mat_kg_per_J_m" in prov["scene"]["scene"]["calibration"]
+    assert "STAND-IN" in prov["scene"]["scene"]["calibration"] and "f_mat_kg_per_J_m" in prov["scene"]["scene"][
+        "calibration"]
     from millfmu.stress_tables.table import read_table_ref
 
     assert prov["table"]["ref"] == "coupled" and prov["table"]["key"] == read_table_ref("coupled").manifest["key"]
@@ -83,7 +84,8 @@ def test_the_calibrations_interval_is_a_part_of_the_band_and_the_whole_holds_bot
         ends.append(rec[-1]["x50_m"])
     assert parts["calibration"]["outputs"]["x50_m"] == [min(ends), max(ends)]
     assert ends[0] > ends[1]  # a smaller f_Mat breaks less: coarser
-    assert parts["calibration"]["constants"] == [{"key": "material.f_mat_kg_per_J_m", "value": 179.5, "ci95": [119.0, 271.0]}]
+    assert parts["calibration"]["constants"] == [{"key": "material.f_mat_kg_per_J_m", "value": 179.5,
+                                                  "ci95": [119.0, 271.0]}]
     lo, hi = default_band["outputs"]["x50_m"]
     for part in parts.values():
         plo, phi = part["outputs"]["x50_m"]
@@ -103,8 +105,10 @@ def test_a_simple_scene_with_a_fitted_constant_has_a_calibration_band():
 
 
 def test_calibrate_writes_the_interval_the_band_then_carries(tmp_path):
-    r = subprocess.run([sys.executable, "-m", "millfmu.cli", "calibrate", "--data", "limestone_standin_batch.csv", "--fit",
-                        "material.f_mat_kg_per_J_m", "--out", str(tmp_path / "cal"), "-q"], capture_output=True, text=True,
+    r = subprocess.run([sys.executable, "-m", "millfmu.cli", "calibrate", "--data", "limestone_standin_batch.csv",
+                        "--fit",
+                        "material.f_mat_kg_per_J_m", "--out", str(tmp_path / "cal"), "-q"], capture_output=True,
+                       text=True,
                        cwd=tmp_path)
     assert r.returncode == 0, r.stderr
     scene = millfmu.load_scene(tmp_path / "cal" / "calibrated.toml")
@@ -119,5 +123,5 @@ def test_a_fitted_constant_set_outside_its_interval_is_left_out_with_a_note():
                                           "material.f_mat_kg_per_J_m": 30.0})
     b = prediction_band(scene)
     assert set(b["parts"]) == {"table"}
-    assert b["notes"] == ["material.f_mat_kg_per_J_m = 30 lies outside its recorded 95 % interval [141.1, 228.6], which "
-                          "belongs to another value of it: not carried into the band"]
+    assert b["notes"] == ["material.f_mat_kg_per_J_m = 30 lies outside its recorded 95 % interval [141.1, 228.6], "
+                          "which belongs to another value of it: not carried into the band"]

@@ -26,7 +26,9 @@ def test_importing_the_package_loads_no_model_code():
     import subprocess
     import sys
 
-    r = subprocess.run([sys.executable, "-c", "import millfmu, sys; print(sorted(m for m in sys.modules if m.startswith('millfmu') or m in ('numpy', 'scipy')))"],
+    r = subprocess.run([sys.executable, "-c",
+                        "import millfmu, sys; print(sorted(m for m in sys.modules if m.startswith('millfmu') or m in "
+                        "('numpy', 'scipy')))"],
                        capture_output=True, text=True)
     assert r.stdout.strip() == "['millfmu']", r.stdout
 

@@ -60,20 +60,23 @@ def test_simple_model_follows_kwades_scaling_laws_exactly(which, limestone, yeas
         c = r.curve(p, "simple")
         for k, v in enumerate(c.values):
             point = {**ref, p: v}
-            expect_se = {"tip_speed": (v / ref[p]) ** 2, "bead_diameter": (v / ref[p]) ** 3, "bead_density": v / ref[p]}.get(p, 1.0)
+            expect_se = {"tip_speed": (v / ref[p]) ** 2, "bead_diameter": (v / ref[p]) ** 3,
+                         "bead_density": v / ref[p]}.get(p, 1.0)
             assert c.se_J[k] / c.se_J[r.reference_index(p)] == pytest.approx(expect_se, rel=1e-13, abs=0.0)
             se = math.pi / 12.0 * point["bead_diameter"] ** 3 * point["bead_density"] * point["tip_speed"] ** 2
             assert c.se_J[k] == pytest.approx(se, rel=1e-13)
             se_p = se / (1.0 + s.material.youngs_modulus_Pa / s.beads.youngs_modulus_Pa)
             for x in r.sizes_m:
                 q = mrates._size_key(x)
-                sf, p_cap = _kwade_sf(s, x, point["tip_speed"], point["bead_diameter"], point["solids_mass_fraction"], point["filling"])
+                sf, p_cap = _kwade_sf(s, x, point["tip_speed"], point["bead_diameter"], point["solids_mass_fraction"],
+                                      point["filling"])
                 saw_partial_capture |= p_cap < 1.0
                 assert c.sf[q][k] == pytest.approx(sf, rel=1e-12)
                 assert c.p_cap[q][k] == pytest.approx(p_cap, rel=1e-12)
                 if s.material.model == "mineral":
                     m_p = s.material.density_kg_per_m3 * math.pi / 6.0 * x**3
-                    p_break = float(breakage_probability(x, se_p / m_p, s.material.f_mat_kg_per_J_m, s.material.x_w_min_J_m_per_kg))
+                    p_break = float(breakage_probability(x, se_p / m_p, s.material.f_mat_kg_per_J_m,
+                                                         s.material.x_w_min_J_m_per_kg))
                 else:  # every stress carries SE_P, five decades above the cells' burst energy
                     p_break = 1.0
                 assert c.rates[q][k] == pytest.approx(sf * p_break, rel=1e-12)
@@ -152,7 +155,9 @@ def test_points_the_table_does_not_resolve_are_labelled_or_refused(limestone):
     assert math.isnan(det.rates[mrates._size_key(10e-6)][0]) and det.notes[0].startswith("refused")
     assert r.curve("filling", "simple").rates[mrates._size_key(10e-6)][0] > 0.0
     # a scene that does not name the tip speed among its similar axes: 4 m/s is refused too
-    no_sim = replace(scene, kinetics=replace(scene.kinetics, stress_distribution=replace(scene.kinetics.stress_distribution, similar_axes=[])))
+    no_sim = replace(scene,
+                     kinetics=replace(scene.kinetics,
+                                      stress_distribution=replace(scene.kinetics.stress_distribution, similar_axes=[])))
     r = mrates.compute(no_sim, "limestone", sizes_m=(10e-6,), values={"tip_speed": [4.0]})
     assert math.isnan(r.curve("tip_speed", "detailed").rates[mrates._size_key(10e-6)][0])
 
@@ -183,7 +188,8 @@ def test_rates_command_writes_csv_json_png(tmp_path, capsys):
     assert {(r["parameter"], r["value_unit"]) for r in rows} == {(p, v[1]) for p, v in mrates.PARAMETERS.items()}
     assert {r["parameter"] for r in rows} == set(mrates.PARAMETERS)
     assert {r["quantity"] for r in rows} == {"S(x)", "disruption_rate"}
-    ref = [r for r in rows if r["parameter"] == "tip_speed" and r["value"] == "8" and r["quantity"] == "disruption_rate"]
+    ref = [r for r in rows if r["parameter"] == "tip_speed" and r["value"] == "8"
+           and r["quantity"] == "disruption_rate"]
     assert {r["model"] for r in ref} == {"simple", "detailed"} and all(r["rate_over_ref"] == "1" for r in ref)
     assert (tmp_path / "out" / f"rates_{name}.png").stat().st_size > 10_000
     assert (tmp_path / "out" / f"rates_{name}.json").exists()

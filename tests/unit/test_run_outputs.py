@@ -16,7 +16,8 @@ SHORT = "[run]\nt_end_s = 60.0\ndt_s = 10.0\noutput_interval_s = 30.0\n"
 
 
 def _run(*args, cwd=None):
-    return subprocess.run([sys.executable, "-m", "millfmu.cli", "run", "-q", *map(str, args)], capture_output=True, text=True, cwd=cwd)
+    return subprocess.run([sys.executable, "-m", "millfmu.cli", "run", "-q", *map(str, args)], capture_output=True,
+                          text=True, cwd=cwd)
 
 
 @pytest.fixture
@@ -101,7 +102,8 @@ sys.exit(cli.main(["run", "-q", *sys.argv[2:]]))
 
 
 def _kill_at(stage, *args):
-    return subprocess.run([sys.executable, "-c", KILL_DURING_SWITCH, stage, *map(str, args)], capture_output=True, text=True)
+    return subprocess.run([sys.executable, "-c", KILL_DURING_SWITCH, stage, *map(str, args)], capture_output=True,
+                          text=True)
 
 
 def _folder(p):
@@ -164,7 +166,8 @@ def test_a_refused_or_interrupted_run_creates_no_folder(tmp_path, short):
     code = ("import sys\nfrom millfmu import cli, runner\n"
             "def stop(*a, **k):\n    raise KeyboardInterrupt\n"
             "runner.simulate = stop\nsys.exit(cli.main(['run', '-q', sys.argv[1], '--out', sys.argv[2]]))\n")
-    r = subprocess.run([sys.executable, "-c", code, str(short), str(tmp_path / "np1" / "deep" / "sub")], capture_output=True, text=True)
+    r = subprocess.run([sys.executable, "-c", code, str(short), str(tmp_path / "np1" / "deep" / "sub")],
+                       capture_output=True, text=True)
     assert r.returncode == 130, r.stderr
     f = tmp_path / "file"
     f.write_text("x")

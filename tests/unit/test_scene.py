@@ -56,7 +56,8 @@ def test_cli_bad_scene_exit_2_and_nothing_written(tmp_path):
     bad = tmp_path / "bad.toml"
     bad.write_text("[mill]\ntip_speed_m_per_s = -1.0\n")
     out = tmp_path / "out"
-    r = subprocess.run([sys.executable, "-m", "millfmu.cli", "run", str(bad), "--out", str(out)], capture_output=True, text=True)
+    r = subprocess.run([sys.executable, "-m", "millfmu.cli", "run", str(bad), "--out", str(out)], capture_output=True,
+                       text=True)
     assert r.returncode == 2
     assert "mill.tip_speed_m_per_s" in r.stderr and "-1.0" in r.stderr and ">= 0" in r.stderr
     assert not out.exists()
@@ -66,13 +67,15 @@ def test_cli_bad_scene_exit_2_and_nothing_written(tmp_path):
 def test_cli_syntax_error_exit_2(tmp_path):
     bad = tmp_path / "bad.toml"
     bad.write_text("[mill\n")
-    r = subprocess.run([sys.executable, "-m", "millfmu.cli", "run", str(bad), "--out", str(tmp_path / "o")], capture_output=True, text=True)
+    r = subprocess.run([sys.executable, "-m", "millfmu.cli", "run", str(bad), "--out", str(tmp_path / "o")],
+                       capture_output=True, text=True)
     assert r.returncode == 2 and "TOML" in r.stderr
 
 
 def test_cli_run_default_writes_results(tmp_path):
     out = tmp_path / "o"
-    r = subprocess.run([sys.executable, "-m", "millfmu.cli", "run", "--out", str(out), "-q"], capture_output=True, text=True)
+    r = subprocess.run([sys.executable, "-m", "millfmu.cli", "run", "--out", str(out), "-q"], capture_output=True,
+                       text=True)
     assert r.returncode == 0, r.stderr
     assert {p.name for p in out.iterdir()} == {"result.json", "psd.csv", "psd.png", "sizes.png"}
     res = json.loads((out / "result.json").read_text())
@@ -137,14 +140,16 @@ def test_austin_selection_that_cannot_be_computed_is_refused_naming_the_keys(tmp
     p.write_text(f'[material]\nmodel = "austin"\n[material.selection]\n{lines}\n[kinetics]\nmodel = "none"\n')
     code, err = _cli(capsys, "run", "-q", p, "--out", tmp_path / "out")
     assert code == 2 and "Traceback" not in err, err
-    assert "material.selection.a_per_s" in err and "x0_m" in err and "alpha" in err and "must stay below 1e+20 1/s" in err
+    assert ("material.selection.a_per_s" in err and "x0_m" in err and "alpha" in err
+            and "must stay below 1e+20 1/s" in err)
 
 
 def test_austin_selection_up_to_the_limit_runs():
     from millfmu.mill import MillModel
     from millfmu.scene import scene_from_dict
 
-    m = MillModel(scene_from_dict({"material": {"model": "austin", "selection": {"a_per_s": 1e20, "x0_m": 200e-6, "alpha": 4.85}},
+    m = MillModel(scene_from_dict({"material": {"model": "austin",
+                                                "selection": {"a_per_s": 1e20, "x0_m": 200e-6, "alpha": 4.85}},
                                    "kinetics": {"model": "none"}}, "t"))
     for h in (1e-3, 1.0, 1000.0):
         m.step(h)

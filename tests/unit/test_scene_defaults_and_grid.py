@@ -43,7 +43,8 @@ def test_listed_defaults_are_the_default_scenes():
             assert default == sec[key.split(".")[-1]], key
 
 
-@pytest.mark.parametrize("feed, key", [({"x50_m": 1e-3}, "feed.x50_m"), ({"kind": "monodisperse", "x_m": 1e-8}, "feed.x_m"),
+@pytest.mark.parametrize("feed, key",
+                         [({"x50_m": 1e-3}, "feed.x50_m"), ({"kind": "monodisperse", "x_m": 1e-8}, "feed.x_m"),
                                        ({"kind": "rrsb", "x63_m": 300e-6, "n": 2.0}, "feed.x63_m")])
 def test_feed_outside_the_grid_is_refused_naming_key_value_and_edges(scene_dict, feed, key):
     with pytest.raises(SceneError) as e:
@@ -56,7 +57,8 @@ def test_feed_outside_the_grid_is_refused_naming_key_value_and_edges(scene_dict,
 def test_cli_refuses_a_feed_outside_the_grid_with_exit_2(tmp_path):
     scene = tmp_path / "coarse.toml"
     scene.write_text("[feed]\nx50_m = 1e-3\n")
-    r = subprocess.run([sys.executable, "-m", "millfmu.cli", "run", str(scene), "--out", str(tmp_path / "out")], capture_output=True, text=True)
+    r = subprocess.run([sys.executable, "-m", "millfmu.cli", "run", str(scene), "--out", str(tmp_path / "out")],
+                       capture_output=True, text=True)
     assert r.returncode == 2 and "feed.x50_m = 0.001" in r.stderr and "Traceback" not in r.stderr
     assert not (tmp_path / "out").exists()
 
@@ -73,7 +75,8 @@ def test_initial_in_a_batch_scene_is_refused(scene_dict):
 def test_mass_below_the_grid_is_its_own_output_and_conserved(scene_dict):
     """The default scene on a grid from 0.1 um (its grid reaches down to 20 nm) grinds mass
     below the grid: it is named, not hidden in the finest class."""
-    s = make_scene(scene_dict, run={"t_end_s": 1800.0, "dt_s": 10.0, "output_interval_s": 600.0}, grid={"x_min_m": 0.1e-6})
+    s = make_scene(scene_dict, run={"t_end_s": 1800.0, "dt_s": 10.0, "output_interval_s": 600.0},
+                   grid={"x_min_m": 0.1e-6})
     model, recs, psds = simulate(s, progress=False)
     below = [r["below_grid_fraction"] for r in recs]
     assert below[0] < 1e-12 and np.all(np.diff(below) > 0.0) and below[-1] > 0.01

@@ -51,7 +51,8 @@ def test_calibrate_and_run_take_the_shipped_examples_by_name_from_any_folder(tmp
     rc = main(["run", "limestone_simple", "--out", "out-simple", "--no-plots", "-q"])
     out, err = capsys.readouterr()
     assert rc == 0, err
-    assert json.loads((tmp_path / "out-simple" / "result.json").read_text())["provenance"]["scene"]["scene"]["name"] == "limestone-simple"
+    assert json.loads((tmp_path / "out-simple" / "result.json").read_text())["provenance"]["scene"]["scene"][
+        "name"] == "limestone-simple"
     # A name that is neither a file nor an example is still refused as a missing file.
     assert main(["run", "limestone_simpel.toml", "--out", "x", "-q"]) == 2
     assert "cannot be read" in capsys.readouterr().err

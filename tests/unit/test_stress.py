@@ -11,7 +11,8 @@ from millfmu.kinetics.rates import OperatingPoint
 
 def test_stress_energy_hand_calculation():
     # pi/12 * (0.8e-3)^3 * 2510 * 10^2 = 3.3644e-5 J
-    assert stress.stress_energy_beads_J(0.8e-3, 2510.0, 10.0) == pytest.approx(math.pi / 12 * 5.12e-10 * 2510 * 100, rel=1e-14)
+    assert stress.stress_energy_beads_J(0.8e-3, 2510.0, 10.0) == pytest.approx(math.pi / 12 * 5.12e-10 * 2510 * 100,
+                                                                               rel=1e-14)
     assert stress.stress_energy_beads_J(0.8e-3, 2510.0, 10.0) == pytest.approx(3.36444e-5, rel=1e-5)
 
 
@@ -64,7 +65,8 @@ def test_power_zero_at_rest_and_positive_otherwise():
 
 
 def _op(**kw):
-    base = dict(tip_speed_m_per_s=10.0, filling=0.8, porosity=0.4, r_stirrer_m=0.036, d_gb_m=0.8e-3, rho_gb_kg_per_m3=2510.0,
+    base = dict(tip_speed_m_per_s=10.0, filling=0.8, porosity=0.4, r_stirrer_m=0.036, d_gb_m=0.8e-3,
+                rho_gb_kg_per_m3=2510.0,
                 y_gb_Pa=63e9, y_p_Pa=70e9, rho_p_kg_per_m3=2710.0, rho_l_kg_per_m3=998.2, eta_susp_Pa_s=1e-3,
                 solids_mass_fraction=0.2, k_c=1.0)
     base.update(kw)
@@ -90,7 +92,8 @@ def test_scaling_stress_number(seed):
     x = 300e-6  # coarse: n_p V_act < 1
     op = _op(solids_mass_fraction=0.05)
     sn = float(op.stress_frequency_per_s(x)) * 10.0
-    assert float(stress.capture_probability(op.class_number_concentration_per_m3(x), stress.active_volume_m3(x, op.d_gb_m))) < 1.0
+    assert float(stress.capture_probability(op.class_number_concentration_per_m3(x),
+                                            stress.active_volume_m3(x, op.d_gb_m))) < 1.0
     sn_v = float(_op(solids_mass_fraction=0.05, tip_speed_m_per_s=10.0 * f).stress_frequency_per_s(x)) * 10.0
     sn_t = float(op.stress_frequency_per_s(x)) * 10.0 * f
     sn_d = float(_op(solids_mass_fraction=0.05, d_gb_m=0.8e-3 * g).stress_frequency_per_s(x)) * 10.0

@@ -37,7 +37,8 @@ def mass_density(v, tau, p):
 
 
 def class_masses(edges_v, tau, p):
-    m = np.array([quad(mass_density, a, b, args=(tau, p), epsabs=0, epsrel=1e-13, limit=200)[0] for a, b in zip(edges_v[:-1], edges_v[1:])])
+    m = np.array([quad(mass_density, a, b, args=(tau, p), epsabs=0, epsrel=1e-13, limit=200)[0]
+                  for a, b in zip(edges_v[:-1], edges_v[1:])])
     m[0] += quad(mass_density, 0.0, edges_v[0], args=(tau, p), epsabs=0, epsrel=1e-13)[0]
     return m
 

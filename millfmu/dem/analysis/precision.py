@@ -612,8 +612,8 @@ def analyse_quick(run_dir) -> dict:
                 zones=rd.zone_names, statistics=list(STATISTICS), machine=machine())
 
 
-#: The study's summary and data shipped with millfmu (``python -m validation.work_precision table --export``), which table
-#: manifests quote and ``millfmu report`` shows.
+#: The study's summary and data shipped with millfmu (``python -m validation.work_precision table --export``),
+#: which table manifests quote and ``millfmu report`` shows.
 SUMMARY_PATH = Path(__file__).resolve().parents[2] / "data" / "dem_work_precision.json"
 #: The command that makes the study, from a checkout's root (the study is not installed
 #: with millfmu).

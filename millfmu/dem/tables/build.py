@@ -24,7 +24,8 @@ from collections.abc import Callable
 import numpy as np
 
 from ...stress_tables.files import canonical_json, sha256_bytes, write_replacing
-from ...stress_tables.spec import (COMPONENTS, DEM_BUILDER_ID, DRIFT_FIELDS, FIELDS, FORMAT_VERSION, QUANTILE_NAMES, TableError,
+from ...stress_tables.spec import (COMPONENTS, DEM_BUILDER_ID, DRIFT_FIELDS, FIELDS, FORMAT_VERSION, QUANTILE_NAMES,
+                                   TableError,
                    TableSpec, scene_at_point)
 from ...stress_tables.table import FIXED_AXIS_RTOL, Table
 

@@ -298,9 +298,9 @@ def _verify(args) -> int:
     if args.default:
         try:
             t = T.read_default_table()
+            older = "" if t.manifest["kernel_version"] == T.dem_kernel_version() else " (older than the installed DEM)"
             print(f"default table: ok ({' x '.join(map(str, t.shape))} points, scene "
-                  f"{t.manifest['scene'].get('name')}, kernel {t.manifest['kernel_version'][:19]}"
-                  f"{'' if t.manifest['kernel_version'] == T.dem_kernel_version() else ' (older than the installed DEM)'})")
+                  f"{t.manifest['scene'].get('name')}, kernel {t.manifest['kernel_version'][:19]}{older})")
         except T.TableError as e:
             print(f"default table: BAD: {e}")
             bad += 1

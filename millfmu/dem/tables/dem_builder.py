@@ -225,7 +225,8 @@ def rebuild_including(table: Table, point: dict, builder: Callable | None = None
         if isinstance(builder, DemBuilder):  # the DEM itself, not a stand-in with its id
             from ..first_compile import say_if_compiling
 
-            say_if_compiling(coupled=(table.manifest.get("scene") or {}).get("fluid", {}).get("mode") == "coupled", log=log)
+            say_if_compiling(coupled=(table.manifest.get("scene") or {}).get("fluid", {}).get("mode") == "coupled",
+                             log=log)
     run_kw.setdefault("seconds_per_cost", pl.seconds_per_cost)
     return get_table(pl.spec, builder, cache_dir=cache_dir, progress=progress, seed_from=(table,),
                      manifest_extra=extra, **run_kw)
