@@ -288,8 +288,9 @@ def trend_table(pairs=None) -> tuple[list, list]:
             txt += f" ({band[0][k]:.3g}-{band[1][k]:.3g})"
         return txt
 
-    head = ["parameter", "value", "yeast simple", "yeast detailed"] + \
-        [f"limestone {float(q.split('=')[1]) * 1e6:.3g} um {m}" for q in sizes[1:] for m in MODELS]
+    # rates over the reference: dimensionless; a value is in its parameter's unit
+    head = ["parameter", "value [parameter's unit]", "yeast simple [-]", "yeast detailed [-]"] + \
+        [f"limestone {float(q.split('=')[1]) * 1e6:.3g} um {m} [-]" for q in sizes[1:] for m in MODELS]
     rows = []
     for p, (label, unit, *_rest) in PARAMETERS.items():
         vals = lime.curve(p, "simple").values
