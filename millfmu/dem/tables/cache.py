@@ -401,6 +401,14 @@ SAME_DEM_AS = {
     # state, the same to the bit)
     "sha256:d06d486a7a2818b4f5d8ac4de1a8a982061088390199145cf6bf727f62ac87e8":
         "sha256:97f753cea048d151d29bfc09ed08fc9161f206eb44b7bf748a0474d96810be97",
+    # and the flags that compiled callers passed as constants (compute_forces' step and
+    # fuse from finish_step, rebuild's wrap from advance, the exchange's same_eps from the
+    # run of intervals, turbulence's on_threads, transport's is_eps, diffuse's totals and
+    # column count) passed as typed values, so that numba compiles one kernel for them
+    # instead of one per constant (a coupled disc sector on 1 and 2 threads and a plain one
+    # on 2: stats.json and the other outputs the same to the bit)
+    "sha256:262d469912074424bea467b23c5f663db4d27d1d03fd3a95065a151b2b44d7c5":
+        "sha256:97f753cea048d151d29bfc09ed08fc9161f206eb44b7bf748a0474d96810be97",
 }
 
 
