@@ -1342,9 +1342,11 @@ def advance(nsteps, x, v, w, f, t, rad, mass, inertia, inv_m, inv_i, xref, prm, 
         # the positions are now a step further: so is the rotor (its vanes)
         advance_rotor(prm, dt)
         if dmax.max() > half_skin2:
-            needed = rebuild(x, v, w, shw, xref, prm, wrapk, cutoff, True, pst, nnb, pj, pim,
-                             psh, pfl, pst_o, nnb_o, pj_o, pim_o, psh_o, pfl_o, cb, need,
-                             maxj, claims)
+            # np.bool_: the type of DemSimulation's call (a constant would compile a
+            # second rebuild for it; see finish_step)
+            needed = rebuild(x, v, w, shw, xref, prm, wrapk, cutoff, np.bool_(True), pst,
+                             nnb, pj, pim, psh, pfl, pst_o, nnb_o, pj_o, pim_o, psh_o, pfl_o,
+                             cb, need, maxj, claims)
             acc[2] += 1.0
             if needed > pj_o.shape[0] // nch:
                 return step, 1, parity
@@ -1389,8 +1391,12 @@ def finish_step(x, v, w, f, t, rad, mass, inertia, inv_m, inv_i, prm, pst, nnb, 
     """Forces at the current positions, then v += kick F/m: with kick = dt/2 this closes
     a step after the neighbour lists were enlarged in the middle of it; with kick = 0 it
     only fills f, t. New contacts are left in evc/evn for the caller to collect."""
+    # the step and fuse as typed values, not constants: numba compiles a kernel once for
+    # each constant a compiled caller passes (types Literal[int](0), Literal[bool](False)),
+    # and advance passes these two as values; one compute_forces for both saves its
+    # compilation (about 11 s on 2 cores), the same code either way
     compute_forces(x, v, w, fb, tb, rad, mass, inertia, pst, nnb, pj, pim, psh, pfl, shw,
-                   flw, prm, cb, maxj, record, 0, evc, evn, torq, fext, claims, False, kick,
-                   inv_m, inv_i, xref, dmax)
+                   flw, prm, cb, maxj, record, np.int64(0), evc, evn, torq, fext, claims,
+                   np.bool_(False), kick, inv_m, inv_i, xref, dmax)
     reduce_kick(fb, tb, cb, maxj, f, t, v, w, x, inv_m, inv_i, kick, prm[P_DT], False,
                 xref, dmax, claims, False)

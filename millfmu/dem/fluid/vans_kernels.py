@@ -48,7 +48,7 @@ import math
 
 from numba import prange
 
-from millfmu.dem.engine._jit import inlined, kernel, nonneg, serial
+from millfmu.dem.engine._jit import device, inlined, kernel, nonneg, serial
 
 KAPPA = 0.41  # von Karman constant (Launder & Spalding 1974)
 E_LOG = 9.8  # log-law constant E
@@ -154,7 +154,12 @@ def divergence(fr, ft, fz, out):
                                 + fz[i, j, k] - fz[i, j, km])
 
 
-@inlined
+# The row helpers of stresses and rates (normal_row, edge_*_row, rhs_*_row) are compiled
+# functions of their own, called once per row, not inlined into the kernels: inlined, the
+# kernels' bodies grow so large that numba's clean-up of them before the parallel loop's
+# lowering took most of their compilation (rates 51 s, stresses 24 s on 2 cores); a call
+# per row costs nothing measurable, and the per-node helpers stay inlined in the rows.
+@device
 def normal_row(i, ur, ut, uz, em, solid, rf, rc, dr, dth, dz, trr, ttt, tzz, s2diag):
     """Row i of the normal stresses at cell centres [Pa]: a tau_rr, a tau_tt, a tau_zz
     with em = a mu_eff per cell [Pa s] (0 in solids), tau_ii = 2 mu (S_ii - div u / 3);
@@ -250,7 +255,7 @@ def _edge_visc(em, epsc, kt, solid, i0, i1, j0, j1, k0, k1, nr, nt, nz):
     return s / n, se / n, sk / n
 
 
-@inlined
+@device
 def edge_rt_row(i, ur, ut, uz, kr, kt_, kz, em, epsc, ktur, solid, rf, rc, dr, dth, dz,
                 om_sh, rho, nu, wallfn, model_a, e_rt, e_rz, e_tz, g_rt, g_rz, g_tz):
     """The r-theta edges (r_f[i], theta_{j+1/2}, z_k) of row i = 0..nr of
@@ -295,7 +300,7 @@ def edge_rt_row(i, ur, ut, uz, kr, kt_, kz, em, epsc, ktur, solid, rf, rc, dr, d
             g_rt[i, j, k] = gam
 
 
-@inlined
+@device
 def edge_rz_row(i, ur, ut, uz, kr, kt_, kz, em, epsc, ktur, solid, rf, rc, dr, dth, dz,
                 om_sh, rho, nu, wallfn, model_a, e_rt, e_rz, e_tz, g_rt, g_rz, g_tz):
     """The r-z edges (r_f[i], theta_j, z_{k+1/2}) of row i = 0..nr of
@@ -342,7 +347,7 @@ def edge_rz_row(i, ur, ut, uz, kr, kt_, kz, em, epsc, ktur, solid, rf, rc, dr, d
             g_rz[i, j, k] = gam
 
 
-@inlined
+@device
 def edge_tz_row(i, ur, ut, uz, kr, kt_, kz, em, epsc, ktur, solid, rf, rc, dr, dth, dz,
                 om_sh, rho, nu, wallfn, model_a, e_rt, e_rz, e_tz, g_rt, g_rz, g_tz):
     """The theta-z edges (r_c[i], theta_{j+1/2}, z_{k+1/2}) of row i = 0..nr - 1 of
@@ -380,7 +385,7 @@ def edge_tz_row(i, ur, ut, uz, kr, kt_, kz, em, epsc, ktur, solid, rf, rc, dr, d
             g_tz[i, j, k] = gam
 
 
-@inlined
+@device
 def rhs_r_row(i, ur, ut, fr, ft, fz, kr, trr, ttt, e_rt, e_rz, epsr, rf, rc, dr, vc, dth,
               dz, rho, out):
     """Row i of the explicit rate of eps u_r per unit volume [m/s2] at every solved r-node:
@@ -430,7 +435,7 @@ def rhs_r_row(i, ur, ut, fr, ft, fz, kr, trr, ttt, e_rt, e_rz, epsr, rf, rc, dr,
             out[i, j, k] = adv / vol + epsr[i, j, k] * u2 / rf[i] + vis / (rho * vol)
 
 
-@inlined
+@device
 def rhs_t_row(i, ut, fr, ft, fz, kt_, ttt, e_rt, e_tz, rf, rc, dr, vc, dth, dz, rho, out):
     """Row i of the explicit rate of eps u_theta per unit volume [m/s2] at every solved
     theta node, computed as the divergence of angular-momentum fluxes (advection of r u_theta, and
@@ -483,7 +488,7 @@ def rhs_t_row(i, ut, fr, ft, fz, kt_, ttt, e_rt, e_tz, rf, rc, dr, vc, dth, dz, 
             out[i, j, k] = (adv + vis / rho) / (rc[i] * vol)
 
 
-@inlined
+@device
 def rhs_z_row(i, uz, fr, ft, fz, kz, tzz, e_rz, e_tz, rf, dr, vc, dth, dz, rho, out):
     """Row i of the explicit rate of eps u_z per unit volume [m/s2] at every solved z-node:
     advection and viscous forces over rho; 0 at fixed nodes."""

@@ -401,6 +401,16 @@ SAME_DEM_AS = {
     # state, the same to the bit)
     "sha256:d06d486a7a2818b4f5d8ac4de1a8a982061088390199145cf6bf727f62ac87e8":
         "sha256:97f753cea048d151d29bfc09ed08fc9161f206eb44b7bf748a0474d96810be97",
+    # and the flags that compiled callers passed as constants (compute_forces' step and
+    # fuse from finish_step, rebuild's wrap from advance, the exchange's same_eps from the
+    # run of intervals, turbulence's on_threads, transport's is_eps, diffuse's totals and
+    # column count) passed as typed values, so that numba compiles one kernel for them
+    # instead of one per constant, and the liquid's row helpers of stresses and rates
+    # called per row instead of inlined (a coupled disc sector on 1 and 2 threads, a plain
+    # one and a coupled accelerator sector on 2: stats.json and the other outputs the same
+    # to the bit)
+    "sha256:4bcf104e8062ac8ba7623c2653ac04d85e7dc25285bb2198e3c2e0a0fe266636":
+        "sha256:97f753cea048d151d29bfc09ed08fc9161f206eb44b7bf748a0474d96810be97",
 }
 
 
