@@ -30,3 +30,36 @@ def test_the_full_slice_differs_from_the_sector_only_in_name_sector_and_gravity(
     for d in (full, sector):
         del d["name"], d["mill"]["sector_deg"], d["run"]["gravity_m_s2"]
     assert full == sector
+
+
+def test_run_summary_keeps_the_compared_quantities(tmp_path):
+    """validation.run_summary keeps what `millfmu dem compare` shows, as numbers per run."""
+    import json
+
+    from tests.dem.test_seed001 import fake_stats
+    from validation.run_summary import main, summary
+
+    d = tmp_path / "a"
+    d.mkdir()
+    (d / "stats.json").write_text(json.dumps(fake_stats(10.0, 0.8, layer=0.3)))
+    doc = summary({"a": d}, {"a": "millfmu dem run ..."}, "test")
+    v = doc["runs"]["a"]["values"]
+    assert v["first bead layer / disc angular velocity"] == 0.3
+    assert doc["quantities"]["median SE_tn V1"] == "J" and doc["runs"]["a"]["command"]
+    assert main(["x=" + str(tmp_path / "missing"), "--out", str(tmp_path / "s.json")]) == 2
+
+
+def test_the_first_bead_layer_against_friction_from_the_kept_summary():
+    """The seed 001 page's friction runs (validation/runs/seed001_friction.json): with Table
+    1's friction (0.3) the first bead layer turns at 0.155 of the disc, below seed 001's
+    0.20-0.26; it rises with the friction coefficient (0.6: 0.18, 1.0: 0.40) and falls with
+    the rolling friction (0.3: 0.14), and the collision energies rise with it."""
+    import json
+
+    doc = json.loads((ROOT / "validation" / "runs" / "seed001_friction.json").read_text())
+    layer = {k: r["values"]["first bead layer / disc angular velocity"] for k, r in doc["runs"].items()}
+    table1, f06, f10, r03 = (layer[k] for k in ("friction 0.3 (Table 1)", "friction 0.6", "friction 1.0",
+                                                "rolling friction 0.3"))
+    assert table1 < 0.20 and r03 < table1 < f06 < 0.20 < 0.26 < f10
+    se = {k: r["values"]["median SE_tn V2"] for k, r in doc["runs"].items()}
+    assert se["friction 1.0"] > se["friction 0.6"] > 4 * se["friction 0.3 (Table 1)"]
