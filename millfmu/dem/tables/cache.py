@@ -72,87 +72,16 @@ KERNEL_MODULES = {
 }
 
 #: Source hash -> the kernel version it stands for, where sources changed without changing
-#: what the DEM computes. The layout by role changed these modules' import lines (the new
-#: names; numba-free modules imported at the top, the numba kernels' imports commented)
-#: and the module names in their docstrings, and moved ``zones_for`` from zones.py to
-#: :mod:`millfmu.dem.mills` (zones.py and accelerator.py imported each other); the shipped
-#: tables, built before, record the version of the sources before, which stays the
-#: version. Seed 002's own method then added a coupling scheme by name (the discrete phase
-#: model, two new modules, a ``scheme`` choice that defaults to the volume-averaged one), a
-#: primed start (off by default) and the contacts present at the samples of accelerator
-#: slices, and a run that becomes unstable stops by name (a coupled run checked every 1000
-#: steps): coupled disc slices (1000 steps, and 4000 in samples of 2000) and a coupled
-#: accelerator slice (500 steps) gave stats.json identical to the digit before and after,
-#: apart from the new entries. Stationary baffles (a fifth wall, off unless a scene names
-#: them) and the return leg's swirl in the accelerator's summary left the same two runs
-#: identical to the digit again, and so did checkpoints (the run's state pickled; the
-#: pressure solver factorised again on loading), and the smoothing's fields each on a
-#: thread of its own (each field's sweeps in the same order), one helper for the vanes'
-#: and baffles' plates, the tangential history's form chosen by name ("rescaled", as
-#: before, by default) and a start without the spurious first increment of the springs
-#: (scenes start without contacts, so the same), and model A's pressure-gradient timing
-#: chosen by name (the previous interval's, as before, by default), the liquid taking the
-#: beads' fields in one kernel (whose theta drag and fixed nodes a new rotor speed shares),
-#: the deposit one thread per column, and the force buffers
-#: zeroed by the reduction that sums them (f, t stored at a run's end only), the liquid's
-#: per-edge helpers and the exchange's per-bead helpers inlined (checked with numba's cache
-#: emptied: a cached kernel does not see a change in the helpers it calls from another
-#: file), and the coupled step's kernel modules and the numba flags counted in the hash
-#: (they were not), and the DEM's chunks handed to threads one at a time and OpenMP's
-#: short spin before its threads sleep (the same results on one thread and, as before, on
-#: two), a resumed run that keeps its checkpoint interval, and checkpoints that list the
-#: step, wall and CPU time of each (for the recent pace), and a full slice with gravity
-#: that reports its circumferential distribution's time mean (and plots it), and a grid
-#: that names the theta cells a sector needs when it refuses too few (a run ending on
-#: such a grid before its folder is made), and the recorded contacts kept in a file on
-#: disk instead of memory and the checkpoint (layout 2), and the smoothing chosen by name
-#: (split implicit diffusion added, counted in the hash; the explicit sweeps, as before, by
-#: default), and the statistics' zone of each contact and the section maps taken in blocks
-#: of rows (a full slice's 84 M contacts took 12 GB at once), and the pressure equation's
-#: solver chosen by name (an FFT in theta added, counted in the hash; the direct LU, as
-#: before, by default), and the pressure matrix's face entries in one helper both solvers
-#: share, and the faces' conductances in one grid method that the pressure equation and the
-#: smoothing both read, and the weight's angular impulse about the axis counted in the
-#: coupled run's angular-momentum budget (a diagnostic beside the run, with the beads'
-#: centroid per sample of a full slice; then a docstring of it reworded), and the
-#: circumferential figures in the run's printed summary, and the weight's torque checked
-#: for gravity across the axis in one place, and the DEM stepped on a GPU beside the coupled
-#: liquid (an upload of host-set bead velocities, a no-op on the CPU) with the exchange's
-#: sums of the held torques and axial forces taken after its parallel loop instead of as
-#: its reduction (numba on Python 3.12 failed to compile that loop; sector runs identical
-#: on 1 and 2 threads), and then only velocities and spins accepted from the host (not
-#: positions) and every failure to start a GPU run named as a run error, and the liquid's
-#: torque on stator plates (baffles: pressure and normal stress on their theta faces, shear
-#: on their edges) counted in the stator's impulse, a diagnostic that is 0 without baffles
-#: (coupled sector runs identical on 1 and 2 threads, numba's cache emptied first; then
-#: read at the faces' cells only), and the beads' deposit summed in one serial pass for
-#: all six columns (each column in the same order: coupled sector runs, one with the
-#: discrete phase model, and an accelerator slice gave the same states as before to the
-#: bit, on 1 and on 2 threads, numba's cache emptied first), and the beads' cell stencils
-#: 4 wide on axisymmetric grids (the second theta corner, one cell with the first and of
-#: weight 0, left out of every sum it added nothing to: the same runs and a 4-theta-cell
-#: sector again the same to the bit), and the liquid's interval means zeroed and divided,
-#: and its velocities checked, in two numba calls instead of numpy passes, and the pressure
-#: solve's fluid cells taken by index instead of by mask (a coupled disc sector, a
-#: prescribed-swirl disc sector and a coupled accelerator slice, 300 steps each, gave the
-#: same beads, forces, liquid and recorded contacts to the bit before and after, on 1 and
-#: on 2 threads), and the pressure equation's symmetric solver chosen by name (L D L^T on
-#: a minimum-degree ordering, a numba solve, counted in the hash; the direct LU, as before,
-#: by default: the same three runs again identical to the bit; then the pressure solver's
-#: cell indices made with it and its symmetric solve's work arrays kept, the same again),
-#: and the liquid's periodic neighbours found by adding or taking away one period instead
-#: of an integer modulo, and a fluid's description naming the symmetric solver (a coupled
-#: disc sector and a coupled accelerator slice, 300 steps, the same beads, held forces and
-#: liquid to the bit, on 1 and on 2 threads); then, after the pressure solver's default
-#: changed on evidence (below), the neighbour search's binned entries stored by component
-#: and each run of cells tested before its entries in reach are collected, and the beads
-#: wrapped into the period on the threads (the same three scenes, 300 steps, and 1000 steps
-#: of the dense bench bed with 75 neighbour builds, identical to the bit on 1 and 2
-#: threads). A checkpoint made by one of
-#: these sources resumes under another (run.resume_run). Any other change of these sources
-#: gives a new hash, and a new version. An entry may also map to the source hash of a
-#: round-off change accepted on evidence (:mod:`millfmu.dem.tables.equivalence`): sources
-#: the same to the bit as those, which take the version that change was accepted as.
+#: what the DEM computes: each entry is added only when runs of the changed sources (coupled
+#: and plain sectors, an accelerator slice, on 1 and 2 threads, numba's cache emptied first)
+#: give the same beads, forces, liquid and recorded contacts to the bit as runs of the
+#: sources before. The shipped tables record the version of the sources they were built
+#: with, which stays the version; a checkpoint made by one of these sources resumes under
+#: another (run.resume_run). Any other change of these sources gives a new hash, and a new
+#: version. An entry may also map to the source hash of a round-off change accepted on
+#: evidence (:mod:`millfmu.dem.tables.equivalence`): sources the same to the bit as those,
+#: which take the version that change was accepted as. What each entry's change was:
+#: CHANGELOG.md.
 SAME_DEM_AS = {
     "sha256:50c71a6d91ca3ead7c3ae29058f6eeaa5d22a0a91394c8be4533dd97437308d3":
         "sha256:cc5c174862c188a675fdb35932f269eb61ae82876e3d110866af2b7a62b0d3bd",
