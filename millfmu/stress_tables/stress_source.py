@@ -233,7 +233,7 @@ class TableStressSource:
         e_wp = np.array([float((wp.get("se_tn_q50") or {}).get(n, 0.0)) for n in names])
         sep = self.table.separability_error(lk.point)
         real = self.table.realization_error()
-        node = self.table.node_check_error(lk.point)
+        node = self.table.node_check_error(lk)
         return {"zones": list(names),
                 "collision_frequency": f + f_wp + sep["collision_frequency"] + real["collision_frequency"]
                 + node["collision_frequency"],

@@ -61,14 +61,16 @@ class OutsideGridError(TableError):
 @dataclass
 class Lookup:
     """Interpolated fields at one point (``values``), their interpolation-error estimates
-    (``error``, same shapes; NaN where an axis has too few points to estimate curvature)
-    and the sampling standard deviation carried over from the DEM nodes (``sigma``)."""
+    (``error``, same shapes) and the sampling standard deviation carried over from the DEM
+    nodes (``sigma``); ``cell``: the grid nodes the values were interpolated from, as
+    (grid index, weight) pairs."""
 
     point: dict
     values: dict
     error: dict
     notes: list = field(default_factory=list)
     sigma: dict = field(default_factory=dict)
+    cell: list = field(default_factory=list)
 
     def bound(self, name: str, k_sigma: float = 2.0) -> np.ndarray:
         """Interpolation error plus ``k_sigma`` sampling standard deviations of a field."""
@@ -226,7 +228,7 @@ class Table:
                 var = v if var is None else var + v
             sigmas[k] = np.sqrt(var) if var is not None else np.array(node_sigma[k], float)
         lk = Lookup(point=dict(point), values=values, error=errors, notes=notes,
-                    sigma=sigmas)
+                    sigma=sigmas, cell=list(_corners(idx, ts)))
         shift, d_err, d_sig = 0.0, 0.0, 0.0
         for name in self.one_at_a_time:
             if name not in point:
@@ -356,12 +358,12 @@ class Table:
                 out[k] = out[k] + worst[k]
         return out
 
-    def node_check_error(self, point: dict) -> dict:
+    def node_check_error(self, lk: Lookup) -> dict:
         """Relative error [-] per zone from the checks that ran the DEM again at a grid node
         (the one-at-a-time axes at their references): another realization of that node. At
         each such node the measured difference |l - r| (l the node's value, r the check's
-        run) is taken as the node's error and carried to ``point`` through the
-        interpolation weights, sum_c w_c |l - r|_c, over the grid's own interpolant there;
+        run) is taken as the node's error and carried to the lookup ``lk`` through its
+        interpolation weights (``lk.cell``), sum_c w_c |l - r|_c, over the grid's own interpolant there;
         for ``collision_frequency`` and ``se_median`` (SE_tn's median). Zeros where no
         node of the point's cell was checked. Where a zone does not settle to one state in
         a run (a slice's outer zone at 60 % filling, filled in one realization and empty in
@@ -376,15 +378,12 @@ class Table:
                 nodes[at] = c
         if not nodes:
             return out
-        cell = self._cell(point)
-        if cell is None:
-            return out
         ci = COMPONENTS.index("tn")
         qi = QUANTILE_NAMES.index("q50")
         for key, fld in (("collision_frequency", "collision_frequency_norm"),
                          ("se_median", "se_tn_q50_norm")):
             num, den = np.zeros(len(names)), np.zeros(len(names))
-            for corner, w in cell:
+            for corner, w in lk.cell:
                 node = self.data["collision_frequency_norm"][corner] if key == "collision_frequency" \
                     else self.data["se_quantiles_norm"][corner][ci, :, qi]
                 node = np.nan_to_num(np.asarray(node, float))
@@ -412,23 +411,6 @@ class Table:
                 return None
             idx.append(int(hit[0]))
         return tuple(idx)
-
-    def _cell(self, point: dict):
-        """[(grid index, weight)] of the multilinear interpolation at ``point`` (None where a
-        grid axis is missing or outside its range)."""
-        idx, ts = [], []
-        for name, ax in self.axes.items():
-            if name not in point:
-                return None
-            x = float(point[name])
-            if ax.size == 1:
-                idx.append(0), ts.append(0.0)
-                continue
-            if not ax[0] <= x <= ax[-1]:
-                return None
-            i = min(max(int(np.searchsorted(ax, x, side="right") - 1), 0), ax.size - 2)
-            idx.append(i), ts.append(float((x - ax[i]) / (ax[i + 1] - ax[i])))
-        return [(c, w) for c, w in _corners(idx, ts) if w > 0.0]
 
     def realization_error(self) -> dict:
         """Relative error [-] per zone from the spread of independent DEM realizations of one

@@ -138,14 +138,14 @@ def test_a_node_run_again_states_its_difference_and_carries_it_to_its_cell(coupl
     t.manifest = dict(coupled.manifest, interpolation_check={"measure": "test", "points": [
         {"point": node, "collision_frequency_norm": {"run": run},
          "se_tn_q50_norm": {"run": [None, None, None, None]}}]})
-    e = t.node_check_error(node)
+    e = t.node_check_error(t.lookup(node))
     want = np.abs(cf - np.array(run)) / cf
     np.testing.assert_allclose(e["collision_frequency"], want)
     assert np.all(e["se_median"] == 0.0)  # no run value: nothing measured
     half = dict(node, tip_speed_m_s=13.0)
     cf14 = coupled.lookup(dict(node, tip_speed_m_s=14.0)).values["collision_frequency_norm"]
-    e = t.node_check_error(half)
+    e = t.node_check_error(t.lookup(half))
     np.testing.assert_allclose(e["collision_frequency"],
                                0.5 * np.abs(cf - np.array(run)) / (0.5 * cf + 0.5 * cf14))
-    far = t.node_check_error(dict(node, tip_speed_m_s=8.0, filling=0.8))
+    far = t.node_check_error(t.lookup(dict(node, tip_speed_m_s=8.0, filling=0.8)))
     assert np.all(far["collision_frequency"] == 0.0)
