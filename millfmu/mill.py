@@ -14,7 +14,7 @@ import numpy as np
 
 from .kinetics import grid as kgrid
 from .kinetics import materials, pbm, rates, stress
-from .kinetics.stress_distribution import LogNormalStressSource
+from .kinetics.stress_distribution import LogNormalStressSource, chamber_collision_rate_per_m3_s
 from .scene import PSD, Scene, SceneError
 from .stress_tables.rules import (NO_DEM_NOTE, TABLE_INPUTS, TABLE_INPUTS_CHECKED, TABLE_SCENE_KEYS, rebuild_hint,
                                   recording_warnings)
@@ -255,7 +255,7 @@ class MillModel:
                 return math.nan
         nodes = self.operator.nodes_m
         w = psd_fractions(self.grid, self.scene.feed)
-        coll = sum(z.volume_fraction * z.collision_rate_per_m3_s for z in self.source.zones(op))
+        coll = chamber_collision_rate_per_m3_s(self.source, op)
         s = self.operator.class_rates(rates.selection_per_s("detailed", self.material, op, nodes, None, self.source))
         sf = self.operator.class_rates(op.stress_frequency_per_s(nodes, None, coll))
         den = float(w @ sf)

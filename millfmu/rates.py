@@ -56,6 +56,7 @@ from pathlib import Path
 import numpy as np
 
 from .kinetics.rates import ENERGY_LIMITED_P
+from .kinetics.stress_distribution import chamber_collision_rate_per_m3_s
 
 #: Operating parameters: name -> (label, unit, scene section, scene key, OperatingPoint field,
 #: stress-energy table axis or None).
@@ -489,7 +490,7 @@ def compute(scene, name: str | None = None, sizes_m=None, values: dict | None = 
                          else coverage[p].label(float(v)))
                 try:
                     rate = _rates_at(model_name, m, op, x, sizes, w_feed if is_cells else None)
-                    coll = None if model_name == "simple" else _collision_rate(src, op)
+                    coll = None if model_name == "simple" else chamber_collision_rate_per_m3_s(src, op)
                 except ValueError as e:  # a table that refuses the point (outside its grid)
                     sources.append("refused")
                     notes.append(f"refused: {e}")
@@ -535,11 +536,6 @@ def _rates_at(model_name, m, op, x, sizes, w_feed) -> dict:
         s_nodes = krates.selection_per_s(model_name, m.material, op, m.operator.nodes_m, None, m.source)
         out["disruption_rate"] = float(w_feed @ m.operator.class_rates(s_nodes))
     return out
-
-
-def _collision_rate(source, op) -> float:
-    """The detailed model's collisions per chamber volume and time, sum_z f_z (n_c/t)_z [1/(m3 s)]."""
-    return float(sum(z.volume_fraction * z.collision_rate_per_m3_s for z in source.zones(op)))
 
 
 # ---- output ---------------------------------------------------------------------------------

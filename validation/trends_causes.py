@@ -40,7 +40,7 @@ from scipy.optimize import brentq
 from millfmu import calibration as cal
 from millfmu.kinetics import rates as krates
 from millfmu.kinetics import stress as kstress
-from millfmu.kinetics.stress_distribution import Zone
+from millfmu.kinetics.stress_distribution import Zone, chamber_collision_rate_per_m3_s
 from millfmu.mill import MillModel, psd_fractions
 
 #: The points off the reference: (parameter, OperatingPoint field, value, label).
@@ -259,8 +259,7 @@ class ScaledRates:
 
 def dem_collisions_per_omega_ngb(src, op) -> float:
     """The source's collisions per chamber volume over omega n_gb, sum_z f_z c_z [-]."""
-    return sum(z.volume_fraction * z.collision_rate_per_m3_s
-               for z in src.zones(op)) / (op.omega_rad_per_s * op.n_gb_per_m3)
+    return chamber_collision_rate_per_m3_s(src, op) / (op.omega_rad_per_s * op.n_gb_per_m3)
 
 
 def _captured_share(src, ps):

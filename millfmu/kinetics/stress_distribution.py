@@ -44,6 +44,12 @@ class Zone:
         return float(self.energy_J[min(i, self.energy_weights.size - 1)])
 
 
+def chamber_collision_rate_per_m3_s(source, op) -> float:
+    """Collisions per chamber volume and time of a source at operating point ``op``,
+    sum_z v_z (n_c/t)_z [1/(m3 s)] (v_z the zone's share of the chamber volume)."""
+    return float(sum(z.volume_fraction * z.collision_rate_per_m3_s for z in source.zones(op)))
+
+
 class StressEnergySource(Protocol):
     """What the detailed breakage model needs from a stress-energy source."""
 
