@@ -263,18 +263,22 @@ class RatesResult:
                     }
 
 
+def shipped_pairs() -> tuple:
+    """The yeast and the limestone :class:`RatesResult` of the shipped calibrated pairs, each
+    model with its own scene's constants."""
+    from .calibration import SHIPPED
+
+    (ys, yd), (ls, ld) = (p.scenes() for p in SHIPPED)
+    return compute(ys, "yeast", detailed_scene=yd), compute(ls, "limestone", detailed_scene=ld)
+
+
 def trend_table(pairs=None) -> tuple[list, list]:
     """(header, rows) of both shipped calibrated pairs' rates along each parameter, each
     model's over its rate at the reference point [-], the detailed model's band in brackets:
     yeast the disruption rate, limestone S at the feed's x50 and x90. ``pairs``: the yeast
     and the limestone :class:`RatesResult` (computed when None). What docs/rates-and-
     calibration.md and the report show."""
-    if pairs is None:
-        from .calibration import SHIPPED
-
-        (ys, yd), (ls, ld) = (p.scenes() for p in SHIPPED)
-        pairs = (compute(ys, "yeast", detailed_scene=yd), compute(ls, "limestone", detailed_scene=ld))
-    y, lime = pairs
+    y, lime = shipped_pairs() if pairs is None else pairs
     sizes = list(lime.quantities)
     cols = [(y, "disruption_rate")] + [(lime, q) for q in sizes[1:]]
 

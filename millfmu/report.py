@@ -517,12 +517,10 @@ def trends_section(out: Path, quick: bool, log=print) -> str:
     """Both shipped pairs' rates along each parameter (the simple and the detailed model,
     the detailed model's band) and where the detailed model is energy-limited."""
     from . import rates as mrates
-    from .calibration import SHIPPED
 
     t0 = time.perf_counter()
     log("report: rates along the operating parameters (both shipped pairs)")
-    (ys, yd), (ls, ld) = (p.scenes() for p in SHIPPED)
-    pairs = (mrates.compute(ys, "yeast", detailed_scene=yd), mrates.compute(ls, "limestone", detailed_scene=ld))
+    pairs = mrates.shipped_pairs()
     head, rows = mrates.trend_table(pairs)
     freq = ("detailed model frequency-limited: breakage probability per stress at the reference at "
             f"least {mrates.ENERGY_LIMITED_P:g}.")
