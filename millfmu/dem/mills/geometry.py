@@ -24,6 +24,7 @@ at ``baffle_angle_deg``. They slow the liquid's and the beads' swirl between the
 
 from __future__ import annotations
 
+import functools
 import math
 from dataclasses import dataclass
 
@@ -320,9 +321,16 @@ def placement_gap_m(radius_m: float) -> float:
     return 0.02 * 2.0 * radius_m
 
 
+#: Sector angles [degrees] a cell can be widened to where beads do not fit its own sector: the whole-degree
+#: divisors of 360 from 4 to 90 (rotational periodicity needs 360/k degrees with k >= 4).
+SECTORS_DEG = tuple(float(360 // k) for k in range(90, 3, -1) if 360 % k == 0)
+
+
+@functools.lru_cache(maxsize=256)
 def placement_capacity(geom: MillGeometry, radius_m: float) -> int:
     """How many beads of ``radius_m`` [m] :func:`place_beads` can place in the cell (0 where
-    the cell is too low for one lattice layer)."""
+    the cell is too low for one lattice layer). Remembered per cell and radius: a table's
+    points ask it of the same cells again and again (their cell is chosen by it)."""
     try:
         return int(fcc_sites(geom, radius_m, placement_gap_m(radius_m)).shape[0])
     except GeometryError:
