@@ -48,11 +48,11 @@ FORMAT_VERSION = 1
 
 #: Grid axes a table may have: name -> (scene section, scene key, unit, OperatingPoint field).
 AXES = {
-    "tip_speed_m_s": ("mill", "tip_speed_m_s", "m/s", "tip_speed_m_per_s"),
+    "tip_speed_m_per_s": ("mill", "tip_speed_m_per_s", "m/s", "tip_speed_m_per_s"),
     "filling": ("beads", "filling", "-", "filling"),
     "bead_diameter_m": ("beads", "diameter_m", "m", "d_gb_m"),
-    "bead_density_kg_m3": ("beads", "density_kg_m3", "kg/m3", "rho_gb_kg_per_m3"),
-    "viscosity_pa_s": ("fluid", "viscosity_pa_s", "Pa s", "eta_susp_Pa_s"),
+    "bead_density_kg_per_m3": ("beads", "density_kg_per_m3", "kg/m3", "rho_gb_kg_per_m3"),
+    "viscosity_Pa_s": ("fluid", "viscosity_Pa_s", "Pa s", "eta_susp_Pa_s"),
 }
 COMPONENTS = ("tn", "ts", "total")
 QUANTILE_NAMES = ("q10", "q50", "q90")
@@ -94,9 +94,9 @@ def norm_log10_edges() -> np.ndarray:
     return np.linspace(NORM_LOG10_MIN, NORM_LOG10_MAX, n + 1)
 
 
-def e_ref_J(d_gb_m: float, rho_gb_kg_m3: float, v_t_m_s: float) -> float:
+def e_ref_J(d_gb_m: float, rho_gb_kg_per_m3: float, v_t_m_per_s: float) -> float:
     """Bead kinetic energy at tip speed, E_ref = 1/2 m v_t^2 = pi/12 d^3 rho v_t^2 [J]."""
-    return math.pi / 12.0 * d_gb_m ** 3 * rho_gb_kg_m3 * v_t_m_s ** 2
+    return math.pi / 12.0 * d_gb_m ** 3 * rho_gb_kg_per_m3 * v_t_m_per_s ** 2
 
 
 def n_gb_per_m3(filling: float, porosity: float, d_gb_m: float) -> float:
@@ -235,7 +235,7 @@ def scene_at_point(scene: dict, point: dict) -> dict:
     for axis, value in point.items():
         sec, key = AXES[axis][0], AXES[axis][1]
         d.setdefault(sec, {})[key] = float(value)
-        if key == "tip_speed_m_s":
+        if key == "tip_speed_m_per_s":
             # an accelerator scene may give its speed in rpm instead: the point's tip
             # speed replaces it
             d[sec].pop("rotor_speed_rpm", None)

@@ -21,7 +21,7 @@ def coupled():
 
 
 def _point(d_m, filling):
-    return {"tip_speed_m_s": 10.0, "filling": filling, "bead_diameter_m": d_m, "bead_density_kg_m3": 2510.0}
+    return {"tip_speed_m_per_s": 10.0, "filling": filling, "bead_diameter_m": d_m, "bead_density_kg_per_m3": 2510.0}
 
 
 @pytest.mark.parametrize("name", ["coupled", "prescribed", "accelerator"])
@@ -41,7 +41,7 @@ def test_the_point_store_key_of_the_coupled_tables_anchor_is_pinned(coupled):
     """The key under which the coupled table's anchor (10 m/s, 80 %, 0.8 mm glass) is stored: the
     table's points are found in a point store only while it stays as it is."""
     spec = coupled.spec()
-    key = T.PointStore("unused").key(spec, spec.anchor() | {"bead_diameter_m": 0.8e-3, "bead_density_kg_m3": 2510.0})
+    key = T.PointStore("unused").key(spec, spec.anchor() | {"bead_diameter_m": 0.8e-3, "bead_density_kg_per_m3": 2510.0})
     assert key == T.PointStore("unused").key(spec, spec.anchor())
     assert key == "ce319bb895a6d3d1e8267c1bb3d0756bdb927794d56b98eb39b32750010ca02a"
 
@@ -120,9 +120,9 @@ def test_scenes_that_are_not_dem_scenes_are_left_as_they_are():
     """An analytic builder's scene (or the DEM builder id on a scene that is no DEM scene, as the
     tests' stand-in builders have) gets the scene at the point unchanged."""
     scene = {"name": "analytic"}
-    assert T.dem_scene_at_point(scene, {"tip_speed_m_s": 6.0}) == T.scene_at_point(scene, {"tip_speed_m_s": 6.0})
-    spec = T.TableSpec(scene=scene, grid={"tip_speed_m_s": [6.0]}, kernel_version="k", builder_id="analytic")
-    assert T.point_scene(spec, {"tip_speed_m_s": 6.0}) == {"name": "analytic", "mill": {"tip_speed_m_s": 6.0}}
+    assert T.dem_scene_at_point(scene, {"tip_speed_m_per_s": 6.0}) == T.scene_at_point(scene, {"tip_speed_m_per_s": 6.0})
+    spec = T.TableSpec(scene=scene, grid={"tip_speed_m_per_s": [6.0]}, kernel_version="k", builder_id="analytic")
+    assert T.point_scene(spec, {"tip_speed_m_per_s": 6.0}) == {"name": "analytic", "mill": {"tip_speed_m_per_s": 6.0}}
 
 
 @pytest.mark.slow

@@ -118,7 +118,7 @@ def unstack(spec: TableSpec, table: Table) -> list:
     def one(t: Table, idx) -> dict:
         r = {k: np.asarray(t.data[k][idx]) for k in FIELDS}
         r["zone_names"] = zn
-        r.update({k: float(t.refs[k][idx]) for k in ("e_ref_J", "omega_rad_s", "n_gb_per_m3")})
+        r.update({k: float(t.refs[k][idx]) for k in ("e_ref_J", "omega_rad_per_s", "n_gb_per_m3")})
         if "recording_drift" in t.data:
             d = np.asarray(t.data["recording_drift"][idx])
             r["drift"] = {f: d[j] for j, f in enumerate(DRIFT_FIELDS)}
@@ -182,7 +182,7 @@ def _stack(grid: dict, results: list[dict], zn: tuple) -> Table:
             [[r["drift"][f] for f in DRIFT_FIELDS] for r in results], float).reshape(
             shape + (len(DRIFT_FIELDS), len(zn)))
     refs = {k: np.array([float(r[k]) for r in results]).reshape(shape)
-            for k in ("e_ref_J", "omega_rad_s", "n_gb_per_m3")}
+            for k in ("e_ref_J", "omega_rad_per_s", "n_gb_per_m3")}
     t = Table(axes={k: np.asarray(v, float) for k, v in grid.items()}, zone_names=zn,
               data=data, refs=refs)
     t.check_shapes()
