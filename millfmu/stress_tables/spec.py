@@ -37,22 +37,27 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from ..unit_names import modern_name, modernize, to_earlier
 from .files import canonical_json, sha256_bytes
 
 if TYPE_CHECKING:
     from .table import Table
 
 
-FORMAT_VERSION = 1
+#: The table and point format: 2 writes unit suffixes as :mod:`millfmu.unit_names` says.
+FORMAT_VERSION = 2
+#: The earlier format (its names in the earlier spelling), read for one release: a table or
+#: point of it is checked against its own key and then read with the current names.
+EARLIER_FORMAT = 1
 
 
 #: Grid axes a table may have: name -> (scene section, scene key, unit, OperatingPoint field).
 AXES = {
-    "tip_speed_m_s": ("mill", "tip_speed_m_s", "m/s", "tip_speed_m_per_s"),
+    "tip_speed_m_per_s": ("mill", "tip_speed_m_per_s", "m/s", "tip_speed_m_per_s"),
     "filling": ("beads", "filling", "-", "filling"),
     "bead_diameter_m": ("beads", "diameter_m", "m", "d_gb_m"),
-    "bead_density_kg_m3": ("beads", "density_kg_m3", "kg/m3", "rho_gb_kg_per_m3"),
-    "viscosity_pa_s": ("fluid", "viscosity_pa_s", "Pa s", "eta_susp_Pa_s"),
+    "bead_density_kg_per_m3": ("beads", "density_kg_per_m3", "kg/m3", "rho_gb_kg_per_m3"),
+    "viscosity_Pa_s": ("fluid", "viscosity_Pa_s", "Pa s", "eta_susp_Pa_s"),
 }
 COMPONENTS = ("tn", "ts", "total")
 QUANTILE_NAMES = ("q10", "q50", "q90")
@@ -94,9 +99,9 @@ def norm_log10_edges() -> np.ndarray:
     return np.linspace(NORM_LOG10_MIN, NORM_LOG10_MAX, n + 1)
 
 
-def e_ref_J(d_gb_m: float, rho_gb_kg_m3: float, v_t_m_s: float) -> float:
+def e_ref_J(d_gb_m: float, rho_gb_kg_per_m3: float, v_t_m_per_s: float) -> float:
     """Bead kinetic energy at tip speed, E_ref = 1/2 m v_t^2 = pi/12 d^3 rho v_t^2 [J]."""
-    return math.pi / 12.0 * d_gb_m ** 3 * rho_gb_kg_m3 * v_t_m_s ** 2
+    return math.pi / 12.0 * d_gb_m ** 3 * rho_gb_kg_per_m3 * v_t_m_per_s ** 2
 
 
 def n_gb_per_m3(filling: float, porosity: float, d_gb_m: float) -> float:
@@ -137,9 +142,16 @@ class TableSpec:
     def __post_init__(self):
         if not self.grid:
             raise TableError("grid: no axes; give at least one of " + ", ".join(AXES))
-        object.__setattr__(self, "grid", _clean_axes(self.grid, "grid axis"))
+        # names in an earlier release's spelling (a table of the earlier format) read as now
+        object.__setattr__(self, "grid", _clean_axes({modern_name(k): v for k, v in self.grid.items()},
+                                                     "grid axis"))
         json.loads(canonical_json(self.scene))  # plain JSON content only
-        oat = _clean_axes(self.one_at_a_time or {}, "one-at-a-time axis")
+        try:
+            object.__setattr__(self, "scene", modernize(self.scene))
+        except ValueError as e:
+            raise TableError(f"scene: {e}") from None
+        oat = _clean_axes({modern_name(k): v for k, v in (self.one_at_a_time or {}).items()},
+                          "one-at-a-time axis")
         for name, vals in oat.items():
             if name in self.grid:
                 raise TableError(f"one-at-a-time axis {name}: also a grid axis; give it "
@@ -210,6 +222,11 @@ class TableSpec:
     def key(self) -> str:
         return sha256_bytes(canonical_json(self.key_content()).encode())
 
+    def earlier_key(self) -> str:
+        """The key the earlier format (:data:`EARLIER_FORMAT`) gave this specification: its
+        cache entry of that release."""
+        return sha256_bytes(canonical_json(dict(to_earlier(self.key_content()), format=EARLIER_FORMAT)).encode())
+
 
 def _clean_axes(axes: dict, what: str) -> dict:
     """Axes checked (known names, finite ascending values > 0) in the order of AXES, so that
@@ -235,7 +252,7 @@ def scene_at_point(scene: dict, point: dict) -> dict:
     for axis, value in point.items():
         sec, key = AXES[axis][0], AXES[axis][1]
         d.setdefault(sec, {})[key] = float(value)
-        if key == "tip_speed_m_s":
+        if key == "tip_speed_m_per_s":
             # an accelerator scene may give its speed in rpm instead: the point's tip
             # speed replaces it
             d[sec].pop("rotor_speed_rpm", None)

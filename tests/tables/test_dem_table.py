@@ -17,13 +17,13 @@ pytest.importorskip("numba")
 # coupled slice, the scene's default, needs about 1 s to spin up, too long for a test).
 OVER = {"mill": {"sector_deg": 5.0},
         "run": {"spin_up_s": 0.05, "record_s": 0.01, "sample_every_s": 0.005,
-                "gravity_m_s2": [0.0, 0.0, 0.0]},
+                "gravity_m_per_s2": [0.0, 0.0, 0.0]},
         "fluid": {"mode": "prescribed"}}
 
 
 @pytest.mark.slow
 def test_small_dem_table_builds_caches_and_reads(tmp_path):
-    spec = T.dem_spec("disc_slice", {"tip_speed_m_s": [8.0, 12.0], "filling": [0.7]}, OVER)
+    spec = T.dem_spec("disc_slice", {"tip_speed_m_per_s": [8.0, 12.0], "filling": [0.7]}, OVER)
     t = T.get_table(spec, T.DemBuilder(threads=1), cache_dir=tmp_path, executor="serial",
                     progress=False)
     assert t.zone_names == ("V1", "V2", "V3", "V4")
@@ -61,13 +61,13 @@ def test_dem_interpolation_within_stated_error_on_held_back_point(tmp_path):
     over omega n_gb in the zones with at least 10^4 collisions at the held-back point; in
     those zones the bound is also under 30 % of the value. (On these 0.01 s recordings the
     sparse zone V4's bound is wide: it says what its few collisions can tell.)"""
-    grid = {"tip_speed_m_s": [6.0, 10.0, 14.0], "filling": [0.7]}
+    grid = {"tip_speed_m_per_s": [6.0, 10.0, 14.0], "filling": [0.7]}
     t = T.get_table(T.dem_spec("disc_slice", grid, OVER), T.DemBuilder(threads=1),
                     cache_dir=tmp_path, executor="processes", workers=2, progress=False)
-    held = T.get_table(T.dem_spec("disc_slice", {"tip_speed_m_s": [8.0], "filling": [0.7]},
+    held = T.get_table(T.dem_spec("disc_slice", {"tip_speed_m_per_s": [8.0], "filling": [0.7]},
                                   OVER), T.DemBuilder(threads=1), cache_dir=tmp_path,
                        executor="serial", progress=False)
-    p = {"tip_speed_m_s": 8.0, "filling": 0.7}
+    p = {"tip_speed_m_per_s": 8.0, "filling": 0.7}
     lk, hs = t.lookup(p), held.lookup(p).sigma
     many = held.data["collision_count"][0, 0] >= 1e4
     assert many.sum() >= 2
@@ -95,7 +95,7 @@ def test_dem_builder_cost_ranks_small_beads_and_high_fillings_first():
     """The DEM builder's cost estimate grows with the bead count (filling / d^3) and the
     steps ((spin-up + recording) / dt), so that a build starts the 0.5 mm bead point
     before the grid's points."""
-    s = T.dem_spec("disc_slice", {"tip_speed_m_s": [6.0, 14.0], "filling": [0.5, 0.9]},
+    s = T.dem_spec("disc_slice", {"tip_speed_m_per_s": [6.0, 14.0], "filling": [0.5, 0.9]},
                    OVER, one_at_a_time={"bead_diameter_m": [0.5e-3, 0.8e-3]})
     b = T.DemBuilder(threads=1)
     cost = {tuple(sorted(p.items())): b.relative_cost(s.scene, p) for p in s.points()}

@@ -175,7 +175,7 @@ def slow_table(tmp_path):
     from millfmu.dem import tables as T
     from tests.tables._builders import FakeDemBuilder
 
-    s = T.TableSpec(scene={"name": "analytic"}, grid={"tip_speed_m_s": [6.0, 10.0, 14.0]}, kernel_version="k-old",
+    s = T.TableSpec(scene={"name": "analytic"}, grid={"tip_speed_m_per_s": [6.0, 10.0, 14.0]}, kernel_version="k-old",
                     builder_id=T.DEM_BUILDER_ID)
     return T.get_table(s, FakeDemBuilder(), cache_dir=tmp_path / "a", executor="serial", progress=False)
 
@@ -186,7 +186,7 @@ def _extend(table, tmp_path, policy, **kw):
 
     events = []
     fb = FakeDemBuilder(events)
-    t = rebuild_including(table, {"tip_speed_m_s": 16.0}, builder=fb, cache_dir=tmp_path / "b", executor="serial",
+    t = rebuild_including(table, {"tip_speed_m_per_s": 16.0}, builder=fb, cache_dir=tmp_path / "b", executor="serial",
                           workers=1, progress=False, on_stale=policy, log=lambda m: events.append(("log", m)), **kw)
     return t, events
 
@@ -224,7 +224,7 @@ def test_a_build_over_the_limit_runs_when_confirmed_and_not_when_declined(slow_t
     assert len(asked) == 1 and "about 26 s on 1 worker" in asked[0]
     monkeypatch.setattr(on_demand, "_ask_at_terminal", lambda q: True)
     t, events = _extend(slow_table, tmp_path, "refuse")
-    assert [x for x in events if x[0] == "build"] == [("build", {"tip_speed_m_s": 16.0})]
+    assert [x for x in events if x[0] == "build"] == [("build", {"tip_speed_m_per_s": 16.0})]
 
 
 class _Tty:
@@ -272,7 +272,7 @@ def test_tip_speeds_beyond_the_table_are_warned_about_in_the_results(tmp_path, c
     scene.write_text("[mill]\ntip_speed_m_per_s = 16.0\n[run]\nt_end_s = 60.0\ndt_s = 10.0\n")
     assert main(["run", str(scene), "--out", str(tmp_path / "out"), "-q", "--no-plots"]) == 0
     err = capsys.readouterr().err
-    words = "tip_speed_m_s = 16 lies outside the table's range 6 to 14"
+    words = "tip_speed_m_per_s = 16 lies outside the table's range 6 to 14"
     assert words in err and "similarity assumed" in err
     res = json.loads((tmp_path / "out" / "result.json").read_text())
     assert any(words in w and "prediction band do not cover this" in w for w in res["warnings"])
@@ -287,6 +287,6 @@ def test_a_ramp_through_the_table_edge_is_warned_once_with_its_range():
     for v in (10.0, 15.0, 17.5, 12.0):
         m.step(1.0, tip_speed_m_per_s=v)
     w = m.similarity_warnings()
-    assert list(w) == ["tip_speed_m_s"] and "tip_speed_m_s = 15 to 17.5 lies outside" in w["tip_speed_m_s"]
-    assert sum("tip_speed_m_s = 15 to 17.5" in x for x in run_warnings(m, [])) == 1
+    assert list(w) == ["tip_speed_m_per_s"] and "tip_speed_m_per_s = 15 to 17.5 lies outside" in w["tip_speed_m_per_s"]
+    assert sum("tip_speed_m_per_s = 15 to 17.5" in x for x in run_warnings(m, [])) == 1
     assert np.isfinite(m.outputs()["x50_m"])

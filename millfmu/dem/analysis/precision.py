@@ -39,8 +39,8 @@ from millfmu.machine import machine
 #: The operating point (``DemScene.with_overrides`` keys): seed 001's 10 m/s, 80 % case in
 #: the coupled slice, started as seed 001's coupled protocol starts (beads and liquid at 0.1
 #: of the stirrer's rotation; COUPLED_INITIAL_ROTATION of validation/seed001.py).
-OPERATING_POINT = dict(tip_speed_m_s=10.0, filling=0.8, sector_deg=10.0,
-                       gravity_m_s2=(0.0, 0.0, 0.0), fluid_mode="coupled",
+OPERATING_POINT = dict(tip_speed_m_per_s=10.0, filling=0.8, sector_deg=10.0,
+                       gravity_m_per_s2=(0.0, 0.0, 0.0), fluid_mode="coupled",
                        initial_rotation=0.1)
 #: Short study (``quick``): the same point, spun up briefly, sampled every ``sample_s``
 #: [s]: the method on a real run for the tests and the quick report (about 30 s of CPU). It

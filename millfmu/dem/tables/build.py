@@ -24,10 +24,10 @@ from collections.abc import Callable
 import numpy as np
 
 from ...stress_tables.files import canonical_json, sha256_bytes, write_replacing
-from ...stress_tables.spec import (COMPONENTS, DEM_BUILDER_ID, DRIFT_FIELDS, FIELDS, FORMAT_VERSION, QUANTILE_NAMES,
-                                   TableError,
-                   TableSpec, scene_at_point)
+from ...stress_tables.spec import (COMPONENTS, DEM_BUILDER_ID, DRIFT_FIELDS, EARLIER_FORMAT, FIELDS, FORMAT_VERSION,
+                                   QUANTILE_NAMES, TableError, TableSpec, scene_at_point)
 from ...stress_tables.table import FIXED_AXIS_RTOL, Table
+from ...unit_names import modernize, to_earlier
 
 
 class PointStore:
@@ -51,18 +51,28 @@ class PointStore:
     def key(self, spec: TableSpec, point: dict) -> str:
         return sha256_bytes(canonical_json(self.key_content(spec, point)).encode())
 
+    @classmethod
+    def earlier_key_content(cls, spec: TableSpec, point: dict) -> dict:
+        """The key content the earlier format gave the point (its names in the earlier
+        spelling: :mod:`millfmu.unit_names`)."""
+        return dict(to_earlier(cls.key_content(spec, point)), format=EARLIER_FORMAT)
+
     def get(self, spec: TableSpec, point: dict) -> dict | None:
+        """The stored result of the point, or None; a point stored in the earlier format is
+        read with its names in the current spelling."""
         if not self.reuse:
             return None
-        path = self.folder / f"{self.key(spec, point)}.json"
-        try:
-            d = json.loads(path.read_text())
-        except (OSError, ValueError):
-            return None
-        if not isinstance(d, dict) or d.get("key_content") != json.loads(
-                canonical_json(self.key_content(spec, point))):
-            return None
-        return d.get("result")
+        for content in (self.key_content(spec, point), self.earlier_key_content(spec, point)):
+            content = json.loads(canonical_json(content))
+            path = self.folder / f"{sha256_bytes(canonical_json(content).encode())}.json"
+            try:
+                d = json.loads(path.read_text())
+            except (OSError, ValueError):
+                continue
+            if isinstance(d, dict) and d.get("key_content") == content:
+                r = d.get("result")
+                return modernize(r) if content["format"] == EARLIER_FORMAT else r
+        return None
 
     def put(self, spec: TableSpec, point: dict, result: dict) -> bool:
         """Store a point's result; False (with a warning) where it cannot be written (a
@@ -106,7 +116,7 @@ def unstack(spec: TableSpec, table: Table) -> list:
     def one(t: Table, idx) -> dict:
         r = {k: np.asarray(t.data[k][idx]) for k in FIELDS}
         r["zone_names"] = zn
-        r.update({k: float(t.refs[k][idx]) for k in ("e_ref_J", "omega_rad_s", "n_gb_per_m3")})
+        r.update({k: float(t.refs[k][idx]) for k in ("e_ref_J", "omega_rad_per_s", "n_gb_per_m3")})
         if "recording_drift" in t.data:
             d = np.asarray(t.data["recording_drift"][idx])
             r["drift"] = {f: d[j] for j, f in enumerate(DRIFT_FIELDS)}
@@ -170,7 +180,7 @@ def _stack(grid: dict, results: list[dict], zn: tuple) -> Table:
             [[r["drift"][f] for f in DRIFT_FIELDS] for r in results], float).reshape(
             shape + (len(DRIFT_FIELDS), len(zn)))
     refs = {k: np.array([float(r[k]) for r in results]).reshape(shape)
-            for k in ("e_ref_J", "omega_rad_s", "n_gb_per_m3")}
+            for k in ("e_ref_J", "omega_rad_per_s", "n_gb_per_m3")}
     t = Table(axes={k: np.asarray(v, float) for k, v in grid.items()}, zone_names=zn,
               data=data, refs=refs)
     t.check_shapes()

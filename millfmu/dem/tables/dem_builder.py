@@ -51,9 +51,9 @@ def rebin_density(dem_edges_J: np.ndarray, density_per_decade: np.ndarray,
 def normalize_stats(stats, scene) -> dict:
     """Per-point table fields from DEM statistics (:class:`millfmu.dem.analysis.stats.DemStats`) of
     a run of ``scene`` (:class:`millfmu.dem.scene.DemScene`, placement 'filling')."""
-    d, rho = scene.bead_diameter_m, scene.material.density_kg_m3
-    eref = e_ref_J(d, rho, scene.tip_speed_m_s)
-    omega = scene.omega_rad_s
+    d, rho = scene.bead_diameter_m, scene.material.density_kg_per_m3
+    eref = e_ref_J(d, rho, scene.tip_speed_m_per_s)
+    omega = scene.omega_rad_per_s
     ngb = n_gb_per_m3(scene.filling, scene.bulk_porosity, d)
     vols = np.array([z.volume_m3 for z in stats.zones])
     edges = np.asarray(stats.se_bin_edges_j)
@@ -73,7 +73,7 @@ def normalize_stats(stats, scene) -> dict:
                                          else z.se[c].quantiles_j[q] / eref
                                          for q in QUANTILE_NAMES] for z in stats.zones]
                                        for c in COMPONENTS]),
-        "e_ref_J": eref, "omega_rad_s": omega, "n_gb_per_m3": ngb,
+        "e_ref_J": eref, "omega_rad_per_s": omega, "n_gb_per_m3": ngb,
     }
     return out
 
