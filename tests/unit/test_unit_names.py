@@ -41,7 +41,7 @@ def test_names_without_an_earlier_spelling_stay(name):
 
 def test_the_sources_use_the_current_spelling_only():
     """No tracked source, scene, data or doc file (the changelog and this module's own
-    tables aside) names a quantity the earlier way."""
+    tables and the scene docs' section on the earlier spelling aside) names a quantity the earlier way."""
     files = subprocess.run(["git", "ls-files"], cwd=ROOT, capture_output=True, text=True).stdout.split()
     if not files:
         pytest.skip("not a git checkout")
@@ -52,8 +52,10 @@ def test_the_sources_use_the_current_spelling_only():
         p = ROOT / f
         if f in skip or p.suffix not in {".py", ".toml", ".md", ".json", ".csv", ".txt", ".cfg"} or not p.is_file():
             continue
+        section = ""
         for i, line in enumerate(p.read_text(errors="replace").splitlines(), 1):
-            if old.search(line):
+            section = line if line.startswith("## ") else section
+            if old.search(line) and not (f == "docs/scenes.md" and section == "## Names and units"):
                 bad.append(f"{f}:{i}: {line.strip()[:100]}")
     assert not bad, "\n".join(bad[:20])
 
