@@ -21,27 +21,14 @@ import re
 # (stored array names join axis names with "__").
 _END = r"(?![A-Za-z0-9])"
 _START = r"(?<=[A-Za-z0-9])"
-#: (old suffix pattern, current suffix), applied in this order.
-_RULES = [
-    (re.compile(_START + r"_m_s2" + _END), "_m_per_s2"),
-    (re.compile(_START + r"_m_s" + _END), "_m_per_s"),
-    (re.compile(_START + r"_m2_s" + _END), "_m2_per_s"),
-    (re.compile(_START + r"(?<!per)_m3_s" + _END), "_m3_per_s"),
-    (re.compile(_START + r"_kg_m3" + _END), "_kg_per_m3"),
-    (re.compile(_START + r"_pa_s" + _END), "_Pa_s"),
-    (re.compile(_START + r"_rad_s" + _END), "_rad_per_s"),
-]
+#: (earlier suffix, current suffix). A name's end is matched, so ``_m_s`` never takes the
+#: ``_m_s`` of ``_m_s2``; ``_m3_s`` after ``per`` is 1/(m3 s) and was never renamed.
+_SUFFIXES = [("_m_s2", "_m_per_s2"), ("_m_s", "_m_per_s"), ("_m2_s", "_m2_per_s"), ("_m3_s", "_m3_per_s"),
+             ("_kg_m3", "_kg_per_m3"), ("_pa_s", "_Pa_s"), ("_rad_s", "_rad_per_s")]
+_RULES = [(re.compile(_START + ("(?<!per)" if old == "_m3_s" else "") + old + _END), new) for old, new in _SUFFIXES]
 #: The inverse, for names of the earlier release's key content (tables' and stored points'
 #: keys): every such name was written the old way there.
-_INVERSE = [
-    (re.compile(_START + r"_m_per_s2" + _END), "_m_s2"),
-    (re.compile(_START + r"_m_per_s" + _END), "_m_s"),
-    (re.compile(_START + r"_m2_per_s" + _END), "_m2_s"),
-    (re.compile(_START + r"_m3_per_s" + _END), "_m3_s"),
-    (re.compile(_START + r"_kg_per_m3" + _END), "_kg_m3"),
-    (re.compile(_START + r"_Pa_s" + _END), "_pa_s"),
-    (re.compile(_START + r"_rad_per_s" + _END), "_rad_s"),
-]
+_INVERSE = [(re.compile(_START + new + _END), old) for old, new in _SUFFIXES]
 
 
 def modern_name(name: str) -> str:
