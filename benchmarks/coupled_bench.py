@@ -92,10 +92,10 @@ RUNNING_S = 0.4
 def _scene(scene: str):
     from millfmu.dem.scene import load_scene
 
-    sc = load_scene("disc_slice").with_overrides(fluid_mode="coupled", tip_speed_m_s=10.0,
+    sc = load_scene("disc_slice").with_overrides(fluid_mode="coupled", tip_speed_m_per_s=10.0,
                                                  filling=0.8, initial_rotation=0.1)
     if scene == "sector":
-        return sc.with_overrides(sector_deg=10.0, gravity_m_s2=(0.0, 0.0, 0.0))
+        return sc.with_overrides(sector_deg=10.0, gravity_m_per_s2=(0.0, 0.0, 0.0))
     return sc.with_overrides(n_theta=32, pressure_solver="theta_fft")
 
 

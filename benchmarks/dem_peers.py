@@ -42,16 +42,16 @@ from millfmu.dem.engine.params import BeadMaterial
 from millfmu.dem.mills.geometry import MillGeometry, place_beads
 
 BENCH_DIAMETER_M = 0.8e-3
-BENCH_TIP_SPEED_M_S = 8.0
+BENCH_TIP_SPEED_M_PER_S = 8.0
 BENCH_DT_S = 5e-6
 BENCH_STEPS = 1000
 BENCH_SKIN_M = 0.3e-3  # 0.375 d, DemSimulation's default
 BENCH_REPEATS = 3
 BENCH_GEOMETRY = MillGeometry(shaft_radius_m=15e-3, chamber_radius_m=45e-3, height_m=4e-3)
-BENCH_MATERIAL = BeadMaterial(density_kg_m3=2510.0, youngs_modulus_pa=6.3e6,
+BENCH_MATERIAL = BeadMaterial(density_kg_per_m3=2510.0, youngs_modulus_pa=6.3e6,
                               poisson_ratio=0.25, restitution=0.99, friction=0.3,
                               rolling_friction=0.0)
-BENCH_OMEGA_RAD_S = BENCH_TIP_SPEED_M_S / BENCH_GEOMETRY.shaft_radius_m
+BENCH_OMEGA_RAD_PER_S = BENCH_TIP_SPEED_M_PER_S / BENCH_GEOMETRY.shaft_radius_m
 #: half box width in x and y for LAMMPS and LIGGGHTS [m] (fixed boundaries)
 BOX_HALF_M = 45.5e-3
 HERE = Path(__file__).resolve().parent / "lammps"
@@ -70,16 +70,16 @@ class BedRecipe:
     seed: int = 1
     # dilute bed: random velocities of this rms speed [m/s] given after the growth (a
     # granular gas); 0 for the dense bed (left out of the key, which names its file)
-    gas_speed_m_s: float = 0.0
+    gas_speed_m_per_s: float = 0.0
 
     def key(self) -> str:
         """Content hash of the recipe and the scene: names the bed file."""
         rec = asdict(self)
-        if not self.gas_speed_m_s:
-            rec.pop("gas_speed_m_s")
+        if not self.gas_speed_m_per_s:
+            rec.pop("gas_speed_m_per_s")
         d = dict(recipe=rec, geometry=asdict(BENCH_GEOMETRY),
                  material=asdict(BENCH_MATERIAL), diameter_m=BENCH_DIAMETER_M,
-                 tip_speed_m_s=BENCH_TIP_SPEED_M_S, dt_s=BENCH_DT_S)
+                 tip_speed_m_per_s=BENCH_TIP_SPEED_M_PER_S, dt_s=BENCH_DT_S)
         return hashlib.sha256(json.dumps(d, sort_keys=True).encode()).hexdigest()[:12]
 
 
@@ -90,7 +90,7 @@ BED = BedRecipe()
 #: tens of steps): the regime of seed 001's V1 and V4 zones and the accelerator's inner
 #: zones, where the rebuilds, not the contacts, cost most
 DILUTE_BED = BedRecipe(solid_fraction=0.3, grow_stages=4, relax_stages=1,
-                       spin_up_steps=2000, gas_speed_m_s=1.0)
+                       spin_up_steps=2000, gas_speed_m_per_s=1.0)
 #: the beds by name (``--bed``)
 BEDS = {"dense": BED, "dilute": DILUTE_BED}
 
@@ -102,7 +102,7 @@ class Bed:
     v: np.ndarray  # velocities [m/s]
     w: np.ndarray  # angular velocities [rad/s]
     diameter_m: float
-    density_kg_m3: float
+    density_kg_per_m3: float
 
 
 def write_data(path, bed: Bed, comment: str):
@@ -120,7 +120,7 @@ def write_data(path, bed: Bed, comment: str):
     with open(tmp, "w") as fh:
         fh.write(head)
         cols = np.column_stack([ids, np.ones(n), np.full(n, bed.diameter_m),
-                                np.full(n, bed.density_kg_m3), bed.x[:, 0], bed.x[:, 1], z])
+                                np.full(n, bed.density_kg_per_m3), bed.x[:, 0], bed.x[:, 1], z])
         np.savetxt(fh, cols, fmt=["%d", "%d", "%.17g", "%.17g", "%.17g", "%.17g", "%.17g"])
         fh.write("\nVelocities\n\n")
         np.savetxt(fh, np.column_stack([ids, bed.v, bed.w]),
@@ -139,7 +139,7 @@ def read_data(path) -> Bed:
     atoms = atoms[np.argsort(atoms[:, 0])]
     vel = vel[np.argsort(vel[:, 0])]
     return Bed(x=atoms[:, 4:7].copy(), v=vel[:, 1:4].copy(), w=vel[:, 4:7].copy(),
-               diameter_m=float(atoms[0, 2]), density_kg_m3=float(atoms[0, 3]))
+               diameter_m=float(atoms[0, 2]), density_kg_per_m3=float(atoms[0, 3]))
 
 
 def contact_stats(x, radius_m: float, geometry: MillGeometry = BENCH_GEOMETRY) -> dict:
@@ -186,11 +186,11 @@ def make_bed(recipe: BedRecipe = BED, threads: int | None = None, out=None) -> B
         if out:
             out(f"bed: stage {k + 1}/{stages} (radius {grow.rad[0] * 1e3:.4f} mm)")
     v0 = None
-    if recipe.gas_speed_m_s:
+    if recipe.gas_speed_m_per_s:
         rng = np.random.default_rng(recipe.seed)
-        v0 = rng.normal(0.0, recipe.gas_speed_m_s / math.sqrt(3.0), size=grow.x.shape)
-    spin = DemSimulation(g, BENCH_MATERIAL, grow.x, r1, BENCH_OMEGA_RAD_S, BENCH_DT_S,
-                         threads=threads, skin_m=BENCH_SKIN_M, velocities_m_s=v0)
+        v0 = rng.normal(0.0, recipe.gas_speed_m_per_s / math.sqrt(3.0), size=grow.x.shape)
+    spin = DemSimulation(g, BENCH_MATERIAL, grow.x, r1, BENCH_OMEGA_RAD_PER_S, BENCH_DT_S,
+                         threads=threads, skin_m=BENCH_SKIN_M, velocities_m_per_s=v0)
     left = recipe.spin_up_steps
     while left > 0:
         k = min(1000, left)
@@ -200,7 +200,7 @@ def make_bed(recipe: BedRecipe = BED, threads: int | None = None, out=None) -> B
             out(f"bed: spin-up {recipe.spin_up_steps - left}/{recipe.spin_up_steps} steps")
     order = np.argsort(spin.ids)  # back to the initial bead order
     return Bed(x=spin.x[order].copy(), v=spin.v[order].copy(), w=spin.w[order].copy(),
-               diameter_m=BENCH_DIAMETER_M, density_kg_m3=BENCH_MATERIAL.density_kg_m3)
+               diameter_m=BENCH_DIAMETER_M, density_kg_per_m3=BENCH_MATERIAL.density_kg_per_m3)
 
 
 def bench_dir() -> Path:
@@ -225,7 +225,7 @@ def bed_file(recipe: BedRecipe = BED, regenerate: bool = False, threads=None,
     out(f"making the bench bed {path} (once; {recipe})")
     t0 = time.perf_counter()
     bed = make_bed(recipe, threads=threads, out=out)
-    kind = (f"dilute granular gas ({recipe.gas_speed_m_s:g} m/s)" if recipe.gas_speed_m_s
+    kind = (f"dilute granular gas ({recipe.gas_speed_m_per_s:g} m/s)" if recipe.gas_speed_m_per_s
             else "dense sheared")
     write_data(path, bed, f"millfmu.dem bench bed {recipe.key()}: {kind} annulus, "
                           f"0.8 mm beads, shaft 8 m/s (SI units)")
@@ -233,11 +233,11 @@ def bed_file(recipe: BedRecipe = BED, regenerate: bool = False, threads=None,
     speed = np.linalg.norm(bed.v, axis=1)
     side = dict(recipe=asdict(recipe), beads=int(bed.x.shape[0]),
                 sha256=hashlib.sha256(path.read_bytes()).hexdigest(),
-                mean_speed_m_s=float(speed.mean()), max_speed_m_s=float(speed.max()),
+                mean_speed_m_per_s=float(speed.mean()), max_speed_m_per_s=float(speed.max()),
                 seconds_to_make=time.perf_counter() - t0, **stats)
     path.with_suffix(".json").write_text(json.dumps(side, indent=1) + "\n")
     out(f"bed: {side['beads']} beads, coordination {stats['coordination']:.2f}, median "
-        f"overlap {stats['overlap_median_m']:.3g} m, mean speed {side['mean_speed_m_s']:.3g} m/s")
+        f"overlap {stats['overlap_median_m']:.3g} m, mean speed {side['mean_speed_m_per_s']:.3g} m/s")
     return path
 
 
@@ -259,7 +259,7 @@ def lammps_constants(overlap_m: float) -> dict:
     mat = BENCH_MATERIAL
     ys, gs, beta = mat.effective_youngs_pa, mat.effective_shear_pa, abs(mat.damping_beta)
     r = 0.5 * BENCH_DIAMETER_M
-    m = math.pi / 6.0 * BENCH_DIAMETER_M ** 3 * mat.density_kg_m3
+    m = math.pi / 6.0 * BENCH_DIAMETER_M ** 3 * mat.density_kg_per_m3
 
     def gammas(mstar, rstar):
         q = (rstar * overlap_m) ** -0.25
@@ -299,17 +299,17 @@ def run_ours(path, threads: int, steps: int = BENCH_STEPS, device: str = "cpu",
     from millfmu.dem.engine.sim import DemSimulation
 
     bed = read_data(path)
-    kw = dict(velocities_m_s=bed.v, spins_rad_s=bed.w, skin_m=BENCH_SKIN_M, threads=threads)
+    kw = dict(velocities_m_per_s=bed.v, spins_rad_per_s=bed.w, skin_m=BENCH_SKIN_M, threads=threads)
     if device != "cpu":
         kw["device"] = device
     # compile (or load from the cache) outside the timed loop, with the same types (each
     # DemSimulation sets the thread count itself, after its kernels' module chose the layer)
     DemSimulation(BENCH_GEOMETRY, BENCH_MATERIAL, bed.x[:4000], 0.5 * bed.diameter_m,
-                  BENCH_OMEGA_RAD_S, BENCH_DT_S, **dict(kw, velocities_m_s=bed.v[:4000],
-                                                        spins_rad_s=bed.w[:4000])
+                  BENCH_OMEGA_RAD_PER_S, BENCH_DT_S, **dict(kw, velocities_m_per_s=bed.v[:4000],
+                                                        spins_rad_per_s=bed.w[:4000])
                   ).run(3, record=record)
     sim = DemSimulation(BENCH_GEOMETRY, BENCH_MATERIAL, bed.x, 0.5 * bed.diameter_m,
-                        BENCH_OMEGA_RAD_S, BENCH_DT_S, **kw)
+                        BENCH_OMEGA_RAD_PER_S, BENCH_DT_S, **kw)
     t0 = time.perf_counter()
     st = sim.run(steps, record=record)
     loop = time.perf_counter() - t0
@@ -339,8 +339,8 @@ def run_gpu_million(steps: int = BENCH_STEPS) -> RunResult:
     geom = MillGeometry(shaft_radius_m=15e-3, chamber_radius_m=45e-3, height_m=h)
     x = simple_cubic_annulus(MILLION_SPACING_M, 15.5e-3, 44.5e-3, h)
     v = np.random.default_rng(1).normal(0.0, 0.5 / math.sqrt(3.0), size=x.shape)
-    sim = DemSimulation(geom, BENCH_MATERIAL, x, 0.5 * BENCH_DIAMETER_M, BENCH_OMEGA_RAD_S,
-                        BENCH_DT_S, velocities_m_s=v, skin_m=BENCH_SKIN_M, device="gpu")
+    sim = DemSimulation(geom, BENCH_MATERIAL, x, 0.5 * BENCH_DIAMETER_M, BENCH_OMEGA_RAD_PER_S,
+                        BENCH_DT_S, velocities_m_per_s=v, skin_m=BENCH_SKIN_M, device="gpu")
     sim.run(2, record=True)  # compiled and warm
     t0 = time.perf_counter()
     st = sim.run(steps, record=True)
@@ -391,7 +391,7 @@ def run_lammps(path, nproc: int, steps: int = BENCH_STEPS) -> RunResult:
         args = _mpirun(nproc) + ["lmp", "-in", str(HERE / "in.bench_bed"), "-log",
                                  "log.lammps", "-screen", "none", "-nocite"]
         for k, v in dict(data=str(path), steps=steps, skin=BENCH_SKIN_M,
-                         omega=BENCH_OMEGA_RAD_S, r_shaft=BENCH_GEOMETRY.shaft_radius_m,
+                         omega=BENCH_OMEGA_RAD_PER_S, r_shaft=BENCH_GEOMETRY.shaft_radius_m,
                          r_chamber=BENCH_GEOMETRY.chamber_radius_m, dt=BENCH_DT_S, **c).items():
             args += ["-var", k, repr(v) if isinstance(v, float) else str(v)]
         subprocess.run(args, cwd=tmp, env=_env_one_thread(), check=True,
@@ -435,7 +435,7 @@ def run_liggghts(path, nproc: int, steps: int = BENCH_STEPS) -> RunResult:
                                  "-log", "log.liggghts", "-screen", "screen.txt", "-nocite"]
         # (-screen none crashes LIGGGHTS 3.8 when it reports reading the STL file)
         for k, v in dict(data=str(path), steps=steps, skin=BENCH_SKIN_M,
-                         omega=BENCH_OMEGA_RAD_S, r_chamber=BENCH_GEOMETRY.chamber_radius_m,
+                         omega=BENCH_OMEGA_RAD_PER_S, r_chamber=BENCH_GEOMETRY.chamber_radius_m,
                          dt=BENCH_DT_S, youngs=mat.youngs_modulus_pa, poisson=mat.poisson_ratio,
                          restitution=mat.restitution, friction=mat.friction).items():
             args += ["-var", k, repr(v) if isinstance(v, float) else str(v)]
@@ -632,8 +632,8 @@ def profile(path, threads: int, steps: int = BENCH_STEPS, out=print) -> dict:
 
     bed = read_data(path)
     sim = DemSimulation(BENCH_GEOMETRY, BENCH_MATERIAL, bed.x, 0.5 * bed.diameter_m,
-                        BENCH_OMEGA_RAD_S, BENCH_DT_S, velocities_m_s=bed.v,
-                        spins_rad_s=bed.w, skin_m=BENCH_SKIN_M, threads=threads)
+                        BENCH_OMEGA_RAD_PER_S, BENCH_DT_S, velocities_m_per_s=bed.v,
+                        spins_rad_per_s=bed.w, skin_m=BENCH_SKIN_M, threads=threads)
     sim.run(2, record=True)  # compiled and warm
     return profile_sim(sim, steps, out=out)
 
@@ -741,7 +741,7 @@ def profile_gpu(path, steps: int = BENCH_STEPS, out=print) -> dict:
 
     bed = read_data(path)
     sim = DemSimulation(BENCH_GEOMETRY, BENCH_MATERIAL, bed.x, 0.5 * bed.diameter_m,
-                        BENCH_OMEGA_RAD_S, BENCH_DT_S, velocities_m_s=bed.v, spins_rad_s=bed.w,
+                        BENCH_OMEGA_RAD_PER_S, BENCH_DT_S, velocities_m_per_s=bed.v, spins_rad_per_s=bed.w,
                         skin_m=BENCH_SKIN_M, device="gpu")
     sim.run(2, record=True)  # compiled and warm
     g = sim._gpu

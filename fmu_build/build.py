@@ -227,8 +227,8 @@ def _export_table_slice(scene, prefix: Path, table=None) -> list:
     if scene.kinetics.model != "detailed" or sd.source != "table":
         return []
     tab = table if table is not None else read_table_ref(sd.table)
-    fixed = {"bead_diameter_m": scene.beads.diameter_m, "bead_density_kg_m3": scene.beads.density_kg_per_m3,
-             "viscosity_pa_s": scene.suspension.viscosity_Pa_s}
+    fixed = {"bead_diameter_m": scene.beads.diameter_m, "bead_density_kg_per_m3": scene.beads.density_kg_per_m3,
+             "viscosity_Pa_s": scene.suspension.viscosity_Pa_s}
     bounds = {k: (v, v) for k, v in fixed.items() if k in tab.axes}
     return list((tab.subset(bounds) if bounds else tab).export(prefix))
 

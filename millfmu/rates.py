@@ -61,9 +61,10 @@ from .kinetics.stress_distribution import chamber_collision_rate_per_m3_s
 #: Operating parameters: name -> (label, unit, scene section, scene key, OperatingPoint field,
 #: stress-energy table axis or None).
 PARAMETERS = {
-    "tip_speed": ("tip speed", "m/s", "mill", "tip_speed_m_per_s", "tip_speed_m_per_s", "tip_speed_m_s"),
+    "tip_speed": ("tip speed", "m/s", "mill", "tip_speed_m_per_s", "tip_speed_m_per_s", "tip_speed_m_per_s"),
     "bead_diameter": ("bead diameter", "m", "beads", "diameter_m", "d_gb_m", "bead_diameter_m"),
-    "bead_density": ("bead density", "kg/m3", "beads", "density_kg_per_m3", "rho_gb_kg_per_m3", "bead_density_kg_m3"),
+    "bead_density": ("bead density", "kg/m3", "beads", "density_kg_per_m3", "rho_gb_kg_per_m3",
+                     "bead_density_kg_per_m3"),
     "solids_mass_fraction": ("solids mass fraction", "-", "suspension", "solids_mass_fraction", "solids_mass_fraction",
                              None),
     "filling": ("bead filling", "-", "mill", "bead_filling", "filling", "filling"),

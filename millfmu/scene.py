@@ -12,6 +12,7 @@ import copy
 import json
 import math
 import sys
+import warnings
 from dataclasses import MISSING, dataclass, field, fields, is_dataclass
 from importlib import resources
 from pathlib import Path
@@ -23,6 +24,7 @@ else:  # pragma: no cover
     import tomli as tomllib
 
 from .kinetics.stress import PHI_MAX_RCP
+from .unit_names import modernize, renamed_note
 
 INF = math.inf
 
@@ -153,10 +155,11 @@ class StressDistribution:
                                    "v_rel^2 with the bead's mass (bead_mass; twice the pair's centre-of-mass energy "
                                    "for equal beads), or 1/2 m* v_rel^2 with the pair's reduced mass m* = m_GM/2, as "
                                    "the DEM records it (reduced_mass)")
-    similar_axes: list = _f([], choices=("tip_speed_m_s", "bead_diameter_m", "bead_density_kg_m3", "viscosity_pa_s"),
+    similar_axes: list = _f([], choices=("tip_speed_m_per_s", "bead_diameter_m", "bead_density_kg_per_m3",
+                                         "viscosity_Pa_s"),
                             doc="table: axes along which similarity is assumed: an axis the table does not vary "
-                                "(bead_diameter_m, bead_density_kg_m3, viscosity_pa_s) may differ from the table's "
-                                "value, and a value outside the grid (also tip_speed_m_s) uses the nearest edge's "
+                                "(bead_diameter_m, bead_density_kg_per_m3, viscosity_Pa_s) may differ from the table's "
+                                "value, and a value outside the grid (also tip_speed_m_per_s) uses the nearest edge's "
                                 "dimensionless fields")
     on_outside: str = _f("refuse", choices=("refuse", "build"),
                          doc="table: operating point outside the grid: refuse, or build a covering table with the DEM "
@@ -514,9 +517,27 @@ def resolve_dict(d: dict) -> dict:
 def scene_from_dict(d: dict, source: str = "scene") -> Scene:
     """Validate a scene given as a dict (as read from TOML); keys left out take the embedded
     default scene's values (:func:`resolve_dict`)."""
-    s = _load_section(Scene, resolve_dict(d), "", source)
+    s = _load_section(Scene, resolve_dict(_current_spelling(d, source)), "", source)
     _cross_check(s, source)
     return s
+
+
+def _current_spelling(d: dict, source: str) -> dict:
+    """``d`` with an earlier release's unit suffixes (keys, and the axis names of
+    ``similar_axes``) in the current spelling, with a note naming each (FutureWarning)."""
+    renamed: list = []
+    try:
+        out = modernize(d, renamed=renamed)
+        sd = out.get("kinetics", {}).get("stress_distribution") if isinstance(out.get("kinetics"), dict) else None
+        if isinstance(sd, dict) and isinstance(sd.get("similar_axes"), list):
+            sd["similar_axes"] = modernize(sd["similar_axes"], values=True, renamed=renamed,
+                                           path="kinetics.stress_distribution.similar_axes")
+    except ValueError as e:
+        key, _, msg = str(e).partition(": ")
+        raise SceneError(key, "both spellings", msg, source) from None
+    if renamed:
+        warnings.warn(renamed_note(source, renamed), FutureWarning, stacklevel=3)
+    return out
 
 
 def scene_to_dict(s: Scene) -> dict:

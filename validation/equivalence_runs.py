@@ -59,10 +59,10 @@ def operating_point(table, summary: dict) -> dict:
         raise EquivalenceError(f"the work-precision study is of scene {op.get('scene')!r}; "
                                f"this table's scene is {name!r}, whose sampling noise was not "
                                f"measured: judge against the coupled table")
-    point = {k: float(op[k]) for k in ("tip_speed_m_s", "filling") if k in op}
+    point = {k: float(op[k]) for k in ("tip_speed_m_per_s", "filling") if k in op}
     if len(point) != 2:
         raise EquivalenceError(f"work-precision summary: operating_point {op!r} names no "
-                               f"tip_speed_m_s and filling")
+                               f"tip_speed_m_per_s and filling")
     return _full_point(table, point)
 
 

@@ -64,8 +64,8 @@ def run_campaign(out_dir, fluids=("coupled", "prescribed"), sector_deg: float = 
             if (d / "stats.json").exists():
                 continue
             sc = base.with_overrides(
-                fluid_mode=fluid, tip_speed_m_s=vt, filling=fill, sector_deg=sector_deg,
-                gravity_m_s2=(0.0, 0.0, 0.0),
+                fluid_mode=fluid, tip_speed_m_per_s=vt, filling=fill, sector_deg=sector_deg,
+                gravity_m_per_s2=(0.0, 0.0, 0.0),
                 spin_up_s=COUPLED_SPIN_UP_S if fluid == "coupled" else PRESCRIBED_SPIN_UP_S,
                 record_s=RECORD_S, sample_every_s=0.01,
                 initial_rotation=COUPLED_INITIAL_ROTATION if fluid == "coupled" else 0.0)
@@ -135,12 +135,12 @@ def prescribed_from_table(vt: float, fill: float, table=None) -> dict | None:
         table = read_table(npz=d / "prescribed_table.npz", manifest_path=d / "prescribed_table.json")
     ax = table.axes
     try:
-        i = int(np.flatnonzero(np.isclose(ax["tip_speed_m_s"], vt))[0])
+        i = int(np.flatnonzero(np.isclose(ax["tip_speed_m_per_s"], vt))[0])
         j = int(np.flatnonzero(np.isclose(ax["filling"], fill))[0])
     except IndexError:
         return None
     e_ref = float(table.refs["e_ref_J"][i, j])
-    rate = float(table.refs["omega_rad_s"][i, j] * table.refs["n_gb_per_m3"][i, j])
+    rate = float(table.refs["omega_rad_per_s"][i, j] * table.refs["n_gb_per_m3"][i, j])
     dat = table.data
     q50 = list(dat["se_quantiles_norm"][i, j, 0, :, 1])  # component tn, quantile q50
     zones = []

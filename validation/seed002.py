@@ -109,8 +109,8 @@ def scene_for(rpm: float, filling: float, sector_deg: float | None = None,
         c["n_theta"] = int(round(BAFFLE_THETA_CELLS_PER_60_DEG * sector_deg / 60.0))
     base = scene_from_dict(d)
     tip = rpm * 2.0 * math.pi / 60.0 * base.geometry.disc_radius_m
-    return base.with_overrides(tip_speed_m_s=tip, filling=filling, sector_deg=sector_deg,
-                               gravity_m_s2=(0.0, 0.0, 0.0), spin_up_s=SPIN_UP_S,
+    return base.with_overrides(tip_speed_m_per_s=tip, filling=filling, sector_deg=sector_deg,
+                               gravity_m_per_s2=(0.0, 0.0, 0.0), spin_up_s=SPIN_UP_S,
                                record_s=RECORD_S, sample_every_s=SAMPLE_S,
                                primed_s=PRIMED_S if primed else 0.0)
 
@@ -173,7 +173,7 @@ def protocol_overrides(sector_deg: float | None = None) -> dict:
     sector_deg = SECTOR_DEG if sector_deg is None else sector_deg
     return {"mill": {"sector_deg": sector_deg},
             "run": {"spin_up_s": SPIN_UP_S, "record_s": RECORD_S, "sample_every_s": SAMPLE_S,
-                    "gravity_m_s2": [0.0, 0.0, 0.0]}}
+                    "gravity_m_per_s2": [0.0, 0.0, 0.0]}}
 
 
 def export_table(out_dir, prefix, filling: float = 0.8):
@@ -196,7 +196,7 @@ def export_table(out_dir, prefix, filling: float = 0.8):
     base["beads"]["filling"] = filling
     r_rim = base["mill"]["rotor_radius_m"]
     tips = [n * 2.0 * math.pi / 60.0 * r_rim for n in SPEEDS]
-    spec = TableSpec(scene=base, grid={"tip_speed_m_s": tips},
+    spec = TableSpec(scene=base, grid={"tip_speed_m_per_s": tips},
                      kernel_version=dem_kernel_version(), builder_id=CAMPAIGN_BUILDER_ID)
     results, walls = [], 0.0
     for n, point in zip(SPEEDS, spec.points()):
@@ -206,11 +206,11 @@ def export_table(out_dir, prefix, filling: float = 0.8):
                              f"--out {out_dir}' first")
         stats = DemStats.from_json((d / "stats.json").read_text())
         sc = scene_from_dict(scene_at_point(base, point))
-        if abs(stats.tip_speed_m_s - sc.tip_speed_m_s) > 1e-9 * sc.tip_speed_m_s or \
+        if abs(stats.tip_speed_m_per_s - sc.tip_speed_m_per_s) > 1e-9 * sc.tip_speed_m_per_s or \
                 abs(stats.record_s - sc.record_s) > 1e-6 or \
                 abs(stats.spin_up_s - sc.spin_up_s) > 1e-6 or \
                 abs(stats.sector_deg - sc.geometry.sector_deg) > 1e-9:
-            raise TableError(f"{d}: its run (tip speed {stats.tip_speed_m_s} m/s, spin-up "
+            raise TableError(f"{d}: its run (tip speed {stats.tip_speed_m_per_s} m/s, spin-up "
                              f"{stats.spin_up_s} s, record {stats.record_s} s, sector "
                              f"{stats.sector_deg} deg) is not the protocol's")
         r = normalize_stats(stats, sc)
@@ -623,7 +623,7 @@ def main(argv=None) -> int:
         except TableError as e:
             print(f"python -m validation.seed002: {e}", file=sys.stderr)
             return 2
-        print(f"exported {args.export_table}.npz/.json ({t.axes['tip_speed_m_s'].size} "
+        print(f"exported {args.export_table}.npz/.json ({t.axes['tip_speed_m_per_s'].size} "
               f"tip speeds)")
     return 0
 

@@ -134,7 +134,7 @@ def similarity_source(src):
     t = src.table
     bare = replace(t, one_at_a_time={}, one_at_a_time_ref={}, anchor={})
     return replace(src, table=bare,
-                   similar_axes=tuple(src.similar_axes) + ("bead_diameter_m", "bead_density_kg_m3"),
+                   similar_axes=tuple(src.similar_axes) + ("bead_diameter_m", "bead_density_kg_per_m3"),
                    last_lookup=None, last_notes=[], similarity_seen={})
 
 

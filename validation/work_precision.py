@@ -54,10 +54,10 @@ from pathlib import Path
 # implementation, so that the shipped summary and a rerun of the study agree.
 from millfmu.dem.analysis.precision import (COLUMNS, DRIFT_STATS, LENGTHEN_WITHIN, OPERATING_POINT,
                                             RUN_COMMAND, STATISTICS, TARGET_ZONES, TARGETS, WorkPrecisionError,
-                                            _bias, _rel, _sigma, _timed, _worst, analyse_quick, base_scene,
-                                            block_stats, expected_error, fit_sampling_law, load, plot,
-                                            recording_length_errors, run_quick, slopes, summary_text,
-                                            table_rows)
+                                            analyse_quick, base_scene, block_stats, expected_error,
+                                            fit_sampling_law, load, plot, recording_length_errors,
+                                            relative_difference, run_quick, sampling_error, slopes,
+                                            spin_up_bias, summary_text, table_rows, timed_run, worst_abs)
 from millfmu.machine import machine
 from validation.seed001 import COUPLED_SPIN_UP_S, RECORD_S
 
@@ -125,7 +125,7 @@ def run_study(out_dir, variants=DEFAULT_VARIANTS, threads: int | None = 1,
         if (d / "stats.json").exists():
             continue
         log(f"work-precision: running {name} into {d}")
-        _timed(run_scene, d, _scene_of(name), d, progress=progress, threads=threads,
+        timed_run(run_scene, d, _scene_of(name), d, progress=progress, threads=threads,
                window_s=SAMPLE_S, contacts=True)
     return dirs
 
@@ -170,8 +170,8 @@ def analyse(study_dir) -> dict:
         for st in STATISTICS:
             err[st], noise[st] = {}, {}
             for z in zones:
-                err[st][z] = _rel(x[st][z], ref[st][z])
-                a, b = _sigma(law, st, z, RECORD_S), _sigma(law, st, z, ref_len)
+                err[st][z] = relative_difference(x[st][z], ref[st][z])
+                a, b = sampling_error(law, st, z, RECORD_S), sampling_error(law, st, z, ref_len)
                 noise[st][z] = None if a is None or b is None else 2.0 * math.hypot(a, b)
         spin_rows.append(dict(spin_up_s=s, record_s=RECORD_S, error=err, noise_2sigma=noise,
                               run_s=rate * (s + RECORD_S)))
@@ -191,9 +191,10 @@ def analyse(study_dir) -> dict:
         for st in STATISTICS:
             err[st], noise[st] = {}, {}
             for z in zones:
-                err[st][z] = _rel(base[st][z], x[st][z]) if finer else _rel(x[st][z], base[st][z])
-                a = _sigma(law, st, z, t1 - t0)
-                b = _sigma(law, st, z, t1 - t0, 1.0 / math.sqrt(beads))
+                err[st][z] = (relative_difference(base[st][z], x[st][z]) if finer
+                              else relative_difference(x[st][z], base[st][z]))
+                a = sampling_error(law, st, z, t1 - t0)
+                b = sampling_error(law, st, z, t1 - t0, 1.0 / math.sqrt(beads))
                 noise[st][z] = None if a is None else 2.0 * math.hypot(a, b)
         pn_var = (rd.stats.get("flow", {}).get("power_number") or {}).get("value")
         var_rows.append(dict(
@@ -208,7 +209,7 @@ def analyse(study_dir) -> dict:
         drift["t_s"].append(t + 0.5 * DRIFT_BLOCK_S)
         for st in DRIFT_STATS:
             for z in zones:
-                drift[st][z].append(_rel(x[st][z], ref[st][z]))
+                drift[st][z].append(relative_difference(x[st][z], ref[st][z]))
         t += DRIFT_BLOCK_S
     res = dict(operating_point=dict(OPERATING_POINT, scene="disc_slice"), drift=drift,
                long_run=dict(recorded_s=list(long.recording_s), run_s=long.cost_s,
@@ -324,12 +325,12 @@ def summary(res) -> dict:
         recording_law={s: {z: ({k: v[k] for k in ("at_1s", "slope")} if v else None)
                            for z, v in d.items()} for s, d in res["law"].items()},
         slopes=slopes(res),
-        spin_up_bias={f"{r['spin_up_s']:g}": {s: {z: _bias(r, s, z) for z in res["zones"]}
+        spin_up_bias={f"{r['spin_up_s']:g}": {s: {z: spin_up_bias(r, s, z) for z in res["zones"]}
                                                for s in STATISTICS}
                       for r in res["spin_up"]},
         resolution=[dict(name=r["name"], what=r["what"], finer=r["finer"],
-                         worst_error=_worst(r["error"], STATISTICS, TARGET_ZONES),
-                         worst_noise_2sigma=_worst(r["noise_2sigma"], STATISTICS, TARGET_ZONES),
+                         worst_error=worst_abs(r["error"], STATISTICS, TARGET_ZONES),
+                         worst_noise_2sigma=worst_abs(r["noise_2sigma"], STATISTICS, TARGET_ZONES),
                          run_s=r["run_s"], reference_run_s=r["reference_run_s"])
                     for r in res["variants"]],
         note="relative errors [-] of a DEM table point's statistics (per zone: SE_tn "

@@ -54,7 +54,7 @@ def _register_run(sub) -> None:
     r.add_argument("--resume", metavar="DIR", help="go on with the stopped run in DIR from its "
                    "checkpoint (its scene and options; --threads and --checkpoint-every may "
                    "be given); the outputs are those of a run that was not stopped")
-    r.add_argument("--tip-speed", type=float, dest="tip_speed_m_s", metavar="M_S",
+    r.add_argument("--tip-speed", type=float, dest="tip_speed_m_per_s", metavar="M_S",
                    help="stirrer tip speed [m/s] (overrides the scene)")
     r.add_argument("--rpm", type=float, dest="rotor_speed_rpm", metavar="RPM",
                    help="stirrer speed [1/min] (overrides the scene; instead of --tip-speed)")
@@ -125,20 +125,20 @@ def _run(args) -> int:
         if args.scene is None or args.out is None:
             raise DemSceneError("a scene and --out are required (or --resume DIR)")
         scene = load_scene(args.scene)
-        over = {k: getattr(args, k) for k in ("tip_speed_m_s", "filling", "sector_deg",
+        over = {k: getattr(args, k) for k in ("tip_speed_m_per_s", "filling", "sector_deg",
                                               "spin_up_s", "record_s", "sample_every_s",
                                               "dt_s", "fluid_mode", "initial_rotation",
                                               "primed_s", "n_theta", "smoothing",
                                               "pressure_solver")}
         if args.no_gravity:
-            over["gravity_m_s2"] = (0.0, 0.0, 0.0)
+            over["gravity_m_per_s2"] = (0.0, 0.0, 0.0)
         if args.rotor_speed_rpm is not None:
-            if args.tip_speed_m_s is not None:
+            if args.tip_speed_m_per_s is not None:
                 raise DemSceneError("--rpm and --tip-speed: give one of them")
             if not args.rotor_speed_rpm > 0:
                 raise DemSceneError(f"--rpm = {args.rotor_speed_rpm!r}: must be > 0")
             r = scene.geometry.disc_radius_m or scene.geometry.shaft_radius_m
-            over["tip_speed_m_s"] = args.rotor_speed_rpm * 2.0 * math.pi / 60.0 * r
+            over["tip_speed_m_per_s"] = args.rotor_speed_rpm * 2.0 * math.pi / 60.0 * r
         scene = scene.with_overrides(**over)
     except DemSceneError as e:
         print(f"millfmu dem run: {e}", file=sys.stderr)
@@ -186,7 +186,7 @@ def _resume(args) -> int:
     """``dem run --resume DIR``: only the options that leave the results alone."""
     from millfmu.dem.run import DemRunError, resume_run
 
-    flags = dict(out="--out", tip_speed_m_s="--tip-speed", rotor_speed_rpm="--rpm",
+    flags = dict(out="--out", tip_speed_m_per_s="--tip-speed", rotor_speed_rpm="--rpm",
                  filling="--filling", sector_deg="--sector-deg", fluid_mode="--fluid",
                  spin_up_s="--spin-up", record_s="--record", sample_every_s="--sample-every",
                  dt_s="--dt", initial_rotation="--initial-rotation", primed_s="--primed",

@@ -11,7 +11,7 @@ from __future__ import annotations
 import math
 
 #: disc_slice: tip speed [m/s] and bead filling [-], the ranges of seed 001.
-DISC_SLICE_TIP_SPEED_M_S = (6.0, 14.0)
+DISC_SLICE_TIP_SPEED_M_PER_S = (6.0, 14.0)
 DISC_SLICE_FILLING = (0.5, 0.9)
 #: accelerator_slice: rotor speed [1/min] (seed 002: 800-1400 rpm, and 400 rpm in its
 #: section 3.2) and bead filling [-] (seed 002: 0.6-0.9).
@@ -33,14 +33,14 @@ def point_ranges(scene: dict) -> dict:
     DEM scene: an analytic builder's)."""
     kind = scene.get("kind")
     if kind == "disc_slice":
-        return {"tip_speed_m_s": (*DISC_SLICE_TIP_SPEED_M_S, "the range of seed 001"),
+        return {"tip_speed_m_per_s": (*DISC_SLICE_TIP_SPEED_M_PER_S, "the range of seed 001"),
                 "filling": (*DISC_SLICE_FILLING, "the range of seed 001")}
     if kind == "accelerator_slice":
         out = {"filling": (*ACCELERATOR_FILLING, "seed 002: 0.6-0.9")}
         r = (scene.get("mill") or {}).get("rotor_radius_m")
         if isinstance(r, (int, float)) and r > 0:
             lo, hi = (n * 2.0 * math.pi / 60.0 * r for n in ACCELERATOR_RPM_RANGE)
-            out["tip_speed_m_s"] = (lo, hi, f"{ACCELERATOR_RPM_RANGE[0]:g} to "
+            out["tip_speed_m_per_s"] = (lo, hi, f"{ACCELERATOR_RPM_RANGE[0]:g} to "
                                     f"{ACCELERATOR_RPM_RANGE[1]:g} rpm at rotor radius {r:g} m")
         return out
     return {}

@@ -67,6 +67,7 @@ from millfmu.dem.mills import zones_for
 from millfmu.dem.mills.geometry import (bead_count_for_filling, place_beads,
                                         simple_cubic_annulus)
 from millfmu.dem.scene import DemScene
+from millfmu.unit_names import modern_name
 
 #: Initial turbulence of the coupled fluid (the stirrer starts from rest): k = (0.02 v_t)^2,
 #: epsilon from a 1 mm mixing length; k-epsilon forgets it within a few stirrer turns.
@@ -89,9 +90,9 @@ def _instability(sim, scene) -> str | None:
     if not (np.isfinite(sim.x).all() and np.isfinite(sim.v).all()):
         return "non-finite bead positions or velocities"
     vmax = float(np.sqrt(np.einsum("ij,ij->i", sim.v, sim.v).max())) if sim.n else 0.0
-    if vmax > UNSTABLE_SPEED_FACTOR * scene.tip_speed_m_s:
-        return (f"a bead at {vmax:.3g} m/s, {vmax / scene.tip_speed_m_s:.0f} times the tip speed "
-                f"{scene.tip_speed_m_s:.3g} m/s")
+    if vmax > UNSTABLE_SPEED_FACTOR * scene.tip_speed_m_per_s:
+        return (f"a bead at {vmax:.3g} m/s, {vmax / scene.tip_speed_m_per_s:.0f} times the tip speed "
+                f"{scene.tip_speed_m_per_s:.3g} m/s")
     return None
 INITIAL_MIXING_LENGTH_M = 1e-3
 
@@ -114,11 +115,11 @@ def make_simulation(scene: DemScene, threads: int | None = None, device: str = "
     x0 = initial_positions(scene)
     v0 = None
     if scene.initial_rotation:
-        w = scene.initial_rotation * scene.omega_rad_s
+        w = scene.initial_rotation * scene.omega_rad_per_s
         v0 = np.column_stack([-w * x0[:, 1], w * x0[:, 0], np.zeros(len(x0))])
     sim = DemSimulation(scene.geometry, scene.material, x0, 0.5 * scene.bead_diameter_m,
-                        scene.omega_rad_s, scene.dt_s, gravity_m_s2=scene.gravity_m_s2,
-                        fluid=scene.fluid, threads=threads, velocities_m_s=v0, device=device)
+                        scene.omega_rad_per_s, scene.dt_s, gravity_m_per_s2=scene.gravity_m_per_s2,
+                        fluid=scene.fluid, threads=threads, velocities_m_per_s=v0, device=device)
     cpl = None
     if scene.fluid_mode == "coupled":
         c = scene.coupling
@@ -127,11 +128,11 @@ def make_simulation(scene: DemScene, threads: int | None = None, device: str = "
             from millfmu.dem.coupling.dpm import DiscretePhaseCoupling as coupling
         else:
             coupling = CfdDem
-        cpl = coupling(sim, grid, FluidProperties(scene.fluid.density_kg_m3,
-                                                  scene.fluid.viscosity_pa_s), c,
-                       scene.omega_rad_s)
+        cpl = coupling(sim, grid, FluidProperties(scene.fluid.density_kg_per_m3,
+                                                  scene.fluid.viscosity_Pa_s), c,
+                       scene.omega_rad_per_s)
         if c.turbulence == "k_epsilon":
-            cpl.solver.init_turbulence((INITIAL_TURBULENCE_INTENSITY * scene.tip_speed_m_s) ** 2,
+            cpl.solver.init_turbulence((INITIAL_TURBULENCE_INTENSITY * scene.tip_speed_m_per_s) ** 2,
                                        INITIAL_MIXING_LENGTH_M)
         if scene.initial_rotation:
             cpl.solver.init_solid_body(scene.initial_rotation)
@@ -199,7 +200,27 @@ def load_checkpoint(out_dir) -> dict:
     if fmt not in CHECKPOINT_FORMATS_READ:
         raise DemRunError(f"{path}: checkpoint layout {fmt!r}; this version reads layouts "
                           f"{', '.join(map(str, CHECKPOINT_FORMATS_READ))}")
+    _current_attribute_names(state, set())
     return state
+
+
+def _current_attribute_names(obj, seen: set):
+    """Rename, in place, the attributes and dict keys of a checkpoint's objects that an
+    earlier release spelled another way (:mod:`millfmu.unit_names`), so that its simulation
+    goes on under these sources."""
+    if id(obj) in seen:
+        return
+    seen.add(id(obj))
+    if isinstance(obj, dict):
+        for k in [k for k in obj if isinstance(k, str) and modern_name(k) != k]:
+            obj[modern_name(k)] = obj.pop(k)
+        for v in obj.values():
+            _current_attribute_names(v, seen)
+    elif isinstance(obj, (list, tuple)):
+        for v in obj:
+            _current_attribute_names(v, seen)
+    elif type(obj).__module__.startswith("millfmu.") and hasattr(obj, "__dict__"):
+        _current_attribute_names(obj.__dict__, seen)
 
 
 def resume_run(out_dir, progress: bool = True, threads: int | None = None,
@@ -511,8 +532,8 @@ def _chunk_stats(scene: DemScene, zones, sim, loop: dict, events: ContactLog,
     return compute_stats(
         scene=scene.name, zones=zones, events=e, ev_cols=ev_cols,
         sample_x=[sx[i] for i in chunks], sample_v=[sv[i] for i in chunks],
-        radii_m=sim.rad, record_s=n * dt, tip_speed_m_s=scene.tip_speed_m_s,
-        omega_rad_s=scene.omega_rad_s,
+        radii_m=sim.rad, record_s=n * dt, tip_speed_m_per_s=scene.tip_speed_m_per_s,
+        omega_rad_per_s=scene.omega_rad_per_s,
         torque_on_stirrer_nm=sum(torques[i][1] for i in chunks) / max(n, 1),
         ke_t_s=np.array(loop["ke_t"]), ke_j=np.array(loop["ke"]), spin_up_s=t0_s, dt_s=dt,
         filling=scene.filling, bulk_porosity=scene.bulk_porosity,
@@ -588,7 +609,7 @@ def _write_outputs(out: Path, scene: DemScene, sim, loop: dict, stats: DemStats,
         np.savez(out / "bead_fields.npz", **bead_fields)
         # the recorded bead samples, for measures of the bead motion made later
         np.savez_compressed(out / "bead_samples.npz", x_m=np.array(loop["sx"], np.float32),
-                            v_m_s=np.array(loop["sv"], np.float32), radii_m=sim.rad)
+                            v_m_per_s=np.array(loop["sv"], np.float32), radii_m=sim.rad)
     if fields is not None:
         np.savez(out / "fluid_fields.npz", **fields)
         plots.write_fluid_maps(out, scene, fields)
@@ -609,8 +630,8 @@ def accelerator_summary(scene, sim, zones, ev, ev_cols, record_s, sx, sv, fields
     ``snapshots_20_per_s``, seed 002's frame rate, where the samples are a whole fraction
     of 0.05 s apart); bead speed over tip speed against Z'/R and X'/L (figures 3 and 4);
     the rotor's pumped flow."""
-    args = (scene.bead_diameter_m, scene.material.density_kg_m3, sim.n, scene.tip_speed_m_s,
-            scene.omega_rad_s)
+    args = (scene.bead_diameter_m, scene.material.density_kg_per_m3, sim.n, scene.tip_speed_m_per_s,
+            scene.omega_rad_per_s)
     out = A.stress_quantities(ev, ev_cols, zones, record_s, *args)
     if frames:
         out["snapshots"] = A.snapshot_stress_quantities(frames, frame_interval_s, zones,
@@ -621,16 +642,16 @@ def accelerator_summary(scene, sim, zones, ev, ev_cols, record_s, sx, sv, fields
                                                                      *args)
     out["rotor_speed_rpm"] = scene.rotor_speed_rpm
     out["radial_speed_profile"] = A.radial_speed_profile(sx, sv, scene.geometry,
-                                                         scene.tip_speed_m_s)
+                                                         scene.tip_speed_m_per_s)
     out["axial_speed_profile"] = A.axial_speed_profile(sx, sv, scene.geometry,
-                                                       scene.tip_speed_m_s,
+                                                       scene.tip_speed_m_per_s,
                                                        z_min=scene.zones.z2)
-    q = A.rotor_throughflow_m3_s(fields, scene.geometry)
-    out["rotor_throughflow_m3_s"] = q
+    q = A.rotor_throughflow_m3_per_s(fields, scene.geometry)
+    out["rotor_throughflow_m3_per_s"] = q
     out["return_leg"] = A.return_leg(
-        sx, sv, scene.geometry, scene.omega_rad_s, scene.bead_diameter_m,
-        scene.material.density_kg_m3,
-        scene.fluid.density_kg_m3 if scene.fluid is not None else 0.0, fields)
+        sx, sv, scene.geometry, scene.omega_rad_per_s, scene.bead_diameter_m,
+        scene.material.density_kg_per_m3,
+        scene.fluid.density_kg_per_m3 if scene.fluid is not None else 0.0, fields)
     return out
 
 
@@ -677,7 +698,7 @@ def flow_summary(scene, sim, cpl, sx, sv, torques, budget0, fields, substeps) ->
     frac = g.sector_fraction
     n_steps = sum(t[0] for t in torques)
     t_rec = n_steps * scene.dt_s
-    om = scene.omega_rad_s
+    om = scene.omega_rad_per_s
     out = {"fluid_mode": scene.fluid_mode}
     # torques the beads exert on stirrer and chamber (mean over the recording, sector)
     tb_rot = sum(t[1] for t in torques) / max(n_steps, 1)
@@ -692,7 +713,7 @@ def flow_summary(scene, sim, cpl, sx, sv, torques, budget0, fields, substeps) ->
     out["torque"] = torque
     # a full slice with gravity across the axis: where the beads sit round the circle, time
     # mean over the recording's samples (seed 001's asymmetry, seed 002's figure 8)
-    circ = circumferential(sx, scene.gravity_m_s2, g.sector_deg)
+    circ = circumferential(sx, scene.gravity_m_per_s2, g.sector_deg)
     if circ:
         out["circumferential"] = circ
     if not g.has_disc:
@@ -715,7 +736,7 @@ def _coupled_flow(scene, cpl, torque: dict, tb_rot: float, tb_sta: float, budget
     the recording's length."""
     g = scene.geometry
     frac = g.sector_fraction
-    om = scene.omega_rad_s
+    om = scene.omega_rad_per_s
     out = {}
     jf_rot = (b1["shaft"] - budget0["shaft"]) + (b1["rotor_cells"] - budget0["rotor_cells"])
     jf_sta = b1["stator"] - budget0["stator"]
@@ -741,7 +762,7 @@ def _coupled_flow(scene, cpl, torque: dict, tb_rot: float, tb_sta: float, budget
         change_fluid=b1["fluid"] - budget0["fluid"],
         change_beads=b1["beads"] - budget0["beads"],
         closure_rel=(drive + (weight if known else 0.0) - change - walls) / scale)
-    rho = scene.fluid.density_kg_m3
+    rho = scene.fluid.density_kg_per_m3
     n_rev = om / (2.0 * math.pi)
     p_tot = torque["stirrer_total_nm"] * om
     d_disc = 2.0 * (g.disc_radius_m if g.has_disc else g.shaft_radius_m)
@@ -759,7 +780,7 @@ def _coupled_flow(scene, cpl, torque: dict, tb_rot: float, tb_sta: float, budget
         void_fraction_min=float(np.nanmin(fields["eps"])) if fields else None,
         void_fraction_mean=float(np.nanmean(fields["eps"])) if fields else None,
         clipped_cells_last=int(cpl.clipped_cells),
-        turbulent_viscosity_max_m2_s=float(np.nanmax(fields["nu_t"])) if fields else None)
+        turbulent_viscosity_max_m2_per_s=float(np.nanmax(fields["nu_t"])) if fields else None)
     return out
 
 
@@ -768,7 +789,7 @@ def _disc_flow(scene, sim, cpl, sx, sv, fields) -> dict:
     velocity, the section's bead fields (``_bead_fields``), the vortices of the beads' and
     the liquid's mean flow and the swirl profiles across the gap at the disc radius."""
     g = scene.geometry
-    om = scene.omega_rad_s
+    om = scene.omega_rad_per_s
     out = {}
     d = scene.bead_diameter_m
     # seed 001's first layer: bead centres within 0.6 mm of the disc face (its stated
@@ -798,16 +819,16 @@ def _disc_flow(scene, sim, cpl, sx, sv, fields) -> dict:
     in_gap = (np.abs(zs) >= hb)
     o = np.argsort(x[in_gap])
     prof = dict(r_m=float(r_c[i_r]), x_over_gap=list((x[in_gap][o] / gap).round(6)),
-                beads_speed_over_v_tip=_speed(beads, i_r, in_gap, o, scene.tip_speed_m_s))
+                beads_speed_over_v_tip=_speed(beads, i_r, in_gap, o, scene.tip_speed_m_per_s))
     if fields is not None:
         f = {k: v[:, order] for k, v in fields.items() if np.ndim(v) == 2}
         psi_f = FS.stream_function(r_c, np.nan_to_num(f["flux_z"]), dr)
         out["vortices_fluid"] = FS.vortex_summary(FS.vortices(
             psi_f, r_c, zs, g.disc_radius_m, hb, valid=np.isfinite(f["eps"]),
             tip_zone_top_m=top))
-        prof["fluid_speed_over_v_tip"] = _speed(f, i_r, in_gap, o, scene.tip_speed_m_s)
+        prof["fluid_speed_over_v_tip"] = _speed(f, i_r, in_gap, o, scene.tip_speed_m_per_s)
         prof["fluid_u_theta_over_v_tip"] = list(np.round(
-            f["u_theta"][i_r, in_gap][o] / scene.tip_speed_m_s, 6))
+            f["u_theta"][i_r, in_gap][o] / scene.tip_speed_m_per_s, 6))
     out["swirl_profile_at_disc_radius"] = prof
     return out
 
@@ -922,7 +943,7 @@ def summary_table(stats: DemStats) -> str:
         lines.append(f"SE_cs,sum {t['SE_cs_sum_w']:.4g} W, SE_ts,sum / SE_cs,sum "
                      f"{(t['ts_share'] or float('nan')):.3f}, SE_net {t['SE_net_w']:.4g} W, "
                      f"efficiency {(t['efficiency'] or float('nan')):.3%}; rotor pumps "
-                     f"{(a['rotor_throughflow_m3_s'] or float('nan')) * 6e4:.4g} L/min")
+                     f"{(a['rotor_throughflow_m3_per_s'] or float('nan')) * 6e4:.4g} L/min")
         rl = a.get("return_leg") or {}
         if rl.get("k_beads") is not None:
             kl = rl["k_liquid"] if rl["k_liquid"] is not None else float("nan")

@@ -18,6 +18,7 @@ from __future__ import annotations
 
 import math
 import sys
+import warnings
 from dataclasses import dataclass, replace
 from pathlib import Path
 
@@ -34,13 +35,14 @@ from millfmu.dem.fluid.settings import DEFAULT_PRESSURE_SOLVER, PRESSURE_SOLVERS
 from millfmu.dem.mills.accelerator import SevSpec
 from millfmu.dem.mills.geometry import MillGeometry
 from millfmu.dem.mills.zones import ZoneSpec
+from millfmu.unit_names import modernize, renamed_note
 
 SCENE_DIR = Path(__file__).parent / "scenes"
 KINDS = ("annulus", "disc_slice", "accelerator_slice")
 #: rotor speeds of seed 002 are 800-1400 rpm (and 400 rpm in its section 3.2); the ranges
 #: of each kind live in millfmu.dem.limits, which reads them without the engine
 from millfmu.dem.limits import (ACCELERATOR_FILLING, ACCELERATOR_RPM_RANGE,  # noqa: E402
-                                DISC_SLICE_FILLING, DISC_SLICE_TIP_SPEED_M_S,
+                                DISC_SLICE_FILLING, DISC_SLICE_TIP_SPEED_M_PER_S,
                                 MAX_THETA_CELL_RAD, least_theta_cells)
 FLUID_MODES = ("coupled", "prescribed", "none")
 #: coupling schemes of the coupled fluid ([fluid.coupled] scheme): volume-averaged
@@ -60,7 +62,7 @@ class DemScene:
     geometry: MillGeometry
     material: BeadMaterial
     bead_diameter_m: float
-    tip_speed_m_s: float  # disc tip (disc_slice) or shaft surface (annulus) speed
+    tip_speed_m_per_s: float  # disc tip (disc_slice) or shaft surface (annulus) speed
     placement: str  # "filling" or "lattice"
     filling: float | None
     bulk_porosity: float
@@ -69,7 +71,7 @@ class DemScene:
     fluid: FluidSettings | None  # liquid properties and lubrication; None for mode "none"
     fluid_mode: str  # "coupled", "prescribed" or "none"
     coupling: CouplingSettings | None  # the coupled fluid's options (mode "coupled")
-    gravity_m_s2: tuple
+    gravity_m_per_s2: tuple
     dt_s: float
     spin_up_s: float
     record_s: float
@@ -86,19 +88,19 @@ class DemScene:
     primed_s: float = 0.0
 
     @property
-    def omega_rad_s(self) -> float:
+    def omega_rad_per_s(self) -> float:
         """Stirrer angular velocity [rad/s]."""
         r = self.geometry.disc_radius_m if self.geometry.has_disc else \
             self.geometry.shaft_radius_m
-        return self.tip_speed_m_s / r
+        return self.tip_speed_m_per_s / r
 
     @property
     def rotor_speed_rpm(self) -> float:
         """Stirrer speed [1/min]."""
-        return self.omega_rad_s * 60.0 / (2.0 * math.pi)
+        return self.omega_rad_per_s * 60.0 / (2.0 * math.pi)
 
     def with_overrides(self, **kw) -> DemScene:
-        """Copy with run-time overrides (tip_speed_m_s, filling, sector_deg, spin_up_s,
+        """Copy with run-time overrides (tip_speed_m_per_s, filling, sector_deg, spin_up_s,
         record_s, dt_s, fluid_mode, initial_rotation, primed_s, n_theta: the coupled
         liquid's theta cells; smoothing: its smoothing (SMOOTHINGS); pressure_solver: its
         pressure equation's solver (PRESSURE_SOLVERS); ``baffles``: a dict of the [mill]
@@ -183,7 +185,7 @@ def scene_advice(s: DemScene) -> list[str]:
     if s.fluid_mode != "coupled" or c is None:
         return []
     out = []
-    if s.geometry.sector_deg == 360.0 and any(s.gravity_m_s2) and c.n_theta == 1:
+    if s.geometry.sector_deg == 360.0 and any(s.gravity_m_per_s2) and c.n_theta == 1:
         out.append("the full circle with gravity and a liquid of one theta cell: the liquid "
                    "is axisymmetric and cannot carry gravity's asymmetry; --theta-cells 16 "
                    "or more (16 keep 99.4 % of the once-per-turn mode)")
@@ -233,9 +235,9 @@ def _positive(name: str, v: float):
 
 def _check_ranges(s: DemScene):
     if s.kind == "disc_slice":
-        lo, hi = DISC_SLICE_TIP_SPEED_M_S
-        if not lo <= s.tip_speed_m_s <= hi:
-            raise DemSceneError(f"mill.tip_speed_m_s = {s.tip_speed_m_s!r}: allowed {lo:g} to {hi:g} "
+        lo, hi = DISC_SLICE_TIP_SPEED_M_PER_S
+        if not lo <= s.tip_speed_m_per_s <= hi:
+            raise DemSceneError(f"mill.tip_speed_m_per_s = {s.tip_speed_m_per_s!r}: allowed {lo:g} to {hi:g} "
                                 f"m/s for disc_slice (the range of seed 001)")
         lo, hi = DISC_SLICE_FILLING
         if s.filling is None or not lo <= s.filling <= hi:
@@ -247,13 +249,13 @@ def _check_ranges(s: DemScene):
             raise DemSceneError(
                 f"mill.rotor_speed_rpm = {s.rotor_speed_rpm:.6g}: allowed {lo:g} to {hi:g} "
                 f"rpm for accelerator_slice (seed 002: 800-1400; tip speed "
-                f"{s.tip_speed_m_s:.4g} m/s)")
+                f"{s.tip_speed_m_per_s:.4g} m/s)")
         flo, fhi = ACCELERATOR_FILLING
         if s.filling is None or not flo <= s.filling <= fhi:
             raise DemSceneError(f"beads.filling = {s.filling!r}: allowed {flo:g} to {fhi:g} for "
                                 f"accelerator_slice (seed 002: 0.6-0.9)")
     else:
-        _positive("mill.tip_speed_m_s", s.tip_speed_m_s)
+        _positive("mill.tip_speed_m_per_s", s.tip_speed_m_per_s)
     for name, v in (("run.dt_s", s.dt_s), ("run.record_s", s.record_s),
                     ("run.sample_every_s", s.sample_every_s)):
         _positive(name, v)
@@ -287,9 +289,9 @@ def _check_ranges(s: DemScene):
                                                        m.rolling_friction)):
         if v < 0:
             raise DemSceneError(f"{name} = {v!r}: must be >= 0")
-    if s.geometry.sector_deg != 360.0 and any(s.gravity_m_s2):
+    if s.geometry.sector_deg != 360.0 and any(s.gravity_m_per_s2):
         raise DemSceneError(
-            f"run.gravity_m_s2 = {list(s.gravity_m_s2)!r}: an angular sector "
+            f"run.gravity_m_per_s2 = {list(s.gravity_m_per_s2)!r}: an angular sector "
             f"(mill.sector_deg = {s.geometry.sector_deg}) is rotationally periodic only "
             f"without gravity; set gravity to [0, 0, 0] or use the full circle")
 
@@ -313,7 +315,21 @@ def load_scene_dict(name_or_path: str) -> dict:
         except tomllib.TOMLDecodeError as e:
             raise DemSceneError(f"scene file {str(p)!r}: not valid TOML ({e})") from None
     d.setdefault("name", p.stem)
-    return d
+    return current_spelling(d, f"scene file {str(p)!r}")
+
+
+def current_spelling(d: dict, what: str = "DEM scene") -> dict:
+    """``d`` with an earlier release's unit suffixes in its keys in the current spelling
+    (:mod:`millfmu.unit_names`), with a note naming each (FutureWarning); a key given in
+    both spellings is refused by name."""
+    renamed: list = []
+    try:
+        out = modernize(d, renamed=renamed)
+    except ValueError as e:
+        raise DemSceneError(f"{what}: {e}") from None
+    if renamed:
+        warnings.warn(renamed_note(what, renamed), FutureWarning, stacklevel=3)
+    return out
 
 
 def load_scene(name_or_path: str) -> DemScene:
@@ -325,6 +341,7 @@ def scene_from_dict(d: dict, default_name: str = "scene") -> DemScene:
     """The scene of a scene file's tables (``d``: parsed TOML), validated: unknown keys,
     missing required values and values out of range are refused by name
     (DemSceneError)."""
+    d = current_spelling(d)
     known = {"name", "kind", "mill", "beads", "fluid", "run", "zones", "output"}
     for k in d:
         if k not in known:
@@ -343,19 +360,19 @@ def scene_from_dict(d: dict, default_name: str = "scene") -> DemScene:
     mat = _material_from_dict(beads)
     placement, filling, spacing_m, r_range = _placement_from_dict(beads, dia, geo)
     mode, fl, cpl = _fluid_from_dict(d.get("fluid", {}), dia)
-    grav = _get(run, "gravity_m_s2", "run", list, [0.0, 0.0, 0.0])
+    grav = _get(run, "gravity_m_per_s2", "run", list, [0.0, 0.0, 0.0])
     if len(grav) != 3:
-        raise DemSceneError(f"run.gravity_m_s2 = {grav!r}: must be a list of 3 numbers")
+        raise DemSceneError(f"run.gravity_m_per_s2 = {grav!r}: must be a list of 3 numbers")
     zs = _zones_from_dict(kind, d.get("zones", {}))
     tip = _tip_speed(kind, mill, geo)
     s = DemScene(
         name=_get(d, "name", "scene", str, default_name), kind=kind, geometry=geo,
         material=mat, bead_diameter_m=dia,
-        tip_speed_m_s=tip,
+        tip_speed_m_per_s=tip,
         placement=placement, filling=filling,
         bulk_porosity=_get(beads, "bulk_porosity", "beads", f, 0.4),
         lattice_spacing_m=spacing_m, lattice_r_range_m=r_range, fluid=fl,
-        fluid_mode=mode, coupling=cpl, gravity_m_s2=tuple(float(g) for g in grav),
+        fluid_mode=mode, coupling=cpl, gravity_m_per_s2=tuple(float(g) for g in grav),
         dt_s=_get(run, "dt_s", "run", f, 5e-6),
         spin_up_s=_get(run, "spin_up_s", "run", f, 2.0),
         record_s=_get(run, "record_s", "run", f, 1.0),
@@ -405,13 +422,13 @@ def _material_from_dict(beads: dict) -> BeadMaterial:
     """The bead material of a ``[beads]`` table (defaults: seed 001's glass)."""
     f = float
     mat = BeadMaterial(
-        density_kg_m3=_get(beads, "density_kg_m3", "beads", f, 2510.0),
+        density_kg_per_m3=_get(beads, "density_kg_per_m3", "beads", f, 2510.0),
         youngs_modulus_pa=_get(beads, "youngs_modulus_pa", "beads", f, 6.3e6),
         poisson_ratio=_get(beads, "poisson_ratio", "beads", f, 0.25),
         restitution=_get(beads, "restitution", "beads", f, 0.99),
         friction=_get(beads, "friction", "beads", f, 0.3),
         rolling_friction=_get(beads, "rolling_friction", "beads", f, 0.10))
-    _positive("beads.density_kg_m3", mat.density_kg_m3)
+    _positive("beads.density_kg_per_m3", mat.density_kg_per_m3)
     _positive("beads.youngs_modulus_pa", mat.youngs_modulus_pa)
     return mat
 
@@ -467,26 +484,26 @@ def _zones_from_dict(kind: str, zones: dict):
 
 
 def _tip_speed(kind: str, mill: dict, geo: MillGeometry) -> float:
-    """The stirrer's tip speed [m/s]: ``mill.tip_speed_m_s``, or for an accelerator slice
+    """The stirrer's tip speed [m/s]: ``mill.tip_speed_m_per_s``, or for an accelerator slice
     ``mill.rotor_speed_rpm`` at the rotor radius (one of the two, never both)."""
     f = float
-    tip = _get(mill, "tip_speed_m_s", "mill", f, None)
+    tip = _get(mill, "tip_speed_m_per_s", "mill", f, None)
     rpm = _get(mill, "rotor_speed_rpm", "mill", f, None) if kind == "accelerator_slice" \
         else None
     if rpm is not None:
         if tip is not None:
-            raise DemSceneError(f"mill.rotor_speed_rpm = {rpm!r} and mill.tip_speed_m_s = "
+            raise DemSceneError(f"mill.rotor_speed_rpm = {rpm!r} and mill.tip_speed_m_per_s = "
                                 f"{tip!r}: give one of them")
         _positive("mill.rotor_speed_rpm", rpm)
         tip = rpm * 2.0 * math.pi / 60.0 * geo.disc_radius_m
     if tip is None:
-        raise DemSceneError("mill.tip_speed_m_s: missing (required" +
+        raise DemSceneError("mill.tip_speed_m_per_s: missing (required" +
                             (", or mill.rotor_speed_rpm)" if kind == "accelerator_slice"
                              else ")"))
     return tip
 
 
-_FLUID_KEYS = {"mode", "enabled", "density_kg_m3", "viscosity_pa_s", "drag", "lubrication",
+_FLUID_KEYS = {"mode", "enabled", "density_kg_per_m3", "viscosity_Pa_s", "drag", "lubrication",
                "lubrication_cutoff_m", "lubrication_min_gap_m", "swirl_core_fraction",
                "swirl_layer_m", "void_fraction", "coupled"}
 _COUPLED_KEYS = {"vans_model": str, "turbulence": str, "coupling_steps": int, "cell_m": float,
@@ -514,8 +531,8 @@ def _fluid_from_dict(fluid: dict, dia: float):
         return mode, None, None
     f = float
     fl = FluidSettings(
-        density_kg_m3=_get(fluid, "density_kg_m3", "fluid", f, 998.2),
-        viscosity_pa_s=_get(fluid, "viscosity_pa_s", "fluid", f, 1.002e-3),
+        density_kg_per_m3=_get(fluid, "density_kg_per_m3", "fluid", f, 998.2),
+        viscosity_Pa_s=_get(fluid, "viscosity_Pa_s", "fluid", f, 1.002e-3),
         drag=_get(fluid, "drag", "fluid", bool, True) and mode == "prescribed",
         lubrication=_get(fluid, "lubrication", "fluid", bool, True),
         lubrication_cutoff_m=_get(fluid, "lubrication_cutoff_m", "fluid", f, 0.05 * dia),
@@ -526,8 +543,8 @@ def _fluid_from_dict(fluid: dict, dia: float):
     if not 0.0 < fl.void_fraction < 1.0:
         raise DemSceneError(f"fluid.void_fraction = {fl.void_fraction!r}: allowed 0 < "
                             f"eps < 1")
-    _positive("fluid.density_kg_m3", fl.density_kg_m3)
-    _positive("fluid.viscosity_pa_s", fl.viscosity_pa_s)
+    _positive("fluid.density_kg_per_m3", fl.density_kg_per_m3)
+    _positive("fluid.viscosity_Pa_s", fl.viscosity_Pa_s)
     _positive("fluid.swirl_layer_m", fl.swirl_layer_m)
     cpl = _coupling_from_dict(_get(fluid, "coupled", "fluid", dict, {}))
     return mode, fl, cpl if mode == "coupled" else None

@@ -28,39 +28,30 @@ that the flowsheets' unit FMUs share (:mod:`millfmu.fmi.base2`).
 
 from __future__ import annotations
 
-import copy
 from xml.etree.ElementTree import Element
 
 from pythonfmu import DefaultExperiment
 from pythonfmu.enums import Fmi2Status
 
-from ..mill import InputError, MillModel, StepError
-from ..scene import SceneError, scene_from_dict
 from .base2 import Fmi2Base
-from .variables import (SCENE_FILE, UNITS, HeldArray, model_description_text, model_with, plain, read_band,
-                        read_scene_dict, variables)
+from .mill_adapter import MillAdapter
+from .variables import UNITS, HeldArray, model_description_text, read_band, variables
 
 #: The slave class of each FMU script by model identifier (see fmu_build.build.SCRIPT): the
 #: script runs at every fmi2Instantiate, and this keeps it to one class per process.
 SCRIPT_CLASSES: dict = {}
 
 
-class MillSlave(Fmi2Base):
+class MillSlave(MillAdapter, Fmi2Base):
     """The mill as a pythonfmu slave; the scene is ``<resources>/scene.toml``."""
 
-    description = "Wet stirred media mill (bead mill): population balance with Kwade's stress model"
-    REFUSED = (InputError, StepError)
+    WARNING = Fmi2Status.warning
 
     def __init__(self, **kwargs):
         super().__init__(**kwargs)
-        self._warned: set = set()  # what the log said once (MillModel.new_warnings)
-        self._scene_dict = read_scene_dict(self.resources)
-        scene = scene_from_dict(self._scene_dict, SCENE_FILE)
-        self.model = MillModel(scene, no_dem=True)  # an FMU carries no DEM: it never builds a table
-        self._overrides: dict = {}
+        scene = self._start_model()
         n = self.model.grid.n
         self.n_classes = n
-        self._base_scene = scene
         # type(self): pythonfmu's __init__ set the instance's description to None.
         self._model_description = model_description_text(type(self).description, scene, n,
                                                          getattr(self.model.source, "table", None),
@@ -115,77 +106,20 @@ class MillSlave(Fmi2Base):
             inp["psd_in"] = self._psd_in.array(v[a : a + self.n_classes])
         return inp
 
-    def _fmi_name(self, model_name: str) -> str:
+    def _input_name(self, model_name: str) -> str:
         if model_name == "bead_filling":
             return "bead_filling"
         if model_name in self._vr_in:
             return self.vars[self._vr_in[model_name]].name
         if model_name == "psd_in":
             return f"psd_in[1..{self.n_classes}]"
-        if model_name == "dt_s":
-            return "communicationStepSize"
         return model_name
 
-    # ---- life cycle ------------------------------------------------------------------------
-    def _configure(self):
-        """Values set before fmi2ExitInitializationMode are the scene's operating point:
-        rebuild the model if they differ from the scene's."""
-        over = {}
-        for vr, (sec, key) in self._scene_key.items():
-            x = self._v[vr]
-            if x != getattr(getattr(self._base_scene, sec), key):
-                over[(sec, key)] = x
-        model, error = self._model_for(over)
-        if error is not None:
-            self.refuse_configuration(error)
-        self._use(model, over)
-
-    def _model_for(self, over: dict):
-        """(model, None) for the scene with ``over`` {(section, key): value} applied, or
-        (None, message naming the FMI variable) when the model refuses it."""
-        if over == self._overrides:
-            return self.model, None
-        try:
-            model = model_with(self._scene_dict, over)  # a DEM table may refuse the scene's operating point
-        except SceneError as e:
-            name = next((self.vars[vr].name for vr, sk in self._scene_key.items() if f"{sk[0]}.{sk[1]}" == e.key),
-                        e.key)
-            return None, f"{name} = {e.value!r}: {e.allowed}"
-        if model.grid.n != self.n_classes:  # pragma: no cover - no parameter changes the grid
-            raise RuntimeError("size grid changed")
-        return model, None
-
-    def _use(self, model, over: dict):
-        self.model = model
-        self._overrides = dict(over)
-        self._publish(model.outputs())
+    def _scene_value_name(self, key: str) -> str:
+        return next((self.vars[vr].name for vr, sk in self._scene_key.items() if f"{sk[0]}.{sk[1]}" == key), key)
 
     def _time(self) -> float:
         return self._start_time + self.model.t_s
-
-    def _take_step(self, h: float):
-        outs = self.model.step(h, **self._inputs())
-        self._publish(outs)
-        for w in self.model.new_warnings(outs, self._warned):
-            self.log(w, Fmi2Status.warning)
-
-    def _refusal(self, e: Exception) -> str:
-        if isinstance(e, InputError):
-            return f"input {self._fmi_name(e.name)} = {e.value!r}: {e.allowed}"
-        return str(e)
-
-    # ---- FMU state -------------------------------------------------------------------------
-    def _state(self) -> dict:
-        return {"overrides": [[sec, key, x] for (sec, key), x in self._overrides.items()],
-                "model": plain(self.model.get_state())}
-
-    def _restore(self, state: dict):
-        over = {(sec, key): x for sec, key, x in state["overrides"]}
-        model, error = self._model_for(over)
-        if error is not None:
-            raise ValueError(error)
-        model.set_state(copy.deepcopy(state["model"]))
-        self.model, self._overrides = model, over
 
     # ---- model description -----------------------------------------------------------------
     def to_xml(self, model_options=None) -> Element:

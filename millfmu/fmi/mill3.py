@@ -20,32 +20,23 @@ direct feedthrough). Statuses, as FMI 3.0 intends them:
 
 from __future__ import annotations
 
-import copy
 from xml.etree.ElementTree import Element
 
 from pythonfmu3 import DefaultExperiment, Fmi3Status
 
 from .base3 import Fmi3Base
-from .variables import (CLASS_COUNT, SCENE_FILE, UNITS, HeldArray, model_description_text, model_with, plain, read_band,
-                             read_scene_dict, variables)
-from ..mill import InputError, MillModel, StepError
-from ..scene import SceneError, scene_from_dict
+from .mill_adapter import MillAdapter
+from .variables import CLASS_COUNT, UNITS, HeldArray, model_description_text, read_band, variables
 
 
-class MillSlave3(Fmi3Base):
+class MillSlave3(MillAdapter, Fmi3Base):
     """The mill as a pythonfmu3 slave; the scene is ``<resources>/scene.toml``."""
 
-    description = "Wet stirred media mill (bead mill): population balance with Kwade's stress model"
-    REFUSED = (InputError, StepError)
+    WARNING = Fmi3Status.warning
 
     def __init__(self, **kwargs):
         super().__init__(**kwargs)
-        self._scene_dict = read_scene_dict(self.resources)
-        scene = scene_from_dict(self._scene_dict, SCENE_FILE)
-        self.model = MillModel(scene, no_dem=True)  # an FMU carries no DEM: it never builds a table
-        self._warned: set = set()  # what the log said once (MillModel.new_warnings)
-        self._base_scene = scene
-        self._overrides: dict = {}
+        scene = self._start_model()
         n = self.model.grid.n
         self._model_description = model_description_text(self.description, scene, n,
                                                          getattr(self.model.source, "table", None),
@@ -88,51 +79,11 @@ class MillSlave3(Fmi3Base):
         v = self._v
         return {k: (self._psd_in.array(v[at]) if isinstance(at, slice) else v[at]) for k, at in self._in.items()}
 
-    # ---- life cycle --------------------------------------------------------------------
-    def _configure(self):
-        """Values set before fmi3ExitInitializationMode are the scene's operating point:
-        rebuild the model if they differ from the scene's."""
-        over = {}
-        for at, (sec, key) in self._scene_key.items():
-            if self._v[at] != getattr(getattr(self._base_scene, sec), key):
-                over[(sec, key)] = self._v[at]
-        self._configure_with(over)
+    def _input_name(self, model_name: str) -> str:
+        return self._names.get(model_name, model_name)
 
-    def _configure_with(self, over: dict):
-        """The model for the scene with ``over`` {(section, key): value} applied."""
-        if over == self._overrides:
-            return
-        try:
-            model = model_with(self._scene_dict, over)  # a DEM table may refuse the scene's operating point
-        except SceneError as e:
-            self.refuse_configuration(f"{self._scene_names.get(e.key, e.key)} = {e.value!r}: {e.allowed}")
-        if model.grid.n != self.n_classes:  # pragma: no cover - no parameter changes the grid
-            raise RuntimeError("size grid changed")
-        self.model = model
-        self._overrides = dict(over)
-        self._config_error = None
-        self._publish(model.outputs())
-
-    def _take_step(self, h: float):
-        outs = self.model.step(h, **self._inputs())
-        self._publish(outs)
-        for w in self.model.new_warnings(outs, self._warned):
-            self.log(w, Fmi3Status.warning)
-
-    def _refusal(self, e: Exception) -> str:
-        if isinstance(e, InputError):
-            name = "communicationStepSize" if e.name == "dt_s" else self._names.get(e.name, e.name)
-            return f"input {name} = {e.value!r}: {e.allowed}"
-        return str(e)
-
-    # ---- FMU state ---------------------------------------------------------------------
-    def _state(self) -> dict:
-        return {"overrides": [[sec, key, x] for (sec, key), x in self._overrides.items()],
-                "model": plain(self.model.get_state())}
-
-    def _restore(self, state: dict):
-        self._configure_with({(sec, key): x for sec, key, x in state["overrides"]})
-        self.model.set_state(copy.deepcopy(state["model"]))
+    def _scene_value_name(self, key: str) -> str:
+        return self._scene_names.get(key, key)
 
     # ---- model description -------------------------------------------------------------
     def to_xml(self, model_options=None) -> Element:

@@ -13,13 +13,13 @@ import math
 
 #: Axes of a stress-energy table that are model inputs: axis -> input name. A table that
 #: refuses an input value (outside its grid) gives an InputError naming the input.
-TABLE_INPUTS = {"tip_speed_m_s": "tip_speed_m_per_s", "filling": "bead_filling"}
+TABLE_INPUTS = {"tip_speed_m_per_s": "tip_speed_m_per_s", "filling": "bead_filling"}
 TABLE_INPUTS_CHECKED = tuple(TABLE_INPUTS.values())
 #: Table axis -> the scene key that sets it (for a SceneError when the scene lies outside).
-TABLE_SCENE_KEYS = {"tip_speed_m_s": "mill.tip_speed_m_per_s", "filling": "mill.bead_filling",
+TABLE_SCENE_KEYS = {"tip_speed_m_per_s": "mill.tip_speed_m_per_s", "filling": "mill.bead_filling",
                     "bead_diameter_m": "beads.diameter_m",
-                    "bead_density_kg_m3": "beads.density_kg_per_m3",
-                    "viscosity_pa_s": "suspension.viscosity_Pa_s"}
+                    "bead_density_kg_per_m3": "beads.density_kg_per_m3",
+                    "viscosity_Pa_s": "suspension.viscosity_Pa_s"}
 
 
 #: What an FMU adds to a refusal of a point outside its table where the scene asks for
@@ -53,8 +53,8 @@ def recording_warnings(manifest: dict) -> list:
         return []
     rec, every = float(dem.get("record_s", 0.0)), float(dem.get("sample_every_s", 0.0))
     radius = float((manifest.get("scene") or {}).get("mill", {}).get("disc_radius_m", 0.0))
-    speeds = ((manifest.get("grid") or {}).get("tip_speed_m_s")
-              or [(manifest.get("scene") or {}).get("mill", {}).get("tip_speed_m_s", 0.0)])
+    speeds = ((manifest.get("grid") or {}).get("tip_speed_m_per_s")
+              or [(manifest.get("scene") or {}).get("mill", {}).get("tip_speed_m_per_s", 0.0)])
     v_min = min(float(v) for v in speeds)
     turn = 2.0 * math.pi * radius / v_min if radius > 0.0 and v_min > 0.0 else 0.0
     out = []

@@ -37,13 +37,18 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from ..unit_names import modern_name, modernize, to_earlier
 from .files import canonical_json, sha256_bytes
 
 if TYPE_CHECKING:
     from .table import Table
 
 
-FORMAT_VERSION = 1
+#: The table and point format: 2 writes unit suffixes as :mod:`millfmu.unit_names` says.
+FORMAT_VERSION = 2
+#: The earlier format (its names in the earlier spelling), read for one release: a table or
+#: point of it is checked against its own key and then read with the current names.
+EARLIER_FORMAT = 1
 
 
 #: Grid axes a table may have: name -> (scene section, scene key, unit, OperatingPoint field).
@@ -137,9 +142,16 @@ class TableSpec:
     def __post_init__(self):
         if not self.grid:
             raise TableError("grid: no axes; give at least one of " + ", ".join(AXES))
-        object.__setattr__(self, "grid", _clean_axes(self.grid, "grid axis"))
+        # names in an earlier release's spelling (a table of the earlier format) read as now
+        object.__setattr__(self, "grid", _clean_axes({modern_name(k): v for k, v in self.grid.items()},
+                                                     "grid axis"))
         json.loads(canonical_json(self.scene))  # plain JSON content only
-        oat = _clean_axes(self.one_at_a_time or {}, "one-at-a-time axis")
+        try:
+            object.__setattr__(self, "scene", modernize(self.scene))
+        except ValueError as e:
+            raise TableError(f"scene: {e}") from None
+        oat = _clean_axes({modern_name(k): v for k, v in (self.one_at_a_time or {}).items()},
+                          "one-at-a-time axis")
         for name, vals in oat.items():
             if name in self.grid:
                 raise TableError(f"one-at-a-time axis {name}: also a grid axis; give it "
@@ -209,6 +221,11 @@ class TableSpec:
 
     def key(self) -> str:
         return sha256_bytes(canonical_json(self.key_content()).encode())
+
+    def earlier_key(self) -> str:
+        """The key the earlier format (:data:`EARLIER_FORMAT`) gave this specification: its
+        cache entry of that release."""
+        return sha256_bytes(canonical_json(dict(to_earlier(self.key_content()), format=EARLIER_FORMAT)).encode())
 
 
 def _clean_axes(axes: dict, what: str) -> dict:

@@ -53,7 +53,7 @@ class TableStressSource:
     named in ``similar_axes``: then the dimensionless fields are used unchanged, i.e.
     similarity in that axis is assumed (recorded in ``last_notes``); millfmu's tests show
     the scaling only along the tip speed, so this is an explicit choice of the scene.
-    ``tip_speed_m_s`` in ``similar_axes`` lets tip speeds outside the grid (a ramp from
+    ``tip_speed_m_per_s`` in ``similar_axes`` lets tip speeds outside the grid (a ramp from
     standstill, a controller's excursion) use the nearest edge's dimensionless fields.
     A point outside the grid raises :class:`OutsideGridError` unless
     ``on_outside='build'``: then ``rebuild(table, point)`` (default
@@ -135,7 +135,7 @@ class TableStressSource:
         of the full rebuild named). Neither check loads the DEM engine."""
         self._check_fixed_axes(op)
         for ax, x in self.point_of(op).items():
-            if ax == "tip_speed_m_s" and not x > 0.0:
+            if ax == "tip_speed_m_per_s" and not x > 0.0:
                 continue  # the stirrer at rest: no collisions, nothing to look up
             t = self.table.one_at_a_time.get(ax, self.table)
             try:

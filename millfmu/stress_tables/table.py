@@ -20,9 +20,10 @@ from collections.abc import Iterable
 
 import numpy as np
 
+from ..unit_names import modern_name, modernize
 from .files import (MANIFEST_FILE, MANIFEST_SUM_FILE, MANIFEST_SUM_KEY, TABLE_FILE,
                     manifest_digest, sha256_bytes, sha256_file, write_synced)
-from .spec import (AXES, COMPONENTS, DRIFT_FIELDS, FIELDS, FORMAT_VERSION, OPTIONAL_FIELDS,
+from .spec import (AXES, COMPONENTS, DRIFT_FIELDS, EARLIER_FORMAT, FIELDS, FORMAT_VERSION, OPTIONAL_FIELDS,
                    QUANTILE_NAMES, ZONE_FIELDS, TableError, TableSpec, manifest_for,
                    norm_log10_edges)
 
@@ -35,8 +36,8 @@ ERROR_SAFETY = 2.0
 #: over omega n_gb ~ v_t take out the leading tip-speed dependence (seed 000's stress model);
 #: tests/tables and the default table's manifest show how far that holds. Not filling: the
 #: bead fillings and collision densities change with it in ways no normalization removes.
-EXTRAPOLABLE_AXES = ("tip_speed_m_s", "bead_diameter_m", "bead_density_kg_m3",
-                     "viscosity_pa_s")
+EXTRAPOLABLE_AXES = ("tip_speed_m_per_s", "bead_diameter_m", "bead_density_kg_per_m3",
+                     "viscosity_Pa_s")
 #: Relative tolerance for matching a single-valued axis (an axis the grid does not vary).
 FIXED_AXIS_RTOL = 1e-9
 #: Prefix of a one-at-a-time axis's arrays in table.npz: ``oat__<axis>__<array>``.
@@ -81,7 +82,7 @@ class Lookup:
 class Table:
     """Grid axes, zone names and the fields of :data:`FIELDS` as arrays of shape
     grid shape + field shape; plus per grid point the references ``e_ref_J`` [J],
-    ``omega_rad_s`` [rad/s] and ``n_gb_per_m3`` [1/m3] used to normalize."""
+    ``omega_rad_per_s`` [rad/s] and ``n_gb_per_m3`` [1/m3] used to normalize."""
 
     axes: dict
     zone_names: tuple
@@ -119,7 +120,7 @@ class Table:
             if self.data[k].shape != self.shape + tail:
                 raise TableError(f"table: field {k} has shape {self.data[k].shape}, "
                                  f"expected {self.shape + tail}")
-        for k in ("e_ref_J", "omega_rad_s", "n_gb_per_m3"):
+        for k in ("e_ref_J", "omega_rad_per_s", "n_gb_per_m3"):
             if k not in self.refs or self.refs[k].shape != self.shape:
                 raise TableError(f"table: reference {k!r} missing or of wrong shape")
         if set(self.one_at_a_time_ref) != set(self.one_at_a_time) or (
@@ -727,6 +728,8 @@ def read_table(folder=None, *, npz=None, manifest_path=None, expect_key: str | N
     m = _read_manifest(manifest_path, sum_path)
     spec = _manifest_spec(m, manifest_path, expect_key, expect_kernel)
     arrs = _read_arrays(npz, m, manifest_path)
+    if m["format"] == EARLIER_FORMAT:
+        m, arrs = _current_names(m, arrs, spec)
     t = _table_from_arrays(arrs, spec, m, npz)
     t.check_shapes()
     t.check_values(str(npz))
@@ -756,10 +759,20 @@ def _read_manifest(manifest_path: Path, sum_path: Path) -> dict:
     elif not sum_path.exists():
         raise TableError(f"{manifest_path}: no checksum ({MANIFEST_SUM_KEY} or {sum_path.name}): "
                          f"written by an older millfmu; export the table again")
-    if m.get("format") != FORMAT_VERSION:
+    if m.get("format") not in (FORMAT_VERSION, EARLIER_FORMAT):
         raise TableError(f"{manifest_path}: format = {m.get('format')!r}, this millfmu "
-                         f"reads format {FORMAT_VERSION}: stale")
+                         f"reads formats {FORMAT_VERSION} and {EARLIER_FORMAT}: stale")
     return m
+
+
+def _current_names(m: dict, arrs: dict, spec: TableSpec) -> tuple[dict, dict]:
+    """A table of the earlier format with its names in the current spelling
+    (:mod:`millfmu.unit_names`): the manifest (its key and format now the current ones, its
+    checksum of itself recomputed) and the arrays."""
+    cur = modernize({k: v for k, v in m.items() if k != MANIFEST_SUM_KEY})
+    cur.update(format=FORMAT_VERSION, key=spec.key())
+    cur[MANIFEST_SUM_KEY] = manifest_digest(cur)
+    return cur, {modern_name(k): v for k, v in arrs.items()}
 
 
 def _manifest_spec(m: dict, manifest_path: Path, expect_key: str | None, expect_kernel: str | None) -> TableSpec:
@@ -775,10 +788,11 @@ def _manifest_spec(m: dict, manifest_path: Path, expect_key: str | None, expect_
     if not isinstance(m.get("zone_names"), list):
         raise TableError(f"{manifest_path}: zone_names missing")
     key = spec.key()
-    if m.get("key") != key:
+    own = spec.earlier_key() if m.get("format") == EARLIER_FORMAT else key
+    if m.get("key") != own:
         raise TableError(f"{manifest_path}: key {m.get('key')!r} does not match its content "
-                         f"({key}): corrupted or edited")
-    if expect_key is not None and key != expect_key:
+                         f"({own}): corrupted or edited")
+    if expect_key is not None and expect_key not in (key, own):
         raise TableError(f"{manifest_path}: key {key} is not the expected {expect_key}: stale")
     if expect_kernel is not None and m["kernel_version"] != expect_kernel:
         raise TableError(f"{manifest_path}: built with DEM kernel version "

@@ -71,7 +71,7 @@ def test_head_on_restitution_hertz_time_and_cpu_agreement():
     c = np.array([0.017, 0.0, 0.002])
     x = np.array([c - [R + 1e-9, 0, 0], c + [R + 1e-9, 0, 0]])
     v = np.array([[0.5 * v0, 0, 0], [-0.5 * v0, 0, 0]])
-    sims = both(ANNULUS, mat, x, R, 0.0, dt, velocities_m_s=v)
+    sims = both(ANNULUS, mat, x, R, 0.0, dt, velocities_m_per_s=v)
     g = sims["gpu"]
     steps = 0
     touching = 0
@@ -85,7 +85,7 @@ def test_head_on_restitution_hertz_time_and_cpu_agreement():
             break
     assert_same_state(sims)
     assert g.v[1, 0] - g.v[0, 0] == pytest.approx(e * v0, rel=0.01)
-    m = bead_mass_kg(2 * R, mat.density_kg_m3)
+    m = bead_mass_kg(2 * R, mat.density_kg_per_m3)
     t_hertz = hertz_contact_time_s(m / 2, R / 2, mat.effective_youngs_pa, v0)
     # within the 5-step resolution of the check and the damping's lengthening
     assert touching * dt == pytest.approx(t_hertz, rel=0.05)
@@ -101,7 +101,7 @@ def test_oblique_impacts_sliding_and_sticking_match_cpu(ratio, mu):
     c = np.array([0.017, 0.0, 0.002])
     x = np.array([c - [R + 1e-10, 0, 0], c + [R + 1e-10, 0, 0]])
     v = np.array([[0.5 * vn0, 0.5 * vt0, 0], [-0.5 * vn0, -0.5 * vt0, 0]])
-    sims = both(ANNULUS, mat, x, R, 0.0, 2e-6, velocities_m_s=v)
+    sims = both(ANNULUS, mat, x, R, 0.0, 2e-6, velocities_m_per_s=v)
     for _ in range(3):
         run_both(sims, 20)
     assert_same_state(sims)
@@ -117,7 +117,7 @@ def test_shaft_chamber_and_fluid_forces_match_cpu():
     # push half of them onto the shaft, the others onto the chamber wall
     scale = np.where(np.arange(12) % 2 == 0, (0.015 + R - 2e-6) / r, (0.0175 - R + 2e-6) / r)
     x[:, :2] *= scale[:, None]
-    sims = both(geom, BeadMaterial(), x, R, 500.0, 2e-6, gravity_m_s2=(0.0, -9.81, 0.0),
+    sims = both(geom, BeadMaterial(), x, R, 500.0, 2e-6, gravity_m_per_s2=(0.0, -9.81, 0.0),
                 fluid=FluidSettings(), max_neighbours=1)
     for s in sims.values():
         s.fext[:] = np.array([1e-6, 2e-9, -3e-7])  # F_r [N], T_z [N m], F_z [N]
@@ -135,7 +135,7 @@ def test_sector_disc_slice_gas_with_rebuilds_matches_cpu():
                         disc_radius_m=0.02, disc_thickness_m=0.002, sector_deg=45.0)
     x = place_beads(geom, 40, R, seed=11)
     v = np.random.default_rng(4).normal(0.0, 0.8, size=x.shape)
-    sims = both(geom, BeadMaterial(), x, R, 400.0, 5e-6, velocities_m_s=v, max_neighbours=1,
+    sims = both(geom, BeadMaterial(), x, R, 400.0, 5e-6, velocities_m_per_s=v, max_neighbours=1,
                 fluid=FluidSettings())
     builds = 0
     for _ in range(4):
@@ -151,7 +151,7 @@ def test_zero_steps_change_nothing_then_agree_with_cpu():
     the forces it reads, so a run that kicked without stepping would lose them)."""
     x = place_beads(ANNULUS, 16, R, seed=5)
     v = np.random.default_rng(2).normal(0.0, 0.5, size=x.shape)
-    sims = both(ANNULUS, BeadMaterial(), x, R, 500.0, 2e-6, velocities_m_s=v,
+    sims = both(ANNULUS, BeadMaterial(), x, R, 500.0, 2e-6, velocities_m_per_s=v,
                 fluid=FluidSettings(), max_neighbours=1)
     before = {d: (s.x.copy(), s.v.copy(), s.f.copy()) for d, s in sims.items()}
     for d, s in sims.items():
@@ -179,7 +179,7 @@ def test_contact_carried_across_a_sector_wrap_matches_cpu():
 
     geom, pos, vel = wrapping_contact_pair(0.0)
     mat = BeadMaterial(restitution=0.9, friction=0.5, rolling_friction=0.0)
-    sims = both(geom, mat, pos, R, 0.0, 2e-6, velocities_m_s=vel)
+    sims = both(geom, mat, pos, R, 0.0, 2e-6, velocities_m_per_s=vel)
     for _ in range(12):
         run_both(sims, 5)
     assert np.arctan2(sims["gpu"].x[0, 1], sims["gpu"].x[0, 0]) > math.radians(30.0)
@@ -195,7 +195,7 @@ def test_coupled_primed_disc_sector_matches_cpu():
     from millfmu.dem.scene import load_scene
 
     sc = load_scene("disc_slice").with_overrides(
-        bead_diameter_m=2.4e-3, filling=0.5, sector_deg=10.0, gravity_m_s2=(0.0, 0.0, 0.0),
+        bead_diameter_m=2.4e-3, filling=0.5, sector_deg=10.0, gravity_m_per_s2=(0.0, 0.0, 0.0),
         primed_s=1e-3)
     made = {dev: make_simulation(sc, 1, dev) for dev in ("cpu", "gpu")}
     sims = {dev: m[0] for dev, m in made.items()}

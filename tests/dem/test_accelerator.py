@@ -35,13 +35,13 @@ def test_scene_reproduces_the_papers_bead_counts_and_speeds():
     span = g.chamber_radius_m - g.shaft_radius_m
     assert (g.chamber_radius_m - g.disc_radius_m) / span == pytest.approx(0.39)
     assert s.rotor_speed_rpm == pytest.approx(1200.0)
-    assert s.tip_speed_m_s == pytest.approx(2 * math.pi * 20.0 * g.disc_radius_m)
+    assert s.tip_speed_m_per_s == pytest.approx(2 * math.pi * 20.0 * g.disc_radius_m)
     m = s.material
-    assert (m.density_kg_m3, m.restitution, m.friction, m.rolling_friction) == (
+    assert (m.density_kg_per_m3, m.restitution, m.friction, m.rolling_friction) == (
         6040.0, 0.5, 0.3, 0.01)
     # shear modulus of seed 002 Table 1, G = Y / (2 (1 + nu))
     assert m.youngs_modulus_pa / (2 * (1 + m.poisson_ratio)) == pytest.approx(3.36e6)
-    assert (s.fluid.density_kg_m3, s.fluid.viscosity_pa_s) == (1050.0, 0.4)
+    assert (s.fluid.density_kg_per_m3, s.fluid.viscosity_Pa_s) == (1050.0, 0.4)
 
 
 def test_rotor_volume_and_walls_agree_with_the_kernels():
@@ -57,7 +57,7 @@ def test_rotor_volume_and_walls_agree_with_the_kernels():
     vanes = 12 * 1.0 * (22.2 - 10.0) * 3.0
     assert g.rotor_volume_m3() == pytest.approx((shrouds + vanes) * MM ** 3)
     x0 = np.array([[0.028 * math.cos(0.2), 0.028 * math.sin(0.2), 0.006]])
-    sim = DemSimulation(g, s.material, x0, 0.4e-3, s.omega_rad_s, 1e-5)
+    sim = DemSimulation(g, s.material, x0, 0.4e-3, s.omega_rad_per_s, 1e-5)
     rng = np.random.default_rng(3)
     n = 4000
     r = rng.uniform(g.shaft_radius_m, g.chamber_radius_m, n)
@@ -98,7 +98,7 @@ def test_geometry_refuses_what_cannot_be_built():
     with pytest.raises(DemSceneError, match="rotor_speed_rpm"):
         _scene(rotor_speed_rpm=3000.0)
     with pytest.raises(DemSceneError, match="give one of them"):
-        _scene(tip_speed_m_s=2.0)
+        _scene(tip_speed_m_per_s=2.0)
     d = load_scene_dict("accelerator_slice")
     d["zones"]["v1_width_m"] = 0.002
     with pytest.raises(DemSceneError, match="zones.v1_width_m"):
@@ -158,7 +158,7 @@ def test_stress_quantities_match_hand_calculations():
     ])
     t = 0.5
     q = A.stress_quantities(ev, cols, z, t, d, rho, n_beads=100,
-                            tip_speed_m_s=s.tip_speed_m_s, omega_rad_s=s.omega_rad_s)
+                            tip_speed_m_per_s=s.tip_speed_m_per_s, omega_rad_per_s=s.omega_rad_per_s)
     z1 = q["zones"]["SEV_1"]
     tn = 0.5 * m * vn ** 2 + 0.5 * m * (2 * vn) ** 2
     ts = 0.5 * inertia * w ** 2
@@ -173,8 +173,8 @@ def test_stress_quantities_match_hand_calculations():
     assert z1["SE_cs_sum_w"] == pytest.approx((tn + ts) / t / frac)
     assert z1["ts_share"] == pytest.approx(ts / (tn + ts))
     assert q["zones"]["SEV_3"]["contacts"] == 0 and q["zones"]["SEV_3"]["SI_j"] is None
-    n_rev = s.omega_rad_s / (2 * math.pi)
-    se_net = 6 / math.pi * (100 * m / frac) * s.tip_speed_m_s ** 2 * n_rev / 1.04
+    n_rev = s.omega_rad_per_s / (2 * math.pi)
+    se_net = 6 / math.pi * (100 * m / frac) * s.tip_speed_m_per_s ** 2 * n_rev / 1.04
     assert q["total"]["SE_net_w"] == pytest.approx(se_net)
     assert q["total"]["efficiency"] == pytest.approx((tn + ts) / t / frac / se_net)
 
@@ -217,12 +217,12 @@ def test_vanes_pump_the_liquid_out_at_the_rim():
     s = load_scene("accelerator_slice")
     g = s.geometry
     grid = mill_grid(g, 1e-3)
-    fs = FluidSolver(grid, FluidProperties(1050.0, 0.4), s.omega_rad_s, turbulence="laminar")
+    fs = FluidSolver(grid, FluidProperties(1050.0, 0.4), s.omega_rad_per_s, turbulence="laminar")
     l0 = fs.angular_momentum_kgm2_s()
     for _ in range(20):
         fs.advance(1e-3)
     drv = grid.driven
-    om_r = s.omega_rad_s * grid.r_centres_m[:, None, None]
+    om_r = s.omega_rad_per_s * grid.r_centres_m[:, None, None]
     assert np.allclose(fs.ut[drv], np.broadcast_to(om_r, fs.ut.shape)[drv], rtol=2e-3)
     i = int(np.argmin(np.abs(grid.r_faces_m - g.disc_radius_m)))
     zr = grid.z_centres_m - g.height_m * np.floor(grid.z_centres_m / g.height_m + 0.5)
@@ -259,7 +259,7 @@ def test_short_coupled_run_has_the_papers_quantities(tmp_path):
     assert a.func(a) == 0
     stats = DemStats.from_json((out / "stats.json").read_text())
     assert [z.name for z in stats.zones] == list(A.ZONE_NAMES)
-    assert stats.tip_speed_m_s == pytest.approx(2 * math.pi * 1000 / 60 * 0.0222)
+    assert stats.tip_speed_m_per_s == pytest.approx(2 * math.pi * 1000 / 60 * 0.0222)
     q = stats.flow["seed002"]
     assert q["rotor_speed_rpm"] == pytest.approx(1000.0)
     assert set(q["zones"]) == set(A.ZONE_NAMES)
@@ -352,7 +352,7 @@ def test_campaign_table_from_short_runs(tmp_path, monkeypatch):
     back = read_table(npz=tmp_path / "acc_table.npz", manifest_path=tmp_path / "acc_table.json")
     assert back.zone_names == A.ZONE_NAMES
     r = 0.0222 * 2 * math.pi / 60
-    assert back.axes["tip_speed_m_s"] == pytest.approx([1000 * r, 1400 * r])
+    assert back.axes["tip_speed_m_per_s"] == pytest.approx([1000 * r, 1400 * r])
     assert back.manifest["builder"] == S.CAMPAIGN_BUILDER_ID
     assert "seed002" in back.manifest["rebuild_command"]
     assert np.all(t.data["collision_frequency_norm"] > 0)
@@ -458,13 +458,13 @@ def test_model_a_runs_in_the_rotor():
     d = load_scene_dict("accelerator_slice")
     d["fluid"]["coupled"]["vans_model"] = "A"
     sc = scene_from_dict(d).with_overrides(sector_deg=30.0, filling=0.8,
-                                           gravity_m_s2=(0.0, 0.0, 0.0))
+                                           gravity_m_per_s2=(0.0, 0.0, 0.0))
     sim, cpl = make_simulation(sc, threads=1)
     cpl.run(200)
     vmax = float(np.linalg.norm(sim.v, axis=1).max())
     gp = float(np.abs(sim.per_bead["fluid_at_bead"][:, 3:6]).max())
-    print(f"model A: vmax {vmax:.2f} m/s (rim {sc.tip_speed_m_s:.2f}), |grad p| {gp:.3g} Pa/m")
-    assert vmax < 1.2 * sc.tip_speed_m_s
+    print(f"model A: vmax {vmax:.2f} m/s (rim {sc.tip_speed_m_per_s:.2f}), |grad p| {gp:.3g} Pa/m")
+    assert vmax < 1.2 * sc.tip_speed_m_per_s
 
 
 def test_model_a_pressure_gradient_timing_is_chosen_by_name():

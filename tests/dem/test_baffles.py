@@ -52,7 +52,7 @@ def test_baffle_distances_by_hand_and_in_the_kernels():
              ((0.022, 0.0, 3 * MM), 1 * MM),            # above its top edge (2 mm high half)
              ((0.013, 0.0, 0.0), 3 * MM),               # inside its inner edge at 16 mm
              ((0.013, 1.5 * MM, 2.5 * MM), math.sqrt(3 ** 2 + 0.5 ** 2 + 0.5 ** 2) * MM)]
-    sim = DemSimulation(g, s.material, _at(g, 0.022, 5 * MM, 0.0), 0.4e-3, s.omega_rad_s,
+    sim = DemSimulation(g, s.material, _at(g, 0.022, 5 * MM, 0.0), 0.4e-3, s.omega_rad_per_s,
                         1e-5)
     for (sm, tm, zm), want in cases:
         p = _at(g, sm, tm, zm)
@@ -227,14 +227,14 @@ def test_a_bead_rebounds_from_the_standing_baffle():
     a = math.radians(32.5)
     nrm = np.array([-math.sin(a), math.cos(a), 0.0])  # the plate's +t face normal
     x0 = _at(g, 0.022, 1 * MM + 0.4e-3 + 0.02e-3, 0.0)
-    sim = DemSimulation(g, s.material, x0, 0.4e-3, s.omega_rad_s, 1e-6,
-                        velocities_m_s=-1.0 * nrm[None, :])
+    sim = DemSimulation(g, s.material, x0, 0.4e-3, s.omega_rad_per_s, 1e-6,
+                        velocities_m_per_s=-1.0 * nrm[None, :])
     st = sim.run(600)
     v = sim.v[0]
     vn = v @ nrm
     assert 0.45 < vn < 0.55
     assert np.linalg.norm(v - vn * nrm) < 1e-9
-    m = math.pi / 6 * (0.8e-3) ** 3 * s.material.density_kg_m3
+    m = math.pi / 6 * (0.8e-3) ** 3 * s.material.density_kg_per_m3
     # angular impulse about z taken by the baffle: r x (m dv) at s = 22 mm
     want = 0.022 * m * (vn + 1.0)
     assert abs(st.chamber_torque_sum_nm_steps * 1e-6) == pytest.approx(want, rel=0.02)
@@ -314,7 +314,7 @@ def test_too_few_theta_cells_name_the_least_allowed():
     from millfmu.dem.fluid.grid import GridError, mill_grid
 
     g = load_scene("accelerator_slice").with_overrides(sector_deg=360.0,
-                                                       gravity_m_s2=(0.0, -9.81, 0.0))
+                                                       gravity_m_per_s2=(0.0, -9.81, 0.0))
     with pytest.raises(GridError, match=r"n_theta = 12: theta cells of 0.524 rad, wider than "
                                         r"the 0.5 rad allowed; use 1 \(axisymmetric\) or at "
                                         r"least 13 for 360 degrees"):
@@ -328,7 +328,7 @@ def test_scene_refuses_too_few_theta_cells_before_a_run(capsys, tmp_path):
     from millfmu.cli import main
 
     sc = load_scene("accelerator_slice").with_overrides(sector_deg=360.0,
-                                                        gravity_m_s2=(0.0, -9.81, 0.0))
+                                                        gravity_m_per_s2=(0.0, -9.81, 0.0))
     with pytest.raises(DemSceneError, match=r"fluid.coupled.n_theta = 12: theta cells of "
                                             r"0.524 rad over the 360 degree sector, .* at "
                                             r"least 13"):
@@ -337,7 +337,7 @@ def test_scene_refuses_too_few_theta_cells_before_a_run(capsys, tmp_path):
     # a narrower sector with the same count is fine; widening it afterwards is refused
     s60 = load_scene("accelerator_slice").with_overrides(n_theta=12)
     with pytest.raises(DemSceneError, match="n_theta = 12"):
-        s60.with_overrides(sector_deg=360.0, gravity_m_s2=(0.0, -9.81, 0.0))
+        s60.with_overrides(sector_deg=360.0, gravity_m_per_s2=(0.0, -9.81, 0.0))
     out = tmp_path / "never"
     assert main(["dem", "run", "disc_slice", "--out", str(out), "--theta-cells", "8",
                  "--no-progress"]) == 2

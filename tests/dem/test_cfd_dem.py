@@ -128,7 +128,7 @@ def settling(model, n_theta=1, pressure_gradient="previous_interval"):
     a = math.radians(0.5 * sector if n_theta > 1 else 0.0)
     x0 = np.array([[0.02 * math.cos(a), 0.02 * math.sin(a), 0.005]])
     sim = DemSimulation(geo, BeadMaterial(), x0, 0.5 * D, 0.0, 2e-5,
-                        gravity_m_s2=(0.0, 0.0, -9.81),
+                        gravity_m_per_s2=(0.0, 0.0, -9.81),
                         fluid=FluidSettings(drag=False, lubrication=False), threads=1)
     grid = mill_grid(geo, 1e-3, n_theta=n_theta)
     cpl = CfdDem(sim, grid, FluidProperties(RHO_F, MU_F),
@@ -220,7 +220,7 @@ def test_coupled_disc_slice_angular_momentum_budget(tmp_path):
     from millfmu.dem.scene import load_scene
 
     sc = load_scene("disc_slice").with_overrides(
-        sector_deg=10.0, gravity_m_s2=(0.0, 0.0, 0.0), spin_up_s=0.0005, record_s=0.002,
+        sector_deg=10.0, gravity_m_per_s2=(0.0, 0.0, 0.0), spin_up_s=0.0005, record_s=0.002,
         sample_every_s=0.0005)
     assert sc.fluid_mode == "coupled"
     st = run_scene(sc, tmp_path, progress=False)
@@ -247,7 +247,7 @@ def test_dem_advanced_alone_does_not_enter_continuity():
     from millfmu.dem.scene import load_scene
 
     sc = load_scene("disc_slice").with_overrides(
-        sector_deg=10.0, gravity_m_s2=(0.0, 0.0, 0.0), fluid_mode="coupled",
+        sector_deg=10.0, gravity_m_per_s2=(0.0, 0.0, 0.0), fluid_mode="coupled",
         initial_rotation=0.1)
     sim, cpl = make_simulation(sc, 1)
     s, k = cpl.solver, cpl.settings.steps
@@ -275,7 +275,7 @@ def test_full_slice_budget_counts_the_weights_angular_impulse(tmp_path):
     sc = load_scene("disc_slice").with_overrides(
         bead_diameter_m=2.4e-3, n_theta=16, pressure_solver="theta_fft", spin_up_s=0.002,
         record_s=0.004, sample_every_s=0.002, initial_rotation=0.1,
-        gravity_m_s2=(0.0, -98.1, 0.0))
+        gravity_m_per_s2=(0.0, -98.1, 0.0))
     assert sc.geometry.sector_deg == 360.0
     st = run_scene(sc, tmp_path, progress=False)
     b = st.flow["angular_momentum_budget"]
@@ -299,7 +299,7 @@ def test_coupled_sector_with_the_ldl_pressure_solver():
     from millfmu.dem.scene import load_scene
 
     base = load_scene("disc_slice").with_overrides(
-        sector_deg=10.0, gravity_m_s2=(0.0, 0.0, 0.0), fluid_mode="coupled",
+        sector_deg=10.0, gravity_m_per_s2=(0.0, 0.0, 0.0), fluid_mode="coupled",
         initial_rotation=0.1)
     runs = {}
     for solver in ("direct_lu", "direct_ldl"):
@@ -325,7 +325,7 @@ def _coupled_sector():
     from millfmu.dem.scene import load_scene
 
     return load_scene("disc_slice").with_overrides(
-        sector_deg=10.0, gravity_m_s2=(0.0, 0.0, 0.0), fluid_mode="coupled",
+        sector_deg=10.0, gravity_m_per_s2=(0.0, 0.0, 0.0), fluid_mode="coupled",
         initial_rotation=0.1)
 
 

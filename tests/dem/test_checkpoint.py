@@ -327,7 +327,7 @@ def test_full_slice_with_gravity_reports_the_time_mean_circumferential_distribut
     bead in some bin at every sample, and the figures those samples give."""
     from millfmu.dem.analysis.circumferential import circumferential
 
-    sc = load_scene("annulus").with_overrides(gravity_m_s2=(0.0, -9.81, 0.0), spin_up_s=5e-5,
+    sc = load_scene("annulus").with_overrides(gravity_m_per_s2=(0.0, -9.81, 0.0), spin_up_s=5e-5,
                                               record_s=1.5e-4, sample_every_s=5e-5)
     st = R.run_scene(sc, tmp_path, progress=False, threads=1)
     c = st.flow["circumferential"]
@@ -337,7 +337,7 @@ def test_full_slice_with_gravity_reports_the_time_mean_circumferential_distribut
     assert (tmp_path / "circumferential.png").stat().st_size > 0
     # the beads barely move in 1.5e-4 s: the mean is (nearly) the placement's distribution
     x0 = R.make_simulation(sc, 1)[0].x
-    c0 = circumferential(x0, sc.gravity_m_s2, 360.0)
+    c0 = circumferential(x0, sc.gravity_m_per_s2, 360.0)
     assert c["rising_over_falling_half"] == pytest.approx(c0["rising_over_falling_half"],
                                                           rel=0.02)
     # a sector without gravity has none

@@ -58,7 +58,7 @@ x = place_beads(geom, 17000, 0.4e-3, seed=7)
 v = np.random.default_rng(8).normal(0.0, 0.5, size=x.shape)
 out = []
 for threads in (1, 2, 3):
-    sim = DemSimulation(geom, BeadMaterial(), x, 0.4e-3, 500.0, 5e-6, velocities_m_s=v,
+    sim = DemSimulation(geom, BeadMaterial(), x, 0.4e-3, 500.0, 5e-6, velocities_m_per_s=v,
                         threads=threads)
     st = sim.run(60, record=True)
     out.append((sim.cb.size - 1, sim.x.copy(), sim.w.copy(), st.events.copy()))

@@ -27,7 +27,7 @@ def _pair(material, v_rel, dt, normal=(1.0, 0.0, 0.0), gap=0.05e-3):
     c = np.array([0.030, 0.0, 0.002])
     x = np.array([c - (R + gap / 2) * n, c + (R + gap / 2) * n])
     v = np.array([0.5 * np.asarray(v_rel), -0.5 * np.asarray(v_rel)])
-    return DemSimulation(GEOM, material, x, R, 0.0, dt, velocities_m_s=v)
+    return DemSimulation(GEOM, material, x, R, 0.0, dt, velocities_m_per_s=v)
 
 
 def _overlap(sim):
@@ -52,7 +52,7 @@ def test_head_on_restitution_and_hertz_time(e):
             break
     v_after = sim.v[1, 0] - sim.v[0, 0]
     assert v_after == pytest.approx(e * v0, rel=0.01)
-    m = bead_mass_kg(2 * R, mat.density_kg_m3)
+    m = bead_mass_kg(2 * R, mat.density_kg_per_m3)
     t_hertz = hertz_contact_time_s(m / 2, R / 2, mat.effective_youngs_pa, v0)
     if e >= 0.99:
         # the closed form is for elastic impact; it holds to 2 % at the mill's restitution
@@ -70,7 +70,7 @@ def test_recorded_energy_is_half_mstar_vn2_of_approach():
     bb = st.events[st.events[:, K.EV_TYPE] == 0]
     assert bb.shape[0] == 1  # counted once, at its first overlap
     n0 = normal / np.linalg.norm(normal)
-    m = bead_mass_kg(2 * R, mat.density_kg_m3)
+    m = bead_mass_kg(2 * R, mat.density_kg_per_m3)
     mstar = m / 2
     # straight-line approach: d(t) = d0 - v_rel t touches at |d| = 2R; the contact normal
     # there, not the initial line of centres, splits v_rel into normal and shear parts
@@ -100,7 +100,7 @@ def test_oblique_impact_gross_sliding_matches_coulomb_impulse():
         vt0 = ratio * 3.5 * mu * (1 + e) * vn0
         dt = 2e-7
         sim = _pair(mat, (vn0, vt0, 0.0), dt, gap=1e-10)
-        m = bead_mass_kg(2 * R, mat.density_kg_m3)
+        m = bead_mass_kg(2 * R, mat.density_kg_per_m3)
         w_start = sim.v[0].copy()
         # impulses on bead 0 in the frame of the contact, which turns slightly while the
         # beads slide past each other: sum of F.n dt and |F_t| dt over the steps
@@ -158,7 +158,7 @@ def test_oblique_impact_sticking_matches_no_slip_solution(nu):
                        poisson_ratio=nu)
     vn0, vt0 = 0.01, 0.002
     dt, gap = 5e-8, 1e-10
-    m = bead_mass_kg(2 * R, mat.density_kg_m3)
+    m = bead_mass_kg(2 * R, mat.density_kg_per_m3)
     sim = _pair(mat, (vn0, vt0, 0.0), dt, gap=gap)
     ref = _stick_reference(vn0, vt0, mat, m / 2, R / 2)
     t0 = gap / vn0  # first touch
@@ -190,7 +190,7 @@ def test_elastic_frictionless_energy_conserved():
 
     x = place_beads(geom, 60, R, seed=2)
     v = rng.normal(0.0, 0.15, size=(60, 3))
-    sim = DemSimulation(geom, mat, x, R, 0.0, 1e-6, velocities_m_s=v)
+    sim = DemSimulation(geom, mat, x, R, 0.0, 1e-6, velocities_m_per_s=v)
 
     def energy():
         et, er = sim.kinetic_energy_j()
@@ -223,11 +223,11 @@ def test_collision_across_the_sector_boundary_matches_interior_collision():
     t_b = np.array([-math.sin(th_b), math.cos(th_b), 0.0])
     v0 = 0.5
     sim = DemSimulation(geom, mat, np.array([a, b]), R, 0.0, 2e-7,
-                        velocities_m_s=np.array([-v0 * t_a, v0 * t_b]))
+                        velocities_m_per_s=np.array([-v0 * t_a, v0 * t_b]))
     st = sim.run(3000, record=True)
     bb = st.events[st.events[:, K.EV_TYPE] == 0]
     assert bb.shape[0] == 1
-    m = bead_mass_kg(2 * R, mat.density_kg_m3)
+    m = bead_mass_kg(2 * R, mat.density_kg_per_m3)
     assert bb[0, K.EV_SETN] == pytest.approx(0.5 * (m / 2) * (2 * v0) ** 2, rel=1e-3)
     # after the rebound each bead moves back along its own azimuthal direction
     th = np.arctan2(sim.x[:, 1], sim.x[:, 0])
@@ -251,7 +251,7 @@ def test_neighbour_list_overflow_is_handled_without_changing_results():
     v = rng.normal(0.0, 0.3, size=x.shape)
     out = []
     for maxnb in (1, 40):
-        sim = DemSimulation(geom, mat, x, R, 300.0, 5e-6, velocities_m_s=v,
+        sim = DemSimulation(geom, mat, x, R, 300.0, 5e-6, velocities_m_per_s=v,
                             max_neighbours=maxnb)
         st = sim.run(400, record=True)
         out.append((sim.x.copy(), sim.v.copy(), st.events.shape[0], sim.pair_capacity))
@@ -274,7 +274,7 @@ def test_lists_overflowing_within_a_run_change_no_result():
     v = np.random.default_rng(7).normal(0.0, 0.3, size=x.shape)
     out = []
     for tight in (True, False):
-        sim = DemSimulation(geom, mat, x, R, 300.0, 5e-6, velocities_m_s=v)
+        sim = DemSimulation(geom, mat, x, R, 300.0, 5e-6, velocities_m_per_s=v)
         rebuilt = []
         build = sim._build
         sim._build = lambda **kw: (rebuilt.append(kw), build(**kw))
@@ -302,7 +302,7 @@ def test_bead_reordering_keeps_the_dynamics():
     v = rng.normal(0.0, 0.3, size=x.shape)
     res = []
     for every in (0, 50):
-        sim = DemSimulation(geom, mat, x, R, 300.0, 5e-6, velocities_m_s=v,
+        sim = DemSimulation(geom, mat, x, R, 300.0, 5e-6, velocities_m_per_s=v,
                             sort_every_steps=every)
         n_ev = 0
         for _ in range(4):
@@ -341,7 +341,7 @@ def test_equal_beads_shortcut_gives_the_general_forces_bit_for_bit():
     geom = MillGeometry(shaft_radius_m=0.015, chamber_radius_m=0.019, height_m=0.004)
     x = place_beads(geom, 700, R, seed=5)
     v = np.random.default_rng(7).normal(0.0, 0.3, size=x.shape)
-    sim = DemSimulation(geom, BeadMaterial(), x, R, 300.0, 5e-6, velocities_m_s=v,
+    sim = DemSimulation(geom, BeadMaterial(), x, R, 300.0, 5e-6, velocities_m_per_s=v,
                         sort_every_steps=0)
     sim.run(100)
     listed = np.zeros(sim.n, bool)  # beads with a neighbour within the cutoff
@@ -458,7 +458,7 @@ def test_history_at_start_advanced_or_zero():
     st = 8.0 * mat.effective_shear_pa * math.sqrt(R / 2 * delta)
     springs = {}
     for start, n0 in (("advanced", 1), ("zero", 0)):
-        sim = DemSimulation(GEOM, mat, x, R, 0.0, dt, velocities_m_s=v,
+        sim = DemSimulation(GEOM, mat, x, R, 0.0, dt, velocities_m_per_s=v,
                             history_at_start=start)
         k = sim.pst[0]
         assert sim.psh[k] == pytest.approx([0.0, n0 * u * dt, 0.0], abs=1e-9 * u * dt)
@@ -489,7 +489,7 @@ def test_wall_contacts_are_recorded_at_the_bead_and_counted_in_its_zone():
     u = 0.5 / math.sqrt(2.0)
     v = np.array([[0.5, 0.0, 0.0], [0.0, -u, -u]])     # towards the wall and the edge
     sim = DemSimulation(geom, BeadMaterial(restitution=0.9), x, R, 0.0, 2e-7,
-                        velocities_m_s=v)
+                        velocities_m_per_s=v)
     st = sim.run(4000, record=True)
     ev = st.events
     assert sorted(ev[:, K.EV_TYPE].tolist()) == [2.0, 3.0]  # chamber (1 + 1), disc (1 + 2)
@@ -521,7 +521,7 @@ def test_half_lists_hold_every_pair_within_the_cutoff_once(every, height):
                         sector_deg=30.0)
     x = place_beads(geom, int(500 * height / 0.004), R, seed=3)
     v = np.random.default_rng(4).normal(0.0, 0.5, size=x.shape)
-    sim = DemSimulation(geom, BeadMaterial(), x, R, 300.0, 5e-6, velocities_m_s=v,
+    sim = DemSimulation(geom, BeadMaterial(), x, R, 300.0, 5e-6, velocities_m_per_s=v,
                         sort_every_steps=every)
     sim.run(120)
     K.rebuild(sim.x, sim.v, sim.w, sim.shw, sim.xref, sim.prm, sim.wrapk, sim.cutoff_m, True,
@@ -563,7 +563,7 @@ def test_koch_hill_drag_on_a_resting_bead(eps):
     from millfmu.dem.engine.sim import DemSimulation, FluidSettings
 
     mu, rho = 1.002e-3, 998.2
-    fl = FluidSettings(density_kg_m3=rho, viscosity_pa_s=mu, lubrication=False,
+    fl = FluidSettings(density_kg_per_m3=rho, viscosity_Pa_s=mu, lubrication=False,
                        void_fraction=eps)
     omega = 8.0 / 0.015
     r = 0.025
@@ -621,7 +621,7 @@ def test_contact_carried_across_a_sector_wrap_equals_one_away_from_the_boundary(
     out = []
     for th0 in (0.0, math.radians(20.0)):
         geom, pos, vel = wrapping_contact_pair(th0)
-        sim = DemSimulation(geom, mat, pos, R, 0.0, 2e-6, velocities_m_s=vel)
+        sim = DemSimulation(geom, mat, pos, R, 0.0, 2e-6, velocities_m_per_s=vel)
         wrapped = False
         for _ in range(12):
             sim.run(5)

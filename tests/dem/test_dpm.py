@@ -12,7 +12,7 @@ pytest.importorskip("numba")
 from millfmu.dem.coupling.cfd_dem import CfdDem  # noqa: E402
 from millfmu.dem.coupling.dpm import DiscretePhaseCoupling  # noqa: E402
 from millfmu.dem.coupling.schiller_naumann import (drag_coefficient_py,  # noqa: E402
-                                                   terminal_speed_m_s)
+                                                   terminal_speed_m_per_s)
 from millfmu.dem.coupling.settings import CouplingSettings  # noqa: E402
 from millfmu.dem.engine.params import BeadMaterial  # noqa: E402
 from millfmu.dem.engine.sim import DemSimulation, FluidSettings  # noqa: E402
@@ -30,9 +30,9 @@ def _settle(scheme, t_s=0.2, steps=5, cfd_step_s=0.01):
     held by a mean pressure gradient, as in a closed container): its speed [m/s] after
     t_s, and the coupling."""
     geo = MillGeometry(0.015, 0.025, 0.01, sector_deg=360.0)
-    sim = DemSimulation(geo, BeadMaterial(density_kg_m3=RHO_P), np.array([[0.02, 0.0, 0.005]]),
-                        0.5 * D, 0.0, DT, gravity_m_s2=(0.0, 0.0, -9.81),
-                        fluid=FluidSettings(density_kg_m3=RHO_F, viscosity_pa_s=MU_F,
+    sim = DemSimulation(geo, BeadMaterial(density_kg_per_m3=RHO_P), np.array([[0.02, 0.0, 0.005]]),
+                        0.5 * D, 0.0, DT, gravity_m_per_s2=(0.0, 0.0, -9.81),
+                        fluid=FluidSettings(density_kg_per_m3=RHO_F, viscosity_Pa_s=MU_F,
                                             drag=False, lubrication=False), threads=1)
     grid = mill_grid(geo, 1e-3)
     st = CouplingSettings(model="B", turbulence="laminar", steps=steps, scheme=scheme,
@@ -49,7 +49,7 @@ def test_schiller_naumann_closed_forms():
     # Stokes limit: 3 pi mu d; the terminal speed of a Stokes bead
     assert drag_coefficient_py(D, MU_F, RHO_F, 0.0) == pytest.approx(3 * math.pi * MU_F * D)
     stokes = (RHO_P - RHO_F) * 9.81 * D ** 2 / (18 * MU_F)
-    u = terminal_speed_m_s(D, RHO_P, RHO_F, MU_F)
+    u = terminal_speed_m_per_s(D, RHO_P, RHO_F, MU_F)
     re = RHO_F * D * u / MU_F
     assert u == pytest.approx(stokes / (1 + 0.15 * re ** 0.687), rel=1e-9)
     # water, a 3 mm glass bead: Re ~ 1000, continuous across Newton's regime
@@ -62,7 +62,7 @@ def test_dpm_settling_bead_at_the_papers_cfd_step():
     """At a CFD step of 0.01 s (18.6 relaxation times) the bead settles at the closed-form
     speed (drag updated every 5e-5 s in the frozen liquid); what the liquid and the bead
     exchanged agree up to the one step the liquid lags behind."""
-    u_t = terminal_speed_m_s(D, RHO_P, RHO_F, MU_F)
+    u_t = terminal_speed_m_per_s(D, RHO_P, RHO_F, MU_F)
     tau = RHO_P * D ** 2 / (18 * MU_F)
     v, cpl, sim = _settle("dpm")
     uf = float(sim.per_bead["fluid_at_bead"][0, 2])
@@ -86,7 +86,7 @@ def test_held_drag_at_the_same_interval_misses_where_dpm_does_not():
     coefficient keeps it stable, but the bead then falls under gravity for a whole
     interval before the drag answers): the settling speed is far off. This is why the
     discrete phase model updates the drag within the CFD step."""
-    u_t = terminal_speed_m_s(D, RHO_P, RHO_F, MU_F)
+    u_t = terminal_speed_m_per_s(D, RHO_P, RHO_F, MU_F)
     v, _, sim = _settle("vans", steps=1000)
     uf = float(sim.per_bead["fluid_at_bead"][0, 2])
     print(f"held drag over 0.01 s: {v + uf:.5f} m/s against {u_t:.5f}")
@@ -125,7 +125,7 @@ def test_primed_start_puts_the_beads_into_the_bead_free_circulation():
         assert np.allclose(vr, u[:, 0], atol=1e-12) and np.allclose(vt, u[:, 1], atol=1e-12)
         assert np.allclose(sim.v[:, 2], u[:, 2], atol=1e-12)
         # swirling with the rotor, and pumped outwards somewhere (the channel)
-        assert 0.2 < np.median(vt / (sc.omega_rad_s * r)) < 1.0
+        assert 0.2 < np.median(vt / (sc.omega_rad_per_s * r)) < 1.0
         assert vr.max() > 0.05
         ur0 = s.ur.copy()
         cpl.run(cpl.unit_steps)

@@ -12,7 +12,7 @@ def test_collision_frequency_and_median_se_converged_in_dt(tmp_path):
 
     base = {"kind": "annulus", "name": "dt_check",
             "mill": {"shaft_radius_m": 0.015, "chamber_radius_m": 0.021, "height_m": 0.004,
-                     "tip_speed_m_s": 6.0},
+                     "tip_speed_m_per_s": 6.0},
             "beads": {"filling": 0.8},
             "fluid": {"enabled": True},
             "run": {"spin_up_s": 0.02, "record_s": 0.04, "sample_every_s": 0.005}}

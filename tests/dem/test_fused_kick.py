@@ -17,7 +17,7 @@ def _sim(sector_deg, n):
                         sector_deg=sector_deg)
     x = place_beads(geom, n, 0.4e-3, seed=3)
     v = np.random.default_rng(4).normal(0.0, 1.0, size=x.shape)
-    sim = DemSimulation(geom, BeadMaterial(), x, 0.4e-3, 500.0, 5e-6, velocities_m_s=v,
+    sim = DemSimulation(geom, BeadMaterial(), x, 0.4e-3, 500.0, 5e-6, velocities_m_per_s=v,
                         threads=1)
     sim.run(40)  # contacts with histories, beads sorted
     return sim

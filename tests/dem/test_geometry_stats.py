@@ -51,15 +51,15 @@ def test_bench_dilute_bed_is_a_granular_gas(tmp_path, monkeypatch):
     assert B.BED.key() != B.DILUTE_BED.key()
     # the dense bed's key leaves the new field out, so its cached file keeps its name
     rec = B.asdict(B.BED)
-    rec.pop("gas_speed_m_s")
+    rec.pop("gas_speed_m_per_s")
     want = dict(recipe=rec, geometry=B.asdict(B.BENCH_GEOMETRY), material=B.asdict(B.BENCH_MATERIAL),
-                diameter_m=B.BENCH_DIAMETER_M, tip_speed_m_s=B.BENCH_TIP_SPEED_M_S, dt_s=B.BENCH_DT_S)
+                diameter_m=B.BENCH_DIAMETER_M, tip_speed_m_per_s=B.BENCH_TIP_SPEED_M_PER_S, dt_s=B.BENCH_DT_S)
     assert B.BED.key() == B.hashlib.sha256(json.dumps(want, sort_keys=True).encode()).hexdigest()[:12]
     path = B.bed_file(B.DILUTE_BED, threads=1, out=lambda s: None)
     info = B.bed_info(path)
     assert info["beads"] == B.read_data(path).x.shape[0] > 20000
     assert 0.05 < info["coordination"] < 0.5
-    assert info["mean_speed_m_s"] > 0.05 and info["max_speed_m_s"] < 20.0
+    assert info["mean_speed_m_per_s"] > 0.05 and info["max_speed_m_per_s"] < 20.0
     with pytest.raises(ValueError, match="bed = 'sparse': allowed"):
         B.bench(bed="sparse")
 
@@ -175,14 +175,14 @@ def test_sector_rules_and_placement_without_overlap():
 
 def test_scene_files_load_and_validate():
     ds = load_scene("disc_slice")
-    assert ds.tip_speed_m_s == 10.0 and ds.filling == 0.8
+    assert ds.tip_speed_m_per_s == 10.0 and ds.filling == 0.8
     assert ds.material.youngs_modulus_pa == 6.3e6 and ds.material.restitution == 0.99
     assert ds.geometry.height_m == pytest.approx(0.028)
-    assert ds.omega_rad_s == pytest.approx(10.0 / 0.036)
+    assert ds.omega_rad_per_s == pytest.approx(10.0 / 0.036)
     an = load_scene("annulus")
     assert an.placement == "lattice" and an.fluid is None
-    with pytest.raises(DemSceneError, match=r"mill.tip_speed_m_s = 20.0: allowed 6 to 14"):
-        ds.with_overrides(tip_speed_m_s=20.0)
+    with pytest.raises(DemSceneError, match=r"mill.tip_speed_m_per_s = 20.0: allowed 6 to 14"):
+        ds.with_overrides(tip_speed_m_per_s=20.0)
     with pytest.raises(DemSceneError, match=r"beads.filling = 0.3"):
         ds.with_overrides(filling=0.3)
     with pytest.raises(DemSceneError, match="gravity"):
@@ -190,7 +190,7 @@ def test_scene_files_load_and_validate():
     with pytest.raises(DemSceneError, match="scene.kind = 'cube'"):
         scene_from_dict({"kind": "cube"})
     with pytest.raises(DemSceneError, match="beads.restitution = 1.5"):
-        scene_from_dict({"kind": "annulus", "mill": {"tip_speed_m_s": 8.0},
+        scene_from_dict({"kind": "annulus", "mill": {"tip_speed_m_per_s": 8.0},
                          "beads": {"restitution": 1.5, "filling": 0.5}})
     with pytest.raises(DemSceneError, match="no such shipped scene"):
         load_scene("nonexistent")
@@ -223,7 +223,7 @@ def test_cli_registers_run_not_the_bench_and_rejects_bad_values(capsys, tmp_path
     a = p.parse_args(["dem", "run", "disc_slice", "--out", str(tmp_path), "--tip-speed",
                       "30"])
     assert a.func(a) == 2
-    assert "tip_speed_m_s = 30.0" in capsys.readouterr().err
+    assert "tip_speed_m_per_s = 30.0" in capsys.readouterr().err
     with pytest.raises(SystemExit):  # the bench is python -m benchmarks.dem_peers now
         p.parse_args(["dem", "bench", "--steps", "10"])
     capsys.readouterr()
@@ -247,7 +247,7 @@ def test_disc_slice_short_run_gives_zone_statistics(tmp_path):
     assert stats.record_s == pytest.approx(2e-4) and stats.spin_up_s == pytest.approx(1e-4)
     assert "prescribed swirl" in stats.fluid_model
     geo = load_scene("disc_slice").with_overrides(sector_deg=30.0,
-                                                  gravity_m_s2=(0, 0, 0)).geometry
+                                                  gravity_m_per_s2=(0, 0, 0)).geometry
     assert sum(z.volume_m3 for z in stats.zones) == pytest.approx(geo.free_volume_m3())
     # all bead volume sits in some zone: sum of filling x V x (1 - eps) = bead volume
     vb = stats.beads * math.pi / 6 * 0.8e-3 ** 3

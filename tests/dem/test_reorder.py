@@ -106,7 +106,7 @@ def test_reorder_is_the_numpy_passes_to_the_bit():
     from millfmu.dem.scene import load_scene
 
     sc = load_scene("disc_slice").with_overrides(
-        sector_deg=10.0, gravity_m_s2=(0.0, 0.0, 0.0), fluid_mode="prescribed",
+        sector_deg=10.0, gravity_m_per_s2=(0.0, 0.0, 0.0), fluid_mode="prescribed",
         initial_rotation=0.1)
     sim, _ = make_simulation(sc, 2)
     sim.run(150)

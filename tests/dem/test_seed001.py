@@ -89,12 +89,12 @@ def test_campaign_runs_the_stated_protocol(tmp_path, monkeypatch):
     for sc, d, kw in calls:
         coupled = d.name.startswith("c_")
         assert sc.fluid_mode == ("coupled" if coupled else "prescribed")
-        assert sc.gravity_m_s2 == (0.0, 0.0, 0.0) and sc.geometry.sector_deg == 10.0
+        assert sc.gravity_m_per_s2 == (0.0, 0.0, 0.0) and sc.geometry.sector_deg == 10.0
         assert sc.spin_up_s == (1.0 if coupled else 0.3) and sc.record_s == 0.3
         assert sc.initial_rotation == (0.1 if coupled else 0.0)
         assert kw["window_s"] == 0.1
         vt, fill = float(d.name.split("_v")[1].split("_")[0]), int(d.name.split("_f")[1])
-        assert sc.tip_speed_m_s == vt and round(sc.filling * 100) == fill
+        assert sc.tip_speed_m_per_s == vt and round(sc.filling * 100) == fill
 
 
 def test_command_refuses_an_unknown_fluid_and_prints_the_table(tmp_path, capsys):

@@ -71,8 +71,8 @@ def test_snapshot_quantities_and_the_papers_frame_rate():
     f1 = Frame(np.repeat(p, 3, 0), np.array([1.0, 1.0, 4.0]), np.array([0.0, 0.0, 100.0]))
     f2 = Frame(p.copy(), np.array([9.0]), np.array([0.0]))
     dt = 0.01
-    q = A.snapshot_stress_quantities([f1, f2], dt, z, d, rho, 100, s.tip_speed_m_s,
-                                     s.omega_rad_s)
+    q = A.snapshot_stress_quantities([f1, f2], dt, z, d, rho, 100, s.tip_speed_m_per_s,
+                                     s.omega_rad_per_s)
     z1 = q["zones"]["SEV_1"]
     v1 = z.volumes_m3()[0]
     assert z1["contacts"] == 4

@@ -55,7 +55,7 @@ def test_chosen_by_name_and_a_coupled_disc_run_with_it(tmp_path):
     from millfmu.dem.scene import DemSceneError, load_scene
 
     sc = load_scene("disc_slice").with_overrides(
-        sector_deg=30.0, n_theta=4, gravity_m_s2=(0.0, 0.0, 0.0), spin_up_s=2.5e-4,
+        sector_deg=30.0, n_theta=4, gravity_m_per_s2=(0.0, 0.0, 0.0), spin_up_s=2.5e-4,
         record_s=2.5e-4, sample_every_s=2.5e-4)
     fft = sc.with_overrides(pressure_solver="theta_fft")
     assert fft.coupling.pressure_solver == "theta_fft"
@@ -90,6 +90,6 @@ def test_dem_run_advises_on_full_slices():
     t32 = full.with_overrides(n_theta=32)
     assert [a for a in scene_advice(t32) if "theta_fft" in a]
     assert scene_advice(t32.with_overrides(pressure_solver="theta_fft")) == []
-    sector = full.with_overrides(sector_deg=10.0, gravity_m_s2=(0.0, 0.0, 0.0))
+    sector = full.with_overrides(sector_deg=10.0, gravity_m_per_s2=(0.0, 0.0, 0.0))
     assert scene_advice(sector) == []
     assert scene_advice(full.with_overrides(fluid_mode="prescribed")) == []

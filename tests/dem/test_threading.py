@@ -62,7 +62,7 @@ geom = MillGeometry(shaft_radius_m=0.015, chamber_radius_m=0.019, height_m=0.004
 x = place_beads(geom, 300, 0.4e-3, seed=5)
 DemSimulation(geom, BeadMaterial(), x, 0.4e-3, 300.0, 5e-6, threads=2).run(20)
 spec = T.TableSpec(scene={"name": "analytic"},
-                   grid={"tip_speed_m_s": [6.0, 14.0], "filling": [0.5, 0.9]},
+                   grid={"tip_speed_m_per_s": [6.0, 14.0], "filling": [0.5, 0.9]},
                    kernel_version="test-kernel-1",
                    builder_id=T.builder_id_of(dem_threads_builder))
 t = T.build_table(spec, dem_threads_builder, executor="processes", workers=2,

@@ -568,7 +568,7 @@ def test_fmi3_time_tolerance_is_the_fmi2_one():
 
 
 def test_tip_speeds_beyond_the_table_are_a_warning_once(work):
-    """The default scene's FMU (similar_axes = tip_speed_m_s on the coupled table, 6-14 m/s):
+    """The default scene's FMU (similar_axes = tip_speed_m_per_s on the coupled table, 6-14 m/s):
     steps at 15 and 16 m/s run, and the log says once that similarity was assumed."""
     path = str(work["fmus"]["batch"])
     res = run_py(work["python"], f"""
@@ -577,5 +577,5 @@ st = [step(f, float(k), 1.0, {{"tip_speed": v}}) for k, v in enumerate((12.0, 15
 done({{"st": st, "warn": [e[3] for e in LOG if e[0] == "w" and e[1] == 1]}})
 """, work["dir"], fmi_version=3)
     assert res["st"] == [0, 0, 0, 0]
-    hits = [w for w in res["warn"] if "tip_speed_m_s" in w and "lies outside the table's range 6 to 14" in w]
+    hits = [w for w in res["warn"] if "tip_speed_m_per_s" in w and "lies outside the table's range 6 to 14" in w]
     assert len(hits) == 1 and "similarity assumed" in hits[0], res["warn"]

@@ -69,7 +69,7 @@ def test_runs_without_millfmu_and_matches_model(table_fmu):
 
 
 def test_tip_speeds_beyond_the_table_are_a_warning_once(table_fmu):
-    """similar_axes = tip_speed_m_s: steps at 15 and 16 m/s run, and the log says it once."""
+    """similar_axes = tip_speed_m_per_s: steps at 15 and 16 m/s run, and the log says it once."""
     from tests.integration.fmu_support import isolated_python, run_py
 
     d, fmu = table_fmu
@@ -79,5 +79,5 @@ st = [step(f, float(k), 1.0, {{"tip_speed": v}}) for k, v in enumerate((12.0, 15
 done({{"st": st, "warn": [e[3] for e in LOG if e[0] == "w" and e[1] == 1]}})
 """, d)
     assert res["st"] == [0, 0, 0, 0]
-    hits = [w for w in res["warn"] if "tip_speed_m_s" in w and "lies outside the table's range 6 to 14" in w]
+    hits = [w for w in res["warn"] if "tip_speed_m_per_s" in w and "lies outside the table's range 6 to 14" in w]
     assert len(hits) == 1 and "similarity assumed" in hits[0], res["warn"]

@@ -16,7 +16,7 @@ from scipy.special import ndtr
 from millfmu.dem import tables as T
 
 D_GB_M = 0.8e-3
-RHO_KG_M3 = 2510.0
+RHO_KG_PER_M3 = 2510.0
 R_DISC_M = 0.036
 POROSITY = 0.4
 SIGMA_DECADES = 0.6
@@ -50,7 +50,7 @@ def analytic_builder(scene: dict, point: dict) -> dict:
             fh.write(f"{os.getpid()}\n")
     if scene.get("sleep_s"):
         time.sleep(float(scene["sleep_s"]))
-    v = float(point.get("tip_speed_m_s", 10.0))
+    v = float(point.get("tip_speed_m_per_s", 10.0))
     phi = float(point.get("filling", 0.8))
     mu = np.log10(q50_norm(v, phi))
     dens = _densities(mu)
@@ -67,8 +67,8 @@ def analytic_builder(scene: dict, point: dict) -> dict:
         "collision_count": np.round(1e4 * freq),
         "se_density": np.array(dens),
         "se_quantiles_norm": quant,
-        "e_ref_J": T.e_ref_J(D_GB_M, RHO_KG_M3, v),
-        "omega_rad_s": v / R_DISC_M,
+        "e_ref_J": T.e_ref_J(D_GB_M, RHO_KG_PER_M3, v),
+        "omega_rad_per_s": v / R_DISC_M,
         "n_gb_per_m3": T.n_gb_per_m3(phi, POROSITY, D_GB_M),
     }
 
@@ -76,7 +76,7 @@ def analytic_builder(scene: dict, point: dict) -> dict:
 def spec(grid=None, kernel_version="test-kernel-1", **scene):
     """TableSpec for the analytic builder."""
     return T.TableSpec(scene={"name": "analytic", **scene},
-                       grid=grid or {"tip_speed_m_s": [6.0, 10.0, 14.0],
+                       grid=grid or {"tip_speed_m_per_s": [6.0, 10.0, 14.0],
                                      "filling": [0.5, 0.7, 0.9]},
                        kernel_version=kernel_version,
                        builder_id=T.builder_id_of(analytic_builder))
@@ -94,15 +94,15 @@ def separable_builder(scene: dict, point: dict) -> dict:
     else the scene's [beads]."""
     beads = scene.get("beads", {})
     d = float(point.get("bead_diameter_m", beads.get("diameter_m", D_GB_M)))
-    rho = float(point.get("bead_density_kg_m3", beads.get("density_kg_m3", RHO_KG_M3)))
+    rho = float(point.get("bead_density_kg_per_m3", beads.get("density_kg_per_m3", RHO_KG_PER_M3)))
     out = analytic_builder(scene, point)
-    f = (d / D_GB_M) ** -0.4 * (rho / RHO_KG_M3) ** 0.2
-    shift = math.log10((d / D_GB_M) ** 0.7 * (rho / RHO_KG_M3) ** 0.3)
+    f = (d / D_GB_M) ** -0.4 * (rho / RHO_KG_PER_M3) ** 0.2
+    shift = math.log10((d / D_GB_M) ** 0.7 * (rho / RHO_KG_PER_M3) ** 0.3)
     for k in ("filling_local", "speed_over_tip_speed", "collision_frequency_norm",
               "collision_power_norm"):
         out[k] = out[k] * f
     out["se_quantiles_norm"] = out["se_quantiles_norm"] * 10.0 ** shift
-    v = float(point.get("tip_speed_m_s", 10.0))
+    v = float(point.get("tip_speed_m_per_s", 10.0))
     phi = float(point.get("filling", 0.8))
     out["se_density"] = np.array(_densities(np.log10(q50_norm(v, phi)) + shift))
     return out
@@ -111,16 +111,16 @@ def separable_builder(scene: dict, point: dict) -> dict:
 def separable_spec(anchor_filling=0.7, **kw):
     """TableSpec of :func:`separable_builder`: tip speed x filling grid, bead diameter and
     density one at a time from the scene's 10 m/s, ``anchor_filling``, 0.8 mm, 2510 kg/m3."""
-    scene = {"name": "separable", "mill": {"tip_speed_m_s": 10.0},
+    scene = {"name": "separable", "mill": {"tip_speed_m_per_s": 10.0},
              "beads": {"filling": anchor_filling, "diameter_m": D_GB_M,
-                       "density_kg_m3": RHO_KG_M3}}
+                       "density_kg_per_m3": RHO_KG_PER_M3}}
     return T.TableSpec(scene=scene,
-                       grid={"tip_speed_m_s": [6.0, 10.0, 14.0], "filling": [0.5, 0.7, 0.9]},
+                       grid={"tip_speed_m_per_s": [6.0, 10.0, 14.0], "filling": [0.5, 0.7, 0.9]},
                        kernel_version="test-kernel-1",
                        builder_id=T.builder_id_of(separable_builder),
                        one_at_a_time=kw.get("one_at_a_time", {
                            "bead_diameter_m": [0.5e-3, D_GB_M, 1.2e-3],
-                           "bead_density_kg_m3": [RHO_KG_M3, 6040.0]}))
+                           "bead_density_kg_per_m3": [RHO_KG_PER_M3, 6040.0]}))
 
 
 def dem_threads_builder(scene: dict, point: dict) -> dict:
@@ -145,7 +145,7 @@ class CostedBuilder:
 
     def __call__(self, scene: dict, point: dict) -> dict:
         with open(scene["count_file"], "a") as fh:
-            fh.write(f"{point['tip_speed_m_s']} {point['filling']} {os.getpid()}\n")
+            fh.write(f"{point['tip_speed_m_per_s']} {point['filling']} {os.getpid()}\n")
         return analytic_builder(dict(scene, count_file=None), point)
 
     def relative_cost(self, scene: dict, point: dict) -> float:
@@ -173,4 +173,4 @@ class FakeDemBuilder:
         return out
 
     def relative_cost(self, scene: dict, point: dict) -> float:
-        return float(point.get("filling", 0.8)) * float(point.get("tip_speed_m_s", 10.0))
+        return float(point.get("filling", 0.8)) * float(point.get("tip_speed_m_per_s", 10.0))

@@ -49,7 +49,7 @@ def test_miss_then_hit(cache, tmp_path):
     assert count(cf) == 9  # hit: nothing built
     _same(t1, t2)
     # grid order: point (i, j) holds the builder's result at (v_i, phi_j)
-    want = analytic_builder({}, {"tip_speed_m_s": 10.0, "filling": 0.9})
+    want = analytic_builder({}, {"tip_speed_m_per_s": 10.0, "filling": 0.9})
     np.testing.assert_array_equal(t2.data["collision_frequency_norm"][1, 2],
                                   want["collision_frequency_norm"])
 
@@ -71,10 +71,10 @@ def test_key_depends_on_scene_grid_kernel():
     assert spec().key() == base.key()
     assert spec(kernel_version="test-kernel-2").key() != base.key()
     assert spec(extra=1).key() != base.key()
-    assert spec(grid={"tip_speed_m_s": [6.0, 10.0, 14.0], "filling": [0.5, 0.7, 0.8]}
+    assert spec(grid={"tip_speed_m_per_s": [6.0, 10.0, 14.0], "filling": [0.5, 0.7, 0.8]}
                 ).key() != base.key()
     # the order in which axes or scene keys are given does not matter
-    assert spec(grid={"filling": [0.5, 0.7, 0.9], "tip_speed_m_s": [6, 10, 14]}
+    assert spec(grid={"filling": [0.5, 0.7, 0.9], "tip_speed_m_per_s": [6, 10, 14]}
                 ).key() == base.key()
 
 
@@ -198,7 +198,7 @@ def test_spec_rejects_bad_grid():
 
 
 def _fail_at_fill_09(scene, point):
-    if point["tip_speed_m_s"] == 10.0 and point["filling"] == 0.9:
+    if point["tip_speed_m_per_s"] == 10.0 and point["filling"] == 0.9:
         raise RuntimeError("cut off")
     return analytic_builder(scene, point)
 
@@ -206,7 +206,7 @@ def _fail_at_fill_09(scene, point):
 def test_cut_build_resumes_with_its_finished_points(cache, tmp_path):
     cf = str(tmp_path / "builds")
     s = spec(count_file=cf)
-    with pytest.raises(T.TableError, match=r"grid point \{'tip_speed_m_s': 10.0, 'filling': "
+    with pytest.raises(T.TableError, match=r"grid point \{'tip_speed_m_per_s': 10.0, 'filling': "
                        r"0.9\}: RuntimeError: cut off; the 5 finished points are kept"):
         T.get_table(s, _fail_at_fill_09, cache_dir=cache, executor="serial", progress=False)
     assert count(cf) == 5  # grid order: (6, *), (10, 0.5), (10, 0.7) finished, then the cut
@@ -215,19 +215,19 @@ def test_cut_build_resumes_with_its_finished_points(cache, tmp_path):
     t = T.get_table(s, analytic_builder, cache_dir=cache, executor="serial", progress=False)
     assert count(cf) == 9  # only the 4 missing points ran
     assert t.manifest["points_run"] == 4 and t.manifest["points_reused"] == 5
-    want = analytic_builder({}, {"tip_speed_m_s": 6.0, "filling": 0.5})
+    want = analytic_builder({}, {"tip_speed_m_per_s": 6.0, "filling": 0.5})
     np.testing.assert_array_equal(t.data["se_density"][0, 0], want["se_density"])
     # force runs every point again; a table sharing points runs only its new ones
     T.get_table(s, analytic_builder, cache_dir=cache, executor="serial", progress=False,
                 force=True)
     assert count(cf) == 18
-    wider = spec(count_file=cf, grid={"tip_speed_m_s": [6.0, 10.0, 14.0, 18.0],
+    wider = spec(count_file=cf, grid={"tip_speed_m_per_s": [6.0, 10.0, 14.0, 18.0],
                                       "filling": [0.5, 0.7, 0.9]})
     T.get_table(wider, analytic_builder, cache_dir=cache, executor="serial", progress=False)
     assert count(cf) == 21
     # a point file that does not hold its key's content is not used
     f = sorted((cache / T.POINTS_DIR).glob("*.json"))[0]
-    f.write_text(f.read_text().replace('"format": 1', '"format": 0'))
+    f.write_text(f.read_text().replace('"format": 2', '"format": 0'))
     store = T.PointStore(cache / T.POINTS_DIR)
     damaged = [p for p in wider.points() if store.key(wider, p) == f.stem]
     assert len(damaged) == 1 and store.get(wider, damaged[0]) is None

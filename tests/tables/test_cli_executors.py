@@ -13,7 +13,7 @@ from millfmu.dem.tables import cli as tables_cli
 from tests.tables import _builders
 from tests.tables._builders import analytic_builder, spec
 
-TINY = {"tip_speed_m_s": [6.0, 10.0], "filling": [0.6, 0.8]}
+TINY = {"tip_speed_m_per_s": [6.0, 10.0], "filling": [0.6, 0.8]}
 
 
 def _cli(argv):
@@ -112,12 +112,12 @@ def test_cli_errors_name_the_problem(tmp_path, capsys):
     assert "no grid given" in capsys.readouterr().err
     assert _cli(["tables", "build", "--tip-speed", "4,8", "--cache-dir", cache,
                  "--sector-deg", "10", "--no-gravity"]) == 2
-    assert "tip_speed_m_s = 4.0" in capsys.readouterr().err
+    assert "tip_speed_m_per_s = 4.0" in capsys.readouterr().err
     with pytest.raises(SystemExit):
         _cli(["tables", "build", "--tip-speed", "8,x"])
 
 
-ORDER_GRID = {"tip_speed_m_s": [6.0, 10.0], "filling": [0.5, 0.7, 0.9]}
+ORDER_GRID = {"tip_speed_m_per_s": [6.0, 10.0], "filling": [0.5, 0.7, 0.9]}
 
 
 def _run_order(path) -> list:

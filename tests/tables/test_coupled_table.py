@@ -27,18 +27,18 @@ def test_coupled_table_verifies_and_states_its_build(table):
     assert res["fluid"] == "coupled" and res["spin_up_s"] == 1.5 and res["record_s"] == 0.4
     assert "note" not in m["resolution"]  # spin-up at least the coupled slice's 1.5 s
     assert m["work_precision"]["this_table"]["matches_choice"] is True
-    assert set(table.one_at_a_time) == {"bead_diameter_m", "bead_density_kg_m3"}
+    assert set(table.one_at_a_time) == {"bead_diameter_m", "bead_density_kg_per_m3"}
     assert list(table.one_at_a_time["bead_diameter_m"].axes["bead_diameter_m"]) == \
         [0.5e-3, 0.8e-3, 1.2e-3]
-    assert list(table.one_at_a_time["bead_density_kg_m3"].axes["bead_density_kg_m3"]) == \
+    assert list(table.one_at_a_time["bead_density_kg_per_m3"].axes["bead_density_kg_per_m3"]) == \
         [2510.0, 6040.0]
-    assert table.anchor == {"tip_speed_m_s": 10.0, "filling": 0.8}
+    assert table.anchor == {"tip_speed_m_per_s": 10.0, "filling": 0.8}
     assert m["rebuild_command"].startswith("millfmu tables build --scene disc_slice")
     assert "--one-at-a-time bead-diameter,bead-density" in m["rebuild_command"]
     assert "--tip-speed 6,8,10,12,14 --filling 0.5,0.6,0.7,0.8,0.9" in m["rebuild_command"]
     assert "/" not in m["rebuild_command"].split("--export ")[1].split("millfmu/data/")[0]
     assert list(table.axes["filling"]) == [0.5, 0.6, 0.7, 0.8, 0.9]
-    assert list(table.axes["tip_speed_m_s"]) == [6.0, 8.0, 10.0, 12.0, 14.0]
+    assert list(table.axes["tip_speed_m_per_s"]) == [6.0, 8.0, 10.0, 12.0, 14.0]
     assert m["points_run"] + m["points_reused"] == 28  # 25 grid points, 3 one at a time
     # checks: DEM runs between and on the nodes and off the anchor (their kernels and what
     # they measure: tests/tables/test_stated_error.py)
@@ -50,8 +50,8 @@ def test_coupled_table_verifies_and_states_its_build(table):
 
 
 def test_lookup_between_nodes_and_refusals(table):
-    pt = {"tip_speed_m_s": 8.0, "filling": 0.6, "bead_diameter_m": 1.0e-3,
-          "bead_density_kg_m3": 4000.0}
+    pt = {"tip_speed_m_per_s": 8.0, "filling": 0.6, "bead_diameter_m": 1.0e-3,
+          "bead_density_kg_per_m3": 4000.0}
     lk = table.lookup(pt)
     assert np.all(np.isfinite(lk.values["se_density"]))
     assert np.all(lk.values["collision_frequency_norm"] >= 0)
@@ -103,11 +103,11 @@ def test_interpolation_along_tip_speed_on_held_back_nodes(table):
     of 36 values within the stated bound). At 50 and 60 %, where V2 and V3 start to lose
     beads, the tip speed bends the statistics more (up to 102 %, 43 % and 24 %): why the
     table was refined along tip speed."""
-    ratios, worst = held_back(table, [1, 2], 0.7, axes=["tip_speed_m_s"])
+    ratios, worst = held_back(table, [1, 2], 0.7, axes=["tip_speed_m_per_s"])
     print(f"{np.sum(ratios <= 1)} of {ratios.size} within the bound; largest {worst}")
     assert ratios.size == 36  # 2 held-back tip speeds x 3 fillings x 3 fields x 2 zones
     assert worst["se_quantiles_norm"] <= 0.10 and worst["collision_frequency_norm"] <= 0.10
     assert worst["filling_local"] <= 0.06
     assert np.mean(ratios <= 1.0) >= 0.8
-    low, w_low = held_back(table, [1, 2], 0.5, axes=["tip_speed_m_s"])
+    low, w_low = held_back(table, [1, 2], 0.5, axes=["tip_speed_m_per_s"])
     assert w_low["se_quantiles_norm"] > 2 * worst["se_quantiles_norm"]

@@ -69,7 +69,7 @@ def test_energy_over_e_ref_holds_along_tip_speed(table):
     well-sampled zones changes by under a third of that (in log), so energies scale with
     E_ref to first order. The collision frequency grows with the tip speed, but more slowly
     than omega n_gb does: f ~ v_t^a with 0 < a < 1, which the manifest and README state."""
-    v = table.axes["tip_speed_m_s"]
+    v = table.axes["tip_speed_m_per_s"]
     q = _well(table, table.data["se_quantiles_norm"][..., 0, :, 1])  # (v, fill, zone)
     raw = np.log(v[-1] / v[0]) * 2.0
     norm = np.log(q.max(axis=0) / q.min(axis=0))
@@ -107,5 +107,5 @@ def test_model_refuses_inputs_outside_the_table_and_extrapolates_tip_speed(table
         m.step(10.0, bead_filling=0.45)
     np.testing.assert_array_equal(m.y, y0)  # refused: state unchanged
     m.step(10.0, tip_speed_m_per_s=3.0)  # below the grid: similarity, noted
-    assert "tip_speed_m_s = 3.0 outside the grid [6.0, 14.0]" in m.source.last_notes[0]
+    assert "tip_speed_m_per_s = 3.0 outside the grid [6.0, 14.0]" in m.source.last_notes[0]
     assert m.total_mass_kg() == pytest.approx(m.m0_kg, rel=1e-13)

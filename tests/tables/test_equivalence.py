@@ -141,7 +141,7 @@ def test_reference_of_another_point_is_refused(evidence):
     E.record(res)
     assert path.stat().st_mode & 0o777 == 0o644  # readable by all, as the shipped data
     assert [p.name for p in path.parent.iterdir()] == [path.name]  # no temporary left
-    other = dict(res, point=dict(res["point"], tip_speed_m_s=6.0))
+    other = dict(res, point=dict(res["point"], tip_speed_m_per_s=6.0))
     with pytest.raises(E.EquivalenceError, match="another table, version or point"):
         E.record(other)
     assert len(E.read_evidence()["reference"]["runs"]) == 1  # nothing half-written

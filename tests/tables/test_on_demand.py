@@ -14,18 +14,18 @@ from tests.tables._builders import analytic_builder, count, spec
 
 def test_one_new_point_runs_once_old_points_stay_bit_identical(tmp_path):
     cf = str(tmp_path / "builds")
-    s = spec(grid={"tip_speed_m_s": [6.0, 10.0, 14.0]}, count_file=cf)
+    s = spec(grid={"tip_speed_m_per_s": [6.0, 10.0, 14.0]}, count_file=cf)
     small = T.get_table(s, analytic_builder, cache_dir=tmp_path / "a", executor="serial", progress=False)
     assert count(cf) == 3
     # another machine: an empty cache, only the finished table at hand
     fresh = tmp_path / "b"
-    big = rebuild_including(small, {"tip_speed_m_s": 16.0}, builder=analytic_builder, cache_dir=fresh,
+    big = rebuild_including(small, {"tip_speed_m_per_s": 16.0}, builder=analytic_builder, cache_dir=fresh,
                             executor="serial", progress=False)
     assert count(cf) == 4  # exactly one run: the new point
-    assert list(big.axes["tip_speed_m_s"]) == [6.0, 10.0, 14.0, 16.0]
+    assert list(big.axes["tip_speed_m_per_s"]) == [6.0, 10.0, 14.0, 16.0]
     for k in T.FIELDS:
         np.testing.assert_array_equal(big.data[k][:3], small.data[k])  # bit for bit
-    again = rebuild_including(small, {"tip_speed_m_s": 16.0}, builder=analytic_builder, cache_dir=fresh,
+    again = rebuild_including(small, {"tip_speed_m_per_s": 16.0}, builder=analytic_builder, cache_dir=fresh,
                               executor="serial", progress=False)
     assert count(cf) == 4  # the second time nothing is built
     for k in T.FIELDS:
@@ -53,7 +53,7 @@ def test_refining_the_coupled_table_reuses_its_points(tmp_path):
     table are found in a fresh point store."""
     t = T.read_table_ref("coupled")
     old = t.spec()
-    grid = dict(old.grid, tip_speed_m_s=[6.0 + k for k in range(9)])
+    grid = dict(old.grid, tip_speed_m_per_s=[6.0 + k for k in range(9)])
     new = T.TableSpec(scene=old.scene, grid=grid, kernel_version=old.kernel_version, builder_id=old.builder_id,
                       one_at_a_time=old.one_at_a_time)
     from millfmu.dem.tables.cache import seed_tables
@@ -81,7 +81,7 @@ def test_the_progress_line_counts_down_while_a_point_runs(tmp_path, monkeypatch,
             time.sleep(0.4)
             return analytic_builder(scene, point)
 
-    s = spec(grid={"tip_speed_m_s": [6.0, 10.0]})
+    s = spec(grid={"tip_speed_m_per_s": [6.0, 10.0]})
     B.run_points(s, Slow(), executor="serial", progress=True, seconds_per_cost=10.0)
     err = capsys.readouterr().err
     lefts = [line for line in err.replace("\r", "\n").splitlines() if "left" in line]
@@ -95,7 +95,7 @@ def test_a_build_over_a_finished_table_knows_its_seconds_per_cost(tmp_path, monk
     from tests.tables._builders import FakeDemBuilder
 
     monkeypatch.setattr(C, "dem_kernel_version", lambda: "k")
-    small = T.TableSpec(scene={"name": "analytic"}, grid={"tip_speed_m_s": [6.0, 10.0]}, kernel_version="k",
+    small = T.TableSpec(scene={"name": "analytic"}, grid={"tip_speed_m_per_s": [6.0, 10.0]}, kernel_version="k",
                         builder_id=T.DEM_BUILDER_ID)
     done = T.get_table(small, FakeDemBuilder(), cache_dir=tmp_path / "a", executor="serial", progress=False)
     seen, real = {}, C.build_table
@@ -105,7 +105,7 @@ def test_a_build_over_a_finished_table_knows_its_seconds_per_cost(tmp_path, monk
         return real(spec, builder, **kw)
 
     monkeypatch.setattr(C, "build_table", capture)
-    big = T.TableSpec(scene={"name": "analytic"}, grid={"tip_speed_m_s": [6.0, 10.0, 14.0]}, kernel_version="k",
+    big = T.TableSpec(scene={"name": "analytic"}, grid={"tip_speed_m_per_s": [6.0, 10.0, 14.0]}, kernel_version="k",
                       builder_id=T.DEM_BUILDER_ID)
     T.get_table(big, FakeDemBuilder(), cache_dir=tmp_path / "b", executor="serial", progress=False, seed_from=(done,))
     assert seen["seconds_per_cost"] == FakeDemBuilder.seconds_per_cost

@@ -48,7 +48,8 @@ def test_build_fmu_carries_the_table_that_covers_the_scene(tmp_path, monkeypatch
     """A scene at 16 m/s on a 6-14 m/s table: the covering table is built once at build
     time (one point), exported as the FMU's slice, and the FMU's model reads it."""
     monkeypatch.setattr(cache, "dem_kernel_version", lambda: "k")
-    s = T.TableSpec(scene={"name": "analytic"}, grid={"tip_speed_m_s": [6.0, 10.0, 14.0], "filling": [0.5, 0.7, 0.9]},
+    s = T.TableSpec(scene={"name": "analytic"}, grid={"tip_speed_m_per_s": [6.0, 10.0, 14.0],
+                                                         "filling": [0.5, 0.7, 0.9]},
                     kernel_version="k", builder_id=T.DEM_BUILDER_ID)
     T.get_table(s, FakeDemBuilder(), cache_dir=tmp_path / "c", executor="serial", progress=False).export(tmp_path / "t")
     d = {"kinetics": {"model": "detailed", "stress_distribution": {"source": "table", "table": str(tmp_path / "t"),
@@ -65,7 +66,7 @@ def test_build_fmu_carries_the_table_that_covers_the_scene(tmp_path, monkeypatch
     assert [f.name for f in files] == ["table.npz", "table.json"]
     d["kinetics"]["stress_distribution"]["table"] = str(tmp_path / "fmu" / "table")
     fmu_model = MillModel(scene_from_dict(d), no_dem=True)
-    assert list(fmu_model.source.table.axes["tip_speed_m_s"]) == [6.0, 10.0, 14.0, 16.0]
+    assert list(fmu_model.source.table.axes["tip_speed_m_per_s"]) == [6.0, 10.0, 14.0, 16.0]
     fmu_model.step(1.0)
 
 

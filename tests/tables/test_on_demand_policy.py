@@ -17,27 +17,28 @@ from millfmu.dem.tables.build import BuildProgress
 from millfmu.dem.tables.dem_builder import rebuild_including
 from millfmu.dem.tables.on_demand import StaleTableError
 from millfmu.kinetics.rates import OperatingPoint
-from tests.tables._builders import D_GB_M, POROSITY, R_DISC_M, RHO_KG_M3, FakeDemBuilder
+from tests.tables._builders import D_GB_M, POROSITY, R_DISC_M, RHO_KG_PER_M3, FakeDemBuilder
 
 
 def _op(v, phi=0.8):
     return OperatingPoint(tip_speed_m_per_s=v, filling=phi, porosity=POROSITY, r_stirrer_m=R_DISC_M, d_gb_m=D_GB_M,
-                          rho_gb_kg_per_m3=RHO_KG_M3, y_gb_Pa=63e9, y_p_Pa=70e9, rho_p_kg_per_m3=2710.0,
+                          rho_gb_kg_per_m3=RHO_KG_PER_M3, y_gb_Pa=63e9, y_p_Pa=70e9, rho_p_kg_per_m3=2710.0,
                           rho_l_kg_per_m3=998.0, eta_susp_Pa_s=1e-3, solids_mass_fraction=0.2)
 
 
 @pytest.fixture
 def old_table(tmp_path):
     """A 'DEM' table of 3 points built by kernel 'k-old' (the fake DEM, 2 s per cost unit)."""
-    s = T.TableSpec(scene={"name": "analytic"}, grid={"tip_speed_m_s": [6.0, 10.0, 14.0]}, kernel_version="k-old",
+    s = T.TableSpec(scene={"name": "analytic"}, grid={"tip_speed_m_per_s": [6.0, 10.0, 14.0]}, kernel_version="k-old",
                     builder_id=T.DEM_BUILDER_ID)
     return T.get_table(s, FakeDemBuilder(), cache_dir=tmp_path / "a", executor="serial", progress=False)
 
 
 def _extend(table, tmp_path, policy, events):
     fb = FakeDemBuilder(events)
-    return rebuild_including(table, {"tip_speed_m_s": 16.0}, builder=fb, cache_dir=tmp_path / "b", executor="serial",
-                             progress=False, on_stale=policy, log=lambda m: events.append(("log", m)))
+    return rebuild_including(table, {"tip_speed_m_per_s": 16.0}, builder=fb, cache_dir=tmp_path / "b",
+                             executor="serial", progress=False, on_stale=policy,
+                             log=lambda m: events.append(("log", m)))
 
 
 def test_same_kernel_runs_only_the_new_point_and_says_so_first(old_table, tmp_path, monkeypatch):
@@ -73,12 +74,12 @@ def test_stale_kernel_refuse_rebuild_accept(old_table, tmp_path, monkeypatch):
     t = _extend(old_table, tmp_path, "accept", events)
     assert events[0][0] == "log" and "on_stale = 'accept'" in events[0][1]
     assert "1 to run" in events[0][1]
-    assert [x for x in events if x[0] == "build"] == [("build", {"tip_speed_m_s": 16.0})]
+    assert [x for x in events if x[0] == "build"] == [("build", {"tip_speed_m_per_s": 16.0})]
     assert t.spec().kernel_version == "k-old"
     for k in T.FIELDS:
         np.testing.assert_array_equal(t.data[k][:3], old_table.data[k])
     assert t.manifest["on_demand"]["installed_kernel_version"] == "k-new"
-    assert t.manifest["on_demand"]["points_run_with_installed"] == [{"tip_speed_m_s": 16.0}]
+    assert t.manifest["on_demand"]["points_run_with_installed"] == [{"tip_speed_m_per_s": 16.0}]
 
 
 def test_stale_refusal_is_up_front_in_the_source_check(old_table, monkeypatch):
@@ -86,7 +87,7 @@ def test_stale_refusal_is_up_front_in_the_source_check(old_table, monkeypatch):
     calls = []
     src = T.TableStressSource(old_table, on_outside="build", rebuild=lambda t, p: calls.append(p))
     src.check(_op(10.0))  # inside the grid: nothing to build
-    with pytest.raises(T.OutsideGridError, match="tip_speed_m_s = 16.0.*k-old.*refused"):
+    with pytest.raises(T.OutsideGridError, match="tip_speed_m_per_s = 16.0.*k-old.*refused"):
         src.check(_op(16.0))
     assert calls == []
     T.TableStressSource(old_table, on_outside="build", on_stale="accept").check(_op(16.0))  # accepted
@@ -172,7 +173,7 @@ def test_build_progress_eta_arithmetic():
 
 
 def test_run_points_shows_the_eta_on_its_bar(tmp_path, capsys):
-    s = T.TableSpec(scene={"name": "analytic"}, grid={"tip_speed_m_s": [6.0, 10.0]}, kernel_version="k",
+    s = T.TableSpec(scene={"name": "analytic"}, grid={"tip_speed_m_per_s": [6.0, 10.0]}, kernel_version="k",
                     builder_id=T.DEM_BUILDER_ID)
     T.get_table(s, FakeDemBuilder(), cache_dir=tmp_path, executor="serial", progress=True, seconds_per_cost=2.0)
     err = capsys.readouterr().err

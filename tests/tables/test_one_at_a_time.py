@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 from millfmu.dem import tables as T
-from tests.tables._builders import (D_GB_M, RHO_KG_M3, count, separable_builder,
+from tests.tables._builders import (D_GB_M, RHO_KG_PER_M3, count, separable_builder,
                                     separable_spec)
 
 
@@ -29,12 +29,12 @@ def test_points_and_count(tmp_path):
     # 9 grid points, the anchor (10 m/s, 0.7) is one of them; 2 + 1 points off the grid
     assert len(pts) == 12
     assert pts[9:] == [
-        {"tip_speed_m_s": 10.0, "filling": 0.7, "bead_diameter_m": 0.5e-3},
-        {"tip_speed_m_s": 10.0, "filling": 0.7, "bead_diameter_m": 1.2e-3},
-        {"tip_speed_m_s": 10.0, "filling": 0.7, "bead_density_kg_m3": 6040.0}]
+        {"tip_speed_m_per_s": 10.0, "filling": 0.7, "bead_diameter_m": 0.5e-3},
+        {"tip_speed_m_per_s": 10.0, "filling": 0.7, "bead_diameter_m": 1.2e-3},
+        {"tip_speed_m_per_s": 10.0, "filling": 0.7, "bead_density_kg_per_m3": 6040.0}]
     # an anchor off the grid is run as well
     off = separable_spec(anchor_filling=0.8)
-    assert len(off.points()) == 13 and off.points()[9] == {"tip_speed_m_s": 10.0,
+    assert len(off.points()) == 13 and off.points()[9] == {"tip_speed_m_per_s": 10.0,
                                                           "filling": 0.8}
     # keys: tables without the axes keep theirs; the axes are part of the key
     assert "one_at_a_time" in s.key_content()
@@ -44,8 +44,8 @@ def test_points_and_count(tmp_path):
     t = T.get_table(s, _counting(cf), cache_dir=tmp_path / "c", executor="serial",
                     progress=False)
     assert count(cf) == 12
-    assert set(t.one_at_a_time) == {"bead_diameter_m", "bead_density_kg_m3"}
-    assert t.anchor == {"tip_speed_m_s": 10.0, "filling": 0.7}
+    assert set(t.one_at_a_time) == {"bead_diameter_m", "bead_density_kg_per_m3"}
+    assert t.anchor == {"tip_speed_m_per_s": 10.0, "filling": 0.7}
     # a table that shares the grid points runs only the new ones
     T.get_table(separable_spec(one_at_a_time={"bead_diameter_m": [D_GB_M, 1.6e-3]}),
                 _counting(cf), cache_dir=tmp_path / "c", executor="serial", progress=False)
@@ -61,7 +61,7 @@ def test_spec_errors_name_the_axis():
     with pytest.raises(T.TableError, match="one-at-a-time axis 'speed': unknown"):
         separable_spec(one_at_a_time={"speed": [1.0]})
     with pytest.raises(T.TableError, match=r"scene \[beads\] diameter_m: missing"):
-        T.TableSpec(scene={"mill": {"tip_speed_m_s": 10.0}}, grid={"tip_speed_m_s": [10.0]},
+        T.TableSpec(scene={"mill": {"tip_speed_m_per_s": 10.0}}, grid={"tip_speed_m_per_s": [10.0]},
                     kernel_version="k", one_at_a_time={"bead_diameter_m": [1e-3]})
 
 
@@ -73,10 +73,10 @@ def table(tmp_path_factory):
 
 
 @pytest.mark.parametrize("v, phi, d, rho", [(14.0, 0.9, 1.2e-3, 6040.0),
-                                           (6.0, 0.5, 0.5e-3, RHO_KG_M3),
+                                           (6.0, 0.5, 0.5e-3, RHO_KG_PER_M3),
                                            (10.0, 0.7, 1.2e-3, 6040.0)])
 def test_separable_builder_is_reproduced_off_the_anchor(table, v, phi, d, rho):
-    pt = {"tip_speed_m_s": v, "filling": phi, "bead_diameter_m": d, "bead_density_kg_m3": rho}
+    pt = {"tip_speed_m_per_s": v, "filling": phi, "bead_diameter_m": d, "bead_density_kg_per_m3": rho}
     lk = table.lookup(pt)
     want = separable_builder({}, pt)
     for k in ("filling_local", "speed_over_tip_speed", "collision_frequency_norm",
@@ -99,15 +99,15 @@ def test_separable_builder_is_reproduced_off_the_anchor(table, v, phi, d, rho):
 
 
 def test_between_nodes_and_at_the_reference(table):
-    base = {"tip_speed_m_s": 12.0, "filling": 0.8}
-    ref = table.lookup(dict(base, bead_diameter_m=D_GB_M, bead_density_kg_m3=RHO_KG_M3))
+    base = {"tip_speed_m_per_s": 12.0, "filling": 0.8}
+    ref = table.lookup(dict(base, bead_diameter_m=D_GB_M, bead_density_kg_per_m3=RHO_KG_PER_M3))
     assert not ref.notes  # the scene's values: the grid's lookup unchanged
     grid_only = T.Table(axes=table.axes, zone_names=table.zone_names, data=table.data,
                         refs=table.refs).lookup(base)
     for k in T.FIELDS:
         np.testing.assert_array_equal(ref.values[k], grid_only.values[k])
     # between 0.8 and 1.2 mm: linear in d along the side axis (3 nodes: errors finite)
-    lk = table.lookup(dict(base, bead_diameter_m=1.0e-3, bead_density_kg_m3=RHO_KG_M3))
+    lk = table.lookup(dict(base, bead_diameter_m=1.0e-3, bead_density_kg_per_m3=RHO_KG_PER_M3))
     f = lambda d: (d / D_GB_M) ** -0.4  # noqa: E731
     lin = f(D_GB_M) + (f(1.2e-3) - f(D_GB_M)) * 0.5
     np.testing.assert_allclose(lk.values["collision_frequency_norm"],
@@ -120,8 +120,8 @@ def test_between_nodes_and_at_the_reference(table):
     assert np.nanmax(lk.error["se_density"] - grid_only.error["se_density"]) > 0
     # between the two densities: a 2-node axis, no curvature, its field taken as monotone
     # between the nodes: the error is finite and holds the builder's value
-    lk = table.lookup(dict(base, bead_diameter_m=D_GB_M, bead_density_kg_m3=4000.0))
-    g = lambda rho: (rho / RHO_KG_M3) ** 0.2  # noqa: E731  the builder's factor on rates
+    lk = table.lookup(dict(base, bead_diameter_m=D_GB_M, bead_density_kg_per_m3=4000.0))
+    g = lambda rho: (rho / RHO_KG_PER_M3) ** 0.2  # noqa: E731  the builder's factor on rates
     exact = grid_only.values["collision_frequency_norm"] * g(4000.0)
     assert np.all(np.isfinite(lk.error["collision_frequency_norm"]))
     assert np.all(np.abs(lk.values["collision_frequency_norm"] - exact) <= lk.error["collision_frequency_norm"])
@@ -129,15 +129,15 @@ def test_between_nodes_and_at_the_reference(table):
 
 def test_lookup_refuses_outside_and_missing(table):
     with pytest.raises(T.OutsideGridError, match=r"bead_diameter_m = 0.002 m is outside"):
-        table.lookup({"tip_speed_m_s": 10.0, "filling": 0.7, "bead_diameter_m": 2e-3,
-                      "bead_density_kg_m3": RHO_KG_M3})
-    with pytest.raises(T.TableError, match="one-at-a-time axis bead_density_kg_m3 missing"):
-        table.lookup({"tip_speed_m_s": 10.0, "filling": 0.7, "bead_diameter_m": 1e-3})
+        table.lookup({"tip_speed_m_per_s": 10.0, "filling": 0.7, "bead_diameter_m": 2e-3,
+                      "bead_density_kg_per_m3": RHO_KG_PER_M3})
+    with pytest.raises(T.TableError, match="one-at-a-time axis bead_density_kg_per_m3 missing"):
+        table.lookup({"tip_speed_m_per_s": 10.0, "filling": 0.7, "bead_diameter_m": 1e-3})
     # similarity named: the edge's change is held
-    lk = table.lookup({"tip_speed_m_s": 10.0, "filling": 0.7, "bead_diameter_m": 2e-3,
-                       "bead_density_kg_m3": RHO_KG_M3}, similar_axes=("bead_diameter_m",))
-    at_edge = table.lookup({"tip_speed_m_s": 10.0, "filling": 0.7, "bead_diameter_m": 1.2e-3,
-                            "bead_density_kg_m3": RHO_KG_M3})
+    lk = table.lookup({"tip_speed_m_per_s": 10.0, "filling": 0.7, "bead_diameter_m": 2e-3,
+                       "bead_density_kg_per_m3": RHO_KG_PER_M3}, similar_axes=("bead_diameter_m",))
+    at_edge = table.lookup({"tip_speed_m_per_s": 10.0, "filling": 0.7, "bead_diameter_m": 1.2e-3,
+                            "bead_density_kg_per_m3": RHO_KG_PER_M3})
     np.testing.assert_array_equal(lk.values["se_density"], at_edge.values["se_density"])
 
 
@@ -147,8 +147,8 @@ def test_files_slice_and_export(table, tmp_path):
     m = json.loads(man.read_text())
     assert m["one_at_a_time"]["bead_diameter_m"] == [0.5e-3, D_GB_M, 1.2e-3]
     assert m["resolution"]["one_at_a_time"]["points"] == 3
-    pt = {"tip_speed_m_s": 8.0, "filling": 0.6, "bead_diameter_m": 0.6e-3,
-          "bead_density_kg_m3": 5000.0}
+    pt = {"tip_speed_m_per_s": 8.0, "filling": 0.6, "bead_diameter_m": 0.6e-3,
+          "bead_density_kg_per_m3": 5000.0}
     for k in T.FIELDS:
         np.testing.assert_array_equal(back.lookup(pt).values[k], table.lookup(pt).values[k])
     sub = table.subset({"filling": (0.5, 0.7)})
@@ -185,8 +185,8 @@ def test_shift_log_density_moves_by_whole_bins_and_keeps_the_total():
 
 def test_stress_source_reads_the_axes(table):
     src = T.TableStressSource(table)
-    assert set(src.point_of(_op(0.8e-3))) == {"tip_speed_m_s", "filling", "bead_diameter_m",
-                                              "bead_density_kg_m3"}
+    assert set(src.point_of(_op(0.8e-3))) == {"tip_speed_m_per_s", "filling", "bead_diameter_m",
+                                              "bead_density_kg_per_m3"}
     with pytest.raises(T.OutsideGridError, match="bead_diameter_m"):
         src.check(_op(2e-3))
 
@@ -194,7 +194,7 @@ def test_stress_source_reads_the_axes(table):
 def _op(d):
     from types import SimpleNamespace
     return SimpleNamespace(tip_speed_m_per_s=10.0, filling=0.7, d_gb_m=d,
-                           rho_gb_kg_per_m3=RHO_KG_M3, eta_susp_Pa_s=1e-3)
+                           rho_gb_kg_per_m3=RHO_KG_PER_M3, eta_susp_Pa_s=1e-3)
 
 
 def test_cli_one_at_a_time(tmp_path, capsys):
@@ -214,7 +214,7 @@ def test_cli_one_at_a_time(tmp_path, capsys):
     assert "--bead-diameter 0.0005,0.0008 --one-at-a-time bead-diameter" in m["rebuild_command"]
     assert main(argv[:2] + ["--bead-diameter", "0.0005,0.0008", "--filling", "0.8",
                             "--one-at-a-time", "bead-density", "--cache-dir", cache]) == 2
-    assert "--one-at-a-time bead_density_kg_m3: give its values with --bead-density" in \
+    assert "--one-at-a-time bead_density_kg_per_m3: give its values with --bead-density" in \
         capsys.readouterr().err
     with pytest.raises(SystemExit):
         main(argv[:2] + ["--one-at-a-time", "colour"])
@@ -241,15 +241,15 @@ def test_cli_check_point(tmp_path, capsys):
     assert "collision_frequency_norm" in out and "recorded in" in out
     t = T.read_table(npz=prefix + ".npz", manifest_path=prefix + ".json")
     (res,) = t.manifest["separability_check"]["points"]
-    assert res["point"] == {"tip_speed_m_s": 12.0, "filling": 0.9,
-                            "bead_density_kg_m3": 6040.0}
-    f = (6040.0 / RHO_KG_M3) ** 0.2  # the builder's factor on rates, speeds, fillings
+    assert res["point"] == {"tip_speed_m_per_s": 12.0, "filling": 0.9,
+                            "bead_density_kg_per_m3": 6040.0}
+    f = (6040.0 / RHO_KG_PER_M3) ** 0.2  # the builder's factor on rates, speeds, fillings
     for k in ("speed_over_tip_speed", "filling_local", "collision_frequency_norm"):
         assert np.allclose(res[k]["lookup_rel_diff"], 0.0, atol=1e-9)
         assert np.allclose(res[k]["grid_only_rel_diff"], 1.0 / f - 1.0, rtol=1e-3)
     assert np.allclose(res["se_tn_q50_norm"]["lookup_rel_diff"], 0.0, atol=1e-9)
     assert np.allclose(res["se_tn_q50_norm"]["grid_only_rel_diff"],
-                       (6040.0 / RHO_KG_M3) ** -0.3 - 1.0, rtol=1e-3)
+                       (6040.0 / RHO_KG_PER_M3) ** -0.3 - 1.0, rtol=1e-3)
     # the same point again replaces its entry; a point on the axes' references between
     # grid nodes is an interpolation check
     assert main(check + ["--tip-speed", "12", "--filling", "0.9", "--bead-density", "6040",
@@ -258,15 +258,15 @@ def test_cli_check_point(tmp_path, capsys):
     m = json.loads((tmp_path / "t.json").read_text())
     assert len(m["separability_check"]["points"]) == 1
     (res,) = m["interpolation_check"]["points"]
-    assert res["point"] == {"tip_speed_m_s": 9.0, "filling": 0.8,
-                            "bead_density_kg_m3": RHO_KG_M3}
+    assert res["point"] == {"tip_speed_m_per_s": 9.0, "filling": 0.8,
+                            "bead_density_kg_per_m3": RHO_KG_PER_M3}
     assert "grid_only_rel_diff" in res["filling_local"]
     capsys.readouterr()
     # axes the table does not have and points outside it are refused, before any run
     assert main(check + ["--viscosity", "0.002"]) == 2
-    assert "axes ['viscosity_pa_s'] are not the table's" in capsys.readouterr().err
+    assert "axes ['viscosity_Pa_s'] are not the table's" in capsys.readouterr().err
     assert main(check + ["--tip-speed", "20"]) == 2
-    assert "tip_speed_m_s" in capsys.readouterr().err
+    assert "tip_speed_m_per_s" in capsys.readouterr().err
 
 
 def test_cli_check_from_an_earlier_manifest(tmp_path, capsys):
@@ -295,7 +295,7 @@ def test_cli_check_from_an_earlier_manifest(tmp_path, capsys):
     m = json.loads((tmp_path / "new.json").read_text())
     (sep,) = m["separability_check"]["points"]
     (itp,) = m["interpolation_check"]["points"]
-    assert itp["point"]["tip_speed_m_s"] == 9.0 and itp["run_from"]
+    assert itp["point"]["tip_speed_m_per_s"] == 9.0 and itp["run_from"]
     assert sep["run_kernel_version"] == \
         json.loads((tmp_path / "old.json").read_text())["kernel_version"]
     for res in (sep, itp):

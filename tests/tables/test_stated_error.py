@@ -39,30 +39,30 @@ def test_separability_error_grows_with_the_distances_from_the_anchor_and_the_ref
     """b = b_c (g / g_c) (h / h_c): b_c = max(l/r, r/l) - 1 at the check (lookup twice the
     run and half of it both give 1), g the largest distance from the anchor (10 m/s, 80 %)
     in units of each grid axis's range, h = |ln(d / 0.8 mm)|."""
-    c = _check({"tip_speed_m_s": 6.0, "filling": 0.5, "bead_diameter_m": 1.2e-3},
+    c = _check({"tip_speed_m_per_s": 6.0, "filling": 0.5, "bead_diameter_m": 1.2e-3},
                [1.0, -0.5, 0.0, None], [0.25, -0.2, None, None])
     t = _with_checks(coupled, [c])
-    d12 = {"bead_diameter_m": 1.2e-3, "bead_density_kg_m3": 2510.0}
-    at_check = t.separability_error({"tip_speed_m_s": 6.0, "filling": 0.5, **d12})
+    d12 = {"bead_diameter_m": 1.2e-3, "bead_density_kg_per_m3": 2510.0}
+    at_check = t.separability_error({"tip_speed_m_per_s": 6.0, "filling": 0.5, **d12})
     assert np.allclose(at_check["collision_frequency"][:3], [1.0, 1.0, 0.0])
     assert math.isnan(at_check["collision_frequency"][3])  # a zone the check found empty
     assert np.allclose(at_check["se_median"][:2], [0.25, 0.25])
     # the anchor itself (the side table's own point) and the axes' references add nothing
-    for p in ({"tip_speed_m_s": 10.0, "filling": 0.8, **d12},
-              {"tip_speed_m_s": 6.0, "filling": 0.5, "bead_diameter_m": 0.8e-3,
-               "bead_density_kg_m3": 2510.0}):
+    for p in ({"tip_speed_m_per_s": 10.0, "filling": 0.8, **d12},
+              {"tip_speed_m_per_s": 6.0, "filling": 0.5, "bead_diameter_m": 0.8e-3,
+               "bead_density_kg_per_m3": 2510.0}):
         e = t.separability_error(p)
         assert np.all(e["collision_frequency"] == 0.0) and np.all(e["se_median"] == 0.0)
     # a third of the check's distance from the anchor: g = 0.25 against 0.75
-    e = t.separability_error({"tip_speed_m_s": 10.0, "filling": 0.7, **d12})
+    e = t.separability_error({"tip_speed_m_per_s": 10.0, "filling": 0.7, **d12})
     assert np.allclose(e["collision_frequency"][:2], [1 / 3, 1 / 3])
     # farther along the axis than the check: ln(0.8 / 0.5) / ln(1.2 / 0.8)
-    e = t.separability_error({"tip_speed_m_s": 6.0, "filling": 0.5, "bead_diameter_m": 0.5e-3,
-                              "bead_density_kg_m3": 2510.0})
+    e = t.separability_error({"tip_speed_m_per_s": 6.0, "filling": 0.5, "bead_diameter_m": 0.5e-3,
+                              "bead_density_kg_per_m3": 2510.0})
     assert e["collision_frequency"][0] == pytest.approx(math.log(1.6) / math.log(1.5))
     # an axis off its reference that no check measured: not stated (NaN)
-    e = t.separability_error({"tip_speed_m_s": 6.0, "filling": 0.5, "bead_diameter_m": 0.8e-3,
-                              "bead_density_kg_m3": 6040.0})
+    e = t.separability_error({"tip_speed_m_per_s": 6.0, "filling": 0.5, "bead_diameter_m": 0.8e-3,
+                              "bead_density_kg_per_m3": 6040.0})
     assert np.all(np.isnan(e["collision_frequency"]))
 
 
@@ -76,8 +76,8 @@ def test_realization_error_is_the_manifests_spread_times_its_factor(coupled):
     assert np.allclose(e["se_median"][:3], 3.93 * np.array([0.04, 0.14, 0.11]))
     assert math.isnan(e["se_median"][3])
     src = TableStressSource(t)
-    at = {"tip_speed_m_s": 10.0, "filling": 0.8, "bead_diameter_m": 0.8e-3,
-          "bead_density_kg_m3": 2510.0}
+    at = {"tip_speed_m_per_s": 10.0, "filling": 0.8, "bead_diameter_m": 0.8e-3,
+          "bead_density_kg_per_m3": 2510.0}
     with_spread = src.relative_error(t.lookup(at))
     without = TableStressSource(_with_checks(coupled, [])).relative_error(t.lookup(at))
     assert np.allclose(with_spread["collision_frequency"] - without["collision_frequency"],
@@ -129,8 +129,8 @@ def test_a_node_run_again_states_its_difference_and_carries_it_to_its_cell(coupl
     """A check at a grid node (another realization of it): at the node the stated part is
     |l - r| / l per zone, halfway to the next node the weighted |l - r| over the grid's
     interpolant there; a point whose cell holds no checked node gets none."""
-    node = {"tip_speed_m_s": 12.0, "filling": 0.6, "bead_diameter_m": 0.8e-3,
-            "bead_density_kg_m3": 2510.0}
+    node = {"tip_speed_m_per_s": 12.0, "filling": 0.6, "bead_diameter_m": 0.8e-3,
+            "bead_density_kg_per_m3": 2510.0}
     cf = np.array(coupled.lookup(node).values["collision_frequency_norm"], float)
     run = [float(v) for v in cf * np.array([2.0, 1.0, 0.5, 1.0])]
     run[3] = 0.5  # a zone empty in the table's run, filled in the other
@@ -142,10 +142,10 @@ def test_a_node_run_again_states_its_difference_and_carries_it_to_its_cell(coupl
     want = np.abs(cf - np.array(run)) / cf
     np.testing.assert_allclose(e["collision_frequency"], want)
     assert np.all(e["se_median"] == 0.0)  # no run value: nothing measured
-    half = dict(node, tip_speed_m_s=13.0)
-    cf14 = coupled.lookup(dict(node, tip_speed_m_s=14.0)).values["collision_frequency_norm"]
+    half = dict(node, tip_speed_m_per_s=13.0)
+    cf14 = coupled.lookup(dict(node, tip_speed_m_per_s=14.0)).values["collision_frequency_norm"]
     e = t.node_check_error(t.lookup(half))
     np.testing.assert_allclose(e["collision_frequency"],
                                0.5 * np.abs(cf - np.array(run)) / (0.5 * cf + 0.5 * cf14))
-    far = t.node_check_error(t.lookup(dict(node, tip_speed_m_s=8.0, filling=0.8)))
+    far = t.node_check_error(t.lookup(dict(node, tip_speed_m_per_s=8.0, filling=0.8)))
     assert np.all(far["collision_frequency"] == 0.0)

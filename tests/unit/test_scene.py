@@ -112,12 +112,12 @@ def test_a_scene_file_that_is_not_utf8_is_refused_naming_the_file_and_byte_offse
 
 def test_an_unknown_similar_axis_is_refused_by_load_scene_listing_the_allowed_axes(tmp_path, capsys):
     p = tmp_path / "axes.toml"
-    p.write_text('[kinetics.stress_distribution]\nsimilar_axes = ["tip_speed_m_s", "nonsense_axis"]\n')
+    p.write_text('[kinetics.stress_distribution]\nsimilar_axes = ["tip_speed_m_per_s", "nonsense_axis"]\n')
     with pytest.raises(SceneError) as e:
         load_scene(p)
     msg = str(e.value)
     assert "kinetics.stress_distribution.similar_axes[1] = 'nonsense_axis'" in msg
-    for ax in ("tip_speed_m_s", "bead_diameter_m", "bead_density_kg_m3", "viscosity_pa_s"):
+    for ax in ("tip_speed_m_per_s", "bead_diameter_m", "bead_density_kg_per_m3", "viscosity_Pa_s"):
         assert ax in msg
     code, err = _cli(capsys, "run", "-q", p, "--out", tmp_path / "out")
     assert code == 2 and "nonsense_axis" in err

@@ -17,7 +17,7 @@ SECTOR = ROOT / "millfmu" / "dem" / "scenes" / "accelerator_slice.toml"
 
 def test_the_accelerator_full_slice_is_seed_002s_configuration():
     s = load_scene(str(FULL))
-    assert s.geometry.sector_deg == 360.0 and tuple(s.gravity_m_s2) == (0.0, -9.81, 0.0)
+    assert s.geometry.sector_deg == 360.0 and tuple(s.gravity_m_per_s2) == (0.0, -9.81, 0.0)
     # the bead count docs/validation-seed002.md reports for its full-slice run (80 %)
     n = bead_count_for_filling(s.geometry, 0.8, s.bead_diameter_m, s.bulk_porosity)
     assert n == 52_704 and n <= placement_capacity(s.geometry, 0.5 * s.bead_diameter_m)
@@ -25,10 +25,10 @@ def test_the_accelerator_full_slice_is_seed_002s_configuration():
 
 def test_the_full_slice_differs_from_the_sector_only_in_name_sector_and_gravity():
     full, sector = (tomllib.loads(p.read_text()) for p in (FULL, SECTOR))
-    assert (full["name"], full["mill"]["sector_deg"], full["run"]["gravity_m_s2"]) == \
+    assert (full["name"], full["mill"]["sector_deg"], full["run"]["gravity_m_per_s2"]) == \
         ("accelerator_full_gravity", 360.0, [0.0, -9.81, 0.0])
     for d in (full, sector):
-        del d["name"], d["mill"]["sector_deg"], d["run"]["gravity_m_s2"]
+        del d["name"], d["mill"]["sector_deg"], d["run"]["gravity_m_per_s2"]
     assert full == sector
 
 

@@ -19,7 +19,7 @@ import numpy as np
 AZIMUTH_BIN_DEG = 30.0
 
 
-def circumferential(x, gravity_m_s2, sector_deg: float) -> dict:
+def circumferential(x, gravity_m_per_s2, sector_deg: float) -> dict:
     """The circumferential distribution of the beads at positions ``x`` [m] (module
     docstring): one instant (x an array (n, 3)) or the time mean over samples (a sequence
     of (n_i, 3) arrays, or an array (samples, n, 3)); {} without gravity across the axis or
@@ -29,7 +29,7 @@ def circumferential(x, gravity_m_s2, sector_deg: float) -> dict:
     across the axis at each sample [m], towards the rising side and upwards; with equal
     beads the centre of mass, whose offset towards the rising side makes the weight's
     torque about the axis (in a turning bed it travels round with the bed)."""
-    gx, gy = float(gravity_m_s2[0]), float(gravity_m_s2[1])
+    gx, gy = float(gravity_m_per_s2[0]), float(gravity_m_per_s2[1])
     gn = math.hypot(gx, gy)
     if gn == 0.0 or sector_deg < 360.0:
         return {}

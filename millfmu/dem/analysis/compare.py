@@ -11,6 +11,8 @@ import json
 import math
 from pathlib import Path
 
+from millfmu.unit_names import modernize
+
 ZONES = ("V1", "V2", "V3", "V4")
 
 
@@ -19,7 +21,8 @@ class CompareError(ValueError):
 
 
 def load_run(path) -> dict:
-    """The ``stats.json`` of a run folder (or the file itself)."""
+    """The ``stats.json`` of a run folder (or the file itself), its names in the current
+    spelling (:mod:`millfmu.unit_names`)."""
     p = Path(path)
     if p.is_dir():
         p = p / "stats.json"
@@ -27,7 +30,7 @@ def load_run(path) -> dict:
         raise CompareError(f"run {str(path)!r}: no stats.json (not a finished "
                            "'millfmu dem run' folder)")
     try:
-        st = json.loads(p.read_text())
+        st = modernize(json.loads(p.read_text()))
     except (OSError, ValueError) as e:
         raise CompareError(f"run {str(path)!r}: stats.json unreadable: {e}") from None
     if not isinstance(st, dict) or "zones" not in st:

@@ -96,7 +96,7 @@ def fold_zeta(z, disc_z_m, period_m):
     return zr - period_m * np.floor(zr / period_m + 0.5)
 
 
-def first_layer_angular_velocity(sample_x, sample_v, geometry, omega_rad_s,
+def first_layer_angular_velocity(sample_x, sample_v, geometry, omega_rad_per_s,
                                  max_distance_m):
     """Mean angular velocity about the axis, over the stirrer's, of the beads whose centre
     lies within ``max_distance_m`` [m] of a disc face (between the shaft and the disc rim):
@@ -115,7 +115,7 @@ def first_layer_angular_velocity(sample_x, sample_v, geometry, omega_rad_s,
         vperp = (x[m, 0] * v[m, 1] - x[m, 1] * v[m, 0]) / r[m]
         acc += float((vperp / r[m]).sum())
         n += int(m.sum())
-    return (acc / n / omega_rad_s if n else float("nan")), n
+    return (acc / n / omega_rad_per_s if n else float("nan")), n
 
 
 def bead_section_fields(sample_x, sample_v, radii_m, geometry, r_edges, zeta_edges,

@@ -129,7 +129,7 @@ def write_maps(out: Path, scene, events: np.ndarray, cols: dict):
         ax.set_ylabel("radius [mm]")
         # the figure's title, above the colour bar's offset label ("1e12"), which the axes'
         # title ran into on the right
-        fig.suptitle(f"{scene.name}: v_tip {scene.tip_speed_m_s:.3g} m/s, filling "
+        fig.suptitle(f"{scene.name}: v_tip {scene.tip_speed_m_per_s:.3g} m/s, filling "
                      f"{scene.filling if scene.filling is not None else '-'}, fluid "
                      f"{scene.fluid_mode}", fontsize=9)
         fig.tight_layout()
@@ -248,7 +248,7 @@ def write_fluid_maps(out: Path, scene, fields: dict):
     order = np.argsort(zeta)
     zs = zeta[order] * 1e3
     r = np.asarray(fields["r_m"]) * 1e3
-    vt = scene.tip_speed_m_s
+    vt = scene.tip_speed_m_per_s
     items = [("map_fluid_swirl.png", fields["u_theta"] / vt, "u_theta / v_tip", "viridis", False),
              ("map_fluid_radial.png", fields["u_r"] / vt, "u_r / v_tip (black: u_r = 0)",
               "RdBu_r", True),
@@ -269,7 +269,7 @@ def write_fluid_maps(out: Path, scene, fields: dict):
         _zone_outline(ax, scene)
         ax.set_xlabel("axial position from the disc mid-plane [mm]")
         ax.set_ylabel("radius [mm]")
-        ax.set_title(f"{scene.name}: coupled fluid, v_tip {scene.tip_speed_m_s:g} m/s, "
+        ax.set_title(f"{scene.name}: coupled fluid, v_tip {scene.tip_speed_m_per_s:g} m/s, "
                      f"filling {scene.filling if scene.filling is not None else '-'}",
                      fontsize=9)
         fig.tight_layout()
@@ -298,7 +298,7 @@ def write_swirl_profile(path: Path, scene, prof: dict):
         ax.axvline(xv, color="r", lw=0.8)
     ax.set_xlabel("x / D between the disc faces at r = R [-]")
     ax.set_ylabel("speed / tip speed [-]")
-    ax.set_title(f"{scene.name}: v_tip {scene.tip_speed_m_s:g} m/s, filling "
+    ax.set_title(f"{scene.name}: v_tip {scene.tip_speed_m_per_s:g} m/s, filling "
                  f"{scene.filling}; red: V1 borders", fontsize=9)
     ax.legend(fontsize=8)
     fig.tight_layout()

@@ -39,8 +39,8 @@ from millfmu.machine import machine
 #: The operating point (``DemScene.with_overrides`` keys): seed 001's 10 m/s, 80 % case in
 #: the coupled slice, started as seed 001's coupled protocol starts (beads and liquid at 0.1
 #: of the stirrer's rotation; COUPLED_INITIAL_ROTATION of validation/seed001.py).
-OPERATING_POINT = dict(tip_speed_m_s=10.0, filling=0.8, sector_deg=10.0,
-                       gravity_m_s2=(0.0, 0.0, 0.0), fluid_mode="coupled",
+OPERATING_POINT = dict(tip_speed_m_per_s=10.0, filling=0.8, sector_deg=10.0,
+                       gravity_m_per_s2=(0.0, 0.0, 0.0), fluid_mode="coupled",
                        initial_rotation=0.1)
 #: Short study (``quick``): the same point, spun up briefly, sampled every ``sample_s``
 #: [s]: the method on a real run for the tests and the quick report (about 30 s of CPU). It
@@ -66,7 +66,7 @@ def base_scene():
     return load_scene("disc_slice").with_overrides(**OPERATING_POINT)
 
 
-def _timed(fn, out_dir, *a, **kw):
+def timed_run(fn, out_dir, *a, **kw):
     """Run ``fn`` and write its CPU time (this process, all threads) and wall time [s] to
     ``out_dir/cost.json``: on a shared machine the CPU time is the run's cost."""
     c0, w0 = time.process_time(), time.perf_counter()
@@ -86,7 +86,7 @@ def run_quick(out_dir, threads: int | None = 1, progress: bool = False) -> Path:
         sc = base_scene().with_overrides(spin_up_s=QUICK["spin_up_s"],
                                          record_s=QUICK["record_s"],
                                          sample_every_s=QUICK["sample_s"])
-        _timed(run_scene, d, sc, d, progress=progress, threads=threads,
+        timed_run(run_scene, d, sc, d, progress=progress, threads=threads,
                window_s=QUICK["sample_s"], contacts=True)
     return d
 
@@ -221,7 +221,7 @@ def block_stats(rd: RunData, t0: float | None = None, t1: float | None = None) -
     return out
 
 
-def _rel(a, b):
+def relative_difference(a, b):
     """Relative difference (a - b) / b, None where undefined."""
     if a is None or b is None or not b:
         return None
@@ -274,7 +274,7 @@ def recording_length_errors(rd: RunData, window_s: tuple, lengths_s) -> list[dic
         for s in STATISTICS:
             err[s] = {}
             for z in rd.zone_names:
-                d = [_rel(bl[s][z], whole[s][z]) for bl in blocks]
+                d = [relative_difference(bl[s][z], whole[s][z]) for bl in blocks]
                 d = [x for x in d if x is not None]
                 err[s][z] = math.sqrt(n / (n - 1) * float(np.mean(np.square(d)))) \
                     if len(d) == n else None
@@ -332,14 +332,14 @@ def fit_sampling_law(rows: list[dict], t_min_s: float = 0.0) -> dict:
 TARGET_ZONES = ("V2", "V3", "V4")
 
 
-def _sigma(law, s, z, t_s, scale=1.0):
+def sampling_error(law, s, z, t_s, scale=1.0):
     """Error of statistic s in zone z for a recording of t_s [s] from the measured law
     (:func:`fit_sampling_law`; beyond the longest recording studied an extrapolation)."""
     f = law.get(s, {}).get(z)
     return None if f is None else scale * f["at_1s"] * t_s ** f["slope"]
 
 
-def _bias(spin_row, st, z):
+def spin_up_bias(spin_row, st, z):
     """Spin-up bias [-]: the measured error less the two recordings' sampling errors."""
     e = spin_row["error"][st][z]
     n = spin_row["noise_2sigma"][st][z]
@@ -374,8 +374,8 @@ def expected_error(res, spin_up_s, record_s, resolution: bool = True) -> dict:
     for st in STATISTICS:
         out[st] = {}
         for z in res["zones"]:
-            sig = _sigma(res["law"], st, z, record_s)
-            b = _bias(row, st, z)
+            sig = sampling_error(res["law"], st, z, record_s)
+            b = spin_up_bias(row, st, z)
             if sig is None or b is None:
                 out[st][z] = None
                 continue
@@ -403,7 +403,7 @@ COLUMNS = {"median SE_tn": ("se_tn_q50",),
            "collision power": ("collision_power",)}
 
 
-def _worst(d, stats, zones):
+def worst_abs(d, stats, zones):
     vals = [abs(d[s][z]) for s in stats for z in zones if d.get(s, {}).get(z) is not None]
     return max(vals) if vals else None
 
@@ -471,7 +471,7 @@ def summary_text(res) -> str:
         return txt
     c = res["choice"]
     if c:
-        v1 = _worst(c["expected_error"], STATISTICS, ("V1",))
+        v1 = worst_abs(c["expected_error"], STATISTICS, ("V1",))
         txt += (f" Choice for table builds at the reference resolution: spin-up "
                 f"{c['spin_up_s']:g} s, recording {c['record_s']:g} s ({c['run_s']:.0f} s per "
                 f"point on one core of this machine): recording and spin-up add at most "
@@ -549,7 +549,7 @@ def plot(res, path, title=None) -> None:
         for kind, style, col, name in kinds:
             pts = []
             for r in res.get(kind, []):
-                e = _worst(r["error"], STATISTICS, TARGET_ZONES)
+                e = worst_abs(r["error"], STATISTICS, TARGET_ZONES)
                 if e is None:
                     continue
                 text = {"recording": f"T {r.get('record_s', 0):g} s",

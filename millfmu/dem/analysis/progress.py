@@ -58,7 +58,7 @@ def run_progress(out_dir) -> dict:
                checkpoint_bytes_per_bead=path.stat().st_size / sim.n,
                kinetic_energy=dict(t_s=list(loop["ke_t"]), e_j=list(loop["ke"])))
     out.update(recent_pace(loop.get("checkpoints", []), dt, total_s - t_s, sim.n))
-    omega = scene.tip_speed_m_s / (g.disc_radius_m or g.shaft_radius_m)
+    omega = scene.tip_speed_m_per_s / (g.disc_radius_m or g.shaft_radius_m)
     x, v = sim.x, sim.v
     r = np.hypot(x[:, 0], x[:, 1])
     om_i = (x[:, 0] * v[:, 1] - x[:, 1] * v[:, 0]) / np.maximum(r, 1e-300) ** 2
@@ -68,7 +68,7 @@ def run_progress(out_dir) -> dict:
         ratio, n = first_layer_angular_velocity([x], [v], g, omega, 0.75 * d)
         out["first_bead_layer_angular_velocity_ratio"] = ratio
         out["first_bead_layer_beads"] = n
-    out.update(circumferential(x, scene.gravity_m_s2, g.sector_deg))
+    out.update(circumferential(x, scene.gravity_m_per_s2, g.sector_deg))
     return out
 
 

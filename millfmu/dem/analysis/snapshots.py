@@ -45,15 +45,15 @@ def _rotate_z(a: np.ndarray, ang: np.ndarray) -> np.ndarray:
     return out
 
 
-def contacts_present(x_m, v_m_s, w_rad_s, radii_m, pairs, sector_rad: float,
+def contacts_present(x_m, v_m_per_s, w_rad_per_s, radii_m, pairs, sector_rad: float,
                      period_m: float) -> Frame:
     """The bead-bead contacts (overlap > 0) among the candidate ``pairs`` (i, j, s): j's
     image turned by s x ``sector_rad`` about the axis (0 without a sector), the axial
     separation reduced to the nearest image over ``period_m`` [m] (the kernels'
     conventions, :meth:`millfmu.dem.engine.sim.Simulation._pairs`)."""
     x = np.asarray(x_m, float)
-    v = np.asarray(v_m_s, float)
-    w = np.asarray(w_rad_s, float)
+    v = np.asarray(v_m_per_s, float)
+    w = np.asarray(w_rad_per_s, float)
     rad = np.broadcast_to(np.asarray(radii_m, float), (x.shape[0],))
     i, j, s = (np.asarray(a, np.int64) for a in pairs)
     if i.size == 0:

@@ -27,6 +27,8 @@ from dataclasses import asdict, dataclass, field
 
 import numpy as np
 
+from millfmu.unit_names import modernize
+
 SE_LOG10_MIN = -20.0  # seed 001 saved energies between 1e-20 and 1 J
 SE_LOG10_MAX = 0.0
 SE_BINS_PER_DECADE = 5
@@ -66,7 +68,7 @@ class ZoneStats:
 class DemStats:
     scene: str
     fluid_model: str
-    tip_speed_m_s: float
+    tip_speed_m_per_s: float
     filling: float | None
     beads: int
     sector_deg: float
@@ -97,7 +99,9 @@ class DemStats:
 
     @staticmethod
     def from_json(text: str) -> "DemStats":
-        d = json.loads(text)
+        """The stats of a ``stats.json`` (names in an earlier release's spelling read as the
+        current ones: :mod:`millfmu.unit_names`)."""
+        d = modernize(json.loads(text))
         zones = []
         for z in d.pop("zones"):
             z["se"] = {k: EnergyDistribution(**v) for k, v in z["se"].items()}
@@ -180,7 +184,7 @@ def zone_of_rows(zones, ev: np.ndarray, ev_cols: dict) -> np.ndarray:
 
 def compute_stats(*, scene: str, zones, events: np.ndarray, ev_cols: dict,
                   sample_x: list, sample_v: list, radii_m: np.ndarray,
-                  record_s: float, tip_speed_m_s: float, omega_rad_s: float,
+                  record_s: float, tip_speed_m_per_s: float, omega_rad_per_s: float,
                   torque_on_stirrer_nm: float, ke_t_s, ke_j, spin_up_s: float,
                   dt_s: float, filling: float | None, bulk_porosity: float = 0.4,
                   fluid_model: str = "", notes=(), counts=None) -> DemStats:
@@ -221,7 +225,7 @@ def compute_stats(*, scene: str, zones, events: np.ndarray, ev_cols: dict,
         comp = {"tn": se_tn[bb], "ts": se_ts[bb], "total": se_tot[bb]}
         out.append(ZoneStats(
             name=name, volume_m3=float(vols[k]), filling=float(fill_acc[k] / ns),
-            speed_over_tip_speed=float(speed_acc[k] / max(speed_n[k], 1) / tip_speed_m_s),
+            speed_over_tip_speed=float(speed_acc[k] / max(speed_n[k], 1) / tip_speed_m_per_s),
             collision_count=int(bb.sum()),
             collision_frequency_per_m3_s=float(bb.sum() / (vols[k] * record_s)),
             wall_collision_frequency_per_m3_s=float(bw.sum() / (vols[k] * record_s)),
@@ -236,10 +240,10 @@ def compute_stats(*, scene: str, zones, events: np.ndarray, ev_cols: dict,
     frac = g.sector_fraction
     drive_torque = -torque_on_stirrer_nm / frac + 0.0  # + 0.0: no "-0" without contacts
     return DemStats(
-        scene=scene, fluid_model=fluid_model, tip_speed_m_s=tip_speed_m_s, filling=filling,
+        scene=scene, fluid_model=fluid_model, tip_speed_m_per_s=tip_speed_m_per_s, filling=filling,
         beads=int(np.asarray(radii_m).size), sector_deg=g.sector_deg, dt_s=dt_s,
         spin_up_s=spin_up_s, record_s=record_s, se_bin_edges_j=[float(e) for e in edges],
         zones=out, stirrer_torque_nm=float(drive_torque),
-        stirrer_power_w=float(drive_torque * omega_rad_s),
+        stirrer_power_w=float(drive_torque * omega_rad_per_s),
         kinetic_energy=kinetic_energy_steadiness(ke_t_s, ke_j, spin_up_s),
         counts=dict(counts or {}), notes=list(notes), walls=walls)

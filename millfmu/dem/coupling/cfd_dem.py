@@ -44,7 +44,7 @@ class CfdDem:
     """Couples a :class:`millfmu.dem.engine.sim.DemSimulation` to a fluid on ``grid``."""
 
     def __init__(self, sim, grid, fluid: FluidProperties, settings: CouplingSettings,
-                 omega_rad_s: float):
+                 omega_rad_per_s: float):
         # numba kernels: compiled when a coupled run is built, not with a scene file.
         from millfmu.dem.coupling import exchange_kernels as EK
         from millfmu.dem.coupling import projection as PJ
@@ -58,7 +58,7 @@ class CfdDem:
         self.model_b = settings.model == "B"
         # model A: the beads take this interval's pressure gradient (settings.py)
         self._gradient_now = settings.pressure_gradient == "this_interval"
-        self.solver = FluidSolver(grid, fluid, omega_rad_s, settings.turbulence,
+        self.solver = FluidSolver(grid, fluid, omega_rad_per_s, settings.turbulence,
                                   settings.model, cfl=settings.cfl,
                                   pressure_solver=settings.pressure_solver)
         d = 2.0 * float(sim.rad.max())
@@ -130,7 +130,7 @@ class CfdDem:
         nr, nt, nz = g.shape
         self.EK.beads_in(sim.x, sim.v, sim.rad, sim.mass, sim.per_bead["fluid_at_bead"],
                          eps_cells, s.body_z, 0.0 if self.model_b else 1.0, self.model_b,
-                         s.fluid.viscosity_pa_s, s.rho, self.interval_s, self.projector.rc,
+                         s.fluid.viscosity_Pa_s, s.rho, self.interval_s, self.projector.rc,
                          self.projector.rtab, self.projector.rh, g.dtheta_rad, nt, g.dz_m,
                          nz, g.height_m, g.solid, self._idx, self._w, self._cyl, self._c,
                          self._q, self._x)
@@ -203,7 +203,7 @@ class CfdDem:
         return (
             (sim.x, sim.v, sim.rad, sim.mass, sim.per_bead["fluid_at_bead"], sim.fext,
              self._eps_cells),
-            (s.body_z, pf, s.fluid.viscosity_pa_s, s.rho, self.interval_s, self.model_b,
+            (s.body_z, pf, s.fluid.viscosity_Pa_s, s.rho, self.interval_s, self.model_b,
              self._gradient_now),
             (self._idx, self._w, self._cyl, self._c, self._q, self._x),
             (pj.rc, pj.rtab, pj.rh, g.dtheta_rad, nt, g.dz_m, nz, g.height_m, g.solid,

@@ -94,7 +94,7 @@ class DiscretePhaseCoupling(CfdDem):
     :class:`CfdDem`. ``settings.steps``: DEM steps between drag updates;
     ``settings.cfd_step_s``: the CFD step [s], a whole number of drag updates."""
 
-    def __init__(self, sim, grid, fluid, settings, omega_rad_s: float):
+    def __init__(self, sim, grid, fluid, settings, omega_rad_per_s: float):
         steps = settings.steps
         cfd = int(round(settings.cfd_step_s / sim.dt_s))
         if cfd < steps or cfd % steps or abs(cfd * sim.dt_s - settings.cfd_step_s) > \
@@ -103,7 +103,7 @@ class DiscretePhaseCoupling(CfdDem):
                 f"fluid.coupled.cfd_step_s = {settings.cfd_step_s!r}: must be a whole "
                 f"number of drag updates of coupling_steps x dt = {steps} x {sim.dt_s:g} s")
         # the liquid's equations without the beads' pressure force (eps = 1: A = B)
-        super().__init__(sim, grid, fluid, replace(settings, model="B"), omega_rad_s)
+        super().__init__(sim, grid, fluid, replace(settings, model="B"), omega_rad_per_s)
         self.settings = settings
         self.cfd_steps = cfd
         self.cfd_interval_s = cfd * sim.dt_s
@@ -151,7 +151,7 @@ class DiscretePhaseCoupling(CfdDem):
         sim, g, s = self.sim, self.grid, self.solver
         nr, nt, nz = g.shape
         ts, fs = particle_drag(sim.x, sim.v, sim.rad, sim.mass, self._cellv,
-                               s.fluid.viscosity_pa_s, s.rho, self.drag_interval_s,
+                               s.fluid.viscosity_Pa_s, s.rho, self.drag_interval_s,
                                self.projector.rc, self.projector.rtab, self.projector.rh,
                                g.dtheta_rad, nt, g.dz_m, nz, g.height_m, g.solid, self._idx,
                                self._w, sim.per_bead["fluid_at_bead"], self._q, sim.fext,

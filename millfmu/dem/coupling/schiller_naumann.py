@@ -7,7 +7,7 @@ Schiller, L. & Naumann, A. (1933), Z. Ver. Dtsch. Ing. 77, 318-320; the form Flu
 discrete phase model and most CFD-DEM codes use for an isolated sphere.
 
 Check: a sphere settling in still liquid reaches the speed u_t at which the drag equals
-its buoyant weight, (rho_p - rho_f) V g = c(u_t) u_t (:func:`terminal_speed_m_s`), after
+its buoyant weight, (rho_p - rho_f) V g = c(u_t) u_t (:func:`terminal_speed_m_per_s`), after
 the relaxation time m / c (Stokes: rho_p d^2 / (18 mu)).
 """
 
@@ -38,7 +38,7 @@ def drag_coefficient_py(d: float, mu: float, rho: float, urel: float) -> float:
     return 0.44 * math.pi / 8.0 * rho * d * d * urel
 
 
-def terminal_speed_m_s(d: float, rho_p: float, rho_f: float, mu: float,
+def terminal_speed_m_per_s(d: float, rho_p: float, rho_f: float, mu: float,
                        g: float = 9.81) -> float:
     """Settling speed [m/s] of a sphere (diameter d [m], density rho_p [kg/m3]) in still
     liquid (rho_f [kg/m3], mu [Pa s]): drag c(u) u = (rho_p - rho_f) pi/6 d^3 g, solved by

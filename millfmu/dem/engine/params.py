@@ -15,7 +15,7 @@ from dataclasses import dataclass
 class BeadMaterial:
     """Grinding-bead material. Defaults: seed 001 Table 1 (glass, Y reduced by 1e4)."""
 
-    density_kg_m3: float = 2510.0
+    density_kg_per_m3: float = 2510.0
     youngs_modulus_pa: float = 6.3e6
     poisson_ratio: float = 0.25
     restitution: float = 0.99
@@ -45,12 +45,12 @@ class BeadMaterial:
 
 
 def hertz_contact_time_s(m_star_kg: float, r_star_m: float, y_star_pa: float,
-                         v_impact_m_s: float) -> float:
+                         v_impact_m_per_s: float) -> float:
     """Duration [s] of an elastic Hertz impact, 2.87 (m*^2 / (R* Y*^2 v))^(1/5)
     (Johnson 1985, with the force law F = 4/3 Y* sqrt(R*) delta^(3/2))."""
-    return 2.87 * (m_star_kg ** 2 / (r_star_m * y_star_pa ** 2 * v_impact_m_s)) ** 0.2
+    return 2.87 * (m_star_kg ** 2 / (r_star_m * y_star_pa ** 2 * v_impact_m_per_s)) ** 0.2
 
 
-def bead_mass_kg(diameter_m: float, density_kg_m3: float) -> float:
+def bead_mass_kg(diameter_m: float, density_kg_per_m3: float) -> float:
     """Mass [kg] of a sphere."""
-    return math.pi / 6.0 * diameter_m ** 3 * density_kg_m3
+    return math.pi / 6.0 * diameter_m ** 3 * density_kg_per_m3

@@ -19,8 +19,8 @@ from millfmu.dem.mills.geometry import MillGeometry
 class FluidSettings:
     """Fluid seen by the beads [SI]. Defaults: water, seed 001 Table 1."""
 
-    density_kg_m3: float = 998.2
-    viscosity_pa_s: float = 1.002e-3
+    density_kg_per_m3: float = 998.2
+    viscosity_Pa_s: float = 1.002e-3
     drag: bool = True  # Koch-Hill drag from the prescribed swirl flow
     lubrication: bool = True
     lubrication_cutoff_m: float = 0.04e-3  # 0.05 d for 0.8 mm beads
@@ -46,13 +46,13 @@ class StepStats:
 class DemSimulation:
     """Soft-sphere DEM of monodisperse (or polydisperse) beads in a MillGeometry.
 
-    Parameters (SI): geometry; material; positions_m (n, 3); radii_m (n,); omega_rad_s
-    stirrer angular velocity about +z; dt_s; gravity_m_s2 (3,); fluid (None: no fluid
+    Parameters (SI): geometry; material; positions_m (n, 3); radii_m (n,); omega_rad_per_s
+    stirrer angular velocity about +z; dt_s; gravity_m_per_s2 (3,); fluid (None: no fluid
     forces at all); skin_m neighbour-list skin; max_neighbours: initial list room in pairs
     per bead (the lists grow as needed and are fitted after the first build); threads:
     numba threads (None: all);
     sort_every_steps: reorder the beads along the cell grid every so many steps (memory
-    locality; None: 200 for 2000 beads or more, else never); spins_rad_s (n, 3) initial
+    locality; None: 200 for 2000 beads or more, else never); spins_rad_per_s (n, 3) initial
     angular velocities [rad/s] (None: at rest); device: "cpu" (numba threads) or "gpu"
     (numba.cuda, :mod:`millfmu.dem.engine.gpu`: same model; beads are not reordered; the host
     arrays x, v, w, f, t are refreshed after each run() call and fext is read before it;
@@ -80,10 +80,10 @@ class DemSimulation:
     HISTORIES_AT_START = ("advanced", "zero")
 
     def __init__(self, geometry: MillGeometry, material: BeadMaterial, positions_m,
-                 radii_m, omega_rad_s: float, dt_s: float, gravity_m_s2=(0.0, 0.0, 0.0),
+                 radii_m, omega_rad_per_s: float, dt_s: float, gravity_m_per_s2=(0.0, 0.0, 0.0),
                  fluid: FluidSettings | None = None, skin_m: float | None = None,
-                 max_neighbours: int = 24, velocities_m_s=None, threads: int | None = None,
-                 sort_every_steps: int | None = None, spins_rad_s=None, device: str = "cpu",
+                 max_neighbours: int = 24, velocities_m_per_s=None, threads: int | None = None,
+                 sort_every_steps: int | None = None, spins_rad_per_s=None, device: str = "cpu",
                  tangential_history: str = "rescaled", history_at_start: str = "zero"):
         # numba and the kernels load when a simulation is built, not with a scene file.
         import numba
@@ -95,7 +95,7 @@ class DemSimulation:
         self.geometry = geometry
         self.material = material
         self.fluid = fluid
-        self.omega_rad_s = float(omega_rad_s)
+        self.omega_rad_per_s = float(omega_rad_per_s)
         self.dt_s = float(dt_s)
         x = np.ascontiguousarray(positions_m, dtype=np.float64).copy()
         n = x.shape[0]
@@ -107,16 +107,16 @@ class DemSimulation:
         use_threads(self.threads)
         self.n = n
         self.rad = np.ascontiguousarray(np.broadcast_to(radii_m, (n,)), dtype=np.float64).copy()
-        rho = material.density_kg_m3
+        rho = material.density_kg_per_m3
         self.mass = 4.0 / 3.0 * math.pi * self.rad ** 3 * rho
         self.inertia = 0.4 * self.mass * self.rad ** 2
         self.inv_m = 1.0 / self.mass
         self.inv_i = 1.0 / self.inertia
         self.x = x
-        self.v = np.zeros((n, 3)) if velocities_m_s is None else \
-            np.ascontiguousarray(velocities_m_s, dtype=np.float64).copy()
-        self.w = np.zeros((n, 3)) if spins_rad_s is None else \
-            np.ascontiguousarray(spins_rad_s, dtype=np.float64).copy()
+        self.v = np.zeros((n, 3)) if velocities_m_per_s is None else \
+            np.ascontiguousarray(velocities_m_per_s, dtype=np.float64).copy()
+        self.w = np.zeros((n, 3)) if spins_rad_per_s is None else \
+            np.ascontiguousarray(spins_rad_per_s, dtype=np.float64).copy()
         self.f = np.zeros((n, 3))
         self.t = np.zeros((n, 3))
         self.xref = x.copy()
@@ -131,7 +131,7 @@ class DemSimulation:
                 f"height_m = {geometry.height_m!r}: the axial period must hold at least "
                 f"three neighbour cells of {self.cutoff_m:.3e} m (bead diameter + "
                 f"lubrication cutoff + skin)")
-        prm = self._parameters(gravity_m_s2)
+        prm = self._parameters(gravity_m_per_s2)
         if tangential_history not in self.TANGENTIAL_HISTORIES:
             raise ValueError(f"tangential_history = {tangential_history!r}: one of "
                              f"{sorted(self.TANGENTIAL_HISTORIES)}")
@@ -164,7 +164,7 @@ class DemSimulation:
             return
         self._start_cpu()
 
-    def _parameters(self, gravity_m_s2) -> np.ndarray:
+    def _parameters(self, gravity_m_per_s2) -> np.ndarray:
         """The kernels' parameter vector (layout ``P_*`` of
         :mod:`millfmu.dem.engine.kernels`) of this simulation's material, fluid, geometry,
         stirrer speed, time step and skin; the tangential history's code is set by the
@@ -179,27 +179,27 @@ class DemSimulation:
         prm[K.P_BETA] = material.damping_beta
         prm[K.P_MU] = material.friction
         prm[K.P_MUR] = material.rolling_friction
-        g = np.asarray(gravity_m_s2, dtype=float)
+        g = np.asarray(gravity_m_per_s2, dtype=float)
         if fluid is not None:
             # buoyancy: the fluid's pressure gradient carries rho_f / rho_p of the weight
-            g = g * (1.0 - fluid.density_kg_m3 / material.density_kg_m3)
+            g = g * (1.0 - fluid.density_kg_per_m3 / material.density_kg_per_m3)
             if fluid.lubrication:
-                prm[K.P_LUB_ETA] = fluid.viscosity_pa_s
+                prm[K.P_LUB_ETA] = fluid.viscosity_Pa_s
                 prm[K.P_LUB_HCUT] = fluid.lubrication_cutoff_m
                 prm[K.P_LUB_HMIN] = fluid.lubrication_min_gap_m
             prm[K.P_DRAG] = 1.0 if fluid.drag else 0.0
-            prm[K.P_MUF] = fluid.viscosity_pa_s
+            prm[K.P_MUF] = fluid.viscosity_Pa_s
             prm[K.P_EPSF] = fluid.void_fraction
             prm[K.P_KCORE] = fluid.swirl_core_fraction
             prm[K.P_DELTA] = fluid.swirl_layer_m
-            prm[K.P_RHOF] = fluid.density_kg_m3
+            prm[K.P_RHOF] = fluid.density_kg_per_m3
             prm[K.P_KH_F0], prm[K.P_KH_F3] = f0_f3_python(fluid.void_fraction)
         prm[K.P_GX:K.P_GZ + 1] = g
         prm[K.P_LZ] = geometry.height_m
         prm[K.P_SECTOR] = geometry.sector_rad
         prm[K.P_RSH] = geometry.shaft_radius_m
         prm[K.P_RCH] = geometry.chamber_radius_m
-        prm[K.P_OMEGA] = self.omega_rad_s
+        prm[K.P_OMEGA] = self.omega_rad_per_s
         prm[K.P_RDISC] = geometry.disc_radius_m
         prm[K.P_BDISC] = geometry.disc_thickness_m
         prm[K.P_ZDISC] = geometry.disc_z_m

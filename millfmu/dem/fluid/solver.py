@@ -53,12 +53,12 @@ class FluidError(ValueError):
 class FluidProperties:
     """Liquid [SI]. Defaults: water, seed 001 Table 1."""
 
-    density_kg_m3: float = 998.2
-    viscosity_pa_s: float = 1.002e-3
+    density_kg_per_m3: float = 998.2
+    viscosity_Pa_s: float = 1.002e-3
 
     @property
-    def nu_m2_s(self) -> float:
-        return self.viscosity_pa_s / self.density_kg_m3
+    def nu_m2_per_s(self) -> float:
+        return self.viscosity_Pa_s / self.density_kg_per_m3
 
 
 def _check_options(model: str, turbulence: str, cfl: float) -> None:
@@ -74,10 +74,10 @@ def _check_options(model: str, turbulence: str, cfl: float) -> None:
 class FluidSolver:
     """VANS solver (model "A" or "B", turbulence "k_epsilon" or "laminar") on ``grid``,
     with the rotor (shaft if ``grid.shaft_rotates``, and ROTOR cells) turning at
-    ``omega_rad_s`` [rad/s] about +z."""
+    ``omega_rad_per_s`` [rad/s] about +z."""
 
     def __init__(self, grid: CylGrid, fluid: FluidProperties = FluidProperties(),
-                 omega_rad_s: float = 0.0, turbulence: str = "k_epsilon", model: str = "A",
+                 omega_rad_per_s: float = 0.0, turbulence: str = "k_epsilon", model: str = "A",
                  cfl: float = 0.4, pressure_solver: str = DEFAULT_PRESSURE_SOLVER):
         # numba kernels: compiled when a fluid is built, not with a scene file.
         from millfmu.dem.fluid import k_epsilon as KE
@@ -90,8 +90,8 @@ class FluidSolver:
         self.SK = SK
         self.grid = grid
         self.fluid = fluid
-        self.rho = float(fluid.density_kg_m3)
-        self.nu = float(fluid.nu_m2_s)
+        self.rho = float(fluid.density_kg_per_m3)
+        self.nu = float(fluid.nu_m2_per_s)
         self.model = model
         self.turbulence = turbulence
         self.cfl = float(cfl)
@@ -136,7 +136,7 @@ class FluidSolver:
         self.exchange_angular_nms = 0.0  # angular impulse the beads gave the fluid
         self.exchange_axial_ns = 0.0
         self.last_substeps = 0
-        self.set_omega(omega_rad_s)
+        self.set_omega(omega_rad_per_s)
 
     def _make_node_kinds(self) -> None:
         """Each velocity node's kind (kr, kt, kz: 0 solved, 1 on a wall surface, 2 inside
@@ -276,9 +276,9 @@ class FluidSolver:
         self._gphi = (np.zeros(shp_r), np.zeros(shape), np.zeros(shape))
 
     # ---- settings ---------------------------------------------------------------------
-    def set_omega(self, omega_rad_s: float):
+    def set_omega(self, omega_rad_per_s: float):
         """Rotor angular velocity [rad/s]: sets the fixed velocities of the solid nodes."""
-        self.omega = float(omega_rad_s)
+        self.omega = float(omega_rad_per_s)
         self.om_shaft = self.omega if self.grid.shaft_rotates else 0.0
         self.fixed_t[:] = np.where(self._rot_t, self.omega * self.rc[:, None, None], 0.0)
         self.wall_om = self._wom_rot * self.omega
@@ -452,6 +452,6 @@ class FluidSolver:
 
     def describe(self) -> dict:
         return dict(model=self.model, turbulence=self.turbulence, grid=self.grid.describe(),
-                    density_kg_m3=self.rho, viscosity_pa_s=self.fluid.viscosity_pa_s,
+                    density_kg_per_m3=self.rho, viscosity_Pa_s=self.fluid.viscosity_Pa_s,
                     pressure=PRESSURE_DESCRIPTIONS[self.pressure.method],
                     cfl=self.cfl)

@@ -145,47 +145,47 @@ class SevZones:
         return np.array(out) * g.sector_fraction
 
 
-def bead_mass_kg(diameter_m: float, density_kg_m3: float) -> float:
-    return math.pi / 6.0 * diameter_m ** 3 * density_kg_m3
+def bead_mass_kg(diameter_m: float, density_kg_per_m3: float) -> float:
+    return math.pi / 6.0 * diameter_m ** 3 * density_kg_per_m3
 
 
-def bead_inertia_kgm2(diameter_m: float, density_kg_m3: float) -> float:
+def bead_inertia_kgm2(diameter_m: float, density_kg_per_m3: float) -> float:
     """Moment of inertia of a solid sphere, m d^2 / 10 [kg m2]."""
-    return bead_mass_kg(diameter_m, density_kg_m3) * diameter_m ** 2 / 10.0
+    return bead_mass_kg(diameter_m, density_kg_per_m3) * diameter_m ** 2 / 10.0
 
 
-def net_stress_energy_w(media_mass_kg: float, tip_speed_m_s: float, speed_rev_s: float,
+def net_stress_energy_w(media_mass_kg: float, tip_speed_m_per_s: float, speed_rev_s: float,
                         modulus_ratio: float = PRODUCT_OVER_BEAD_MODULUS) -> float:
     """SE_net = (6 / pi) m_g v_r^2 n (1 + Y_p / Y_g)^-1 [W] (seed 002 eq. 2)."""
-    return 6.0 / math.pi * media_mass_kg * tip_speed_m_s ** 2 * speed_rev_s / \
+    return 6.0 / math.pi * media_mass_kg * tip_speed_m_per_s ** 2 * speed_rev_s / \
         (1.0 + modulus_ratio)
 
 
 def stress_quantities(events: np.ndarray, ev_cols: dict, zones, record_s: float,
-                      bead_diameter_m: float, bead_density_kg_m3: float, n_beads: int,
-                      tip_speed_m_s: float, omega_rad_s: float,
+                      bead_diameter_m: float, bead_density_kg_per_m3: float, n_beads: int,
+                      tip_speed_m_per_s: float, omega_rad_per_s: float,
                       modulus_ratio: float = PRODUCT_OVER_BEAD_MODULUS) -> dict:
     """Seed 002's SI, SN_g, SE_cs, SE_ts,sum / SE_cs,sum per zone and in total, SE_net and
     the efficiency (plain JSON data, SI units), every bead-bead contact counted once at its
     first overlap. ``events``: recorded contacts (columns ev_cols: type, x, y, z, setn,
     serot) over ``record_s`` [s] in the simulated sector; powers are scaled to the full
     circle (per axial period)."""
-    m_g = bead_mass_kg(bead_diameter_m, bead_density_kg_m3)
+    m_g = bead_mass_kg(bead_diameter_m, bead_density_kg_per_m3)
     bb = events[:, ev_cols["type"]] == 0 if events.size else np.zeros(0, bool)
     ev = events[bb] if events.size else np.zeros((0, max(ev_cols.values()) + 1))
     pos = ev[:, [ev_cols["x"], ev_cols["y"], ev_cols["z"]]]
     # recorded with m* = m_g / 2 and I* = I_g / 2 (equal beads): the paper's use m_g, I_g
     se_tn = ev[:, ev_cols["setn"]] * 2.0
     se_ts = ev[:, ev_cols["serot"]] * 2.0
-    out = _quantities(pos, se_tn, se_ts, zones, record_s, n_beads * m_g, tip_speed_m_s,
-                      omega_rad_s, modulus_ratio)
+    out = _quantities(pos, se_tn, se_ts, zones, record_s, n_beads * m_g, tip_speed_m_per_s,
+                      omega_rad_per_s, modulus_ratio)
     out["counting"] = "every contact event, counted once at its first overlap"
     return out
 
 
 def snapshot_stress_quantities(frames, interval_s: float, zones, bead_diameter_m: float,
-                               bead_density_kg_m3: float, n_beads: int,
-                               tip_speed_m_s: float, omega_rad_s: float,
+                               bead_density_kg_per_m3: float, n_beads: int,
+                               tip_speed_m_per_s: float, omega_rad_per_s: float,
                                modulus_ratio: float = PRODUCT_OVER_BEAD_MODULUS) -> dict:
     """The quantities of :func:`stress_quantities` from the contacts present at frames
     taken every ``interval_s`` [s] (:class:`millfmu.dem.analysis.snapshots.Frame`), as a
@@ -193,14 +193,14 @@ def snapshot_stress_quantities(frames, interval_s: float, zones, bead_diameter_m
     the contacts present summed over the frames per zone volume and recording time
     (len(frames) x interval_s), energies from each contact's relative velocity and spin at
     the frame."""
-    m_g = bead_mass_kg(bead_diameter_m, bead_density_kg_m3)
-    i_g = bead_inertia_kgm2(bead_diameter_m, bead_density_kg_m3)
+    m_g = bead_mass_kg(bead_diameter_m, bead_density_kg_per_m3)
+    i_g = bead_inertia_kgm2(bead_diameter_m, bead_density_kg_per_m3)
     frames = list(frames)
     pos = np.concatenate([f.point_m for f in frames]) if frames else np.zeros((0, 3))
     vn2 = np.concatenate([f.vn2_m2_s2 for f in frames]) if frames else np.zeros(0)
     wr2 = np.concatenate([f.wrel2_rad2_s2 for f in frames]) if frames else np.zeros(0)
     out = _quantities(pos, 0.5 * m_g * vn2, 0.5 * i_g * wr2, zones,
-                      len(frames) * interval_s, n_beads * m_g, tip_speed_m_s, omega_rad_s,
+                      len(frames) * interval_s, n_beads * m_g, tip_speed_m_per_s, omega_rad_per_s,
                       modulus_ratio)
     out["counting"] = (f"contacts present at {len(frames)} frames, one every "
                        f"{interval_s:g} s ({1.0 / interval_s:g} per second)")
@@ -209,8 +209,8 @@ def snapshot_stress_quantities(frames, interval_s: float, zones, bead_diameter_m
     return out
 
 
-def _quantities(pos, se_tn, se_ts, zones, record_s, media_mass_sector_kg, tip_speed_m_s,
-                omega_rad_s, modulus_ratio) -> dict:
+def _quantities(pos, se_tn, se_ts, zones, record_s, media_mass_sector_kg, tip_speed_m_per_s,
+                omega_rad_per_s, modulus_ratio) -> dict:
     """Per-zone and total quantities of bead-bead contacts at ``pos`` [m] with the paper's
     energies ``se_tn``, ``se_ts`` [J] over ``record_s`` [s]; media mass of the simulated
     sector [kg]."""
@@ -248,8 +248,8 @@ def _quantities(pos, se_tn, se_ts, zones, record_s, media_mass_sector_kg, tip_sp
         tot_ts += ts_sum
         tot_tn += tn / record_s / frac if record_s > 0 else 0.0
     media = media_mass_sector_kg / frac
-    n_rev = omega_rad_s / (2.0 * math.pi)
-    se_net = net_stress_energy_w(media, tip_speed_m_s, n_rev, modulus_ratio)
+    n_rev = omega_rad_per_s / (2.0 * math.pi)
+    se_net = net_stress_energy_w(media, tip_speed_m_per_s, n_rev, modulus_ratio)
     out["total"] = dict(SE_cs_sum_w=tot_cs, SE_ts_sum_w=tot_ts, SE_tn_sum_w=tot_tn,
                         ts_share=tot_ts / tot_cs if tot_cs > 0 else None,
                         SN_g_per_m3_s=float(zid.size / (vols.sum() * record_s))
@@ -259,7 +259,7 @@ def _quantities(pos, se_tn, se_ts, zones, record_s, media_mass_sector_kg, tip_sp
     return out
 
 
-def _speed_profile(sample_x, sample_v, coord, tip_speed_m_s: float, bins: int):
+def _speed_profile(sample_x, sample_v, coord, tip_speed_m_per_s: float, bins: int):
     """Mean bead speed over tip speed [-] in ``bins`` equal bins of coord(x) over [0, 1]
     (coord: positions (n, 3) -> (values, mask of the beads counted)); (centres, profile,
     samples)."""
@@ -272,7 +272,7 @@ def _speed_profile(sample_x, sample_v, coord, tip_speed_m_s: float, bins: int):
         np.add.at(acc, k, np.linalg.norm(vs[m], axis=1))
         np.add.at(cnt, k, 1.0)
     with np.errstate(invalid="ignore"):
-        prof = acc / cnt / tip_speed_m_s
+        prof = acc / cnt / tip_speed_m_per_s
     return (list(np.round(0.5 * (edges[1:] + edges[:-1]), 6)),
             [None if not np.isfinite(p) else round(float(p), 6) for p in prof],
             [int(c) for c in cnt])
@@ -283,16 +283,16 @@ def _z_over_r(xs, g: MillGeometry):
         (g.chamber_radius_m - g.shaft_radius_m)
 
 
-def radial_speed_profile(sample_x, sample_v, geometry: MillGeometry, tip_speed_m_s: float,
+def radial_speed_profile(sample_x, sample_v, geometry: MillGeometry, tip_speed_m_per_s: float,
                          bins: int = 20) -> dict:
     """Mean bead speed over tip speed against Z'/R (seed 002 figures 3a, 4a) [-]."""
     c, p, n = _speed_profile(sample_x, sample_v,
                              lambda xs: (_z_over_r(xs, geometry), slice(None)),
-                             tip_speed_m_s, bins)
+                             tip_speed_m_per_s, bins)
     return dict(z_over_r=c, speed_over_tip_speed=p, samples=n)
 
 
-def axial_speed_profile(sample_x, sample_v, geometry: MillGeometry, tip_speed_m_s: float,
+def axial_speed_profile(sample_x, sample_v, geometry: MillGeometry, tip_speed_m_per_s: float,
                         z_min: float = 0.69, bins: int = 10) -> dict:
     """Mean bead speed over tip speed against X'/L beside the shaft (Z'/R > z_min; seed
     002 figure 3b) [-]."""
@@ -303,12 +303,12 @@ def axial_speed_profile(sample_x, sample_v, geometry: MillGeometry, tip_speed_m_
         zr = zr - g.height_m * np.floor(zr / g.height_m + 0.5)
         return 1.0 - np.abs(zr) / (0.5 * g.height_m), _z_over_r(xs, g) > z_min
 
-    c, p, n = _speed_profile(sample_x, sample_v, x_over_l, tip_speed_m_s, bins)
+    c, p, n = _speed_profile(sample_x, sample_v, x_over_l, tip_speed_m_per_s, bins)
     return dict(x_over_l=c, speed_over_tip_speed=p, samples=n)
 
 
-def return_leg(sample_x, sample_v, geometry: MillGeometry, omega_rad_s: float,
-               bead_diameter_m: float, bead_density_kg_m3: float, fluid_density_kg_m3: float,
+def return_leg(sample_x, sample_v, geometry: MillGeometry, omega_rad_per_s: float,
+               bead_diameter_m: float, bead_density_kg_per_m3: float, fluid_density_kg_per_m3: float,
                fields: dict | None = None) -> dict:
     """The return leg of the rotor's circulation: beads and liquid between two rotors
     (|z - z_disc| > b/2) from the eye r_1 to the chamber wall r_w, where the beads thrown
@@ -343,7 +343,7 @@ def return_leg(sample_x, sample_v, geometry: MillGeometry, omega_rad_s: float,
         if not m.any():
             continue
         vt = (-xs[m, 1] * vs[m, 0] + xs[m, 0] * vs[m, 1]) / r[m]
-        k = vt / (omega_rad_s * r[m])
+        k = vt / (omega_rad_per_s * r[m])
         ks.append(k)
         b = np.clip(np.searchsorted(edges, r[m], side="right") - 1, 0, 4)
         np.add.at(acc, b, k)
@@ -366,8 +366,8 @@ def return_leg(sample_x, sample_v, geometry: MillGeometry, omega_rad_s: float,
             np.isfinite(ut)
         if sel.any():
             w = np.broadcast_to(rr[:, None], ut.shape)[sel]
-            k_liq = float(np.sum(ut[sel] / (omega_rad_s * w) * w) / np.sum(w))
-    rb, rf = bead_density_kg_m3, fluid_density_kg_m3
+            k_liq = float(np.sum(ut[sel] / (omega_rad_per_s * w) * w) / np.sum(w))
+    rb, rf = bead_density_kg_per_m3, fluid_density_kg_per_m3
     big_r = (phi * (rb - rf) * k_beads ** 2 * (rw ** 2 - r1 ** 2) / (rf * (r2 ** 2 - r1 ** 2))
              if k_beads is not None and phi is not None else None)
     with np.errstate(invalid="ignore"):
@@ -383,7 +383,7 @@ def return_leg(sample_x, sample_v, geometry: MillGeometry, omega_rad_s: float,
                                 for p in prof]))
 
 
-def rotor_throughflow_m3_s(fields: dict, geometry: MillGeometry) -> float | None:
+def rotor_throughflow_m3_per_s(fields: dict, geometry: MillGeometry) -> float | None:
     """Volume flow [m3/s] the rotor pumps out at its rim (full circle), from the mean
     fluid fields of a coupled run (``u_r`` and ``eps`` on the section grid, ``r_m``,
     ``zeta_m`` the axial distance from the rotor mid-plane)."""

@@ -24,10 +24,10 @@ from collections.abc import Callable
 import numpy as np
 
 from ...stress_tables.files import canonical_json, sha256_bytes, write_replacing
-from ...stress_tables.spec import (COMPONENTS, DEM_BUILDER_ID, DRIFT_FIELDS, FIELDS, FORMAT_VERSION, QUANTILE_NAMES,
-                                   TableError,
-                   TableSpec, scene_at_point)
+from ...stress_tables.spec import (COMPONENTS, DEM_BUILDER_ID, DRIFT_FIELDS, EARLIER_FORMAT, FIELDS, FORMAT_VERSION,
+                                   QUANTILE_NAMES, TableError, TableSpec, scene_at_point)
 from ...stress_tables.table import FIXED_AXIS_RTOL, Table
+from ...unit_names import modernize, to_earlier
 
 
 def point_scene(spec: TableSpec, point: dict) -> dict:
@@ -63,18 +63,28 @@ class PointStore:
     def key(self, spec: TableSpec, point: dict) -> str:
         return sha256_bytes(canonical_json(self.key_content(spec, point)).encode())
 
+    @classmethod
+    def earlier_key_content(cls, spec: TableSpec, point: dict) -> dict:
+        """The key content the earlier format gave the point (its names in the earlier
+        spelling: :mod:`millfmu.unit_names`)."""
+        return dict(to_earlier(cls.key_content(spec, point)), format=EARLIER_FORMAT)
+
     def get(self, spec: TableSpec, point: dict) -> dict | None:
+        """The stored result of the point, or None; a point stored in the earlier format is
+        read with its names in the current spelling."""
         if not self.reuse:
             return None
-        path = self.folder / f"{self.key(spec, point)}.json"
-        try:
-            d = json.loads(path.read_text())
-        except (OSError, ValueError):
-            return None
-        if not isinstance(d, dict) or d.get("key_content") != json.loads(
-                canonical_json(self.key_content(spec, point))):
-            return None
-        return d.get("result")
+        for content in (self.key_content(spec, point), self.earlier_key_content(spec, point)):
+            content = json.loads(canonical_json(content))
+            path = self.folder / f"{sha256_bytes(canonical_json(content).encode())}.json"
+            try:
+                d = json.loads(path.read_text())
+            except (OSError, ValueError):
+                continue
+            if isinstance(d, dict) and d.get("key_content") == content:
+                r = d.get("result")
+                return modernize(r) if content["format"] == EARLIER_FORMAT else r
+        return None
 
     def put(self, spec: TableSpec, point: dict, result: dict) -> bool:
         """Store a point's result; False (with a warning) where it cannot be written (a

@@ -28,11 +28,11 @@ from pathlib import Path
 
 #: CLI option -> (grid axis, help)
 GRID_OPTIONS = {
-    "--tip-speed": ("tip_speed_m_s", "stirrer tip speeds [m/s]"),
+    "--tip-speed": ("tip_speed_m_per_s", "stirrer tip speeds [m/s]"),
     "--filling": ("filling", "grinding-media fillings [-]"),
     "--bead-diameter": ("bead_diameter_m", "bead diameters [m]"),
-    "--bead-density": ("bead_density_kg_m3", "bead densities [kg/m3]"),
-    "--viscosity": ("viscosity_pa_s", "fluid viscosities [Pa s]"),
+    "--bead-density": ("bead_density_kg_per_m3", "bead densities [kg/m3]"),
+    "--viscosity": ("viscosity_Pa_s", "fluid viscosities [Pa s]"),
 }
 #: CLI option -> (scene section, key, help) for run settings written into the scene content
 RUN_OPTIONS = {
@@ -205,7 +205,7 @@ def _build(args) -> int:
         if v is not None:
             over.setdefault(sec, {})[key] = v
     if args.no_gravity:
-        over.setdefault("run", {})["gravity_m_s2"] = [0.0, 0.0, 0.0]
+        over.setdefault("run", {})["gravity_m_per_s2"] = [0.0, 0.0, 0.0]
     if args.fluid:
         over.setdefault("fluid", {})["mode"] = args.fluid
     try:
