@@ -1,4 +1,4 @@
-"""The DEM cell of a table point (millfmu.dem.tables.dem_builder.dem_scene_at_point): beads that
+"""The DEM cell of a table point (millfmu.dem.tables.cells.dem_scene_at_point): beads that
 do not fit the scene's sector at their filling run in a wider one; every point that fits keeps
 its scene, so its key in the point store and its result."""
 
@@ -13,6 +13,7 @@ from scipy.spatial import cKDTree
 from millfmu.dem import tables as T
 from millfmu.dem.mills.geometry import SECTORS_DEG, place_beads
 from millfmu.dem.scene import scene_from_dict
+from millfmu.stress_tables.files import canonical_json, sha256_bytes
 
 
 @pytest.fixture(scope="module")
@@ -39,11 +40,15 @@ def test_every_point_of_the_shipped_tables_keeps_its_scene(name):
 
 def test_the_point_store_key_of_the_coupled_tables_anchor_is_pinned(coupled):
     """The key under which the coupled table's anchor (10 m/s, 80 %, 0.8 mm glass) is stored: the
-    table's points are found in a point store only while it stays as it is."""
+    table's points are found in a point store only while it stays as it is; the earlier
+    format's key (names in the earlier spelling) is the one that format stored it under."""
     spec = coupled.spec()
-    key = T.PointStore("unused").key(spec, spec.anchor() | {"bead_diameter_m": 0.8e-3, "bead_density_kg_per_m3": 2510.0})
-    assert key == T.PointStore("unused").key(spec, spec.anchor())
-    assert key == "ce319bb895a6d3d1e8267c1bb3d0756bdb927794d56b98eb39b32750010ca02a"
+    store = T.PointStore("unused")
+    key = store.key(spec, spec.anchor() | {"bead_diameter_m": 0.8e-3, "bead_density_kg_per_m3": 2510.0})
+    assert key == store.key(spec, spec.anchor())
+    assert key == "ee5e5d04398c6441d4375bb4ab67d6ba98949f46a3df499bd538b27221b37609"
+    earlier = sha256_bytes(canonical_json(store.earlier_key_content(spec, spec.anchor())).encode())
+    assert earlier == "ce319bb895a6d3d1e8267c1bb3d0756bdb927794d56b98eb39b32750010ca02a"
 
 
 @pytest.mark.parametrize("d_m, filling, sector", [(1.4e-3, 0.8, 12.0), (1.4e-3, 0.9, 24.0),
@@ -120,7 +125,8 @@ def test_scenes_that_are_not_dem_scenes_are_left_as_they_are():
     """An analytic builder's scene (or the DEM builder id on a scene that is no DEM scene, as the
     tests' stand-in builders have) gets the scene at the point unchanged."""
     scene = {"name": "analytic"}
-    assert T.dem_scene_at_point(scene, {"tip_speed_m_per_s": 6.0}) == T.scene_at_point(scene, {"tip_speed_m_per_s": 6.0})
+    at = {"tip_speed_m_per_s": 6.0}
+    assert T.dem_scene_at_point(scene, at) == T.scene_at_point(scene, at)
     spec = T.TableSpec(scene=scene, grid={"tip_speed_m_per_s": [6.0]}, kernel_version="k", builder_id="analytic")
     assert T.point_scene(spec, {"tip_speed_m_per_s": 6.0}) == {"name": "analytic", "mill": {"tip_speed_m_per_s": 6.0}}
 

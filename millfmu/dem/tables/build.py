@@ -28,17 +28,16 @@ from ...stress_tables.spec import (COMPONENTS, DEM_BUILDER_ID, DRIFT_FIELDS, EAR
                                    QUANTILE_NAMES, TableError, TableSpec, scene_at_point)
 from ...stress_tables.table import FIXED_AXIS_RTOL, Table
 from ...unit_names import modernize, to_earlier
+from .cells import dem_scene_at_point
 
 
 def point_scene(spec: TableSpec, point: dict) -> dict:
     """The scene a point of ``spec`` runs: the scene with the point's values put in
     (:func:`~millfmu.stress_tables.spec.scene_at_point`), and for the DEM builder in the cell
-    that holds the point's beads (:func:`~.dem_builder.dem_scene_at_point`: a wider sector
+    that holds the point's beads (:func:`~.cells.dem_scene_at_point`: a wider sector
     where they do not fit the scene's, else the scene at the point as it is)."""
     if spec.builder_id != DEM_BUILDER_ID:
         return scene_at_point(spec.scene, point)
-    from .dem_builder import dem_scene_at_point  # here: dem_builder imports this module
-
     return dem_scene_at_point(spec.scene, point)
 
 
@@ -524,7 +523,7 @@ def build_table(spec: TableSpec, builder: Callable, **run_kw) -> Table:
 
 def wider_cells(spec: TableSpec) -> dict | None:
     """The points of ``spec`` that run in another sector than the scene's (DEM points whose
-    beads do not fit it, :func:`~.dem_builder.dem_scene_at_point`) and that sector, for the
+    beads do not fit it, :func:`~.cells.dem_scene_at_point`) and that sector, for the
     manifest; None where every point runs in the scene's own."""
     if spec.builder_id != DEM_BUILDER_ID:
         return None
@@ -537,7 +536,7 @@ def wider_cells(spec: TableSpec) -> dict | None:
     if not wide:
         return None
     return {"note": f"points whose beads do not fit the scene's {own:g}-degree sector at their filling ran in "
-                    f"the narrowest wider sector that holds them (millfmu.dem.tables.dem_builder."
+                    f"the narrowest wider sector that holds them (millfmu.dem.tables.cells."
                     f"dem_scene_at_point); the zone statistics are per chamber volume",
             "points": wide}
 
