@@ -262,8 +262,9 @@ def scene_at_point(scene: dict, point: dict) -> dict:
 def manifest_for(spec: TableSpec, table: Table, extra: dict | None = None,
                  work_precision=None) -> dict:
     """The manifest of a table built from ``spec``: the key content, key, creation
-    time, resolution, (for a DEM table) the work-precision entry, build wall time and
-    stationarity, and ``extra``.
+    time, resolution, (for a DEM table) the work-precision entry, build wall time,
+    stationarity, the points run in a wider DEM cell than the scene's (``cells``), and
+    ``extra``.
 
     ``work_precision``: the entry itself, or a function of the ``dem`` part of the
     resolution that gives it (the work-precision study's ``manifest_entry``), handed in by
@@ -280,8 +281,9 @@ def manifest_for(spec: TableSpec, table: Table, extra: dict | None = None,
     for k in ("points_run", "points_reused", "points_wall_time_s"):
         if k in table.manifest:
             m[k] = table.manifest[k]
-    if "stationarity" in table.manifest:
-        m["stationarity"] = table.manifest["stationarity"]
+    for k in ("stationarity", "cells"):
+        if k in table.manifest:
+            m[k] = table.manifest[k]
     if extra:
         m.update(extra)
     return m

@@ -92,9 +92,10 @@ def test_stationarity_summary_takes_the_largest_drift_per_zone():
 
 
 def test_dem_builder_cost_ranks_small_beads_and_high_fillings_first():
-    """The DEM builder's cost estimate grows with the bead count (filling / d^3) and the
-    steps ((spin-up + recording) / dt), so that a build starts the 0.5 mm bead point
-    before the grid's points."""
+    """The DEM builder's cost estimate grows with the bead count (filling / d^3, times the
+    sector where a point runs in a wider one than the scene's) and the steps ((spin-up +
+    recording) / dt), so that a build starts the 0.5 mm bead point before the grid's
+    points."""
     s = T.dem_spec("disc_slice", {"tip_speed_m_per_s": [6.0, 14.0], "filling": [0.5, 0.9]},
                    OVER, one_at_a_time={"bead_diameter_m": [0.5e-3, 0.8e-3]})
     b = T.DemBuilder(threads=1)
@@ -104,7 +105,11 @@ def test_dem_builder_cost_ranks_small_beads_and_high_fillings_first():
     assert len(small) == 1 and small[0] > max(grid)
     a = s.anchor()
     assert small[0] == pytest.approx(b.relative_cost(s.scene, a) * (0.8 / 0.5) ** 3)
+    assert b.relative_cost(s.scene, dict(a, filling=0.8)) == pytest.approx(
+        b.relative_cost(s.scene, dict(a, filling=0.5)) * 0.8 / 0.5)
+    # 0.8 mm beads at 90 % do not fit the 5-degree sector (3283 sites, 3677 beads): they run in 8 degrees
+    assert T.dem_scene_at_point(s.scene, dict(a, filling=0.9))["mill"]["sector_deg"] == 8.0
     assert b.relative_cost(s.scene, dict(a, filling=0.9)) == pytest.approx(
-        b.relative_cost(s.scene, dict(a, filling=0.5)) * 0.9 / 0.5)
+        b.relative_cost(s.scene, dict(a, filling=0.5)) * 0.9 / 0.5 * 8.0 / 5.0)
     order = T.order_by_cost(s, b, s.points(), list(range(len(s.points()))))
     assert s.points()[order[0]]["bead_diameter_m"] == 0.5e-3

@@ -155,15 +155,17 @@ def test_an_unwritable_output_folder_is_the_one_named(tmp_path, monkeypatch):
 
 
 def test_a_bead_size_the_dem_cell_cannot_hold_is_refused_before_its_cost(tmp_path, capsys):
-    """1.4 mm beads at 80 % filling on the coupled table (on_outside = 'build'): refused by the
-    bead size, before a build line or any DEM run."""
+    """4 mm beads at 80 % filling on the coupled table (on_outside = 'build'): no sector of up
+    to 90 degrees holds them, so they are refused by the bead size, before a build line or any
+    DEM run."""
     scene = tmp_path / "s.toml"
-    scene.write_text('[beads]\ndiameter_m = 1.4e-3\n[kinetics]\nmodel = "detailed"\n'
+    scene.write_text('[beads]\ndiameter_m = 4e-3\n[kinetics]\nmodel = "detailed"\n'
                      '[kinetics.stress_distribution]\nsource = "table"\ntable = "coupled"\non_outside = "build"\n')
     assert main(["run", str(scene), "--out", str(tmp_path / "out"), "-q", "--no-plots"]) == 2
     err = capsys.readouterr().err
-    assert "beads.diameter_m = 0.0014: the DEM scene disc_slice" in err, err
-    assert "holds at most 1159 beads of 1.4 mm" in err and "a filling of 0.8 needs 1220" in err
+    assert "beads.diameter_m = 0.004: the DEM scene disc_slice" in err, err
+    assert "holds at most 352 beads of 4 mm placed without overlap in a sector of 90 degrees" in err
+    assert "a filling of 0.8 needs 471" in err
     assert "building a table" not in err and "lower the filling" not in err and "Traceback" not in err
     assert not (tmp_path / "out").exists()
 

@@ -24,6 +24,7 @@ at ``baffle_angle_deg``. They slow the liquid's and the beads' swirl between the
 
 from __future__ import annotations
 
+import functools
 import math
 from dataclasses import dataclass
 
@@ -279,8 +280,17 @@ def fcc_sites(geom: MillGeometry, radius_m: float, gap_m: float) -> np.ndarray:
     az = geom.height_m / nzc  # >= a: stretched slightly along z
     basis = np.array([[0, 0, 0], [0.5, 0.5, 0], [0.5, 0, 0.5], [0, 0.5, 0.5]])
     n = int(math.ceil(geom.chamber_radius_m / a)) + 1
-    i = np.arange(-n, n + 1)
-    gx, gy, gz = np.meshgrid(i, i, np.arange(nzc), indexing="ij")
+    ix = iy = np.arange(-n, n + 1)
+    if geom.sector_deg != 360.0:
+        # Only the lattice cells that can hold a site of the sector (its bounding box, one cell of margin):
+        # the same sites in the same order as over the whole circle (the order is lexicographic in the cell
+        # indices, which are cut to contiguous ranges), at a fraction of the cost.
+        th = geom.sector_rad  # <= 90 degrees
+        lo_x, hi_x = geom.shaft_radius_m * math.cos(th), geom.chamber_radius_m
+        hi_y = geom.chamber_radius_m * math.sin(th)
+        ix = np.arange(max(-n, math.floor(lo_x / a) - 1), min(n, math.ceil(hi_x / a) + 1) + 1)
+        iy = np.arange(max(-n, -1), min(n, math.ceil(hi_y / a) + 1) + 1)
+    gx, gy, gz = np.meshgrid(ix, iy, np.arange(nzc), indexing="ij")
     cells = np.stack([gx.ravel(), gy.ravel(), gz.ravel()], axis=1).astype(float)
     pts = (cells[:, None, :] + basis[None, :, :]).reshape(-1, 3)
     pts[:, 0] *= a
@@ -311,9 +321,16 @@ def placement_gap_m(radius_m: float) -> float:
     return 0.02 * 2.0 * radius_m
 
 
+#: Sector angles [degrees] a cell can be widened to where beads do not fit its own sector: the whole-degree
+#: divisors of 360 from 4 to 90 (rotational periodicity needs 360/k degrees with k >= 4).
+SECTORS_DEG = tuple(float(360 // k) for k in range(90, 3, -1) if 360 % k == 0)
+
+
+@functools.lru_cache(maxsize=256)
 def placement_capacity(geom: MillGeometry, radius_m: float) -> int:
     """How many beads of ``radius_m`` [m] :func:`place_beads` can place in the cell (0 where
-    the cell is too low for one lattice layer)."""
+    the cell is too low for one lattice layer). Remembered per cell and radius: a table's
+    points ask it of the same cells again and again (their cell is chosen by it)."""
     try:
         return int(fcc_sites(geom, radius_m, placement_gap_m(radius_m)).shape[0])
     except GeometryError:

@@ -13,7 +13,8 @@ The modules, by role:
 - :mod:`.equivalence`: source changes of round-off only, accepted as the tables' kernel
   version on the evidence of runs scored against the version's own realizations (the
   runs, made from a checkout: ``python -m validation.equivalence_runs``);
-- :mod:`.dem_builder`: the DEM as a builder (:class:`DemBuilder`), DEM table specs and
+- :mod:`.dem_builder`: the DEM as a builder (:class:`DemBuilder`), the DEM cell of a point
+  (:func:`dem_scene_at_point`: a wider sector where its beads do not fit), DEM table specs and
   rebuilds that cover a new point;
 - :mod:`.on_demand`: builds that extend a table to a new point, their cost and the
   policies for a table of another DEM kernel version;
@@ -50,7 +51,8 @@ _EXPORTS = {
         "read_default_table", "read_table", "read_table_ref", "table_ref_prefix"), "table"),
     "TableStressSource": "stress_source",
     **dict.fromkeys(("CHECK_FIELDS", "PointStore", "assemble", "build_table", "check_point",
-                     "order_by_cost", "record_check", "run_points", "stationarity_summary"),
+                     "order_by_cost", "point_scene", "record_check", "run_points", "stationarity_summary",
+                     "wider_cells"),
                     "build"),
     **dict.fromkeys((
         "KERNEL_MODULES", "POINTS_DIR", "SAME_DEM_AS", "cache_entries", "clear_cache",
@@ -58,8 +60,8 @@ _EXPORTS = {
         "kernel_source_hash", "load_cached", "resolve_cache_dir"),
         "cache"),
     **dict.fromkeys((
-        "DemBuilder", "dem_spec", "normalize_stats", "rebin_density", "rebuild_including",
-        "recording_drift"), "dem_builder"),
+        "DemBuilder", "dem_cells", "dem_scene_at_point", "dem_spec", "normalize_stats", "rebin_density",
+        "rebuild_including", "recording_drift"), "dem_builder"),
 }
 #: The modules of millfmu.stress_tables whose names are re-exported here.
 _READER = ("spec", "files", "table", "stress_source")

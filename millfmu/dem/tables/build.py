@@ -28,12 +28,23 @@ from ...stress_tables.spec import (COMPONENTS, DEM_BUILDER_ID, DRIFT_FIELDS, EAR
                                    QUANTILE_NAMES, TableError, TableSpec, scene_at_point)
 from ...stress_tables.table import FIXED_AXIS_RTOL, Table
 from ...unit_names import modernize, to_earlier
+from .cells import dem_scene_at_point
+
+
+def point_scene(spec: TableSpec, point: dict) -> dict:
+    """The scene a point of ``spec`` runs: the scene with the point's values put in
+    (:func:`~millfmu.stress_tables.spec.scene_at_point`), and for the DEM builder in the cell
+    that holds the point's beads (:func:`~.cells.dem_scene_at_point`: a wider sector
+    where they do not fit the scene's, else the scene at the point as it is)."""
+    if spec.builder_id != DEM_BUILDER_ID:
+        return scene_at_point(spec.scene, point)
+    return dem_scene_at_point(spec.scene, point)
 
 
 class PointStore:
     """Finished grid points on disk: ``<folder>/<key>.json``, the key the sha256 of the
-    canonical JSON of (format, builder id, kernel version, the scene with the point's values
-    put in). A file is written to a temporary name, fsync'ed and renamed, so a reader sees
+    canonical JSON of (format, builder id, kernel version, the scene the point runs,
+    :func:`point_scene`). A file is written to a temporary name, fsync'ed and renamed, so a reader sees
     a whole point or none; a file that does not parse or whose content is not its key's is
     ignored (the point is run again)."""
 
@@ -46,7 +57,7 @@ class PointStore:
     def key_content(spec: TableSpec, point: dict) -> dict:
         return {"format": FORMAT_VERSION, "builder": spec.builder_id,
                 "kernel_version": spec.kernel_version,
-                "scene": scene_at_point(spec.scene, point)}
+                "scene": point_scene(spec, point)}
 
     def key(self, spec: TableSpec, point: dict) -> str:
         return sha256_bytes(canonical_json(self.key_content(spec, point)).encode())
@@ -504,7 +515,30 @@ def build_table(spec: TableSpec, builder: Callable, **run_kw) -> Table:
     st = stationarity_summary(results, table.zone_names)
     if st is not None:
         table.manifest["stationarity"] = st
+    cells = wider_cells(spec)
+    if cells is not None:
+        table.manifest["cells"] = cells
     return table
+
+
+def wider_cells(spec: TableSpec) -> dict | None:
+    """The points of ``spec`` that run in another sector than the scene's (DEM points whose
+    beads do not fit it, :func:`~.cells.dem_scene_at_point`) and that sector, for the
+    manifest; None where every point runs in the scene's own."""
+    if spec.builder_id != DEM_BUILDER_ID:
+        return None
+    own = (spec.scene.get("mill") or {}).get("sector_deg", 360.0)
+    wide = []
+    for p in spec.points():
+        deg = (point_scene(spec, p).get("mill") or {}).get("sector_deg", 360.0)
+        if deg != own:
+            wide.append({"point": p, "sector_deg": deg})
+    if not wide:
+        return None
+    return {"note": f"points whose beads do not fit the scene's {own:g}-degree sector at their filling ran in "
+                    f"the narrowest wider sector that holds them (millfmu.dem.tables.cells."
+                    f"dem_scene_at_point); the zone statistics are per chamber volume",
+            "points": wide}
 
 
 def stationarity_summary(results: list[dict], zone_names) -> dict | None:

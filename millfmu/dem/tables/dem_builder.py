@@ -1,7 +1,8 @@
 """The DEM as a table builder: :class:`DemBuilder` runs millfmu's DEM at a grid point and
-normalizes its statistics into table fields; :func:`dem_spec` makes the specification of a
-DEM table from a scene file; :func:`rebuild_including` builds a table whose grid covers a
-point outside the old one.
+normalizes its statistics into table fields; :func:`dem_scene_at_point` chooses the DEM cell a
+point runs in (a wider sector where its beads do not fit the scene's); :func:`dem_spec` makes
+the specification of a DEM table from a scene file; :func:`rebuild_including` builds a table
+whose grid covers a point outside the old one.
 
 The DEM (and numba) loads only inside :class:`DemBuilder` calls, not on import.
 """
@@ -21,6 +22,7 @@ import numpy as np
 from ..run import run_scene
 from ..scene import load_scene_dict, scene_from_dict
 from .cache import dem_kernel_version, get_table
+from .cells import dem_cells, dem_scene_at_point
 from ...stress_tables.spec import (COMPONENTS, DEM_BUILDER_ID, DRIFT_FIELDS, QUANTILE_NAMES, TableError,
                    TableSpec, e_ref_J, n_gb_per_m3, norm_log10_edges,
                    scene_at_point)
@@ -92,7 +94,7 @@ class DemBuilder:
     builder_id = DEM_BUILDER_ID
 
     def __call__(self, scene: dict, point: dict) -> dict:
-        s = scene_from_dict(scene_at_point(scene, point))
+        s = scene_from_dict(dem_scene_at_point(scene, point))
         if s.placement != "filling":
             raise TableError(f"scene {s.name}: beads.placement = {s.placement!r}; tables "
                              f"need placement 'filling'")
@@ -109,30 +111,30 @@ class DemBuilder:
 
     def unbuildable(self, scene: dict, point: dict) -> str | None:
         """Why the DEM cannot run ``point`` (its beads do not fit the scene's cell at the
-        point's filling and bead size), else None: asked before a build starts, so that it
-        is refused before its cost is said and before any point runs."""
-        from ..mills.geometry import bead_count_for_filling, placement_capacity
-
-        s = scene_from_dict(scene_at_point(scene, point))
-        if s.placement != "filling":
+        point's filling and bead size, nor any wider sector of :func:`dem_scene_at_point`),
+        else None: asked before a build starts, so that it is refused before its cost is said
+        and before any point runs."""
+        cell, widest = dem_cells(scene, point)
+        if cell.dem is None or cell.fits:
             return None
-        need = bead_count_for_filling(s.geometry, s.filling, s.bead_diameter_m, s.bulk_porosity)
-        cap = placement_capacity(s.geometry, 0.5 * s.bead_diameter_m)
-        if need <= cap:
-            return None
-        g = s.geometry
+        s, g = widest.dem, widest.dem.geometry
+        wider = (f" in a sector of {g.sector_deg:g} degrees, the widest it may take"
+                 if widest is not cell else "")
         return (f"the DEM scene {s.name} ({s.kind}, a cell {g.height_m * 1e3:g} mm high between radii "
-                f"{g.shaft_radius_m * 1e3:g} and {g.chamber_radius_m * 1e3:g} mm) holds at most {cap} beads of "
-                f"{s.bead_diameter_m * 1e3:g} mm placed without overlap, and a filling of {s.filling:g} needs {need}: "
-                f"the table cannot be extended to this bead size at this filling")
+                f"{g.shaft_radius_m * 1e3:g} and {g.chamber_radius_m * 1e3:g} mm) holds at most {widest.capacity} "
+                f"beads of {s.bead_diameter_m * 1e3:g} mm placed without overlap{wider}, and a filling of "
+                f"{s.filling:g} needs {widest.need}: the table cannot be extended to this bead size at this filling")
 
     def relative_cost(self, scene: dict, point: dict) -> float:
         """Expected run time of the point, up to a constant: bead count (filling / d^3) times
         DEM steps ((spin-up + recording) / dt). A build runs the costliest points first, so
         that a long point (small beads) does not start last and leave the other workers
-        idle while it runs."""
-        s = scene_from_dict(scene_at_point(scene, point))
-        return s.filling / s.bead_diameter_m**3 * (s.spin_up_s + s.record_s) / s.dt_s
+        idle while it runs. A point run in a wider sector than the scene's
+        (:func:`dem_scene_at_point`) has as many times more beads."""
+        cell = dem_cells(scene, point)[0]
+        s = cell.dem if cell.dem is not None else scene_from_dict(cell.scene)
+        wider = s.geometry.sector_deg / float(scene.get("mill", {}).get("sector_deg", 360.0))
+        return s.filling / s.bead_diameter_m**3 * wider * (s.spin_up_s + s.record_s) / s.dt_s
 
 
 def recording_drift(windows_csv, zone_names) -> dict:
