@@ -260,8 +260,10 @@ class TableStressSource:
             lk = self.table.lookup(point, self.similar_axes)
         self.last_lookup = lk
         self.last_notes = notes + lk.notes
-        for note in self.last_notes:  # each note names its axis first: "AXIS = VALUE..."
-            ax = note.split(" = ", 1)[0]
+        # the axes where similarity was assumed: the scene's values of axes the table fixes
+        # (each note names its axis first: "AXIS = VALUE...") and the lookup's own; not the
+        # one-at-a-time axes' scaling inside their range
+        for ax in {n.split(" = ", 1)[0] for n in notes} | lk.similar:
             if ax in AXES:
                 x = float(getattr(op, AXES[ax][3]))
                 lo, hi = self.similarity_seen.get(ax, (x, x))

@@ -64,7 +64,8 @@ class Lookup:
     """Interpolated fields at one point (``values``), their interpolation-error estimates
     (``error``, same shapes) and the sampling standard deviation carried over from the DEM
     nodes (``sigma``); ``cell``: the grid nodes the values were interpolated from, as
-    (grid index, weight) pairs."""
+    (grid index, weight) pairs; ``similar``: the axes whose value lay beyond what the table
+    resolves, where similarity was assumed (each also has a note)."""
 
     point: dict
     values: dict
@@ -72,6 +73,7 @@ class Lookup:
     notes: list = field(default_factory=list)
     sigma: dict = field(default_factory=dict)
     cell: list = field(default_factory=list)
+    similar: set = field(default_factory=set)
 
     def bound(self, name: str, k_sigma: float = 2.0) -> np.ndarray:
         """Interpolation error plus ``k_sigma`` sampling standard deviations of a field."""
@@ -194,7 +196,7 @@ class Table:
         sqrt(sum w_c^2 sigma_c^2); :meth:`Lookup.bound` combines the two.
         """
         similar = set(similar_axes)
-        idx, ts, notes = [], [], []
+        idx, ts, notes, assumed = [], [], [], set()
         for name, ax in self.axes.items():
             if name not in point:
                 raise TableError(f"table lookup: axis {name} missing from the point "
@@ -202,6 +204,7 @@ class Table:
             x, note = self.axis_value(name, float(point[name]), similar)
             if note:
                 notes.append(note)
+                assumed.add(name)
             if ax.size == 1:
                 idx.append(0), ts.append(0.0)
                 continue
@@ -229,7 +232,7 @@ class Table:
                 var = v if var is None else var + v
             sigmas[k] = np.sqrt(var) if var is not None else np.array(node_sigma[k], float)
         lk = Lookup(point=dict(point), values=values, error=errors, notes=notes,
-                    sigma=sigmas, cell=list(_corners(idx, ts)))
+                    sigma=sigmas, cell=list(_corners(idx, ts)), similar=assumed)
         shift, d_err, d_sig = 0.0, 0.0, 0.0
         for name in self.one_at_a_time:
             if name not in point:
@@ -272,6 +275,7 @@ class Table:
         xu, note = side.axis_value(name, x, similar)
         if note:
             lk.notes.append(note)
+            lk.similar.add(name)
         ref = self.one_at_a_time_ref[name]
         if math.isclose(xu, ref, rel_tol=FIXED_AXIS_RTOL):
             return 0.0, 0.0, 0.0

@@ -310,3 +310,23 @@ def test_cli_check_from_an_earlier_manifest(tmp_path, capsys):
     assert main(["tables", "check", other, "--from", old + ".json"]) == 2
     assert "are not the table's, so its runs are no samples of it" in capsys.readouterr().err
     assert main(["tables", "check", new, "--from", old + ".json", "--tip-speed", "9"]) == 2
+
+
+def test_a_one_at_a_time_value_inside_its_range_assumes_no_similarity():
+    """The shipped coupled table scales its grid by the bead-diameter side table at 0.6 and
+    1.2 mm (inside 0.5-1.2 mm): no similarity is assumed there, so a run warns of none; the
+    stress source still names an axis the table does not have (similarity assumed)."""
+    from millfmu.mill import MillModel
+    from millfmu.scene import example_path, load_scene, scene_from_dict, scene_to_dict
+    from millfmu.stress_tables.table import read_table_ref
+
+    t = read_table_ref("coupled")
+    point = {"tip_speed_m_per_s": 10.0, "filling": 0.8, "bead_diameter_m": 1.2e-3, "bead_density_kg_per_m3": 2510.0}
+    lk = t.lookup(point)
+    assert lk.similar == set() and any("one-at-a-time axis" in n for n in lk.notes)
+    for d in (0.6e-3, 1.2e-3):
+        s = scene_to_dict(load_scene(example_path("yeast_disruption_detailed")))
+        s["beads"]["diameter_m"] = d
+        m = MillModel(scene_from_dict(s), no_dem=True)
+        m.step(1.0)
+        assert m.source.similarity_warnings() == {}, d
