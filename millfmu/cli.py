@@ -174,7 +174,7 @@ def _cmd_examples(args) -> int:
     width = max(map(len, files))
     for name, path in files.items():
         print(f"{name:{width}s}  {path}")
-    print("Run one by name (millfmu run limestone_simple.toml; millfmu calibrate --data limestone_standin_batch.csv "
+    print("Run one by name (millfmu run limestone_detailed.toml; millfmu calibrate --data limestone_standin_batch.csv "
           "...); to change one, copy it and run the copy.")
     return 0
 

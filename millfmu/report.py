@@ -98,6 +98,10 @@ def _fmt(v, spec=".2e", limit=DIVERGED_ABOVE):
 
 # --- 1. the process ---------------------------------------------------------------------
 
+#: The shipped example with the default case on the detailed model (its zone map).
+DETAILED_EXAMPLE = "limestone_detailed.toml"
+
+
 def process_section(out: Path, quick: bool, log=print) -> str:
     """The embedded default scene run now: its size distribution over time, x50 against time
     and against the specific energy, and a table of the run."""
@@ -139,6 +143,13 @@ def process_section(out: Path, quick: bool, log=print) -> str:
     fig.savefig(out / "process_sizes.png", dpi=80)
     plt.close(fig)
     zone_html = _zone_map(out, model)
+    if not zone_html:
+        # The default runs the simple model: the zones of the detailed example's table, at the
+        # same operating point, say where its stresses would come from.
+        from .mill import MillModel
+        from .scene import example_path
+
+        zone_html = _zone_map(out, MillModel(load_scene(example_path(DETAILED_EXAMPLE))), DETAILED_EXAMPLE)
     from .runner import prediction_band
 
     band = prediction_band(scene)
@@ -147,11 +158,11 @@ def process_section(out: Path, quick: bool, log=print) -> str:
         parts = {"table": "the stress-energy table's stated error (every zone's collision rate and median energy at "
                           "the edges of its stated error)",
                  "calibration": "the fitted constants' 95 % intervals"}
-        said = "; ".join(f"{parts[k]}: [{v['outputs']['x50_m'][0] * 1e6:.3g}, {v['outputs']['x50_m'][1] * 1e6:.3g}] "
+        said = "; ".join(f"{parts[k]}: [{v['outputs']['x50_m'][0] * 1e6:.4g}, {v['outputs']['x50_m'][1] * 1e6:.4g}] "
                          "\u00b5m"
                          for k, v in band["parts"].items())
-        zone_html = (f"<p>Prediction band: x50 after {band['t_s']:g} s {records[-1]['x50_m'] * 1e6:.3g} \u00b5m in "
-                     f"[{lo * 1e6:.3g}, {hi * 1e6:.3g}] \u00b5m, from {said}.</p>") + zone_html
+        zone_html = (f"<p>Prediction band: x50 after {band['t_s']:g} s {records[-1]['x50_m'] * 1e6:.4g} \u00b5m in "
+                     f"[{lo * 1e6:.4g}, {hi * 1e6:.4g}] \u00b5m, from {said}.</p>") + zone_html
     idx = np.unique(np.linspace(0, len(records) - 1, min(8, len(records))).round().astype(int))
     rows = [[f"{records[i]['t_s']:g}", _fmt(records[i]["x10_m"] * 1e6, ".3g", None),
              _fmt(records[i]["x50_m"] * 1e6, ".3g", None),
@@ -172,11 +183,12 @@ def process_section(out: Path, quick: bool, log=print) -> str:
                 "below the size grid [%]"], rows), zone_html])
 
 
-def _zone_map(out: Path, model) -> str:
-    """The zones V1-V4 of the DEM slice behind the default scene's table, drawn on a half
+def _zone_map(out: Path, model, example: str | None = None) -> str:
+    """The zones V1-V4 of the DEM slice behind a detailed model's table, drawn on a half
     section of the mill (radius against axial position) and coloured with the table's
     collision rate and median stress energy there at the scene's operating point, with
-    their stated relative error; '' for a model without a DEM table."""
+    their stated relative error; '' for a model without a DEM table. ``example``: the
+    shipped example the model runs (None: the default scene)."""
     src = model.source
     table = getattr(src, "table", None)
     if table is None or (table.manifest.get("scene") or {}).get("kind") != "disc_slice":
@@ -224,17 +236,25 @@ def _zone_map(out: Path, model) -> str:
                         bbox=dict(boxstyle="round,pad=0.2", fc="black", alpha=0.45, lw=0))
         ax.set(xlabel="axial position z [mm] (disc in grey)", ylabel="radius r [mm]", title=label)
         fig.colorbar(m, ax=ax, shrink=0.9)
-    fig.suptitle(f"DEM zones of the default scene's table at {op.tip_speed_m_per_s:g} m/s and "
+    whose = f"{example}'s" if example else "the default scene's"
+    fig.suptitle(f"DEM zones of {whose} table {model.scene.kinetics.stress_distribution.table!r} at "
+                 f"{op.tip_speed_m_per_s:g} m/s and "
                  f"{100 * model.inputs['bead_filling']:g} % filling (component {src.component}; \u00b1: stated "
                  "relative error)", fontsize=10)
     plain_log_ticks(fig)
     fig.tight_layout()
     fig.savefig(out / "process_zones.png", dpi=80)
     plt.close(fig)
-    return ("<p>Where the stresses come from: the table's zones on a half section of the mill (one disc, "
+    if example:
+        lead = (f"Where the detailed model's stresses come from (the default scene runs Kwade's simple model; "
+                f"{_esc(example)} is this case on the coupled DEM-CFD table, opt-in): its table's zones")
+        carried = "which that example's prediction band carries"
+    else:
+        lead, carried = "Where the stresses come from: the table's zones", "which the run's prediction band carries"
+    return (f"<p>{lead} on a half section of the mill (one disc, "
             "axially periodic), each with its collision rate and the median of its stress energies at the scene's "
             "operating point and their stated relative error (interpolation and DEM sampling at the point, plus the "
-            "table's work-precision error), which the run's prediction band carries.</p>"
+            f"table's work-precision error), {carried}.</p>"
             '<img src="process_zones.png" alt="zone map of collision rate and median stress energy">')
 
 

@@ -45,8 +45,17 @@ from millfmu.scene import default_scene_text, scene_from_dict
 
 @pytest.fixture
 def scene_dict():
-    """The default scene as a dict, to be modified by a test."""
+    """The default scene (Kwade's simple model) as a dict, to be modified by a test."""
     return copy.deepcopy(tomllib.loads(default_scene_text()))
+
+
+@pytest.fixture
+def detailed_scene_dict():
+    """The detailed example (the default case with the detailed model on the shipped coupled
+    DEM-CFD table, limestone_detailed.toml) as a dict, to be modified by a test."""
+    from millfmu.scene import example_path
+
+    return copy.deepcopy(tomllib.loads(example_path("limestone_detailed.toml").read_text()))
 
 
 def make_scene(d, **sections):

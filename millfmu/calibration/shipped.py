@@ -73,7 +73,9 @@ SHIPPED = (
                "stand-in datum: 80 % of the cells disrupted after 10 min, the result the shipped simple "
                "example gave before its burst energies were put on a physical footing"),
          "yeast_standin_batch.csv", "material.burst_energy_median_J"),
-    Pair("limestone", "limestone_simple.toml", None,
+    # The default scene is the simple model of the limestone pair; its detailed model is the
+    # example at the same reference point.
+    Pair("limestone", None, "limestone_detailed.toml",
          Datum("x50_m", 2.88e-6, 1800.0,
                "stand-in datum: x50 = 2.88 um after 30 min from the 10 um feed, the shipped simple model's "
                "result with k_c = 1 and the earlier assumed breakage energies, which the flowsheets were tuned with"),

@@ -204,8 +204,10 @@ def band_text(band: dict) -> str:
         return f"[{lo:.4g}, {hi:.4g}]{unit}"
 
     parts = ", ".join(f"{name} {rng(p['outputs'])}" for name, p in band["parts"].items())
+    sources = {"table": "the table's stated error", "calibration": "the fitted constants' 95 % intervals"}
+    whence = " and ".join(sources.get(name, name) for name in band["parts"])
     return (f"; prediction band of the scene's own run at t = {band['t_s']:g} s: {key} in {rng(band['outputs'])} "
-            f"({parts}; from the table's stated error and the fitted constants' 95 % intervals)")
+            f"({parts}; from {whence})")
 
 
 def model_description_text(base: str, scene, n_classes: int, table=None, band: dict | None = None) -> str:

@@ -31,8 +31,8 @@ def test_mass_balance_closes(results, name):
 
 def test_circuit_makes_the_batch_finer_and_keeps_it(results):
     d = results["circuit"]["data"]
-    # 20 -> 10.2 um in 30 min on the coupled table (7.4 um on the prescribed-swirl one)
-    assert d["tank.x50"][-1] < 0.6 * d["tank.x50"][0]
+    # 20 -> 7.4 um in 30 min with the default scene's physics (Kwade's simple model)
+    assert d["tank.x50"][-1] < 0.5 * d["tank.x50"][0]
     assert np.all(np.diff(d["tank.x50"]) <= 1e-12)  # a recirculated batch only gets finer
     total = d["total.holdup"] + d["total.buffered"]
     np.testing.assert_allclose(total, total[0], rtol=1e-12)  # a closed loop: no feed, no product
@@ -59,7 +59,7 @@ def test_closed_circuit_returns_coarse_and_sells_fines(results):
 
 def test_controller_reaches_its_target(results):
     d = results["control"]["data"]
-    t, x50, sp = d["t"], d["mill.x50"], 12e-6  # the flowsheet's setpoint on the coupled table
+    t, x50, sp = d["t"], d["mill.x50"], 9e-6  # the flowsheet's setpoint
     assert np.any(d["pi.saturated"] == 1.0)  # the start (coarse mill content) saturates the speed
     before = (t > 700) & (t <= 900)
     after = t > 1700

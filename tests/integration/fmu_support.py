@@ -35,8 +35,10 @@ def scene_text(**sections) -> str:
     return toml_text(d)
 
 
-# The default scene reads the shipped DEM table; these two use no DEM data at all: Kwade's
-# simple model, and the detailed model with a log-normal stress-energy distribution.
+# The default scene (Kwade's simple model) and these two use no DEM data at all: the
+# simple model continuous, and the detailed model with a log-normal stress-energy
+# distribution. TABLE_SCENE reads the shipped coupled DEM-CFD table: the detailed example.
+TABLE_SCENE = ROOT / "millfmu" / "data" / "examples" / "limestone_detailed.toml"
 CONTINUOUS = dict(scene={"name": "pm1-limestone-continuous"},
                   operation={"mode": "continuous", "n_tanks": 3, "feed_mass_flow_kg_per_s": 1e-3},
                   kinetics={"model": "simple"})

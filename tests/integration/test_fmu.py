@@ -12,7 +12,7 @@ import pytest
 from millfmu.mill import PSD_SUM_TOL, MillModel
 from millfmu.scene import load_scene
 
-from .fmu_support import CONTINUOUS, DETAILED, build, isolated_python, reference, run_py, scene_text
+from .fmu_support import CONTINUOUS, DETAILED, TABLE_SCENE, build, isolated_python, reference, run_py, scene_text
 
 pytest.importorskip("pythonfmu")
 pytest.importorskip("fmpy")
@@ -25,7 +25,8 @@ PARAMS = ["bead_filling", "bead_diameter", "bead_density", "stress_frequency_fac
 @pytest.fixture(scope="session")
 def work(tmp_path_factory):
     d = tmp_path_factory.mktemp("fmu")
-    scenes = {"batch": None, "continuous": d / "continuous.toml", "detailed": d / "detailed.toml"}
+    scenes = {"batch": None, "continuous": d / "continuous.toml", "detailed": d / "detailed.toml",
+              "table": TABLE_SCENE}
     scenes["continuous"].write_text(scene_text(**CONTINUOUS))
     scenes["detailed"].write_text(scene_text(**DETAILED))
     fmus = {k: build(p, d / f"{k}.fmu") for k, p in scenes.items()}
@@ -92,10 +93,11 @@ def test_model_structure_has_outputs_without_feedthrough_and_initial_unknowns(wo
     assert cs["canHandleVariableCommunicationStepSize"] == "true"
 
 
-@pytest.mark.parametrize("kind", ["continuous", "detailed"])
+@pytest.mark.parametrize("kind", ["batch", "continuous", "detailed"])
 def test_fmu_carries_its_scene_and_only_the_code_it_needs(work, kind):
-    """Scenes that use no DEM data carry nothing of the DEM (the default scene's FMU, which
-    reads the DEM table, carries the table reader and its slice: test_fmu_table)."""
+    """Scenes that use no DEM data carry nothing of the DEM, the default scene (batch) among
+    them (the detailed example's FMU, which reads the DEM table, carries the table reader
+    and its slice: test_fmu_table)."""
     z = zipfile.ZipFile(work["fmus"][kind])
     names = z.namelist()
     scene_path = work["scenes"][kind]
@@ -115,6 +117,21 @@ def test_fmu_carries_its_scene_and_only_the_code_it_needs(work, kind):
     assert _md(work["fmus"][kind]).find("ModelVariables") is not None
     n = _n(scene_path)
     assert sum(1 for sv in _md(work["fmus"][kind]).iter("ScalarVariable") if sv.get("name").startswith("psd[")) == n
+
+
+def test_the_default_scenes_description_names_its_stand_in_calibration_and_band(work):
+    """The default scene (simple model): no table; its description carries the calibration
+    record (k_c fitted to the stand-in curve) and the band of its own run, k_c's part alone."""
+    from fmpy import read_model_description
+
+    import millfmu
+    from millfmu.runner import prediction_band
+
+    text = read_model_description(str(work["fmus"]["batch"])).description
+    assert "DEM table" not in text and "STAND-IN" in text and "stress_frequency_factor" in text
+    lo, hi = prediction_band(millfmu.load_scene())["outputs"]["x50_m"]
+    assert f"prediction band of the scene's own run at t = 1800 s: x50_m in [{lo:.4g}, {hi:.4g}] m" in text
+    assert "calibration [" in text and "table [" not in text
 
 
 # ---- runs ---------------------------------------------------------------------------------
@@ -278,30 +295,28 @@ done({{"s1": s1, "s2": s2, "x50": x50}})
 
 
 def test_parameters_set_before_initialization_define_the_operating_point(work):
-    """On the default scene's FMU (detailed model on the coupled DEM table, bead diameters
+    """On the detailed example's FMU (detailed model on the coupled DEM table, bead diameters
     0.5-1.2 mm one at a time): tip speed and filling inside the table define the operating
     point; a bead diameter the table does not hold, or a negative one, is fmi2Error at
     fmi2ExitInitializationMode and refuses every step, with the reason logged."""
     res = run_py(work["python"], f"""
-f = open_fmu({str(work["fmus"]["batch"])!r}, start={{"tip_speed": 8.0, "bead_filling": 0.7}})
+f = open_fmu({str(work["fmus"]["table"])!r}, start={{"tip_speed": 8.0, "bead_filling": 0.7}})
 o0 = outputs(f)
 assert step(f, 0.0, 2.0) == 0
 o1 = outputs(f)
-g = open_fmu({str(work["fmus"]["batch"])!r}, "g", init=False)
+g = open_fmu({str(work["fmus"]["table"])!r}, "g", init=False)
 ex_g = initialize(g, {{"bead_diameter": -1.0}})
 st = step(g, 0.0, 1.0)
-h = open_fmu({str(work["fmus"]["batch"])!r}, "h", init=False)
+h = open_fmu({str(work["fmus"]["table"])!r}, "h", init=False)
 ex_h = initialize(h, {{"bead_diameter": 0.3e-3}})
 st_h = step(h, 0.0, 1.0)
 done({{"o0": o0, "o1": o1, "st": st, "st_h": st_h, "ex": [ex_g, ex_h], "log": [e for e in LOG if e[0] in ("g", "h")]}})
 """, work["dir"])
     assert res["ex"] == [3, 3]  # fmi2Error
-    from millfmu.scene import scene_from_dict
-    from .fmu_support import scene_text as st
-    import tomllib
+    import millfmu
 
-    scene = scene_from_dict(tomllib.loads(st(mill={"tip_speed_m_per_s": 8.0, "bead_filling": 0.7})))
-    m = MillModel(scene)
+    m = MillModel(millfmu.load_scene(TABLE_SCENE, overrides={"mill.tip_speed_m_per_s": 8.0,
+                                                             "mill.bead_filling": 0.7}))
     assert res["o0"]["holdup"] == m.outputs()["holdup_kg"] and res["o0"]["se_beads"] == m.outputs()["se_beads_J"]
     o = m.step(2.0)
     assert res["o1"]["x50"] == o["x50_m"] and res["o1"]["power"] == o["power_W"]

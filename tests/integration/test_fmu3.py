@@ -18,7 +18,8 @@ from millfmu.scene import load_scene
 
 from millfmu.scene import default_scene_text
 
-from .fmu_support import CONTINUOUS, DETAILED, ROOT, build, isolated_python, need_fmi3, reference, run_py, scene_text
+from .fmu_support import (CONTINUOUS, DETAILED, ROOT, TABLE_SCENE, build, isolated_python, need_fmi3, reference, run_py,
+                          scene_text)
 
 pytest.importorskip("fmpy")
 
@@ -32,7 +33,8 @@ KINDS = ["batch", "continuous", "detailed"]
 def work(tmp_path_factory):
     need_fmi3()
     d = tmp_path_factory.mktemp("fmu3")
-    scenes = {"batch": None, "continuous": d / "continuous.toml", "detailed": d / "detailed.toml"}
+    scenes = {"batch": None, "continuous": d / "continuous.toml", "detailed": d / "detailed.toml",
+              "table": TABLE_SCENE}
     scenes["continuous"].write_text(scene_text(**CONTINUOUS))
     scenes["detailed"].write_text(scene_text(**DETAILED))
     fmus = {k: build(p, d / f"{k}3.fmu", fmi_version=3) for k, p in scenes.items()}
@@ -120,7 +122,7 @@ def test_model_structure_and_capabilities(work):
     assert cs["canHandleVariableCommunicationStepSize"] == "true"
 
 
-@pytest.mark.parametrize("kind", ["continuous", "detailed", "batch"])
+@pytest.mark.parametrize("kind", ["continuous", "detailed", "batch", "table"])
 def test_fmu_carries_its_scene_and_only_the_code_it_needs(work, kind):
     z = zipfile.ZipFile(work["fmus"][kind])
     names = z.namelist()
@@ -135,7 +137,8 @@ def test_fmu_carries_its_scene_and_only_the_code_it_needs(work, kind):
     rules = ["stress_tables/__init__.py", "stress_tables/rules.py"]
     reader = ["stress_tables/__init__.py", "stress_tables/files.py", "stress_tables/rules.py", "stress_tables/spec.py",
               "stress_tables/stress_source.py", "stress_tables/table.py"]
-    assert tables == (reader if kind == "batch" else rules)
+    assert tables == (reader if kind == "table" else rules)  # the default scene (batch) reads no table
+    assert ("resources/table.npz" in names) == (kind == "table")
     assert not any("numba" in n or n.endswith(".pyc") or "cli.py" in n or "runner.py" in n for n in names)
     blob = b"".join(z.read(n) for n in code)
     assert b"import numba" not in blob and b"from numba" not in blob
@@ -151,7 +154,7 @@ def test_fmu_carries_its_scene_and_only_the_code_it_needs(work, kind):
 # ---- runs ---------------------------------------------------------------------------------
 def test_simulate_fmu_without_millfmu_equals_the_fmi2_fmu_and_mill_model(work):
     """fmpy.simulate_fmu in fresh interpreters that cannot import millfmu, FMI 3.0 and 2.0
-    FMUs of the default scene (detailed model on the DEM table); stop time off the step grid."""
+    FMUs of the default scene (Kwade's simple model); stop time off the step grid."""
     n = _n(None)
     code = """
 import importlib.util
@@ -392,11 +395,11 @@ done({{"calls": out, "same_n": same_n, "equal": rf == rr, "n": n_read, "fatal": 
 
 
 def test_parameters_before_initialization_define_the_operating_point_and_refused_ones_are_errors(work):
-    """On the default scene's FMU (detailed model on the coupled DEM table, 0.5-1.2 mm beads): tip speed
-    and filling set before fmi3ExitInitializationMode define the operating point; a bead
-    diameter the table does not hold, or a negative one, is fmi3Error there (the value named)
-    and every later step is refused; another instance in the process is unaffected."""
-    path = str(work["fmus"]["batch"])
+    """On the detailed example's FMU (detailed model on the coupled DEM table, 0.5-1.2 mm beads):
+    tip speed and filling set before fmi3ExitInitializationMode define the operating point; a
+    bead diameter the table does not hold, or a negative one, is fmi3Error there (the value
+    named) and every later step is refused; another instance in the process is unaffected."""
+    path = str(work["fmus"]["table"])
     res = run_py(work["python"], f"""
 f = open_fmu({path!r}, start={{"tip_speed": 8.0, "bead_filling": 0.7}})
 o0 = outputs(f)
@@ -413,10 +416,10 @@ for name, d in (("g", -1.0), ("h", 0.3e-3)):
 assert step(f, 2.0, 1.0) == 0
 done({{"o0": o0, "o1": o1, "out": out}})
 """, work["dir"], fmi_version=3)
-    from millfmu.scene import scene_from_dict
-    import tomllib
+    import millfmu
 
-    m = MillModel(scene_from_dict(tomllib.loads(scene_text(mill={"tip_speed_m_per_s": 8.0, "bead_filling": 0.7}))))
+    m = MillModel(millfmu.load_scene(TABLE_SCENE, overrides={"mill.tip_speed_m_per_s": 8.0,
+                                                             "mill.bead_filling": 0.7}))
     assert res["o0"]["holdup"] == m.outputs()["holdup_kg"] and res["o0"]["se_beads"] == m.outputs()["se_beads_J"]
     o = m.step(2.0)
     assert res["o1"]["x50"] == o["x50_m"] and res["o1"]["power"] == o["power_W"]
@@ -568,9 +571,9 @@ def test_fmi3_time_tolerance_is_the_fmi2_one():
 
 
 def test_tip_speeds_beyond_the_table_are_a_warning_once(work):
-    """The default scene's FMU (similar_axes = tip_speed_m_per_s on the coupled table, 6-14 m/s):
-    steps at 15 and 16 m/s run, and the log says once that similarity was assumed."""
-    path = str(work["fmus"]["batch"])
+    """The detailed example's FMU (similar_axes = tip_speed_m_per_s on the coupled table, 6-14
+    m/s): steps at 15 and 16 m/s run, and the log says once that similarity was assumed."""
+    path = str(work["fmus"]["table"])
     res = run_py(work["python"], f"""
 f = open_fmu({path!r}, "w")
 st = [step(f, float(k), 1.0, {{"tip_speed": v}}) for k, v in enumerate((12.0, 15.0, 16.0, 10.0))]

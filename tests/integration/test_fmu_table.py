@@ -1,13 +1,14 @@
-"""A detailed-model FMU reading a DEM table (the embedded default scene's) carries the table
-slice its scene needs and runs without millfmu."""
+"""A detailed-model FMU reading a DEM table (the detailed example limestone_detailed.toml:
+the default case on the coupled table) carries the table slice its scene needs and runs
+without millfmu."""
 
 import zipfile
 
 import pytest
 
-from tests.integration.fmu_support import build, run_isolated_and_compare
+from tests.integration.fmu_support import TABLE_SCENE, build, run_isolated_and_compare
 
-SCENE = None  # the embedded default scene: detailed model on the shipped table
+SCENE = TABLE_SCENE  # the detailed example: detailed model on the shipped coupled table
 OUTS = ["x10", "x50", "x90", "sf", "holdup"]
 
 
@@ -35,7 +36,7 @@ def test_carries_table_slice_and_reader_only(table_fmu):
         z.extract("resources/table.json", fmu.parent)
     t = read_table(npz=fmu.parent / "resources/table.npz",
                    manifest_path=fmu.parent / "resources/table.json")  # verifies checksums
-    # the default scene's table is the coupled DEM-CFD one: the FMU carries a slice of it
+    # the example's table is the coupled DEM-CFD one: the FMU carries a slice of it
     from millfmu.stress_tables.table import read_table_ref
 
     coupled = read_table_ref("coupled").manifest["key"]
@@ -56,7 +57,7 @@ def test_description_names_the_table_and_the_stand_in_calibration(table_fmu):
     import millfmu
     from millfmu.runner import prediction_band
 
-    b = prediction_band(millfmu.load_scene())
+    b = prediction_band(millfmu.load_scene(SCENE))
     lo, hi = b["outputs"]["x50_m"]
     assert f"prediction band of the scene's own run at t = 1800 s: x50_m in [{lo:.4g}, {hi:.4g}] m (table [" in text
     assert "calibration [" in text

@@ -126,11 +126,16 @@ def test_the_readme_tour_runs_from_an_installed_wheel(wheel, tmp_path):
     # What the README says each command prints and writes.
     default = json.loads((work / "out" / "result.json").read_text())
     assert default["outputs"][-1]["t_s"] == 1800.0
-    assert default["outputs"][-1]["x50_m"] == pytest.approx(2.39e-6, rel=0.01)  # "x50 2.39 um ... after 30 minutes"
+    assert default["outputs"][-1]["x50_m"] == pytest.approx(2.875e-6, rel=1e-3)  # "x50 2.875 um after 30 minutes"
+    lo, hi = default["prediction_band"]["outputs"]["x50_m"]
+    assert (lo, hi) == pytest.approx((2.869e-6, 2.880e-6), rel=5e-4)  # "[2.869, 2.880] um from k_c"
     for name in ("result.json", "psd.csv", "psd.png", "sizes.png"):
-        assert (work / "out-simple" / name).is_file(), name
+        assert (work / "out-detailed" / name).is_file(), name
+    detailed = json.loads((work / "out-detailed" / "result.json").read_text())
+    assert detailed["outputs"][-1]["x50_m"] == pytest.approx(2.39e-6, rel=0.01)  # "the detailed example: 2.39 um"
+    assert any("energy-limited" in w for w in detailed["warnings"])  # "it warns that it is energy-limited here"
     assert (work / "mill.fmu").is_file() and zipfile.is_zipfile(work / "mill.fmu")
     x50_fmu = [float(v) for v in re.findall(r"[0-9.]+e[-+]\d+", outputs[3])]
-    assert x50_fmu == pytest.approx([1.0e-5, 4.2e-6], rel=0.02), outputs[3]  # "about 1.0e-05 and 4.2e-06"
-    assert "material.f_mat_kg_per_J_m = 179.6 kg/(J m)" in outputs[4] and "[119, 271]" in outputs[4]
+    assert x50_fmu == pytest.approx([1.0e-5, 4.3e-6], rel=0.02), outputs[3]  # "about 1.0e-05 and 4.3e-06"
+    assert "mill.stress_frequency_factor = 1.0013" in outputs[4] and "[0.9968, 1.006]" in outputs[4]
     assert (work / "out-cal" / "calibrated.toml").is_file() and (work / "out-cal" / "calibration.json").is_file()

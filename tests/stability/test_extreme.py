@@ -102,13 +102,14 @@ def test_extreme_operating_points(scene_dict):
         _check(m, m.m0_kg)
 
 
-def test_extreme_tip_speeds_on_the_default_table(scene_dict):
-    """The default scene reads the DEM table: tip speeds beyond its grid use the edge's
-    dimensionless fields (similarity); a filling beyond it is refused, naming the bounds."""
+def test_extreme_tip_speeds_on_the_default_table(detailed_scene_dict):
+    """The detailed example reads the default scene's DEM table: tip speeds beyond its grid
+    use the edge's dimensionless fields (similarity); a filling beyond it is refused, naming
+    the bounds."""
     for v in (40.0, 1e-9):
-        m = MillModel(make_scene(scene_dict, mill={"tip_speed_m_per_s": v}))
+        m = MillModel(make_scene(detailed_scene_dict, mill={"tip_speed_m_per_s": v}))
         m.step(1e4)
         _check(m, m.m0_kg)
     with pytest.raises(SceneError,
                        match="mill.bead_filling = 1e-06: outside the stress-energy table's grid; allowed 0.5 to 0.9"):
-        MillModel(make_scene(scene_dict, mill={"bead_filling": 1e-6}))
+        MillModel(make_scene(detailed_scene_dict, mill={"bead_filling": 1e-6}))

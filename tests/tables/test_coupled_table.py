@@ -66,9 +66,9 @@ def test_detailed_model_reads_the_coupled_table():
     from dataclasses import replace
 
     from millfmu.mill import MillModel
-    from millfmu.scene import load_scene
+    from millfmu.scene import example_path, load_scene
 
-    sc = load_scene()
+    sc = load_scene(example_path("limestone_detailed.toml"))
     sd = replace(sc.kinetics.stress_distribution, table="coupled")
     beads = replace(sc.beads, diameter_m=1.0e-3, density_kg_per_m3=6040.0)
     sc = replace(sc, beads=beads, kinetics=replace(sc.kinetics, stress_distribution=sd,

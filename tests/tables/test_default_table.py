@@ -37,9 +37,11 @@ def test_default_table_verifies(table, tmp_path):
 
 def test_detailed_model_runs_on_the_default_table(table):
     from millfmu.api import load_scene
+    from millfmu.scene import example_path
     from millfmu.mill import MillModel
 
-    model = MillModel(load_scene(overrides={"kinetics.stress_distribution.table": "prescribed"}))
+    model = MillModel(load_scene(example_path("limestone_detailed.toml"),
+                                overrides={"kinetics.stress_distribution.table": "prescribed"}))
     src = model.source
     assert isinstance(src, T.TableStressSource)
     np.testing.assert_array_equal(src.table.data["se_density"], table.data["se_density"])
@@ -98,9 +100,11 @@ def test_interpolation_within_stated_error_on_held_back_points(table):
 
 def test_model_refuses_inputs_outside_the_table_and_extrapolates_tip_speed(table):
     from millfmu.api import load_scene
+    from millfmu.scene import example_path
     from millfmu.mill import InputError, MillModel
 
-    m = MillModel(load_scene(overrides={"kinetics.stress_distribution.table": "prescribed"}))
+    m = MillModel(load_scene(example_path("limestone_detailed.toml"),
+                                overrides={"kinetics.stress_distribution.table": "prescribed"}))
     y0 = m.y.copy()
     with pytest.raises(InputError, match=r"input bead_filling = 0.45: outside the "
                        r"stress-energy table's grid; allowed 0.5 to 0.9"):

@@ -74,14 +74,14 @@ def test_dem_builder_pickles_by_its_new_and_its_old_path():
 
 
 def test_stepping_a_table_scene_loads_nothing_of_the_dem():
-    """The default scene (detailed model on the shipped coupled DEM-CFD table), made and
+    """The detailed example (the default case on the shipped coupled DEM-CFD table), made and
     stepped in a fresh interpreter, loads the reader and nothing under millfmu.dem (neither
     the DEM nor the table builder), nor numba."""
     code = (
         "import json, sys\n"
         "from millfmu.mill import MillModel\n"
-        "from millfmu.scene import load_scene\n"
-        "s = load_scene()\n"
+        "from millfmu.scene import example_path, load_scene\n"
+        "s = load_scene(example_path('limestone_detailed.toml'))\n"
         "m = MillModel(s)\n"
         "assert m.kinetics_model == 'detailed' and s.kinetics.stress_distribution.table == 'coupled', s\n"
         "assert type(m.source).__name__ == 'TableStressSource'\n"

@@ -25,8 +25,8 @@ def exported(tmp_path):
 
 def _scene_file(tmp_path, prefix):
     p = tmp_path / "scene.toml"
-    p.write_text(f'[kinetics.stress_distribution]\ntable = "{prefix}"\n[run]\nt_end_s = 10.0\ndt_s = '
-                 '1.0\noutput_interval_s = 5.0\n')
+    p.write_text(f'[kinetics]\nmodel = "detailed"\n[kinetics.stress_distribution]\ntable = "{prefix}"\n[run]\n'
+                 't_end_s = 10.0\ndt_s = 1.0\noutput_interval_s = 5.0\n')
     return p
 
 
@@ -55,7 +55,7 @@ def test_damaged_table_is_refused_by_run_and_build_fmu_naming_file_and_fix(tmp_p
     assert not (tmp_path / "out").exists() and not (tmp_path / "m.fmu").exists()
 
 
-def test_damaged_default_table_names_the_rebuild_command(monkeypatch, tmp_path, scene_dict):
+def test_damaged_default_table_names_the_rebuild_command(monkeypatch, tmp_path, detailed_scene_dict):
     npz, man = T.default_table_paths()
     shutil.copy(npz, tmp_path / "coupled_table.npz")
     shutil.copy(man, tmp_path / "coupled_table.json")
@@ -63,7 +63,7 @@ def test_damaged_default_table_names_the_rebuild_command(monkeypatch, tmp_path, 
     monkeypatch.setattr(table_module, "default_table_paths",
                         lambda: (tmp_path / "coupled_table.npz", tmp_path / "coupled_table.json"))
     with pytest.raises(SceneError) as e:
-        MillModel(make_scene(scene_dict, kinetics={"stress_distribution": {"table": "default"}}))
+        MillModel(make_scene(detailed_scene_dict, kinetics={"stress_distribution": {"table": "default"}}))
     assert "coupled_table.npz" in str(e.value) and "corrupted" in str(e.value)
     assert "--export millfmu/data/coupled_table" in str(e.value)
 
@@ -90,7 +90,7 @@ def test_manifest_without_any_checksum_is_refused(tmp_path, exported):
         T.read_table(npz=npz, manifest_path=man)
 
 
-def test_table_from_a_short_recording_warns(tmp_path, scene_dict):
+def test_table_from_a_short_recording_warns(tmp_path, detailed_scene_dict):
     t = T.read_default_table()
     spec = t.spec()
     scene = copy.deepcopy(spec.scene)
@@ -98,10 +98,10 @@ def test_table_from_a_short_recording_warns(tmp_path, scene_dict):
     short = T.TableSpec(scene=scene, grid=spec.grid, kernel_version=spec.kernel_version, builder_id=spec.builder_id)
     t.manifest = T.manifest_for(short, t)
     t.export(tmp_path / "short")
-    m = MillModel(make_scene(scene_dict, kinetics={"stress_distribution": {"table": str(tmp_path / "short")}}))
+    m = MillModel(make_scene(detailed_scene_dict, kinetics={"stress_distribution": {"table": str(tmp_path / "short")}}))
     assert any("0.004 s" in w and "stirrer revolution" in w for w in m.warnings), m.warnings
-    # 0.1 s recordings: no warning about them (the default scene's one warning is its regime)
-    assert not [w for w in MillModel(make_scene(scene_dict)).warnings if "stirrer revolution" in w]
+    # 0.1 s recordings: no warning about them (the detailed example's one warning is its regime)
+    assert not [w for w in MillModel(make_scene(detailed_scene_dict)).warnings if "stirrer revolution" in w]
     r = subprocess.run([sys.executable, "-m", "millfmu.cli", "run", "-q",
                         str(_scene_file(tmp_path, tmp_path / "short")),
                         "--out", str(tmp_path / "out")], capture_output=True, text=True)

@@ -17,6 +17,8 @@ from millfmu.mill import MillModel
 from millfmu.scene import number_key
 
 YEAST, LIMESTONE = cal.SHIPPED
+#: The default case on the detailed model (the coupled table; f_Mat fitted to the stand-in curve).
+DETAILED = "limestone_detailed.toml"
 ROOT_PKG = resources.files("millfmu.calibration")
 TIMES = (60, 300, 900, 1800, 3600, 7200, 14400, 28800)
 
@@ -57,7 +59,7 @@ def test_recovers_threshold_and_f_mat_with_intervals_that_shrink_with_the_noise(
     (where x10/x50/x90 over 8 h tell them apart: correlation 0.96 at the truth; nearer
     saturation, f_Mat = 100-150, it rises to 0.99 and the pair is refused), fitted from a
     decade off, 2 % and 1 % multiplicative noise."""
-    base = millfmu.load_scene()
+    base = cal.example_scene(DETAILED)
     keys = ["material.x_w_min_J_m_per_kg", "material.f_mat_kg_per_J_m"]
     true = cal.with_values(base, {keys[0]: 0.01, keys[1]: 30.0})
     start = cal.with_values(base, {keys[0]: 0.001, keys[1]: 3.0})
@@ -73,7 +75,7 @@ def test_recovers_energy_transfer():
 
 
 def test_recovers_stress_frequency_factor():
-    base = cal.example_scene("limestone_simple.toml")
+    base = millfmu.load_scene()  # the default scene: the simple model
     true = cal.with_values(base, {"mill.stress_frequency_factor": 2.0})
     start = cal.with_values(base, {"mill.stress_frequency_factor": 0.2})
     _shrinks(true, start, ["mill.stress_frequency_factor"], lambda s, e: synthetic(s, TIMES[:4], e))
@@ -82,13 +84,15 @@ def test_recovers_stress_frequency_factor():
 def test_one_value_cannot_pin_two_constants():
     data = "t_s,x50_m\n1800,2.88e-6\n"
     with pytest.raises(cal.CalibrationError, match="1 measured value.*cannot pin 2 constants"):
-        cal.calibrate(millfmu.load_scene(), data, ["material.x_w_min_J_m_per_kg", "material.f_mat_kg_per_J_m"])
+        cal.calibrate(cal.example_scene(DETAILED), data, ["material.x_w_min_J_m_per_kg",
+                                                          "material.f_mat_kg_per_J_m"])
 
 
 def test_out_of_reach_at_the_bound_names_the_bound_and_the_constant_to_free():
     """Limestone with the earlier assumed threshold (0.2 J m/kg): the coupled energies break
     nothing, even with the whole collision energy."""
-    scene = cal.with_values(millfmu.load_scene(), {"material.x_w_min_J_m_per_kg": 0.2, "kinetics.energy_transfer": 0.5})
+    scene = cal.with_values(cal.example_scene(DETAILED), {"material.x_w_min_J_m_per_kg": 0.2,
+                                                          "kinetics.energy_transfer": 0.5})
     with resources.as_file(LIMESTONE.data_path()) as p:
         with pytest.raises(cal.CalibrationError) as e:
             cal.calibrate(scene, cal.read_data(p), ["kinetics.energy_transfer"])
@@ -100,7 +104,8 @@ def test_out_of_reach_at_the_bound_names_the_bound_and_the_constant_to_free():
 def test_a_correlated_pair_is_refused_naming_what_to_fit_instead():
     with resources.as_file(LIMESTONE.data_path()) as p:
         with pytest.raises(cal.CalibrationError, match="not pinned|cannot tell the two apart|do not pin the pair"):
-            cal.calibrate(millfmu.load_scene(overrides={"material.x_w_min_J_m_per_kg": 1e-3}), cal.read_data(p),
+            cal.calibrate(millfmu.load_scene(millfmu.example_path(DETAILED),
+                                             overrides={"material.x_w_min_J_m_per_kg": 1e-3}), cal.read_data(p),
                           ["material.f_mat_kg_per_J_m", "material.x_w_min_J_m_per_kg"])
 
 
@@ -126,33 +131,49 @@ def test_data_outside_the_size_grid_and_wrong_quantities_are_refused():
         cal.calibrate(millfmu.load_scene(), "t_s,disrupted_fraction\n60,0.5\n", ["material.f_mat_kg_per_J_m"])
     with pytest.raises(cal.CalibrationError, match="has no effect in scene"):
         cal.calibrate(millfmu.load_scene(), "t_s,x50_m\n60,5e-6\n", ["material.burst_energy_median_J"])
-    with pytest.raises(cal.CalibrationError, match="needs a positive start"):
-        cal.calibrate(millfmu.load_scene(), "t_s,x50_m\n60,5e-6\n", ["material.x_w_min_J_m_per_kg"])
+    with pytest.raises(cal.CalibrationError, match="has no effect in scene"):  # the simple model has no eta_E
+        cal.calibrate(millfmu.load_scene(), "t_s,x50_m\n60,5e-6\n", ["kinetics.energy_transfer"])
+    with pytest.raises(cal.CalibrationError, match="needs a positive start"):  # x W_m,min = 0 there
+        cal.calibrate(cal.example_scene(DETAILED), "t_s,x50_m\n60,5e-6\n", ["material.x_w_min_J_m_per_kg"])
 
 
 def test_q3_data_fit_the_same_constant_as_sizes():
     """Q3 as a run writes it (psd.csv, Result.q3: the mass below the grid at the lowest edge,
     counted once) at three output times and four sizes gives back the constant."""
-    true = cal.with_values(millfmu.load_scene(), {"material.f_mat_kg_per_J_m": 200.0})
+    true = cal.with_values(cal.example_scene(DETAILED), {"material.f_mat_kg_per_J_m": 200.0})
     res = millfmu.run(true)
     e, lines = np.log(res.edges_m), ["t_s,x_m,Q3"]
     for t in (120, 600, 1800):
         q3 = res.q3[int(np.flatnonzero(res.t_s == t)[0])]
         for x in (1e-6, 2e-6, 4e-6, 8e-6):
             lines.append(f"{t},{x},{np.interp(math.log(x), e, q3):.10f}")
-    c = cal.calibrate(millfmu.load_scene(), "\n".join(lines) + "\n", ["material.f_mat_kg_per_J_m"])
+    c = cal.calibrate(cal.example_scene(DETAILED), "\n".join(lines) + "\n", ["material.f_mat_kg_per_J_m"])
     assert c.value("material.f_mat_kg_per_J_m") == pytest.approx(200.0, rel=1e-5)
 
 
 def test_the_default_scene_is_the_fit_to_its_shipped_standin_curve():
+    """The default scene (simple model): k_c fitted to the stand-in curve with its 95 %
+    interval, the record the band carries."""
     scene = millfmu.load_scene()
+    assert scene.kinetics.model == "simple" and scene.scene.fitted == ["mill.stress_frequency_factor"]
+    with resources.as_file(LIMESTONE.data_path()) as p:
+        c = cal.calibrate(scene, cal.read_data(p), ["mill.stress_frequency_factor"])
+    k = c.constants["mill.stress_frequency_factor"]
+    assert k.value == pytest.approx(scene.mill.stress_frequency_factor, rel=1e-4)
+    assert k.ci95 == pytest.approx((scene.scene.fitted_ci95_low[0], scene.scene.fitted_ci95_high[0]), rel=1e-4)
+    assert not c.lack_of_fit  # the stand-in curve is this model's own
+    assert "STAND-IN" in p.read_text() and "STAND-IN" in millfmu.default_scene_text()
+
+
+def test_the_detailed_example_is_the_fit_to_the_shipped_standin_curve():
+    scene = cal.example_scene(DETAILED)
     assert scene.kinetics.stress_distribution.table == "coupled" and scene.kinetics.energy_transfer == 1.0
     with resources.as_file(LIMESTONE.data_path()) as p:
         c = cal.calibrate(scene, cal.read_data(p), [LIMESTONE.detailed_key])
     f = c.constants[LIMESTONE.detailed_key]
     assert f.value == pytest.approx(scene.material.f_mat_kg_per_J_m, rel=2e-3)
     assert f.ci95[0] < f.value < f.ci95[1] < MAX_FACTOR * f.ci95[0]
-    assert "STAND-IN" in p.read_text() and "STAND-IN" in millfmu.default_scene_text()
+    assert "STAND-IN" in p.read_text() and "STAND-IN" in millfmu.example_path(DETAILED).read_text()
 
 
 MAX_FACTOR = cal.MAX_INTERVAL_FACTOR
@@ -185,7 +206,8 @@ def test_yeast_fit_counts_the_whole_collision_energy_the_consistent_choice():
 
 def test_cli_writes_a_calibrated_scene_and_the_record(tmp_path):
     with resources.as_file(LIMESTONE.data_path()) as p:
-        r = subprocess.run([sys.executable, "-m", "millfmu.cli", "calibrate", "--data", str(p), "--fit",
+        r = subprocess.run([sys.executable, "-m", "millfmu.cli", "calibrate", str(millfmu.example_path(DETAILED)),
+                            "--data", str(p), "--fit",
                             "material.f_mat_kg_per_J_m", "--start", "material.f_mat_kg_per_J_m=50", "--out",
                             str(tmp_path / "o")],
                            capture_output=True, text=True)
@@ -200,7 +222,7 @@ def test_cli_writes_a_calibrated_scene_and_the_record(tmp_path):
     assert digest in text and "limestone_standin_batch.csv" in text
     scene = millfmu.load_scene(str(tmp_path / "o" / "calibrated.toml"))
     assert scene.material.f_mat_kg_per_J_m == k["value"]
-    assert "Detailed stress model" in text  # the scene's own comments are kept
+    assert "When to use it" in text  # the scene's own comments are kept
 
 
 def test_cli_refusal_exits_2_and_writes_nothing(tmp_path):
@@ -219,15 +241,15 @@ def test_refusals_name_the_api_arguments_and_the_command_its_options(tmp_path, c
     scene keys; `millfmu calibrate` words the same refusal with its options."""
     from millfmu.cli import main
 
-    key = "material.x_w_min_J_m_per_kg"  # 0 in the default scene: no start for a fit in ln(key)
+    key = "material.x_w_min_J_m_per_kg"  # 0 in the detailed example: no start for a fit in ln(key)
     with pytest.raises(cal.CalibrationError) as e:
-        cal.calibrate(millfmu.load_scene(), "t_s,x50_m\n60,5e-6\n", [key])
+        cal.calibrate(cal.example_scene(DETAILED), "t_s,x50_m\n60,5e-6\n", [key])
     assert str(e.value) == (f"fit {key}: starts from 0 J m/kg, the scene's value; a fit in ln({key}) needs a positive "
                             f"start: set one in the scene (or start={{{key!r}: VALUE}})")
     assert (e.value.argument, e.value.subject, e.value.start_key) == ("fit", key, key)
     f = tmp_path / "d.csv"
     f.write_text("t_s,x50_m\n60,5e-6\n")
-    assert main(["calibrate", "--data", str(f), "--fit", key, "-q"]) == 2
+    assert main(["calibrate", str(millfmu.example_path(DETAILED)), "--data", str(f), "--fit", key, "-q"]) == 2
     assert capsys.readouterr().err.strip() == (f"millfmu: error: --fit {key}: starts from 0 J m/kg, the scene's value; "
                                                f"a fit in ln({key}) needs a positive start: set one in the scene (or "
                                                f"--start {key}=VALUE)")
@@ -284,5 +306,5 @@ def test_a_measurement_given_twice_is_noted(tmp_path, capsys):
     assert len(d.rows) == 3 and len(d.notes) == 1 and "x50_m at t_s = 300 is given more than once" in d.notes[0]
     f = tmp_path / "lab.csv"
     f.write_text(text)
-    assert main(["calibrate", "--data", str(f), "--fit", "material.f_mat_kg_per_J_m", "-q"]) == 0
+    assert main(["calibrate", "--data", str(f), "--fit", "mill.stress_frequency_factor", "-q"]) == 0
     assert "warning: " in capsys.readouterr().err

@@ -1,7 +1,7 @@
 """Calibration's error models (issue 58): intervals that allow an error shared by one
 sample's x10/x50/x90 (cluster-robust over measurement times), the lack-of-fit warning and
-the refusal of a constant on a plateau. Synthetic data from the model itself (the default
-scene, f_Mat known) at the shipped stand-in curve's times."""
+the refusal of a constant on a plateau. Synthetic data from the model itself (the detailed
+example limestone_detailed.toml, f_Mat known) at the shipped stand-in curve's times."""
 
 import json
 import math
@@ -17,6 +17,8 @@ from millfmu.mill import MillModel
 KEY = "material.f_mat_kg_per_J_m"
 TIMES = (60, 120, 300, 600, 900, 1200, 1800)
 LIMESTONE = cal.SHIPPED[1]
+#: The default case on the detailed model, whose material constant f_Mat these fits recover.
+DETAILED = "limestone_detailed.toml"
 
 
 def model_sizes(scene) -> np.ndarray:
@@ -40,7 +42,7 @@ def noisy(base, rng, shared, independent) -> str:
 
 @pytest.fixture(scope="module")
 def truth():
-    scene = millfmu.load_scene()
+    scene = cal.example_scene(DETAILED)
     return scene, model_sizes(scene)
 
 
@@ -92,17 +94,18 @@ def test_cli_errors_option(tmp_path, capsys):
     from millfmu.cli import main
 
     with resources.as_file(LIMESTONE.data_path()) as p:
-        assert main(["calibrate", "--data", str(p), "--fit", KEY, "-q", "--errors", "independent"]) == 0
+        assert main(["calibrate", str(millfmu.example_path(DETAILED)), "--data", str(p), "--fit", KEY, "-q",
+                     "--errors", "independent"]) == 0
     out = capsys.readouterr().out
     assert "errors: independent" in out and "Student's t with 20 degrees of freedom" in out
 
 
 def test_lack_of_fit_is_named_on_the_shipped_limestone_fit():
-    """The default scene (detailed model) fitted to the stand-in curve the simple model made:
+    """The detailed example fitted to the stand-in curve the simple model made:
     residuals fall with time (+0.16 at 60 s, -0.16 at 1800 s) and x90's lie above x10's at
     every time."""
     with resources.as_file(LIMESTONE.data_path()) as p:
-        c = cal.calibrate(millfmu.load_scene(), cal.read_data(p), [KEY])
+        c = cal.calibrate(cal.example_scene(DETAILED), cal.read_data(p), [KEY])
     text = " ".join(c.lack_of_fit)
     assert len(c.lack_of_fit) == 2, c.lack_of_fit
     assert "residuals fall with time" in text and "x10 +++----" in text
@@ -116,7 +119,7 @@ def test_a_constant_on_a_plateau_is_refused_by_name():
     depend on f_Mat (above about 0.1). Fitted from 0.03 with small errors, the optimum lands
     on the shoulder, where the local slope gave a finite interval that excludes the truth;
     the objective at the search range's upper end is within the noise of it: refused."""
-    simple = cal.with_model(millfmu.load_scene(), "simple")
+    simple = cal.with_model(cal.example_scene(DETAILED), "simple")  # x W_m,min = 0, k_c = 1
     plateau = model_sizes(cal.with_values(simple, {KEY: 1e3}))
     shared = np.array([0.04, -0.02, 0.01, -0.01, 0.02, -0.03, 0.0])[:, None]
     ind = 0.01 * np.array([[1, -1, 0], [0, 1, -1], [-1, 0, 1], [1, 0, -1], [0, -1, 1], [-1, 1, 0], [1, -1, 0]])

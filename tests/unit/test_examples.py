@@ -16,7 +16,8 @@ EXAMPLES = sorted(p.name for p in resources.files("millfmu.data").joinpath("exam
 
 def test_examples_present():
     assert {"yeast_disruption.toml", "yeast_disruption_detailed.toml", "limestone_continuous.toml",
-            "limestone_simple.toml", "limestone_rampup.toml", "austin_generic.toml"} <= set(EXAMPLES)
+            "limestone_detailed.toml", "limestone_rampup.toml", "austin_generic.toml"} <= set(EXAMPLES)
+    assert "limestone_simple.toml" not in EXAMPLES  # the default scene is that case
 
 
 @pytest.mark.parametrize("name", EXAMPLES)
@@ -42,17 +43,17 @@ def test_rampup_follows_profile():
 
 
 def test_model_and_cli_never_import_numba():
-    """The default scene reads the DEM table (the table reader, millfmu.stress_tables: no
-    numba, nothing under millfmu.dem); a simple-model scene does not even load the table
-    reader, only MillModel's table rules. (The command line's parser loads ``millfmu
-    tables``'s module, millfmu.dem.tables.cli, and with it the tables package, whose names
-    load their modules only when used.)"""
-    simple = resources.files("millfmu.data").joinpath("examples", "limestone_simple.toml")
+    """The default scene (simple model) does not even load the table reader, only
+    MillModel's table rules; the detailed example reads the DEM table (the table reader,
+    millfmu.stress_tables: no numba, nothing under millfmu.dem). (The command line's parser
+    loads ``millfmu tables``'s module, millfmu.dem.tables.cli, and with it the tables
+    package, whose names load their modules only when used.)"""
+    detailed = resources.files("millfmu.data").joinpath("examples", "limestone_detailed.toml")
     code = (
         "import sys, millfmu.cli, millfmu.mill, millfmu.runner;"
         "millfmu.cli.build_parser();"
         "from millfmu.mill import MillModel; from millfmu.scene import load_scene;"
-        f"MillModel(load_scene({str(simple)!r})).step(1.0);"
+        "MillModel(load_scene()).step(1.0);"
         "dem = ('millfmu.dem.engine.kernels', 'millfmu.dem.engine.sim', 'millfmu.dem.run');"
         "cli = 'millfmu.dem.tables.cli';"
         "bad = [m for m in sys.modules if m.split('.')[0] == 'numba' or m in dem"
@@ -60,7 +61,7 @@ def test_model_and_cli_never_import_numba():
         "assert not bad, bad;"
         "tabs = sorted(m for m in sys.modules if m.startswith('millfmu.stress_tables.'));"
         "assert tabs == ['millfmu.stress_tables.rules'], tabs;"
-        "MillModel(load_scene()).step(1.0);"
+        f"MillModel(load_scene({str(detailed)!r})).step(1.0);"
         "bad = [m for m in sys.modules if m.split('.')[0] == 'numba' or m in dem"
         " or m.startswith('millfmu.dem.tables.') and m != cli];"
         "assert not bad, bad;"

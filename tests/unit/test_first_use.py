@@ -19,7 +19,7 @@ import pytest
 from millfmu.cli import build_parser, main
 from millfmu.scene import SceneError, scene_from_dict
 
-EXAMPLE = Path(__file__).resolve().parents[2] / "millfmu" / "data" / "examples" / "limestone_simple.toml"
+EXAMPLE = Path(__file__).resolve().parents[2] / "millfmu" / "data" / "examples" / "limestone_detailed.toml"
 
 
 def _parsers(p: argparse.ArgumentParser, path=("millfmu",)):
@@ -67,17 +67,18 @@ def test_cli_exits_2_for_a_section_given_as_a_value(tmp_path, capsys):
 
 
 def test_stirrer_at_rest_on_a_table_has_a_zero_width_band(tmp_path, capsys):
-    """Detailed model on the default table at tip speed 0: no collisions, no lookup, so the
-    table's error reaches no result (the band's two runs agree)."""
+    """Detailed model on the coupled table (the detailed example) at tip speed 0: no
+    collisions, no lookup, so the table's error reaches no result (the band's two runs agree)."""
     from millfmu import api
 
-    r = api.run(overrides={"mill.tip_speed_m_per_s": 0.0, "run.t_end_s": 60.0, "run.dt_s": 10.0})
+    r = api.run(EXAMPLE, overrides={"mill.tip_speed_m_per_s": 0.0, "run.t_end_s": 60.0, "run.dt_s": 10.0})
     files = r.write(tmp_path / "api", plots=False)
     band = json.loads((tmp_path / "api" / "result.json").read_text())["prediction_band"]
     lo, hi = band["outputs"]["x50_m"]
     assert lo == hi and band["collision_frequency_relative_error"] == [None] * 4 and files
     scene = tmp_path / "s.toml"
-    scene.write_text("[mill]\ntip_speed_m_per_s = 0.0\n[run]\nt_end_s = 60.0\ndt_s = 10.0\n")
+    scene.write_text("[kinetics]\nmodel = 'detailed'\n[mill]\ntip_speed_m_per_s = 0.0\n[run]\nt_end_s = 60.0\n"
+                     "dt_s = 10.0\n")
     assert main(["run", str(scene), "--out", str(tmp_path / "cli"), "-q", "--no-plots"]) == 0
     out = capsys.readouterr().out
     assert "no zone had collisions (the stirrer at rest)" in out and "+--" not in out
@@ -126,7 +127,7 @@ def test_output_folders_keep_the_users_umask_and_an_existing_folders_mode(tmp_pa
         assert main(["run", *args, "--out", str(existing)]) == 0
         assert _mode(existing) == 0o775
     assert main(["calibrate", "--data", str(EXAMPLE.parent / "limestone_standin_batch.csv"), "--fit",
-                 "material.f_mat_kg_per_J_m", "--out", str(tmp_path / "a" / "b" / "cal"), "-q"]) == 0
+                 "mill.stress_frequency_factor", "--out", str(tmp_path / "a" / "b" / "cal"), "-q"]) == 0
     assert (_mode(tmp_path / "a" / "b" / "cal") == 0o750
             and _mode(tmp_path / "a" / "b" / "cal" / "calibrated.toml") == 0o640)
     assert main(["rates", str(EXAMPLE), "--out", str(tmp_path / "rates"), "--no-plots"]) == 0
@@ -271,7 +272,8 @@ def test_run_refuses_the_stale_coupled_tables_full_rebuild_without_yes(tmp_path,
 # ---- tip speeds beyond the table ------------------------------------------------------------------
 def test_tip_speeds_beyond_the_table_are_warned_about_in_the_results(tmp_path, capsys):
     scene = tmp_path / "s.toml"
-    scene.write_text("[mill]\ntip_speed_m_per_s = 16.0\n[run]\nt_end_s = 60.0\ndt_s = 10.0\n")
+    scene.write_text("[kinetics]\nmodel = 'detailed'\n[mill]\ntip_speed_m_per_s = 16.0\n[run]\nt_end_s = 60.0\n"
+                     "dt_s = 10.0\n")
     assert main(["run", str(scene), "--out", str(tmp_path / "out"), "-q", "--no-plots"]) == 0
     err = capsys.readouterr().err
     words = "tip_speed_m_per_s = 16 lies outside the table's range 6 to 14"
@@ -284,7 +286,7 @@ def test_a_ramp_through_the_table_edge_is_warned_once_with_its_range():
     from millfmu.mill import MillModel
     from millfmu.runner import run_warnings
 
-    m = MillModel(scene_from_dict({}))
+    m = MillModel(scene_from_dict({"kinetics": {"model": "detailed"}}))  # the default scene's table
     assert m.similarity_warnings() == {}
     for v in (10.0, 15.0, 17.5, 12.0):
         m.step(1.0, tip_speed_m_per_s=v)

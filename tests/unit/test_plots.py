@@ -14,7 +14,7 @@ import pytest  # noqa: E402
 from millfmu.runner import psd_figure, simulate, sizes_figure  # noqa: E402
 from millfmu.scene import load_scene, scene_from_dict  # noqa: E402
 
-EXAMPLES = ["yeast_disruption", "yeast_disruption_detailed", "limestone_continuous", "limestone_simple"]
+EXAMPLES = ["yeast_disruption", "yeast_disruption_detailed", "limestone_continuous", "limestone_detailed"]
 
 
 def _scene(name):

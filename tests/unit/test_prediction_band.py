@@ -1,5 +1,7 @@
 """The prediction band: the stress-energy table's stated error carried into the outputs
-(millfmu.runner.prediction_band, result.json's prediction_band, `millfmu rates`' band)."""
+(millfmu.runner.prediction_band, result.json's prediction_band, `millfmu rates`' band), on
+the detailed example (limestone_detailed.toml: the table and f_Mat's interval), and the
+calibration's interval on the default scene (simple model: k_c's interval alone)."""
 
 import json
 import subprocess
@@ -13,15 +15,22 @@ from millfmu.mill import MillModel
 from millfmu.runner import prediction_band, simulate
 
 
+DETAILED = millfmu.example_path("limestone_detailed.toml")
+
+
+def detailed_scene(overrides=None):
+    return millfmu.load_scene(DETAILED, overrides=overrides)
+
+
 @pytest.fixture(scope="module")
-def default_band():
-    return prediction_band(millfmu.load_scene())
+def detailed_band():
+    return prediction_band(detailed_scene())
 
 
-def test_band_brackets_the_run_and_comes_from_the_stated_error(default_band):
-    scene = millfmu.load_scene()
+def test_band_brackets_the_run_and_comes_from_the_stated_error(detailed_band):
+    scene = detailed_scene()
     _, records, _ = simulate(scene, progress=False)
-    b = default_band
+    b = detailed_band
     assert b["t_s"] == records[-1]["t_s"] == scene.run.t_end_s
     for k in ("x10_m", "x50_m", "x90_m"):
         lo, hi = b["outputs"][k]
@@ -31,15 +40,15 @@ def test_band_brackets_the_run_and_comes_from_the_stated_error(default_band):
     assert all(0.0 < e < 1.0 for e in b["collision_frequency_relative_error"] + b["se_median_relative_error"])
 
 
-def test_widening_the_stated_error_widens_the_band(default_band):
-    wide = prediction_band(millfmu.load_scene(), multiple=2.0)
+def test_widening_the_stated_error_widens_the_band(detailed_band):
+    wide = prediction_band(detailed_scene(), multiple=2.0)
     for k in ("x10_m", "x50_m", "x90_m"):
-        (lo1, hi1), (lo2, hi2) = default_band["outputs"][k], wide["outputs"][k]
+        (lo1, hi1), (lo2, hi2) = detailed_band["outputs"][k], wide["outputs"][k]
         assert lo2 < lo1 and hi2 > hi1, k
 
 
 def test_zone_statistics_move_by_their_stated_error():
-    scene = millfmu.load_scene()
+    scene = detailed_scene()
     base, up, down = (MillModel(scene, table_error_multiple=m) for m in (0.0, 1.0, -1.0))
     op = base.operating_point(base.inputs)
     z0, zu, zd = (m.source.zones(op) for m in (base, up, down))
@@ -56,14 +65,26 @@ def test_a_scene_without_a_table_has_no_band():
 
 
 def test_result_json_carries_the_band_and_the_calibration_record(tmp_path):
+    """The default scene (simple model): the band is its k_c interval's part alone."""
     r = subprocess.run([sys.executable, "-m", "millfmu.cli", "run", "-q", "--no-plots", "--out", str(tmp_path)],
                        capture_output=True, text=True)
     assert r.returncode == 0, r.stderr
-    assert "prediction band at t = 1800 s" in r.stdout
+    assert "prediction band at t = 1800 s" in r.stdout and "(calibration)" in r.stdout
     res = json.loads((tmp_path / "result.json").read_text())
     lo, hi = res["prediction_band"]["outputs"]["x50_m"]
     assert lo < res["outputs"][-1]["x50_m"] < hi
+    assert set(res["prediction_band"]["parts"]) == {"calibration"}
     prov = res["provenance"]
+    record = prov["scene"]["scene"]["calibration"]
+    assert "STAND-IN" in record and "stress_frequency_factor" in record
+    assert "table" not in prov  # the simple model reads no stress-energy table
+
+
+def test_the_detailed_examples_result_json_names_its_table(tmp_path):
+    r = subprocess.run([sys.executable, "-m", "millfmu.cli", "run", str(DETAILED), "-q", "--no-plots", "--out",
+                        str(tmp_path)], capture_output=True, text=True)
+    assert r.returncode == 0, r.stderr
+    prov = json.loads((tmp_path / "result.json").read_text())["provenance"]
     assert "STAND-IN" in prov["scene"]["scene"]["calibration"] and "f_mat_kg_per_J_m" in prov["scene"]["scene"][
         "calibration"]
     from millfmu.stress_tables.table import read_table_ref
@@ -71,27 +92,46 @@ def test_result_json_carries_the_band_and_the_calibration_record(tmp_path):
     assert prov["table"]["ref"] == "coupled" and prov["table"]["key"] == read_table_ref("coupled").manifest["key"]
 
 
-def test_the_calibrations_interval_is_a_part_of_the_band_and_the_whole_holds_both(default_band):
-    """The default scene lists f_Mat's 95 % interval (scene.fitted): the calibration part is
-    the two runs at its ends; the whole spans both parts and the two worst-case corners."""
-    scene = millfmu.load_scene()
+def test_the_calibrations_interval_is_a_part_of_the_band_and_the_whole_holds_both(detailed_band):
+    """The detailed example lists f_Mat's 95 % interval (scene.fitted): the calibration part
+    is the two runs at its ends; the whole spans both parts and the two worst-case corners."""
+    scene = detailed_scene()
     assert scene.scene.fitted == ["material.f_mat_kg_per_J_m"]
-    parts = default_band["parts"]
+    parts = detailed_band["parts"]
     assert set(parts) == {"table", "calibration"}
     ends = []
     for v in (scene.scene.fitted_ci95_low[0], scene.scene.fitted_ci95_high[0]):
-        _, rec, _ = simulate(millfmu.load_scene(overrides={"material.f_mat_kg_per_J_m": v}), progress=False)
+        _, rec, _ = simulate(detailed_scene({"material.f_mat_kg_per_J_m": v}), progress=False)
         ends.append(rec[-1]["x50_m"])
     assert parts["calibration"]["outputs"]["x50_m"] == [min(ends), max(ends)]
     assert ends[0] > ends[1]  # a smaller f_Mat breaks less: coarser
     assert parts["calibration"]["constants"] == [{"key": "material.f_mat_kg_per_J_m", "value": 179.5,
                                                   "ci95": [119.0, 271.0]}]
-    lo, hi = default_band["outputs"]["x50_m"]
+    lo, hi = detailed_band["outputs"]["x50_m"]
     for part in parts.values():
         plo, phi = part["outputs"]["x50_m"]
         assert lo < plo and phi < hi  # the corners reach beyond either part alone
     # the table's figures stay at the top of the band too
-    assert default_band["collision_frequency_relative_error"] == parts["table"]["collision_frequency_relative_error"]
+    assert detailed_band["collision_frequency_relative_error"] == parts["table"]["collision_frequency_relative_error"]
+
+
+def test_the_default_scenes_band_is_its_k_c_interval():
+    """The default scene (simple model, k_c fitted to the stand-in curve): one part, the two
+    runs at the ends of k_c's 95 % interval, narrow because the stand-in curve is the model's
+    own."""
+    scene = millfmu.load_scene()
+    assert scene.kinetics.model == "simple" and scene.scene.fitted == ["mill.stress_frequency_factor"]
+    b = prediction_band(scene)
+    assert set(b["parts"]) == {"calibration"} and "zones" not in b
+    ends = []
+    for v in (scene.scene.fitted_ci95_low[0], scene.scene.fitted_ci95_high[0]):
+        _, rec, _ = simulate(millfmu.load_scene(overrides={"mill.stress_frequency_factor": v}), progress=False)
+        ends.append(rec[-1]["x50_m"])
+    assert ends[0] > ends[1]  # fewer stresses: coarser
+    assert b["outputs"]["x50_m"] == [min(ends), max(ends)]
+    _, rec, _ = simulate(scene, progress=False)
+    lo, hi = b["outputs"]["x50_m"]
+    assert lo < rec[-1]["x50_m"] < hi and hi / lo < 1.01
 
 
 def test_a_simple_scene_with_a_fitted_constant_has_a_calibration_band():
@@ -105,22 +145,25 @@ def test_a_simple_scene_with_a_fitted_constant_has_a_calibration_band():
 
 
 def test_calibrate_writes_the_interval_the_band_then_carries(tmp_path):
+    """The README's command: the default scene's k_c to the stand-in curve, its interval
+    the scene's record."""
     r = subprocess.run([sys.executable, "-m", "millfmu.cli", "calibrate", "--data", "limestone_standin_batch.csv",
-                        "--fit",
-                        "material.f_mat_kg_per_J_m", "--out", str(tmp_path / "cal"), "-q"], capture_output=True,
-                       text=True,
-                       cwd=tmp_path)
+                        "--fit", "mill.stress_frequency_factor", "--out", str(tmp_path / "cal"), "-q"],
+                       capture_output=True, text=True, cwd=tmp_path)
     assert r.returncode == 0, r.stderr
     scene = millfmu.load_scene(tmp_path / "cal" / "calibrated.toml")
     (lo,), (hi,) = scene.scene.fitted_ci95_low, scene.scene.fitted_ci95_high
-    assert scene.scene.fitted == ["material.f_mat_kg_per_J_m"] and lo < scene.material.f_mat_kg_per_J_m < hi
-    assert (lo, hi) == pytest.approx((119.0, 271.0), abs=0.1)
+    assert scene.scene.fitted == ["mill.stress_frequency_factor"] and lo < scene.mill.stress_frequency_factor < hi
+    default = millfmu.load_scene()
+    assert scene.mill.stress_frequency_factor == pytest.approx(default.mill.stress_frequency_factor, abs=5e-5)
+    assert (lo, hi) == pytest.approx((default.scene.fitted_ci95_low[0], default.scene.fitted_ci95_high[0]), abs=5e-5)
+    assert prediction_band(scene)["parts"]["calibration"]["constants"][0]["ci95"] == [lo, hi]
 
 
 def test_a_fitted_constant_set_outside_its_interval_is_left_out_with_a_note():
-    scene = millfmu.load_scene(overrides={"scene.calibration": "mine", "scene.fitted": ["material.f_mat_kg_per_J_m"],
-                                          "scene.fitted_ci95_low": [141.1], "scene.fitted_ci95_high": [228.6],
-                                          "material.f_mat_kg_per_J_m": 30.0})
+    scene = detailed_scene({"scene.calibration": "mine", "scene.fitted": ["material.f_mat_kg_per_J_m"],
+                            "scene.fitted_ci95_low": [141.1], "scene.fitted_ci95_high": [228.6],
+                            "material.f_mat_kg_per_J_m": 30.0})
     b = prediction_band(scene)
     assert set(b["parts"]) == {"table"}
     assert b["notes"] == ["material.f_mat_kg_per_J_m = 30 lies outside its recorded 95 % interval [141.1, 228.6], "

@@ -217,8 +217,8 @@ def test_rates_command_refuses_a_material_without_stress_model(tmp_path, capsys)
 
 # ---- a negligible reference rate (issue 55) ---------------------------------------------------
 def test_negligible_reference_rate_is_said_and_rates_are_shown(tmp_path, capsys, monkeypatch):
-    """limestone_simple.toml runs the detailed model on the simple model's material
-    constants: its rate at the reference point is about 1.6e-7 1/s at 10 um, so ratios to it
+    """The default scene (simple model) run as the detailed model keeps the simple model's
+    material constants: its rate at the reference point is about 1.6e-7 1/s at 10 um, so ratios to it
     ran from 1e-10 to 1e9 without a word. The output names the reference rates, says they
     are negligible and why, and gives (and draws) the rates themselves in 1/s."""
     import json
@@ -228,7 +228,10 @@ def test_negligible_reference_rate_is_said_and_rates_are_shown(tmp_path, capsys,
     figs = []
     orig = Figure.savefig
     monkeypatch.setattr(Figure, "savefig", lambda self, *a, **k: (figs.append(self), orig(self, *a, **k))[1])
-    scene = resources.files("millfmu.data").joinpath("examples", "limestone_simple.toml")
+    import millfmu
+
+    scene = tmp_path / "default.toml"
+    scene.write_text(millfmu.default_scene_text())
     assert main(["rates", str(scene), "--out", str(tmp_path / "out")]) == 0
     out = capsys.readouterr().out
     flat = " ".join(out.split())  # the explanation is wrapped
@@ -239,7 +242,7 @@ def test_negligible_reference_rate_is_said_and_rates_are_shown(tmp_path, capsys,
     lines = [ln for ln in out.splitlines() if ln.startswith("tip speed") and "10*" in ln]
     assert lines and "1.55e-07" in lines[0]
     assert not any(ln.startswith("tip speed") and "8.19e-10" in ln for ln in out.splitlines())  # the old ratio
-    doc = json.loads((tmp_path / "out" / "rates_limestone-simple.json").read_text())
+    doc = json.loads((tmp_path / "out" / "rates_pm1-limestone-batch.json").read_text())
     ref = doc["reference_rates_per_s"]["detailed"]["S(10 um)"]
     assert ref < doc["negligible_rate_per_s"] == pytest.approx(0.01 / 1800.0)
     assert doc["shown"].startswith("rates [1/s]")
@@ -273,8 +276,9 @@ def test_the_detailed_models_regime_is_stated(limestone, yeast):
 
 
 def test_a_run_warns_where_its_detailed_model_is_energy_limited():
-    """MillModel says it before anything runs: the default scene (limestone, stand-in f_Mat)
-    breaks 4.4 % of its stresses over the feed; the yeast pair's detailed scene most."""
+    """MillModel says it before anything runs: the detailed example (limestone, stand-in
+    f_Mat) breaks 4.4 % of its stresses over the feed; the yeast pair's detailed scene most;
+    the default scene (simple model) has no such regime."""
     from millfmu.mill import MillModel
 
     lime = MillModel(LIMESTONE.scenes()[1])

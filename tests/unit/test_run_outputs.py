@@ -67,19 +67,29 @@ def test_a_refused_run_keeps_the_earlier_results(tmp_path, short):
     assert {p.name: p.read_bytes() for p in out.iterdir()} == before
 
 
-def test_result_json_reproduces_its_run(tmp_path, short):
+@pytest.mark.parametrize("case", ["default", "detailed"])
+def test_result_json_reproduces_its_run(tmp_path, short, case):
+    """The default scene (simple model: no table) and the detailed example (its table's
+    identity and stated error in the provenance)."""
+    import millfmu
+
+    if case == "detailed":
+        example = millfmu.example_path("limestone_detailed.toml").read_text()
+        short.write_text(example[:example.index("\n[run]")] + "\n" + SHORT)
     out = tmp_path / "out"
     assert _run(short, "--out", out).returncode == 0
     res = json.loads((out / "result.json").read_text())
     prov = res["provenance"]
-    import millfmu
 
     assert prov["millfmu_version"] == millfmu.__version__ and prov["numpy_version"] == np.__version__
     assert prov["python_version"].count(".") == 2 and prov["wall_time_s"] > 0.0
-    t = prov["table"]
-    assert t["ref"] == "coupled" and len(t["key"]) == 64 and len(t["files"]["table.npz"]["sha256"]) == 64
-    assert set(t["stated_error"]["zones"]) == {"V1", "V2", "V3", "V4"}
-    assert all(0.0 < e < 1.0 for e in t["stated_error"]["collision_frequency_relative"])
+    if case == "default":
+        assert "table" not in prov and prov["scene"]["kinetics"]["model"] == "simple"
+    else:
+        t = prov["table"]
+        assert t["ref"] == "coupled" and len(t["key"]) == 64 and len(t["files"]["table.npz"]["sha256"]) == 64
+        assert set(t["stated_error"]["zones"]) == {"V1", "V2", "V3", "V4"}
+        assert all(0.0 < e < 1.0 for e in t["stated_error"]["collision_frequency_relative"])
     # Every scene key is there, and the resolved scene alone gives the same outputs.
     scene = scene_from_dict(prov["scene"])
     assert prov["scene"]["run"]["t_end_s"] == 60.0 and "bead_filling" in prov["scene"]["mill"]

@@ -17,7 +17,7 @@ def test_an_empty_scene_is_the_embedded_default_scene(tmp_path):
     empty = tmp_path / "empty.toml"
     empty.write_text("")
     assert load_scene(empty) == load_scene(None) == scene_from_dict({})
-    assert scene_from_dict({}).kinetics.model == "detailed" and scene_from_dict({}).feed.x50_m == 10e-6
+    assert scene_from_dict({}).kinetics.model == "simple" and scene_from_dict({}).feed.x50_m == 10e-6
 
 
 def test_a_key_left_out_is_the_default_scenes_value():
