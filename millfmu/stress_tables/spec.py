@@ -280,8 +280,9 @@ def manifest_for(spec: TableSpec, table: Table, extra: dict | None = None,
     for k in ("points_run", "points_reused", "points_wall_time_s"):
         if k in table.manifest:
             m[k] = table.manifest[k]
-    if "stationarity" in table.manifest:
-        m["stationarity"] = table.manifest["stationarity"]
+    for k in ("stationarity", "point_starts"):
+        if k in table.manifest:
+            m[k] = table.manifest[k]
     if extra:
         m.update(extra)
     return m

@@ -176,10 +176,13 @@ def installed_kernel_version(table: Table) -> str:
 
 
 def default_builder(table: Table):
-    """The DEM as builder, with the table's work-precision entry (loads no numba)."""
+    """The DEM as builder, with the table's work-precision entry, starting a new point warm
+    from the settled state of a point with the same beads where the point store holds one
+    (:mod:`.warm_start`; loads no numba)."""
     from .dem_builder import DemBuilder
+    from .warm_start import WARM_SPIN_UP_S
 
-    return DemBuilder(work_precision=table.manifest.get("work_precision"))
+    return DemBuilder(work_precision=table.manifest.get("work_precision"), warm_spin_up_s=WARM_SPIN_UP_S)
 
 
 @dataclass
