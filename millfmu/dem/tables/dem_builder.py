@@ -101,15 +101,22 @@ class DemBuilder:
     def with_states(self, folder, reuse: bool = True) -> DemBuilder:
         """This builder keeping its points' settled states in ``folder`` (a build's point
         store) and, where it starts points warm and ``reuse``, starting them from the states
-        there now (not from those its own points write while the build runs, so that a
-        build's points do not depend on the order in which they finish)."""
+        there now, the package's shipped ones put there first (not from those its own points
+        write while the build runs, so that a build's points do not depend on the order in
+        which they finish)."""
         from dataclasses import replace
 
-        from .warm_start import STATE_SUFFIX
+        from .warm_start import STATE_SUFFIX, seed_states
 
         folder = Path(folder)
-        names = tuple(sorted(p.name for p in folder.glob("*" + STATE_SUFFIX))) \
-            if reuse and self.warm_spin_up_s is not None and folder.is_dir() else ()
+        names = ()
+        if reuse and self.warm_spin_up_s is not None:
+            try:
+                seed_states(folder, dem_kernel_version())
+            except OSError:
+                pass  # a store that cannot be written: the states there, if any
+            if folder.is_dir():
+                names = tuple(sorted(p.name for p in folder.glob("*" + STATE_SUFFIX)))
         return replace(self, state_dir=str(folder), warm_from=names)
 
     def __call__(self, scene: dict, point: dict) -> dict:

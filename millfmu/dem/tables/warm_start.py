@@ -259,6 +259,39 @@ def candidates_in(folder, names=None) -> list:
     return out
 
 
+def shipped_states() -> list[Path]:
+    """The settled states shipped with the package (``millfmu/data/*.state.npz``: the
+    coupled table's anchor), so that the first new point of a fresh install can start warm."""
+    from importlib import resources
+
+    root = Path(str(resources.files("millfmu") / "data"))
+    return sorted(root.glob("*" + STATE_SUFFIX))
+
+
+def seed_states(folder, kernel_version: str) -> int:
+    """Copy the shipped states of ``kernel_version`` into ``folder`` (a point store), named
+    as a build names them (:func:`state_file`), where it has none; returns how many."""
+    import shutil
+
+    added = 0
+    for p in shipped_states():
+        try:
+            meta = read_meta(p)
+        except WarmStartError:
+            continue
+        if meta.get("kernel_version") != kernel_version or not isinstance(meta.get("scene"), dict):
+            continue
+        dst = state_file(folder, meta["scene"], kernel_version)
+        if dst.exists():
+            continue
+        dst.parent.mkdir(parents=True, exist_ok=True)
+        tmp = dst.with_name(".tmp-state-" + dst.name)
+        shutil.copyfile(p, tmp)
+        os.replace(tmp, dst)
+        added += 1
+    return added
+
+
 # ---- running a point -----------------------------------------------------------------------
 def cold_record(scene) -> dict:
     """How a point started cold: a fresh bed and the scene's spin-up [s]."""
