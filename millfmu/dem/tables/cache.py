@@ -475,10 +475,6 @@ def get_table(spec: TableSpec, builder: Callable, cache_dir=None, force: bool = 
             except TableError as e:
                 log(f"rebuilding cache entry {key[:12]}: {e}")
         store = run_kw.setdefault("point_store", PointStore(root / POINTS_DIR, reuse=not force))
-        if store is not None and hasattr(builder, "with_states"):
-            # the DEM keeps each point's settled state beside its result, and may start a
-            # new point from one of those there now (warm_start)
-            builder = builder.with_states(store.folder, reuse=store.reuse)
         if store is not None and store.reuse:
             seeds = (*seed_from, *seed_tables(spec))
             seeded = sum(store.seed(t) for t in seeds)
@@ -490,6 +486,11 @@ def get_table(spec: TableSpec, builder: Callable, cache_dir=None, force: bool = 
                 spc = [x for x in (seconds_per_cost(t, builder) for t in seeds) if x is not None]
                 if spc:
                     run_kw["seconds_per_cost"] = spc[0]
+        if store is not None and hasattr(builder, "with_states"):
+            # the DEM keeps each point's settled state beside its result, and may start a
+            # new point from one of those there now (warm_start; after the calibration
+            # above, whose finished points' costs are those of their cold starts)
+            builder = builder.with_states(store.folder, reuse=store.reuse)
         table = build_table(spec, builder, **run_kw)
         tmp = Path(tempfile.mkdtemp(prefix=f".tmp-{key[:16]}-", dir=root))
         try:

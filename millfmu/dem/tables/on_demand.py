@@ -239,7 +239,10 @@ def plan(table: Table, point: dict, builder, kernel_version: str, cache_dir=None
             have = [h or _key(store, spec, p) in known for h, p in zip(have, spec.points())]
     points = spec.points()
     todo = [p for p, h in zip(points, have) if not h]
-    costs = relative_costs(builder, spec.scene, todo)
+    # the points to run at the cost of their start (a warm start's shorter spin-up, where
+    # the builder keeps states: warm_start); the table's points calibrate at their cold cost
+    runs = builder.with_states(store.folder) if hasattr(builder, "with_states") else builder
+    costs = relative_costs(runs, spec.scene, todo)
     return Plan(spec, points, todo, costs, seconds_per_cost(table, builder),
                 workers or os.cpu_count() or 1)
 

@@ -20,13 +20,15 @@ holds about 0.5 MB.
 
 *The warm start* (:func:`choose_anchor`, :func:`warm_simulation`, :func:`run_point`): a
 point whose scene equals a stored point's except in tip speed, bead density and liquid
-viscosity (:data:`WARM_KEYS`; so the same bead count, diameter and filling) starts from the
+viscosity (:data:`WARM_AXES`; so the same bead count, diameter and filling) starts from the
 nearest such state (distance: the root sum of squares of the log ratios of those values),
 with the beads' velocities and spins and the liquid's velocities scaled by the ratio of the
 tip speeds (its pressure and k by the square, epsilon by the cube, the turbulent viscosity
 by the ratio), then runs the shorter spin-up ``warm_spin_up_s`` and the table's recording.
 Other points start cold, from a fresh bed, with the scene's spin-up. The point's result
-records how it started (``start``: :func:`cold_record`, :func:`warm_record`).
+records how it started (``start``: :func:`cold_record`, :func:`warm_record`). Besides the
+states in a build's point store, the package ships the coupled table's anchor state
+(:func:`shipped_states`), so that a fresh install's first new point can start warm.
 
 The DEM's own sources (:data:`~.cache.KERNEL_MODULES`) are not changed: a run goes through
 :func:`millfmu.dem.run.run_scene`'s resume path with simulation objects made here, which
@@ -36,6 +38,7 @@ the bit as ``run_scene`` alone).
 
 from __future__ import annotations
 
+import functools
 import hashlib
 import json
 import math
@@ -268,28 +271,34 @@ def shipped_states() -> list[Path]:
     return sorted(root.glob("*" + STATE_SUFFIX))
 
 
-def seed_states(folder, kernel_version: str) -> int:
-    """Copy the shipped states of ``kernel_version`` into ``folder`` (a point store), named
-    as a build names them (:func:`state_file`), where it has none; returns how many."""
-    import shutil
-
-    added = 0
+@functools.lru_cache(maxsize=32)
+def _candidates(folder: str | None, names: tuple) -> tuple:
+    found = candidates_in(folder, names) if folder is not None and names else []
     for p in shipped_states():
-        try:
-            meta = read_meta(p)
-        except WarmStartError:
-            continue
-        if meta.get("kernel_version") != kernel_version or not isinstance(meta.get("scene"), dict):
-            continue
-        dst = state_file(folder, meta["scene"], kernel_version)
-        if dst.exists():
-            continue
-        dst.parent.mkdir(parents=True, exist_ok=True)
-        tmp = dst.with_name(".tmp-state-" + dst.name)
-        shutil.copyfile(p, tmp)
-        os.replace(tmp, dst)
-        added += 1
-    return added
+        found += candidates_in(p.parent, [p.name])
+    return tuple(found)
+
+
+def warm_candidates(folder, names) -> list:
+    """What a build may start its points from: the states ``names`` in ``folder`` (those
+    there when it began) and the shipped ones (:func:`shipped_states`), as (path, meta);
+    none where ``names`` is None (every point cold). Read once per folder and names."""
+    if names is None:
+        return []
+    return list(_candidates(None if folder is None else str(folder), tuple(names)))
+
+
+def starts_warm(scene_at_point: dict, folder, names, kernel_version: str | None = None) -> bool:
+    """Whether a point of ``scene_at_point`` would start warm from :func:`warm_candidates`
+    (for its cost estimate)."""
+    cands = warm_candidates(folder, names)
+    if not cands:
+        return False
+    if kernel_version is None:
+        from .cache import dem_kernel_version
+
+        kernel_version = dem_kernel_version()
+    return choose_anchor(scene_at_point, cands, kernel_version) is not None
 
 
 # ---- running a point -----------------------------------------------------------------------
