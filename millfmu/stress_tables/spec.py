@@ -281,7 +281,7 @@ def manifest_for(spec: TableSpec, table: Table, extra: dict | None = None,
     for k in ("points_run", "points_reused", "points_wall_time_s"):
         if k in table.manifest:
             m[k] = table.manifest[k]
-    for k in ("stationarity", "cells"):
+    for k in ("stationarity", "cells", "point_starts"):
         if k in table.manifest:
             m[k] = table.manifest[k]
     if extra:

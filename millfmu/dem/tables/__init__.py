@@ -18,6 +18,8 @@ The modules, by role:
   rebuilds that cover a new point;
 - :mod:`.on_demand`: builds that extend a table to a new point, their cost and the
   policies for a table of another DEM kernel version;
+- :mod:`.warm_start`: each point's settled state kept beside its result, and new points
+  with the same beads started from the nearest with a short spin-up;
 - :mod:`.cli`: ``millfmu tables``.
 
 The names of the former single module stay importable from here, the reader's among them

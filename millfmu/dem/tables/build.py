@@ -518,6 +518,9 @@ def build_table(spec: TableSpec, builder: Callable, **run_kw) -> Table:
     cells = wider_cells(spec)
     if cells is not None:
         table.manifest["cells"] = cells
+    starts = point_starts(spec, results)
+    if starts is not None:
+        table.manifest["point_starts"] = starts
     return table
 
 
@@ -539,6 +542,22 @@ def wider_cells(spec: TableSpec) -> dict | None:
                     f"the narrowest wider sector that holds them (millfmu.dem.tables.cells."
                     f"dem_scene_at_point); the zone statistics are per chamber volume",
             "points": wide}
+
+
+def point_starts(spec: TableSpec, results: list[dict]) -> dict | None:
+    """How the points started, where their results say (the DEM builder's ``start``: cold,
+    or warm from another point's settled state with a shorter spin-up,
+    :mod:`~millfmu.dem.tables.warm_start`); None where no result says."""
+    pts = [dict(point=p, **r["start"]) for p, r in zip(spec.points(), results)
+           if isinstance(r.get("start"), dict)]
+    if not pts:
+        return None
+    return {"measure": "how each point's DEM run started: 'cold' from a fresh bed with the scene's "
+                       "spin-up, 'warm' from the settled state of the point whose values 'from' names "
+                       "(the beads' and the liquid's velocities scaled by speed_scale, the tip speeds' "
+                       "ratio) with the spin-up spin_up_s; points not listed were taken from tables "
+                       "that did not record it and started cold",
+            "warm": sum(p["start"] == "warm" for p in pts), "points": pts}
 
 
 def stationarity_summary(results: list[dict], zone_names) -> dict | None:

@@ -486,6 +486,11 @@ def get_table(spec: TableSpec, builder: Callable, cache_dir=None, force: bool = 
                 spc = [x for x in (seconds_per_cost(t, builder) for t in seeds) if x is not None]
                 if spc:
                     run_kw["seconds_per_cost"] = spc[0]
+        if store is not None and hasattr(builder, "with_states"):
+            # the DEM keeps each point's settled state beside its result, and may start a
+            # new point from one of those there now (warm_start; after the calibration
+            # above, whose finished points' costs are those of their cold starts)
+            builder = builder.with_states(store.folder, reuse=store.reuse)
         table = build_table(spec, builder, **run_kw)
         tmp = Path(tempfile.mkdtemp(prefix=f".tmp-{key[:16]}-", dir=root))
         try:
@@ -565,6 +570,24 @@ def clear_cache(cache_dir=None, only_not_ok: bool = False,
     return removed
 
 
+def _clear_states(folder: Path, only_stale: bool, kernel_version: str) -> list[str]:
+    """Remove the points' settled states (warm_start): all, or those of another DEM kernel
+    version or layout; returns 'points/NAME' for each removed file."""
+    from .warm_start import STATE_SUFFIX, WarmStartError, read_meta
+
+    removed = []
+    for f in sorted(folder.glob("*" + STATE_SUFFIX)):
+        if only_stale:
+            try:
+                if read_meta(f).get("kernel_version") == kernel_version:
+                    continue
+            except WarmStartError:
+                pass
+        f.unlink(missing_ok=True)
+        removed.append(f"{POINTS_DIR}/{f.name}")
+    return removed
+
+
 def _clear_points(folder: Path, only_stale: bool, kernel_version: str) -> list[str]:
     """Remove finished grid points (all, or those of another DEM kernel version or that
     do not parse); returns 'points/KEY' for each removed file."""
@@ -582,9 +605,10 @@ def _clear_points(folder: Path, only_stale: bool, kernel_version: str) -> list[s
                 pass
         f.unlink(missing_ok=True)
         removed.append(f"{POINTS_DIR}/{f.stem}")
+    removed += _clear_states(folder, only_stale, kernel_version)
     # Temporary files of a point being written live for milliseconds; one older than an
     # hour was left by a killed build.
-    for f in folder.glob(".tmp-point-*"):
+    for f in [*folder.glob(".tmp-point-*"), *folder.glob(".tmp-state-*")]:
         try:
             if time.time() - f.stat().st_mtime > 3600.0:
                 f.unlink()

@@ -19,10 +19,10 @@ from collections.abc import Callable
 
 import numpy as np
 
-from ..run import run_scene
 from ..scene import load_scene_dict, scene_from_dict
 from .cache import dem_kernel_version, get_table
 from .cells import dem_cells, dem_scene_at_point
+from .warm_start import run_point, starts_warm, warm_candidates
 from ...stress_tables.spec import (COMPONENTS, DEM_BUILDER_ID, DRIFT_FIELDS, QUANTILE_NAMES, TableError,
                    TableSpec, e_ref_J, n_gb_per_m3, norm_log10_edges,
                    scene_at_point)
@@ -87,11 +87,34 @@ class DemBuilder:
     threads per run (1 when grid points run in parallel). ``work_precision``: what the
     table's manifest states as its work-precision entry (see
     :func:`~.spec.manifest_for`), handed in by the caller: the tables CLI gives the shipped
-    study's :func:`millfmu.dem.analysis.precision.manifest_entry`."""
+    study's :func:`millfmu.dem.analysis.precision.manifest_entry`. ``warm_spin_up_s``: a
+    point with the same beads as a point whose settled state is among ``warm_from`` (file
+    names in ``state_dir``) or shipped with the package starts from the nearest with this
+    spin-up; None, or ``warm_from`` None: every point starts cold (:mod:`.warm_start`).
+    ``state_dir``: where each point's settled state is kept (None: nowhere); a build sets
+    it and ``warm_from`` (:meth:`with_states`)."""
 
     threads: int | None = None
     work_precision: object = field(default=None, compare=False)
+    warm_spin_up_s: float | None = None
+    state_dir: str | None = field(default=None, compare=False)
+    warm_from: tuple | None = field(default=None, compare=False)
     builder_id = DEM_BUILDER_ID
+
+    def with_states(self, folder, reuse: bool = True) -> DemBuilder:
+        """This builder keeping its points' settled states in ``folder`` (a build's point
+        store) and, where it starts points warm and ``reuse``, starting them from the states
+        there now and the shipped ones (not from those its own points write while the build
+        runs, so that a build's points do not depend on the order in which they finish)."""
+        from dataclasses import replace
+
+        from .warm_start import STATE_SUFFIX
+
+        folder = Path(folder)
+        names = None
+        if reuse and self.warm_spin_up_s is not None:
+            names = tuple(sorted(p.name for p in folder.glob("*" + STATE_SUFFIX))) if folder.is_dir() else ()
+        return replace(self, state_dir=str(folder), warm_from=names)
 
     def __call__(self, scene: dict, point: dict) -> dict:
         s = scene_from_dict(dem_scene_at_point(scene, point))
@@ -102,11 +125,16 @@ class DemBuilder:
             t0 = time.perf_counter()
             # Two windows, the halves of the recording: their difference shows whether the
             # recorded state is stationary (manifest "stationarity").
-            stats = run_scene(s, tmp, progress=False, threads=self.threads,
-                              window_s=0.5 * s.record_s)
+            # (a warm start from a stored point's settled state where it may: .warm_start)
+            stats, start = run_point(s, dem_scene_at_point(scene, point), tmp, threads=self.threads,
+                                     window_s=0.5 * s.record_s, state_dir=self.state_dir,
+                                     candidates=warm_candidates(self.state_dir, self.warm_from)
+                                     if self.warm_spin_up_s is not None else None,
+                                     warm_spin_up_s=self.warm_spin_up_s)
             out = normalize_stats(stats, s)
             out["drift"] = recording_drift(Path(tmp) / "windows.csv", out["zone_names"])
         out["wall_time_s"] = time.perf_counter() - t0
+        out["start"] = start
         return out
 
     def unbuildable(self, scene: dict, point: dict) -> str | None:
@@ -127,14 +155,19 @@ class DemBuilder:
 
     def relative_cost(self, scene: dict, point: dict) -> float:
         """Expected run time of the point, up to a constant: bead count (filling / d^3) times
-        DEM steps ((spin-up + recording) / dt). A build runs the costliest points first, so
-        that a long point (small beads) does not start last and leave the other workers
-        idle while it runs. A point run in a wider sector than the scene's
-        (:func:`dem_scene_at_point`) has as many times more beads."""
+        DEM steps ((spin-up + recording) / dt), the spin-up a warm start's where the point
+        would start warm. A build runs the costliest points first, so that a long point
+        (small beads) does not start last and leave the other workers idle while it runs. A
+        point run in a wider sector than the scene's (:func:`dem_scene_at_point`) has as many
+        times more beads."""
         cell = dem_cells(scene, point)[0]
         s = cell.dem if cell.dem is not None else scene_from_dict(cell.scene)
         wider = s.geometry.sector_deg / float(scene.get("mill", {}).get("sector_deg", 360.0))
-        return s.filling / s.bead_diameter_m**3 * wider * (s.spin_up_s + s.record_s) / s.dt_s
+        spin_up = s.spin_up_s
+        if self.warm_spin_up_s is not None and self.warm_from is not None and \
+                starts_warm(cell.scene, self.state_dir, self.warm_from):
+            spin_up = min(spin_up, self.warm_spin_up_s)
+        return s.filling / s.bead_diameter_m**3 * wider * (spin_up + s.record_s) / s.dt_s
 
 
 def recording_drift(windows_csv, zone_names) -> dict:

@@ -176,10 +176,13 @@ def installed_kernel_version(table: Table) -> str:
 
 
 def default_builder(table: Table):
-    """The DEM as builder, with the table's work-precision entry (loads no numba)."""
+    """The DEM as builder, with the table's work-precision entry, starting a new point warm
+    from the settled state of a point with the same beads where the point store holds one
+    (:mod:`.warm_start`; loads no numba)."""
     from .dem_builder import DemBuilder
+    from .warm_start import WARM_SPIN_UP_S
 
-    return DemBuilder(work_precision=table.manifest.get("work_precision"))
+    return DemBuilder(work_precision=table.manifest.get("work_precision"), warm_spin_up_s=WARM_SPIN_UP_S)
 
 
 @dataclass
@@ -236,7 +239,10 @@ def plan(table: Table, point: dict, builder, kernel_version: str, cache_dir=None
             have = [h or _key(store, spec, p) in known for h, p in zip(have, spec.points())]
     points = spec.points()
     todo = [p for p, h in zip(points, have) if not h]
-    costs = relative_costs(builder, spec.scene, todo)
+    # the points to run at the cost of their start (a warm start's shorter spin-up, where
+    # the builder keeps states: warm_start); the table's points calibrate at their cold cost
+    runs = builder.with_states(store.folder) if hasattr(builder, "with_states") else builder
+    costs = relative_costs(runs, spec.scene, todo)
     return Plan(spec, points, todo, costs, seconds_per_cost(table, builder),
                 workers or os.cpu_count() or 1)
 

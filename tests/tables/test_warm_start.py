@@ -1,0 +1,386 @@
+"""Warm starts of DEM table points (millfmu.dem.tables.warm_start): the settled state kept
+beside a point's result, read back only by its own layout and kernel version, scaled to a
+new tip speed; which stored state a new point starts from; the start recorded in the
+point's result and the table's manifest. The DEM parts run a few hundred steps of a small
+coupled sector; the slow test compares a warm-started point with the table's cold one."""
+
+from __future__ import annotations
+
+import json
+import math
+
+import numpy as np
+import pytest
+
+from millfmu.dem import tables as T
+from millfmu.dem.tables import warm_start as W
+from millfmu.stress_tables.spec import scene_at_point
+from millfmu.stress_tables.table import read_table_ref
+from tests.tables._builders import analytic_builder, spec
+
+
+@pytest.fixture(scope="module")
+def coupled():
+    return read_table_ref("coupled")
+
+
+def _scene(coupled, **point):
+    base = {"tip_speed_m_per_s": 10.0, "filling": 0.8, "bead_diameter_m": 0.8e-3,
+            "bead_density_kg_per_m3": 2510.0}
+    return scene_at_point(coupled.spec().scene, {**base, **point})
+
+
+def _arrays(n=5, shape=(3, 1, 4)):
+    rng = np.random.default_rng(1)
+    a = {"x_m": rng.normal(size=(n, 3)), "v_m_per_s": rng.normal(size=(n, 3)).astype(np.float32),
+         "w_rad_per_s": rng.normal(size=(n, 3)).astype(np.float32),
+         "fluid_at_bead": rng.normal(size=(n, 6)).astype(np.float32)}
+    for k in W._LIQUID:
+        a["liquid_" + k] = rng.normal(size=shape).astype(np.float32)
+    return a
+
+
+def test_scaling_by_the_tip_speed_ratio():
+    a = _arrays()
+    s = W.scaled(a, 1.5)
+    np.testing.assert_array_equal(s["x_m"], a["x_m"])
+    np.testing.assert_allclose(s["v_m_per_s"], 1.5 * a["v_m_per_s"], rtol=1e-6)
+    np.testing.assert_allclose(s["w_rad_per_s"], 1.5 * a["w_rad_per_s"], rtol=1e-6)
+    for k, p in (("ur", 1), ("ut", 1), ("uz", 1), ("p", 2), ("k", 2), ("e", 3), ("nu_t", 1),
+                 ("eps_c", 0), ("eps_r", 0), ("eps_c_old", 0)):
+        np.testing.assert_allclose(s["liquid_" + k], 1.5 ** p * a["liquid_" + k], rtol=1e-6)
+    np.testing.assert_allclose(s["fluid_at_bead"][:, :3], 1.5 * a["fluid_at_bead"][:, :3], rtol=1e-6)
+    np.testing.assert_allclose(s["fluid_at_bead"][:, 3:], 2.25 * a["fluid_at_bead"][:, 3:], rtol=1e-6)
+    assert all(v.dtype == np.float64 for v in s.values())
+    # the state itself is not changed
+    assert W.scaled(a, 1.0)["v_m_per_s"] is not a["v_m_per_s"]
+
+
+def test_a_state_reads_back_only_in_its_layout_and_kernel_version(tmp_path, coupled):
+    sc = _scene(coupled)
+    a = _arrays()
+    path = W.save_state(W.state_file(tmp_path, sc, "kv-1"), a, {"scene": sc, "kernel_version": "kv-1",
+                                                               "start": {"start": "cold"}})
+    assert path.name.endswith(W.STATE_SUFFIX) and path.parent == tmp_path
+    assert not list(tmp_path.glob(".tmp-state-*"))
+    got, meta = W.read_state(path, "kv-1")
+    assert meta["scene"] == sc and meta["format"] == W.STATE_FORMAT and meta["start"] == {"start": "cold"}
+    for k, v in a.items():
+        np.testing.assert_array_equal(got[k], v)
+        assert got[k].dtype == v.dtype
+    assert got["x_m"].dtype == np.float64
+    # another kernel version: not used
+    with pytest.raises(W.WarmStartError, match="kernel version kv-1, the installed DEM is kv-2"):
+        W.read_state(path, "kv-2")
+    # named by the scene at the point and the kernel version
+    assert W.state_file(tmp_path, sc, "kv-2") != path
+    assert W.state_file(tmp_path, _scene(coupled, tip_speed_m_per_s=12.0), "kv-1") != path
+    # another layout, a damaged file: refused by name
+    other = tmp_path / "other.state.npz"
+    np.savez_compressed(other, meta=np.array(json.dumps({"format": 99})), **a)
+    with pytest.raises(W.WarmStartError, match="state layout 99"):
+        W.read_state(other)
+    bad = tmp_path / "bad.state.npz"
+    bad.write_bytes(path.read_bytes()[:200])
+    with pytest.raises(W.WarmStartError, match="not a readable state"):
+        W.read_state(bad)
+    assert [p for p, _ in W.candidates_in(tmp_path)] == [path]  # the unreadable ones skipped
+    assert W.candidates_in(tmp_path, names=[]) == []
+
+
+def test_a_new_point_starts_from_the_nearest_state_with_the_same_beads(coupled):
+    steel = _scene(coupled, bead_density_kg_per_m3=7800.0)
+    kv = "kv"
+
+    def cand(name, kernel=kv, **point):
+        return (f"/s/{name}.state.npz", {"scene": _scene(coupled, **point), "kernel_version": kernel})
+
+    glass = cand("a-glass")
+    zirconia = cand("b-zirconia", bead_density_kg_per_m3=6040.0)
+    fast_zirconia = cand("c-fast", bead_density_kg_per_m3=6040.0, tip_speed_m_per_s=14.0)
+    small = cand("d-small", bead_diameter_m=0.5e-3, bead_density_kg_per_m3=7800.0)
+    lower = cand("e-lower", filling=0.7, bead_density_kg_per_m3=7800.0)
+    stale = cand("f-stale", kernel="other", bead_density_kg_per_m3=7700.0)
+    own = cand("g-own", bead_density_kg_per_m3=7800.0)
+    everything = [glass, zirconia, fast_zirconia, small, lower, stale, own]
+    # the nearest in log density among the same beads, filling and kernel (not itself)
+    assert W.choose_anchor(steel, everything, kv)[0] == zirconia[0]
+    assert W.choose_anchor(steel, [glass, fast_zirconia, small, lower, stale], kv)[0] == fast_zirconia[0]
+    assert W.choose_anchor(steel, [glass, small, lower, stale], kv)[0] == glass[0]
+    # another diameter or filling: another bead count, a cold start
+    assert W.choose_anchor(steel, [small, lower, stale, own], kv) is None
+    assert W.choose_anchor(_scene(coupled, bead_diameter_m=1.2e-3), everything, kv) is None
+    assert W.choose_anchor(steel, [], kv) is None
+    # distance over tip speed, density and viscosity together
+    assert W.distance(fast_zirconia[1]["scene"], steel) == pytest.approx(
+        math.hypot(math.log(14 / 10), math.log(6040 / 7800)))
+    visc = dict(steel, fluid=dict(steel["fluid"], viscosity_Pa_s=0.01))
+    assert W.compatible(visc, steel)
+    assert W.distance(visc, steel) == pytest.approx(math.log(0.01 / steel["fluid"]["viscosity_Pa_s"]))
+    # any other key of the scene: not the same run
+    other_seed = dict(steel, run=dict(steel["run"], seed=2))
+    assert not W.compatible(other_seed, glass[1]["scene"])
+    # equal distances: the first by file name, whatever the order given
+    slow = cand("h-slow", tip_speed_m_per_s=8.0, bead_density_kg_per_m3=7800.0)
+    quick = cand("i-quick", tip_speed_m_per_s=12.5, bead_density_kg_per_m3=7800.0)
+    assert W.distance(slow[1]["scene"], steel) == pytest.approx(W.distance(quick[1]["scene"], steel))
+    assert W.choose_anchor(steel, [quick, slow], kv)[0] == slow[0]
+
+
+def test_the_builder_starts_warm_only_from_the_states_there_when_the_build_starts(tmp_path):
+    (tmp_path / "one.state.npz").write_bytes(b"")
+    (tmp_path / "two.state.npz").write_bytes(b"")
+    (tmp_path / "a-point.json").write_text("{}")
+    cold = T.DemBuilder(threads=1)
+    warm = T.DemBuilder(threads=1, warm_spin_up_s=0.2)
+    assert warm.with_states(tmp_path).warm_from == ("one.state.npz", "two.state.npz")
+    assert warm.with_states(tmp_path).state_dir == str(tmp_path)
+    assert warm.with_states(tmp_path, reuse=False).warm_from is None  # --force: all cold
+    assert cold.with_states(tmp_path).warm_from is None  # the states kept, none used
+    assert cold.with_states(tmp_path).state_dir == str(tmp_path)
+    assert warm.with_states(tmp_path / "none").warm_from == ()  # the shipped ones only
+    assert T.builder_id_of(warm.with_states(tmp_path)) == T.DemBuilder.builder_id
+    assert W.warm_candidates(tmp_path, None) == []
+    # the unreadable ones left out; the shipped ones always among them
+    shipped = [p for p, _ in W.warm_candidates(tmp_path, ("one.state.npz",))]
+    assert shipped == W.shipped_states()
+    # an on-demand build's builder starts warm
+    from millfmu.dem.tables.on_demand import default_builder
+
+    assert default_builder(read_table_ref("coupled")).warm_spin_up_s == W.WARM_SPIN_UP_S
+
+
+def test_the_package_ships_the_coupled_tables_anchor_state(tmp_path, coupled):
+    """millfmu/data/coupled_anchor.state.npz: the settled state of the coupled table's anchor
+    (0.8 mm glass, 10 m/s, 80 %) made by the table's kernels, among every warm build's
+    candidates, so that a fresh install's first new point with those beads starts warm."""
+    (path,) = [p for p in W.shipped_states() if p.name == "coupled_anchor.state.npz"]
+    spec = coupled.spec()
+    anchor = {**spec.anchor(), **{k: float(v) for k, v in coupled.one_at_a_time_ref.items()}}
+    kv = coupled.manifest["kernel_version"]
+    arrays, meta = W.read_state(path, kv)
+    assert meta["scene"] == scene_at_point(spec.scene, anchor)
+    assert meta["start"] == {"start": "cold", "spin_up_s": 1.5}
+    assert arrays["x_m"].shape == (6536, 3) and path.stat().st_size < 600_000
+    # the steel beads of the on-demand example start from it, the table's own points not
+    cands = W.warm_candidates(tmp_path, ())
+    steel = _scene(coupled, bead_density_kg_per_m3=7800.0)
+    assert W.choose_anchor(steel, cands, kv)[0] == path
+    assert W.starts_warm(steel, tmp_path, (), kv)
+    assert not W.starts_warm(_scene(coupled), tmp_path, (), kv)
+    assert not W.starts_warm(_scene(coupled, bead_diameter_m=1.4e-3), tmp_path, (), kv)
+    assert not W.starts_warm(steel, tmp_path, (), "another-kernel")
+
+
+def test_a_warm_start_costs_its_shorter_spin_up(tmp_path, coupled):
+    """The builder's cost estimate of a point it would start warm counts the warm spin-up
+    (0.2 + 0.4 s against 1.5 + 0.4 s), and the on-demand plan says so; the table's points
+    calibrate seconds per cost at their cold cost."""
+    from millfmu.dem.tables import cache
+    from millfmu.dem.tables.build import seconds_per_cost
+    from millfmu.dem.tables.on_demand import default_builder, plan
+
+    kv = coupled.manifest["kernel_version"]
+    if cache.dem_kernel_version() != kv:
+        pytest.skip("the installed DEM is not the coupled table's kernel version")
+    spec = coupled.spec()
+    steel = {**spec.anchor(), "bead_diameter_m": 0.8e-3, "bead_density_kg_per_m3": 7800.0}
+    cold = T.DemBuilder()
+    warm = T.DemBuilder(warm_spin_up_s=0.2).with_states(tmp_path / "points")
+    assert warm.relative_cost(spec.scene, steel) == pytest.approx(cold.relative_cost(spec.scene, steel) * 0.6 / 1.9)
+    big = dict(steel, bead_diameter_m=1.2e-3)
+    assert warm.relative_cost(spec.scene, big) == cold.relative_cost(spec.scene, big)
+    b = default_builder(coupled)
+    pl = plan(coupled, {"bead_density_kg_per_m3": 7800.0}, b, kv, cache_dir=tmp_path)
+    assert len(pl.todo) == 1
+    assert pl.costs == [pytest.approx(cold.relative_cost(spec.scene, pl.todo[0]) * 0.6 / 1.9)]
+    assert pl.seconds_per_cost == pytest.approx(seconds_per_cost(coupled, cold))
+    assert not list((tmp_path / "points").glob("*"))  # a plan writes nothing
+
+
+class _StartingBuilder:
+    """The analytic builder with the DEM builder's state hooks: records the folder it was
+    given and says it started warm at 14 m/s."""
+
+    seen = []
+
+    def __init__(self, folder=None, warm_from=()):
+        self.folder, self.warm_from = folder, warm_from
+
+    def with_states(self, folder, reuse=True):
+        _StartingBuilder.seen.append((str(folder), reuse))
+        return _StartingBuilder(folder, ("x.state.npz",) if reuse else ())
+
+    def __call__(self, scene, point):
+        out = analytic_builder(scene, point)
+        out["start"] = ({"start": "warm", "from": {"tip_speed_m_per_s": 10.0}, "spin_up_s": 0.2}
+                        if point["tip_speed_m_per_s"] == 14.0 else {"start": "cold", "spin_up_s": 1.5})
+        return out
+
+
+def test_the_table_manifest_records_how_each_point_started(tmp_path):
+    s = spec({"tip_speed_m_per_s": [10.0, 14.0], "filling": [0.7]})
+    b = _StartingBuilder()
+    b.builder_id = T.builder_id_of(analytic_builder)
+    _StartingBuilder.seen.clear()
+    t = T.get_table(s, b, cache_dir=tmp_path, executor="serial", progress=False)
+    assert _StartingBuilder.seen == [(str(tmp_path / "points"), True)]
+    st = t.manifest["point_starts"]
+    assert st["warm"] == 1
+    assert st["points"] == [
+        {"point": {"tip_speed_m_per_s": 10.0, "filling": 0.7}, "start": "cold", "spin_up_s": 1.5},
+        {"point": {"tip_speed_m_per_s": 14.0, "filling": 0.7}, "start": "warm",
+         "from": {"tip_speed_m_per_s": 10.0}, "spin_up_s": 0.2}]
+    # the point's stored result says so too
+    store = T.PointStore(tmp_path / "points")
+    assert store.get(s, {"tip_speed_m_per_s": 14.0, "filling": 0.7})["start"]["start"] == "warm"
+    # a builder without the hooks, a table without starts: nothing recorded
+    t2 = T.get_table(spec({"tip_speed_m_per_s": [6.0, 8.0], "filling": [0.7]}), analytic_builder,
+                     cache_dir=tmp_path, executor="serial", progress=False)
+    assert "point_starts" not in t2.manifest
+    # a forced rebuild: no state used
+    _StartingBuilder.seen.clear()
+    T.get_table(s, b, cache_dir=tmp_path, executor="serial", progress=False, force=True)
+    assert _StartingBuilder.seen == [(str(tmp_path / "points"), False)]
+
+
+def test_clear_stale_drops_the_states_of_other_kernels(tmp_path, coupled):
+    pts = tmp_path / "points"
+    sc = _scene(coupled)
+    keep = W.save_state(W.state_file(pts, sc, "kv-now"), _arrays(), {"scene": sc, "kernel_version": "kv-now"})
+    drop = W.save_state(W.state_file(pts, sc, "kv-old"), _arrays(), {"scene": sc, "kernel_version": "kv-old"})
+    (pts / f"junk{W.STATE_SUFFIX}").write_bytes(b"junk")
+    removed = T.clear_cache(tmp_path, only_not_ok=True, kernel_version="kv-now")
+    assert sorted(removed) == sorted([f"points/{drop.name}", f"points/junk{W.STATE_SUFFIX}"])
+    assert keep.exists() and not drop.exists()
+    T.clear_cache(tmp_path, kernel_version="kv-now")
+    assert not keep.exists()
+
+
+# ---- with the DEM: a small coupled sector --------------------------------------------------
+def _small(coupled, **point):
+    """The coupled table's scene in a 5 degree sector, 0.5 ms spin-up and recording."""
+    d = _scene(coupled, **point)
+    d["mill"]["sector_deg"] = 5.0
+    d["run"].update(spin_up_s=5e-4, record_s=5e-4, sample_every_s=2.5e-4)
+    return d
+
+
+def _stats(folder):
+    d = json.loads((folder / "stats.json").read_text())
+    for k in ("wall_time_s", "particle_steps_per_s"):
+        d["counts"].pop(k)
+    return d
+
+
+def test_a_cold_point_runs_as_run_scene_and_keeps_its_state(tmp_path, coupled):
+    pytest.importorskip("numba")
+    from millfmu.dem.run import run_scene
+    from millfmu.dem.scene import scene_from_dict
+
+    d = _small(coupled)
+    s = scene_from_dict(d)
+    run_scene(s, tmp_path / "plain", progress=False, threads=1, window_s=2.5e-4)
+    stats, start = W.run_point(s, d, tmp_path / "point", threads=1, window_s=2.5e-4,
+                               state_dir=tmp_path / "states", kernel_version="kv")
+    assert start == {"start": "cold", "spin_up_s": 5e-4}
+    # the same run to the bit (the resume path with make_simulation's objects)
+    assert _stats(tmp_path / "point") == _stats(tmp_path / "plain")
+    assert (tmp_path / "point" / "windows.csv").read_text() == (tmp_path / "plain" / "windows.csv").read_text()
+    arrays, meta = W.read_state(W.state_file(tmp_path / "states", d, "kv"), "kv")
+    assert meta["start"] == start and meta["scene"] == d
+    n = len(arrays["x_m"])
+    assert n > 1000 and arrays["v_m_per_s"].shape == (n, 3) and arrays["fluid_at_bead"].shape == (n, 6)
+    assert np.abs(arrays["v_m_per_s"]).max() > 0.1 and np.abs(arrays["liquid_ut"]).max() > 0.1
+
+
+def test_a_warm_simulation_takes_the_state_and_a_warm_point_records_it(tmp_path, coupled):
+    pytest.importorskip("numba")
+    from millfmu.dem.scene import scene_from_dict
+
+    d10 = _small(coupled)
+    s10 = scene_from_dict(d10)
+    folder = tmp_path / "states"
+    W.run_point(s10, d10, tmp_path / "a", threads=1, window_s=2.5e-4, state_dir=folder, kernel_version="kv")
+    path = W.state_file(folder, d10, "kv")
+    arrays, _ = W.read_state(path, "kv")
+    # at 12 m/s: the beads where the state has them, velocities and the liquid scaled
+    d12 = _small(coupled, tip_speed_m_per_s=12.0)
+    s12 = scene_from_dict(d12)
+    sim, cpl = W.warm_simulation(s12, W.scaled(arrays, 1.2), threads=1)
+    rows = sim.ids  # the new simulation's rows -> the state's
+    x, v = arrays["x_m"][rows], 1.2 * arrays["v_m_per_s"][rows].astype(float)
+    # a bead that had left the sector is put back across its periodic side (turned by
+    # the sector's angle, its velocity with it): radii, heights and speeds as they were
+    same = np.all(sim.x == x, axis=1)
+    assert same.mean() > 0.95
+    np.testing.assert_allclose(np.hypot(sim.x[:, 0], sim.x[:, 1]), np.hypot(x[:, 0], x[:, 1]), rtol=1e-12)
+    np.testing.assert_allclose(sim.x[:, 2], x[:, 2], atol=1e-15)
+    np.testing.assert_allclose(sim.v[same], v[same], rtol=1e-12)
+    np.testing.assert_allclose(np.linalg.norm(sim.v, axis=1), np.linalg.norm(v, axis=1), rtol=1e-12)
+    np.testing.assert_allclose(sim.w[same], 1.2 * arrays["w_rad_per_s"][rows][same].astype(float), rtol=1e-12)
+    fab = arrays["fluid_at_bead"][rows].astype(float)
+    np.testing.assert_allclose(sim.per_bead["fluid_at_bead"][:, :3], 1.2 * fab[:, :3], rtol=1e-12)
+    np.testing.assert_allclose(sim.per_bead["fluid_at_bead"][:, 3:], 1.44 * fab[:, 3:], rtol=1e-12)
+    np.testing.assert_allclose(cpl.solver.ut, 1.2 * arrays["liquid_ut"].astype(float), rtol=1e-12)
+    np.testing.assert_allclose(cpl.solver.e, 1.2 ** 3 * arrays["liquid_e"].astype(float), rtol=1e-12)
+    np.testing.assert_array_equal(cpl.solver.eps_c, arrays["liquid_eps_c"].astype(float))
+    assert sim.omega_rad_per_s == pytest.approx(s12.omega_rad_per_s)
+    # another bead count: refused by name
+    with pytest.raises(W.WarmStartError, match="beads"):
+        W.warm_simulation(scene_from_dict(_small(coupled, filling=0.7)), arrays, threads=1)
+    # the point run warm: its start recorded, the shorter spin-up run, its own state kept
+    stats, start = W.run_point(s12, d12, tmp_path / "b", threads=1, window_s=2.5e-4, state_dir=folder,
+                               candidates=W.candidates_in(folder), warm_spin_up_s=2.5e-4,
+                               kernel_version="kv")
+    assert start == {"start": "warm", "from": {"tip_speed_m_per_s": 10.0, "bead_density_kg_per_m3": 2510.0,
+                                               "viscosity_Pa_s": d10["fluid"]["viscosity_Pa_s"]},
+                     "state": path.name, "spin_up_s": 2.5e-4, "speed_scale": pytest.approx(1.2)}
+    assert stats.spin_up_s == pytest.approx(2.5e-4) and stats.record_s == pytest.approx(5e-4)
+    assert sum(z.collision_count for z in stats.zones) > 0
+    _, meta = W.read_state(W.state_file(folder, d12, "kv"), "kv")
+    assert meta["start"]["start"] == "warm"
+    # a state of another kernel version, or no warm spin-up: cold
+    _, cold = W.run_point(s12, d12, tmp_path / "c", threads=1, window_s=2.5e-4,
+                          candidates=W.candidates_in(folder), warm_spin_up_s=2.5e-4, kernel_version="other")
+    assert cold["start"] == "cold"
+
+
+# ---- slow: a warm-started point of the coupled table against a cold start ----------------
+@pytest.mark.slow
+def test_a_warm_started_point_lies_within_the_stated_error_of_a_cold_start(tmp_path, coupled):
+    """The node at 12 m/s (0.8 mm glass, 80 %) started warm from the anchor's settled state
+    (10 m/s; the shipped state, else the anchor run cold first) with WARM_SPIN_UP_S gives a
+    collision frequency and median SE_tn per zone within the table's stated error there of
+    the same point started cold (the full spin-up, the same threads): max(w/c, c/w) - 1 <= b,
+    w the warm run's value, c the cold run's, b the stated relative error of the table's
+    lookup at the node (as tests/tables/test_stated_error.py checks the table's checks).
+    Measured (python -m validation.warm_start, docs/tables.md): at most 0.32 b. 2.5 simulated
+    seconds of the coupled sector (the anchor's run 1.9 more where no state is shipped),
+    about 10 min on 2 cores."""
+    pytest.importorskip("numba")
+    from millfmu.dem.tables.build import _check_fields
+    from millfmu.dem.tables.cache import dem_kernel_version
+    from millfmu.stress_tables.stress_source import TableStressSource
+
+    spec = coupled.spec()
+    anchor = {**spec.anchor(), **{k: float(v) for k, v in coupled.one_at_a_time_ref.items()}}
+    node = dict(anchor, tip_speed_m_per_s=12.0)
+    states = tmp_path / "points"
+    kv = dem_kernel_version()
+    if not W.starts_warm(scene_at_point(spec.scene, node), states, (), kv):
+        # no shipped state of the installed kernels: the anchor run first, keeping its own
+        T.DemBuilder(threads=2, state_dir=str(states))(spec.scene, anchor)
+    warm = T.DemBuilder(threads=2, warm_spin_up_s=W.WARM_SPIN_UP_S).with_states(states)
+    w = warm(spec.scene, node)
+    assert w["start"]["start"] == "warm" and w["start"]["spin_up_s"] == W.WARM_SPIN_UP_S
+    assert w["start"]["from"]["tip_speed_m_per_s"] == 10.0
+    c = T.DemBuilder(threads=2)(spec.scene, node)
+    assert c["start"] == {"start": "cold", "spin_up_s": 1.5}
+    b = TableStressSource(coupled).relative_error(coupled.lookup(node))
+    warm_f, cold_f = _check_fields(w), _check_fields(c)
+    for key, fld in (("collision_frequency", "collision_frequency_norm"), ("se_median", "se_tn_q50_norm")):
+        x, y = np.asarray(warm_f[fld], float), np.asarray(cold_f[fld], float)
+        assert np.all(x > 0) and np.all(y > 0), (key, x, y)
+        measured = np.maximum(x / y, y / x) - 1.0
+        assert np.all(measured <= b[key]), (key, measured, b[key])
