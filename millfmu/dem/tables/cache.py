@@ -573,7 +573,7 @@ def clear_cache(cache_dir=None, only_not_ok: bool = False,
 def _clear_states(folder: Path, only_stale: bool, kernel_version: str) -> list[str]:
     """Remove the points' settled states (warm_start): all, or those of another DEM kernel
     version or layout; returns 'points/NAME' for each removed file."""
-    from .warm_start import STATE_SUFFIX, WarmStartError, read_meta
+    from .state_files import STATE_SUFFIX, WarmStartError, read_meta
 
     removed = []
     for f in sorted(folder.glob("*" + STATE_SUFFIX)):

@@ -44,19 +44,15 @@ import json
 import math
 import os
 import tempfile
-import zipfile
-import zlib
 from pathlib import Path
 
 import numpy as np
 
 from ...stress_tables.files import canonical_json
 from ...stress_tables.spec import AXES
+from .state_files import (_UNREADABLE, STATE_FORMAT, STATE_SUFFIX, WarmStartError,  # noqa: F401
+                          read_meta)
 
-#: Layout of a state file; another is not read.
-STATE_FORMAT = 1
-#: Suffix of a state file in the point store's folder.
-STATE_SUFFIX = ".state.npz"
 #: Table axes in which a warm-started point may differ from the state it starts from: the
 #: tip speed, the beads' density and the liquid's viscosity, which leave the bead count
 #: (diameter, filling, cell) as it is.
@@ -74,12 +70,7 @@ _LIQUID = {"ur": 1, "ut": 1, "uz": 1, "p": 2, "k": 2, "e": 3, "nu_t": 1,
            "eps_c": 0, "eps_c_old": 0, "eps_r": 0, "eps_t": 0, "eps_z": 0}
 
 
-class WarmStartError(ValueError):
-    """A state that cannot be read or used (named with the reason)."""
 
-
-#: what reading a damaged or foreign npz raises
-_UNREADABLE = (OSError, ValueError, KeyError, EOFError, zipfile.BadZipFile, zlib.error)
 
 
 # ---- the state -----------------------------------------------------------------------------
@@ -134,18 +125,7 @@ def save_state(path, arrays: dict, meta: dict) -> Path:
     return path
 
 
-def read_meta(path) -> dict:
-    """A state file's meta (without its arrays); WarmStartError where it cannot be read or
-    has another layout."""
-    try:
-        with np.load(path, allow_pickle=False) as z:
-            meta = json.loads(str(z["meta"]))
-    except _UNREADABLE as e:
-        raise WarmStartError(f"{path}: not a readable state ({type(e).__name__}: {e})") from None
-    if not isinstance(meta, dict) or meta.get("format") != STATE_FORMAT:
-        raise WarmStartError(f"{path}: state layout {meta.get('format') if isinstance(meta, dict) else None!r}; "
-                             f"this version reads {STATE_FORMAT}")
-    return meta
+
 
 
 def read_state(path, kernel_version: str | None = None) -> tuple[dict, dict]:
