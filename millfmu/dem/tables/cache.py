@@ -351,6 +351,8 @@ SAME_DEM_AS = {
 
 #: Folder of the cache that holds finished grid points (:class:`PointStore`).
 POINTS_DIR = "points"
+#: Suffix of a point's settled state, kept beside its result there (:mod:`.warm_start`).
+STATE_SUFFIX = ".state.npz"
 
 
 def dem_kernel_version() -> str:
@@ -570,19 +572,29 @@ def clear_cache(cache_dir=None, only_not_ok: bool = False,
     return removed
 
 
-def _clear_states(folder: Path, only_stale: bool, kernel_version: str) -> list[str]:
-    """Remove the points' settled states (warm_start): all, or those of another DEM kernel
-    version or layout; returns 'points/NAME' for each removed file."""
-    from .warm_start import STATE_SUFFIX, WarmStartError, read_meta
+def state_kernel_version(path) -> str | None:
+    """The DEM kernel version a point's settled state (:mod:`.warm_start`) was made by, None
+    where the file cannot be read as one."""
+    import zipfile
+    import zlib
 
+    import numpy as np
+
+    try:
+        with np.load(path, allow_pickle=False) as z:
+            meta = json.loads(str(z["meta"]))
+    except (OSError, ValueError, KeyError, EOFError, zipfile.BadZipFile, zlib.error):
+        return None
+    return meta.get("kernel_version") if isinstance(meta, dict) else None
+
+
+def _clear_states(folder: Path, only_stale: bool, kernel_version: str) -> list[str]:
+    """Remove the points' settled states (:mod:`.warm_start`): all, or those of another DEM
+    kernel version or that cannot be read; returns 'points/NAME' for each removed file."""
     removed = []
     for f in sorted(folder.glob("*" + STATE_SUFFIX)):
-        if only_stale:
-            try:
-                if read_meta(f).get("kernel_version") == kernel_version:
-                    continue
-            except WarmStartError:
-                pass
+        if only_stale and state_kernel_version(f) == kernel_version:
+            continue
         f.unlink(missing_ok=True)
         removed.append(f"{POINTS_DIR}/{f.name}")
     return removed

@@ -52,11 +52,10 @@ import numpy as np
 
 from ...stress_tables.files import canonical_json
 from ...stress_tables.spec import AXES
+from .cache import STATE_SUFFIX
 
 #: Layout of a state file; another is not read.
 STATE_FORMAT = 1
-#: Suffix of a state file in the point store's folder.
-STATE_SUFFIX = ".state.npz"
 #: Table axes in which a warm-started point may differ from the state it starts from: the
 #: tip speed, the beads' density and the liquid's viscosity, which leave the bead count
 #: (diameter, filling, cell) as it is.
