@@ -109,3 +109,19 @@ def test_a_build_over_a_finished_table_knows_its_seconds_per_cost(tmp_path, monk
                       builder_id=T.DEM_BUILDER_ID)
     T.get_table(big, FakeDemBuilder(), cache_dir=tmp_path / "b", executor="serial", progress=False, seed_from=(done,))
     assert seen["seconds_per_cost"] == FakeDemBuilder.seconds_per_cost
+
+
+def test_an_extended_table_keeps_what_its_stated_error_reads(tmp_path):
+    """A table extended on demand keeps the checks and the realization spread of the table it
+    extends (same scene, settings and DEM), so that its stated error does not shrink."""
+    cf = str(tmp_path / "builds")
+    s = spec(grid={"tip_speed_m_per_s": [6.0, 10.0, 14.0]}, count_file=cf)
+    small = T.get_table(s, analytic_builder, cache_dir=tmp_path / "a", executor="serial", progress=False)
+    shipped = T.read_table_ref("coupled").manifest
+    for k in ("interpolation_check", "separability_check", "realization_spread"):
+        small.manifest[k] = shipped[k]
+    big = rebuild_including(small, {"tip_speed_m_per_s": 16.0}, builder=analytic_builder, cache_dir=tmp_path / "b",
+                            executor="serial", progress=False)
+    for k in ("interpolation_check", "separability_check", "realization_spread"):
+        assert big.manifest[k] == shipped[k], k
+    assert big.realization_error() is not None

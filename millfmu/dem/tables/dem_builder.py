@@ -213,6 +213,11 @@ def _validate_scene_dict(d: dict):
     scene_from_dict(d)
 
 
+#: Manifest entries of a table that its stated error reads (besides the grid's own
+#: interpolation error and sampling sigma), carried into a table extended from it.
+STATED_ERROR_ENTRIES = ("interpolation_check", "separability_check", "realization_spread")
+
+
 def rebuild_including(table: Table, point: dict, builder: Callable | None = None,
                       cache_dir=None, progress: bool = True, on_stale: str = "refuse",
                       log: Callable[[str], None] | None = None, **run_kw) -> Table:
@@ -246,7 +251,10 @@ def rebuild_including(table: Table, point: dict, builder: Callable | None = None
             raise od.StaleTableError(line)
     kv = old_v if on_stale == "accept" else new_v
     pl = od.plan(table, point, builder, kv, cache_dir, workers)
-    extra = {}
+    # what the table's stated error reads besides its grid (the checks against the DEM at
+    # points off its nodes, the spread of independent realizations) holds for the extended
+    # table as well: same scene, settings and DEM; left out, its stated error would shrink
+    extra = {k: table.manifest[k] for k in STATED_ERROR_ENTRIES if k in table.manifest}
     if kv != new_v:
         extra["on_demand"] = {
             "kernel_accepted": "the points of the table extended ran with the kernel version "
