@@ -12,7 +12,6 @@ import copy
 import json
 import math
 import sys
-import warnings
 from dataclasses import MISSING, dataclass, field, fields, is_dataclass
 from importlib import resources
 from pathlib import Path
@@ -24,7 +23,7 @@ else:  # pragma: no cover
     import tomli as tomllib
 
 from .kinetics.stress import PHI_MAX_RCP
-from .unit_names import modernize, renamed_note
+from .unit_names import read_as_current
 
 INF = math.inf
 
@@ -525,19 +524,11 @@ def scene_from_dict(d: dict, source: str = "scene") -> Scene:
 def _current_spelling(d: dict, source: str) -> dict:
     """``d`` with an earlier release's unit suffixes (keys, and the axis names of
     ``similar_axes``) in the current spelling, with a note naming each (FutureWarning)."""
-    renamed: list = []
     try:
-        out = modernize(d, renamed=renamed)
-        sd = out.get("kinetics", {}).get("stress_distribution") if isinstance(out.get("kinetics"), dict) else None
-        if isinstance(sd, dict) and isinstance(sd.get("similar_axes"), list):
-            sd["similar_axes"] = modernize(sd["similar_axes"], values=True, renamed=renamed,
-                                           path="kinetics.stress_distribution.similar_axes")
+        return read_as_current(d, source, value_keys=("similar_axes",), stacklevel=3)
     except ValueError as e:
         key, _, msg = str(e).partition(": ")
         raise SceneError(key, "both spellings", msg, source) from None
-    if renamed:
-        warnings.warn(renamed_note(source, renamed), FutureWarning, stacklevel=3)
-    return out
 
 
 def scene_to_dict(s: Scene) -> dict:

@@ -16,6 +16,7 @@ release, scene files with a note naming each key to change. Imports nothing of m
 from __future__ import annotations
 
 import re
+import warnings
 
 # A suffix ends where the name does or where "__" or a non-alphanumeric character follows
 # (stored array names join axis names with "__").
@@ -47,7 +48,7 @@ def earlier_name(name: str) -> str:
     return name
 
 
-def _map_keys(obj, fn, values: bool, renamed: list | None, path: str):
+def _map_keys(obj, fn, renamed: list | None, path: str, value_keys, values: bool = False):
     if isinstance(obj, dict):
         out = {}
         for k, v in obj.items():
@@ -58,10 +59,10 @@ def _map_keys(obj, fn, values: bool, renamed: list | None, path: str):
                     raise ValueError(f"{where}: given twice, also as {nk!r} (its current spelling); give one")
                 if renamed is not None:
                     renamed.append((where, nk))
-            out[nk] = _map_keys(v, fn, values, renamed, where)
+            out[nk] = _map_keys(v, fn, renamed, where, value_keys, nk in value_keys)
         return out
     if isinstance(obj, list):
-        return [_map_keys(v, fn, values, renamed, f"{path}[{i}]") for i, v in enumerate(obj)]
+        return [_map_keys(v, fn, renamed, f"{path}[{i}]", value_keys, values) for i, v in enumerate(obj)]
     if values and isinstance(obj, str):
         nv = fn(obj)
         if nv != obj and renamed is not None:
@@ -70,23 +71,28 @@ def _map_keys(obj, fn, values: bool, renamed: list | None, path: str):
     return obj
 
 
-def modernize(obj, *, values: bool = False, renamed: list | None = None, path: str = ""):
-    """A copy of ``obj`` (JSON-like: dicts, lists, scalars) with every dict key, and with
-    ``values`` every string, in the current spelling. Each change is appended to
-    ``renamed`` as (where, current name). A key given in both spellings is refused
-    (ValueError naming it)."""
-    return _map_keys(obj, modern_name, values, renamed, path)
+def modernize(obj, *, renamed: list | None = None, value_keys=()):
+    """A copy of ``obj`` (JSON-like: dicts, lists, scalars) with every dict key, and the
+    strings held by the keys ``value_keys`` (names, e.g. a list of table axes), in the current
+    spelling. Each change is appended to ``renamed`` as (where, current name). A key given
+    in both spellings is refused (ValueError naming it)."""
+    return _map_keys(obj, modern_name, renamed, "", frozenset(value_keys))
 
 
-def to_earlier(obj, *, values: bool = False):
-    """A copy of ``obj`` with every dict key (and with ``values`` every string) as the
-    earlier release wrote it."""
-    return _map_keys(obj, earlier_name, values, None, "")
+def to_earlier(obj):
+    """A copy of ``obj`` with every dict key as the earlier release wrote it."""
+    return _map_keys(obj, earlier_name, None, "", frozenset())
 
 
-def renamed_note(what: str, renamed: list) -> str:
-    """One line naming the keys of ``what`` written in an earlier release's spelling and
-    their current names."""
-    items = "; ".join(f"{where} -> {new}" for where, new in renamed)
-    return (f"{what}: unit suffixes in an earlier release's spelling, read as the current names ({items}); "
-            f"the old spelling is accepted in this release only")
+def read_as_current(obj, what: str, *, value_keys=(), stacklevel: int = 1):
+    """:func:`modernize` of ``obj`` read from ``what`` (a file or scene, named in the note),
+    with a FutureWarning naming each key written in the earlier spelling and its current
+    name (``stacklevel`` as :func:`warnings.warn` counts it from the caller); ValueError
+    for a key given in both spellings."""
+    renamed: list = []
+    out = modernize(obj, renamed=renamed, value_keys=value_keys)
+    if renamed:
+        items = "; ".join(f"{where} -> {new}" for where, new in renamed)
+        warnings.warn(f"{what}: unit suffixes in an earlier release's spelling, read as the current names ({items}); "
+                      f"the old spelling is accepted in this release only", FutureWarning, stacklevel=stacklevel + 1)
+    return out

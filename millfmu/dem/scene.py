@@ -18,7 +18,6 @@ from __future__ import annotations
 
 import math
 import sys
-import warnings
 from dataclasses import dataclass, replace
 from pathlib import Path
 
@@ -35,7 +34,7 @@ from millfmu.dem.fluid.settings import DEFAULT_PRESSURE_SOLVER, PRESSURE_SOLVERS
 from millfmu.dem.mills.accelerator import SevSpec
 from millfmu.dem.mills.geometry import MillGeometry
 from millfmu.dem.mills.zones import ZoneSpec
-from millfmu.unit_names import modernize, renamed_note
+from millfmu.unit_names import read_as_current
 
 SCENE_DIR = Path(__file__).parent / "scenes"
 KINDS = ("annulus", "disc_slice", "accelerator_slice")
@@ -322,14 +321,10 @@ def current_spelling(d: dict, what: str = "DEM scene") -> dict:
     """``d`` with an earlier release's unit suffixes in its keys in the current spelling
     (:mod:`millfmu.unit_names`), with a note naming each (FutureWarning); a key given in
     both spellings is refused by name."""
-    renamed: list = []
     try:
-        out = modernize(d, renamed=renamed)
+        return read_as_current(d, what, stacklevel=3)
     except ValueError as e:
         raise DemSceneError(f"{what}: {e}") from None
-    if renamed:
-        warnings.warn(renamed_note(what, renamed), FutureWarning, stacklevel=3)
-    return out
 
 
 def load_scene(name_or_path: str) -> DemScene:
