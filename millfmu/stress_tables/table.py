@@ -38,6 +38,10 @@ ERROR_SAFETY = 2.0
 #: bead fillings and collision densities change with it in ways no normalization removes.
 EXTRAPOLABLE_AXES = ("tip_speed_m_per_s", "bead_diameter_m", "bead_density_kg_per_m3",
                      "viscosity_Pa_s")
+#: Manifest entries that a table's stated error reads besides its grid's own interpolation
+#: error and sampling sigma (the checks against the DEM off the nodes, the spread of
+#: independent realizations): a slice of the table and a table extended from it keep them.
+STATED_ERROR_ENTRIES = ("interpolation_check", "separability_check", "realization_spread")
 #: Relative tolerance for matching a single-valued axis (an axis the grid does not vary).
 FIXED_AXIS_RTOL = 1e-9
 #: Prefix of a one-at-a-time axis's arrays in table.npz: ``oat__<axis>__<array>``.
@@ -593,7 +597,7 @@ class Table:
             sub.manifest = manifest_for(spec, sub, {"slice_of": self.manifest.get("key")},
                                         work_precision=self.manifest.get("work_precision"))
             # what the stated error reads from the full table's manifest
-            for k in ("interpolation_check", "separability_check", "realization_spread"):
+            for k in STATED_ERROR_ENTRIES:
                 if k in self.manifest:
                     sub.manifest[k] = self.manifest[k]
         return sub

@@ -26,7 +26,7 @@ from .warm_start import run_point, starts_warm, warm_candidates
 from ...stress_tables.spec import (COMPONENTS, DEM_BUILDER_ID, DRIFT_FIELDS, QUANTILE_NAMES, TableError,
                    TableSpec, e_ref_J, n_gb_per_m3, norm_log10_edges,
                    scene_at_point)
-from ...stress_tables.table import Table
+from ...stress_tables.table import STATED_ERROR_ENTRIES, Table
 
 
 def rebin_density(dem_edges_J: np.ndarray, density_per_decade: np.ndarray,
@@ -211,11 +211,6 @@ def dem_spec(scene_name_or_path: str, grid: dict, overrides: dict | None = None,
 
 def _validate_scene_dict(d: dict):
     scene_from_dict(d)
-
-
-#: Manifest entries of a table that its stated error reads (besides the grid's own
-#: interpolation error and sampling sigma), carried into a table extended from it.
-STATED_ERROR_ENTRIES = ("interpolation_check", "separability_check", "realization_spread")
 
 
 def rebuild_including(table: Table, point: dict, builder: Callable | None = None,

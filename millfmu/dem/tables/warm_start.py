@@ -39,18 +39,16 @@ the bit as ``run_scene`` alone).
 from __future__ import annotations
 
 import functools
-import hashlib
+import io
 import json
 import math
-import os
-import tempfile
 from pathlib import Path
 
 import numpy as np
 
-from ...stress_tables.files import canonical_json
+from ...stress_tables.files import canonical_json, sha256_bytes, write_replacing
 from ...stress_tables.spec import AXES
-from .state_files import (_UNREADABLE, STATE_FORMAT, STATE_SUFFIX, WarmStartError,  # noqa: F401
+from .state_files import (_UNREADABLE, STATE_FORMAT, STATE_SUFFIX, WarmStartError,
                           read_meta)
 
 #: Table axes in which a warm-started point may differ from the state it starts from: the
@@ -68,9 +66,6 @@ _BEADS = ("x_m", "v_m_per_s", "w_rad_per_s")
 #: each on a warm start
 _LIQUID = {"ur": 1, "ut": 1, "uz": 1, "p": 2, "k": 2, "e": 3, "nu_t": 1,
            "eps_c": 0, "eps_c_old": 0, "eps_r": 0, "eps_t": 0, "eps_z": 0}
-
-
-
 
 
 # ---- the state -----------------------------------------------------------------------------
@@ -100,7 +95,7 @@ def state_key(scene_at_point: dict, kernel_version: str) -> str:
     """The name of a point's state: sha256 over the state layout, the DEM kernel version and
     the scene at the point (as the point store names its result)."""
     content = {"format": STATE_FORMAT, "kernel_version": kernel_version, "scene": scene_at_point}
-    return hashlib.sha256(canonical_json(content).encode()).hexdigest()
+    return sha256_bytes(canonical_json(content).encode())
 
 
 def state_file(folder, scene_at_point: dict, kernel_version: str) -> Path:
@@ -109,23 +104,14 @@ def state_file(folder, scene_at_point: dict, kernel_version: str) -> Path:
 
 def save_state(path, arrays: dict, meta: dict) -> Path:
     """Write ``arrays`` and ``meta`` (JSON: the scene at the point, the kernel version, how
-    the point started) compressed to ``path``, atomically (a temporary file renamed)."""
+    the point started) compressed to ``path``, atomically (as the point store writes a
+    result: :func:`~millfmu.stress_tables.files.write_replacing`)."""
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
-    meta = dict(meta, format=STATE_FORMAT)
-    fd, tmp = tempfile.mkstemp(prefix=".tmp-state-", suffix=".npz", dir=path.parent)
-    try:
-        with os.fdopen(fd, "wb") as fh:
-            np.savez_compressed(fh, meta=np.array(canonical_json(meta)), **arrays)
-        os.chmod(tmp, 0o644)
-        os.replace(tmp, path)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
+    buf = io.BytesIO()
+    np.savez_compressed(buf, meta=np.array(canonical_json(dict(meta, format=STATE_FORMAT))), **arrays)
+    write_replacing(path, buf.getvalue(), prefix=".tmp-state-")
     return path
-
-
-
 
 
 def read_state(path, kernel_version: str | None = None) -> tuple[dict, dict]:
@@ -292,7 +278,7 @@ def warm_record(meta: dict, path, spin_up_s: float, ratio: float) -> dict:
     values ``from`` names (file ``state``), spin-up ``spin_up_s`` [s], velocities scaled by
     ``speed_scale``."""
     sc = meta.get("scene") or {}
-    frm = {ax: _value(sc, *AXES[ax][:2]) for ax in WARM_AXES if _value(sc, *AXES[ax][:2]) is not None}
+    frm = {ax: v for ax, (sec, key) in zip(WARM_AXES, WARM_KEYS) if (v := _value(sc, sec, key)) is not None}
     return {"start": "warm", "from": frm, "state": Path(path).name, "spin_up_s": float(spin_up_s),
             "speed_scale": float(ratio)}
 
