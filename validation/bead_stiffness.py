@@ -1,0 +1,236 @@
+"""The beads' Young's modulus against the collisions the detailed model reads.
+
+Seed 001 ran its DEM with glass beads whose Young's modulus was reduced by 1e4 (Table 1:
+6.3e6 Pa instead of 6.3e10 Pa), as the coupled table does, so that the time step can be
+5e-6 s. A softer bead stays longer in contact (Hertz contact time ~ Y^(-2/5)) and, in a
+dense sheared bed, separates and touches again at small speeds more often; every first
+overlap counts as a collision (seed 001). The detailed model reads the table's collision
+frequency and its collision energies, so what the reduction does to both bears on its
+predictions (issue 58: the limestone's energies lie on the foot of the breakage curve and
+the DEM counts several times Kwade's omega n_gb contacts).
+
+This study runs the table's anchor point (disc slice, 10-degree sector without gravity,
+coupled liquid, 10 m/s, 80 % filling, 0.8 mm glass beads) with Y times 1, 10 (and 100),
+each with the time step scaled by the Hertz contact time, dt = 5e-6 s x factor^(-2/5),
+and the DEM steps per coupling interval scaled so that the liquid keeps its 5e-5 s step
+(dt x steps). The same protocol for every factor: started turning at 0.1 of the stirrer's
+angular velocity, ``--spin-up`` (default 0.8 s) then ``--record`` (default 0.2 s), seed 1.
+
+Per zone it reports the collision frequency per volume, the normal impact energy SE_tn
+(seed 001 eq. 1, 1/2 m_GM v_rel,n^2) at its 10, 50 and 90 % quantiles, the collision power,
+and two readings of the detailed model over the zone-volume-weighted collisions: the rate
+of collisions whose SE_tn exceeds an energy (the stand-in limestone's threshold at 10 um,
+x W_m,min = 0.019 J m/kg, 2.7e-9 J, extrapolated from Cho & Austin's drop-weight tests; the
+yeast's sourced median burst energy 2.8e-10 J), and the limestone example's mean breakage
+probability per collision at x = 3 um (``examples/limestone_detailed.toml``: f_Mat 179.5
+kg/(J m), threshold 0, eta_E = 1, elasticity factor (1 + Y_P/Y_GM)^-1 with the real moduli).
+
+From a checkout's root:
+
+    python -m validation.bead_stiffness run --out DIR [--factors 1,10] [--threads N]
+    python -m validation.bead_stiffness table --out DIR [--json validation/runs/bead_stiffness.json]
+
+``table`` prints the comparison and (``--json``) writes the run summary kept in the
+repository; ``verdicts`` of that summary are recomputed from its numbers by the tests.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import sys
+from dataclasses import replace
+from pathlib import Path
+
+import numpy as np
+
+#: Young's modulus of the table's beads [Pa] (seed 001 Table 1: glass reduced by 1e4)
+Y_TABLE_PA = 6.3e6
+#: the table's DEM step [s] and DEM steps per coupling interval (seed 001)
+DT_TABLE_S = 5.0e-6
+COUPLING_STEPS_TABLE = 10
+#: the table's anchor: tip speed [m/s], filling [-]
+ANCHOR = (10.0, 0.8)
+INITIAL_ROTATION = 0.1
+#: energies [J] whose exceedance rate is reported: the stand-in limestone's threshold at
+#: 10 um (x W_m,min = 0.019 J m/kg, examples/limestone_detailed.toml) and the yeast's
+#: sourced median burst energy (examples/yeast_disruption_detailed.toml)
+LIMESTONE_THRESHOLD_10UM_J = 0.019 / 10e-6 * 2710.0 * math.pi / 6.0 * (10e-6) ** 3
+YEAST_BURST_MEDIAN_J = 2.8e-10
+#: the limestone example's constants at the reference (examples/limestone_detailed.toml)
+F_MAT_KG_PER_J_M = 179.5
+RHO_LIMESTONE_KG_PER_M3 = 2710.0
+ELASTICITY_FACTOR = 1.0 / (1.0 + 70e9 / 63e9)  # calcite on soda-lime glass
+X_PROBE_M = 3.0e-6
+#: a change counts as "moves" beyond this factor either way (the table's stated error at
+#: the anchor is 19-26 % in collision frequency and 29-99 % in median SE_tn)
+MOVES_FACTOR = 1.5
+
+
+def case_dir(out_dir, factor: float) -> Path:
+    return Path(out_dir) / f"y{factor:g}"
+
+
+def scene_for(factor: float, spin_up_s: float, record_s: float):
+    """The anchor scene with the beads' Young's modulus times ``factor``, dt scaled by the
+    Hertz contact time and the coupling interval kept at the table's 5e-5 s."""
+    from millfmu.dem.scene import load_scene
+
+    base = load_scene("disc_slice").with_overrides(
+        fluid_mode="coupled", tip_speed_m_per_s=ANCHOR[0], filling=ANCHOR[1], sector_deg=10.0,
+        gravity_m_per_s2=(0.0, 0.0, 0.0), spin_up_s=spin_up_s, record_s=record_s,
+        sample_every_s=0.01, initial_rotation=INITIAL_ROTATION)
+    dt = DT_TABLE_S * factor ** -0.4
+    steps = max(1, round(COUPLING_STEPS_TABLE * DT_TABLE_S / dt))
+    return replace(base, name=f"disc_slice_y{factor:g}",
+                   material=replace(base.material, youngs_modulus_pa=Y_TABLE_PA * factor),
+                   dt_s=dt, coupling=replace(base.coupling, steps=steps))
+
+
+def run_cases(out_dir, factors, spin_up_s, record_s, threads=None, progress=True):
+    """Run the factors that have no stats.json yet."""
+    from millfmu.dem.run import run_scene
+
+    for f in factors:
+        d = case_dir(out_dir, f)
+        if (d / "stats.json").exists():
+            continue
+        run_scene(scene_for(f, spin_up_s, record_s), d, progress=progress, threads=threads)
+
+
+def _zone_rates(st: dict) -> dict:
+    """Zone-volume-weighted readings of one run's stats.json (see the module docstring)."""
+    edges = np.asarray(st["se_bin_edges_j"], float)
+    e_mid = np.sqrt(edges[:-1] * edges[1:])
+    dlog = np.diff(np.log10(edges))
+    m_p = RHO_LIMESTONE_KG_PER_M3 * math.pi / 6.0 * X_PROBE_M ** 3
+    p_lime = -np.expm1(-F_MAT_KG_PER_J_M * X_PROBE_M * e_mid * ELASTICITY_FACTOR / m_p)
+    vol = sum(z["volume_m3"] for z in st["zones"])
+    out = {"zones": [], "frequency_per_m3_s": 0.0, "above_limestone_threshold_per_m3_s": 0.0,
+           "above_yeast_burst_per_m3_s": 0.0, "limestone_breaking_per_m3_s": 0.0,
+           "power_W_per_m3": 0.0}
+    for z in st["zones"]:
+        w = np.asarray(z["se"]["tn"]["density_per_decade"], float) * dlog  # per bin, sums to 1
+        f = float(z["collision_frequency_per_m3_s"])
+        share = z["volume_m3"] / vol
+        q = z["se"]["tn"]["quantiles_j"]
+        row = {"zone": z["name"], "collision_frequency_per_m3_s": f,
+               "se_tn_q10_J": q.get("q10"), "se_tn_q50_J": q.get("q50"), "se_tn_q90_J": q.get("q90"),
+               "collision_power_W_per_m3": float(z["collision_power_w"]) / z["volume_m3"],
+               "share_above_limestone_threshold": float(w[e_mid > LIMESTONE_THRESHOLD_10UM_J].sum()),
+               "share_above_yeast_burst": float(w[e_mid > YEAST_BURST_MEDIAN_J].sum()),
+               "limestone_p_break_3um": float((w * p_lime).sum()),
+               "local_filling": float(z["filling"]), "speed_over_tip_speed": float(z["speed_over_tip_speed"])}
+        out["zones"].append(row)
+        out["frequency_per_m3_s"] += share * f
+        out["above_limestone_threshold_per_m3_s"] += share * f * row["share_above_limestone_threshold"]
+        out["above_yeast_burst_per_m3_s"] += share * f * row["share_above_yeast_burst"]
+        out["limestone_breaking_per_m3_s"] += share * f * row["limestone_p_break_3um"]
+        out["power_W_per_m3"] += share * row["collision_power_W_per_m3"]
+    return out
+
+
+CHAMBER_KEYS = ("frequency_per_m3_s", "above_limestone_threshold_per_m3_s", "above_yeast_burst_per_m3_s",
+                "limestone_breaking_per_m3_s", "power_W_per_m3")
+
+
+def summarize(out_dir, factors) -> dict:
+    """The run summary: each factor's readings, and their ratios to factor 1."""
+    runs = {}
+    for f in factors:
+        p = case_dir(out_dir, f) / "stats.json"
+        if not p.exists():
+            raise FileNotFoundError(f"{p}: run it first (python -m validation.bead_stiffness run)")
+        st = json.loads(p.read_text())
+        r = _zone_rates(st)
+        r.update(youngs_modulus_Pa=Y_TABLE_PA * f, dt_s=st["dt_s"], beads=st["beads"],
+                 spin_up_s=st["spin_up_s"], record_s=st["record_s"])
+        runs[f"{f:g}"] = r
+    return {"command": "python -m validation.bead_stiffness table --out DIR --json "
+                       "validation/runs/bead_stiffness.json (runs: ... run --out DIR --factors "
+                       + ",".join(f"{f:g}" for f in factors) + ")",
+            "anchor": {"tip_speed_m_per_s": ANCHOR[0], "filling": ANCHOR[1], "bead_diameter_m": 0.8e-3},
+            "moves_factor": MOVES_FACTOR, "runs": runs, "verdicts": verdicts(runs)}
+
+
+def ratios(runs: dict) -> dict:
+    """Each factor's chamber readings over factor 1's."""
+    base = runs["1"]
+    out = {}
+    for k, r in runs.items():
+        if k == "1":
+            continue
+        out[k] = {key: (r[key] / base[key] if base[key] > 0 else float("nan")) for key in CHAMBER_KEYS}
+    return out
+
+
+def verdicts(runs: dict) -> dict:
+    """Per factor and chamber reading: "moves" where the ratio to factor 1 lies beyond
+    MOVES_FACTOR either way, else "holds"."""
+    return {k: {key: ("moves" if not (1.0 / MOVES_FACTOR <= v <= MOVES_FACTOR) else "holds")
+                for key, v in rs.items()} for k, rs in ratios(runs).items()}
+
+
+def markdown(summary: dict) -> str:
+    runs = summary["runs"]
+    keys = list(runs)
+    lines = ["| reading | " + " | ".join(f"Y x {k}" for k in keys) + " |",
+             "|---|" + "---|" * len(keys)]
+    for key, label in (("frequency_per_m3_s", "collisions per chamber volume [1/(m3 s)]"),
+                       ("above_limestone_threshold_per_m3_s", "of them SE_tn > 2.7e-9 J [1/(m3 s)]"),
+                       ("above_yeast_burst_per_m3_s", "of them SE_tn > 2.8e-10 J [1/(m3 s)]"),
+                       ("limestone_breaking_per_m3_s", "breaking a 3 um limestone particle [1/(m3 s)]"),
+                       ("power_W_per_m3", "collision power (SE_total) [W/m3]")):
+        lines.append(f"| {label} | " + " | ".join(f"{runs[k][key]:.3g}" for k in keys) + " |")
+    for zi, z in enumerate(runs[keys[0]]["zones"]):
+        name = z["zone"]
+        lines.append(f"| {name}: collision frequency [1/(m3 s)] | "
+                     + " | ".join(f"{runs[k]['zones'][zi]['collision_frequency_per_m3_s']:.3g}" for k in keys) + " |")
+        lines.append(f"| {name}: SE_tn q10 / q50 / q90 [J] | " + " | ".join(
+            "/".join("-" if runs[k]["zones"][zi][q] is None else f"{runs[k]['zones'][zi][q]:.2g}"
+                     for q in ("se_tn_q10_J", "se_tn_q50_J", "se_tn_q90_J")) for k in keys) + " |")
+    lines.append("")
+    for k, v in summary["verdicts"].items():
+        lines.append(f"Y x {k} against Y x 1: " + ", ".join(
+            f"{key} {ratios(runs)[k][key]:.2f} ({v[key]})" for key in CHAMBER_KEYS))
+    return "\n".join(lines)
+
+
+def parser() -> argparse.ArgumentParser:
+    s = argparse.ArgumentParser(prog="python -m validation.bead_stiffness",
+                                description="The beads' Young's modulus against the table's collisions "
+                                            "(run from a checkout's root).")
+    s.add_argument("action", choices=("run", "table"))
+    s.add_argument("--out", required=True, help="folder of the runs")
+    s.add_argument("--factors", default="1,10", help="Young's modulus factors over 6.3e6 Pa (default 1,10)")
+    s.add_argument("--spin-up", type=float, default=0.8, help="spin-up [s] (default 0.8)")
+    s.add_argument("--record", type=float, default=0.2, help="recording [s] (default 0.2)")
+    s.add_argument("--threads", type=int, help="numba threads (default: all cores)")
+    s.add_argument("--json", help="write the run summary here")
+    return s
+
+
+def main(argv=None) -> int:
+    args = parser().parse_args(argv)
+    try:
+        factors = [float(v) for v in args.factors.split(",") if v.strip()]
+    except ValueError:
+        print(f"python -m validation.bead_stiffness: --factors {args.factors!r}: numbers, comma-separated",
+              file=sys.stderr)
+        return 2
+    if 1.0 not in factors or any(f < 1.0 for f in factors):
+        print(f"python -m validation.bead_stiffness: --factors {args.factors!r}: must hold 1 (the table's "
+              f"beads) and factors >= 1", file=sys.stderr)
+        return 2
+    if args.action == "run":
+        run_cases(args.out, factors, args.spin_up, args.record, threads=args.threads)
+    summary = summarize(args.out, factors)
+    print(markdown(summary))
+    if args.json:
+        Path(args.json).write_text(json.dumps(summary, indent=1) + "\n")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
