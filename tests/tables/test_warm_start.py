@@ -14,6 +14,7 @@ import pytest
 
 from millfmu.dem import tables as T
 from millfmu.dem.tables import warm_start as W
+from millfmu.dem.scene import scene_from_dict
 from millfmu.stress_tables.spec import scene_at_point
 from millfmu.stress_tables.table import read_table_ref
 from tests.tables._builders import analytic_builder, spec
@@ -105,7 +106,10 @@ def test_a_new_point_starts_from_the_nearest_state_with_the_same_beads(coupled):
     everything = [glass, zirconia, fast_zirconia, small, lower, stale, own]
     # the nearest in log density among the same beads, filling and kernel (not itself)
     assert W.choose_anchor(steel, everything, kv)[0] == zirconia[0]
-    assert W.choose_anchor(steel, [glass, fast_zirconia, small, lower, stale], kv)[0] == fast_zirconia[0]
+    # (without the measured range: the nearest whatever its ratios; within it, the 14 m/s
+    # state is too far for a 10 m/s point: test_a_warm_start_jumps_only_as_far_as_measured)
+    assert W.choose_anchor(steel, [glass, fast_zirconia, small, lower, stale], kv, within=None)[0] == fast_zirconia[0]
+    assert W.choose_anchor(steel, [glass, fast_zirconia, small, lower, stale], kv)[0] == glass[0]
     assert W.choose_anchor(steel, [glass, small, lower, stale], kv)[0] == glass[0]
     # another diameter or filling: another bead count, a cold start
     assert W.choose_anchor(steel, [small, lower, stale, own], kv) is None
@@ -124,7 +128,71 @@ def test_a_new_point_starts_from_the_nearest_state_with_the_same_beads(coupled):
     slow = cand("h-slow", tip_speed_m_per_s=8.0, bead_density_kg_per_m3=7800.0)
     quick = cand("i-quick", tip_speed_m_per_s=12.5, bead_density_kg_per_m3=7800.0)
     assert W.distance(slow[1]["scene"], steel) == pytest.approx(W.distance(quick[1]["scene"], steel))
-    assert W.choose_anchor(steel, [quick, slow], kv)[0] == slow[0]
+    assert W.choose_anchor(steel, [quick, slow], kv, within=None)[0] == slow[0]
+
+
+def test_a_warm_start_jumps_only_as_far_as_measured(coupled, capsys):
+    """WARM_RANGE: a state is used only where the point's tip speed is 1-1.2 times the
+    state's, its bead density 1-3.11 times (7,800 / 2,510: steel from glass) and its viscosity
+    the same; beyond, the point starts cold and its record and stderr say why."""
+    kv = "kv"
+
+    def cand(name, **point):
+        return (f"/s/{name}.state.npz", {"scene": _scene(coupled, **point), "kernel_version": kv})
+
+    glass = cand("a-glass")  # 2,510 kg/m3, 10 m/s
+    # inside, at both ends of each measured jump (steel from glass: the shipped example)
+    for point in ({"bead_density_kg_per_m3": 7800.0}, {"bead_density_kg_per_m3": 2510.0 * 1.0001},
+                  {"tip_speed_m_per_s": 12.0}, {"tip_speed_m_per_s": 10.001},
+                  {"tip_speed_m_per_s": 12.0, "bead_density_kg_per_m3": 7800.0}):
+        assert W.pick_start(_scene(coupled, **point), [glass], kv) == (glass, None), point
+    # beyond: heavier than measured, faster than measured, lighter or slower than the state
+    # (never measured), another viscosity (never varied)
+    beyond = {"bead_density_kg_per_m3 8000 against the state's 2510 (ratio 3.19; warm starts measured for 1 to 3.11)":
+              {"bead_density_kg_per_m3": 8000.0},
+              "tip_speed_m_per_s 12.5 against the state's 10 (ratio 1.25; warm starts measured for 1 to 1.2)":
+              {"tip_speed_m_per_s": 12.5},
+              "bead_density_kg_per_m3 2000 against the state's 2510 (ratio 0.797": {"bead_density_kg_per_m3": 2000.0},
+              "tip_speed_m_per_s 8 against the state's 10 (ratio 0.8": {"tip_speed_m_per_s": 8.0}}
+    for why, point in beyond.items():
+        pick, got = W.pick_start(_scene(coupled, **point), [glass], kv)
+        assert pick is None and got.startswith("the nearest stored state with the same beads is too far: " + why)
+    sc = _scene(coupled)
+    visc = dict(sc, fluid=dict(sc["fluid"], viscosity_Pa_s=2e-3))
+    pick, why = W.pick_start(visc, [glass], kv)
+    assert pick is None and "viscosity_Pa_s 0.002 against the state's 0.001002" in why and "measured for 1)" in why
+    # a farther state within the range is taken before a nearer one beyond it
+    heavier = cand("b-heavier", bead_density_kg_per_m3=6040.0)  # 5,000 from 6,040: lighter, beyond
+    assert W.pick_start(_scene(coupled, bead_density_kg_per_m3=5000.0), [glass, heavier], kv) == (glass, None)
+    # no state with the same beads: cold, nothing to say
+    assert W.pick_start(_scene(coupled, bead_diameter_m=1.2e-3), [glass], kv) == (None, None)
+    assert "why_cold" not in W.cold_record(scene_from_dict(sc))
+
+
+def test_a_point_beyond_the_range_runs_cold_and_says_why(coupled, monkeypatch, capsys):
+    """run_point with a compatible state beyond WARM_RANGE: the cold run (the scene's own
+    spin-up), its start record naming why, the same on stderr (the DEM stubbed out)."""
+    import millfmu.dem.run as R
+
+    ran = []
+    monkeypatch.setattr(R, "make_simulation", lambda scene, threads: ("sim", None))
+    monkeypatch.setattr(R, "run_scene", lambda scene, out, **kw: ran.append(scene.spin_up_s) or "stats")
+    monkeypatch.setattr(W, "_loop", lambda scene, sim: {})
+    glass = ("/s/a-glass.state.npz", {"scene": _scene(coupled), "kernel_version": "kv"})
+    light = _scene(coupled, bead_density_kg_per_m3=2000.0)
+    stats, start = W.run_point(scene_from_dict(light), light, "/nowhere", candidates=[glass],
+                               warm_spin_up_s=0.2, kernel_version="kv")
+    assert stats == "stats" and ran == [1.5]
+    assert start["start"] == "cold" and start["spin_up_s"] == 1.5
+    assert "bead_density_kg_per_m3 2000 against the state's 2510 (ratio 0.797" in start["why_cold"]
+    err = capsys.readouterr().err
+    assert "table point {'tip_speed_m_per_s': 10.0, 'bead_density_kg_per_m3': 2000.0, 'viscosity_Pa_s': 0.001002} " \
+           "starts cold: the nearest stored state with the same beads is too far" in err
+    # cold without a state of its beads at hand, or without warm starts: nothing said
+    for cands, su in (([], 0.2), ([glass], None)):
+        assert W.run_point(scene_from_dict(light), light, "/nowhere", candidates=cands, warm_spin_up_s=su,
+                           kernel_version="kv")[1] == {"start": "cold", "spin_up_s": 1.5}
+    assert capsys.readouterr().err == ""
 
 
 def test_the_builder_starts_warm_only_from_the_states_there_when_the_build_starts(tmp_path):
@@ -191,11 +259,106 @@ def test_a_warm_start_costs_its_shorter_spin_up(tmp_path, coupled):
     big = dict(steel, bead_diameter_m=1.2e-3)
     assert warm.relative_cost(spec.scene, big) == cold.relative_cost(spec.scene, big)
     b = default_builder(coupled)
-    pl = plan(coupled, {"bead_density_kg_per_m3": 7800.0}, b, kv, cache_dir=tmp_path)
+    pl = plan(coupled, {"bead_density_kg_per_m3": 7800.0}, b, kv, cache_dir=tmp_path, workers=2)
     assert len(pl.todo) == 1
     assert pl.costs == [pytest.approx(cold.relative_cost(spec.scene, pl.todo[0]) * 0.6 / 1.9)]
     assert pl.seconds_per_cost == pytest.approx(seconds_per_cost(coupled, cold))
     assert not list((tmp_path / "points").glob("*"))  # a plan writes nothing
+    # the line says how the point starts; started cold (a builder that starts none warm) it
+    # costs the steps' ratio more
+    assert pl.line().startswith("29 points, 28 already built, 1 to run, started warm from a stored settled "
+                                "state (about ")
+    pc = plan(coupled, {"bead_density_kg_per_m3": 7800.0}, cold, kv, cache_dir=tmp_path, workers=2)
+    assert pc.starts == [("cold", None)] and ", started cold (about " in pc.line()
+    assert pl.cpu_s() == pytest.approx(pc.cpu_s() * 0.6 / 1.9)
+    # calibrated on the installed DEM's runs of the point (MEASURED_SPEED: cold 280 s, warm
+    # 103 s on 2 threads; the whole on-demand command 108 s), not on the table's build, whose
+    # sources ran 3.4 times slower: within 15 % of each
+    assert pl.wall_s() == pytest.approx(103.0, rel=0.15) and pc.wall_s() == pytest.approx(280.0, rel=0.15)
+    # lighter beads than the shipped state's: too far, cold, and the line says why
+    pd = plan(coupled, {"bead_density_kg_per_m3": 2000.0}, b, kv, cache_dir=tmp_path, workers=2)
+    assert ", started cold (the nearest stored state with the same beads is too far: bead_density_kg_per_m3 " \
+           "2000 against the state's 2510 (ratio 0.797; warm starts measured for 1 to 3.11)) (about " in pd.line()
+    assert pd.costs == [pytest.approx(cold.relative_cost(spec.scene, pd.todo[0]))]
+
+
+def test_the_measured_speed_calibrates_only_its_scene_and_kernel(coupled, monkeypatch):
+    """MEASURED_SPEED: seconds per cost unit from its runs (summed wall time over summed
+    cost) for the coupled table's scene with its DEM kernel version; another scene or
+    another installed kernel version: the table's own points_wall_time_s."""
+    from millfmu.dem.tables import cache
+    from millfmu.dem.tables import dem_builder as D
+    from millfmu.dem.tables.build import seconds_per_cost
+
+    m = D.MEASURED_SPEED
+    scene = coupled.manifest["scene"]
+    want = sum(r["wall_time_s"] for r in m["runs"]) / sum(D._cost(scene, r["point"], r["spin_up_s"]) for r in m["runs"])
+    monkeypatch.setattr(cache, "dem_kernel_version", lambda: m["kernel_version"])
+    assert D.measured_seconds_per_cost(coupled) == pytest.approx(want)
+    assert seconds_per_cost(coupled, T.DemBuilder()) == pytest.approx(want)
+    # the shipped table's build: 3.7 times as long per cost unit
+    table_spc = coupled.manifest["points_wall_time_s"] / sum(
+        T.DemBuilder().relative_cost(scene, p) for p in coupled.spec().points())
+    assert table_spc / want == pytest.approx(3.7, abs=0.1)
+    other = read_table_ref("prescribed")
+    assert D.measured_seconds_per_cost(other) is None
+    monkeypatch.setattr(cache, "dem_kernel_version", lambda: "sha256:another")
+    assert D.measured_seconds_per_cost(coupled) is None
+    assert seconds_per_cost(coupled, T.DemBuilder()) == pytest.approx(table_spc)
+
+
+class _WarmStub:
+    """A stand-in for the DEM builder's cost and start (no DEM): relative cost filling x tip
+    speed x steps, the steps (spin-up + recording) 0.6 s warm and 1.9 s cold; after
+    with_states it starts the 70 % points warm and says the 50 % ones are too far."""
+
+    builder_id = T.DEM_BUILDER_ID
+
+    def __init__(self, states=False):
+        self.states = states
+
+    def with_states(self, folder, reuse=True):
+        return _WarmStub(states=reuse)
+
+    def start_of(self, scene, point):
+        if not self.states:
+            return "cold", None
+        return ("warm", None) if point["filling"] == 0.7 else ("cold", "too far")
+
+    def relative_cost(self, scene, point):
+        return self.cost_as_started(scene, point, {"start": self.start_of(scene, point)[0]})
+
+    def cost_as_started(self, scene, point, start):
+        return point["filling"] * point["tip_speed_m_per_s"] * (0.6 if start["start"] == "warm" else 1.9)
+
+    def __call__(self, scene, point):
+        out = analytic_builder(scene, point)
+        out["wall_time_s"] = 2.0 * self.relative_cost(scene, point)  # 2 s per unit
+        out["start"] = {"start": self.start_of(scene, point)[0]}
+        return out
+
+
+def test_the_estimate_follows_how_each_point_starts(tmp_path, monkeypatch):
+    """The on-demand plan costs each point to run at the steps of its start (a warm one the
+    step ratio 0.6 / 1.9 of a cold one) and its line says how they start."""
+    import millfmu.dem.tables.cache as C
+    from millfmu.dem.tables.on_demand import plan
+
+    monkeypatch.setattr(C, "dem_kernel_version", lambda: "k")
+    small = T.TableSpec(scene={"name": "analytic"}, grid={"tip_speed_m_per_s": [6.0, 10.0], "filling": [0.5, 0.7]},
+                        kernel_version="k", builder_id=T.DEM_BUILDER_ID)
+    done = T.get_table(small, _WarmStub(), cache_dir=tmp_path / "a", executor="serial", progress=False)
+    assert done.manifest["point_starts"]["warm"] == 2  # its 70 % points: calibrated at their warm cost
+    pl = plan(done, {"tip_speed_m_per_s": 14.0}, _WarmStub(), "k", cache_dir=tmp_path / "b", workers=1)
+    assert [p["filling"] for p in pl.todo] == [0.5, 0.7]
+    assert pl.starts == [("cold", "too far"), ("warm", None)]
+    assert pl.costs == [pytest.approx(0.5 * 14 * 1.9), pytest.approx(0.7 * 14 * 0.6)]
+    assert pl.seconds_per_cost == pytest.approx(2.0)  # the table's points, each at the cost of its start
+    assert pl.line() == ("6 points, 4 already built, 2 to run, 1 started warm from stored settled states, "
+                         "1 cold (1 of them: too far) (about 38 s of CPU, 38 s on 1 worker)")
+    one = plan(done, {"tip_speed_m_per_s": 14.0, "filling": 0.7}, _WarmStub(), "k", cache_dir=tmp_path / "b")
+    warm = [c for p, c in zip(one.todo, one.costs) if p["filling"] == 0.7 and p["tip_speed_m_per_s"] == 14.0]
+    assert warm == [pytest.approx(0.7 * 14 * 1.9 * 0.6 / 1.9)]
 
 
 class _StartingBuilder:
@@ -384,3 +547,85 @@ def test_a_warm_started_point_lies_within_the_stated_error_of_a_cold_start(tmp_p
         assert np.all(x > 0) and np.all(y > 0), (key, x, y)
         measured = np.maximum(x / y, y / x) - 1.0
         assert np.all(measured <= b[key]), (key, measured, b[key])
+
+
+class _StubSim:
+    """What run_point and capture read of a simulation (no DEM)."""
+
+    def __init__(self):
+        self.x = np.zeros((3, 3))
+        self.v = np.zeros((3, 3), np.float32)
+        self.w = np.zeros((3, 3), np.float32)
+
+
+def test_tables_build_warm_starts_points_from_the_stored_states(tmp_path, monkeypatch, capsys):
+    """``millfmu tables build --warm``: each new point starts warm from the nearest state of
+    a point with its beads stored when the build starts, within WARM_RANGE; the manifest's
+    point_starts records each start; without --warm every point starts cold. The DEM's run
+    is stubbed out (run_point's choice and records are the real ones)."""
+    import argparse
+
+    import millfmu.dem.run as R
+    from millfmu.dem.tables import cli as tables_cli
+    from millfmu.dem.tables.cells import dem_scene_at_point
+
+    monkeypatch.setattr(R, "make_simulation", lambda scene, threads: (_StubSim(), None))
+    monkeypatch.setattr(R, "run_scene", lambda scene, out, **kw: "stats")
+    monkeypatch.setattr(W, "_loop", lambda scene, sim: {})
+    monkeypatch.setattr(W, "warm_simulation", lambda scene, arrays, threads=None: (_StubSim(), None))
+    builders = []
+
+    def call(self, scene, point):
+        builders.append(self)
+        sc = dem_scene_at_point(scene, point)
+        _, start = W.run_point(scene_from_dict(sc), sc, str(tmp_path / "run"), **self.start_kw())
+        return dict(analytic_builder(scene, point), start=start, wall_time_s=1.0)
+
+    monkeypatch.setattr(T.DemBuilder, "__call__", call)
+
+    def build(*argv):
+        ap = argparse.ArgumentParser(prog="millfmu")
+        tables_cli.register(ap.add_subparsers(dest="command"))
+        args = ap.parse_args(["tables", "build", "--record", "0.3", "--executor", "serial", "--no-progress",
+                              "--cache-dir", str(tmp_path / "cache"), *argv])
+        rc = args.func(args)
+        entry = max((tmp_path / "cache").glob("[0-9a-f]*/"), key=lambda d: d.stat().st_mtime)
+        return rc, T.read_table(entry).manifest, capsys.readouterr()
+
+    def starts(m):
+        return {p["point"]["tip_speed_m_per_s"]: p for p in m["point_starts"]["points"]}
+
+    # the first point: no state of its scene at hand (the shipped one records 0.4 s), cold
+    rc, m, out = build("--warm", "--tip-speed", "10")
+    assert rc == 0 and builders[-1].warm_spin_up_s == W.WARM_SPIN_UP_S
+    assert starts(m)[10.0] == {"point": {"tip_speed_m_per_s": 10.0}, "start": "cold", "spin_up_s": 2.0}
+    assert "point starts: 0 warm, 1 cold" in out.out
+    # the next build: 11 m/s warm from the 10 m/s state (ratio 1.1), the 10 m/s point reused
+    rc, m, out = build("--warm", "--tip-speed", "10,11")
+    assert rc == 0 and m["points_run"] == 1 and m["point_starts"]["warm"] == 1
+    st = starts(m)[11.0]
+    assert st["start"] == "warm" and st["from"]["tip_speed_m_per_s"] == 10.0 and st["spin_up_s"] == 0.2
+    assert st["speed_scale"] == pytest.approx(1.1)
+    assert "point starts: 1 warm, 1 cold" in out.out
+    # 8 m/s: every state with its beads is faster (never measured): cold, and says why
+    rc, m, out = build("--warm", "--tip-speed", "8,10")
+    st = starts(m)[8.0]
+    assert st["start"] == "cold" and st["spin_up_s"] == 2.0
+    assert st["why_cold"].startswith("the nearest stored state with the same beads is too far: tip_speed_m_per_s 8 "
+                                     "against the state's 10 (ratio 0.8; warm starts measured for 1 to 1.2)")
+    assert "starts cold: the nearest stored state with the same beads is too far" in out.err
+    # without --warm: cold, from a fresh bed, although a state is at hand
+    rc, m, out = build("--tip-speed", "10,11.5")
+    assert rc == 0 and builders[-1].warm_spin_up_s is None
+    assert starts(m)[11.5] == {"point": {"tip_speed_m_per_s": 11.5}, "start": "cold", "spin_up_s": 2.0}
+    # another builder keeps no states: refused by name
+    ap = argparse.ArgumentParser(prog="millfmu")
+    tables_cli.register(ap.add_subparsers(dest="command"))
+    args = ap.parse_args(["tables", "build", "--tip-speed", "10", "--warm", "--cache-dir", str(tmp_path / "c2"),
+                          "--builder", "tests.tables._builders:analytic_builder"])
+    assert args.func(args) == 2
+    assert "--warm: the builder analytic_builder keeps no settled states" in capsys.readouterr().err
+    # --help says the default and how the shipped tables are built
+    with pytest.raises(SystemExit):
+        ap.parse_args(["tables", "build", "--help"])
+    assert "as the shipped tables are built" in " ".join(capsys.readouterr().out.split())

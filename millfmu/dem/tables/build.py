@@ -231,15 +231,33 @@ def duration(s: float | None) -> str:
 
 
 def seconds_per_cost(table: Table, builder) -> float | None:
-    """Seconds per unit of ``builder.relative_cost`` from what the table's points took
-    (manifest ``points_wall_time_s`` over the summed cost of its points); None where the
-    table or the builder does not say."""
+    """Seconds per unit of ``builder.relative_cost``: from runs of the installed builder
+    where it has measured them for this table's points (``builder.measured_seconds_per_cost
+    (table)``, the DEM's: :data:`~.dem_builder.MEASURED_SPEED`), else from what the table's
+    points took (manifest ``points_wall_time_s`` over the summed cost of its points, each
+    point that started warm at the cost of its start where the builder says it,
+    ``builder.cost_as_started(scene, point, start)`` with the point's record of the
+    manifest's ``point_starts``); None where neither says."""
+    measured = getattr(builder, "measured_seconds_per_cost", None)
+    spc = measured(table) if measured is not None else None
+    if spc is not None:
+        return spc
     wall = table.manifest.get("points_wall_time_s")
     cost = getattr(builder, "relative_cost", None)
     if not isinstance(wall, (int, float)) or not wall > 0 or cost is None:
         return None
     spec = table.spec()
     costs = relative_costs(builder, spec.scene, spec.points())
+    # a point that started warm (the manifest's point_starts) cost the steps of its start
+    as_started = getattr(builder, "cost_as_started", None)
+    starts = {json.dumps(p.get("point"), sort_keys=True): p
+              for p in (table.manifest.get("point_starts") or {}).get("points", []) if isinstance(p, dict)}
+    if costs is not None and as_started is not None and starts:
+        try:
+            costs = [float(as_started(spec.scene, p, starts[k])) if (k := json.dumps(p, sort_keys=True)) in starts
+                     else c for p, c in zip(spec.points(), costs)]
+        except (ValueError, KeyError, TypeError):
+            costs = None
     total = sum(costs) if costs is not None else 0.0
     return float(wall) / total if total > 0 else None
 
@@ -555,7 +573,9 @@ def point_starts(spec: TableSpec, results: list[dict]) -> dict | None:
     return {"measure": "how each point's DEM run started: 'cold' from a fresh bed with the scene's "
                        "spin-up, 'warm' from the settled state of the point whose values 'from' names "
                        "(the beads' and the liquid's velocities scaled by speed_scale, the tip speeds' "
-                       "ratio) with the spin-up spin_up_s; points not listed were taken from tables "
+                       "ratio) with the spin-up spin_up_s; why_cold: why a point started cold although "
+                       "a state with its beads was at hand (beyond the range warm starts were measured "
+                       "in); points not listed were taken from tables "
                        "that did not record it and started cold",
             "warm": sum(p["start"] == "warm" for p in pts), "points": pts}
 

@@ -489,7 +489,7 @@ def get_table(spec: TableSpec, builder: Callable, cache_dir=None, force: bool = 
         if store is not None and hasattr(builder, "with_states"):
             # the DEM keeps each point's settled state beside its result, and may start a
             # new point from one of those there now (warm_start; after the calibration
-            # above, whose finished points' costs are those of their cold starts)
+            # above, which costs the finished points by their own starts)
             builder = builder.with_states(store.folder, reuse=store.reuse)
         table = build_table(spec, builder, **run_kw)
         tmp = Path(tempfile.mkdtemp(prefix=f".tmp-{key[:16]}-", dir=root))

@@ -22,7 +22,7 @@ import numpy as np
 from ..scene import load_scene_dict, scene_from_dict
 from .cache import dem_kernel_version, get_table
 from .cells import dem_cells, dem_scene_at_point
-from .warm_start import run_point, starts_warm, warm_candidates
+from .warm_start import run_point, start_of, warm_candidates
 from ...stress_tables.spec import (COMPONENTS, DEM_BUILDER_ID, DRIFT_FIELDS, QUANTILE_NAMES, TableError,
                    TableSpec, e_ref_J, n_gb_per_m3, norm_log10_edges,
                    scene_at_point)
@@ -127,10 +127,7 @@ class DemBuilder:
             # recorded state is stationary (manifest "stationarity").
             # (a warm start from a stored point's settled state where it may: .warm_start)
             stats, start = run_point(s, dem_scene_at_point(scene, point), tmp, threads=self.threads,
-                                     window_s=0.5 * s.record_s, state_dir=self.state_dir,
-                                     candidates=warm_candidates(self.state_dir, self.warm_from)
-                                     if self.warm_spin_up_s is not None else None,
-                                     warm_spin_up_s=self.warm_spin_up_s)
+                                     window_s=0.5 * s.record_s, **self.start_kw())
             out = normalize_stats(stats, s)
             out["drift"] = recording_drift(Path(tmp) / "windows.csv", out["zone_names"])
         out["wall_time_s"] = time.perf_counter() - t0
@@ -153,21 +150,98 @@ class DemBuilder:
                 f"beads of {s.bead_diameter_m * 1e3:g} mm placed without overlap{wider}, and a filling of "
                 f"{s.filling:g} needs {widest.need}: the table cannot be extended to this bead size at this filling")
 
+    def start_kw(self) -> dict:
+        """How :func:`~.warm_start.run_point` starts this builder's points and keeps their
+        states: ``state_dir``, ``candidates`` (None where every point starts cold) and
+        ``warm_spin_up_s``."""
+        return {"state_dir": self.state_dir, "warm_spin_up_s": self.warm_spin_up_s,
+                "candidates": warm_candidates(self.state_dir, self.warm_from)
+                if self.warm_spin_up_s is not None else None}
+
+    def start_of(self, scene: dict, point: dict) -> tuple[str, str | None]:
+        """How this builder would start ``point``: ("warm", None) where it starts points warm
+        and a stored state with the point's beads lies within the measured range
+        (:func:`~.warm_start.start_of`), else ("cold", why), ``why`` None or why the states
+        at hand are too far."""
+        if self.warm_spin_up_s is None or self.warm_from is None:
+            return "cold", None
+        return start_of(dem_cells(scene, point)[0].scene, self.state_dir, self.warm_from)
+
     def relative_cost(self, scene: dict, point: dict) -> float:
         """Expected run time of the point, up to a constant: bead count (filling / d^3) times
         DEM steps ((spin-up + recording) / dt), the spin-up a warm start's where the point
-        would start warm. A build runs the costliest points first, so that a long point
-        (small beads) does not start last and leave the other workers idle while it runs. A
-        point run in a wider sector than the scene's (:func:`dem_scene_at_point`) has as many
-        times more beads."""
-        cell = dem_cells(scene, point)[0]
-        s = cell.dem if cell.dem is not None else scene_from_dict(cell.scene)
-        wider = s.geometry.sector_deg / float(scene.get("mill", {}).get("sector_deg", 360.0))
-        spin_up = s.spin_up_s
-        if self.warm_spin_up_s is not None and self.warm_from is not None and \
-                starts_warm(cell.scene, self.state_dir, self.warm_from):
-            spin_up = min(spin_up, self.warm_spin_up_s)
-        return s.filling / s.bead_diameter_m**3 * wider * (spin_up + s.record_s) / s.dt_s
+        would start warm (:meth:`start_of`). A build runs the costliest points first, so that
+        a long point (small beads) does not start last and leave the other workers idle while
+        it runs. A point run in a wider sector than the scene's (:func:`dem_scene_at_point`)
+        has as many times more beads."""
+        warm = self.warm_spin_up_s is not None and self.start_of(scene, point)[0] == "warm"
+        return _cost(scene, point, self.warm_spin_up_s if warm else None)
+
+    def cost_as_started(self, scene: dict, point: dict, start: dict) -> float:
+        """:meth:`relative_cost` of a point that ran with the start ``start`` (its record:
+        :func:`~.warm_start.cold_record`, :func:`~.warm_start.warm_record`): a warm one at
+        its spin-up, for the calibration on a table whose points started warm."""
+        warm = isinstance(start, dict) and start.get("start") == "warm"
+        return _cost(scene, point, start.get("spin_up_s") if warm else None)
+
+    def measured_seconds_per_cost(self, table: Table) -> float | None:
+        """Seconds per unit of :meth:`relative_cost` for points of ``table`` from runs of the
+        installed DEM (:data:`MEASURED_SPEED`), where they were runs of its scene with the DEM
+        kernel version installed now; else None (the table's own build calibrates)."""
+        return measured_seconds_per_cost(table)
+
+
+def _cost(scene: dict, point: dict, spin_up_s: float | None = None) -> float:
+    """:meth:`DemBuilder.relative_cost` of ``point`` run with the spin-up ``spin_up_s`` [s]
+    (None: the scene's; a longer one than the scene's is not run)."""
+    cell = dem_cells(scene, point)[0]
+    s = cell.dem if cell.dem is not None else scene_from_dict(cell.scene)
+    wider = s.geometry.sector_deg / float(scene.get("mill", {}).get("sector_deg", 360.0))
+    spin_up = s.spin_up_s if spin_up_s is None else min(s.spin_up_s, float(spin_up_s))
+    return s.filling / s.bead_diameter_m**3 * wider * (spin_up + s.record_s) / s.dt_s
+
+
+#: The installed DEM's speed, measured: points of the coupled table's scene (``scene_sha256``:
+#: of its canonical JSON), each run alone with 2 numba threads on a 2-core machine, as an
+#: on-demand build runs one new point, with the sources of ``source_hash`` (DEM kernel
+#: version ``kernel_version``): the steel point (0.8 mm, 7,800 kg/m3, 10 m/s, 80 %) cold and
+#: warm from the shipped anchor state (``python -m validation.warm_start run --out DIR
+#: --spin-ups 0.2``; docs/tables.md). The coupled table's ``points_wall_time_s`` was recorded
+#: by the sources that built it, which have the kernel version of these (the same results:
+#: the cache's SAME_DEM_AS and accepted round-off changes) but ran the glass anchor point in
+#: 894 and 965 s on 1 and 2 threads (millfmu/data/dem_equivalence.json): calibrated on it, the
+#: steel point was estimated at 18 min cold and 6 min warm against the 280 and 103 s it took.
+#: Used where the installed kernel version is ``kernel_version`` (runs of later sources of the
+#: same version measure their own speed, not this one: measure again when they change it).
+MEASURED_SPEED = {
+    "scene_sha256": "sha256:216aecd5347f34fcc9a8338d251a6dd9c72d9926aba20694e21e9a665c3012aa",
+    "kernel_version": "sha256:cc5c174862c188a675fdb35932f269eb61ae82876e3d110866af2b7a62b0d3bd",
+    "source_hash": "sha256:ccfe999eeb245cff904badce12eca5351083bf878c6f2247a5f5f24bda20361f",
+    "threads": 2, "cpus": 2,
+    "runs": ({"point": {"tip_speed_m_per_s": 10.0, "filling": 0.8, "bead_diameter_m": 0.8e-3,
+                        "bead_density_kg_per_m3": 7800.0}, "spin_up_s": 1.5, "wall_time_s": 280.0},
+             {"point": {"tip_speed_m_per_s": 10.0, "filling": 0.8, "bead_diameter_m": 0.8e-3,
+                        "bead_density_kg_per_m3": 7800.0}, "spin_up_s": 0.2, "wall_time_s": 103.0}),
+}
+
+
+def measured_seconds_per_cost(table: Table, measured: dict | None = None) -> float | None:
+    """Seconds per unit of :meth:`DemBuilder.relative_cost` from ``measured`` (default
+    :data:`MEASURED_SPEED`): its runs' summed wall time over their summed cost, where
+    ``table``'s scene is the one it measured and the installed DEM kernel version is its;
+    else None."""
+    from ...stress_tables.files import canonical_json, sha256_bytes
+    from . import cache
+
+    m = MEASURED_SPEED if measured is None else measured
+    scene = table.manifest.get("scene")
+    if not isinstance(scene, dict) or "sha256:" + sha256_bytes(canonical_json(scene).encode()) != m["scene_sha256"]:
+        return None
+    if cache.dem_kernel_version() != m["kernel_version"]:
+        return None
+    cost = sum(_cost(scene, r["point"], r["spin_up_s"]) for r in m["runs"])
+    wall = sum(float(r["wall_time_s"]) for r in m["runs"])
+    return wall / cost if cost > 0 else None
 
 
 def recording_drift(windows_csv, zone_names) -> dict:

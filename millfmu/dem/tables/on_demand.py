@@ -4,8 +4,13 @@ line before anything runs, and what to do where the installed DEM is not the one
 built the table (its kernel version differs: the code changed since).
 
 Costs come from the builder's ``relative_cost(scene, point)`` (bead count times steps for
-the DEM) in seconds: the table's manifest records what its points took
-(``points_wall_time_s``), which calibrates seconds per cost unit.
+the DEM, the steps of the start the point will have: a warm start's shorter spin-up) in
+seconds per cost unit: measured with the installed DEM where it was
+(:data:`~.dem_builder.MEASURED_SPEED`), else from what the table's points took (its
+manifest's ``points_wall_time_s``). The line says how the points will start (warm or cold,
+and why cold where a stored state was too far: :data:`~.warm_start.WARM_RANGE`). The first
+compilation of the DEM's kernels is not in it: it is said in a line of its own where the
+kernel cache is cold (:mod:`millfmu.dem.first_compile`).
 
 Policies where the kernel versions differ (``kinetics.stress_distribution.on_stale``,
 ``millfmu run --on-stale``): ``refuse`` (nothing runs; the line names the cost of the full
@@ -188,8 +193,9 @@ def default_builder(table: Table):
 @dataclass
 class Plan:
     """What an on-demand build will do: the spec it builds, its points, those that run
-    (``todo``, each with its relative cost where the builder estimates one), and the
-    seconds per cost unit (None where unknown)."""
+    (``todo``, each with its relative cost where the builder estimates one, and how it will
+    start where the builder says: ``starts``, ("warm" or "cold", why cold or None) each),
+    and the seconds per cost unit (None where unknown)."""
 
     spec: TableSpec
     points: list
@@ -197,6 +203,7 @@ class Plan:
     costs: list | None
     seconds_per_cost: float | None
     workers: int = 1
+    starts: list | None = None
 
     def cpu_s(self, costs=None) -> float | None:
         costs = self.costs if costs is None else costs
@@ -212,12 +219,32 @@ class Plan:
         return max(cpu / max(1, min(self.workers, len(self.costs))),
                    max(self.costs) * self.seconds_per_cost)
 
+    def starts_text(self) -> str:
+        """How the points to run will start, in words ('' where the builder does not say)."""
+        if not self.starts or not self.todo:
+            return ""
+        warm = sum(k == "warm" for k, _ in self.starts)
+        if len(self.starts) == 1:
+            w = self.starts[0][1]
+            return (", started warm from a stored settled state" if warm else
+                    ", started cold" + (f" ({w})" if w else ""))
+        whys: dict = {}
+        for k, w in self.starts:
+            if k == "cold" and w:
+                whys[w] = whys.get(w, 0) + 1
+        why = "; ".join(f"{n} of them: {w}" for w, n in whys.items())
+        cold = len(self.starts) - warm
+        cold_text = ("all started cold" if not warm else f"{cold} cold") + (f" ({why})" if why else "")
+        if not warm:
+            return ", " + cold_text
+        return f", {warm} started warm from stored settled states" + (f", {cold_text}" if cold else "")
+
     def line(self) -> str:
         n, m = len(self.points), len(self.todo)
         cost = (f" (about {duration(self.cpu_s())} of CPU, {duration(self.wall_s())} on "
                 f"{self.workers} worker{'s' if self.workers != 1 else ''})"
                 if self.cpu_s() is not None else "")
-        return f"{n} points, {n - m} already built, {m} to run{cost}"
+        return f"{n} points, {n - m} already built, {m} to run{self.starts_text()}{cost}"
 
 
 def plan(table: Table, point: dict, builder, kernel_version: str, cache_dir=None,
@@ -240,11 +267,18 @@ def plan(table: Table, point: dict, builder, kernel_version: str, cache_dir=None
     points = spec.points()
     todo = [p for p, h in zip(points, have) if not h]
     # the points to run at the cost of their start (a warm start's shorter spin-up, where
-    # the builder keeps states: warm_start); the table's points calibrate at their cold cost
+    # the builder keeps states: warm_start); the table's points calibrate at the cost of
+    # their own starts (seconds_per_cost)
     runs = builder.with_states(store.folder) if hasattr(builder, "with_states") else builder
     costs = relative_costs(runs, spec.scene, todo)
+    starts = None
+    if hasattr(runs, "start_of"):
+        try:
+            starts = [tuple(runs.start_of(spec.scene, p)) for p in todo]
+        except (ValueError, KeyError, TypeError):  # as relative_costs: a scene it cannot read
+            starts = None
     return Plan(spec, points, todo, costs, seconds_per_cost(table, builder),
-                workers or os.cpu_count() or 1)
+                workers or os.cpu_count() or 1, starts)
 
 
 def _key(store: PointStore, spec: TableSpec, p: dict) -> str:

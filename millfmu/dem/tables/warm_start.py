@@ -18,15 +18,18 @@ a spin-up of tenths of a second), the neighbour lists (rebuilt) and the held flu
 (computed at the first exchange). For the coupled table's 6,536 beads of 0.8 mm the file
 holds about 0.5 MB.
 
-*The warm start* (:func:`choose_anchor`, :func:`warm_simulation`, :func:`run_point`): a
+*The warm start* (:func:`pick_start`, :func:`warm_simulation`, :func:`run_point`): a
 point whose scene equals a stored point's except in tip speed, bead density and liquid
 viscosity (:data:`WARM_AXES`; so the same bead count, diameter and filling) starts from the
-nearest such state (distance: the root sum of squares of the log ratios of those values),
-with the beads' velocities and spins and the liquid's velocities scaled by the ratio of the
-tip speeds (its pressure and k by the square, epsilon by the cube, the turbulent viscosity
-by the ratio), then runs the shorter spin-up ``warm_spin_up_s`` and the table's recording.
-Other points start cold, from a fresh bed, with the scene's spin-up. The point's result
-records how it started (``start``: :func:`cold_record`, :func:`warm_record`). Besides the
+nearest such state (distance: the root sum of squares of the log ratios of those values)
+within the range warm starts were measured in (:data:`WARM_RANGE`), with the beads'
+velocities and spins and the liquid's velocities scaled by the ratio of the tip speeds (its
+pressure and k by the square, epsilon by the cube, the turbulent viscosity by the ratio),
+then runs the shorter spin-up ``warm_spin_up_s`` and the table's recording. Other points
+start cold, from a fresh bed, with the scene's spin-up; one whose states with the same beads
+all lie beyond the range says so on stderr. The point's result records how it started
+(``start``: :func:`cold_record`, with ``why_cold`` where the range kept it cold;
+:func:`warm_record`). Besides the
 states in a build's point store, the package ships the coupled table's anchor state
 (:func:`shipped_states`), so that a fresh install's first new point can start warm.
 
@@ -42,6 +45,7 @@ import functools
 import io
 import json
 import math
+import sys
 from pathlib import Path
 
 import numpy as np
@@ -60,6 +64,26 @@ WARM_KEYS = tuple(AXES[a][:2] for a in WARM_AXES)
 #: Spin-up [s] of a warm-started point of a DEM table (docs/tables.md: warm starts, the
 #: measurement that chose it).
 WARM_SPIN_UP_S = 0.2
+#: How far a warm start may jump: per axis of :data:`WARM_AXES`, the (lowest, highest) ratio
+#: of the point's value to that of the state it starts from, the range that ``python -m
+#: validation.warm_start`` measured (docs/tables.md, "How short a warm start's spin-up may
+#: be"; each within the stated error of cold starts with the 0.2 s spin-up):
+#:
+#: - tip speed 1 to 1.2: the 12 m/s glass node from the 10 m/s anchor's state (``--tip-speed
+#:   12 --bead-density 2510``: 0.56 of the stated error, its cold run 0.52); a slower point
+#:   from a faster state was not measured;
+#: - bead density 1 to 7,800 / 2,510 (3.11): steel from the glass anchor's state (the default
+#:   run: 0.58) and from zirconia's, 6,040 kg/m3 (``--anchor-density 6040``: 1.29, 0.81);
+#:   lighter beads from a heavier state were not measured;
+#: - viscosity 1 to 1: never varied in a warm start, so only the state's own viscosity.
+#:
+#: Each jump was measured alone: a state whose ratios all lie in range is used for a point
+#: that differs on several axes at once, which the study did not run.
+WARM_RANGE = {"tip_speed_m_per_s": (1.0, 1.2),
+              "bead_density_kg_per_m3": (1.0, 7800.0 / 2510.0),
+              "viscosity_Pa_s": (1.0, 1.0)}
+#: relative round-off allowed at the ends of :data:`WARM_RANGE`
+_RANGE_RTOL = 1e-9
 
 _BEADS = ("x_m", "v_m_per_s", "w_rad_per_s")
 #: the coupled liquid's solver fields kept, and the power of the tip-speed ratio that scales
@@ -191,13 +215,39 @@ def distance(scene: dict, other: dict) -> float:
     return math.sqrt(s)
 
 
-def choose_anchor(scene: dict, candidates, kernel_version: str) -> tuple | None:
-    """The state a point of ``scene`` (a scene dict at the point) starts from: among
-    ``candidates`` ((path, meta) pairs, as :func:`candidates_in` gives them) those of
-    ``kernel_version`` whose scene is :func:`compatible`, the nearest (:func:`distance`;
-    on a tie the first by file name); None where there is none (a cold start). A state of
-    the point itself is not used (its run would repeat what is stored)."""
-    best = None
+def beyond_range(scene: dict, other: dict, within: dict | None = None) -> str | None:
+    """Why a point of ``scene`` may not start warm from a state of a point of ``other`` (a
+    :func:`compatible` scene): the axes whose ratio (the point's value over the state's)
+    lies outside ``within`` (default :data:`WARM_RANGE`), each named with its ratio and the
+    range allowed; None where every ratio lies inside."""
+    within = WARM_RANGE if within is None else within
+    out = []
+    for ax, (sec, key) in zip(WARM_AXES, WARM_KEYS):
+        if ax not in within:
+            continue
+        a, b = _value(scene, sec, key), _value(other, sec, key)
+        if a is None or b is None:
+            continue
+        lo, hi = within[ax]
+        r = float(a) / float(b)
+        if not lo * (1.0 - _RANGE_RTOL) <= r <= hi * (1.0 + _RANGE_RTOL):
+            allowed = f"{lo:.3g}" if lo == hi else f"{lo:.3g} to {hi:.3g}"
+            out.append(f"{ax} {float(a):g} against the state's {float(b):g} (ratio {r:.3g}; "
+                       f"warm starts measured for {allowed})")
+    return "; ".join(out) or None
+
+
+def pick_start(scene: dict, candidates, kernel_version: str, within: dict | None = WARM_RANGE) -> tuple:
+    """How a point of ``scene`` (a scene dict at the point) starts: (pick, why). ``pick``:
+    the state it starts from, (path, meta), among ``candidates`` ((path, meta) pairs, as
+    :func:`candidates_in` gives them) those of ``kernel_version`` whose scene is
+    :func:`compatible` and whose ratios lie within ``within`` (default :data:`WARM_RANGE`;
+    None: any), the nearest (:func:`distance`; on a tie the first by file name); None where
+    there is none (a cold start). ``why``: where it starts cold although a compatible state
+    is at hand, the nearest such state's values and why it lies beyond the range
+    (:func:`beyond_range`), else None. A state of the point itself is not used (its run
+    would repeat what is stored)."""
+    best, capped = None, None
     for path, meta in sorted(candidates, key=lambda c: Path(c[0]).name):
         other = meta.get("scene")
         if meta.get("kernel_version") != kernel_version or not isinstance(other, dict):
@@ -205,10 +255,26 @@ def choose_anchor(scene: dict, candidates, kernel_version: str) -> tuple | None:
         if not compatible(scene, other) or canonical_json(other) == canonical_json(scene):
             continue
         d = distance(scene, other)
+        if not math.isfinite(d):
+            continue
+        why = beyond_range(scene, other, within) if within is not None else None
         # (equal up to round-off counts as a tie: ln(10/8) and ln(12.5/10))
-        if math.isfinite(d) and (best is None or d < best[0] - 1e-9):
+        if why is not None:
+            if capped is None or d < capped[0] - 1e-9:
+                capped = (d, why)
+        elif best is None or d < best[0] - 1e-9:
             best = (d, path, meta)
-    return None if best is None else (best[1], best[2])
+    if best is not None:
+        return (best[1], best[2]), None
+    if capped is not None:
+        return None, f"the nearest stored state with the same beads is too far: {capped[1]}"
+    return None, None
+
+
+def choose_anchor(scene: dict, candidates, kernel_version: str, within: dict | None = WARM_RANGE) -> tuple | None:
+    """The state a point of ``scene`` starts from, (path, meta), or None (a cold start):
+    :func:`pick_start`'s pick."""
+    return pick_start(scene, candidates, kernel_version, within)[0]
 
 
 def candidates_in(folder, names=None) -> list:
@@ -254,31 +320,46 @@ def warm_candidates(folder, names) -> list:
     return list(_candidates(None if folder is None else str(folder), tuple(names)))
 
 
-def starts_warm(scene_at_point: dict, folder, names, kernel_version: str | None = None) -> bool:
-    """Whether a point of ``scene_at_point`` would start warm from :func:`warm_candidates`
-    (for its cost estimate)."""
+def start_of(scene_at_point: dict, folder, names, kernel_version: str | None = None) -> tuple[str, str | None]:
+    """How a point of ``scene_at_point`` would start from :func:`warm_candidates` (for its
+    cost estimate and the line that says it): ("warm", None), or ("cold", why) with
+    :func:`pick_start`'s why (None where no stored state has the same beads)."""
     cands = warm_candidates(folder, names)
     if not cands:
-        return False
+        return "cold", None
     if kernel_version is None:
         from .cache import dem_kernel_version
 
         kernel_version = dem_kernel_version()
-    return choose_anchor(scene_at_point, cands, kernel_version) is not None
+    pick, why = pick_start(scene_at_point, cands, kernel_version)
+    return ("warm", None) if pick is not None else ("cold", why)
+
+
+def starts_warm(scene_at_point: dict, folder, names, kernel_version: str | None = None) -> bool:
+    """Whether a point of ``scene_at_point`` would start warm (:func:`start_of`)."""
+    return start_of(scene_at_point, folder, names, kernel_version)[0] == "warm"
 
 
 # ---- running a point -----------------------------------------------------------------------
-def cold_record(scene) -> dict:
-    """How a point started cold: a fresh bed and the scene's spin-up [s]."""
-    return {"start": "cold", "spin_up_s": float(scene.spin_up_s)}
+def cold_record(scene, why: str | None = None) -> dict:
+    """How a point started cold: a fresh bed and the scene's spin-up [s]; ``why``: why not
+    warm, where a state with the same beads was at hand (:func:`pick_start`)."""
+    out = {"start": "cold", "spin_up_s": float(scene.spin_up_s)}
+    if why is not None:
+        out["why_cold"] = why
+    return out
+
+
+def _warm_values(scene: dict) -> dict:
+    """The :data:`WARM_AXES` values a scene dict names."""
+    return {ax: v for ax, (sec, key) in zip(WARM_AXES, WARM_KEYS) if (v := _value(scene, sec, key)) is not None}
 
 
 def warm_record(meta: dict, path, spin_up_s: float, ratio: float) -> dict:
     """How a point started warm: from the state of the point whose :data:`WARM_AXES`
     values ``from`` names (file ``state``), spin-up ``spin_up_s`` [s], velocities scaled by
     ``speed_scale``."""
-    sc = meta.get("scene") or {}
-    frm = {ax: v for ax, (sec, key) in zip(WARM_AXES, WARM_KEYS) if (v := _value(sc, sec, key)) is not None}
+    frm = _warm_values(meta.get("scene") or {})
     return {"start": "warm", "from": frm, "state": Path(path).name, "spin_up_s": float(spin_up_s),
             "speed_scale": float(ratio)}
 
@@ -347,9 +428,11 @@ def run_point(scene, scene_at_point: dict, out_dir, *, threads=None, window_s=No
     ``scene_at_point``) into ``out_dir``; returns (statistics, start record).
 
     With ``warm_spin_up_s`` and a compatible state among ``candidates`` ((path, meta), as
-    :func:`candidates_in` gives them) the point starts warm from the nearest
-    (:func:`choose_anchor`) with that spin-up, else cold (the scene's spin-up, the same run
-    as :func:`~millfmu.dem.run.run_scene`). With ``state_dir`` the state at the end of the
+    :func:`candidates_in` gives them) the point starts warm from the nearest within
+    :data:`WARM_RANGE` (:func:`pick_start`) with that spin-up, else cold (the scene's spin-up,
+    the same run as :func:`~millfmu.dem.run.run_scene`); where compatible states are at hand
+    but all lie beyond the range, it says so on stderr and its start record says why
+    (``why_cold``). With ``state_dir`` the state at the end of the
     run is saved there (:func:`state_file`) with the start record. ``kernel_version``: the
     installed DEM's (default :func:`~.cache.dem_kernel_version`)."""
     from millfmu.dem.run import make_simulation, run_scene
@@ -358,9 +441,12 @@ def run_point(scene, scene_at_point: dict, out_dir, *, threads=None, window_s=No
         from .cache import dem_kernel_version
 
         kernel_version = dem_kernel_version()
-    start, sim, cpl, run = None, None, None, scene
+    start, sim, cpl, run, why = None, None, None, scene, None
     if warm_spin_up_s is not None and candidates:
-        pick = choose_anchor(scene_at_point, candidates, kernel_version)
+        pick, why = pick_start(scene_at_point, candidates, kernel_version)
+        if why is not None:
+            print(f"millfmu: table point {_warm_values(scene_at_point)} starts cold: {why}",
+                  file=sys.stderr, flush=True)
         if pick is not None:
             path, meta = pick
             v0 = _value(meta["scene"], "mill", "tip_speed_m_per_s")
@@ -380,7 +466,7 @@ def run_point(scene, scene_at_point: dict, out_dir, *, threads=None, window_s=No
             sim, cpl = make_simulation(scene, threads)
         except GridError as e:  # as run_scene says it
             raise DemRunError(f"{scene.name}: the coupled liquid's grid: {e}") from None
-        start = cold_record(scene)
+        start = cold_record(scene, why)
     stats = run_scene(run, out_dir, progress=False, threads=threads, window_s=window_s,
                       _state=dict(sim=sim, cpl=cpl, loop=_loop(run, sim)))
     if state_dir is not None:
