@@ -246,7 +246,11 @@ def main(argv=None) -> int:
     try:
         return int(args.func(args) or 0)
     except (SceneError, InputError, OutputError) as e:
-        print(f"millfmu: error: {e}", file=sys.stderr)
+        # a scene's own checks name it by its name; say which file too
+        where = getattr(args, "scene", None)
+        shown = f"{where}: {e}" if isinstance(e, SceneError) and isinstance(where, str) and where not in str(e) \
+            else str(e)
+        print(f"millfmu: error: {shown}", file=sys.stderr)
         return 2
     except KeyboardInterrupt:
         print("millfmu: interrupted; no results written", file=sys.stderr)

@@ -227,7 +227,14 @@ class MillModel:
         except ValueError as e:
             if getattr(e, "axis", None) not in TABLE_SCENE_KEYS:
                 raise
-            raise SceneError(TABLE_SCENE_KEYS[e.axis], e.value, e.allowed, s.scene.name) from None
+            allowed = e.allowed
+            if getattr(self.source, "on_outside", None) == "refuse" and not self.no_dem:
+                similar = "" if e.axis not in _similar_axis_choices() else (
+                    f", or take the nearest edge's fields (kinetics.stress_distribution.similar_axes = "
+                    f"['{e.axis}'])")
+                allowed += (f"; or let the DEM extend the table (kinetics.stress_distribution.on_outside = 'build'; "
+                            f"the cost is said first){similar}, or run the simple model (kinetics.model = 'simple')")
+            raise SceneError(TABLE_SCENE_KEYS[e.axis], e.value, allowed, s.scene.name) from None
         if getattr(self.source, "on_outside", None) == "build":
             # Said before anything runs: an on-demand build would not reuse the table's points.
             op = self.operating_point(self.inputs_of_scene())
@@ -740,3 +747,12 @@ def with_grid(scene: Scene, x_min_m: float, x_max_m: float, classes_per_octave: 
     """Copy of a scene with another size grid."""
     return replace(scene,
                    grid=replace(scene.grid, x_min_m=x_min_m, x_max_m=x_max_m, classes_per_octave=classes_per_octave))
+
+
+def _similar_axis_choices() -> tuple:
+    """The axes a scene may name in ``kinetics.stress_distribution.similar_axes``."""
+    from dataclasses import fields
+
+    from .scene import StressDistribution
+
+    return next(f.metadata["choices"] for f in fields(StressDistribution) if f.name == "similar_axes")

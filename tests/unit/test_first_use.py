@@ -8,6 +8,7 @@ from __future__ import annotations
 import argparse
 import json
 import os
+import re
 import stat
 import tempfile
 import zipfile
@@ -48,6 +49,37 @@ def test_help_exits_0(capsys):
             main(argv)
         assert e.value.code == 0, argv
     assert "Traceback" not in capsys.readouterr().err
+
+
+def test_a_scene_outside_its_table_is_refused_with_its_file_and_the_ways_out(tmp_path, capsys):
+    """The refusal names the file beside the scene's name, and what the user can do: let the
+    DEM extend the table, take the nearest edge where the axis allows it, or run the simple
+    model."""
+    text = EXAMPLE.read_text()
+    for key, value, shown, similar in (("bead_filling", "0.45", "mill.bead_filling = 0.45", None),
+                                       ("diameter_m", "0.3e-3", "beads.diameter_m = 0.0003", "bead_diameter_m")):
+        f = tmp_path / f"{key}.toml"
+        f.write_text(re.sub(rf"^{key} = [0-9.e-]+", f"{key} = {value}", text, count=1, flags=re.M))
+        assert main(["run", str(f), "--out", str(tmp_path / "out")]) == 2
+        err = capsys.readouterr().err
+        assert f"{f}: limestone-detailed: {shown}" in err, err
+        assert "on_outside = 'build'" in err and "kinetics.model = 'simple'" in err
+        assert ("similar_axes" in err) is (similar is not None), err
+        if similar:
+            assert f"similar_axes = ['{similar}']" in err
+        assert not (tmp_path / "out").exists()
+
+
+def test_python_dash_m_millfmu_is_the_command():
+    """Where the environment's scripts folder is not on the PATH, ``python -m millfmu`` runs
+    the same command."""
+    import subprocess
+    import sys
+
+    r = subprocess.run([sys.executable, "-m", "millfmu", "--help"], capture_output=True, text=True,
+                       timeout=120)
+    assert r.returncode == 0, r.stderr
+    assert r.stdout.startswith("usage: millfmu"), r.stdout[:80]
 
 
 @pytest.mark.parametrize("value", [5, True, 1.5, "x", [1, 2]])
