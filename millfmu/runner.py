@@ -400,7 +400,29 @@ def run_warnings(model: MillModel, records) -> list:
     out.extend(model.similarity_warnings().values())
     if records:
         out.extend(model.output_warnings(max(records, key=lambda r: r.get("below_grid_fraction", 0.0))))
+        out.extend(_nothing_breaks(records))
     return out
+
+
+#: x50 moving by less than this share over a run whose stirrer turned is worth a word: a user
+#: who sees an unchanged size distribution otherwise suspects the program, not the case.
+UNCHANGED_X50 = 1e-3
+
+
+def _nothing_breaks(records) -> list:
+    """A warning where x50 [m] hardly moved over a run in which the stirrer turned (a batch
+    mill or a continuous one alike), naming the stress frequency at x50 [1/s] against the run
+    time [s]; empty otherwise."""
+    first, last = records[0], records[-1]
+    t_s = float(last.get("t_s", 0.0)) - float(first.get("t_s", 0.0))
+    x0, x1 = first.get("x50_m"), last.get("x50_m")
+    turned = any(float(r.get("tip_speed_m_per_s", 0.0)) > 0.0 for r in records)
+    if not (turned and t_s > 0.0 and x0 and x1 and abs(x1 / x0 - 1.0) < UNCHANGED_X50):
+        return []
+    sf = max(float(r.get("sf_per_s", 0.0)) for r in records)
+    return [f"x50 moved by {abs(x1 / x0 - 1.0):.1e} of itself in {t_s:g} s: the stress model breaks almost "
+            f"nothing here (stress frequency at x50 at most {sf:.3g} 1/s, against 1/t = {1.0 / t_s:.3g} 1/s); "
+            f"check the feed size and the operating point (`millfmu rates SCENE` shows the rates per size)"]
 
 
 def provenance(scene: Scene, model: MillModel, wall_s: float | None = None) -> dict:

@@ -70,6 +70,20 @@ def test_a_scene_outside_its_table_is_refused_with_its_file_and_the_ways_out(tmp
         assert not (tmp_path / "out").exists()
 
 
+def test_a_run_that_breaks_almost_nothing_says_so(tmp_path, capsys):
+    """A 0.1 um feed in the default mill: x50 moves by 2e-5 of itself in 30 minutes; the run
+    says so with the stress frequency at x50 against 1/t. The default feed gets no such word."""
+    f = tmp_path / "fine.toml"
+    f.write_text("[feed]\nx50_m = 0.1e-6\n")
+    assert main(["run", str(f), "--out", str(tmp_path / "fine"), "-q"]) == 0
+    err = capsys.readouterr().err
+    assert "the stress model breaks almost nothing here" in err and "1/t = 0.000556 1/s" in err, err
+    warned = json.loads((tmp_path / "fine" / "result.json").read_text())["warnings"]
+    assert any("breaks almost nothing" in w for w in warned)
+    assert main(["run", "--out", str(tmp_path / "default"), "-q"]) == 0
+    assert "breaks almost nothing" not in capsys.readouterr().err
+
+
 def test_python_dash_m_millfmu_is_the_command():
     """Where the environment's scripts folder is not on the PATH, ``python -m millfmu`` runs
     the same command."""

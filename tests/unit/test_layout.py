@@ -134,8 +134,8 @@ LAYERS = {
     "millfmu.studies": 4, "millfmu.report": 4, "validation": 4, "benchmarks": 4,
     "fmu_build.step_cost": 4, "fmu_build.exit_study": 4, "flowsheets.wp": 4,
     # 5: command-line modules
-    "millfmu.cli": 5, "millfmu.dem.cli": 5, "millfmu.dem.tables.cli": 5, "millfmu.calibration.cli": 5,
-          "fmu_build.cli": 5,
+    "millfmu.cli": 5, "millfmu.__main__": 5, "millfmu.dem.cli": 5, "millfmu.dem.tables.cli": 5,
+    "millfmu.calibration.cli": 5, "fmu_build.cli": 5,
     "flowsheets.cli": 5, "millfmu.rates": 5,  # millfmu.rates: the `millfmu rates` command
 }
 LAYER_NAMES = ("engine/kinetics", "dem scene/run/analysis/tables, table reader", "model",
