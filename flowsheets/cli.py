@@ -27,7 +27,26 @@ def _limit_blas_threads():
 def _load(path):
     from .spec import load_flowsheet
 
-    return load_flowsheet(path)
+    return load_flowsheet(shipped_or_path(path))
+
+
+def shipped_flowsheets() -> dict:
+    """The flowsheets shipped with the package: file name -> path (wherever it is installed)."""
+    return {f.name: f for f in sorted(Path(__file__).resolve().parent.glob("*.toml"))}
+
+
+def shipped_or_path(name: str) -> Path:
+    """``name`` as given where such a file exists, else the shipped flowsheet of that name
+    (``.toml`` optional), as the scene commands take the shipped examples; else ``name`` as
+    given (its reading then says it cannot be read)."""
+    p = Path(name)
+    if p.exists():
+        return p
+    ships = shipped_flowsheets()
+    for cand in (p.name, p.name + ".toml"):
+        if str(p) in (cand, cand[:-5]) and cand in ships:
+            return ships[cand]
+    return p
 
 
 def _bad(e) -> int:
@@ -165,13 +184,15 @@ def cmd_wp(args) -> int:
 
 
 def register(subparsers):
+    file_help = ("flowsheet file (TOML), or a shipped one by name ("
+                 + ", ".join(f[:-5] for f in shipped_flowsheets()) + ")")
     p = subparsers.add_parser("flowsheet",
                               help="flowsheets: the mill with feed, tanks, classifiers and controllers (FMUs)")
     sub = p.add_subparsers(dest="flowsheet_command", metavar="WHAT")
     sub.required = True
 
     r = sub.add_parser("run", help="run a flowsheet file with the fmpy master")
-    r.add_argument("file", help="flowsheet file (TOML)")
+    r.add_argument("file", help=file_help)
     r.add_argument("--out", default="out",
                    help="output folder (default: ./out): results.csv, psd_<unit>.csv, summary.json, flowsheet.png")
     r.add_argument("--fmu-dir", default=None,
@@ -186,14 +207,14 @@ def register(subparsers):
     r.set_defaults(func=cmd_run)
 
     e = sub.add_parser("export-ssp", help="write the flowsheet as an SSP archive (SSD + the units' FMUs)")
-    e.add_argument("file", help="flowsheet file (TOML)")
+    e.add_argument("file", help=file_help)
     e.add_argument("-o", "--output", required=True, help="the .ssp file to write")
     e.add_argument("--fmu-dir", default=None,
                    help="where the unit FMUs are built and reused (default: a temporary folder)")
     e.set_defaults(func=cmd_export_ssp)
 
     w = sub.add_parser("wp", help="error of a size against the communication step, with wall time (work-precision)")
-    w.add_argument("file", help="flowsheet file (TOML)")
+    w.add_argument("file", help=file_help)
     w.add_argument("--steps", type=float, nargs="+", default=[1.0, 2.0, 4.0, 8.0, 16.0, 32.0],
                    help="communication steps [s]")
     w.add_argument("--reference", type=float, default=0.125, help="communication step [s] of the reference run")

@@ -5,6 +5,8 @@ communication-step error, and the command's refusals."""
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import numpy as np
 import pytest
 
@@ -220,3 +222,20 @@ def test_communication_step_error_is_first_order_on_the_full_run(tmp_path, fmu_d
     small = [row["order_to_previous"] for row in wp["rows"] if "order_to_previous" in row and row["step_s"] <= 5.0]
     assert len(small) == 3 and all(0.9 < o < 1.3 for o in small), wp
     assert 0.9 < wp["order_at_end"] < 1.3, wp
+
+
+def test_shipped_flowsheets_are_found_by_name(tmp_path, monkeypatch):
+    """As the scene commands take shipped examples, ``flowsheet run circuit`` takes the shipped
+    circuit.toml from any folder; a file of that name in the folder comes first, and a name that
+    is neither stays as given (its reading says it cannot be read)."""
+    from flowsheets.cli import shipped_flowsheets, shipped_or_path
+
+    monkeypatch.chdir(tmp_path)
+    ships = shipped_flowsheets()
+    assert {"circuit.toml", "closed_circuit.toml", "control.toml", "passage.toml"} <= set(ships)
+    assert shipped_or_path("circuit") == ships["circuit.toml"]
+    assert shipped_or_path("circuit.toml") == ships["circuit.toml"]
+    (tmp_path / "circuit.toml").write_text("# mine\n")
+    assert shipped_or_path("circuit.toml") == Path("circuit.toml")
+    assert shipped_or_path("missing.toml") == Path("missing.toml")
+    assert shipped_or_path("sub/circuit") == Path("sub/circuit")
