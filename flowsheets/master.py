@@ -309,6 +309,7 @@ class Result:
     steps: int
     edges_m: np.ndarray = field(default=None)
     fmi_version: str = "2.0"  # the units' FMI version(s)
+    units: list = field(default=None)  # the unit of each of ``columns`` (the FMU variables' units)
 
     def column(self, name):
         return self.data[:, self.columns.index(name)]
@@ -501,6 +502,8 @@ class Master:
             columns = ["t"] + [f"{u}.{n}" for u in fs.units for n in self._scalar[u]] + ["total.holdup",
                                                                                          "total.buffered", "total.fed",
                                                                                          "total.products"]
+            units = ["s"] + [self.fmus[u].variables[n].unit or "1" for u in fs.units for n in self._scalar[u]] \
+                + ["kg"] * 4
             m0 = self.holdup_kg()
             self._record(0.0, rows, psds)
             for k in range(n):
@@ -520,7 +523,8 @@ class Master:
                 "buffered_kg": buffered, "residual_kg": res, "relative_residual": abs(res) / scale}
         data = np.array(rows)
         return Result(data[:, 0], columns, data, {u: np.array(v) for u, v in psds.items()}, mass, self.retries, wall,
-                      self.n_steps, self.grid.edges_m, ", ".join(sorted({md.fmiVersion for md in self.mds.values()})))
+                      self.n_steps, self.grid.edges_m, ", ".join(sorted({md.fmiVersion for md in self.mds.values()})),
+                      units)
 
 
 def run_flowsheet(fs: Flowsheet, fmu_dir: Path, log=print, reuse=(), fmi_version: int = 2) -> Result:
@@ -550,7 +554,8 @@ def write_results(res: Result, fs: Flowsheet, out: Path, plots=True) -> list:
                "t_end_s": fs.t_end_s,
                "steps": res.steps, "wall_s": res.wall_s, "mass_balance": res.mass,
                "retries": [{"t_s": t, "step_s": h, "unit": u, "message": m} for t, h, u, m in res.retries],
-               "final": {c: float(res.data[-1, i]) for i, c in enumerate(res.columns)}}
+               "final": {c: float(res.data[-1, i]) for i, c in enumerate(res.columns)},
+               "units": dict(zip(res.columns, res.units or ()))}
     (out / "summary.json").write_text(json.dumps(summary, indent=1))
     files.append(out / "summary.json")
     if plots:

@@ -31,6 +31,16 @@ def test_mass_balance_closes(results, name):
     assert moved > 1e-3
 
 
+@pytest.mark.parametrize("name", NAMES)
+def test_every_column_of_the_results_has_its_unit(results, name):
+    """summary.json names the unit of each results.csv column (the FMU variables' units)."""
+    units = results[name]["summary"]["units"]
+    assert list(units) == list(results[name]["data"].dtype.names)
+    assert units["t"] == "s" and units["total.holdup"] == "kg"
+    assert all(u for u in units.values())
+    assert all(units[c] == "kg/s" for c in units if c.endswith("mass_flow"))
+
+
 def test_circuit_makes_the_batch_finer_and_keeps_it(results):
     d = results["circuit"]["data"]
     # 20 -> 7.4 um in 30 min with the default scene's physics (Kwade's simple model)
