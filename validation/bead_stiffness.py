@@ -17,7 +17,10 @@ and the DEM steps per coupling interval scaled so that the liquid keeps its 5e-5
 angular velocity, ``--spin-up`` (default 0.8 s) then ``--record`` (default 0.2 s), seed 1.
 
 Per zone it reports the collision frequency per volume, the normal impact energy SE_tn
-(seed 001 eq. 1, 1/2 m_GM v_rel,n^2) at its 10, 50 and 90 % quantiles, the collision power,
+(seed 001 eq. 1, 1/2 m_GM v_rel,n^2 with the bead's mass, as the detailed examples read it
+(``kinetics.stress_distribution.collision_energy = "bead_mass"``): twice the 1/2 m* v_rel,n^2
+that a run's stats.json records with the pair's reduced mass) at its 10, 50 and 90 %
+quantiles, the collision power,
 and two readings of the detailed model over the zone-volume-weighted collisions: the rate
 of collisions whose SE_tn exceeds an energy (the stand-in limestone's threshold at 10 um,
 x W_m,min = 0.019 J m/kg, 2.7e-9 J, extrapolated from Cho & Austin's drop-weight tests; the
@@ -58,6 +61,8 @@ INITIAL_ROTATION = 0.1
 #: sourced median burst energy (examples/yeast_disruption_detailed.toml)
 LIMESTONE_THRESHOLD_10UM_J = 0.019 / 10e-6 * 2710.0 * math.pi / 6.0 * (10e-6) ** 3
 YEAST_BURST_MEDIAN_J = 2.8e-10
+#: SE_tn with the bead's mass over the stats.json's (the pair's reduced mass, m_GM / 2)
+BEAD_MASS_FACTOR = 2.0
 #: the limestone example's constants at the reference (examples/limestone_detailed.toml)
 F_MAT_KG_PER_J_M = 179.5
 RHO_LIMESTONE_KG_PER_M3 = 2710.0
@@ -101,7 +106,7 @@ def run_cases(out_dir, factors, spin_up_s, record_s, threads=None, progress=True
 
 def _zone_rates(st: dict) -> dict:
     """Zone-volume-weighted readings of one run's stats.json (see the module docstring)."""
-    edges = np.asarray(st["se_bin_edges_j"], float)
+    edges = np.asarray(st["se_bin_edges_j"], float) * BEAD_MASS_FACTOR
     e_mid = np.sqrt(edges[:-1] * edges[1:])
     dlog = np.diff(np.log10(edges))
     m_p = RHO_LIMESTONE_KG_PER_M3 * math.pi / 6.0 * X_PROBE_M ** 3
@@ -114,7 +119,7 @@ def _zone_rates(st: dict) -> dict:
         w = np.asarray(z["se"]["tn"]["density_per_decade"], float) * dlog  # per bin, sums to 1
         f = float(z["collision_frequency_per_m3_s"])
         share = z["volume_m3"] / vol
-        q = z["se"]["tn"]["quantiles_j"]
+        q = {k: (None if v is None else BEAD_MASS_FACTOR * v) for k, v in z["se"]["tn"]["quantiles_j"].items()}
         row = {"zone": z["name"], "collision_frequency_per_m3_s": f,
                "se_tn_q10_J": q.get("q10"), "se_tn_q50_J": q.get("q50"), "se_tn_q90_J": q.get("q90"),
                "collision_power_W_per_m3": float(z["collision_power_w"]) / z["volume_m3"],

@@ -43,6 +43,7 @@ def test_zone_readings_from_a_known_distribution():
          "filling": 0.0, "speed_over_tip_speed": 0.0,
          "se": {"tn": {"density_per_decade": list(np.zeros(30)), "quantiles_j": {}}}}]}
     r = B._zone_rates(st)
+    e = B.BEAD_MASS_FACTOR * e  # the detailed examples' SE_tn: the bead's mass, not the pair's
     assert r["frequency_per_m3_s"] == pytest.approx(1.5)
     assert r["above_limestone_threshold_per_m3_s"] == pytest.approx(1.5)
     assert r["above_yeast_burst_per_m3_s"] == pytest.approx(1.5)
