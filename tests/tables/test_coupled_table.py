@@ -43,7 +43,12 @@ def test_coupled_table_verifies_and_states_its_build(table):
     # checks: DEM runs between and on the nodes and off the anchor (their kernels and what
     # they measure: tests/tables/test_stated_error.py)
     assert len(m["interpolation_check"]["points"]) >= 2
-    assert len(m["separability_check"]["points"]) == 2
+    # each one-at-a-time axis checked off the anchor at both far corners of the grid
+    # (6 m/s, 50 % and 14 m/s, 90 %), the bead diameter on both sides of its reference
+    checked = {(c["point"]["bead_diameter_m"], c["point"]["bead_density_kg_per_m3"],
+                c["point"]["tip_speed_m_per_s"], c["point"]["filling"]) for c in m["separability_check"]["points"]}
+    assert {(1.2e-3, 2510.0, 6.0, 0.5), (1.2e-3, 2510.0, 14.0, 0.9), (0.5e-3, 2510.0, 14.0, 0.9),
+            (0.8e-3, 6040.0, 6.0, 0.5), (0.8e-3, 6040.0, 14.0, 0.9)} <= checked
     assert m["realization_spread"]["realizations"] >= 3
     # every point recorded collisions in the zones that hold beads
     assert np.all(table.data["collision_count"].sum(axis=-1) > 1000)
