@@ -43,7 +43,7 @@ import argparse
 import json
 import math
 import sys
-from dataclasses import replace
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 import numpy as np
@@ -73,35 +73,106 @@ X_PROBE_M = 3.0e-6
 MOVES_FACTOR = 1.5
 
 
-def case_dir(out_dir, factor: float) -> Path:
-    return Path(out_dir) / f"y{factor:g}"
+#: Points off the anchor for the trends (the trend study's, validation.trends_causes):
+#: label -> (OperatingPoint field, value); each runs at every factor with the anchor's protocol
+TREND_POINTS = {"v_t 14": ("tip_speed_m_per_s", 14.0), "d 1.2 mm": ("d_gb_m", 1.2e-3)}
 
 
-def scene_for(factor: float, spin_up_s: float, record_s: float):
-    """The anchor scene with the beads' Young's modulus times ``factor``, dt scaled by the
-    Hertz contact time and the coupling interval kept at the table's 5e-5 s."""
+def case_dir(out_dir, factor: float, point: str | None = None) -> Path:
+    """``DIR/y<factor>`` for the anchor, ``DIR/<point>_y<factor>`` off it."""
+    tag = "" if point is None else point.replace(" ", "").replace(".", "p") + "_"
+    return Path(out_dir) / f"{tag}y{factor:g}"
+
+
+def scene_for(factor: float, spin_up_s: float, record_s: float, point: str | None = None):
+    """The anchor scene (or the trend point ``point`` of :data:`TREND_POINTS`) with the beads'
+    Young's modulus times ``factor``, dt scaled by the Hertz contact time and the coupling
+    interval kept at the table's 5e-5 s."""
     from millfmu.dem.scene import load_scene
 
+    tip = ANCHOR[0] if point is None or TREND_POINTS[point][0] != "tip_speed_m_per_s" else TREND_POINTS[point][1]
     base = load_scene("disc_slice").with_overrides(
-        fluid_mode="coupled", tip_speed_m_per_s=ANCHOR[0], filling=ANCHOR[1], sector_deg=10.0,
+        fluid_mode="coupled", tip_speed_m_per_s=tip, filling=ANCHOR[1], sector_deg=10.0,
         gravity_m_per_s2=(0.0, 0.0, 0.0), spin_up_s=spin_up_s, record_s=record_s,
         sample_every_s=0.01, initial_rotation=INITIAL_ROTATION)
+    if point is not None and TREND_POINTS[point][0] == "d_gb_m":
+        base = replace(base, bead_diameter_m=TREND_POINTS[point][1])
     dt = DT_TABLE_S * factor ** -0.4
     steps = max(1, round(COUPLING_STEPS_TABLE * DT_TABLE_S / dt))
-    return replace(base, name=f"disc_slice_y{factor:g}",
+    return replace(base, name=f"disc_slice_{case_dir('', factor, point).name}",
                    material=replace(base.material, youngs_modulus_pa=Y_TABLE_PA * factor),
                    dt_s=dt, coupling=replace(base.coupling, steps=steps))
 
 
-def run_cases(out_dir, factors, spin_up_s, record_s, threads=None, progress=True):
-    """Run the factors that have no stats.json yet."""
+def run_cases(out_dir, factors, spin_up_s, record_s, threads=None, progress=True, points=()):
+    """Run the anchor at each factor, then each trend point of ``points``, skipping runs
+    that have a stats.json."""
     from millfmu.dem.run import run_scene
 
+    for point in (None, *points):
+        for f in factors:
+            d = case_dir(out_dir, f, point)
+            if (d / "stats.json").exists():
+                continue
+            run_scene(scene_for(f, spin_up_s, record_s, point), d, progress=progress, threads=threads)
+
+
+@dataclass
+class RunSource:
+    """A stress-energy source made of one DEM run's zones (stats.json): each zone's share of
+    the cell's volume, its collision frequency per volume, and its SE_tn distribution with
+    the bead's mass (as the detailed examples read a table), whatever the operating point
+    asked (the run is that point)."""
+
+    run_zones: list
+
+    def zones(self, op):
+        return self.run_zones
+
+
+def run_source(st: dict) -> RunSource:
+    from millfmu.kinetics.stress_distribution import Zone
+
+    edges = np.asarray(st["se_bin_edges_j"], float) * BEAD_MASS_FACTOR
+    dlog = np.diff(np.log10(edges))
+    vol = sum(z["volume_m3"] for z in st["zones"])
+    out = []
+    for z in st["zones"]:
+        w = np.asarray(z["se"]["tn"]["density_per_decade"], float) * dlog
+        f = float(z["collision_frequency_per_m3_s"]) if w.sum() > 0 else 0.0
+        w = w / w.sum() if w.sum() > 0 else np.full(w.size, 1.0 / w.size)
+        out.append(Zone(z["name"], z["volume_m3"] / vol, f, edges, w))
+    return RunSource(out)
+
+
+def trends(out_dir, factors, points) -> dict:
+    """The limestone pair's trend at each point: the detailed model on the runs (its f_Mat
+    refitted at the anchor run of each factor so that the anchor's S(10 um) is the shipped
+    detailed model's, as validation.trends_causes refits) and the simple model, each over
+    its own rate at the anchor."""
+    from validation import trends_causes as tc
+
+    ps = next(p for p in tc.setups() if p.w_feed is None)  # limestone: S(10 um)
+    sm, dm = ps.simple, ps.detailed
+    s_ref = tc.rate(sm, sm.material, None, ps.op_simple, ps)
+    target = tc.rate(dm, dm.material, dm.source, ps.op_detailed, ps)
+    out = {"simple": {p: tc.rate(sm, sm.material, None, tc.at(ps.op_simple, *TREND_POINTS[p]), ps) / s_ref
+                      for p in points}, "detailed": {}}
     for f in factors:
-        d = case_dir(out_dir, f)
-        if (d / "stats.json").exists():
-            continue
-        run_scene(scene_for(f, spin_up_s, record_s), d, progress=progress, threads=threads)
+        src0 = run_source(_stats(case_dir(out_dir, f)))
+        mat, const = tc._refit(ps, dm.material, src0, ps.op_detailed, target)
+        ref = tc.rate(dm, mat, src0, ps.op_detailed, ps)
+        rel = {p: tc.rate(dm, mat, run_source(_stats(case_dir(out_dir, f, p))),
+                          tc.at(ps.op_detailed, *TREND_POINTS[p]), ps) / ref for p in points}
+        out["detailed"][f"{f:g}"] = {"f_mat_kg_per_J_m": const, "relative_rate": rel}
+    return out
+
+
+def _stats(d: Path) -> dict:
+    p = d / "stats.json"
+    if not p.exists():
+        raise FileNotFoundError(f"{p}: run it first (python -m validation.bead_stiffness run)")
+    return json.loads(p.read_text())
 
 
 def _zone_rates(st: dict) -> dict:
@@ -140,23 +211,28 @@ CHAMBER_KEYS = ("frequency_per_m3_s", "above_limestone_threshold_per_m3_s", "abo
                 "limestone_breaking_per_m3_s", "power_W_per_m3")
 
 
-def summarize(out_dir, factors) -> dict:
-    """The run summary: each factor's readings, and their ratios to factor 1."""
-    runs = {}
-    for f in factors:
-        p = case_dir(out_dir, f) / "stats.json"
-        if not p.exists():
-            raise FileNotFoundError(f"{p}: run it first (python -m validation.bead_stiffness run)")
-        st = json.loads(p.read_text())
-        r = _zone_rates(st)
-        r.update(youngs_modulus_Pa=Y_TABLE_PA * f, dt_s=st["dt_s"], beads=st["beads"],
-                 spin_up_s=st["spin_up_s"], record_s=st["record_s"])
-        runs[f"{f:g}"] = r
-    return {"command": "python -m validation.bead_stiffness table --out DIR --json "
-                       "validation/runs/bead_stiffness.json (runs: ... run --out DIR --factors "
-                       + ",".join(f"{f:g}" for f in factors) + ")",
-            "anchor": {"tip_speed_m_per_s": ANCHOR[0], "filling": ANCHOR[1], "bead_diameter_m": 0.8e-3},
-            "moves_factor": MOVES_FACTOR, "runs": runs, "verdicts": verdicts(runs)}
+def _readings(d: Path, f: float) -> dict:
+    st = _stats(d)
+    r = _zone_rates(st)
+    r.update(youngs_modulus_Pa=Y_TABLE_PA * f, dt_s=st["dt_s"], beads=st["beads"],
+             spin_up_s=st["spin_up_s"], record_s=st["record_s"])
+    return r
+
+
+def summarize(out_dir, factors, points=()) -> dict:
+    """The run summary: each factor's readings at the anchor and their ratios to factor 1;
+    with ``points``, their readings there and the limestone pair's trends (:func:`trends`)."""
+    runs = {f"{f:g}": _readings(case_dir(out_dir, f), f) for f in factors}
+    pts = " --points " + ",".join(f"'{p}'" for p in points) if points else ""
+    out = {"command": "python -m validation.bead_stiffness table --out DIR --json "
+                      "validation/runs/bead_stiffness.json (runs: ... run --out DIR --factors "
+                      + ",".join(f"{f:g}" for f in factors) + pts + ")",
+           "anchor": {"tip_speed_m_per_s": ANCHOR[0], "filling": ANCHOR[1], "bead_diameter_m": 0.8e-3},
+           "moves_factor": MOVES_FACTOR, "runs": runs, "verdicts": verdicts(runs)}
+    if points:
+        out["point_runs"] = {p: {f"{f:g}": _readings(case_dir(out_dir, f, p), f) for f in factors} for p in points}
+        out["trends"] = trends(out_dir, factors, points)
+    return out
 
 
 def ratios(runs: dict) -> dict:
@@ -195,6 +271,22 @@ def markdown(summary: dict) -> str:
         lines.append(f"| {name}: SE_tn q10 / q50 / q90 [J] | " + " | ".join(
             "/".join("-" if runs[k]["zones"][zi][q] is None else f"{runs[k]['zones'][zi][q]:.2g}"
                      for q in ("se_tn_q10_J", "se_tn_q50_J", "se_tn_q90_J")) for k in keys) + " |")
+    tr = summary.get("trends")
+    if tr:
+        lines += ["", "| limestone S(10 um) over the anchor's | simple | " +
+                  " | ".join(f"detailed, Y x {k}" for k in tr["detailed"]) + " |",
+                  "|---|---|" + "---|" * len(tr["detailed"])]
+        for p in tr["simple"]:
+            lines.append(f"| {p} | {tr['simple'][p]:.3g} | " + " | ".join(
+                f"{d['relative_rate'][p]:.3g}" for d in tr["detailed"].values()) + " |")
+        lines.append("| f_Mat refitted at the anchor [kg/(J m)] | | " + " | ".join(
+            f"{d['f_mat_kg_per_J_m']:.4g}" for d in tr["detailed"].values()) + " |")
+        for p, byf in summary["point_runs"].items():
+            lines.append(f"| {p}: collisions per volume over the anchor's | | " + " | ".join(
+                f"{byf[k]['frequency_per_m3_s'] / runs[k]['frequency_per_m3_s']:.3g}" for k in byf) + " |")
+            lines.append(f"| {p}: of them above 2.7e-9 J, over the anchor's | | " + " | ".join(
+                f"{byf[k]['above_limestone_threshold_per_m3_s'] / runs[k]['above_limestone_threshold_per_m3_s']:.3g}"
+                for k in byf) + " |")
     lines.append("")
     for k, v in summary["verdicts"].items():
         lines.append(f"Y x {k} against Y x 1: " + ", ".join(
@@ -212,6 +304,9 @@ def parser() -> argparse.ArgumentParser:
     s.add_argument("--spin-up", type=float, default=0.8, help="spin-up [s] (default 0.8)")
     s.add_argument("--record", type=float, default=0.2, help="recording [s] (default 0.2)")
     s.add_argument("--threads", type=int, help="numba threads (default: all cores)")
+    s.add_argument("--points", default="",
+                   help="trend points off the anchor, comma-separated, of " + ", ".join(repr(p) for p in TREND_POINTS)
+                   + " (default none)")
     s.add_argument("--json", help="write the run summary here")
     return s
 
@@ -228,9 +323,15 @@ def main(argv=None) -> int:
         print(f"python -m validation.bead_stiffness: --factors {args.factors!r}: must hold 1 (the table's "
               f"beads) and factors >= 1", file=sys.stderr)
         return 2
+    points = [p.strip() for p in args.points.split(",") if p.strip()]
+    bad = [p for p in points if p not in TREND_POINTS]
+    if bad:
+        print(f"python -m validation.bead_stiffness: --points {args.points!r}: allowed {list(TREND_POINTS)}",
+              file=sys.stderr)
+        return 2
     if args.action == "run":
-        run_cases(args.out, factors, args.spin_up, args.record, threads=args.threads)
-    summary = summarize(args.out, factors)
+        run_cases(args.out, factors, args.spin_up, args.record, threads=args.threads, points=points)
+    summary = summarize(args.out, factors, points)
     print(markdown(summary))
     if args.json:
         Path(args.json).write_text(json.dumps(summary, indent=1) + "\n")
