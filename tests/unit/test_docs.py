@@ -108,7 +108,8 @@ def test_benchmark_results_are_machine_readable():
         d = json.loads(f.read_text())
         assert {"commit", "host", "date", "command", "figures"} <= set(d), f.name
         assert re.fullmatch(r"[0-9a-f]{7,40}", d["commit"]) and re.fullmatch(r"\d{4}-\d\d-\d\d", d["date"]), f.name
-        assert d["command"].startswith(("millfmu ", "python -m benchmarks.")) and _numbers(d["figures"]), f.name
+        assert d["command"].startswith(("millfmu ", "python -m benchmarks.", "python -m validation.")) \
+            and _numbers(d["figures"]), f.name
 
 
 def test_each_figure_of_the_readme_is_its_measurement():
