@@ -51,6 +51,17 @@ def test_a_scene_with_a_byte_order_mark_reads_as_without(tmp_path):
     assert load_scene(bom) == load_scene(plain)
 
 
+def test_build_fmu_of_a_scene_with_a_byte_order_mark(tmp_path, capsys):
+    """The FMU carries the scene without the mark (which the TOML reader refuses)."""
+    import zipfile
+
+    scene = tmp_path / "bom.toml"
+    scene.write_bytes(b"\xef\xbb\xbf" + SHORT.encode())
+    assert main(["build-fmu", str(scene), "-o", str(tmp_path / "m.fmu")]) == 0, capsys.readouterr().err
+    with zipfile.ZipFile(tmp_path / "m.fmu") as z:
+        assert z.read("resources/scene.toml") == SHORT.encode()
+
+
 @pytest.mark.parametrize("key, hint", [("tip_sped_m_per_s", "tip_speed_m_per_s"), ("Tip_Speed_m_per_s",
                                                                                     "tip_speed_m_per_s"),
                                        ("tip_speed", "tip_speed_m_per_s"), ("bead_fill", "bead_filling"),
