@@ -7,6 +7,7 @@ Exit status: 0 on success, 2 for bad input (flowsheet file, options; nothing is 
 
 from __future__ import annotations
 
+import math
 import os
 import shutil
 import sys
@@ -25,9 +26,17 @@ def _limit_blas_threads():
 
 
 def _load(path):
-    from .spec import load_flowsheet
+    from .spec import FlowsheetError, load_flowsheet
 
-    return load_flowsheet(shipped_or_path(path))
+    p = shipped_or_path(path)
+    if not p.exists() and str(p) == p.name:
+        from millfmu.scene import closest
+
+        near = closest(p.name if p.suffix else p.name + ".toml", shipped_flowsheets())
+        if near:
+            raise FlowsheetError("file", str(p), f"cannot be read (No such file or directory; did you mean "
+                                 f"{near.removesuffix('.toml')}, a shipped flowsheet?)", str(p))
+    return load_flowsheet(p)
 
 
 def shipped_flowsheets() -> dict:
@@ -67,11 +76,29 @@ def _publish(tmp: Path, out: Path):
     return moved
 
 
-def _check_out(out: Path):
+def _check_out(out: Path, option: str = "--out"):
+    """FlowsheetError unless ``out`` is, or can become, a folder this process can write into
+    (before anything is built or run)."""
+    from millfmu.runner import OutputError, check_out_dir
+
     from .spec import FlowsheetError
 
-    if out.exists() and not out.is_dir():
-        raise FlowsheetError("--out", str(out), "must be a folder (it is a file)", "command line")
+    if out is None:
+        return
+    if Path(out).exists() and not Path(out).is_dir():
+        raise FlowsheetError(option, str(out), "must be a folder (it is a file)", "command line")
+    try:
+        check_out_dir(out, option, staged=False)
+    except OutputError as e:
+        raise FlowsheetError(option, str(out), str(e).split(": ", 1)[1], "command line") from None
+
+
+def _positive_seconds(option: str, value: float):
+    """FlowsheetError unless ``value`` is a finite number > 0 (a time option)."""
+    from .spec import FlowsheetError
+
+    if not (math.isfinite(value) and value > 0):
+        raise FlowsheetError(option, value, "must be a finite number > 0 s", "command line")
 
 
 def cmd_run(args) -> int:
@@ -85,7 +112,8 @@ def cmd_run(args) -> int:
     try:
         fs = _load(args.file)
         if args.step is not None:
-            if not args.step > 0 or (abs(fs.t_end_s / args.step - round(fs.t_end_s / args.step))
+            _positive_seconds("--step", args.step)
+            if (abs(fs.t_end_s / args.step - round(fs.t_end_s / args.step))
                                      > 1e-9 * fs.t_end_s / args.step):
                 raise FlowsheetError("--step", args.step,
                                      f"must be > 0 s and divide t_end_s = {fs.t_end_s!r} s into whole steps",
@@ -94,12 +122,14 @@ def cmd_run(args) -> int:
         if args.algorithm:
             fs = fs.with_(algorithm=args.algorithm)
         if args.output_interval is not None:
+            _positive_seconds("--output-interval", args.output_interval)
             n = args.output_interval / fs.step_s
             if not args.output_interval > 0 or abs(n - round(n)) > 1e-9 * n:
                 raise FlowsheetError("--output-interval", args.output_interval,
                                      f"must be a whole multiple of the step {fs.step_s!r} s", "command line")
             fs = fs.with_(output_interval_s=args.output_interval)
         _check_out(out)
+        _check_out(args.fmu_dir and Path(args.fmu_dir), "--fmu-dir")
         with tempfile.TemporaryDirectory(prefix="flowsheet_") as tmp:
             # FMUs are built into the results (OUT/fmus), reusing those of earlier runs.
             fmu_dir = Path(args.fmu_dir) if args.fmu_dir else Path(tmp) / "fmus"
@@ -135,6 +165,13 @@ def cmd_export_ssp(args) -> int:
         out = Path(args.output)
         if out.suffix != ".ssp":
             raise FlowsheetError("-o", str(out), "must end in .ssp", "command line")
+        if out.is_dir():
+            raise FlowsheetError("-o", str(out), "is a folder; give a file name ending in .ssp", "command line")
+        try:
+            _check_out(out.parent, "-o")
+        except FlowsheetError as e:
+            raise FlowsheetError("-o", str(out), f"its folder {e.value}: {e.allowed}", "command line") from None
+        _check_out(args.fmu_dir and Path(args.fmu_dir), "--fmu-dir")
         path = export_ssp(fs, out, fmu_dir=Path(args.fmu_dir) if args.fmu_dir else None,
                           log=lambda m: print(m, flush=True))
     except FlowsheetError as e:
@@ -153,20 +190,24 @@ def cmd_wp(args) -> int:
     try:
         fs = _load(args.file)
         if args.t_end is not None:
-            if not args.t_end > 0:
-                raise FlowsheetError("--t-end", args.t_end, "must be > 0 s", "command line")
+            _positive_seconds("--t-end", args.t_end)
             fs = fs.with_(t_end_s=args.t_end)
         steps = sorted(set(args.steps))
         for h in steps + [args.reference]:
-            n = fs.t_end_s / h
-            if not h > 0 or abs(n - round(n)) > 1e-9 * n:
+            n = fs.t_end_s / h if math.isfinite(h) and h > 0 else math.nan
+            if not (math.isfinite(n) and abs(n - round(n)) <= 1e-9 * n):
                 raise FlowsheetError("--steps/--reference", h,
                                      f"each must be > 0 s and divide t_end_s = {fs.t_end_s!r} s into whole steps",
                                      "command line")
         if len(steps) < 2 or args.reference >= min(steps):
             raise FlowsheetError("--steps", steps, "need at least two step sizes, all above --reference",
                                  "command line")
+        unit = args.variable.partition(".")[0]
+        if unit not in fs.units and unit != "total":
+            raise FlowsheetError("--variable", args.variable, "must be UNIT.VARIABLE with UNIT among the flowsheet's "
+                                 "units (" + ", ".join(fs.units) + ") or total", "command line")
         _check_out(Path(args.out))
+        _check_out(args.fmu_dir and Path(args.fmu_dir), "--fmu-dir")
         with tempfile.TemporaryDirectory(prefix="flowsheet_wp_") as tmp:
             table = work_precision(fs, steps, args.reference, Path(tmp),
                                    fmu_dir=Path(args.fmu_dir) if args.fmu_dir else Path(args.out) / "fmus",

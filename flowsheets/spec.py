@@ -231,9 +231,15 @@ def load_flowsheet(path) -> Flowsheet:
     path = Path(path)
     source = str(path)
     try:
-        text = path.read_text()
+        raw = path.read_bytes()
     except OSError as e:
         raise FlowsheetError("file", str(path), f"cannot be read ({e.strerror})", source) from None
+    try:
+        text = raw.decode("utf-8").removeprefix("\ufeff")  # a byte-order mark, as Windows editors write
+    except UnicodeDecodeError as e:
+        line = raw.count(b"\n", 0, e.start) + 1
+        raise FlowsheetError("file", str(path), f"is not UTF-8 text (byte {e.start}, line {line}); save it as UTF-8 "
+                             "(TOML)", source) from None
     try:
         d = tomllib.loads(text)
     except tomllib.TOMLDecodeError as e:

@@ -252,7 +252,9 @@ def build_fmu(scene_path: str | Path | None, out: str | Path, fmi_version: int =
     # A scene that allows on-demand builds gets the table that covers its point now: the
     # FMU carries it and never runs the DEM.
     table = covering_table(scene, model)
-    scene_text = Path(scene_path).read_text() if scene_path is not None else default_scene_text()
+    # UTF-8 (load_scene checked it), without a byte-order mark, which tomllib refuses
+    scene_text = Path(scene_path).read_bytes().decode("utf-8").removeprefix("\ufeff") if scene_path is not None \
+        else default_scene_text()
     pkg_root = Path(millfmu.__file__).parent
 
     with temp_dir("millfmu_fmu_") as tmp:

@@ -7,9 +7,11 @@ from __future__ import annotations
 
 import argparse
 import importlib
+import math
 import os
 import sys
 import time
+import warnings
 
 # The population balance works on small matrices, where multithreaded BLAS only adds
 # overhead (and, on a busy machine, oversubscription slows expm a hundredfold). Set before
@@ -125,9 +127,40 @@ def _cmd_scene_keys(args) -> int:
     return 0
 
 
+def whole_number(lo: int):
+    """An argparse type: a whole number >= ``lo``, refused by argparse (exit status 2) with
+    what is allowed."""
+
+    def parse(text: str) -> int:
+        try:
+            n = int(text)
+        except ValueError:
+            n = None
+        if n is None or n < lo:
+            raise argparse.ArgumentTypeError(f"{text!r}: allowed a whole number >= {lo}")
+        return n
+
+    return parse
+
+
+def positive_number(text: str) -> float:
+    """An argparse type: a finite number > 0."""
+    try:
+        v = float(text)
+    except ValueError:
+        v = math.nan
+    if not (math.isfinite(v) and v > 0):
+        raise argparse.ArgumentTypeError(f"{text!r}: allowed a finite number > 0")
+    return v
+
+
 def _cmd_bench_pbm(args) -> int:
     from .studies.pbm_integrators import bench_pbm
 
+    if args.hours * 3600.0 < 1.0:
+        print(f"millfmu: error: bench pbm: --hours {args.hours:g}: allowed 1/3600 h (one 1 s step) or more",
+              file=sys.stderr)
+        return 2
     bench_pbm(classes=args.classes, hours=args.hours, repeats=args.repeats, tanks=args.tanks, dense=not args.no_dense)
     return 0
 
@@ -213,10 +246,11 @@ def build_parser() -> argparse.ArgumentParser:
     bsub = b.add_subparsers(dest="bench", metavar="WHAT")
     bsub.required = True
     bp = bsub.add_parser("pbm", help="population balance step cost, and against scipy's BDF at equal accuracy")
-    bp.add_argument("--classes", type=int, nargs="+", default=[50, 100, 200])
-    bp.add_argument("--hours", type=float, default=1.0, help="simulated batch time [h] at 1 s steps")
-    bp.add_argument("--repeats", type=int, default=3)
-    bp.add_argument("--tanks", type=int, default=50, help="tanks in series of the continuous row (0: leave it out)")
+    bp.add_argument("--classes", type=whole_number(2), nargs="+", default=[50, 100, 200])
+    bp.add_argument("--hours", type=positive_number, default=1.0, help="simulated batch time [h] at 1 s steps")
+    bp.add_argument("--repeats", type=whole_number(1), default=3)
+    bp.add_argument("--tanks", type=whole_number(0), default=50,
+                    help="tanks in series of the continuous row (0: leave it out)")
     bp.add_argument("--no-dense", action="store_true",
                     help="continuous row without the dense matrix exponential (the method before; tens of seconds at "
                          "50 tanks)")
@@ -243,6 +277,8 @@ def main(argv=None) -> int:
     parser = build_parser()
     args = parser.parse_args(argv)
     _use_shipped_examples(args)
+    shown_as = warnings.formatwarning
+    warnings.formatwarning = _one_line_warning  # a note to the user, not a source line of millfmu
     try:
         return int(args.func(args) or 0)
     except (SceneError, InputError, OutputError) as e:
@@ -258,6 +294,15 @@ def main(argv=None) -> int:
     except BrokenPipeError:  # output piped into e.g. head, which stopped reading
         sys.stderr.close()
         return 0
+    finally:
+        warnings.formatwarning = shown_as
+
+
+def _one_line_warning(message, category, filename, lineno, line=None) -> str:
+    """A warning as the command shows it: one line "millfmu: warning: ..." (an earlier
+    release's key spelling, a data warning), without the file and line of millfmu's code
+    that issued it."""
+    return f"millfmu: warning: {message}\n"
 
 
 if __name__ == "__main__":  # pragma: no cover

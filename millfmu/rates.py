@@ -446,7 +446,7 @@ def compute(scene, name: str | None = None, sizes_m=None, values: dict | None = 
     whose material constants differ), else ``scene`` with the detailed model."""
     from .kinetics import stress as kstress
     from .mill import MillModel, psd_fractions
-    from .scene import SceneError
+    from .scene import SceneError, did_you_mean
 
     if scene.material.model not in ("mineral", "yeast"):
         raise SceneError("material.model", scene.material.model,
@@ -461,13 +461,20 @@ def compute(scene, name: str | None = None, sizes_m=None, values: dict | None = 
     sizes = tuple(float(x) for x in (sizes_m if sizes_m is not None else _default_sizes(scene, simple)))
     if not sizes or any(not (math.isfinite(x) and x > 0.0) for x in sizes):
         raise SceneError("--sizes", sizes, "must be positive sizes in m", "millfmu rates")
+    from .calibration.measured import MAX_SIZE_M
+
+    if max(sizes) > MAX_SIZE_M:
+        x = max(sizes)
+        raise SceneError("--sizes", sizes, f"must be sizes in m up to {MAX_SIZE_M:g} m, which no bead mill grinds "
+                         f"beyond (if {x:g} is in micrometres, write {x * 1e-6:g})", "millfmu rates")
     is_cells = scene.material.model == "yeast"
     quantities = tuple(_size_key(x) for x in sizes) + (("disruption_rate",) if is_cells else ())
     x = np.array(sizes)
     values = values or {}
     for p, vs in values.items():
         if p not in PARAMETERS:
-            raise SceneError("--values", p, "unknown parameter; allowed: " + ", ".join(PARAMETERS), "millfmu rates")
+            raise SceneError("--values", p, "unknown parameter" + did_you_mean(p, PARAMETERS) + "; allowed: "
+                             + ", ".join(PARAMETERS), "millfmu rates")
         for v in vs:
             _check_value(p, v, scene)
     w_feed = psd_fractions(simple.grid, scene.feed)
@@ -779,6 +786,9 @@ def _parse_values(items) -> dict:
     out = {}
     for item in items or []:
         name, _, rest = item.partition("=")
+        if name.strip() in out:
+            raise SceneError("--values", item, f"{name.strip()} is given twice; give its values once, "
+                             "PARAMETER=V1,V2,...", "millfmu rates")
         try:
             out[name.strip()] = [float(v) for v in rest.split(",") if v.strip()]
         except ValueError:

@@ -83,28 +83,32 @@ def staging_dir(out: Path, prefix: str) -> Path:
     return tmp
 
 
-def check_out_dir(out_dir) -> Path:
+def check_out_dir(out_dir, option: str = "--out", staged: bool = True) -> Path:
     """OutputError unless ``out_dir`` is (or can become) a folder this process can write
     into and beside which it can make its temporary folder: checked by making and removing a
-    probe folder in the nearest existing folder. Creates nothing."""
+    probe folder in the nearest existing folder. Creates nothing. ``option``: the option that
+    gave the folder, for the message; ``staged``: the results are staged beside it (said in
+    the message)."""
+    if not str(out_dir).strip():  # an empty shell variable: not the current folder
+        raise OutputError(repr(str(out_dir)), "is empty; give a folder (. for the current one)", option)
     out = Path(out_dir)
     if out.exists() and not out.is_dir():
-        raise OutputError(out, "exists and is not a folder; give a folder (new or from an earlier run)")
+        raise OutputError(out, "exists and is not a folder; give a folder (new or from an earlier run)", option)
     if Path(os.path.abspath(out)) == Path(os.path.abspath(out)).parent:
-        raise OutputError(out, "is the file system's root; give a folder below it")
+        raise OutputError(out, "is the file system's root; give a folder below it", option)
     base = _existing_ancestor(out.parent)
     if not base.is_dir():
-        raise OutputError(out, f"cannot write there ({base} is not a folder); give a writable folder")
+        raise OutputError(out, f"cannot write there ({base} is not a folder); give a writable folder", option)
     # Both folders are probed: the results are staged beside ``out`` and then moved into it.
     for where in (base, out) if out.is_dir() else (base,):
         try:
             Path(tempfile.mkdtemp(prefix=TEMP_PREFIX + "probe-", dir=where)).rmdir()
         except OSError as e:
-            why = "" if where == out else (
+            why = "" if where == out or not staged else (
                 f"; the results are first written into a hidden folder {TEMP_PREFIX}* in {where} beside it and "
                 "switched in with one rename")
-            raise OutputError(out,
-                              f"cannot write there ({e.strerror or e}: {where}{why}); give a writable folder") from None
+            raise OutputError(out, f"cannot write there ({e.strerror or e}: {where}{why}); give a writable folder",
+                              option) from None
     return out
 
 

@@ -9,6 +9,7 @@ and what is allowed. ``millfmu scene-keys`` lists every key with unit, default a
 from __future__ import annotations
 
 import copy
+import difflib
 import json
 import math
 import sys
@@ -309,7 +310,7 @@ def _load_section(cls, table, prefix, source):
     for k in table:
         if k not in names:
             raise SceneError(f"{prefix}.{k}" if prefix else k, table[k],
-                             "unknown key; allowed: " + ", ".join(sorted(names)), source)
+                             "unknown key" + did_you_mean(k, names) + "; allowed: " + ", ".join(sorted(names)), source)
     kw = {}
     for f in fields(cls):
         key = f"{prefix}.{f.name}" if prefix else f.name
@@ -331,6 +332,24 @@ _SECTION_TYPES = {
     "StressDistribution": StressDistribution, "Grid": Grid, "PSD": PSD, "Operation": Operation,
     "Run": Run,
 }
+
+
+def closest(name, allowed) -> str | None:
+    """The allowed name closest to a misspelt ``name`` (case aside; a name without its unit
+    suffix is close to the one with it), or None where none is close."""
+    if not isinstance(name, str):
+        return None
+    by_lower = {a.lower(): a for a in allowed if isinstance(a, str)}
+    match = [a for a in by_lower if a.startswith(name.lower() + "_")]
+    if len(match) != 1:
+        match = difflib.get_close_matches(name.lower(), by_lower, n=1, cutoff=0.75)
+    return by_lower[match[0]] if match else None
+
+
+def did_you_mean(name, allowed) -> str:
+    """" (did you mean X?)" with :func:`closest`, or "" where no allowed name is close."""
+    match = closest(name, allowed)
+    return f" (did you mean {match}?)" if match else ""
 
 
 def _section_type(f):
@@ -556,9 +575,12 @@ def load_scene(path: str | Path | None = None) -> Scene:
         try:
             raw = p.read_bytes()
         except OSError as e:
-            raise SceneError("(file)", str(p), f"cannot be read: {e.strerror or e}", source) from None
+            example = closest(p.name if p.suffix else p.name + ".toml", example_files()) \
+                if isinstance(e, FileNotFoundError) and str(p) == p.name else None
+            hint = f" (did you mean {example}, a shipped example?)" if example else ""
+            raise SceneError("(file)", str(p), f"cannot be read: {e.strerror or e}{hint}", source) from None
         try:
-            text = raw.decode("utf-8")
+            text = raw.decode("utf-8").removeprefix("\ufeff")  # a byte-order mark, as Windows editors write
         except UnicodeDecodeError as e:
             line = raw.count(b"\n", 0, e.start) + 1
             raise SceneError("(encoding)", raw[e.start:e.start + 4].hex(" "),

@@ -15,7 +15,7 @@ import numpy as np
 
 from ..api import load_scene as load_any
 from ..mill import MillModel, StepError, q3_at_edges
-from ..scene import Scene, number_key
+from ..scene import Scene, did_you_mean, number_key
 from .intervals import ERROR_MODELS, Intervals, error_model as choose_error_model, intervals, lack_of_fit
 from .measured import SIZE_COLUMNS, CalibrationError, Data, parse_data, read_data
 
@@ -225,7 +225,8 @@ def _resolve_fit(scene: Scene, fit) -> list:
     for k in keys:
         c = FITTABLE.get(k)
         if c is None:
-            raise CalibrationError(f"not a fittable constant; allowed {', '.join(FITTABLE)}", "fit", k)
+            raise CalibrationError(f"not a fittable constant{did_you_mean(k, FITTABLE)}; allowed {', '.join(FITTABLE)}",
+                                   "fit", k)
         if scene.kinetics.model not in c.models or scene.material.model not in c.materials:
             raise CalibrationError(f"has no effect in scene {scene.scene.name!r} (kinetics.model = "
                                    f"{scene.kinetics.model!r}, material.model = {scene.material.model!r}); free one of "
@@ -309,6 +310,13 @@ def _arguments(scene, data, fit, error_model) -> tuple[Scene, Data, list]:
 def _search_range(scene: Scene, keys: list, start: dict | None) -> tuple[np.ndarray, list, list]:
     """Start, lower and upper end of the search in ln(constant): :data:`SEARCH_DECADES` either
     side of the start, capped by a finite physical upper bound (the start too)."""
+    for k, v in (start or {}).items():
+        if k not in keys:
+            raise CalibrationError(f"a start value of a constant not fitted; the fitted: {', '.join(keys)}", "start",
+                                   k)
+        if not (isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v) and v > 0.0):
+            raise CalibrationError(f"VALUE = {v!r}: must be a finite number > 0 (the fit works in ln({k}))", "start",
+                                   k)
     starts = [float((start or {}).get(k, number_key(scene, k))) for k in keys]
     for k, v in zip(keys, starts):
         if not v > 0.0:

@@ -18,6 +18,33 @@ import sys
 from millfmu.dem.coupling.settings import PRESSURE_SOLVERS, SMOOTHINGS
 
 
+def thread_count(text: str) -> int:
+    """An argparse type for ``--threads``: a whole number from 1 to the threads numba may
+    start (its NUMBA_NUM_THREADS, by default the cores this process may use)."""
+    from numba.core.config import NUMBA_NUM_THREADS
+
+    try:
+        n = int(text)
+    except ValueError:
+        n = None
+    if n is None or not 1 <= n <= NUMBA_NUM_THREADS:
+        raise argparse.ArgumentTypeError(f"{text!r}: allowed a whole number from 1 to {NUMBA_NUM_THREADS} (the "
+                                         "cores numba may use here, NUMBA_NUM_THREADS)")
+    return n
+
+
+def check_run_folder(out: str, option: str = "--out") -> None:
+    """DemSceneError unless ``out`` is, or can become, a folder this process can write into
+    (checked before a run starts, so that a bad folder is not found after the run)."""
+    from millfmu.dem.scene import DemSceneError
+    from millfmu.runner import OutputError, check_out_dir
+
+    try:
+        check_out_dir(out, option, staged=False)
+    except OutputError as e:
+        raise DemSceneError(str(e)) from None
+
+
 def register(subparsers) -> argparse.ArgumentParser:
     """Add the ``dem`` command group to an argparse subparsers object."""
     p = subparsers.add_parser("dem", help="bead DEM: run a scene, follow and compare runs",
@@ -93,7 +120,7 @@ def _register_run(sub) -> None:
                         "equation at a fraction of the cost on full disc slices; direct_ldl, "
                         "the default, a symmetric factor, a third of direct_lu's time on a "
                         "sector)")
-    r.add_argument("--threads", type=int, help="numba threads (default: all cores)")
+    r.add_argument("--threads", type=thread_count, help="numba threads (default: all cores)")
     r.add_argument("--device", choices=("cpu", "gpu"), default=None,
                    help="where the DEM steps: cpu (numba threads, default) or gpu "
                         "(numba.cuda; the coupled liquid stays on the CPU's threads; no "
@@ -124,6 +151,7 @@ def _run(args) -> int:
     try:
         if args.scene is None or args.out is None:
             raise DemSceneError("a scene and --out are required (or --resume DIR)")
+        check_run_folder(args.out)
         scene = load_scene(args.scene)
         over = {k: getattr(args, k) for k in ("tip_speed_m_per_s", "filling", "sector_deg",
                                               "spin_up_s", "record_s", "sample_every_s",

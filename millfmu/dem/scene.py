@@ -115,6 +115,10 @@ class DemScene:
         n_theta = kw.pop("n_theta", None)
         smoothing = kw.pop("smoothing", None)
         pressure_solver = kw.pop("pressure_solver", None)
+        if kw.get("filling") is not None and self.placement != "filling":
+            raise DemSceneError(f"beads.filling = {kw['filling']!r}: this scene places its beads on a lattice "
+                                f"(beads.placement = {self.placement!r}); a filling is used only with placement "
+                                "'filling'")
         new = replace(self, geometry=geo, **{k: v for k, v in kw.items() if v is not None})
         if mode is not None and mode != self.fluid_mode:
             new = _with_fluid_mode(new, mode)
@@ -308,11 +312,20 @@ def load_scene_dict(name_or_path: str) -> dict:
         p = cand
     if not p.exists():
         raise DemSceneError(f"scene file {str(p)!r}: not found")
-    with open(p, "rb") as fh:
-        try:
-            d = tomllib.load(fh)
-        except tomllib.TOMLDecodeError as e:
-            raise DemSceneError(f"scene file {str(p)!r}: not valid TOML ({e})") from None
+    try:
+        raw = p.read_bytes()
+    except OSError as e:
+        raise DemSceneError(f"scene file {str(p)!r}: cannot be read ({e.strerror or e})") from None
+    try:
+        text = raw.decode("utf-8").removeprefix("\ufeff")  # a byte-order mark, as Windows editors write
+    except UnicodeDecodeError as e:
+        line = raw.count(b"\n", 0, e.start) + 1
+        raise DemSceneError(f"scene file {str(p)!r}: not UTF-8 text at byte {e.start} (line {line}); save it as "
+                            "UTF-8 (TOML)") from None
+    try:
+        d = tomllib.loads(text)
+    except tomllib.TOMLDecodeError as e:
+        raise DemSceneError(f"scene file {str(p)!r}: not valid TOML ({e})") from None
     d.setdefault("name", p.stem)
     return current_spelling(d, f"scene file {str(p)!r}")
 

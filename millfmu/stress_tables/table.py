@@ -749,9 +749,12 @@ def _read_manifest(manifest_path: Path, sum_path: Path) -> dict:
     the format version."""
     if not manifest_path.exists():
         raise TableError(f"{manifest_path}: missing")
-    text = manifest_path.read_bytes()
-    if sum_path.exists():
-        want = sum_path.read_text().strip()
+    try:
+        text = manifest_path.read_bytes()
+        want = sum_path.read_text(errors="replace").strip() if sum_path.exists() else None
+    except OSError as e:  # a folder of that name, no permission
+        raise TableError(f"{e.filename}: cannot be read ({e.strerror or e})") from None
+    if want is not None:
         if sha256_bytes(text) != want:
             raise TableError(f"{manifest_path}: sha256 {sha256_bytes(text)[:16]}... does not "
                              f"match {sum_path.name} ({want[:16]}...): corrupted")
@@ -815,6 +818,8 @@ def _read_arrays(npz: Path, m: dict, manifest_path: Path) -> dict:
         raise TableError(f"{manifest_path}: no checksum for {TABLE_FILE}")
     if not npz.exists():
         raise TableError(f"{npz}: missing")
+    if not npz.is_file():
+        raise TableError(f"{npz}: not a file")
     size = npz.stat().st_size
     if size != info["bytes"]:
         raise TableError(f"{npz}: {size} bytes, manifest says {info['bytes']}: truncated "

@@ -19,6 +19,7 @@ import hashlib
 import importlib.util
 import json
 import os
+import re
 import shutil
 import tempfile
 import time
@@ -349,6 +350,8 @@ SAME_DEM_AS = {
 }
 
 
+#: Name of a cache entry's folder: its table's key (sha256, hex).
+ENTRY_NAME = re.compile(r"[0-9a-f]{64}")
 #: Folder of the cache that holds finished grid points (:class:`PointStore`).
 POINTS_DIR = "points"
 
@@ -515,9 +518,13 @@ def cache_entries(cache_dir=None, kernel_version: str | None = None) -> list[dic
     out = []
     if not root.exists():
         return out
+    if not root.is_dir():
+        raise TableError(f"tables cache {root}: not a folder; give the cache's folder (--cache-dir, "
+                         "$MILLFMU_CACHE_DIR)")
     kv = kernel_version if kernel_version is not None else dem_kernel_version()
-    for d in sorted(p for p in root.iterdir()
-                    if p.is_dir() and not p.name.startswith(".") and p.name != POINTS_DIR):
+    # Only folders named as the cache names its entries: another folder (a --cache-dir that
+    # names the wrong folder) is neither listed nor removed.
+    for d in sorted(p for p in root.iterdir() if p.is_dir() and ENTRY_NAME.fullmatch(p.name)):
         info = {"key": d.name, "path": str(d),
                 "bytes": sum(f.stat().st_size for f in d.iterdir() if f.is_file())}
         try:

@@ -136,7 +136,7 @@ def _register_build(sub) -> None:
     b.add_argument("--scheduler", metavar="ADDRESS",
                    help="submit grid points to an existing Dask distributed scheduler, "
                         "e.g. tcp://host:8786 (needs dask and distributed)")
-    b.add_argument("--threads", type=int, help="numba threads per DEM run (default: 1 when "
+    b.add_argument("--threads", type=_threads, help="numba threads per DEM run (default: 1 when "
                    "grid points run in parallel, all cores when serial)")
     b.add_argument("--force", action="store_true", help="rebuild even a good cache entry")
     b.add_argument("--warm", action="store_true",
@@ -163,7 +163,7 @@ def _register_check(sub) -> None:
         k.add_argument(opt, type=float, dest=f"at_{axis}", metavar="X",
                        help=f"{axis} at the point (default: the table scene's value; for a "
                             f"one-at-a-time axis its reference)")
-    k.add_argument("--threads", type=int, help="numba threads of the DEM run (default: all "
+    k.add_argument("--threads", type=_threads, help="numba threads of the DEM run (default: all "
                    "cores)")
     k.add_argument("--builder", metavar="MODULE:NAME", help="builder callable instead of "
                    "the DEM (the one the table was built with)")
@@ -175,6 +175,13 @@ def _register_check(sub) -> None:
                         "checks recorded in another manifest of the same scene and settings "
                         "(e.g. the table's manifest before a rebuild or refinement)")
     k.set_defaults(func=_check)
+
+
+def _threads(text: str) -> int:
+    """--threads: 1 to the threads numba may start (:func:`millfmu.dem.cli.thread_count`)."""
+    from millfmu.dem.cli import thread_count
+
+    return thread_count(text)
 
 
 def _load_builder(text: str | None, threads):
@@ -306,7 +313,11 @@ def _command(args) -> str:
 def _status(args) -> int:
     from millfmu.dem import tables as T
 
-    entries = T.cache_entries(args.cache_dir)
+    try:
+        entries = T.cache_entries(args.cache_dir)
+    except T.TableError as e:
+        print(f"millfmu tables status: {e}", file=sys.stderr)
+        return 2
     if args.json:
         print(json.dumps(entries, indent=1))
         return 0
@@ -336,7 +347,12 @@ def _verify(args) -> int:
             bad += 1
         checked += 1
     if not targets and not args.default:
-        for e in T.cache_entries(args.cache_dir):
+        try:
+            entries = T.cache_entries(args.cache_dir)
+        except T.TableError as e:
+            print(f"millfmu tables verify: {e}", file=sys.stderr)
+            return 2
+        for e in entries:
             print(f"{e['key'][:16]}: {e['state']} {e['reason']}")
             bad += e["state"] == "bad"
             checked += 1
@@ -405,7 +421,9 @@ def _recheck(args) -> int:
         old = json.loads(Path(args.from_manifest).read_text())
         table = T.read_table_ref(args.table)
     except (OSError, ValueError, T.TableError) as e:
-        print(f"millfmu tables check: --from {args.from_manifest}: {e}", file=sys.stderr)
+        why = f"cannot be read ({e.strerror})" if isinstance(e, OSError) and e.strerror else \
+            f"not a manifest (JSON: {e})" if isinstance(e, ValueError) and not isinstance(e, T.TableError) else str(e)
+        print(f"millfmu tables check: --from {args.from_manifest}: {why}", file=sys.stderr)
         return 2
     if not isinstance(old, dict) or old.get("scene") != table.manifest.get("scene"):
         print(f"millfmu tables check: --from {args.from_manifest}: its scene and run settings "
@@ -453,7 +471,11 @@ def _print_check(name: str, res: dict) -> None:
 def _clear(args) -> int:
     from millfmu.dem import tables as T
 
-    removed = T.clear_cache(args.cache_dir, only_not_ok=args.stale)
+    try:
+        removed = T.clear_cache(args.cache_dir, only_not_ok=args.stale)
+    except T.TableError as e:
+        print(f"millfmu tables clear: {e}", file=sys.stderr)
+        return 2
     print(f"removed {len(removed)} entries from {T.resolve_cache_dir(args.cache_dir)}")
     return 0
 
