@@ -230,8 +230,14 @@ def summarize(out_dir, factors, points=()) -> dict:
            "anchor": {"tip_speed_m_per_s": ANCHOR[0], "filling": ANCHOR[1], "bead_diameter_m": 0.8e-3},
            "moves_factor": MOVES_FACTOR, "runs": runs, "verdicts": verdicts(runs)}
     if points:
-        out["point_runs"] = {p: {f"{f:g}": _readings(case_dir(out_dir, f, p), f) for f in factors} for p in points}
-        out["trends"] = trends(out_dir, factors, points)
+        # the trend points at the factors they ran at (a stiffer anchor alone may be run later)
+        pf = [f for f in factors if all((case_dir(out_dir, f, p) / "stats.json").exists() for p in points)]
+        if 1.0 not in pf or len(pf) < 2:
+            raise FileNotFoundError(f"{out_dir}: the trend points {list(points)} need runs at factor 1 and at "
+                                    f"least one other (python -m validation.bead_stiffness run --points ...)")
+        out["point_factors"] = [float(f) for f in pf]
+        out["point_runs"] = {p: {f"{f:g}": _readings(case_dir(out_dir, f, p), f) for f in pf} for p in points}
+        out["trends"] = trends(out_dir, pf, points)
     return out
 
 

@@ -72,3 +72,12 @@ def test_the_shipped_summary_agrees_with_its_own_numbers():
                     "limestone_breaking_per_m3_s"):
             assert 0.0 <= run[key] <= run["frequency_per_m3_s"] * (1 + 1e-12), key
     assert set(s["runs"]) >= {"1", "10"}
+    # the trends at the points the runs cover: the simple model's own changes (Kwade, from
+    # the trend study) and the detailed model's at each stiffness the points ran at
+    tr = s["trends"]
+    assert set(tr["simple"]) == set(B.TREND_POINTS) == set(s["point_runs"])
+    assert tr["simple"]["v_t 14"] == pytest.approx(1.40, rel=0.01)
+    assert tr["simple"]["d 1.2 mm"] == pytest.approx(0.296, rel=0.01)
+    assert set(tr["detailed"]) == {f"{f:g}" for f in s["point_factors"]} >= {"1", "10"}
+    for d in tr["detailed"].values():
+        assert set(d["relative_rate"]) == set(B.TREND_POINTS) and d["f_mat_kg_per_J_m"] > 0
