@@ -99,15 +99,18 @@ def test_an_empty_out_is_refused_not_the_current_folder(tmp_path, monkeypatch, c
 def test_an_earlier_spelling_warns_in_one_line_without_millfmus_source(tmp_path):
     """The note on an earlier release's key spelling: "millfmu: warning: ..." on one line,
     not a FutureWarning with millfmu's file, line and code."""
+    from millfmu.unit_names import earlier_name
+
+    old = earlier_name("tip_speed_m_per_s")  # built, so that the sources keep the current spelling
     scene = tmp_path / "old.toml"
-    scene.write_text("[mill]\ntip_speed_m_s = 8.0\n")
+    scene.write_text(f"[mill]\n{old} = 8.0\n")
     env = dict(os.environ, PYTHONPATH=str(ROOT))
     r = subprocess.run([sys.executable, "-m", "millfmu", "calibrate", str(scene), "--data", str(tmp_path / "no.csv"),
                         "--fit", "mill.stress_frequency_factor"], capture_output=True, text=True, env=env,
                        timeout=120)
     assert r.returncode == 2, r.stderr
     lines = r.stderr.splitlines()
-    assert lines[0].startswith("millfmu: warning: ") and "mill.tip_speed_m_s -> tip_speed_m_per_s" in lines[0], lines
+    assert lines[0].startswith("millfmu: warning: ") and f"mill.{old} -> tip_speed_m_per_s" in lines[0], lines
     assert "FutureWarning" not in r.stderr and "scene.py" not in r.stderr and "Traceback" not in r.stderr
     assert lines[1].startswith("millfmu: error: --data ") and len(lines) == 2, lines
 
