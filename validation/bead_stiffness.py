@@ -104,13 +104,13 @@ def scene_for(factor: float, spin_up_s: float, record_s: float, point: str | Non
                    dt_s=dt, coupling=replace(base.coupling, steps=steps))
 
 
-def run_cases(out_dir, factors, spin_up_s, record_s, threads=None, progress=True, points=()):
-    """Run the anchor at each factor, then each trend point of ``points``, skipping runs
-    that have a stats.json."""
+def run_cases(out_dir, factors, spin_up_s, record_s, threads=None, progress=True, points=(), point_factors=None):
+    """Run the anchor at each factor, then each trend point of ``points`` at each of
+    ``point_factors`` (default: ``factors``), skipping runs that have a stats.json."""
     from millfmu.dem.run import run_scene
 
     for point in (None, *points):
-        for f in factors:
+        for f in (factors if point is None or point_factors is None else point_factors):
             d = case_dir(out_dir, f, point)
             if (d / "stats.json").exists():
                 continue
@@ -223,10 +223,9 @@ def summarize(out_dir, factors, points=()) -> dict:
     """The run summary: each factor's readings at the anchor and their ratios to factor 1;
     with ``points``, their readings there and the limestone pair's trends (:func:`trends`)."""
     runs = {f"{f:g}": _readings(case_dir(out_dir, f), f) for f in factors}
-    pts = " --points " + ",".join(f"'{p}'" for p in points) if points else ""
     out = {"command": "python -m validation.bead_stiffness table --out DIR --json "
                       "validation/runs/bead_stiffness.json (runs: ... run --out DIR --factors "
-                      + ",".join(f"{f:g}" for f in factors) + pts + ")",
+                      + ",".join(f"{f:g}" for f in factors) + ")",
            "anchor": {"tip_speed_m_per_s": ANCHOR[0], "filling": ANCHOR[1], "bead_diameter_m": 0.8e-3},
            "moves_factor": MOVES_FACTOR, "runs": runs, "verdicts": verdicts(runs)}
     if points:
@@ -236,6 +235,8 @@ def summarize(out_dir, factors, points=()) -> dict:
             raise FileNotFoundError(f"{out_dir}: the trend points {list(points)} need runs at factor 1 and at "
                                     f"least one other (python -m validation.bead_stiffness run --points ...)")
         out["point_factors"] = [float(f) for f in pf]
+        out["command"] = out["command"][:-1] + (f' --points "{",".join(points)}" --point-factors '
+                                                + ",".join(f"{f:g}" for f in pf) + ")")
         out["point_runs"] = {p: {f"{f:g}": _readings(case_dir(out_dir, f, p), f) for f in pf} for p in points}
         out["trends"] = trends(out_dir, pf, points)
     return out
@@ -313,6 +314,8 @@ def parser() -> argparse.ArgumentParser:
     s.add_argument("--points", default="",
                    help="trend points off the anchor, comma-separated, of " + ", ".join(repr(p) for p in TREND_POINTS)
                    + " (default none)")
+    s.add_argument("--point-factors", default="",
+                   help="the factors the trend points run at (default: --factors)")
     s.add_argument("--json", help="write the run summary here")
     return s
 
@@ -335,8 +338,19 @@ def main(argv=None) -> int:
         print(f"python -m validation.bead_stiffness: --points {args.points!r}: allowed {list(TREND_POINTS)}",
               file=sys.stderr)
         return 2
+    try:
+        pf = [float(v) for v in args.point_factors.split(",") if v.strip()] or None
+    except ValueError:
+        print(f"python -m validation.bead_stiffness: --point-factors {args.point_factors!r}: numbers, "
+              f"comma-separated", file=sys.stderr)
+        return 2
+    if pf is not None and (1.0 not in pf or not set(pf) <= set(factors)):
+        print(f"python -m validation.bead_stiffness: --point-factors {args.point_factors!r}: must hold 1 and "
+              f"only factors of --factors", file=sys.stderr)
+        return 2
     if args.action == "run":
-        run_cases(args.out, factors, args.spin_up, args.record, threads=args.threads, points=points)
+        run_cases(args.out, factors, args.spin_up, args.record, threads=args.threads, points=points,
+                  point_factors=pf)
     summary = summarize(args.out, factors, points)
     print(markdown(summary))
     if args.json:
