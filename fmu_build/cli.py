@@ -8,6 +8,8 @@ from __future__ import annotations
 
 import sys
 
+from millfmu.arg_types import whole_number
+
 
 def _cmd_build_fmu(args) -> int:
     import time
@@ -87,29 +89,13 @@ def register(subparsers) -> None:
     h.set_defaults(func=_cmd_host_env)
 
 
-def _at_least(lo: int):
-    """An argparse type: a whole number >= ``lo`` (refused by argparse, exit status 2)."""
-    import argparse
-
-    def parse(text: str) -> int:
-        try:
-            n = int(text)
-        except ValueError:
-            n = None
-        if n is None or n < lo:
-            raise argparse.ArgumentTypeError(f"{text!r}: allowed a whole number >= {lo}")
-        return n
-
-    return parse
-
-
 def register_bench(bench_subparsers) -> None:
     f = bench_subparsers.add_parser("fmu",
                                     help="FMU doStep + reading all outputs, against a trivial FMU of the same FMI "
                                          "version in the same run")
-    f.add_argument("--classes", type=_at_least(2), default=100, help="size classes of the mill FMU (default 100)")
-    f.add_argument("--steps", type=_at_least(1), default=2000, help="steps per timing run")
-    f.add_argument("--repeats", type=_at_least(1), default=5, help="timing runs; the best is reported")
+    f.add_argument("--classes", type=whole_number(2), default=100, help="size classes of the mill FMU (default 100)")
+    f.add_argument("--steps", type=whole_number(1), default=2000, help="steps per timing run")
+    f.add_argument("--repeats", type=whole_number(1), default=5, help="timing runs; the best is reported")
     f.add_argument("--fmi-version", type=int, choices=(2, 3), action="append",
                    help="FMI version to measure (repeatable; default: 2 and 3)")
     f.set_defaults(func=_cmd_bench_fmu)

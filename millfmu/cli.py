@@ -7,11 +7,12 @@ from __future__ import annotations
 
 import argparse
 import importlib
-import math
 import os
 import sys
 import time
 import warnings
+
+from .arg_types import positive_number, whole_number
 
 # The population balance works on small matrices, where multithreaded BLAS only adds
 # overhead (and, on a busy machine, oversubscription slows expm a hundredfold). Set before
@@ -125,33 +126,6 @@ def _cmd_scene_keys(args) -> int:
     for key, unit, default, allowed, doc in iter_keys():
         print(f"{key:42s} {unit:9s} default {default!r:<14} {allowed}; {doc}")
     return 0
-
-
-def whole_number(lo: int):
-    """An argparse type: a whole number >= ``lo``, refused by argparse (exit status 2) with
-    what is allowed."""
-
-    def parse(text: str) -> int:
-        try:
-            n = int(text)
-        except ValueError:
-            n = None
-        if n is None or n < lo:
-            raise argparse.ArgumentTypeError(f"{text!r}: allowed a whole number >= {lo}")
-        return n
-
-    return parse
-
-
-def positive_number(text: str) -> float:
-    """An argparse type: a finite number > 0."""
-    try:
-        v = float(text)
-    except ValueError:
-        v = math.nan
-    if not (math.isfinite(v) and v > 0):
-        raise argparse.ArgumentTypeError(f"{text!r}: allowed a finite number > 0")
-    return v
 
 
 def _cmd_bench_pbm(args) -> int:
