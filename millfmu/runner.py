@@ -404,7 +404,8 @@ def run_warnings(model: MillModel, records) -> list:
     out.extend(model.similarity_warnings().values())
     if records:
         out.extend(model.output_warnings(max(records, key=lambda r: r.get("below_grid_fraction", 0.0))))
-        out.extend(_nothing_breaks(records))
+        if not model.continuous:  # a continuous mill may start in its steady state
+            out.extend(_nothing_breaks(records))
     return out
 
 
@@ -414,9 +415,8 @@ UNCHANGED_X50 = 1e-3
 
 
 def _nothing_breaks(records) -> list:
-    """A warning where x50 [m] hardly moved over a run in which the stirrer turned (a batch
-    mill or a continuous one alike), naming the stress frequency at x50 [1/s] against the run
-    time [s]; empty otherwise."""
+    """A warning where x50 [m] hardly moved over a batch run in which the stirrer turned,
+    naming the stress frequency at x50 [1/s] against the run time [s]; empty otherwise."""
     first, last = records[0], records[-1]
     t_s = float(last.get("t_s", 0.0)) - float(first.get("t_s", 0.0))
     x0, x1 = first.get("x50_m"), last.get("x50_m")
