@@ -47,15 +47,11 @@ def shipped_flowsheets() -> dict:
 def shipped_or_path(name: str) -> Path:
     """``name`` as given where such a file exists, else the shipped flowsheet of that name
     (``.toml`` optional), as the scene commands take the shipped examples; else ``name`` as
-    given (its reading then says it cannot be read)."""
-    p = Path(name)
-    if p.exists():
-        return p
-    ships = shipped_flowsheets()
-    for cand in (p.name, p.name + ".toml"):
-        if str(p) in (cand, cand[:-5]) and cand in ships:
-            return ships[cand]
-    return p
+    given (its reading then says it cannot be read); the scene commands' rule
+    (:func:`millfmu.scene.shipped_file`)."""
+    from millfmu.scene import shipped_file
+
+    return Path(shipped_file(name, shipped_flowsheets()))
 
 
 def _bad(e) -> int:

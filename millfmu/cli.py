@@ -149,16 +149,11 @@ def shipped_example(arg):
     """The file a command-line file argument stands for: ``arg`` itself where it exists, has a
     folder in it or is None; else the shipped example of that name (``.toml`` optional) as
     a string; else ``arg`` unchanged, whose command then reports the missing file. A file
-    of the user's wins over an example of the same name."""
-    from pathlib import Path
+    of the user's wins over an example of the same name (:func:`~millfmu.scene.shipped_file`)."""
+    from .scene import example_files, shipped_file
 
-    from .scene import example_files
-
-    if arg is None or Path(arg).exists() or Path(arg).name != arg:
-        return arg
-    files = example_files()
-    path = files.get(arg) or files.get(arg + ".toml")
-    return arg if path is None else str(path)
+    path = shipped_file(arg, example_files())
+    return path if path is arg else str(path)
 
 
 def _use_shipped_examples(args) -> None:

@@ -602,6 +602,17 @@ def example_files() -> dict[str, Path]:
             if p.is_file() and p.name.endswith((".toml", ".csv"))}
 
 
+def shipped_file(arg, files: dict):
+    """The file a command-line file argument stands for: ``arg`` itself where it exists, has
+    a folder in it or is None; else the file of that name (``.toml`` optional) in ``files``
+    (file name -> path: the shipped examples, the shipped flowsheets); else ``arg``
+    unchanged, whose command then reports the missing file. A file of the user's wins over a
+    shipped one of the same name."""
+    if arg is None or Path(arg).exists() or Path(arg).name != str(arg):
+        return arg
+    return files.get(str(arg)) or files.get(f"{arg}.toml") or arg
+
+
 def example_path(name: str) -> Path:
     """Path of a shipped example file (millfmu/data/examples/NAME: a scene, ``.toml``
     optional, or stand-in batch data such as ``limestone_standin_batch.csv``), wherever the
