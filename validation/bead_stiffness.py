@@ -176,26 +176,23 @@ def _stats(d: Path) -> dict:
 
 
 def _zone_rates(st: dict) -> dict:
-    """Zone-volume-weighted readings of one run's stats.json (see the module docstring)."""
-    edges = np.asarray(st["se_bin_edges_j"], float) * BEAD_MASS_FACTOR
-    e_mid = np.sqrt(edges[:-1] * edges[1:])
-    dlog = np.diff(np.log10(edges))
+    """Zone-volume-weighted readings of one run's stats.json (see the module docstring), on
+    its zones as the detailed model reads them (:func:`run_source`)."""
     m_p = RHO_LIMESTONE_KG_PER_M3 * math.pi / 6.0 * X_PROBE_M ** 3
-    p_lime = -np.expm1(-F_MAT_KG_PER_J_M * X_PROBE_M * e_mid * ELASTICITY_FACTOR / m_p)
-    vol = sum(z["volume_m3"] for z in st["zones"])
     out = {"zones": [], "frequency_per_m3_s": 0.0, "above_limestone_threshold_per_m3_s": 0.0,
            "above_yeast_burst_per_m3_s": 0.0, "limestone_breaking_per_m3_s": 0.0,
            "power_W_per_m3": 0.0}
-    for z in st["zones"]:
-        w = np.asarray(z["se"]["tn"]["density_per_decade"], float) * dlog  # per bin, sums to 1
-        f = float(z["collision_frequency_per_m3_s"])
-        share = z["volume_m3"] / vol
+    for z, zone in zip(st["zones"], run_source(st).run_zones):
+        f, share, e = zone.collision_rate_per_m3_s, zone.volume_fraction, zone.energy_J
+        # a zone without collisions has no energies: no share of them above anything
+        w = zone.energy_weights if f > 0.0 else np.zeros_like(e)
+        p_lime = -np.expm1(-F_MAT_KG_PER_J_M * X_PROBE_M * e * ELASTICITY_FACTOR / m_p)
         q = {k: (None if v is None else BEAD_MASS_FACTOR * v) for k, v in z["se"]["tn"]["quantiles_j"].items()}
         row = {"zone": z["name"], "collision_frequency_per_m3_s": f,
                "se_tn_q10_J": q.get("q10"), "se_tn_q50_J": q.get("q50"), "se_tn_q90_J": q.get("q90"),
                "collision_power_W_per_m3": float(z["collision_power_w"]) / z["volume_m3"],
-               "share_above_limestone_threshold": float(w[e_mid > LIMESTONE_THRESHOLD_10UM_J].sum()),
-               "share_above_yeast_burst": float(w[e_mid > YEAST_BURST_MEDIAN_J].sum()),
+               "share_above_limestone_threshold": float(w[e > LIMESTONE_THRESHOLD_10UM_J].sum()),
+               "share_above_yeast_burst": float(w[e > YEAST_BURST_MEDIAN_J].sum()),
                "limestone_p_break_3um": float((w * p_lime).sum()),
                "local_filling": float(z["filling"]), "speed_over_tip_speed": float(z["speed_over_tip_speed"])}
         out["zones"].append(row)
