@@ -11,6 +11,7 @@ pytest.importorskip("numba")
 from millfmu.dem import run as R  # noqa: E402
 from millfmu.cli import main  # noqa: E402
 from millfmu.dem.scene import load_scene  # noqa: E402
+from tests._run_stats import stats_without_wall_clock  # noqa: E402
 
 
 def dem_main(argv):
@@ -25,13 +26,6 @@ def _scene():
     # coupled liquid, contacts recorded, frames counted: every part of a run's state
     return load_scene("accelerator_slice").with_overrides(
         sector_deg=30.0, spin_up_s=1e-3, record_s=1.5e-3, sample_every_s=5e-4)
-
-
-def _stats(folder):
-    d = json.loads((folder / "stats.json").read_text())
-    for k in ("wall_time_s", "particle_steps_per_s"):
-        d["counts"].pop(k)
-    return d
 
 
 def test_a_stopped_run_resumes_to_the_same_outputs(tmp_path, monkeypatch):
@@ -102,7 +96,7 @@ def test_a_stopped_run_resumes_to_the_same_outputs(tmp_path, monkeypatch):
     assert dem_main(["run", "--resume", str(parts), "--no-progress"]) == 0
     assert written and set(written) == {1e-9}
     assert not (parts / R.CHECKPOINT).exists()
-    assert _stats(parts) == _stats(whole)
+    assert stats_without_wall_clock(parts) == stats_without_wall_clock(whole)
     for f in ("fluid_fields.npz", "bead_samples.npz"):
         a, b = np.load(whole / f), np.load(parts / f)
         for k in a.files:
@@ -111,7 +105,7 @@ def test_a_stopped_run_resumes_to_the_same_outputs(tmp_path, monkeypatch):
     assert not (parts / FILE).exists() and not (whole / FILE).exists()
     monkeypatch.setattr(R, "_write_checkpoint", write)
     R.resume_run(layout1, progress=False)
-    assert _stats(layout1) == _stats(whole)
+    assert stats_without_wall_clock(layout1) == stats_without_wall_clock(whole)
     assert not (layout1 / FILE).exists()
 
 

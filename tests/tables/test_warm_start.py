@@ -18,6 +18,7 @@ from millfmu.dem.scene import scene_from_dict
 from millfmu.stress_tables.spec import scene_at_point
 from millfmu.stress_tables.table import read_table_ref
 from tests.tables._builders import analytic_builder, spec
+from tests._run_stats import stats_without_wall_clock
 
 
 @pytest.fixture(scope="module")
@@ -429,13 +430,6 @@ def _small(coupled, **point):
     return d
 
 
-def _stats(folder):
-    d = json.loads((folder / "stats.json").read_text())
-    for k in ("wall_time_s", "particle_steps_per_s"):
-        d["counts"].pop(k)
-    return d
-
-
 def test_a_cold_point_runs_as_run_scene_and_keeps_its_state(tmp_path, coupled):
     pytest.importorskip("numba")
     from millfmu.dem.run import run_scene
@@ -448,7 +442,7 @@ def test_a_cold_point_runs_as_run_scene_and_keeps_its_state(tmp_path, coupled):
                                state_dir=tmp_path / "states", kernel_version="kv")
     assert start == {"start": "cold", "spin_up_s": 5e-4}
     # the same run to the bit (the resume path with make_simulation's objects)
-    assert _stats(tmp_path / "point") == _stats(tmp_path / "plain")
+    assert stats_without_wall_clock(tmp_path / "point") == stats_without_wall_clock(tmp_path / "plain")
     assert (tmp_path / "point" / "windows.csv").read_text() == (tmp_path / "plain" / "windows.csv").read_text()
     arrays, meta = W.read_state(W.state_file(tmp_path / "states", d, "kv"), "kv")
     assert meta["start"] == start and meta["scene"] == d
