@@ -7,16 +7,18 @@ import argparse
 import math
 
 
-def whole_number(lo: int):
-    """An argparse type: a whole number >= ``lo``."""
+def whole_number(lo: int, hi: int | None = None, why: str = ""):
+    """An argparse type: a whole number >= ``lo`` (and <= ``hi`` where given; ``why`` says
+    where that bound comes from)."""
+    allowed = f"a whole number >= {lo}" if hi is None else f"a whole number from {lo} to {hi}{why}"
 
     def parse(text: str) -> int:
         try:
             n = int(text)
         except ValueError:
             n = None
-        if n is None or n < lo:
-            raise argparse.ArgumentTypeError(f"{text!r}: allowed a whole number >= {lo}")
+        if n is None or n < lo or (hi is not None and n > hi):
+            raise argparse.ArgumentTypeError(f"{text!r}: allowed {allowed}")
         return n
 
     return parse

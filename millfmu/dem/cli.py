@@ -23,14 +23,9 @@ def thread_count(text: str) -> int:
     start (its NUMBA_NUM_THREADS, by default the cores this process may use)."""
     from numba.core.config import NUMBA_NUM_THREADS
 
-    try:
-        n = int(text)
-    except ValueError:
-        n = None
-    if n is None or not 1 <= n <= NUMBA_NUM_THREADS:
-        raise argparse.ArgumentTypeError(f"{text!r}: allowed a whole number from 1 to {NUMBA_NUM_THREADS} (the "
-                                         "cores numba may use here, NUMBA_NUM_THREADS)")
-    return n
+    from millfmu.arg_types import whole_number
+
+    return whole_number(1, NUMBA_NUM_THREADS, " (the cores numba may use here, NUMBA_NUM_THREADS)")(text)
 
 
 def check_run_folder(out: str, option: str = "--out") -> None:
