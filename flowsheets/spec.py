@@ -48,6 +48,7 @@ import numpy as np
 from millfmu.kinetics.grid import SizeGrid
 from millfmu.mill import psd_fractions
 from millfmu.scene import SceneError, default_scene_text, scene_from_dict
+from millfmu.text_files import NotUtf8, utf8_text
 
 ALGORITHMS = ("jacobi", "gauss-seidel")
 UNIT_TYPES = ("mill", "feed", "tank", "classifier", "pi")
@@ -235,10 +236,9 @@ def load_flowsheet(path) -> Flowsheet:
     except OSError as e:
         raise FlowsheetError("file", str(path), f"cannot be read ({e.strerror})", source) from None
     try:
-        text = raw.decode("utf-8").removeprefix("\ufeff")  # a byte-order mark, as Windows editors write
-    except UnicodeDecodeError as e:
-        line = raw.count(b"\n", 0, e.start) + 1
-        raise FlowsheetError("file", str(path), f"is not UTF-8 text (byte {e.start}, line {line}); save it as UTF-8 "
+        text = utf8_text(raw)
+    except NotUtf8 as e:
+        raise FlowsheetError("file", str(path), f"is not UTF-8 text (byte {e.start}, line {e.line}); save it as UTF-8 "
                              "(TOML)", source) from None
     try:
         d = tomllib.loads(text)

@@ -39,6 +39,7 @@ from millfmu.mill import MillModel
 from millfmu.runner import prediction_band
 from millfmu.scene import default_scene_text, load_scene, toml_text
 from millfmu.stress_tables.table import read_table_ref
+from millfmu.text_files import utf8_text
 
 from . import fmi3_wrapper
 from .leftovers import clean, tag, temp_dir
@@ -253,8 +254,7 @@ def build_fmu(scene_path: str | Path | None, out: str | Path, fmi_version: int =
     # FMU carries it and never runs the DEM.
     table = covering_table(scene, model)
     # UTF-8 (load_scene checked it), without a byte-order mark, which tomllib refuses
-    scene_text = Path(scene_path).read_bytes().decode("utf-8").removeprefix("\ufeff") if scene_path is not None \
-        else default_scene_text()
+    scene_text = utf8_text(Path(scene_path).read_bytes()) if scene_path is not None else default_scene_text()
     pkg_root = Path(millfmu.__file__).parent
 
     with temp_dir("millfmu_fmu_") as tmp:

@@ -24,6 +24,7 @@ else:  # pragma: no cover
     import tomli as tomllib
 
 from .kinetics.stress import PHI_MAX_RCP
+from .text_files import NotUtf8, utf8_text
 from .unit_names import read_as_current
 
 INF = math.inf
@@ -580,11 +581,10 @@ def load_scene(path: str | Path | None = None) -> Scene:
             hint = f" (did you mean {example}, a shipped example?)" if example else ""
             raise SceneError("(file)", str(p), f"cannot be read: {e.strerror or e}{hint}", source) from None
         try:
-            text = raw.decode("utf-8").removeprefix("\ufeff")  # a byte-order mark, as Windows editors write
-        except UnicodeDecodeError as e:
-            line = raw.count(b"\n", 0, e.start) + 1
-            raise SceneError("(encoding)", raw[e.start:e.start + 4].hex(" "),
-                             f"the file must be UTF-8 text (TOML); byte offset {e.start} (line {line}) is not UTF-8 "
+            text = utf8_text(raw)
+        except NotUtf8 as e:
+            raise SceneError("(encoding)", e.bytes.hex(" "),
+                             f"the file must be UTF-8 text (TOML); byte offset {e.start} (line {e.line}) is not UTF-8 "
                              f"({e.reason}); save it as UTF-8", source) from None
     try:
         d = tomllib.loads(text)

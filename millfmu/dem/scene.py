@@ -34,6 +34,7 @@ from millfmu.dem.fluid.settings import DEFAULT_PRESSURE_SOLVER, PRESSURE_SOLVERS
 from millfmu.dem.mills.accelerator import SevSpec
 from millfmu.dem.mills.geometry import MillGeometry
 from millfmu.dem.mills.zones import ZoneSpec
+from millfmu.text_files import NotUtf8, utf8_text
 from millfmu.unit_names import read_as_current
 
 SCENE_DIR = Path(__file__).parent / "scenes"
@@ -317,10 +318,9 @@ def load_scene_dict(name_or_path: str) -> dict:
     except OSError as e:
         raise DemSceneError(f"scene file {str(p)!r}: cannot be read ({e.strerror or e})") from None
     try:
-        text = raw.decode("utf-8").removeprefix("\ufeff")  # a byte-order mark, as Windows editors write
-    except UnicodeDecodeError as e:
-        line = raw.count(b"\n", 0, e.start) + 1
-        raise DemSceneError(f"scene file {str(p)!r}: not UTF-8 text at byte {e.start} (line {line}); save it as "
+        text = utf8_text(raw)
+    except NotUtf8 as e:
+        raise DemSceneError(f"scene file {str(p)!r}: not UTF-8 text at byte {e.start} (line {e.line}); save it as "
                             "UTF-8 (TOML)") from None
     try:
         d = tomllib.loads(text)

@@ -121,7 +121,7 @@ LAYERS = {
     # 0: the PBM kinetics; the DEM engine, its fluid, coupling and mills; neutral helpers
     "millfmu.kinetics": 0, "millfmu.dem": 0, "millfmu.dem.engine": 0, "millfmu.dem.fluid": 0,
     "millfmu.dem.coupling": 0, "millfmu.dem.mills": 0, "millfmu.fmi.base2": 0, "millfmu.fmi.base3": 0,
-    "millfmu.machine": 0, "millfmu.plotstyle": 0, "millfmu.unit_names": 0,
+    "millfmu.machine": 0, "millfmu.plotstyle": 0, "millfmu.unit_names": 0, "millfmu.text_files": 0,
     # 1: DEM scenes, runs, analysis, the table builder; the table reader (below the model,
     # which reads tables; beside the builder, which reads and writes them through it)
     "millfmu.dem.scene": 1, "millfmu.dem.run": 1, "millfmu.dem.analysis": 1,
