@@ -15,6 +15,8 @@ import math
 from dataclasses import dataclass, replace
 from pathlib import Path
 
+from ..text_files import NotUtf8, utf8_text
+
 #: Measured quantities, by column: residual kind and unit.
 SIZE_COLUMNS = ("x10_m", "x50_m", "x90_m")
 #: Largest particle size [m] a bead mill's data may give: beyond it a value is taken to be
@@ -187,8 +189,8 @@ def read_data(path) -> Data:
     except OSError as e:
         raise CalibrationError(f"cannot be read ({e.strerror or e})", "data", str(p)) from None
     try:
-        text = raw.decode("utf-8")
-    except UnicodeDecodeError as e:
+        text = utf8_text(raw)
+    except NotUtf8 as e:
         raise CalibrationError(f"not UTF-8 text (byte {e.start})", "data", str(p)) from None
     d = parse_data(text, str(p))
     return replace(d, sha256=hashlib.sha256(raw).hexdigest())
