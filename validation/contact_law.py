@@ -97,7 +97,9 @@ def _material(mat: dict, rolling: float):
 
 
 def _mass_kg(mat: dict, radius_m: float) -> float:
-    return 4.0 / 3.0 * math.pi * radius_m ** 3 * mat["density_kg_per_m3"]
+    from millfmu.dem.engine.params import bead_mass_kg
+
+    return bead_mass_kg(2.0 * radius_m, mat["density_kg_per_m3"])
 
 
 def _ystar_pa(mat: dict) -> float:
