@@ -131,13 +131,22 @@ class TableSpec:
     the reference scales the grid's fields by what the axis changes at the anchor
     (:meth:`Table.lookup`); it assumes that the axis's effect does not depend on the grid
     axes (separability), a stated assumption. 3 values per axis cost 2 runs instead of
-    multiplying the grid by 3."""
+    multiplying the grid by 3.
+
+    ``across`` (one-at-a-time axis -> {grid axis: values}): where one axis's effect depends
+    on the grid axes (a separability check off the anchor measured more than the stated
+    error), that axis is run at each of its values across a coarse sub-grid of the grid's
+    own nodes instead of at the anchor alone; a lookup then scales the grid's fields by
+    the change interpolated over that sub-grid (held at its edges beyond it). At least 2
+    values per listed grid axis; at the scene's value of the axis, a sub-grid point that is
+    a node of the grid is that node. Absent: the axis is measured at the anchor."""
 
     scene: dict
     grid: dict
     kernel_version: str
     builder_id: str = DEM_BUILDER_ID
     one_at_a_time: dict = field(default_factory=dict)
+    across: dict = field(default_factory=dict)
 
     def __post_init__(self):
         if not self.grid:
@@ -163,6 +172,30 @@ class TableSpec:
         if oat:
             self.anchor()  # the scene must name every grid axis
         object.__setattr__(self, "one_at_a_time", oat)
+        object.__setattr__(self, "across", self._clean_across(self.across or {}))
+
+    def _clean_across(self, across: dict) -> dict:
+        """``across`` checked (one-at-a-time axes over values of grid axes), in the
+        order of AXES, so that equal specifications give equal keys."""
+        clean = {}
+        for name, sub in across.items():
+            name = modern_name(name)
+            if name not in self.one_at_a_time:
+                raise TableError(f"across: {name!r} is not a one-at-a-time axis of the table; "
+                                 f"those are {list(self.one_at_a_time)}")
+            if not isinstance(sub, dict) or not sub:
+                raise TableError(f"across {name}: give grid axes and their values, e.g. "
+                                 f"{{'tip_speed_m_per_s': [6, 10, 14]}}; got {sub!r}")
+            sub = _clean_axes({modern_name(k): v for k, v in sub.items()}, f"across {name}: grid axis")
+            for ax, vals in sub.items():
+                if ax not in self.grid:
+                    raise TableError(f"across {name}: {ax} is not a grid axis; the grid's are "
+                                     f"{list(self.grid)}")
+                if len(vals) < 2:
+                    raise TableError(f"across {name}: {ax} = {list(vals)!r}: give at least 2 "
+                                     f"values, e.g. of the grid's nodes {list(self.grid[ax])}")
+            clean[name] = sub
+        return {k: clean[k] for k in AXES if k in clean}
 
     def scene_value(self, axis: str) -> float:
         """The scene's own value of an axis [its unit in :data:`AXES`]."""
@@ -188,6 +221,24 @@ class TableSpec:
         a = self.anchor()
         return a if self._is_reference(name, v) else dict(a, **{name: v})
 
+    def side_axes(self, name: str) -> dict:
+        """The axes of one-at-a-time axis ``name``'s side table: the axis itself, then the
+        grid axes it is run across (``across``), in the grid's order."""
+        sub = self.across.get(name, {})
+        return {name: self.one_at_a_time[name], **{ax: sub[ax] for ax in self.grid if ax in sub}}
+
+    def side_points(self, name: str) -> list[dict]:
+        """The points of ``name``'s side table in C order (last axis fastest): the anchor
+        with ``name``'s value (:meth:`point_along`) and the sub-grid's values; at the scene's
+        value these are points of the grid (or the anchor)."""
+        axes = self.side_axes(name)
+        out = []
+        for combo in itertools.product(*axes.values()):
+            p = self.point_along(name, combo[0])
+            p.update(zip(list(axes)[1:], combo[1:]))
+            out.append(p)
+        return out
+
     @property
     def shape(self) -> tuple:
         return tuple(len(v) for v in self.grid.values())
@@ -207,8 +258,8 @@ class TableSpec:
         a = self.anchor()
         if a not in pts:
             pts.append(a)
-        for name, vals in self.one_at_a_time.items():
-            pts += [p for p in (self.point_along(name, v) for v in vals) if p != a]
+        for name in self.one_at_a_time:
+            pts += [p for p in self.side_points(name) if p not in pts]
         return pts
 
     def key_content(self) -> dict:
@@ -217,6 +268,8 @@ class TableSpec:
                "kernel_version": self.kernel_version}
         if self.one_at_a_time:  # absent otherwise: keys of tables without it unchanged
             out["one_at_a_time"] = {k: list(v) for k, v in self.one_at_a_time.items()}
+        if self.across:  # absent otherwise: keys of tables without it unchanged
+            out["across"] = {k: {a: list(v) for a, v in sub.items()} for k, sub in self.across.items()}
         return out
 
     def key(self) -> str:
@@ -316,6 +369,12 @@ def resolution_of(spec: TableSpec) -> dict:
                      "by their ratio, the energy distributions shifted by the change of their "
                      "median): separability assumed; a separability_check, where the manifest "
                      "has one, measures it off the anchor")}
+        if spec.across:
+            res["one_at_a_time"]["across"] = {k: {a: list(v) for a, v in sub.items()}
+                                              for k, sub in spec.across.items()}
+            res["one_at_a_time"]["note"] += (
+                "; an axis named in 'across' is run at each of its values across that sub-grid "
+                "of the grid's nodes, and the change is interpolated over it")
     if spec.builder_id == DEM_BUILDER_ID:
         mill, run = spec.scene.get("mill", {}), spec.scene.get("run", {})
         res["dem"] = {"sector_deg": mill.get("sector_deg", 360.0),

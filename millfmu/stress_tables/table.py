@@ -133,7 +133,8 @@ class Table:
                 self.one_at_a_time and set(self.anchor) != set(self.axes)):
             raise TableError("table: one-at-a-time axes without their reference or anchor")
         for name, side in self.one_at_a_time.items():
-            if list(side.axes) != [name] or side.zone_names != self.zone_names:
+            if list(side.axes)[:1] != [name] or not set(list(side.axes)[1:]) <= set(self.axes) \
+                    or side.zone_names != self.zone_names:
                 raise TableError(f"table: one-at-a-time axis {name}: its table has axes "
                                  f"{list(side.axes)} and zones {side.zone_names}")
             side.check_shapes()
@@ -200,12 +201,13 @@ class Table:
         sqrt(sum w_c^2 sigma_c^2); :meth:`Lookup.bound` combines the two.
         """
         similar = set(similar_axes)
-        idx, ts, notes, assumed = [], [], [], set()
+        idx, ts, notes, assumed, used = [], [], [], set(), {}
         for name, ax in self.axes.items():
             if name not in point:
                 raise TableError(f"table lookup: axis {name} missing from the point "
                                  f"{point!r}; the table's axes: {list(self.axes)}")
             x, note = self.axis_value(name, float(point[name]), similar)
+            used[name] = x
             if note:
                 notes.append(note)
                 assumed.add(name)
@@ -243,7 +245,7 @@ class Table:
                 raise TableError(f"table lookup: one-at-a-time axis {name} missing from the "
                                  f"point {point!r}; the table's axes: {list(self.axes)} and "
                                  f"one at a time {list(self.one_at_a_time)}")
-            s_, e_, g_ = self._apply_one_at_a_time(lk, name, float(point[name]), similar)
+            s_, e_, g_ = self._apply_one_at_a_time(lk, name, float(point[name]), similar, used)
             shift, d_err, d_sig = shift + s_, d_err + e_, np.hypot(d_sig, g_)
         if np.any(shift != 0.0):
             # one shift for all axes: successive shifts would each smear by a bin
@@ -259,9 +261,12 @@ class Table:
                     np.hypot(d["se_density"], extra)
         return lk
 
-    def _apply_one_at_a_time(self, lk: Lookup, name: str, x: float, similar):
+    def _apply_one_at_a_time(self, lk: Lookup, name: str, x: float, similar, at_grid: dict):
         """Scale the grid's fields at ``lk`` by what axis ``name`` changes at the anchor,
-        from its reference (the scene's value) to ``x`` (separability assumed):
+        from its reference (the scene's value) to ``x`` (separability assumed); where the
+        axis was run across a sub-grid of the grid axes (``TableSpec.across``: its side
+        table has those axes too), by the change interpolated there at the lookup's values
+        of them, ``at_grid`` (held at the sub-grid's edges beyond it):
 
         - local filling, speed, collision frequency and power: times S(x) / S(ref), S the
           side table's value per zone (unchanged where S(ref) = 0);
@@ -283,11 +288,21 @@ class Table:
         ref = self.one_at_a_time_ref[name]
         if math.isclose(xu, ref, rel_tol=FIXED_AXIS_RTOL):
             return 0.0, 0.0, 0.0
-        at = side.lookup({name: xu})
-        r0 = side.lookup({name: ref})
-        lk.notes.append(f"{name} = {x!r}: the grid's fields scaled by the change from "
-                        f"{ref!r} at the anchor {self.anchor} (one-at-a-time axis; "
-                        f"separability assumed)")
+        across = {}
+        for ax in list(side.axes)[1:]:
+            a = side.axes[ax]
+            across[ax] = min(max(float(at_grid[ax]), float(a[0])), float(a[-1]))
+        at = side.lookup({name: xu, **across})
+        r0 = side.lookup({name: ref, **across})
+        if across:
+            where = ", ".join(f"{ax} = {v:g}" for ax, v in across.items())
+            lk.notes.append(f"{name} = {x!r}: the grid's fields scaled by the change from "
+                            f"{ref!r} interpolated at {where} over the sub-grid it was run "
+                            f"across (one-at-a-time axis)")
+        else:
+            lk.notes.append(f"{name} = {x!r}: the grid's fields scaled by the change from "
+                            f"{ref!r} at the anchor {self.anchor} (one-at-a-time axis; "
+                            f"separability assumed)")
 
         def rel(a, b):
             with np.errstate(divide="ignore", invalid="ignore"):
@@ -334,26 +349,27 @@ class Table:
 
         A check c of axis A measured b_c = max(l/r, r/l) - 1 per zone (l the lookup, r the
         run; the factor the band's edges (1 + b)^(+-1) must span). At a point where A is off
-        its reference and the grid axes are off the anchor, the error is taken to grow with
-        both distances: b = max_c b_c (g / g_c) (h / h_c), g the largest distance from the
-        anchor over the grid axes in units of each axis's range, h = |ln(x / x_ref)| on A;
-        summed over the axes off their reference. 0 at the anchor and on the references. NaN
-        in every zone for an axis off its reference off the anchor that no check measured,
-        and in a zone that every check of the axis found empty."""
+        its reference and the grid axes are off where A was measured, the error is taken to
+        grow with both distances: b = max_c b_c (g / g_c) (h / h_c), g the largest distance
+        over the grid axes from where A was run (the anchor; on an axis A was run across,
+        the nearest of those values), in units of each axis's range, h = |ln(x / x_ref)| on
+        A; summed over the axes off their reference. 0 where A was run and on the
+        references. NaN in every zone for an axis off its reference away from where it was
+        run that no check measured, and in a zone that every check of the axis found empty."""
         names = self.zone_names
         out = {"collision_frequency": np.zeros(len(names)), "se_median": np.zeros(len(names))}
-        g = self._anchor_distance(point)
-        if not self.one_at_a_time or g == 0.0:
+        if not self.one_at_a_time:
             return out
         checks = (self.manifest.get("separability_check") or {}).get("points") or []
         for name, ref in self.one_at_a_time_ref.items():
             h = abs(math.log(float(point.get(name, ref)) / ref))
-            if h <= FIXED_AXIS_RTOL:
+            g = self._measured_distance(name, point)
+            if h <= FIXED_AXIS_RTOL or g == 0.0:
                 continue
             worst = {k: np.full(len(names), np.nan) for k in out}
             for c in checks:
                 hc = abs(math.log(float(c["point"].get(name, ref)) / ref))
-                gc = self._anchor_distance(c["point"])
+                gc = self._measured_distance(name, c["point"])
                 if hc <= FIXED_AXIS_RTOL or gc == 0.0:
                     continue
                 for key, fld in (("collision_frequency", "collision_frequency_norm"),
@@ -441,15 +457,19 @@ class Table:
                         if sd and len(sd) == len(names) else np.zeros(len(names)))
         return out
 
-    def _anchor_distance(self, point: dict) -> float:
-        """Largest distance of ``point`` from the anchor over the grid axes, in units of each
-        axis's range [-] (0 without an anchor)."""
+    def _measured_distance(self, name: str, point: dict) -> float:
+        """Largest distance of ``point`` over the grid axes from where one-at-a-time axis
+        ``name`` was run, in units of each axis's range [-]: from the anchor's value, or on a
+        grid axis its side table spans (``across``), from the nearest of its values there."""
+        side = self.one_at_a_time[name]
         d = 0.0
-        for name, a in self.anchor.items():
-            ax = self.axes.get(name)
-            if ax is None or ax.size < 2 or name not in point:
+        for ax, a in self.anchor.items():
+            grid = self.axes.get(ax)
+            if grid is None or grid.size < 2 or ax not in point:
                 continue
-            d = max(d, abs(float(point[name]) - float(a)) / float(ax[-1] - ax[0]))
+            x = float(point[ax])
+            near = side.axes[ax] if ax in side.axes else np.array([float(a)])
+            d = max(d, float(np.min(np.abs(near - x))) / float(grid[-1] - grid[0]))
         return d
 
     def node_sigma(self) -> dict:
@@ -557,7 +577,8 @@ class Table:
         try:
             return TableSpec(scene=m["scene"], grid=m["grid"],
                              kernel_version=m["kernel_version"], builder_id=m["builder"],
-                             one_at_a_time=m.get("one_at_a_time") or {})
+                             one_at_a_time=m.get("one_at_a_time") or {},
+                             across=m.get("across") or {})
         except KeyError as e:
             raise TableError(f"table: manifest lacks {e}; not a cached or exported table") \
                 from None
@@ -593,7 +614,7 @@ class Table:
             old = self.spec()
             spec = TableSpec(scene=old.scene, grid={k: list(v) for k, v in axes.items()},
                              kernel_version=old.kernel_version, builder_id=old.builder_id,
-                             one_at_a_time=old.one_at_a_time)
+                             one_at_a_time=old.one_at_a_time, across=old.across)
             sub.manifest = manifest_for(spec, sub, {"slice_of": self.manifest.get("key")},
                                         work_precision=self.manifest.get("work_precision"))
             # what the stated error reads from the full table's manifest
@@ -791,7 +812,8 @@ def _manifest_spec(m: dict, manifest_path: Path, expect_key: str | None, expect_
     its kernel version against ``expect_kernel``."""
     try:
         spec = TableSpec(scene=m["scene"], grid=m["grid"], kernel_version=m["kernel_version"],
-                         builder_id=m["builder"], one_at_a_time=m.get("one_at_a_time") or {})
+                         builder_id=m["builder"], one_at_a_time=m.get("one_at_a_time") or {},
+                         across=m.get("across") or {})
     except KeyError as e:
         raise TableError(f"{manifest_path}: key {e} missing") from None
     except (TypeError, ValueError) as e:
@@ -846,14 +868,18 @@ def _table_from_arrays(arrs: dict, spec: TableSpec, m: dict, npz: Path) -> Table
         axes[name] = a
     t = _table_of(arrs, axes, tuple(m["zone_names"]))
     t.manifest = m
-    for name, vals in spec.one_at_a_time.items():
+    for name in spec.one_at_a_time:
         pre = f"{ONE_AT_A_TIME_PREFIX}{name}__"
         sub = {k[len(pre):]: v for k, v in arrs.items() if k.startswith(pre)}
-        a = sub.get(f"axis_{name}")
-        if a is None or not np.array_equal(a, np.asarray(vals)) or "reference" not in sub:
-            raise TableError(f"{npz}: one-at-a-time axis {name} missing or differs from the "
-                             f"manifest")
-        t.one_at_a_time[name] = _table_of(sub, {name: a}, t.zone_names)
+        side_axes = {}
+        for ax, vals in spec.side_axes(name).items():
+            a = sub.get(f"axis_{ax}")
+            if a is None or not np.array_equal(a, np.asarray(vals)) or "reference" not in sub:
+                raise TableError(f"{npz}: one-at-a-time axis {name} missing or differs from the "
+                                 f"manifest" + (f" (its sub-grid axis {ax}, the manifest's across)"
+                                                if ax != name else ""))
+            side_axes[ax] = a
+        t.one_at_a_time[name] = _table_of(sub, side_axes, t.zone_names)
         t.one_at_a_time_ref[name] = float(sub["reference"])
     if spec.one_at_a_time:
         t.anchor = {k: float(arrs[f"anchor_{k}"]) for k in axes if f"anchor_{k}" in arrs}

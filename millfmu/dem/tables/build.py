@@ -137,10 +137,10 @@ def unstack(spec: TableSpec, table: Table) -> list:
     shape = spec.shape
     for i, point in enumerate(spec.grid_points()):
         out.append((point, one(table, np.unravel_index(i, shape))))
-    for name, vals in spec.one_at_a_time.items():
+    for name in spec.one_at_a_time:
         side = table.one_at_a_time[name]
-        for j, v in enumerate(vals):
-            out.append((spec.point_along(name, v), one(side, (j,))))
+        for j, p in enumerate(spec.side_points(name)):
+            out.append((p, one(side, np.unravel_index(j, side.shape))))
     return out
 
 
@@ -159,8 +159,10 @@ def _plain(obj):
 
 def assemble(spec: TableSpec, results: list[dict]) -> Table:
     """Stack per-point builder results (in the order of :meth:`TableSpec.points`): the grid
-    points into the table, the anchor and one-at-a-time points into its 1-D side tables
-    (``Table.one_at_a_time``, each holding the scene's value from the anchor's result)."""
+    points into the table, the anchor and one-at-a-time points into its side tables
+    (``Table.one_at_a_time``: 1-D along the axis at the anchor, each holding the scene's
+    value from the anchor's result; over the axis and its ``across`` sub-grid where the spec
+    names one, the scene's value there from the grid's results)."""
     points = spec.points()
     if len(results) != len(points):
         raise TableError(f"assemble: {len(results)} results for {len(points)} points")
@@ -173,10 +175,9 @@ def assemble(spec: TableSpec, results: list[dict]) -> Table:
     t = _stack(spec.grid, results[:n], zn)
     if spec.one_at_a_time:
         by_point = {json.dumps(p, sort_keys=True): r for p, r in zip(points, results)}
-        for name, vals in spec.one_at_a_time.items():
-            rs = [by_point[json.dumps(spec.point_along(name, v), sort_keys=True)]
-                  for v in vals]
-            t.one_at_a_time[name] = _stack({name: vals}, rs, zn)
+        for name in spec.one_at_a_time:
+            rs = [by_point[json.dumps(p, sort_keys=True)] for p in spec.side_points(name)]
+            t.one_at_a_time[name] = _stack(spec.side_axes(name), rs, zn)
             t.one_at_a_time_ref[name] = spec.scene_value(name)
         t.anchor = spec.anchor()
     return t

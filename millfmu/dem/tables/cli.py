@@ -20,6 +20,7 @@ reads the evidence they write (:mod:`millfmu.dem.tables.equivalence`).
 from __future__ import annotations
 
 import argparse
+import math
 import importlib
 import json
 import shlex
@@ -76,6 +77,24 @@ def _axis_names(text: str) -> list:
     return out
 
 
+def _across(text: str) -> tuple:
+    """``AXIS:GRID-AXIS=V1,V2,..[:GRID-AXIS=..]`` -> (axis name, {grid axis name: values})."""
+    parts = [x.strip() for x in text.split(":")]
+    if len(parts) < 2 or not all(parts):
+        raise argparse.ArgumentTypeError(
+            f"{text!r}: expected AXIS:GRID-AXIS=V1,V2,.., e.g. "
+            f"bead-density:tip-speed=6,10,14:filling=0.5,0.8,0.9")
+    (axis,) = _axis_names(parts[0])
+    sub = {}
+    for part in parts[1:]:
+        name, eq, vals = part.partition("=")
+        if not eq:
+            raise argparse.ArgumentTypeError(f"{part!r} in {text!r}: expected GRID-AXIS=V1,V2,..")
+        (grid_axis,) = _axis_names(name)
+        sub[grid_axis] = _floats(vals)
+    return axis, sub
+
+
 def _cache_opt(q) -> None:
     q.add_argument("--cache-dir", metavar="DIR", help="tables cache folder (default: "
                    "$MILLFMU_CACHE_DIR, else $XDG_CACHE_HOME/millfmu/tables, else "
@@ -124,6 +143,10 @@ def _register_build(sub) -> None:
                    help="axes (e.g. bead-diameter,bead-density) varied one at a time from the "
                         "scene's operating point instead of over the whole grid; their values "
                         "must include the scene's")
+    b.add_argument("--across", type=_across, action="append", metavar="AXIS:GRID-AXIS=V1,V2,..",
+                   help="run a one-at-a-time axis at each of its values across a sub-grid of grid "
+                        "axes, where its effect depends on them, e.g. "
+                        "bead-density:tip-speed=6,10,14:filling=0.5,0.8,0.9 (repeatable)")
     b.add_argument("--no-gravity", action="store_true", help="switch gravity off")
     b.add_argument("--fluid", choices=("coupled", "prescribed", "none"),
                    help="fluid model of the DEM runs (default: the scene's [fluid] mode; "
@@ -247,11 +270,13 @@ def _build(args) -> int:
         builder = _load_builder(args.builder, threads)
         if args.warm:
             builder = _warm(builder)
-        spec = T.dem_spec(args.scene, grid, over, one_at_a_time=oat)
+        across = dict(args.across or ())
+        spec = T.dem_spec(args.scene, grid, over, one_at_a_time=oat, across=across)
         if args.builder:
             spec = T.TableSpec(scene=spec.scene, grid=spec.grid,
                                kernel_version=spec.kernel_version,
-                               builder_id=T.builder_id_of(builder), one_at_a_time=oat)
+                               builder_id=T.builder_id_of(builder), one_at_a_time=oat,
+                               across=across)
         table = T.get_table(spec, builder, cache_dir=args.cache_dir, force=args.force,
                             log=_to_stderr, executor=args.executor, workers=args.workers,
                             scheduler=args.scheduler, progress=not args.no_progress)
@@ -260,7 +285,9 @@ def _build(args) -> int:
         return 2
     entry = T.entry_dir(spec, args.cache_dir)
     m = table.manifest
-    extra = "".join(f" + {len(v)} {k} values one at a time" for k, v in oat.items())
+    extra = "".join(f" + {len(v)} {k} values one at a time" +
+                    (f" across {math.prod(len(x) for x in spec.across[k].values())} grid points"
+                     if k in spec.across else "") for k, v in oat.items())
     print(f"table {spec.key()} ({' x '.join(map(str, spec.shape))} points{extra}, "
           f"{(entry / T.TABLE_FILE).stat().st_size} bytes): {entry}")
     if m.get("build_wall_time_s"):
@@ -293,6 +320,9 @@ def _command(args) -> str:
     if args.one_at_a_time:
         by_axis = {axis: opt[2:] for opt, (axis, _) in GRID_OPTIONS.items()}
         cmd += ["--one-at-a-time", ",".join(by_axis[a] for a in args.one_at_a_time)]
+        for axis, sub in args.across or ():
+            cmd += ["--across", ":".join([by_axis[axis]] + [
+                f"{by_axis[a]}={','.join(f'{x:g}' for x in v)}" for a, v in sub.items()])]
     for opt, (sec, key, _) in RUN_OPTIONS.items():
         v = getattr(args, f"run_{sec}_{key}")
         if v is not None:

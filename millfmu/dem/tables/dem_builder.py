@@ -266,16 +266,16 @@ def recording_drift(windows_csv, zone_names) -> dict:
 
 
 def dem_spec(scene_name_or_path: str, grid: dict, overrides: dict | None = None,
-             one_at_a_time: dict | None = None) -> TableSpec:
+             one_at_a_time: dict | None = None, across: dict | None = None) -> TableSpec:
     """Spec for a DEM table: the scene file's content (TOML -> dict) with ``overrides``
     (section -> {key: value}, e.g. {"run": {"spin_up_s": 0.05}}) merged in, validated;
-    ``one_at_a_time``: axes varied one at a time from the scene's point
-    (:class:`TableSpec`)."""
+    ``one_at_a_time``: axes varied one at a time from the scene's point, ``across``: those
+    of them run across a sub-grid of the grid axes (:class:`TableSpec`)."""
     d = load_scene_dict(scene_name_or_path)
     for sec, kv in (overrides or {}).items():
         d.setdefault(sec, {}).update(kv)
     spec = TableSpec(scene=d, grid=grid, kernel_version=dem_kernel_version(),
-                     one_at_a_time=one_at_a_time or {})
+                     one_at_a_time=one_at_a_time or {}, across=across or {})
     gp = spec.grid_points()
     # validate the grid's corners and every point off the grid early
     for p in [gp[0], gp[-1]] + spec.points()[len(gp):]:

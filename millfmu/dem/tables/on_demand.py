@@ -135,7 +135,7 @@ def unbuildable(table: Table, point: dict, builder) -> None:
     old = table.spec()
     grid, oat = extended_axes(old, point)
     spec = TableSpec(scene=old.scene, grid=grid, kernel_version=old.kernel_version,
-                     builder_id=old.builder_id, one_at_a_time=oat)
+                     builder_id=old.builder_id, one_at_a_time=oat, across=old.across)
     ran = old.points()
     for p in spec.points():
         if p in ran:
@@ -255,7 +255,7 @@ def plan(table: Table, point: dict, builder, kernel_version: str, cache_dir=None
     old = table.spec()
     grid, oat = extended_axes(old, point)
     spec = TableSpec(scene=old.scene, grid=grid, kernel_version=kernel_version,
-                     builder_id=builder_id_of(builder), one_at_a_time=oat)
+                     builder_id=builder_id_of(builder), one_at_a_time=oat, across=old.across)
     store = PointStore(_cache.resolve_cache_dir(cache_dir) / _cache.POINTS_DIR)
     have = [r is not None for r in stored_results(spec, store)]
     if not all(have):

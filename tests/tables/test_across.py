@@ -1,0 +1,210 @@
+"""A one-at-a-time axis run across a sub-grid of the grid axes (``TableSpec.across``), where
+its effect depends on them: the points run, the lookup's scaling interpolated over the
+sub-grid (exact at its nodes), files, the separability error's distance and the CLI."""
+
+from __future__ import annotations
+
+import json
+import math
+
+import numpy as np
+import pytest
+
+from millfmu.dem import tables as T
+from tests.tables._builders import (D_GB_M, RHO_KG_PER_M3, _densities, q50_norm,
+                                    separable_builder)
+
+RHO_HI = 6040.0
+SUB = {"tip_speed_m_per_s": [6.0, 14.0], "filling": [0.5, 0.7, 0.9]}
+
+
+def density_effect(rho: float, v: float, phi: float) -> tuple:
+    """What the bead density changes beyond the separable builder's: rates times
+    (rho/2510)^(0.05 (v - 10)), energies shifted by log10 (rho/2510)^(0.5 (phi - 0.7)), so
+    that its effect at 6 m/s and 50 % is not its effect at the anchor (10 m/s, 70 %)."""
+    r = rho / RHO_KG_PER_M3
+    return r ** (0.05 * (v - 10.0)), math.log10(r ** (0.5 * (phi - 0.7)))
+
+
+def coupled_builder(scene: dict, point: dict) -> dict:
+    beads = scene.get("beads", {})
+    rho = float(point.get("bead_density_kg_per_m3", beads.get("density_kg_per_m3", RHO_KG_PER_M3)))
+    d = float(point.get("bead_diameter_m", beads.get("diameter_m", D_GB_M)))
+    v = float(point.get("tip_speed_m_per_s", 10.0))
+    phi = float(point.get("filling", 0.8))
+    out = separable_builder(scene, point)
+    f, shift = density_effect(rho, v, phi)
+    for k in ("filling_local", "speed_over_tip_speed", "collision_frequency_norm",
+              "collision_power_norm"):
+        out[k] = out[k] * f
+    out["se_quantiles_norm"] = out["se_quantiles_norm"] * 10.0 ** shift
+    base = math.log10((d / D_GB_M) ** 0.7 * (rho / RHO_KG_PER_M3) ** 0.3)
+    out["se_density"] = np.array(_densities(np.log10(q50_norm(v, phi)) + base + shift))
+    return out
+
+
+def spec(across=None) -> T.TableSpec:
+    scene = {"name": "coupled-effect", "mill": {"tip_speed_m_per_s": 10.0},
+             "beads": {"filling": 0.7, "diameter_m": D_GB_M, "density_kg_per_m3": RHO_KG_PER_M3}}
+    return T.TableSpec(scene=scene,
+                       grid={"tip_speed_m_per_s": [6.0, 10.0, 14.0], "filling": [0.5, 0.7, 0.9]},
+                       kernel_version="test-kernel-1",
+                       builder_id=T.builder_id_of(coupled_builder),
+                       one_at_a_time={"bead_diameter_m": [0.5e-3, D_GB_M, 1.2e-3],
+                                      "bead_density_kg_per_m3": [RHO_KG_PER_M3, RHO_HI]},
+                       across={} if across is None else across)
+
+
+@pytest.fixture(scope="module")
+def tables(tmp_path_factory):
+    d = tmp_path_factory.mktemp("across")
+    kw = dict(cache_dir=d / "c", executor="serial", progress=False)
+    return (T.get_table(spec({"bead_density_kg_per_m3": SUB}), coupled_builder, **kw),
+            T.get_table(spec(), coupled_builder, **kw))
+
+
+def _point(v, phi, rho=RHO_HI, d=D_GB_M):
+    return {"tip_speed_m_per_s": v, "filling": phi, "bead_diameter_m": d,
+            "bead_density_kg_per_m3": rho}
+
+
+def test_points_key_and_side_table():
+    s = spec({"bead_density_kg_per_m3": SUB})
+    pts = s.points()
+    # 9 grid points (the anchor among them), 2 diameters at the anchor, the density's other
+    # value at the 2 x 3 sub-grid (at the scene's density the sub-grid's points are the grid's)
+    assert len(pts) == 9 + 2 + 6
+    assert {"tip_speed_m_per_s": 6.0, "filling": 0.5, "bead_density_kg_per_m3": RHO_HI} in pts
+    assert list(s.side_axes("bead_density_kg_per_m3")) == [
+        "bead_density_kg_per_m3", "tip_speed_m_per_s", "filling"]
+    assert list(s.side_axes("bead_diameter_m")) == ["bead_diameter_m"]
+    # a table without ``across`` keeps its key; with it, the sub-grid is part of the key
+    assert "across" not in spec().key_content()
+    assert s.key() != spec().key()
+    assert s.key_content()["across"] == {"bead_density_kg_per_m3": SUB}
+
+
+def test_spec_errors_name_the_item():
+    with pytest.raises(T.TableError, match="'filling' is not a one-at-a-time axis"):
+        spec({"filling": {"tip_speed_m_per_s": [6.0, 14.0]}})
+    with pytest.raises(T.TableError, match="viscosity_Pa_s is not a grid axis"):
+        spec({"bead_density_kg_per_m3": {"viscosity_Pa_s": [0.001, 0.002]}})
+    with pytest.raises(T.TableError, match=r"filling = \[0.5\]: give at least 2 values"):
+        spec({"bead_density_kg_per_m3": {"filling": [0.5]}})
+
+
+@pytest.mark.parametrize("v,phi", [(6.0, 0.5), (14.0, 0.9), (6.0, 0.7), (14.0, 0.5)])
+def test_exact_at_the_sub_grids_nodes_where_the_anchor_alone_misses(tables, v, phi):
+    """At the sub-grid's nodes the lookup is the builder's run; a table that ran the density
+    at the anchor alone misses by the effect's dependence on tip speed and filling."""
+    across, alone = tables
+    run = coupled_builder({"beads": {"diameter_m": D_GB_M}}, _point(v, phi))
+    a, b = across.lookup(_point(v, phi)), alone.lookup(_point(v, phi))
+    for k in ("collision_frequency_norm", "filling_local", "speed_over_tip_speed"):
+        np.testing.assert_allclose(a.values[k], run[k], rtol=1e-12)
+    np.testing.assert_allclose(a.values["se_quantiles_norm"][..., 1],
+                               run["se_quantiles_norm"][..., 1], rtol=1e-12)
+    f, shift = density_effect(RHO_HI, v, phi)
+    f0, shift0 = density_effect(RHO_HI, 10.0, 0.7)
+    miss = b.values["collision_frequency_norm"] / run["collision_frequency_norm"]
+    np.testing.assert_allclose(miss, f0 / f, rtol=1e-12)
+    assert not np.allclose(miss, 1.0, rtol=1e-3)
+    assert any("sub-grid it was run across" in n for n in a.notes)
+
+
+def test_between_nodes_nearer_than_the_anchor_alone(tables):
+    across, alone = tables
+    p = _point(8.0, 0.6)
+    run = coupled_builder({"beads": {"diameter_m": D_GB_M}}, p)
+    err = [abs(t.lookup(p).values["collision_frequency_norm"][0] / run["collision_frequency_norm"][0] - 1)
+           for t in (across, alone)]
+    assert err[0] < 0.5 * err[1]
+    # the density at its reference: the grid alone, whatever the sub-grid
+    ref = _point(8.0, 0.6, rho=RHO_KG_PER_M3)
+    np.testing.assert_array_equal(across.lookup(ref).values["collision_frequency_norm"],
+                                  alone.lookup(ref).values["collision_frequency_norm"])
+
+
+def test_files_round_trip_and_slice(tables, tmp_path):
+    across, _ = tables
+    npz, man = across.export(tmp_path / "t")
+    back = T.read_table(npz=npz, manifest_path=man)
+    side = back.one_at_a_time["bead_density_kg_per_m3"]
+    assert list(side.axes) == ["bead_density_kg_per_m3", "tip_speed_m_per_s", "filling"]
+    assert side.shape == (2, 2, 3)
+    p = _point(7.0, 0.55)
+    np.testing.assert_array_equal(back.lookup(p).values["se_density"],
+                                  across.lookup(p).values["se_density"])
+    assert json.loads(man.read_text())["across"] == {"bead_density_kg_per_m3": SUB}
+    part = across.subset({"tip_speed_m_per_s": (6.0, 9.0)})
+    np.testing.assert_array_equal(part.lookup(p).values["collision_frequency_norm"],
+                                  across.lookup(p).values["collision_frequency_norm"])
+    # a side table whose sub-grid differs from the manifest's is refused
+    m = json.loads(man.read_text())
+    m["across"]["bead_density_kg_per_m3"]["filling"] = [0.5, 0.9]
+    with pytest.raises(T.TableError):
+        T.read_table(npz=npz, manifest_path=_rewrite(man, m))
+
+
+def _rewrite(man, m):
+    from millfmu.stress_tables.files import manifest_digest
+
+    m = {k: v for k, v in m.items() if k != "manifest_sha256"}
+    m["key"] = T.TableSpec(scene=m["scene"], grid=m["grid"], kernel_version=m["kernel_version"],
+                           builder_id=m["builder"], one_at_a_time=m["one_at_a_time"],
+                           across=m["across"]).key()
+    m["manifest_sha256"] = manifest_digest(m)
+    man.write_text(json.dumps(m))
+    sums = man.with_name(man.name + ".sha256")
+    if sums.exists():
+        sums.unlink()
+    return man
+
+
+def test_separability_error_counts_the_distance_from_the_sub_grid(tables):
+    """A check off the sub-grid's nodes states b = b_c (g / g_c) (h / h_c), g the distance
+    from the nearest sub-grid value per grid axis; zero where the density was run."""
+    across, _ = tables
+    t = _with_check(across, {"tip_speed_m_per_s": 10.0, "filling": 0.6, "bead_diameter_m": D_GB_M,
+                             "bead_density_kg_per_m3": RHO_HI}, 0.2)
+    # the check's distance: tip speed on the sub-grid's 6/14 is 4/8, filling 0.1/0.4
+    at = t.separability_error(_point(10.0, 0.6))
+    assert at["collision_frequency"][0] == pytest.approx(0.2)
+    for p in (_point(6.0, 0.5), _point(14.0, 0.7), _point(6.0, 0.6, rho=RHO_KG_PER_M3)):
+        assert t.separability_error(p)["collision_frequency"][0] == 0.0
+    # half the check's distance (tip speed 8: 2/8 from 6 m/s)
+    assert t.separability_error(_point(8.0, 0.5))["collision_frequency"][0] == pytest.approx(0.1)
+    # off the sub-grid with no check: not stated
+    assert math.isnan(across.separability_error(_point(8.0, 0.5))["collision_frequency"][0])
+
+
+def _with_check(table, point, b):
+    import copy
+
+    t = copy.copy(table)
+    c = {"point": point, "collision_frequency_norm": {"lookup_rel_diff": [b, b]},
+         "se_tn_q50_norm": {"lookup_rel_diff": [b, b]}}
+    t.manifest = dict(table.manifest, separability_check={"measure": "test", "points": [c]})
+    return t
+
+
+def test_cli_across_builds_and_names_it_in_the_rebuild_command(tmp_path, capsys):
+    from millfmu.cli import main
+
+    argv = ["tables", "build", "--scene", "disc_slice", "--tip-speed", "8,10,12",
+            "--filling", "0.7,0.8", "--bead-density", "2510,6040", "--one-at-a-time",
+            "bead-density", "--across", "bead-density:tip-speed=8,12", "--sector-deg", "10",
+            "--no-gravity", "--cache-dir", str(tmp_path / "cache"), "--executor", "serial",
+            "--no-progress", "--builder", "tests.tables.test_across:coupled_builder",
+            "--export", str(tmp_path / "t")]
+    assert main(argv) == 0
+    out = capsys.readouterr().out
+    assert "3 x 2 points + 2 bead_density_kg_per_m3 values one at a time across 2 grid points" in out
+    m = json.loads((tmp_path / "t.json").read_text())
+    assert "--one-at-a-time bead-density --across bead-density:tip-speed=8,12" in m["rebuild_command"]
+    assert m["across"] == {"bead_density_kg_per_m3": {"tip_speed_m_per_s": [8.0, 12.0]}}
+    assert main(argv[:-2] + ["--across", "bead-diameter:tip-speed=8,12"]) == 2
+    assert "'bead_diameter_m' is not a one-at-a-time axis" in capsys.readouterr().err
+    with pytest.raises(SystemExit):
+        main(argv[:2] + ["--across", "bead-density"])
+    assert "expected AXIS:GRID-AXIS=V1,V2" in capsys.readouterr().err
