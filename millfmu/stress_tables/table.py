@@ -355,7 +355,9 @@ class Table:
         the nearest of those values), in units of each axis's range, h = |ln(x / x_ref)| on
         A; summed over the axes off their reference. 0 where A was run and on the
         references. NaN in every zone for an axis off its reference away from where it was
-        run that no check measured, and in a zone that every check of the axis found empty."""
+        run that no check measured, and in a zone that every check of the axis found empty.
+        A check at a node of the axis's side table (g_c = 0: another realization of it) adds
+        its b_c there, carried to nearby points by the side table's interpolation weights."""
         names = self.zone_names
         out = {"collision_frequency": np.zeros(len(names)), "se_median": np.zeros(len(names))}
         if not self.one_at_a_time:
@@ -363,25 +365,64 @@ class Table:
         checks = (self.manifest.get("separability_check") or {}).get("points") or []
         for name, ref in self.one_at_a_time_ref.items():
             h = abs(math.log(float(point.get(name, ref)) / ref))
-            g = self._measured_distance(name, point)
-            if h <= FIXED_AXIS_RTOL or g == 0.0:
+            if h <= FIXED_AXIS_RTOL:
                 continue
-            worst = {k: np.full(len(names), np.nan) for k in out}
+            g = self._measured_distance(name, point)
+            worst = {k: np.full(len(names), np.nan) if g > 0.0 else np.zeros(len(names)) for k in out}
+            at_nodes = {k: np.zeros(len(names)) for k in out}
+            weights = None
             for c in checks:
                 hc = abs(math.log(float(c["point"].get(name, ref)) / ref))
-                gc = self._measured_distance(name, c["point"])
-                if hc <= FIXED_AXIS_RTOL or gc == 0.0:
+                if hc <= FIXED_AXIS_RTOL:
                     continue
+                gc = self._measured_distance(name, c["point"])
+                if gc > 0.0 and g == 0.0:
+                    continue
+                if gc == 0.0:  # another realization of a node of the axis's side table
+                    if weights is None:
+                        weights = self._side_weights(name, point)
+                    w = weights.get(self._side_node(name, c["point"]), 0.0)
+                    if w == 0.0:
+                        continue
                 for key, fld in (("collision_frequency", "collision_frequency_norm"),
                                  ("se_median", "se_tn_q50_norm")):
                     r = np.array([np.nan if v is None else float(v)
                                   for v in c[fld]["lookup_rel_diff"]])
                     with np.errstate(divide="ignore", invalid="ignore"):
                         b = np.maximum(1.0 + r, 1.0 / (1.0 + r)) - 1.0
-                    worst[key] = np.fmax(worst[key], b * (g / gc) * (h / hc))
+                    if gc == 0.0:
+                        at_nodes[key] = at_nodes[key] + w * np.nan_to_num(b)
+                    else:
+                        worst[key] = np.fmax(worst[key], b * (g / gc) * (h / hc))
             for k in out:
-                out[k] = out[k] + worst[k]
+                out[k] = out[k] + worst[k] + at_nodes[k]
         return out
+
+    def _side_point(self, name: str, point: dict) -> dict:
+        """Where ``name``'s side table is read for ``point``: the axis's value and, on the
+        grid axes it was run across, the point's values held within that sub-grid."""
+        side = self.one_at_a_time[name]
+        q = {}
+        for ax, a in side.axes.items():
+            x = float(point.get(ax, self.one_at_a_time_ref[name] if ax == name else self.anchor.get(ax, a[0])))
+            q[ax] = min(max(x, float(a[0])), float(a[-1]))
+        return q
+
+    def _side_weights(self, name: str, point: dict) -> dict:
+        """Interpolation weight of each node of ``name``'s side table at ``point`` (index ->
+        weight)."""
+        return {idx: w for idx, w in self.one_at_a_time[name].lookup(self._side_point(name, point)).cell}
+
+    def _side_node(self, name: str, point: dict):
+        """The index of ``point`` in ``name``'s side table where it is one of its nodes."""
+        side, q = self.one_at_a_time[name], self._side_point(name, point)
+        idx = []
+        for ax, a in side.axes.items():
+            hit = np.nonzero(np.isclose(a, q[ax], rtol=FIXED_AXIS_RTOL, atol=0.0))[0]
+            if hit.size == 0:
+                return None
+            idx.append(int(hit[0]))
+        return tuple(idx)
 
     def node_check_error(self, lk: Lookup) -> dict:
         """Relative error [-] per zone from the checks that ran the DEM again at a grid node
@@ -966,7 +1007,8 @@ DEFAULT_TABLE_MANIFEST = f"{DEFAULT_TABLE}_table.json"
 REBUILD_DEFAULT = (
     "millfmu tables build --scene disc_slice --tip-speed 6,8,10,12,14 --filling "
     "0.5,0.6,0.7,0.8,0.9 --bead-diameter 0.0005,0.0008,0.0012 --bead-density "
-    "2510,6040 --one-at-a-time bead-diameter,bead-density --sector-deg 10 --spin-up "
+    "2510,6040 --one-at-a-time bead-diameter,bead-density --across "
+    "bead-density:tip-speed=6,10,14:filling=0.5,0.6,0.8,0.9 --sector-deg 10 --spin-up "
     "1.5 --record 0.4 --sample-every 0.01 --initial-rotation 0.1 --no-gravity "
     "--fluid coupled --export millfmu/data/coupled_table")
 

@@ -178,6 +178,24 @@ def test_separability_error_counts_the_distance_from_the_sub_grid(tables):
     assert math.isnan(across.separability_error(_point(8.0, 0.5))["collision_frequency"][0])
 
 
+def test_a_node_run_again_states_its_difference_near_that_node(tables):
+    """A check at a node of the sub-grid (another realization of it) adds its b_c there,
+    carried by the side table's interpolation weights: half of it halfway to the next tip
+    speed, nothing at the other nodes or at the density's reference."""
+    across, _ = tables
+    node = _point(6.0, 0.5)
+    t = _with_check(across, node, 0.5)
+    assert t.separability_error(node)["collision_frequency"][0] == pytest.approx(0.5)
+    assert t.separability_error(_point(6.0, 0.5, rho=RHO_KG_PER_M3))["se_median"][0] == 0.0
+    assert t.separability_error(_point(14.0, 0.5))["collision_frequency"][0] == 0.0
+    # halfway in tip speed and density (the side table's axes): weight 1/4; off the
+    # sub-grid's nodes no distance check measured it (NaN)
+    mid = _point(10.0, 0.5, rho=math.sqrt(RHO_KG_PER_M3 * RHO_HI))
+    assert math.isnan(t.separability_error(mid)["collision_frequency"][0])
+    w = dict(t._side_weights("bead_density_kg_per_m3", mid))[(0, 0, 0)]
+    assert w == pytest.approx(0.5 * (RHO_HI - mid["bead_density_kg_per_m3"]) / (RHO_HI - RHO_KG_PER_M3))
+
+
 def _with_check(table, point, b):
     import copy
 

@@ -34,12 +34,16 @@ def test_coupled_table_verifies_and_states_its_build(table):
         [2510.0, 6040.0]
     assert table.anchor == {"tip_speed_m_per_s": 10.0, "filling": 0.8}
     assert m["rebuild_command"].startswith("millfmu tables build --scene disc_slice")
-    assert "--one-at-a-time bead-diameter,bead-density" in m["rebuild_command"]
+    assert "--one-at-a-time bead-diameter,bead-density --across " \
+        "bead-density:tip-speed=6,10,14:filling=0.5,0.6,0.8,0.9" in m["rebuild_command"]
+    assert list(table.one_at_a_time["bead_density_kg_per_m3"].axes) == [
+        "bead_density_kg_per_m3", "tip_speed_m_per_s", "filling"]
     assert "--tip-speed 6,8,10,12,14 --filling 0.5,0.6,0.7,0.8,0.9" in m["rebuild_command"]
     assert "/" not in m["rebuild_command"].split("--export ")[1].split("millfmu/data/")[0]
     assert list(table.axes["filling"]) == [0.5, 0.6, 0.7, 0.8, 0.9]
     assert list(table.axes["tip_speed_m_per_s"]) == [6.0, 8.0, 10.0, 12.0, 14.0]
-    assert m["points_run"] + m["points_reused"] == 28  # 25 grid points, 3 one at a time
+    # 25 grid points, 2 bead diameters at the anchor, zirconia at 12 tip speeds and fillings
+    assert m["points_run"] + m["points_reused"] == 39
     # checks: DEM runs between and on the nodes and off the anchor (their kernels and what
     # they measure: tests/tables/test_stated_error.py)
     assert len(m["interpolation_check"]["points"]) >= 2

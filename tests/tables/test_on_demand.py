@@ -49,20 +49,20 @@ def test_unstack_inverts_assemble_for_the_shipped_coupled_table(tmp_path):
 
 def test_refining_the_coupled_table_reuses_its_points(tmp_path):
     """A finer grid along tip speed (1 m/s steps) over the same DEM scene and kernel, as the
-    shipped table was refined from 6/10/14 m/s: of its 48 points the 28 of the shipped
+    shipped table was refined from 6/10/14 m/s: of its 59 points the 39 of the shipped
     table are found in a fresh point store."""
     t = T.read_table_ref("coupled")
     old = t.spec()
     grid = dict(old.grid, tip_speed_m_per_s=[6.0 + k for k in range(9)])
     new = T.TableSpec(scene=old.scene, grid=grid, kernel_version=old.kernel_version, builder_id=old.builder_id,
-                      one_at_a_time=old.one_at_a_time)
+                      one_at_a_time=old.one_at_a_time, across=old.across)
     from millfmu.dem.tables.cache import seed_tables
 
     assert any(x.manifest["key"] == t.manifest["key"] for x in seed_tables(new))
     store = PointStore(tmp_path / "points")
-    assert store.seed(t) == 28 and store.seed(t) == 0
+    assert store.seed(t) == 39 and store.seed(t) == 0
     found = stored_results(new, store)
-    assert sum(r is not None for r in found) == 28 and len(found) == 48
+    assert sum(r is not None for r in found) == 39 and len(found) == 59
 
 
 def test_the_progress_line_counts_down_while_a_point_runs(tmp_path, monkeypatch, capsys):

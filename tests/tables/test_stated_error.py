@@ -60,10 +60,13 @@ def test_separability_error_grows_with_the_distances_from_the_anchor_and_the_ref
     e = t.separability_error({"tip_speed_m_per_s": 6.0, "filling": 0.5, "bead_diameter_m": 0.5e-3,
                               "bead_density_kg_per_m3": 2510.0})
     assert e["collision_frequency"][0] == pytest.approx(math.log(1.6) / math.log(1.5))
-    # an axis off its reference that no check measured: not stated (NaN)
-    e = t.separability_error({"tip_speed_m_per_s": 6.0, "filling": 0.5, "bead_diameter_m": 0.8e-3,
-                              "bead_density_kg_per_m3": 6040.0})
+    # an axis off its reference away from where it was run that no check measured: not
+    # stated (NaN); where it was run (the density across 6/10/14 m/s x 50/80/90 %): none
+    rho = {"bead_diameter_m": 0.8e-3, "bead_density_kg_per_m3": 6040.0}
+    e = t.separability_error({"tip_speed_m_per_s": 8.0, "filling": 0.6, **rho})
     assert np.all(np.isnan(e["collision_frequency"]))
+    e = t.separability_error({"tip_speed_m_per_s": 6.0, "filling": 0.5, **rho})
+    assert np.all(e["collision_frequency"] == 0.0)
 
 
 def test_realization_error_is_the_manifests_spread_times_its_factor(coupled):
