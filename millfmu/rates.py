@@ -311,6 +311,17 @@ def trend_table(pairs=None) -> tuple[list, list]:
     return head, rows
 
 
+def _unstated_zones(src) -> list:
+    """Zones of the source's last lookup that have collisions but no stated error (NaN)."""
+    lk = getattr(src, "last_lookup", None)
+    if lk is None:
+        return []
+    err = src.relative_error(lk)
+    f = np.asarray(lk.values["collision_frequency_norm"], float)
+    bad = (f > 0.0) & ~(np.isfinite(err["collision_frequency"]) & np.isfinite(err["se_median"]))
+    return [z for z, b in zip(err["zones"], bad) if b]
+
+
 def _g(v) -> str:
     v = float(v)
     return "" if math.isnan(v) else f"{v:.10g}"
@@ -532,6 +543,15 @@ def compute(scene, name: str | None = None, sizes_m=None, values: dict | None = 
                             src.error_multiple = 0.0
                         for q, r in edge.items():
                             band_q.setdefault(q, (np.full(n, math.nan), np.full(n, math.nan)))[j][k] = r
+                    # a zone with collisions but no stated error (no check measured it there)
+                    # would enter the edges unmoved: no band rather than a narrower one
+                    unstated = _unstated_zones(src)
+                    if unstated:
+                        for lo_hi in band_q.values():
+                            lo_hi[0][k] = lo_hi[1][k] = math.nan
+                        notes[-1] = "; ".join(filter(None, [notes[-1], (
+                            f"no band: zones {', '.join(unstated)} have collisions but no stated error here "
+                            f"(no check of the table measured them)")]))
             curves[(p, model_name)] = Curve(p, model_name, vals, rates_q, sf_q, pcap_q, se, sep, sources, notes, band_q)
     constants = {"k_c": scene.mill.stress_frequency_factor,
                  "energy_transfer": (detailed_scene or scene).kinetics.energy_transfer}

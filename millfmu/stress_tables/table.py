@@ -288,10 +288,7 @@ class Table:
         ref = self.one_at_a_time_ref[name]
         if math.isclose(xu, ref, rel_tol=FIXED_AXIS_RTOL):
             return 0.0, 0.0, 0.0
-        across = {}
-        for ax in list(side.axes)[1:]:
-            a = side.axes[ax]
-            across[ax] = min(max(float(at_grid[ax]), float(a[0])), float(a[-1]))
+        across = {ax: v for ax, v in self._side_point(name, at_grid).items() if ax != name}
         at = side.lookup({name: xu, **across})
         r0 = side.lookup({name: ref, **across})
         if across:

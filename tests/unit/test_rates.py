@@ -292,3 +292,29 @@ def test_a_run_warns_where_its_detailed_model_is_energy_limited():
     assert not any("energy-limited" in w for w in cells.warnings)
     simple = MillModel(LIMESTONE.scenes()[0])
     assert math.isnan(simple.p_break_per_stress_of_feed()) and simple.regime_warning() is None
+
+
+def test_a_zone_with_collisions_but_no_stated_error_gets_no_band(monkeypatch):
+    """Where a zone that collides has no stated error (no check measured the axis there), the
+    band's edges would leave it unmoved: the point gets no band and a note says why, instead
+    of a band narrower than the table knows."""
+    from millfmu.stress_tables.table import Table
+
+    real = Table.separability_error
+
+    def unmeasured(self, point):
+        out = real(self, point)
+        if point.get("bead_density_kg_per_m3", 2510.0) != 2510.0:
+            out["collision_frequency"] = out["collision_frequency"] * np.nan
+        return out
+
+    monkeypatch.setattr(Table, "separability_error", unmeasured)
+    simple, detailed = LIMESTONE.scenes()
+    r = mrates.compute(simple, "limestone", sizes_m=MINERAL_SIZES, detailed_scene=detailed,
+                       values={"bead_density": [2510.0, 6040.0]})
+    c = r.curve("bead_density", "detailed")
+    q = mrates._size_key(10e-6)
+    lo, hi = c.band[q]
+    assert lo[0] < c.rates[q][0] < hi[0]  # the reference: stated in every zone
+    assert math.isnan(lo[1]) and math.isnan(hi[1]) and math.isfinite(c.rates[q][1])
+    assert "no band: zones V1, V2, V3, V4 have collisions but no stated error here" in c.notes[1]
