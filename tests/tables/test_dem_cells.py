@@ -89,12 +89,22 @@ def test_large_beads_at_high_filling_are_buildable_in_a_wider_sector(coupled, d_
 
 
 def test_a_wider_cell_costs_its_beads_and_is_named_in_the_manifest(coupled):
-    """The cost estimate counts the wider cell's beads (the sector's ratio); a table whose points
-    ran in a wider sector lists them in its manifest ('cells')."""
+    """The cost estimate counts the wider cell's beads (the sector's ratio) besides the coupled
+    liquid's share, which does not grow with them; a table whose points ran in a wider sector
+    lists them in its manifest ('cells')."""
+    from millfmu.dem.tables.dem_builder import COUPLED_FIXED_SHARE
+
     scene = coupled.spec().scene
     b = T.DemBuilder()
+    liquid = COUPLED_FIXED_SHARE * 0.8 / 0.8e-3 ** 3  # the scene's own 0.8 mm beads at 80 %
     at_10 = b.relative_cost(scene, _point(1.4e-3, 0.5))  # fits the 10-degree cell
-    assert b.relative_cost(scene, _point(1.4e-3, 0.8)) == pytest.approx(at_10 * 0.8 / 0.5 * 12.0 / 10.0)
+    beads_10 = 0.5 / 1.4e-3 ** 3
+    assert b.relative_cost(scene, _point(1.4e-3, 0.8)) == pytest.approx(
+        at_10 * (beads_10 * 0.8 / 0.5 * 12.0 / 10.0 + liquid) / (beads_10 + liquid))
+    # the two cold points the share was fitted to: 1.4 mm at 80 % 121 s, steel 0.8 mm 403 s
+    # on one thread
+    steel = b.relative_cost(scene, {**_point(0.8e-3, 0.8), "bead_density_kg_per_m3": 7800.0})
+    assert b.relative_cost(scene, _point(1.4e-3, 0.8)) / steel == pytest.approx(121.0 / 403.0, rel=0.03)
     spec = T.TableSpec(scene=scene, grid=dict(coupled.spec().grid), kernel_version="k",
                        one_at_a_time={"bead_diameter_m": [0.8e-3, 1.4e-3]})
     cells = T.wider_cells(spec)

@@ -191,14 +191,30 @@ class DemBuilder:
         return measured_seconds_per_cost(table)
 
 
+#: What a coupled point's step costs besides its beads (the liquid on its grid, which does
+#: not grow with the beads, and the step's fixed work), as a share of the bead cost of the
+#: scene's own point (its filling and bead diameter in its own sector) [-]. Fitted to two
+#: cold points of the coupled table's scene run alone on one thread, t = steps (a N + b):
+#: the steel point (0.8 mm, 6,536 beads, 10 m/s, 80 %) 403 s, 1.4 mm beads at 80 % in a
+#: 12-degree cell (1,464 beads) 121 s; b / a = 720 beads' worth, 0.11 of the 6,536.
+COUPLED_FIXED_SHARE = 0.11
+
+
 def _cost(scene: dict, point: dict, spin_up_s: float | None = None) -> float:
     """:meth:`DemBuilder.relative_cost` of ``point`` run with the spin-up ``spin_up_s`` [s]
-    (None: the scene's; a longer one than the scene's is not run)."""
+    (None: the scene's; a longer one than the scene's is not run): the bead count's measure
+    filling / d^3 (times the sector where the point runs wider than the scene), plus for a
+    coupled liquid :data:`COUPLED_FIXED_SHARE` of the scene's own point's, times the
+    steps."""
     cell = dem_cells(scene, point)[0]
     s = cell.dem if cell.dem is not None else scene_from_dict(cell.scene)
     wider = s.geometry.sector_deg / float(scene.get("mill", {}).get("sector_deg", 360.0))
     spin_up = s.spin_up_s if spin_up_s is None else min(s.spin_up_s, float(spin_up_s))
-    return s.filling / s.bead_diameter_m**3 * wider * (spin_up + s.record_s) / s.dt_s
+    beads = s.filling / s.bead_diameter_m**3 * wider
+    if s.fluid_mode == "coupled":
+        own = scene_from_dict(scene)
+        beads += COUPLED_FIXED_SHARE * own.filling / own.bead_diameter_m**3
+    return beads * (spin_up + s.record_s) / s.dt_s
 
 
 #: The installed DEM's speed, measured: points of the coupled table's scene (``scene_sha256``:
