@@ -311,17 +311,6 @@ def trend_table(pairs=None) -> tuple[list, list]:
     return head, rows
 
 
-def _unstated_zones(src) -> list:
-    """Zones of the source's last lookup that have collisions but no stated error (NaN)."""
-    lk = getattr(src, "last_lookup", None)
-    if lk is None:
-        return []
-    err = src.relative_error(lk)
-    f = np.asarray(lk.values["collision_frequency_norm"], float)
-    bad = (f > 0.0) & ~(np.isfinite(err["collision_frequency"]) & np.isfinite(err["se_median"]))
-    return [z for z, b in zip(err["zones"], bad) if b]
-
-
 def _g(v) -> str:
     v = float(v)
     return "" if math.isnan(v) else f"{v:.10g}"
@@ -545,7 +534,7 @@ def compute(scene, name: str | None = None, sizes_m=None, values: dict | None = 
                             band_q.setdefault(q, (np.full(n, math.nan), np.full(n, math.nan)))[j][k] = r
                     # a zone with collisions but no stated error (no check measured it there)
                     # would enter the edges unmoved: no band rather than a narrower one
-                    unstated = _unstated_zones(src)
+                    unstated = src.unstated_zones()
                     if unstated:
                         for lo_hi in band_q.values():
                             lo_hi[0][k] = lo_hi[1][k] = math.nan

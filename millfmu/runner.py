@@ -358,6 +358,11 @@ def prediction_band(scene: Scene, multiple: float = 1.0) -> dict | None:
         }
         out["parts"]["table"] = table
         out.update({k: v for k, v in table.items() if k != "outputs"})  # the table's figures at the top, as before
+        unstated = m_hi.source.unstated_zones()
+        if unstated:
+            out.setdefault("notes", []).append(
+                f"zones {', '.join(unstated)} collide but have no stated error at the last operating point (no check "
+                "of the table measured them there): the table's part of the band leaves them unmoved")
     if fitted:
         key = "disrupted_fraction" if scene.material.model == "yeast" else "x50_m"
         sign = 1.0 if key == "disrupted_fraction" else -1.0  # more breakage: more disrupted, finer x50
@@ -381,8 +386,9 @@ def prediction_band(scene: Scene, multiple: float = 1.0) -> dict | None:
                 more, less = _with_value(more, k, hi_end), _with_value(less, k, lo_end)
             runs += [last(more, multiple)[1], last(less, -multiple)[1]]
     if left_out:
-        out["notes"] = [f"{k} = {number_key(scene, k):.6g} lies outside its recorded 95 % interval [{a:.6g}, {b:.6g}], "
-                        "which belongs to another value of it: not carried into the band" for k, a, b in left_out]
+        out.setdefault("notes", []).extend(
+            f"{k} = {number_key(scene, k):.6g} lies outside its recorded 95 % interval [{a:.6g}, {b:.6g}], "
+            "which belongs to another value of it: not carried into the band" for k, a, b in left_out)
     out["t_s"] = runs[0]["t_s"]
     out["multiple"] = multiple
     out["outputs"] = span(runs)

@@ -239,6 +239,18 @@ class TableStressSource:
                 + node["collision_frequency"],
                 "se_median": e + e_wp + sep["se_median"] + real["se_median"] + node["se_median"]}
 
+    def unstated_zones(self, lk: Lookup | None = None) -> list:
+        """Zones of a lookup (default: the last) that have collisions but no stated error
+        (:meth:`relative_error` NaN: no check of the table measured them there); a band
+        would leave them unmoved."""
+        lk = lk if lk is not None else self.last_lookup
+        if lk is None:
+            return []
+        err = self.relative_error(lk)
+        f = np.asarray(lk.values["collision_frequency_norm"], float)
+        bad = (f > 0.0) & ~(np.isfinite(err["collision_frequency"]) & np.isfinite(err["se_median"]))
+        return [z for z, b in zip(err["zones"], bad) if b]
+
     def zones(self, op):
         names = self.table.zone_names
         U = norm_log10_edges()
