@@ -174,18 +174,10 @@ def test_a_zone_that_collides_without_a_stated_error_is_named_in_the_bands_notes
     """Where no check of the table measured an axis at the point, a colliding zone has no
     stated error and the table's part of the band leaves it unmoved: the notes say so (and
     result.json lists its error as null); the detailed example states every zone."""
-    from millfmu.stress_tables.table import Table
+    from tests._stated_error import density_unmeasured
 
     assert "notes" not in detailed_band
-    real = Table.separability_error
-
-    def unmeasured(self, point):
-        out = real(self, point)
-        if point.get("bead_density_kg_per_m3", 2510.0) != 2510.0:
-            out["se_median"] = out["se_median"] * np.nan
-        return out
-
-    monkeypatch.setattr(Table, "separability_error", unmeasured)
+    density_unmeasured(monkeypatch, "se_median")
     b = prediction_band(detailed_scene({"beads": {"density_kg_per_m3": 6040.0}}))
     assert b["se_median_relative_error"] == [None, None, None, None]
     assert any(n.startswith("zones V1, V2, V3, V4 collide but have no stated error at the last operating point")

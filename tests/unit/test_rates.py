@@ -298,17 +298,9 @@ def test_a_zone_with_collisions_but_no_stated_error_gets_no_band(monkeypatch):
     """Where a zone that collides has no stated error (no check measured the axis there), the
     band's edges would leave it unmoved: the point gets no band and a note says why, instead
     of a band narrower than the table knows."""
-    from millfmu.stress_tables.table import Table
+    from tests._stated_error import density_unmeasured
 
-    real = Table.separability_error
-
-    def unmeasured(self, point):
-        out = real(self, point)
-        if point.get("bead_density_kg_per_m3", 2510.0) != 2510.0:
-            out["collision_frequency"] = out["collision_frequency"] * np.nan
-        return out
-
-    monkeypatch.setattr(Table, "separability_error", unmeasured)
+    density_unmeasured(monkeypatch, "collision_frequency")
     simple, detailed = LIMESTONE.scenes()
     r = mrates.compute(simple, "limestone", sizes_m=MINERAL_SIZES, detailed_scene=detailed,
                        values={"bead_density": [2510.0, 6040.0]})
