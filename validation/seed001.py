@@ -6,9 +6,12 @@ From a checkout's root, ``python -m validation.seed001 run --out DIR`` runs the 
 14 m/s, and 50 % and 90 % at 6 m/s) into ``DIR/<c|p>_v<tip speed>_f<filling %>``;
 ``python -m validation.seed001 table --out DIR`` reads
 their ``stats.json`` and prints one row per statement: the paper's value, ours (coupled),
-ours (prescribed), verdict. The verdict compares the coupled runs; a quantitative statement
-counts as met within the tolerance named in its row; a statement the runs' statistics cannot
-judge is listed as not evaluated, and the count below the table says how many of each.
+ours (prescribed), verdict. ``python -m validation.seed001 summarize --out DIR`` keeps what
+the table reads of the coupled cases in ``validation/runs/seed001_sector.json`` (zone
+statistics and the flow's census); ``table`` without ``--out`` computes the table from it.
+The verdict compares the coupled runs; a quantitative statement counts as met within the
+tolerance named in its row; a statement the runs' statistics cannot judge is listed as not
+evaluated, and the count below the table says how many of each.
 """
 
 from __future__ import annotations
@@ -80,6 +83,54 @@ def _load(out_dir, fluid, vt, fill):
     st = json.loads(p.read_text())
     _recount_vortices(d, st)
     return st
+
+
+#: What the deviation table reads of a run's stats.json: per zone and of the flow section.
+ZONE_KEYS = ("name", "volume_m3", "speed_over_tip_speed", "collision_frequency_per_m3_s",
+             "collision_power_w")
+FLOW_KEYS = ("first_bead_layer_angular_velocity_ratio", "vortices_fluid", "vortices_beads")
+#: The shipped summary of the coupled sector cases, from which the page's table is computed.
+SUMMARY = Path(__file__).resolve().parent / "runs" / "seed001_sector.json"
+
+
+def compact(st: dict) -> dict:
+    """The part of a run's stats (vortices recounted) that :func:`deviation_rows` reads: zone
+    statistics and the flow's census, no raw contacts or maps."""
+    zones = []
+    for z in st["zones"]:
+        c = {k: z.get(k) for k in ZONE_KEYS}
+        c["se"] = {"tn": {"quantiles_j": {"q50": z["se"]["tn"]["quantiles_j"]["q50"]}}}
+        zones.append(c)
+    flow = st.get("flow", {})
+    return {"zones": zones, "flow": {k: flow[k] for k in FLOW_KEYS if k in flow}}
+
+
+def summarize(out_dir, path=None) -> Path:
+    """Write the compact stats of the coupled cases in ``out_dir`` (:func:`compact`) to
+    ``path`` (default :data:`SUMMARY`), with the protocol and the command that made them."""
+    runs = {}
+    for vt, fl in CASES:
+        st = _load(out_dir, "coupled", vt, fl)
+        if st is not None:
+            runs[f"{vt:g} m/s, {round(fl * 100)} %"] = {"tip_speed_m_per_s": vt, "filling": fl, "stats": compact(st)}
+    doc = {"note": ("seed 001's cases on the coupled 10-degree disc sector without gravity: per zone what "
+                    "the deviation table reads (units: m3, 1/(m3 s), W, J), the flow's first bead layer "
+                    "and vortex census"),
+           "protocol": {"initial_rotation": COUPLED_INITIAL_ROTATION, "spin_up_s": COUPLED_SPIN_UP_S,
+                        "record_s": RECORD_S, "window_s": WINDOW_S, "sample_every_s": 0.01,
+                        "sector_deg": 10.0, "gravity_m_per_s2": [0.0, 0.0, 0.0], "threads": 1},
+           "command": "python -m validation.seed001 run --out DIR --fluid coupled --threads 1, then "
+                      "python -m validation.seed001 summarize --out DIR",
+           "runs": runs}
+    p = Path(path) if path is not None else SUMMARY
+    p.write_text(json.dumps(doc, indent=1, allow_nan=False) + "\n")
+    return p
+
+
+def summary_stats(path=None) -> dict:
+    """{(tip speed, filling): compact stats} of the shipped summary (:data:`SUMMARY`)."""
+    doc = json.loads(Path(path if path is not None else SUMMARY).read_text())
+    return {(r["tip_speed_m_per_s"], r["filling"]): r["stats"] for r in doc["runs"].values()}
 
 
 def _recount_vortices(d: Path, st: dict):
@@ -160,10 +211,15 @@ def _fmt(x, nd=3):
         f"{x:.{nd}g}"
 
 
-def deviation_rows(out_dir) -> list[dict]:
+def deviation_rows(out_dir=None) -> list[dict]:
     """One dict per statement of seed 001 section 3: statement, paper, coupled, prescribed,
-    verdict (from the coupled runs)."""
-    runs = {f: {(vt, fl): _load(out_dir, f, vt, fl) for vt, fl in CASES} for f in FLUIDS}
+    verdict (from the coupled runs): of the run folders in ``out_dir``, or with None of the
+    shipped summary (:data:`SUMMARY`)."""
+    if out_dir is None:
+        shipped = summary_stats()
+        runs = {"coupled": {k: shipped.get(k) for k in CASES}, "prescribed": {k: None for k in CASES}}
+    else:
+        runs = {f: {(vt, fl): _load(out_dir, f, vt, fl) for vt, fl in CASES} for f in FLUIDS}
     source = "prescribed-swirl runs in the folder"
     if not any(runs["prescribed"].values()):
         runs["prescribed"] = {(vt, fl): prescribed_from_table(vt, fl) for vt, fl in CASES}
@@ -370,9 +426,10 @@ def parser() -> argparse.ArgumentParser:
     s = argparse.ArgumentParser(prog="python -m validation.seed001",
                                 description="Seed 001 side by side: run its cases, print the "
                                             "deviation table. Run from a checkout's root.")
-    s.add_argument("action", choices=("run", "table"), help="run the cases (skipping those "
-                   "done) or print the table from their results")
-    s.add_argument("--out", required=True, help="folder of the case runs")
+    s.add_argument("action", choices=("run", "table", "summarize"), help="run the cases (skipping "
+                   "those done), print the table from their results (without --out: from the "
+                   "shipped summary validation/runs/seed001_sector.json), or write that summary from them")
+    s.add_argument("--out", help="folder of the case runs")
     s.add_argument("--fluid", default="coupled,prescribed",
                    help="fluid models to run (comma-separated; default both)")
     s.add_argument("--threads", type=int, help="numba threads (default: all cores)")
@@ -383,6 +440,12 @@ def main(argv=None) -> int:
     """``python -m validation.seed001 run|table --out DIR``: print the deviation table (after
     running the missing cases with ``run``); 2 for a fluid model it does not know."""
     args = parser().parse_args(argv)
+    if args.out is None and args.action != "table":
+        print(f"python -m validation.seed001 {args.action}: give --out DIR", file=sys.stderr)
+        return 2
+    if args.action == "summarize":
+        print(f"wrote {summarize(args.out)}")
+        return 0
     if args.action == "run":
         fluids = [f.strip() for f in args.fluid.split(",") if f.strip()]
         bad = [f for f in fluids if f not in FLUIDS]
