@@ -226,3 +226,10 @@ def test_cli_across_builds_and_names_it_in_the_rebuild_command(tmp_path, capsys)
     with pytest.raises(SystemExit):
         main(argv[:2] + ["--across", "bead-density"])
     assert "expected AXIS:GRID-AXIS=V1,V2" in capsys.readouterr().err
+    for bad, words in (("bead-density,filling:tip-speed=8,12", "expected one axis name"),
+                       ("bead-density:tip-speed=8,12:tip-speed=8,10", "tip-speed given twice")):
+        with pytest.raises(SystemExit):
+            main(argv[:2] + ["--across", bad])
+        assert words in capsys.readouterr().err
+    assert main(argv[:-2] + ["--across", "bead-density:filling=0.7,0.8"]) == 2
+    assert "--across bead_density_kg_per_m3: given more than once" in capsys.readouterr().err

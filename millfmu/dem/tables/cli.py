@@ -20,9 +20,9 @@ reads the evidence they write (:mod:`millfmu.dem.tables.equivalence`).
 from __future__ import annotations
 
 import argparse
-import math
 import importlib
 import json
+import math
 import shlex
 import sys
 from pathlib import Path
@@ -84,13 +84,20 @@ def _across(text: str) -> tuple:
         raise argparse.ArgumentTypeError(
             f"{text!r}: expected AXIS:GRID-AXIS=V1,V2,.., e.g. "
             f"bead-density:tip-speed=6,10,14:filling=0.5,0.8,0.9")
-    (axis,) = _axis_names(parts[0])
-    sub = {}
+    def one(name):
+        names = _axis_names(name)
+        if len(names) != 1:
+            raise argparse.ArgumentTypeError(f"{name!r} in {text!r}: expected one axis name")
+        return names[0]
+
+    axis, sub = one(parts[0]), {}
     for part in parts[1:]:
         name, eq, vals = part.partition("=")
         if not eq:
             raise argparse.ArgumentTypeError(f"{part!r} in {text!r}: expected GRID-AXIS=V1,V2,..")
-        (grid_axis,) = _axis_names(name)
+        grid_axis = one(name)
+        if grid_axis in sub:
+            raise argparse.ArgumentTypeError(f"{text!r}: {name} given twice")
         sub[grid_axis] = _floats(vals)
     return axis, sub
 
@@ -271,6 +278,10 @@ def _build(args) -> int:
         if args.warm:
             builder = _warm(builder)
         across = dict(args.across or ())
+        twice = sorted({a for a, _ in args.across or () if [b for b, _ in args.across].count(a) > 1})
+        if twice:
+            raise T.TableError(f"--across {', '.join(twice)}: given more than once; give each axis's "
+                               f"sub-grid in one --across")
         spec = T.dem_spec(args.scene, grid, over, one_at_a_time=oat, across=across)
         if args.builder:
             spec = T.TableSpec(scene=spec.scene, grid=spec.grid,
