@@ -358,7 +358,7 @@ def prediction_band(scene: Scene, multiple: float = 1.0) -> dict | None:
         }
         out["parts"]["table"] = table
         out.update({k: v for k, v in table.items() if k != "outputs"})  # the table's figures at the top, as before
-        unstated = m_hi.source.unstated_zones()
+        unstated = m_hi.source.unstated_zones(err=err)
         if unstated:
             out.setdefault("notes", []).append(
                 f"zones {', '.join(unstated)} collide but have no stated error at the last operating point (no check "

@@ -197,6 +197,13 @@ class TableSpec:
             clean[name] = sub
         return {k: clean[k] for k in AXES if k in clean}
 
+    @classmethod
+    def from_manifest(cls, m: dict) -> TableSpec:
+        """The specification a table's manifest records (KeyError where it lacks a part)."""
+        return cls(scene=m["scene"], grid=m["grid"], kernel_version=m["kernel_version"],
+                   builder_id=m["builder"], one_at_a_time=m.get("one_at_a_time") or {},
+                   across=m.get("across") or {})
+
     def scene_value(self, axis: str) -> float:
         """The scene's own value of an axis [its unit in :data:`AXES`]."""
         sec, key = AXES[axis][0], AXES[axis][1]

@@ -239,14 +239,14 @@ class TableStressSource:
                 + node["collision_frequency"],
                 "se_median": e + e_wp + sep["se_median"] + real["se_median"] + node["se_median"]}
 
-    def unstated_zones(self, lk: Lookup | None = None) -> list:
+    def unstated_zones(self, lk: Lookup | None = None, err: dict | None = None) -> list:
         """Zones of a lookup (default: the last) that have collisions but no stated error
-        (:meth:`relative_error` NaN: no check of the table measured them there); a band
-        would leave them unmoved."""
+        (:meth:`relative_error` NaN, or ``err`` where the caller has it: no check of the
+        table measured them there); a band would leave them unmoved."""
         lk = lk if lk is not None else self.last_lookup
         if lk is None:
             return []
-        err = self.relative_error(lk)
+        err = err if err is not None else self.relative_error(lk)
         f = np.asarray(lk.values["collision_frequency_norm"], float)
         bad = (f > 0.0) & ~(np.isfinite(err["collision_frequency"]) & np.isfinite(err["se_median"]))
         return [z for z, b in zip(err["zones"], bad) if b]

@@ -14,7 +14,7 @@ import json
 import math
 import os
 import tempfile
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from collections.abc import Iterable
 
@@ -378,7 +378,7 @@ class Table:
                 if gc == 0.0:  # another realization of a node of the axis's side table
                     if weights is None:
                         weights = self._side_weights(name, point)
-                    w = weights.get(self._side_node(name, c["point"]), 0.0)
+                    w = weights.get(self.one_at_a_time[name]._node_of(self._side_point(name, c["point"])), 0.0)
                     if w == 0.0:
                         continue
                 for key, fld in (("collision_frequency", "collision_frequency_norm"),
@@ -409,17 +409,6 @@ class Table:
         """Interpolation weight of each node of ``name``'s side table at ``point`` (index ->
         weight)."""
         return {idx: w for idx, w in self.one_at_a_time[name].lookup(self._side_point(name, point)).cell}
-
-    def _side_node(self, name: str, point: dict):
-        """The index of ``point`` in ``name``'s side table where it is one of its nodes."""
-        side, q = self.one_at_a_time[name], self._side_point(name, point)
-        idx = []
-        for ax, a in side.axes.items():
-            hit = np.nonzero(np.isclose(a, q[ax], rtol=FIXED_AXIS_RTOL, atol=0.0))[0]
-            if hit.size == 0:
-                return None
-            idx.append(int(hit[0]))
-        return tuple(idx)
 
     def node_check_error(self, lk: Lookup) -> dict:
         """Relative error [-] per zone from the checks that ran the DEM again at a grid node
@@ -611,12 +600,8 @@ class Table:
 
     def spec(self) -> TableSpec:
         """The specification this table was built from (from its manifest)."""
-        m = self.manifest
         try:
-            return TableSpec(scene=m["scene"], grid=m["grid"],
-                             kernel_version=m["kernel_version"], builder_id=m["builder"],
-                             one_at_a_time=m.get("one_at_a_time") or {},
-                             across=m.get("across") or {})
+            return TableSpec.from_manifest(self.manifest)
         except KeyError as e:
             raise TableError(f"table: manifest lacks {e}; not a cached or exported table") \
                 from None
@@ -650,9 +635,7 @@ class Table:
                     one_at_a_time_ref=dict(self.one_at_a_time_ref), anchor=dict(self.anchor))
         if "scene" in self.manifest:
             old = self.spec()
-            spec = TableSpec(scene=old.scene, grid={k: list(v) for k, v in axes.items()},
-                             kernel_version=old.kernel_version, builder_id=old.builder_id,
-                             one_at_a_time=old.one_at_a_time, across=old.across)
+            spec = replace(old, grid={k: list(v) for k, v in axes.items()})
             sub.manifest = manifest_for(spec, sub, {"slice_of": self.manifest.get("key")},
                                         work_precision=self.manifest.get("work_precision"))
             # what the stated error reads from the full table's manifest
@@ -849,9 +832,7 @@ def _manifest_spec(m: dict, manifest_path: Path, expect_key: str | None, expect_
     """The manifest's TableSpec, its key checked against its content (and ``expect_key``) and
     its kernel version against ``expect_kernel``."""
     try:
-        spec = TableSpec(scene=m["scene"], grid=m["grid"], kernel_version=m["kernel_version"],
-                         builder_id=m["builder"], one_at_a_time=m.get("one_at_a_time") or {},
-                         across=m.get("across") or {})
+        spec = TableSpec.from_manifest(m)
     except KeyError as e:
         raise TableError(f"{manifest_path}: key {e} missing") from None
     except (TypeError, ValueError) as e:

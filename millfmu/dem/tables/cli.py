@@ -20,6 +20,7 @@ reads the evidence they write (:mod:`millfmu.dem.tables.equivalence`).
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import importlib
 import json
 import math
@@ -284,10 +285,7 @@ def _build(args) -> int:
                                f"sub-grid in one --across")
         spec = T.dem_spec(args.scene, grid, over, one_at_a_time=oat, across=across)
         if args.builder:
-            spec = T.TableSpec(scene=spec.scene, grid=spec.grid,
-                               kernel_version=spec.kernel_version,
-                               builder_id=T.builder_id_of(builder), one_at_a_time=oat,
-                               across=across)
+            spec = dataclasses.replace(spec, builder_id=T.builder_id_of(builder))
         table = T.get_table(spec, builder, cache_dir=args.cache_dir, force=args.force,
                             log=_to_stderr, executor=args.executor, workers=args.workers,
                             scheduler=args.scheduler, progress=not args.no_progress)

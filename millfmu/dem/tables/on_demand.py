@@ -32,7 +32,7 @@ from __future__ import annotations
 import math
 import os
 import sys
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from . import cache as _cache
 from .build import PointStore, duration, relative_costs, seconds_per_cost, stored_results
 from ...stress_tables.spec import DEM_BUILDER_ID, TableError, TableSpec, builder_id_of
@@ -134,8 +134,7 @@ def unbuildable(table: Table, point: dict, builder) -> None:
         return
     old = table.spec()
     grid, oat = extended_axes(old, point)
-    spec = TableSpec(scene=old.scene, grid=grid, kernel_version=old.kernel_version,
-                     builder_id=old.builder_id, one_at_a_time=oat, across=old.across)
+    spec = replace(old, grid=grid, one_at_a_time=oat)
     ran = old.points()
     for p in spec.points():
         if p in ran:
@@ -254,8 +253,8 @@ def plan(table: Table, point: dict, builder, kernel_version: str, cache_dir=None
     tables of the same scene and kernel), so that ``todo`` is what will run."""
     old = table.spec()
     grid, oat = extended_axes(old, point)
-    spec = TableSpec(scene=old.scene, grid=grid, kernel_version=kernel_version,
-                     builder_id=builder_id_of(builder), one_at_a_time=oat, across=old.across)
+    spec = replace(old, grid=grid, kernel_version=kernel_version, builder_id=builder_id_of(builder),
+                   one_at_a_time=oat)
     store = PointStore(_cache.resolve_cache_dir(cache_dir) / _cache.POINTS_DIR)
     have = [r is not None for r in stored_results(spec, store)]
     if not all(have):
