@@ -439,9 +439,9 @@ def dem_section(out: Path, quick: bool, dem_runs=None, log=print) -> str:
     if importlib.util.find_spec("numba") is None:  # the DEM needs it
         parts.append("<p><b>Not run now:</b> numba is not installed (pip install -e '.[dem]').</p>")
     elif quick:
-        from .dem.first_compile import say_if_compiling
+        from .dem.first_compile import compile_if_cold
 
-        say_if_compiling(coupled=True, log=log)
+        compile_if_cold(coupled=True, log=log)
         run_dir = W.run_quick(Path(tempfile.mkdtemp(prefix="millfmu-report-dem-")) / "quick")
         try:
             res = W.analyse_quick(run_dir)

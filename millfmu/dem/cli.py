@@ -176,9 +176,9 @@ def _run(args) -> int:
 
     for line in scene_advice(scene):
         print(f"millfmu dem run: note: {line}", file=sys.stderr)
-    from millfmu.dem.first_compile import say_if_compiling
+    from millfmu.dem.first_compile import compile_if_cold
 
-    say_if_compiling(coupled=scene.fluid_mode == "coupled")
+    compile_if_cold(coupled=scene.fluid_mode == "coupled")
     try:
         stats = run_scene(scene, args.out, progress=not args.no_progress, threads=args.threads,
                           window_s=args.window_s, checkpoint_every_s=args.checkpoint_every_s,

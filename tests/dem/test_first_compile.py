@@ -1,28 +1,44 @@
-"""The first DEM run with the installed kernel sources says that it compiles them first."""
+"""The first DEM run with the installed kernel sources says that it compiles them first, and
+compiles them in several processes from the shipped plan."""
 
+import json
+import os
 import subprocess
 import sys
+from pathlib import Path
 
-CODE = r"""
+import pytest
+
+ROOT = Path(__file__).resolve().parents[2]
+
+
+def _run(code, *args, env=None):
+    e = dict(os.environ, **(env or {}))
+    r = subprocess.run([sys.executable, "-c", code, *map(str, args)], capture_output=True,
+                       text=True, env=e, cwd=ROOT)
+    assert r.returncode == 0, r.stderr
+    return eval(r.stdout.strip().splitlines()[-1])
+
+
+NO_PLAN = r"""
 import os, pathlib, sys
 os.environ["NUMBA_CACHE_DIR"] = sys.argv[1]
-from millfmu.dem.first_compile import kernel_cache_is_cold, say_if_compiling
+from millfmu.dem.first_compile import kernel_cache_is_cold, compile_if_cold
 lines = []
 cold = kernel_cache_is_cold()
-said = say_if_compiling(coupled=True, log=lines.append)
+said = compile_if_cold(coupled=True, log=lines.append, plan=pathlib.Path(sys.argv[1], "none.json"))
 pathlib.Path(cold, "x").mkdir(parents=True)
 pathlib.Path(cold, "x", "kernels.step-1.py311.nbi").write_bytes(b"")
-print(repr((str(cold), said, lines, kernel_cache_is_cold(), say_if_compiling(coupled=False, log=lines.append))))
+again = compile_if_cold(coupled=False, log=lines.append, plan=pathlib.Path(sys.argv[1], "none.json"))
+print(repr((str(cold), said, lines, kernel_cache_is_cold(), again)))
 """
 
 
-def test_a_cold_kernel_cache_is_announced_and_a_warm_one_is_not(tmp_path):
-    r = subprocess.run([sys.executable, "-c", CODE, str(tmp_path)], capture_output=True, text=True)
-    assert r.returncode == 0, r.stderr
-    cold, said, lines, warm, said_again = eval(r.stdout.strip().splitlines()[-1])
+def test_without_a_plan_a_cold_cache_is_announced_and_a_warm_one_is_not(tmp_path):
+    cold, said, lines, warm, said_again = _run(NO_PLAN, tmp_path)
     assert cold.startswith(str(tmp_path)) and said and warm is None and said_again is False
     assert len(lines) == 1 and "compiling the kernels with the coupled liquid" in lines[0]
-    assert "about 150 s on 2 cores: the DEM's" in lines[0] and cold in lines[0]
+    assert "about 165 s on one core" in lines[0] and cold in lines[0]
 
 
 WATCH = r"""
@@ -44,9 +60,7 @@ print(repr(lines))
 
 
 def test_each_long_compilation_is_named_with_its_time():
-    r = subprocess.run([sys.executable, "-c", WATCH], capture_output=True, text=True)
-    assert r.returncode == 0, r.stderr
-    lines = eval(r.stdout.strip().splitlines()[-1])
+    lines = _run(WATCH)
     assert len(lines) == 1 and lines[0].startswith("millfmu: compiled __main__.twice in ")
     assert lines[0].endswith(" s")
 
@@ -56,6 +70,7 @@ def test_dem_run_says_it_before_the_run(monkeypatch, capsys, tmp_path):
     import millfmu.dem.run as run
     from millfmu.cli import main
 
+    monkeypatch.setattr(fc, "load_plan", lambda what, plan: None)
     monkeypatch.setattr(fc, "kernel_cache_is_cold", lambda: tmp_path)
 
     def stop(*a, **kw):
@@ -65,3 +80,147 @@ def test_dem_run_says_it_before_the_run(monkeypatch, capsys, tmp_path):
     assert main(["dem", "run", "annulus", "--fluid", "none", "--out", str(tmp_path / "o")]) == 2
     err = capsys.readouterr().err
     assert err.index("compiling the kernels of the DEM") < err.index("stopped by the test")
+
+
+# -- the plan ------------------------------------------------------------------------------
+
+def _jobs(*spec):
+    """jobs from (seconds, after) pairs"""
+    return [{"kernel": f"k{i}", "args": [], "seconds": s, "after": list(a)}
+            for i, (s, a) in enumerate(spec)]
+
+
+def test_the_schedule_starts_the_longest_chain_first_and_waits_for_callees():
+    from millfmu.dem.first_compile import estimate_s, order, priorities
+
+    # k0 (1 s) and k1 (4 s) are called by k2 (3 s); k3 (5 s) stands alone
+    jobs = _jobs((1, ()), (4, ()), (3, (0, 1)), (5, ()))
+    assert priorities(jobs) == [4, 7, 3, 5]
+    assert order(jobs, 1) == ([1, 3, 0, 2], 13)  # one process: the sum
+    # two: k1 and k3 first; k0 when k1 is done (4 s), k2 when k0 is (5 s): 8 s, not 6
+    assert order(jobs, 2) == ([1, 3, 0, 2], 8)
+    assert order(jobs, 4) == ([1, 3, 0, 2], 7)  # the chain k1 -> k2 bounds it
+    assert estimate_s(jobs, 1) == 13 and estimate_s(jobs, 2) > 8
+
+
+def test_the_argument_types_round_trip():
+    from numba.core import types
+
+    from millfmu.dem.first_compile import decode_type, encode_type
+
+    a = types.Array(types.float64, 3, "C")
+    ts = [types.float64, types.int64, types.boolean, types.int8, types.literal(True),
+          types.literal(False), a, types.Array(types.uint8, 1, "C", readonly=True),
+          types.UniTuple(a, 27), types.Tuple([a, types.int64, types.UniTuple(types.boolean, 2)])]
+    for t in ts:
+        x = encode_type(t)
+        assert decode_type(json.loads(json.dumps(x))) == t, t
+    with pytest.raises(ValueError, match="holds no argument of type"):
+        encode_type(types.unicode_type)
+
+
+def test_the_shipped_plan_is_of_the_installed_kernel_sources():
+    from millfmu.dem.engine._jit import sources_key
+    from millfmu.dem.first_compile import PLAN_FILE, _dispatcher, decode_type, load_plan
+
+    plan = json.loads(PLAN_FILE.read_text())
+    assert plan["sources_key"] == sources_key(), (
+        "the kernel sources changed: record the plan again "
+        "(python -m millfmu.dem.first_compile record)")
+    for what in ("dem", "coupled"):
+        jobs = load_plan(what)
+        assert jobs and all(k < i for i, j in enumerate(jobs) for k in j["after"])
+        for j in jobs:
+            assert _dispatcher(j["kernel"]).py_func.__qualname__ == j["kernel"].rpartition(".")[2]
+            [decode_type(a) for a in j["args"]]
+    coupled = {j["kernel"] for j in load_plan("coupled")}
+    assert "millfmu.dem.coupling.fused_exchange.coupled_intervals" in coupled
+    assert "millfmu.dem.engine.kernels.compute_forces" in coupled
+
+
+TOY = r"""
+import json, os, sys
+from pathlib import Path
+os.environ["NUMBA_CACHE_DIR"] = sys.argv[1]
+from numba.core import types
+import millfmu.dem.first_compile as fc
+from millfmu.dem.engine._jit import sources_key
+a = types.Array(types.float64, 1, "C")
+jobs = [{"kernel": "tests.dem._plan_kernels.inner", "args": [fc.encode_type(a), "bool"],
+         "seconds": 1.0, "after": []},
+        {"kernel": "tests.dem._plan_kernels.outer",
+         "args": [fc.encode_type(a), fc.encode_type(types.UniTuple(a, 2))],
+         "seconds": 1.0, "after": [0]}]
+plan = Path(sys.argv[1], "plan.json")
+plan.write_text(json.dumps({"sources_key": sources_key(), "runs": {"dem": {"jobs": jobs}}}))
+lines = []
+said = fc.compile_if_cold(False, log=lines.append, processes=2, plan=plan)
+again = fc.compile_if_cold(False, log=lines.append, processes=2, plan=plan)
+print(repr((said, again, lines)))
+"""
+
+LOAD = r"""
+import os, sys
+os.environ["NUMBA_CACHE_DIR"] = sys.argv[1]
+import numpy as np
+from numba.core import event
+compiled = []
+class L(event.Listener):
+    def on_start(self, ev): compiled.append(ev.data["dispatcher"].py_func.__name__)
+    def on_end(self, ev): pass
+event.register("numba:compile", L())
+from tests.dem._plan_kernels import outer
+x = np.arange(3.0)
+print(repr((outer(x, (x, x)), compiled)))
+"""
+
+
+def test_a_plan_compiled_in_two_processes_is_loaded_by_the_run(tmp_path):
+    said, again, lines = _run(TOY, tmp_path)
+    assert said and not again
+    assert "in 2 processes" in lines[0] and lines[-1].startswith("millfmu: compiled the kernels in ")
+    assert "left to the run" not in lines[-1]
+    value, compiled = _run(LOAD, tmp_path)
+    assert value == 5.0 + 3.0 and compiled == []  # both loaded from the cache, none compiled
+
+
+COVERED = r"""
+import os, sys, tempfile
+os.environ["NUMBA_CACHE_DIR"] = sys.argv[1]
+from numba.core import event
+import millfmu.dem.first_compile as fc
+lines = []
+assert fc.compile_if_cold(sys.argv[2] == "coupled", log=lines.append, processes=2)
+compiled = []
+class L(event.Listener):
+    def on_start(self, ev):
+        f = ev.data["dispatcher"].py_func
+        compiled.append(f.__module__ + "." + f.__qualname__)
+    def on_end(self, ev): pass
+event.register("numba:compile", L())
+from millfmu.cli import main
+with tempfile.TemporaryDirectory() as tmp:
+    rc = main(["dem", "run", *fc.PLAN_RUNS[sys.argv[2]], "--out", tmp + "/r", "--no-progress"])
+print(repr((rc, lines, [c for c in compiled if c.startswith("millfmu.")])))
+"""
+
+
+WARM = r"""
+import os, sys
+os.environ["NUMBA_CACHE_DIR"] = sys.argv[1]
+import millfmu.dem.first_compile as fc
+lines = []
+print(repr((fc.compile_if_cold(sys.argv[2] == "coupled", log=lines.append), lines)))
+"""
+
+
+@pytest.mark.parametrize("what", ["dem", pytest.param("coupled", marks=pytest.mark.slow)])
+def test_the_shipped_plan_covers_its_run(tmp_path, what):
+    """Compiled from the plan in 2 processes, the plan's own short run compiles no kernel of
+    the package (numba's helpers it may). dem: about 25 s on 2 cores; coupled: about 100 s.
+    A new process then finds the kernels cached and says nothing (loading the cached
+    parallel kernels before numba's threading layer had started aborted the process)."""
+    rc, lines, compiled = _run(COVERED, tmp_path, what)
+    assert rc == 0 and compiled == [], (lines, compiled)
+    assert "left to the run" not in lines[-1]
+    assert _run(WARM, tmp_path, what) == (False, [])

@@ -523,6 +523,9 @@ def build_table(spec: TableSpec, builder: Callable, **run_kw) -> Table:
     t0 = time.perf_counter()
     stored = stored_results(spec, run_kw.get("point_store"))
     reused = sum(r is not None for r in stored)
+    before = getattr(builder, "before_points", None)
+    if before is not None and reused < len(stored) and not run_kw.get("scheduler"):
+        before(spec)  # the DEM's kernels compiled here once, not by every local worker
     results = run_points(spec, builder, stored=stored, **run_kw)
     table = assemble(spec, results)
     point_s = [r.get("wall_time_s") for r in results]

@@ -101,6 +101,14 @@ class DemBuilder:
     warm_from: tuple | None = field(default=None, compare=False)
     builder_id = DEM_BUILDER_ID
 
+    def before_points(self, spec) -> None:
+        """Before a build runs points on this machine: compile the DEM's kernels where the
+        cache is cold, once and in several processes (:mod:`millfmu.dem.first_compile`),
+        rather than in each worker of the build at the same time."""
+        from ..first_compile import compile_if_cold
+
+        compile_if_cold(coupled=(spec.scene.get("fluid") or {}).get("mode") == "coupled")
+
     def with_states(self, folder, reuse: bool = True) -> DemBuilder:
         """This builder keeping its points' settled states in ``folder`` (a build's point
         store) and, where it starts points warm and ``reuse``, starting them from the states
@@ -350,11 +358,6 @@ def rebuild_including(table: Table, point: dict, builder: Callable | None = None
     if pl.todo:
         log(f"table {name}: building a table that covers {_point_text(table, point)}: {pl.line()}")
         od.confirm_build(pl, f"the build of table {name} extended to {_point_text(table, point)}")
-        if isinstance(builder, DemBuilder):  # the DEM itself, not a stand-in with its id
-            from ..first_compile import say_if_compiling
-
-            say_if_compiling(coupled=(table.manifest.get("scene") or {}).get("fluid", {}).get("mode") == "coupled",
-                             log=log)
     run_kw.setdefault("seconds_per_cost", pl.seconds_per_cost)
     return get_table(pl.spec, builder, cache_dir=cache_dir, progress=progress, seed_from=(table,),
                      manifest_extra=extra, **run_kw)
