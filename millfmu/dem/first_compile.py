@@ -461,11 +461,17 @@ def _record_child(what: str, out: str) -> None:
             (stack[-1][1] if stack else roots).append(node)
 
     event.register("numba:compile", Record())
-    from millfmu.cli import main
+    import runpy
 
     t0 = time.perf_counter()
     with tempfile.TemporaryDirectory() as tmp:
-        rc = main(["dem", "run", *PLAN_RUNS[what], "--out", tmp + "/run", "--no-progress"])
+        # the command a user runs, python -m millfmu dem run ..., in this process
+        sys.argv = ["millfmu", "dem", "run", *PLAN_RUNS[what], "--out", tmp + "/run", "--no-progress"]
+        try:
+            runpy.run_module("millfmu", run_name="__main__", alter_sys=True)
+            rc = 0
+        except SystemExit as e:
+            rc = e.code or 0
     wall = time.perf_counter() - t0
     if rc:
         raise SystemExit(f"the short run {what!r} failed ({rc})")
