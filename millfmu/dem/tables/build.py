@@ -477,6 +477,7 @@ def _run_todo(spec, builder, points, todo, done: _PointsDone, executor, workers,
         import multiprocessing
         from concurrent.futures import ProcessPoolExecutor, as_completed
         n = min(workers or os.cpu_count() or 1, len(todo))
+        builder = builder_sharing_cores(builder, n)
         # spawned, not forked: a forked child of a process that has run the DEM's
         # OpenMP kernels cannot run them (GNU OpenMP is not fork safe)
         with ProcessPoolExecutor(max_workers=n,
@@ -485,6 +486,18 @@ def _run_todo(spec, builder, points, todo, done: _PointsDone, executor, workers,
             done.started(n)
             for f in as_completed(futs):
                 done(futs[f], f.result)
+
+
+def builder_sharing_cores(builder, workers: int):
+    """``builder`` for ``workers`` points running at once on this machine: where it takes a
+    thread count and was given none (all cores per point), the cores shared out, at least
+    one each (``builder.with_threads``). Each point on all cores oversubscribes them: on 2
+    cores, 2 points with 2 threads each wait for each other's threads at every parallel
+    loop."""
+    with_threads = getattr(builder, "with_threads", None)
+    if with_threads is None or workers <= 1:
+        return builder
+    return with_threads(max(1, (os.cpu_count() or 1) // workers))
 
 
 def _run_dask(spec, builder, points, todo, done, workers, scheduler):
@@ -503,9 +516,11 @@ def _run_dask(spec, builder, points, todo, done, workers, scheduler):
             # at the scheduler in todo's order (costliest first); with the default 1.1 a
             # worker also holds the next one, which waits behind a long point while the
             # other workers run cheaper ones
+            n = min(workers or os.cpu_count() or 1, len(todo))
+            builder = builder_sharing_cores(builder, n)
             with dask.config.set({"distributed.scheduler.worker-saturation": 1.0}):
                 cluster = stack.enter_context(LocalCluster(
-                    n_workers=min(workers or os.cpu_count() or 1, len(todo)),
+                    n_workers=n,
                     threads_per_worker=1, processes=True, host="127.0.0.1",
                     dashboard_address=None))
             client = stack.enter_context(Client(cluster))

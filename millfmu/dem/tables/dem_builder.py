@@ -194,9 +194,18 @@ class DemBuilder:
 
     def measured_seconds_per_cost(self, table: Table) -> float | None:
         """Seconds per unit of :meth:`relative_cost` for points of ``table`` from runs of the
-        installed DEM (:data:`MEASURED_SPEED`), where they were runs of its scene with the DEM
-        kernel version installed now; else None (the table's own build calibrates)."""
-        return measured_seconds_per_cost(table)
+        installed DEM on this builder's threads (:data:`MEASURED_SPEED`), where they were runs
+        of its scene with the DEM kernel version installed now; else None (the table's own
+        build calibrates)."""
+        return measured_seconds_per_cost(table, threads=self.threads)
+
+    def with_threads(self, threads: int) -> DemBuilder:
+        """This builder with ``threads`` numba threads per point where it was given none (a
+        build running several points at once shares the cores out,
+        :func:`~.build.builder_sharing_cores`); the results do not depend on it."""
+        from dataclasses import replace
+
+        return self if self.threads is not None else replace(self, threads=int(threads))
 
 
 #: What a coupled point's step costs besides its beads (the liquid on its grid, which does
@@ -225,18 +234,20 @@ def _cost(scene: dict, point: dict, spin_up_s: float | None = None) -> float:
     return beads * (spin_up + s.record_s) / s.dt_s
 
 
-#: The installed DEM's speed, measured: points of the coupled table's scene (``scene_sha256``:
-#: of its canonical JSON), each run alone with 2 numba threads on a 2-core machine, as an
-#: on-demand build runs one new point, with the sources of ``source_hash`` (DEM kernel
-#: version ``kernel_version``): the steel point (0.8 mm, 7,800 kg/m3, 10 m/s, 80 %) cold and
-#: warm from the shipped anchor state (``python -m validation.warm_start run --out DIR
-#: --spin-ups 0.2``; docs/tables.md). The coupled table's ``points_wall_time_s`` was recorded
-#: by the sources that built it, which have the kernel version of these (the same results:
-#: the cache's SAME_DEM_AS and accepted round-off changes) but ran the glass anchor point in
-#: 894 and 965 s on 1 and 2 threads (millfmu/data/dem_equivalence.json): calibrated on it, the
-#: steel point was estimated at 18 min cold and 6 min warm against the 280 and 103 s it took.
-#: Used where the installed kernel version is ``kernel_version`` (runs of later sources of the
-#: same version measure their own speed, not this one: measure again when they change it).
+#: The installed DEM's speed, measured: points of the coupled table's scene
+#: (``scene_sha256``: of its canonical JSON), each run alone on a 2-core machine with 2
+#: numba threads, as an on-demand build runs one new point, and with one (as each of two
+#: points run at once), with the sources of ``source_hash`` (DEM kernel version
+#: ``kernel_version``): the steel point (0.8 mm, 7,800 kg/m3, 10 m/s, 80 %) cold and warm
+#: from the shipped anchor state (``python -m validation.warm_start run --out DIR
+#: --spin-ups 0.2``; docs/tables.md). The coupled table's ``points_wall_time_s`` was
+#: recorded by the sources that built it, which have the kernel version of these (the same
+#: results: the cache's SAME_DEM_AS and accepted round-off changes) but ran the glass
+#: anchor point in 894 and 965 s on 1 and 2 threads (millfmu/data/dem_equivalence.json):
+#: calibrated on it, the steel point was estimated at 18 min cold and 6 min warm against
+#: the 280 and 103 s it took. Used where the installed kernel version is ``kernel_version``
+#: (runs of later sources of the same version measure their own speed, not this one:
+#: measure again when they change it).
 MEASURED_SPEED = {
     "scene_sha256": "sha256:216aecd5347f34fcc9a8338d251a6dd9c72d9926aba20694e21e9a665c3012aa",
     "kernel_version": "sha256:cc5c174862c188a675fdb35932f269eb61ae82876e3d110866af2b7a62b0d3bd",
@@ -245,15 +256,25 @@ MEASURED_SPEED = {
     "runs": ({"point": {"tip_speed_m_per_s": 10.0, "filling": 0.8, "bead_diameter_m": 0.8e-3,
                         "bead_density_kg_per_m3": 7800.0}, "spin_up_s": 1.5, "wall_time_s": 280.0},
              {"point": {"tip_speed_m_per_s": 10.0, "filling": 0.8, "bead_diameter_m": 0.8e-3,
-                        "bead_density_kg_per_m3": 7800.0}, "spin_up_s": 0.2, "wall_time_s": 103.0}),
+                        "bead_density_kg_per_m3": 7800.0}, "spin_up_s": 0.2, "wall_time_s": 103.0},
+             # the same two on one thread (docs/tables.md, "What it costs")
+             {"point": {"tip_speed_m_per_s": 10.0, "filling": 0.8, "bead_diameter_m": 0.8e-3,
+                        "bead_density_kg_per_m3": 7800.0}, "spin_up_s": 1.5, "wall_time_s": 403.0,
+              "threads": 1},
+             {"point": {"tip_speed_m_per_s": 10.0, "filling": 0.8, "bead_diameter_m": 0.8e-3,
+                        "bead_density_kg_per_m3": 7800.0}, "spin_up_s": 0.2, "wall_time_s": 145.0,
+              "threads": 1}),
 }
 
 
-def measured_seconds_per_cost(table: Table, measured: dict | None = None) -> float | None:
+def measured_seconds_per_cost(table: Table, measured: dict | None = None,
+                              threads: int | None = None) -> float | None:
     """Seconds per unit of :meth:`DemBuilder.relative_cost` from ``measured`` (default
     :data:`MEASURED_SPEED`): its runs' summed wall time over their summed cost, where
     ``table``'s scene is the one it measured and the installed DEM kernel version is its;
-    else None."""
+    else None. ``threads``: the runs on that many threads (a run without ``threads`` ran on
+    ``measured["threads"]``) where there are some, else those on ``measured["threads"]``
+    (None: all cores, as it measured)."""
     from ...stress_tables.files import canonical_json, sha256_bytes
     from . import cache
 
@@ -263,8 +284,10 @@ def measured_seconds_per_cost(table: Table, measured: dict | None = None) -> flo
         return None
     if cache.dem_kernel_version() != m["kernel_version"]:
         return None
-    cost = sum(_cost(scene, r["point"], r["spin_up_s"]) for r in m["runs"])
-    wall = sum(float(r["wall_time_s"]) for r in m["runs"])
+    on = lambda n: [r for r in m["runs"] if r.get("threads", m["threads"]) == n]  # noqa: E731
+    runs = (on(threads) if threads is not None else []) or on(m["threads"])
+    cost = sum(_cost(scene, r["point"], r["spin_up_s"]) for r in runs)
+    wall = sum(float(r["wall_time_s"]) for r in runs)
     return wall / cost if cost > 0 else None
 
 

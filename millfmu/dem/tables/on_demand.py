@@ -34,7 +34,7 @@ import os
 import sys
 from dataclasses import dataclass, replace
 from . import cache as _cache
-from .build import PointStore, duration, relative_costs, seconds_per_cost, stored_results
+from .build import PointStore, builder_sharing_cores, duration, relative_costs, seconds_per_cost, stored_results
 from ...stress_tables.spec import DEM_BUILDER_ID, TableError, TableSpec, builder_id_of
 from ...stress_tables.table import Table
 
@@ -276,8 +276,10 @@ def plan(table: Table, point: dict, builder, kernel_version: str, cache_dir=None
             starts = [tuple(runs.start_of(spec.scene, p)) for p in todo]
         except (ValueError, KeyError, TypeError):  # as relative_costs: a scene it cannot read
             starts = None
-    return Plan(spec, points, todo, costs, seconds_per_cost(table, builder),
-                workers or os.cpu_count() or 1, starts)
+    n = workers or os.cpu_count() or 1
+    # points run at once share the cores out (build.builder_sharing_cores): their speed
+    at_once = builder_sharing_cores(builder, min(n, len(todo)))
+    return Plan(spec, points, todo, costs, seconds_per_cost(table, at_once), n, starts)
 
 
 def _key(store: PointStore, spec: TableSpec, p: dict) -> str:
