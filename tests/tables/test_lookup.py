@@ -254,3 +254,34 @@ def test_collision_energy_by_the_beads_mass_or_the_pairs_reduced_mass(table):
         assert a.collision_rate_per_m3_s == b.collision_rate_per_m3_s
     with pytest.raises(T.TableError, match="collision_energy = 'x': allowed 'bead_mass', 'reduced_mass'"):
         T.TableStressSource(table, collision_energy="x")
+
+
+class _Prepared:
+    """The analytic builder with a ``before_points`` hook that counts its calls."""
+
+    builder_id = T.builder_id_of(analytic_builder)
+
+    def __init__(self):
+        self.before = []
+
+    def before_points(self, spec):
+        self.before.append(spec.key())
+
+    def __call__(self, scene, point):
+        return analytic_builder(scene, point)
+
+
+def test_a_build_prepares_its_builder_once_where_points_are_left_to_run(tmp_path):
+    """build_table calls ``builder.before_points`` (the DEM's: compile its kernels in
+    several processes once, not in every worker) once before the points run, and not where
+    every point is stored already."""
+    s = spec()
+    b = _Prepared()
+    T.get_table(s, b, cache_dir=tmp_path, executor="serial", progress=False)
+    assert b.before == [s.key()]
+    import shutil
+
+    shutil.rmtree(T.entry_dir(s, tmp_path))  # the table gone, its points still stored
+    again = _Prepared()
+    T.get_table(s, again, cache_dir=tmp_path, executor="serial", progress=False)
+    assert again.before == []
