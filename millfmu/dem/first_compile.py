@@ -41,11 +41,13 @@ PLAN_RUNS = {
     "coupled": ["disc_slice", "--sector-deg", "10", "--no-gravity", "--fluid", "coupled",
                 "--spin-up", "0.002", "--record", "0.002", "--threads", "2"],
 }
-#: at most this many compiling processes (each holds numba and LLVM, some 300 MB)
+#: at most this many compiling processes (each holds numba and LLVM: 290-310 MB resident
+#: while compiling, measured)
 MAX_PROCESSES = 8
-#: seconds a compiling process takes to start and import numba and the kernel modules
-#: (measured on 2 cores: 1.5-2.5 s)
-PROCESS_START_S = 2.0
+#: seconds a compiling process takes to start: the imports of numba and the kernel modules
+#: took 0.33-0.38 s on 2 cores, rounded up for the spawn (the plan's schedule, 86 s on 2
+#: processes, against 83-88 s measured)
+PROCESS_START_S = 1.0
 #: a kernel whose own compilation takes this long [s] or longer is named when it is done
 SAY_ABOVE_S = 5.0
 #: the listener of :func:`watch_compiles` where one is registered (one per process)
