@@ -115,7 +115,8 @@ def _register_run(sub) -> None:
                         "equation at a fraction of the cost on full disc slices; direct_ldl, "
                         "the default, a symmetric factor, a third of direct_lu's time on a "
                         "sector)")
-    r.add_argument("--threads", type=thread_count, help="numba threads (default: all cores)")
+    r.add_argument("--threads", type=thread_count, help="numba threads, and the processes that "
+                   "compile the kernels on a first run (default: all cores)")
     r.add_argument("--device", choices=("cpu", "gpu"), default=None,
                    help="where the DEM steps: cpu (numba threads, default) or gpu "
                         "(numba.cuda; the coupled liquid stays on the CPU's threads; no "
@@ -178,7 +179,8 @@ def _run(args) -> int:
         print(f"millfmu dem run: note: {line}", file=sys.stderr)
     from millfmu.dem.first_compile import compile_if_cold
 
-    compile_if_cold(coupled=scene.fluid_mode == "coupled")
+    # the cores the user gave the run (--threads) are those its compilation takes too
+    compile_if_cold(coupled=scene.fluid_mode == "coupled", processes=args.threads)
     try:
         stats = run_scene(scene, args.out, progress=not args.no_progress, threads=args.threads,
                           window_s=args.window_s, checkpoint_every_s=args.checkpoint_every_s,

@@ -224,3 +224,22 @@ def test_the_shipped_plan_covers_its_run(tmp_path, what):
     assert rc == 0 and compiled == [], (lines, compiled)
     assert "left to the run" not in lines[-1]
     assert _run(WARM, tmp_path, what) == (False, [])
+
+
+def test_dem_run_compiles_in_as_many_processes_as_its_threads(monkeypatch, tmp_path):
+    """``dem run --threads N``: the first run's compilation takes the N cores the run was
+    given, not all of them; without --threads, all (the count left to compile_if_cold)."""
+    import millfmu.dem.first_compile as fc
+    import millfmu.dem.run as run
+    from millfmu.cli import main
+
+    asked = []
+    monkeypatch.setattr(fc, "compile_if_cold", lambda coupled, **kw: asked.append(kw) or False)
+
+    def stop(*a, **kw):
+        raise run.DemRunError("stopped by the test")
+
+    monkeypatch.setattr(run, "run_scene", stop)
+    for extra, want in ((["--threads", "1"], 1), ([], None)):
+        assert main(["dem", "run", "annulus", "--fluid", "none", "--out", str(tmp_path / "o"), *extra]) == 2
+        assert asked.pop() == {"processes": want}
