@@ -152,13 +152,36 @@ def priorities(jobs: list[dict]) -> list[float]:
     return prio
 
 
-def _graph(jobs):
-    waiting = [len(j["after"]) for j in jobs]
-    callers = [[] for _ in jobs]
-    for i, j in enumerate(jobs):
-        for k in j["after"]:
-            callers[k].append(i)
-    return waiting, callers
+class _Ready:
+    """The jobs whose callees are done, the longest chain first (:func:`priorities`): what
+    :func:`order` simulates and :func:`compile_plan` runs."""
+
+    def __init__(self, jobs: list[dict]):
+        import heapq
+
+        self._heapq = heapq
+        self.prio = priorities(jobs)
+        self.waiting = [len(j["after"]) for j in jobs]
+        self.callers = [[] for _ in jobs]
+        for i, j in enumerate(jobs):
+            for k in j["after"]:
+                self.callers[k].append(i)
+        self.heap = [(-self.prio[i], i) for i, n in enumerate(self.waiting) if n == 0]
+        heapq.heapify(self.heap)
+
+    def __bool__(self) -> bool:
+        return bool(self.heap)
+
+    def pop(self) -> int:
+        """The ready job with the longest chain."""
+        return self._heapq.heappop(self.heap)[1]
+
+    def done(self, i: int) -> None:
+        """Job ``i`` is compiled: its callers whose callees are all done become ready."""
+        for c in self.callers[i]:
+            self.waiting[c] -= 1
+            if self.waiting[c] == 0:
+                self._heapq.heappush(self.heap, (-self.prio[c], c))
 
 
 def order(jobs: list[dict], processes: int) -> tuple[list[int], float]:
@@ -167,21 +190,15 @@ def order(jobs: list[dict], processes: int) -> tuple[list[int], float]:
     [s])."""
     import heapq
 
-    prio = priorities(jobs)
-    waiting, callers = _graph(jobs)
-    ready = [(-prio[i], i) for i, n in enumerate(waiting) if n == 0]
-    heapq.heapify(ready)
+    ready = _Ready(jobs)
     running, now, started = [], 0.0, []
     while ready or running:
         while ready and len(running) < processes:
-            _, i = heapq.heappop(ready)
+            i = ready.pop()
             started.append(i)
             heapq.heappush(running, (now + float(jobs[i]["seconds"]), i))
         now, i = heapq.heappop(running)
-        for c in callers[i]:
-            waiting[c] -= 1
-            if waiting[c] == 0:
-                heapq.heappush(ready, (-prio[c], c))
+        ready.done(i)
     return started, now
 
 
@@ -223,25 +240,20 @@ def _compile_job(kernel: str, args: list) -> tuple[float, str]:
 
 
 def _is_cached(job: dict) -> bool:
-    """Whether numba's cache holds the job's kernel for its argument types (loads it)."""
+    """Whether numba's cache index holds the job's kernel for its argument types (the key
+    numba's own load looks up; nothing is loaded, so the run loads each kernel once)."""
     try:
         d = _dispatcher(job["kernel"])
         sig = tuple(decode_type(a) for a in job["args"])
-        return d._cache.load_overload(sig, d.targetctx) is not None
+        key = d._cache._index_key(sig, d.targetctx.codegen())
+        return key in d._cache._cache_file._load_index()
     except Exception:  # noqa: BLE001 - an unreadable entry counts as not cached
         return False
 
 
 def missing(jobs: list[dict]) -> bool:
     """Whether a kernel that the plan's run calls directly (a job that no other job calls)
-    is not in numba's cache yet. Starts numba's threading layer first: a parallel kernel's
-    cached code calls the layer's functions, and loaded before the layer has registered
-    them, LLVM cannot link it and aborts the process."""
-    import numba
-
-    from .engine import _jit  # noqa: F401 - the package's choice of threading layer first
-
-    numba.get_num_threads()  # starts the layer
+    is not in numba's cache yet."""
     called = {k for j in jobs for k in j["after"]}
     return not all(_is_cached(j) for i, j in enumerate(jobs) if i not in called)
 
@@ -251,22 +263,18 @@ def compile_plan(jobs: list[dict], processes: int, log=None) -> tuple[float, lis
     run OpenMP), each job once the jobs it calls are done, the longest chain first; name
     each that took :data:`SAY_ABOVE_S` or more. (wall time [s], the errors of jobs that
     failed: the run compiles those itself)."""
-    import heapq
     import multiprocessing as mp
     from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
 
     say = _say(log)
     t0 = time.perf_counter()
-    prio = priorities(jobs)
-    waiting, callers = _graph(jobs)
-    ready = [(-prio[i], i) for i, n in enumerate(waiting) if n == 0]
-    heapq.heapify(ready)
+    ready = _Ready(jobs)
     errors = []
     with ProcessPoolExecutor(max_workers=processes, mp_context=mp.get_context("spawn")) as pool:
         running = {}
         while ready or running:
             while ready and len(running) < processes:
-                _, i = heapq.heappop(ready)
+                i = ready.pop()
                 running[pool.submit(_compile_job, jobs[i]["kernel"], jobs[i]["args"])] = i
             done, _ = wait(running, return_when=FIRST_COMPLETED)
             for f in done:
@@ -278,10 +286,7 @@ def compile_plan(jobs: list[dict], processes: int, log=None) -> tuple[float, lis
                     name = jobs[i]["kernel"].removeprefix("millfmu.dem.")
                     say(f"millfmu: compiled {name} in {took:.0f} s "
                         f"({time.perf_counter() - t0:.0f} s so far)")
-                for c in callers[i]:
-                    waiting[c] -= 1
-                    if waiting[c] == 0:
-                        heapq.heappush(ready, (-prio[c], c))
+                ready.done(i)
     return time.perf_counter() - t0, errors
 
 
@@ -320,8 +325,6 @@ def compile_if_cold(coupled: bool, log=None, processes: int | None = None,
     say(f"millfmu: compiled the kernels in {took:.0f} s{left}")
     watch_compiles(log)
     return True
-
-
 
 
 def watch_compiles(log=None) -> None:

@@ -218,8 +218,9 @@ print(repr((fc.compile_if_cold(sys.argv[2] == "coupled", log=lines.append), line
 def test_the_shipped_plan_covers_its_run(tmp_path, what):
     """Compiled from the plan in 2 processes, the plan's own short run compiles no kernel of
     the package (numba's helpers it may). dem: about 25 s on 2 cores; coupled: about 100 s.
-    A new process then finds the kernels cached and says nothing (loading the cached
-    parallel kernels before numba's threading layer had started aborted the process)."""
+    A new process then finds the kernels cached and says nothing (the check loads no kernel:
+    a cached parallel kernel loaded before numba's threading layer had started aborted the
+    process)."""
     rc, lines, compiled = _run(COVERED, tmp_path, what)
     assert rc == 0 and compiled == [], (lines, compiled)
     assert "left to the run" not in lines[-1]
