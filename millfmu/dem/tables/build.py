@@ -376,8 +376,7 @@ def run_points(spec: TableSpec, builder: Callable, executor: str = "processes",
     todo = order_by_cost(spec, builder, points,
                          [i for i, r in enumerate(results) if r is None])
     cost = getattr(builder, "relative_cost", None)
-    n_workers = 1 if (executor == "serial" and scheduler is None) else \
-        max(1, min(workers or os.cpu_count() or 1, len(todo) or 1))
+    n_workers = 1 if (executor == "serial" and scheduler is None) else points_at_once(workers, len(todo))
     prog = BuildProgress(len(points), len(points) - len(todo),
                          {i: float(cost(spec.scene, points[i])) for i in todo} if cost else None,
                          seconds_per_cost, n_workers)
@@ -476,7 +475,7 @@ def _run_todo(spec, builder, points, todo, done: _PointsDone, executor, workers,
     else:
         import multiprocessing
         from concurrent.futures import ProcessPoolExecutor, as_completed
-        n = min(workers or os.cpu_count() or 1, len(todo))
+        n = points_at_once(workers, len(todo))
         builder = builder_sharing_cores(builder, n)
         # spawned, not forked: a forked child of a process that has run the DEM's
         # OpenMP kernels cannot run them (GNU OpenMP is not fork safe)
@@ -486,6 +485,12 @@ def _run_todo(spec, builder, points, todo, done: _PointsDone, executor, workers,
             done.started(n)
             for f in as_completed(futs):
                 done(futs[f], f.result)
+
+
+def points_at_once(workers: int | None, n_points: int) -> int:
+    """How many points a local build runs at once: ``workers`` (default all cores), at most
+    the points to run, at least one."""
+    return max(1, min(workers or os.cpu_count() or 1, n_points))
 
 
 def builder_sharing_cores(builder, workers: int):
@@ -516,7 +521,7 @@ def _run_dask(spec, builder, points, todo, done, workers, scheduler):
             # at the scheduler in todo's order (costliest first); with the default 1.1 a
             # worker also holds the next one, which waits behind a long point while the
             # other workers run cheaper ones
-            n = min(workers or os.cpu_count() or 1, len(todo))
+            n = points_at_once(workers, len(todo))
             builder = builder_sharing_cores(builder, n)
             with dask.config.set({"distributed.scheduler.worker-saturation": 1.0}):
                 cluster = stack.enter_context(LocalCluster(

@@ -248,22 +248,18 @@ def _cost(scene: dict, point: dict, spin_up_s: float | None = None) -> float:
 #: the 280 and 103 s it took. Used where the installed kernel version is ``kernel_version``
 #: (runs of later sources of the same version measure their own speed, not this one:
 #: measure again when they change it).
+_STEEL = {"tip_speed_m_per_s": 10.0, "filling": 0.8, "bead_diameter_m": 0.8e-3,
+          "bead_density_kg_per_m3": 7800.0}
 MEASURED_SPEED = {
     "scene_sha256": "sha256:216aecd5347f34fcc9a8338d251a6dd9c72d9926aba20694e21e9a665c3012aa",
     "kernel_version": "sha256:cc5c174862c188a675fdb35932f269eb61ae82876e3d110866af2b7a62b0d3bd",
     "source_hash": "sha256:ccfe999eeb245cff904badce12eca5351083bf878c6f2247a5f5f24bda20361f",
     "threads": 2, "cpus": 2,
-    "runs": ({"point": {"tip_speed_m_per_s": 10.0, "filling": 0.8, "bead_diameter_m": 0.8e-3,
-                        "bead_density_kg_per_m3": 7800.0}, "spin_up_s": 1.5, "wall_time_s": 280.0},
-             {"point": {"tip_speed_m_per_s": 10.0, "filling": 0.8, "bead_diameter_m": 0.8e-3,
-                        "bead_density_kg_per_m3": 7800.0}, "spin_up_s": 0.2, "wall_time_s": 103.0},
+    "runs": ({"point": _STEEL, "spin_up_s": 1.5, "wall_time_s": 280.0},
+             {"point": _STEEL, "spin_up_s": 0.2, "wall_time_s": 103.0},
              # the same two on one thread (docs/tables.md, "What it costs")
-             {"point": {"tip_speed_m_per_s": 10.0, "filling": 0.8, "bead_diameter_m": 0.8e-3,
-                        "bead_density_kg_per_m3": 7800.0}, "spin_up_s": 1.5, "wall_time_s": 403.0,
-              "threads": 1},
-             {"point": {"tip_speed_m_per_s": 10.0, "filling": 0.8, "bead_diameter_m": 0.8e-3,
-                        "bead_density_kg_per_m3": 7800.0}, "spin_up_s": 0.2, "wall_time_s": 145.0,
-              "threads": 1}),
+             {"point": _STEEL, "spin_up_s": 1.5, "wall_time_s": 403.0, "threads": 1},
+             {"point": _STEEL, "spin_up_s": 0.2, "wall_time_s": 145.0, "threads": 1}),
 }
 
 
@@ -284,7 +280,9 @@ def measured_seconds_per_cost(table: Table, measured: dict | None = None,
         return None
     if cache.dem_kernel_version() != m["kernel_version"]:
         return None
-    on = lambda n: [r for r in m["runs"] if r.get("threads", m["threads"]) == n]  # noqa: E731
+    def on(n):
+        return [r for r in m["runs"] if r.get("threads", m["threads"]) == n]
+
     runs = (on(threads) if threads is not None else []) or on(m["threads"])
     cost = sum(_cost(scene, r["point"], r["spin_up_s"]) for r in runs)
     wall = sum(float(r["wall_time_s"]) for r in runs)

@@ -34,7 +34,8 @@ import os
 import sys
 from dataclasses import dataclass, replace
 from . import cache as _cache
-from .build import PointStore, builder_sharing_cores, duration, relative_costs, seconds_per_cost, stored_results
+from .build import (PointStore, builder_sharing_cores, duration, points_at_once, relative_costs,
+                    seconds_per_cost, stored_results)
 from ...stress_tables.spec import DEM_BUILDER_ID, TableError, TableSpec, builder_id_of
 from ...stress_tables.table import Table
 
@@ -278,7 +279,7 @@ def plan(table: Table, point: dict, builder, kernel_version: str, cache_dir=None
             starts = None
     n = workers or os.cpu_count() or 1
     # points run at once share the cores out (build.builder_sharing_cores): their speed
-    at_once = builder_sharing_cores(builder, min(n, len(todo)))
+    at_once = builder_sharing_cores(builder, points_at_once(workers, len(todo)))
     return Plan(spec, points, todo, costs, seconds_per_cost(table, at_once), n, starts)
 
 
