@@ -5,7 +5,10 @@ From a checkout's root, ``python -m validation.seed002 run --out DIR`` runs the 
 (accelerator_slice, 60 degree sector without gravity (SECTOR_DEG); 800, 1000, 1200, 1400 rpm
 at 80 % filling and 60, 70, 80, 90 % at 1200 rpm) into ``DIR/n<rpm>_f<filling %>``;
 ``python -m validation.seed002 table --out DIR`` reads their ``stats.json`` and prints one
-row per statement: the paper's, ours, the verdict. Statements are counted on the paper's
+row per statement: the paper's, ours, the verdict. ``python -m validation.seed002 summarize
+--out DIR --label NAME`` keeps what the table reads of a campaign's runs (zone statistics,
+no contacts) in ``validation/runs/seed002_sector.json``; ``python -m validation.seed002
+table`` computes the table from that summary. Statements are counted on the paper's
 configuration: a campaign with stationary baffles (``--baffles``; seed 002's mill has none)
 is a variant, shown in its own column and never counted as a match.
 """
@@ -119,8 +122,10 @@ def campaign_of(out_dir) -> dict:
     """The method, start and baffles of the campaign in ``out_dir`` (``campaign.json``; a
     folder without one holds a campaign of the physical method from rest, made before the
     file)."""
-    p = Path(out_dir) / "campaign.json"
     have = {"method": "physical", "primed": False, "baffles": False}
+    if isinstance(out_dir, Shipped):
+        return dict(have, **out_dir.campaign)
+    p = Path(out_dir) / "campaign.json"
     if p.exists():
         have.update(json.loads(p.read_text()))  # made before baffles: none
     return have
@@ -238,7 +243,114 @@ def export_table(out_dir, prefix, filling: float = 0.8):
     return table
 
 
+#: What the deviation table reads of a run's stats.json: per zone, and of seed 002's
+#: quantities per zone and in total (by every contact event and at the frames)
+ZONE_KEYS = ("name", "filling", "speed_over_tip_speed")
+Q_ZONE_KEYS = ("SN_g_per_m3_s", "SE_cs_w_per_m3", "SI_j")
+Q_TOTAL_KEYS = ("SN_g_per_m3_s", "SE_ts_sum_w", "SE_tn_sum_w", "ts_share", "efficiency")
+#: The shipped summary of the campaigns on seed 002's mill, from which the page's columns of
+#: those campaigns are computed
+SUMMARY = Path(__file__).resolve().parent / "runs" / "seed002_sector.json"
+
+
+def _counted_part(q: dict) -> dict:
+    return {"zones": {z: {k: q["zones"][z][k] for k in Q_ZONE_KEYS} for z in ZONE_NAMES},
+            "total": {k: q["total"][k] for k in Q_TOTAL_KEYS}}
+
+
+def compact(st: dict) -> dict:
+    """The part of a run's stats that :func:`deviation_rows` reads: per zone the local filling
+    and speed, seed 002's quantities per zone and in total by both countings, the radial
+    speed profile; no contacts or maps (units: 1/(m3 s), W/m3, J, W, -)."""
+    q = st["flow"]["seed002"]
+    out = _counted_part(q)
+    prof = q["radial_speed_profile"]
+    out["radial_speed_profile"] = {k: prof[k] for k in ("z_over_r", "speed_over_tip_speed")}
+    snap = q.get("snapshots_20_per_s") or q.get("snapshots")
+    if snap is not None:
+        out["snapshots_20_per_s"] = _counted_part(snap)
+    return {"zones": [{k: z[k] for k in ZONE_KEYS} for z in st["zones"]], "flow": {"seed002": out}}
+
+
+def _case_label(rpm: float, filling: float) -> str:
+    return f"{rpm:g} rpm, {round(filling * 100)} %"
+
+
+def summarize(out_dir, label: str | None = None, path=None) -> Path:
+    """Add the campaign in ``out_dir`` (its cases' :func:`compact` stats, its method, start,
+    baffles and the command that made it) to the summary at ``path`` (default
+    :data:`SUMMARY`) under ``label`` (default the method's name), replacing a campaign of
+    that label; ValueError for a folder without runs."""
+    camp = campaign_of(out_dir)
+    runs = {}
+    for rpm, fill in CASES:
+        st = _load(out_dir, rpm, fill)
+        if st is not None:
+            runs[_case_label(rpm, fill)] = {"rpm": rpm, "filling": fill, "stats": compact(st)}
+    if not runs:
+        raise ValueError(f"{out_dir}: no case has a stats.json; run 'python -m validation.seed002 "
+                         f"run --out {out_dir}' first")
+    label = label or _label(out_dir)
+    opts = (f" --method {camp['method']}" if camp["method"] != "physical" else "") + \
+        (" --primed" if camp.get("primed") else "") + (" --baffles" if camp.get("baffles") else "")
+    p = Path(path) if path is not None else SUMMARY
+    doc = json.loads(p.read_text()) if p.exists() else {}
+    doc["note"] = ("seed 002's cases on the 60-degree accelerator sector without gravity, per "
+                   "campaign: per case what the deviation table reads (zone filling and speed "
+                   "[-]; SN_g [1/(m3 s)], SE_cs [W/m3], SI [J] per zone; totals [1/(m3 s), W, -]; "
+                   "the radial speed profile)")
+    doc["protocol"] = {"sector_deg": SECTOR_DEG, "spin_up_s": SPIN_UP_S, "record_s": RECORD_S,
+                       "window_s": WINDOW_S, "sample_every_s": SAMPLE_S,
+                       "gravity_m_per_s2": [0.0, 0.0, 0.0], "threads": 1}
+    doc.setdefault("campaigns", {})[label] = {
+        "campaign": camp,
+        "command": f"python -m validation.seed002 run --out DIR{opts} --threads 1, then python -m "
+                   f"validation.seed002 summarize --out DIR --label '{label}'",
+        "runs": runs}
+    p.write_text(json.dumps(doc, indent=1, allow_nan=False) + "\n")
+    return p
+
+
+def _summary_doc(path=None) -> dict:
+    p = Path(path if path is not None else SUMMARY)
+    if not p.exists():
+        raise ValueError(f"{p}: no summary; make it with 'python -m validation.seed002 summarize "
+                         f"--out DIR' from a campaign's runs")
+    return json.loads(p.read_text())
+
+
+class Shipped:
+    """A campaign of the shipped summary (:data:`SUMMARY`), read where a run folder is:
+    :func:`deviation_rows` and :func:`deviation_table` take it in place of a folder."""
+
+    def __init__(self, label: str, path=None):
+        doc = _summary_doc(path)
+        if label not in doc.get("campaigns", {}):
+            raise ValueError(f"campaign {label!r}: not in the shipped summary; it has "
+                             f"{sorted(doc.get('campaigns', {}))}")
+        self.label = label
+        entry = doc["campaigns"][label]
+        self.campaign = dict(entry["campaign"])
+        self.stats = {(r["rpm"], r["filling"]): r["stats"] for r in entry["runs"].values()}
+
+    def __str__(self):
+        return f"the shipped summary's campaign {self.label!r}"
+
+
+def shipped_labels(path=None) -> list[str]:
+    """The campaigns the shipped summary holds, in its order."""
+    return list(_summary_doc(path)["campaigns"])
+
+
+def _has(out_dir, rpm, fill) -> bool:
+    if isinstance(out_dir, Shipped):
+        return (rpm, fill) in out_dir.stats
+    return (case_dir(out_dir, rpm, fill) / "stats.json").exists()
+
+
 def _load(out_dir, rpm, fill):
+    if isinstance(out_dir, Shipped):
+        return out_dir.stats.get((rpm, fill))
     p = case_dir(out_dir, rpm, fill) / "stats.json"
     return json.loads(p.read_text()) if p.exists() else None
 
@@ -468,7 +580,7 @@ def deviation_table(columns) -> list[dict]:
         label, folder = col[0], col[1]
         counting = col[2] if len(col) > 2 else None
         variants[label] = variant_of(folder)
-        partial = not all((case_dir(folder, *k) / "stats.json").exists() for k in CASES)
+        partial = not all(_has(folder, *k) for k in CASES)
         for r in deviation_rows(folder, counting, partial=partial):
             key = r["statement"]
             if key not in out:
@@ -542,9 +654,14 @@ def parser() -> argparse.ArgumentParser:
                                  description="Seed 002 side by side (accelerator mill): run "
                                              "its cases, print the deviation table. Run from "
                                              "a checkout's root.")
-    s2.add_argument("action", choices=("run", "table"), help="run the cases (skipping those "
-                    "done) or print the table from their results")
-    s2.add_argument("--out", required=True, help="folder of the case runs")
+    s2.add_argument("action", choices=("run", "table", "summarize"), help="run the cases "
+                    "(skipping those done), print the table from their results (without --out: "
+                    "from the shipped summary validation/runs/seed002_sector.json), or add the "
+                    "campaign in --out to that summary")
+    s2.add_argument("--out", help="folder of the case runs (needed by run and summarize)")
+    s2.add_argument("--label", help="summarize: the campaign's name in the summary (default "
+                    "its method); table without --out: print this shipped campaign alone, "
+                    "case by case")
     s2.add_argument("--method", choices=("physical", "paper", "physical-A"),
                     default="physical",
                     help="run: physical (the slice's own coupling, every contact event "
@@ -602,6 +719,20 @@ def main(argv=None) -> int:
     args = parser().parse_args(argv)
     cases = CASES
     try:
+        if args.out is None:
+            if args.action != "table":
+                raise ValueError(f"{args.action}: give --out DIR, the folder of the case runs")
+            if args.compare or args.export_table:
+                raise ValueError("--compare and --export-table read run folders: give --out DIR")
+            if args.label:
+                print(markdown(deviation_rows(Shipped(args.label)), f"ours ({args.label})"))
+            else:
+                print(markdown_columns(deviation_table([(lab, Shipped(lab)) for lab in
+                                                        shipped_labels()])))
+            return 0
+        if args.action == "summarize":
+            print(f"wrote {summarize(args.out, args.label)}")
+            return 0
         if args.case:
             cases = tuple(_case(c) for c in args.case)
         cols = [(_label(args.out), args.out)] + [_compare_col(c) for c in args.compare or ()]

@@ -409,6 +409,56 @@ def test_seed002_columns_by_method_and_counting(tmp_path):
                   "frames")
 
 
+def test_seed002_summary_gives_the_tables_of_its_run_folders(tmp_path, capsys):
+    """A campaign kept in the summary (zone statistics only) gives the same rows, verdicts
+    and count as its run folders, a partial campaign included; the CLI computes the table
+    from the summary without a run folder, and refuses what needs one by name."""
+    from validation import seed002 as S
+
+    phys, paper, one = tmp_path / "phys", tmp_path / "paper", tmp_path / "primed"
+    for folder, cases in ((phys, S.CASES), (paper, S.CASES), (one, [(1200.0, 0.8)])):
+        for case in cases:
+            st = _fake_stats(*case, 0.03)
+            q = st["flow"]["seed002"]
+            snap = json.loads(json.dumps({k: q[k] for k in ("zones", "total")}))
+            snap["total"]["efficiency"] = 0.004 if case == (1000.0, 0.8) else 0.003
+            q["snapshots_20_per_s"] = snap
+            st["zones"][0]["collision_frequency_per_m3_s"] = 1.0  # not read: not kept
+            d = S.case_dir(folder, *case)
+            d.mkdir(parents=True)
+            (d / "stats.json").write_text(json.dumps(st))
+    (paper / "campaign.json").write_text(json.dumps({"method": "paper", "primed": False}))
+    (one / "campaign.json").write_text(json.dumps({"method": "paper", "primed": True}))
+    path = tmp_path / "summary.json"
+    for label, folder in (("model B", phys), ("paper's", paper), ("primed", one)):
+        S.summarize(folder, label, path)
+    S.summarize(phys, "model B", path)  # again: replaced, not added
+    assert S.shipped_labels(path) == ["model B", "paper's", "primed"]
+    kept = json.loads(path.read_text())["campaigns"]["model B"]
+    assert "collision_frequency_per_m3_s" not in json.dumps(kept)
+    assert "--out DIR --threads 1" in kept["command"]
+    folders = [("model B", phys), ("paper's", paper), ("primed", one)]
+    shipped = [(lab, S.Shipped(lab, path)) for lab, _ in folders]
+    assert S.deviation_table(shipped) == S.deviation_table(folders)
+    assert S.deviation_rows(shipped[1][1]) == S.deviation_rows(paper)
+    assert S.campaign_of(shipped[2][1]) == {"method": "paper", "primed": True, "baffles": False}
+    with pytest.raises(ValueError, match="campaign 'x': not in the shipped summary"):
+        S.Shipped("x", path)
+    with pytest.raises(ValueError, match="no case has a stats.json"):
+        S.summarize(tmp_path / "empty", "e", path)
+    S.SUMMARY, keep = path, S.SUMMARY
+    try:
+        assert S.main(["table"]) == 0
+        assert "model B 12, paper's 13, primed 11; 13 under" in capsys.readouterr().out
+        assert S.main(["table", "--label", "paper's"]) == 0
+        assert "On the paper's mill: 13 of 15" in capsys.readouterr().out
+        assert S.main(["summarize"]) == 2
+        assert "give --out DIR" in capsys.readouterr().err
+        assert S.main(["table", "--compare", f"a={phys}"]) == 2
+    finally:
+        S.SUMMARY = keep
+
+
 def test_seed002_baffled_variant_is_shown_never_counted(tmp_path):
     """Seed 002's mill has no baffles: a baffled campaign gets its own column, marked as a
     variant, and what holds only there is not counted as a match of the paper's statement,
