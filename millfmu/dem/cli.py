@@ -226,6 +226,7 @@ def _resume(args) -> int:
         print(f"millfmu dem run: --resume {args.resume}: goes on with the stopped run's own "
               f"scene and options; not allowed with {' '.join(given)}", file=sys.stderr)
         return 2
+    _compile_for_resume(args.resume, args.threads)
     try:
         stats = resume_run(args.resume, progress=not args.no_progress, threads=args.threads,
                            checkpoint_every_s=args.checkpoint_every_s)
@@ -233,6 +234,24 @@ def _resume(args) -> int:
         print(f"millfmu dem run: {e}", file=sys.stderr)
         return 2
     return _report(stats, args.resume)
+
+
+def _compile_for_resume(folder, threads) -> None:
+    """A stopped run resumed on a machine whose kernel cache is cold (another machine, or
+    other sources) compiles first, as a new run does, in ``threads`` processes; the stopped
+    run's scene says whether with the coupled liquid. The checkpoint is read for that only
+    where a kernel is missing; one that cannot be read is left to resume_run to refuse."""
+    from millfmu.dem import first_compile as fc
+    from millfmu.dem.run import DemRunError, load_checkpoint
+
+    jobs = fc.load_plan("coupled")  # the coupled run's kernels include the DEM's
+    if jobs is not None and not fc.missing(jobs):
+        return
+    try:
+        scene = load_checkpoint(folder)["scene"]
+    except (DemRunError, KeyError, TypeError):
+        return
+    fc.compile_if_cold(coupled=scene.fluid_mode == "coupled", processes=threads)
 
 
 def _report(stats, out) -> int:

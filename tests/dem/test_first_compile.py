@@ -5,6 +5,7 @@ import json
 import os
 import subprocess
 import sys
+import types
 from pathlib import Path
 
 import pytest
@@ -244,3 +245,39 @@ def test_dem_run_compiles_in_as_many_processes_as_its_threads(monkeypatch, tmp_p
     for extra, want in ((["--threads", "1"], 1), ([], None)):
         assert main(["dem", "run", "annulus", "--fluid", "none", "--out", str(tmp_path / "o"), *extra]) == 2
         assert asked.pop() == {"processes": want}
+
+
+def test_a_resumed_run_compiles_a_cold_cache_first(monkeypatch, tmp_path):
+    """``dem run --resume DIR`` on a cold kernel cache: the stopped run's scene decides what
+    is compiled (coupled or not), in as many processes as --threads gives, before the run
+    goes on; on a warm cache the checkpoint is not read for it; a folder without a
+    checkpoint is refused by the resume, nothing compiled."""
+    import millfmu.dem.first_compile as fc
+    import millfmu.dem.run as run
+    from millfmu.cli import main
+    from millfmu.dem.scene import load_scene
+
+    asked, read = [], []
+    monkeypatch.setattr(fc, "compile_if_cold", lambda coupled, **kw: asked.append((coupled, kw)) or False)
+    monkeypatch.setattr(fc, "missing", lambda jobs: True)
+    assert main(["dem", "run", "--resume", str(tmp_path)]) == 2  # no checkpoint there
+    assert asked == []
+    scene = load_scene("disc_slice")
+    assert scene.fluid_mode == "coupled"
+
+    def stopped(out_dir):
+        read.append(out_dir)
+        return {"kernel_version": run._kernel_version(), "scene": scene, "sim": types.SimpleNamespace(),
+                "window_s": None, "contacts": False}
+
+    def stop(*a, **kw):
+        raise run.DemRunError("stopped by the test")
+
+    monkeypatch.setattr(run, "load_checkpoint", stopped)
+    monkeypatch.setattr(run, "run_scene", stop)
+    assert main(["dem", "run", "--resume", str(tmp_path), "--threads", "1"]) == 2
+    assert asked == [(True, {"processes": 1})]
+    monkeypatch.setattr(fc, "missing", lambda jobs: False)
+    read.clear()
+    assert main(["dem", "run", "--resume", str(tmp_path)]) == 2
+    assert len(asked) == 1 and len(read) == 1  # read by the resume only
