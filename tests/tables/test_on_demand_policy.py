@@ -47,7 +47,7 @@ def test_same_kernel_runs_only_the_new_point_and_says_so_first(old_table, tmp_pa
     t = _extend(old_table, tmp_path, "refuse", events)
     assert [e[0] for e in events] == ["log", "build"]
     # 4 points, 3 from the table; the new one costs 0.8 x 16 units of 2 s
-    assert "4 points, 3 already built, 1 to run (about 26 s of CPU" in events[0][1]
+    assert "4 points, 3 already built, 1 to run (about 26 s of point runs" in events[0][1]
     assert t.spec().kernel_version == "k-old"
 
 
@@ -61,7 +61,7 @@ def test_stale_kernel_refuse_rebuild_accept(old_table, tmp_path, monkeypatch):
     line = events[0][1]
     assert "\n" not in line and "k-old" in line and "k-new" in line
     # all 4 points: 0.8 x (6 + 10 + 14 + 16) = 36.8 units of 2 s
-    assert "4 points, 0 already built, 4 to run (about 74 s of CPU" in line
+    assert "4 points, 0 already built, 4 to run (about 74 s of point runs" in line
     assert "on_stale = 'rebuild'" in line and "'accept'" in line and str(e.value) == line
     # rebuild: the same line first, then every point with the installed kernel
     events = []
@@ -144,7 +144,7 @@ def test_run_with_a_stale_kernel_on_the_coupled_table(tmp_path, capsys, monkeypa
     assert main(["run", str(scene), "--out", str(tmp_path / "out"), "-q", "--no-plots"]) == 2
     err = capsys.readouterr().err
     assert "beads.diameter_m = 0.0014" in err and "40 points, 0 already built, 40 to run" in err
-    assert "h of CPU" in err and "refused" in err
+    assert "h of point runs" in err and "refused" in err
 
 
 def test_build_progress_eta_arithmetic():

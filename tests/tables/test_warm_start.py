@@ -308,7 +308,7 @@ def test_a_warm_start_costs_its_shorter_spin_up(tmp_path, coupled):
                                 "states (about ")
     pc = plan(coupled, {"bead_density_kg_per_m3": 7800.0}, cold, kv, cache_dir=tmp_path, workers=2)
     assert all(how == "cold" for how, _ in pc.starts) and ", all started cold (about " in pc.line()
-    assert pl.cpu_s() == pytest.approx(pc.cpu_s() * 0.6 / 1.9)
+    assert pl.runs_s() == pytest.approx(pc.runs_s() * 0.6 / 1.9)
     # calibrated on the installed DEM's runs of the point (MEASURED_SPEED: cold 280 s, warm
     # 103 s on 2 threads, 403 and 145 s on 1; the whole on-demand command 108 s), not on the
     # table's build, whose sources ran 3.2 times slower: within 15 % of each
@@ -430,7 +430,7 @@ def test_the_estimate_follows_how_each_point_starts(tmp_path, monkeypatch):
     assert pl.costs == [pytest.approx(0.5 * 14 * 1.9), pytest.approx(0.7 * 14 * 0.6)]
     assert pl.seconds_per_cost == pytest.approx(2.0)  # the table's points, each at the cost of its start
     assert pl.line() == ("6 points, 4 already built, 2 to run, 1 started warm from stored settled states, "
-                         "1 cold (1 of them: too far) (about 38 s of CPU, 38 s on 1 worker)")
+                         "1 cold (1 of them: too far) (about 38 s of point runs, 38 s on 1 worker)")
     one = plan(done, {"tip_speed_m_per_s": 14.0, "filling": 0.7}, _WarmStub(), "k", cache_dir=tmp_path / "b")
     warm = [c for p, c in zip(one.todo, one.costs) if p["filling"] == 0.7 and p["tip_speed_m_per_s"] == 14.0]
     assert warm == [pytest.approx(0.7 * 14 * 1.9 * 0.6 / 1.9)]

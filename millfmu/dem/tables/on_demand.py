@@ -205,7 +205,8 @@ class Plan:
     workers: int = 1
     starts: list | None = None
 
-    def cpu_s(self, costs=None) -> float | None:
+    def runs_s(self, costs=None) -> float | None:
+        """The points' run times [s] summed, each at the thread count it runs with."""
         costs = self.costs if costs is None else costs
         if costs is None or self.seconds_per_cost is None:
             return None
@@ -213,10 +214,10 @@ class Plan:
 
     def wall_s(self) -> float | None:
         """Wall time on ``workers`` processes: at least the costliest point, at most the sum."""
-        cpu = self.cpu_s()
-        if cpu is None or not self.costs:
-            return cpu
-        return max(cpu / max(1, min(self.workers, len(self.costs))),
+        runs = self.runs_s()
+        if runs is None or not self.costs:
+            return runs
+        return max(runs / max(1, min(self.workers, len(self.costs))),
                    max(self.costs) * self.seconds_per_cost)
 
     def starts_text(self) -> str:
@@ -241,9 +242,11 @@ class Plan:
 
     def line(self) -> str:
         n, m = len(self.points), len(self.todo)
-        cost = (f" (about {duration(self.cpu_s())} of CPU, {duration(self.wall_s())} on "
+        # the points' run times summed (each at the thread count it runs with: CPU time
+        # only where that is one), and the wall time on the workers
+        cost = (f" (about {duration(self.runs_s())} of point runs, {duration(self.wall_s())} on "
                 f"{self.workers} worker{'s' if self.workers != 1 else ''})"
-                if self.cpu_s() is not None else "")
+                if self.runs_s() is not None else "")
         return f"{n} points, {n - m} already built, {m} to run{self.starts_text()}{cost}"
 
 
