@@ -1,0 +1,92 @@
+"""Seed 002's verdicts computed from the shipped summary of the campaigns on the paper's mill
+(validation/runs/seed002_sector.json): the page's case-by-case table, its columns' verdicts
+and its count, and the README's line follow from it, so that a summary and a verdict that
+disagree fail here."""
+
+from __future__ import annotations
+
+import json
+import re
+from pathlib import Path
+
+import pytest
+
+from validation import seed002 as S
+
+ROOT = Path(__file__).resolve().parents[2]
+PAGE = ROOT / "docs" / "validation-seed002.md"
+#: the summary's campaigns and the page's columns they fill
+COLUMNS = {"physical, model B": "physical, model B", "paper's method": "paper's method"}
+
+
+@pytest.fixture(scope="module")
+def table():
+    return S.deviation_table([(lab, S.Shipped(lab)) for lab in COLUMNS])
+
+
+def _word(text: str) -> str:
+    m = re.match(r"(matches|missed|holds|not evaluated|not run)", text.strip())
+    assert m, text
+    return {"holds": "matches"}.get(m.group(1), m.group(1))
+
+
+def _page_columns() -> tuple[list[str], list[list[str]]]:
+    """The header and the rows (by number) of the page's table of statements."""
+    head, rows = None, []
+    for line in PAGE.read_text(encoding="utf-8").splitlines():
+        cells = [c.strip() for c in line.strip().strip("|").split("|")]
+        if line.startswith("| # | seed 002 statement"):
+            head = cells
+        elif head is not None and re.match(r"\| \d+ \|", line):
+            rows.append(cells)
+        elif head is not None and rows and not line.startswith("|"):
+            break
+    return head, rows
+
+
+def test_the_summary_holds_every_case_of_its_campaigns_with_what_the_table_reads():
+    doc = json.loads(S.SUMMARY.read_text())
+    assert list(doc["campaigns"]) == list(COLUMNS)
+    for label, camp in doc["campaigns"].items():
+        assert sorted((r["rpm"], r["filling"]) for r in camp["runs"].values()) == sorted(S.CASES), label
+        for r in camp["runs"].values():
+            st = r["stats"]
+            assert [z["name"] for z in st["zones"]] == list(S.ZONE_NAMES)
+            assert all(set(z) == set(S.ZONE_KEYS) for z in st["zones"])
+            q = st["flow"]["seed002"]
+            assert set(q["total"]) == set(S.Q_TOTAL_KEYS)
+            assert "snapshots_20_per_s" in q  # both countings
+    assert S.SUMMARY.stat().st_size < 200_000  # zone statistics, not contacts or maps
+
+
+def test_the_case_by_case_table_is_the_summarys():
+    text = PAGE.read_text(encoding="utf-8")
+    want = S.markdown(S.deviation_rows(S.Shipped("physical, model B")), "ours (physical)")
+    assert want in text
+
+
+def test_the_columns_verdicts_and_the_count_follow_from_the_summary(table):
+    head, rows = _page_columns()
+    assert len(rows) == len(table) == 15
+    col = {h: i for i, h in enumerate(head)}
+    verdict = col["verdict on the paper's mill"]
+    for n, (page, r) in enumerate(zip(rows, table), 1):
+        for label, page_col in COLUMNS.items():
+            assert _word(page[col[page_col]]) == _word(r["cells"][label]["verdict"]), (n, label)
+        if r["verdict"].startswith("matches"):
+            assert page[verdict].startswith("matches"), n
+    c = S.count(table)
+    text = " ".join(PAGE.read_text(encoding="utf-8").split())
+    n_b, n_p = c["per_campaign"]["physical, model B"], c["per_campaign"]["paper's method"]
+    assert f"Model B matches {n_b} " in text
+    assert f"the paper's method matches {n_p} " in text
+    assert f"Under model B and the paper's method together {c['together']} match" in text
+    readme = " ".join((ROOT / "README.md").read_text(encoding="utf-8").split())
+    assert (f"seed 002 (accelerator mill): {max(n_b, n_p)} of {c['statements']} match on its mill by one "
+            f"method, {c['together']} by two") in readme
+
+
+def test_the_table_command_reads_the_summary_without_a_run_folder(capsys):
+    assert S.main(["table"]) == 0
+    out = capsys.readouterr().out
+    assert "On the paper's mill, of 15 statements: physical, model B " in out
