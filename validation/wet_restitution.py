@@ -90,6 +90,35 @@ def summarize(out_dir) -> dict:
                        "f_mat_kg_per_J_m": {law: tr[law]["detailed"]["1"]["f_mat_kg_per_J_m"] for law in LAWS}}}
 
 
+#: the points' names on the page
+NAMES = {"anchor": "anchor", "v_t 6": "6 m/s", "v_t 14": "14 m/s", "d 0.6 mm": "0.6 mm beads",
+         "d 1.2 mm": "1.2 mm beads", "rho 6040": "6040 kg/m3"}
+
+
+def page_tables(s: dict) -> str:
+    """The two tables of the rates page: the published curve's chamber readings over the
+    lubrication law's, and the limestone S(10 um) over its anchor by the simple model and
+    both laws, with each law's change over the simple model's."""
+    r = s["ratio_to_lubrication"]
+    cols = list(r)
+    out = ["| the published curve over the table's law | " + " | ".join(NAMES[c] for c in cols) + " |",
+           "|---" * (1 + len(cols)) + "|"]
+    for key, name in (("frequency_per_m3_s", "collisions per volume"),
+                      ("above_limestone_threshold_per_m3_s", "collisions with SE_tn above 2.7e-9 J"),
+                      ("power_W_per_m3", "collision power")):
+        out.append(f"| {name} | " + " | ".join(f"{r[c][key]:.2f}" for c in cols) + " |")
+    t = s["trends"]
+    pts = list(t["simple"])
+    out += ["", "| limestone S(10 um) over its anchor | " + " | ".join(NAMES[p] for p in pts) + " |",
+            "|---" * (1 + len(pts)) + "|",
+            "| simple model | " + " | ".join(f"{t['simple'][p]:.3g}" for p in pts) + " |"]
+    for law, name in (("lubrication", "detailed, the table's law (over the simple model's)"),
+                      ("legendre2006", "detailed, the published curve (over the simple model's)")):
+        out.append(f"| {name} | " + " | ".join(f"{t[law][p]:.3g} ({t[law][p] / t['simple'][p]:.2f})"
+                                                for p in pts) + " |")
+    return "\n".join(out)
+
+
 def markdown(s: dict) -> str:
     keys = (("frequency_per_m3_s", "collisions per volume"),
             ("above_limestone_threshold_per_m3_s", "collisions above 2.7e-9 J"),
