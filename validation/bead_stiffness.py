@@ -75,7 +75,9 @@ MOVES_FACTOR = 1.5
 
 #: Points off the anchor for the trends (the trend study's, validation.trends_causes):
 #: label -> (OperatingPoint field, value); each runs at every factor with the anchor's protocol
-TREND_POINTS = {"v_t 14": ("tip_speed_m_per_s", 14.0), "d 1.2 mm": ("d_gb_m", 1.2e-3)}
+TREND_POINTS = {"v_t 14": ("tip_speed_m_per_s", 14.0), "d 1.2 mm": ("d_gb_m", 1.2e-3),
+                "v_t 6": ("tip_speed_m_per_s", 6.0), "d 0.6 mm": ("d_gb_m", 0.6e-3),
+                "rho 6040": ("rho_gb_kg_per_m3", 6040.0)}
 
 
 def case_dir(out_dir, factor: float, point: str | None = None) -> Path:
@@ -97,6 +99,8 @@ def scene_for(factor: float, spin_up_s: float, record_s: float, point: str | Non
         sample_every_s=0.01, initial_rotation=INITIAL_ROTATION)
     if point is not None and TREND_POINTS[point][0] == "d_gb_m":
         base = replace(base, bead_diameter_m=TREND_POINTS[point][1])
+    if point is not None and TREND_POINTS[point][0] == "rho_gb_kg_per_m3":
+        base = replace(base, material=replace(base.material, density_kg_per_m3=TREND_POINTS[point][1]))
     dt = DT_TABLE_S * factor ** -0.4
     steps = max(1, round(COUPLING_STEPS_TABLE * DT_TABLE_S / dt))
     return replace(base, name=f"disc_slice_{case_dir('', factor, point).name}",

@@ -1,5 +1,6 @@
-"""Wet collisions of two beads through the DEM, against the closed form of its lubrication
-force and a published restitution curve of immersed collisions.
+"""Wet collisions of two beads and of a bead on a wall through the DEM, by its two laws,
+against the closed form of its lubrication force and a published restitution curve of
+immersed collisions.
 
     python -m validation.wet_collisions [--json validation/runs/wet_collisions.json]
 
@@ -26,9 +27,17 @@ m* = m, R* = a); Yang and Hunt (2006, Phys. Fluids 18, 121506) find head-on coll
 two spheres on the same curve with the pair's reduced mass and radius. The published
 critical Stokes number, where bouncing stops, is about 10 (Joseph et al. 2001).
 
-The verdict compares the engine with the closed form of its own law (the code does what the
-law says) and states the law's departure from the published curve at the Stokes numbers of
-the table's collisions (St 57 at 2.7e-9 J, the limestone example's threshold at 10 um).
+The DEM's second law, ``[fluid] wet_collisions = "legendre2006"``
+(:mod:`millfmu.dem.engine.legendre2006`), takes the published curve itself: a restitution
+per contact from its approach's Stokes number, lubrication off. Its runs (two beads, and one
+bead hitting a disc's face at the Stokes number of its own mass and radius, St = m v / (6 pi
+eta a^2)) are checked against the curve; the lubrication law acts between beads only, so
+its wall contacts stay dry.
+
+The verdicts: the engine against the closed form of its lubrication law and against the
+published curve with legendre2006 (the code does what each law says), and the lubrication
+law's departure from the published curve at the Stokes number of the limestone example's
+threshold at 10 um (2.7e-9 J, St 56).
 """
 
 from __future__ import annotations
@@ -53,7 +62,9 @@ H_MIN_M = 5e-4 * 2.0 * RADIUS_M
 STOKES = (5.0, 8.0, 12.0, 16.0, 20.0, 30.0, 50.0, 80.0, 120.0, 200.0, 400.0, 1000.0)
 #: the published fit's constant: e / e_dry = exp(-LEGENDRE_ST / St)
 LEGENDRE_ST = 35.0
-#: the engine against the closed form of its law: |e_run - e_closed| at most this
+#: the engine against the closed form of its law, and legendre2006 against the published
+#: curve (levels of 1/254 of e_dry; the Hertz contact damped by the linear spring's ratio):
+#: |e_run - e_law| at most this
 TOLERANCE = 0.01
 SUMMARY = Path(__file__).resolve().parent / "runs" / "wet_collisions.json"
 
@@ -88,9 +99,10 @@ def published(st: float, e_dry: float) -> float:
     return e_dry * math.exp(-LEGENDRE_ST / st)
 
 
-def run_collision(speed: float, lubrication: bool) -> float:
+def run_collision(speed: float, lubrication: bool, wet_collisions: str = "lubrication") -> float:
     """Effective restitution [-] of a head-on collision of two beads at relative speed
-    ``speed`` [m/s] through the engine (0 where they have not parted after 100 times the
+    ``speed`` [m/s] through the engine, with the lubrication force or without, or with the
+    restitution per contact of ``wet_collisions = "legendre2006"`` (0 where they have not parted after 100 times the
     approach's duration); measured once the gap has opened beyond h_cut again, where no
     force acts on the pair any more."""
     from millfmu.dem.engine.params import BeadMaterial, hertz_contact_time_s
@@ -103,7 +115,7 @@ def run_collision(speed: float, lubrication: bool) -> float:
     mat = BeadMaterial(rolling_friction=0.0, **MATERIAL)
     fluid = FluidSettings(density_kg_per_m3=WATER_KG_PER_M3, viscosity_Pa_s=VISCOSITY_PA_S,
                           drag=False, lubrication=lubrication, lubrication_cutoff_m=H_CUT_M,
-                          lubrication_min_gap_m=H_MIN_M)
+                          lubrication_min_gap_m=H_MIN_M, wet_collisions=wet_collisions)
     m, r = reduced()
     tc = hertz_contact_time_s(m, r, mat.effective_youngs_pa, speed)
     gap0 = 2.0 * H_CUT_M
@@ -128,15 +140,61 @@ def run_collision(speed: float, lubrication: bool) -> float:
     return 0.0
 
 
+def run_wall_collision(speed: float, wet_collisions: str = "lubrication") -> float:
+    """Effective restitution [-] of one bead hitting a disc's face head-on at ``speed``
+    [m/s] through the engine (the DEM's lubrication acts between beads only, so with
+    ``"lubrication"`` the wall contact is dry)."""
+    from millfmu.dem.engine.params import BeadMaterial, hertz_contact_time_s
+    from millfmu.dem.engine.sim import DemSimulation, FluidSettings
+    from millfmu.dem.mills.geometry import MillGeometry
+
+    d = 2.0 * RADIUS_M
+    geo = MillGeometry(shaft_radius_m=5.0 * d, chamber_radius_m=80.0 * d, height_m=10.0 * d,
+                       disc_radius_m=70.0 * d, disc_thickness_m=d, disc_z_m=0.0)
+    mat = BeadMaterial(rolling_friction=0.0, **MATERIAL)
+    fluid = FluidSettings(density_kg_per_m3=WATER_KG_PER_M3, viscosity_Pa_s=VISCOSITY_PA_S,
+                          drag=False, lubrication=wet_collisions == "lubrication",
+                          lubrication_cutoff_m=H_CUT_M, lubrication_min_gap_m=H_MIN_M,
+                          wet_collisions=wet_collisions)
+    m = 4.0 / 3.0 * math.pi * RADIUS_M ** 3 * MATERIAL["density_kg_per_m3"]
+    tc = hertz_contact_time_s(m, RADIUS_M, mat.effective_youngs_pa, speed)
+    gap0 = 2.0 * H_CUT_M
+    dt = tc / 50.0
+    face = 0.5 * d
+    sim = DemSimulation(geo, mat, [[40.0 * d, 0.0, face + RADIUS_M + gap0]], RADIUS_M, 0.0, dt,
+                        fluid=fluid, velocities_m_per_s=[[0.0, 0.0, -speed]], threads=1)
+    chunk = max(1, int(0.02 * (gap0 / speed) / dt))
+    touched = False
+    while sim.step_count * dt < 100.0 * (gap0 / speed + tc):
+        sim.run(chunk)
+        gap = sim.x[0, 2] - face - RADIUS_M
+        touched = touched or gap < 0.0
+        if touched and gap > 0.0 and sim.v[0, 2] > 0.0:
+            return sim.v[0, 2] / speed
+    return 0.0
+
+
+def wall_speed_at(st: float) -> float:
+    """Impact speed [m/s] of a bead on a wall at Stokes number ``st`` (its own mass and
+    radius: St = m v / (6 pi eta a^2))."""
+    m = 4.0 / 3.0 * math.pi * RADIUS_M ** 3 * MATERIAL["density_kg_per_m3"]
+    return st * 6.0 * math.pi * VISCOSITY_PA_S * RADIUS_M ** 2 / m
+
+
 def run_study() -> dict:
     """Every Stokes number of :data:`STOKES`, with lubrication and dry; the summary."""
     rows = []
     for st in STOKES:
         v = speed_at(st)
         wet, dry = run_collision(v, True), run_collision(v, False)
+        vw = wall_speed_at(st)
         rows.append({"stokes": st, "speed_m_per_s": v, "e_run": wet, "e_dry_run": dry,
                      "e_closed_form": closed_form(st, dry),
-                     "e_published": published(st, dry)})
+                     "e_published": published(st, dry),
+                     "e_legendre2006_run": run_collision(v, False, "legendre2006"),
+                     "wall_speed_m_per_s": vw,
+                     "e_wall_lubrication_run": run_wall_collision(vw, "lubrication"),
+                     "e_wall_legendre2006_run": run_wall_collision(vw, "legendre2006")})
     return {"note": ("head-on collisions of two beads in water through the DEM with the coupled "
                      "table's lubrication (seed 001 material), against the closed form of that "
                      "law and Legendre et al. (2006)'s e / e_dry = exp(-35 / St); St = m* v / "
@@ -153,10 +211,16 @@ def verdicts(summary: dict) -> dict:
     law's restitution over the published one at the limestone threshold's Stokes number."""
     rows = summary["rows"]
     worst = max(abs(r["e_run"] - r["e_closed_form"]) for r in rows)
+    worst_pub = max(max(abs(r["e_legendre2006_run"] - r["e_published"]),
+                        abs(r["e_wall_legendre2006_run"] - r["e_published"])) for r in rows)
+    worst_dry_wall = max(abs(r["e_wall_lubrication_run"] - r["e_dry_run"]) for r in rows)
     e_dry = rows[-1]["e_dry_run"]
     big_l = math.log(summary["h_cut_m"] / summary["h_min_m"]) + 1.0
     st_lime = summary["stokes_at_energy"]["2.7e-09 J"]
     return {"engine_matches_closed_form": worst <= TOLERANCE, "worst_difference": worst,
+            "legendre2006_matches_published": worst_pub <= TOLERANCE,
+            "worst_difference_legendre2006": worst_pub,
+            "walls_dry_under_lubrication": worst_dry_wall <= 1e-3,
             "critical_stokes_law": big_l * (1.0 + e_dry) / e_dry,
             "critical_stokes_published": "about 10 (Joseph et al. 2001)",
             "stokes_at_limestone_threshold": st_lime,
@@ -165,13 +229,21 @@ def verdicts(summary: dict) -> dict:
 
 
 def report(summary: dict) -> str:
-    lines = ["| St [-] | approach speed [m/s] | e, engine [-] | e, closed form of its law [-] | "
-             "e, Legendre et al. 2006 [-] | e dry, engine [-] |", "|---|---|---|---|---|---|"]
+    lines = ["| St [-] | approach speed [m/s] | e, lubrication law, engine [-] | e, its closed "
+             "form [-] | e, Legendre et al. 2006 [-] | e, legendre2006, engine: two beads [-] | "
+             "bead on a wall [-] | e, lubrication law, bead on a wall [-] | e dry, engine [-] |",
+             "|---" * 9 + "|"]
     for r in summary["rows"]:
         lines.append(f"| {r['stokes']:g} | {r['speed_m_per_s']:.3g} | {r['e_run']:.3f} | "
-                     f"{r['e_closed_form']:.3f} | {r['e_published']:.3f} | {r['e_dry_run']:.3f} |")
+                     f"{r['e_closed_form']:.3f} | {r['e_published']:.3f} | "
+                     f"{r['e_legendre2006_run']:.3f} | {r['e_wall_legendre2006_run']:.3f} | "
+                     f"{r['e_wall_lubrication_run']:.3f} | {r['e_dry_run']:.3f} |")
     v = verdicts(summary)
-    lines += ["", f"engine against the closed form: worst {v['worst_difference']:.4f} "
+    lines += ["", f"legendre2006 against the published curve: worst "
+              f"{v['worst_difference_legendre2006']:.4f} "
+              f"({'within' if v['legendre2006_matches_published'] else 'beyond'} {TOLERANCE}); "
+              f"walls under the lubrication law {'dry' if v['walls_dry_under_lubrication'] else 'not dry'}",
+              f"engine against the closed form: worst {v['worst_difference']:.4f} "
               f"({'within' if v['engine_matches_closed_form'] else 'beyond'} {TOLERANCE}); "
               f"critical St of the law {v['critical_stokes_law']:.1f} (published about 10); at "
               f"the limestone threshold (2.7e-9 J, St {v['stokes_at_limestone_threshold']:.0f}) "

@@ -513,7 +513,9 @@ def _tip_speed(kind: str, mill: dict, geo: MillGeometry) -> float:
 
 _FLUID_KEYS = {"mode", "enabled", "density_kg_per_m3", "viscosity_Pa_s", "drag", "lubrication",
                "lubrication_cutoff_m", "lubrication_min_gap_m", "swirl_core_fraction",
-               "swirl_layer_m", "void_fraction", "coupled"}
+               "swirl_layer_m", "void_fraction", "wet_collisions", "coupled"}
+#: how collisions lose energy to the liquid ([fluid] wet_collisions)
+WET_COLLISIONS = ("lubrication", "legendre2006")
 _COUPLED_KEYS = {"vans_model": str, "turbulence": str, "coupling_steps": int, "cell_m": float,
                  "n_theta": int, "smoothing_diameters": float, "eps_min": float,
                  "cfl": float, "scheme": str, "cfd_step_s": float,
@@ -538,11 +540,21 @@ def _fluid_from_dict(fluid: dict, dia: float):
     if mode == "none":
         return mode, None, None
     f = float
+    wet = _get(fluid, "wet_collisions", "fluid", str, "lubrication")
+    if wet not in WET_COLLISIONS:
+        raise DemSceneError(f"fluid.wet_collisions = {wet!r}: allowed {list(WET_COLLISIONS)} "
+                            f"(the lubrication force between close beads, seed 001; or the "
+                            f"restitution per contact of Legendre et al. 2006)")
+    lub = _get(fluid, "lubrication", "fluid", bool, wet == "lubrication")
+    if wet == "legendre2006" and lub:
+        raise DemSceneError("fluid.lubrication = true with fluid.wet_collisions = "
+                            "'legendre2006': the published restitution includes the liquid "
+                            "film's damping; set lubrication = false or leave it out")
     fl = FluidSettings(
         density_kg_per_m3=_get(fluid, "density_kg_per_m3", "fluid", f, 998.2),
         viscosity_Pa_s=_get(fluid, "viscosity_Pa_s", "fluid", f, 1.002e-3),
         drag=_get(fluid, "drag", "fluid", bool, True) and mode == "prescribed",
-        lubrication=_get(fluid, "lubrication", "fluid", bool, True),
+        lubrication=lub, wet_collisions=wet,
         lubrication_cutoff_m=_get(fluid, "lubrication_cutoff_m", "fluid", f, 0.05 * dia),
         lubrication_min_gap_m=_get(fluid, "lubrication_min_gap_m", "fluid", f, 5e-4 * dia),
         swirl_core_fraction=_get(fluid, "swirl_core_fraction", "fluid", f, 0.25),

@@ -43,7 +43,8 @@ def test_the_shipped_summary_verdicts_and_the_pages_figures():
     doc = json.loads(W.SUMMARY.read_text())
     assert [r["stokes"] for r in doc["rows"]] == list(W.STOKES)
     v = W.verdicts(doc)
-    assert v["engine_matches_closed_form"]
+    assert v["engine_matches_closed_form"] and v["legendre2006_matches_published"]
+    assert v["walls_dry_under_lubrication"]
     assert v["critical_stokes_law"] == pytest.approx(11.3, abs=0.05)
     page = " ".join((ROOT / "docs" / "rates-and-calibration.md").read_text(encoding="utf-8").split())
     said = (f"St {v['stokes_at_limestone_threshold']:.0f}), e {v['e_law_at_threshold']:.2f} by the "
@@ -52,3 +53,14 @@ def test_the_shipped_summary_verdicts_and_the_pages_figures():
     rows = {r["stokes"]: r for r in doc["rows"]}
     for st in (16.0, 50.0, 200.0):
         assert f"St {st:g}: {rows[st]['e_run']:.2f} against {rows[st]['e_published']:.2f}" in page
+    # the DEM page's table: each law's engine runs at the Stokes numbers it shows
+    dem = (ROOT / "docs" / "dem.md").read_text(encoding="utf-8")
+    shown = (12.0, 16.0, 30.0, 50.0, 200.0, 1000.0)
+    for key, name in (("e_published", "published, e_dry exp(-35 / St)"),
+                      ("e_legendre2006_run", "`legendre2006`, two beads"),
+                      ("e_wall_legendre2006_run", "`legendre2006`, bead on a wall"),
+                      ("e_wall_lubrication_run", "`lubrication`, bead on a wall")):
+        assert f"| {name} | " + " | ".join(f"{rows[st][key]:.3f}" for st in shown) + " |" in dem, name
+    assert "| `lubrication`, two beads (its closed form) | " + " | ".join(
+        f"{rows[st]['e_run']:.3f} ({rows[st]['e_closed_form']:.3f})" for st in shown) + " |" in dem
+

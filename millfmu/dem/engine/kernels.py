@@ -28,7 +28,9 @@ Hertz-Mindlin with k_n = 4/3 Y* sqrt(R* d_n), S_t = 8 G* sqrt(R* d_n), viscous d
 gamma = -2 sqrt(5/6) beta sqrt(S m*), beta = ln e / sqrt(ln^2 e + pi^2), Coulomb limit
 on the tangential history spring, constant directional torque rolling friction
 |M_r| = mu_r k_n d_n R*. Lubrication between beads not in contact,
-F = -6 pi eta R*^2 v_n / max(h, h_min) for h < h_cut. Drag after Koch & Hill (2001)
+F = -6 pi eta R*^2 v_n / max(h, h_min) for h < h_cut; or instead (prm[P_WET]) a restitution
+per contact from the Stokes number of its approach, its damping ratio kept as a level in
+the contact's flag (:mod:`millfmu.dem.engine.legendre2006`). Drag after Koch & Hill (2001)
 in the CFDEM form ("model A", not divided by the void fraction;
 :mod:`millfmu.dem.engine.koch_hill2001`).
 """
@@ -41,6 +43,7 @@ from numba import get_thread_id, prange
 from millfmu.dem.engine._jit import contact, device, kernel, nonneg, serial
 from millfmu.dem.engine.chunk_claims import claim, reset_claims
 from millfmu.dem.engine.koch_hill2001 import beta_of_terms
+from millfmu.dem.engine.legendre2006 import contact_level
 
 # ---- layout of the parameter vector prm (float64) -------------------------------------
 P_DT = 0  # time step [s]
@@ -90,7 +93,13 @@ P_ABAF = 38  # angle of the first baffle [rad]
 # tangential history in a turning contact plane: 0 "rescaled" (projected, then its old
 # length restored), 1 "projected" (projected only); see hertz_mindlin
 P_THIST = 39
-N_PRM = 40
+# wet collisions: 0 the lubrication force between close beads (P_LUB_*, seed 001), 1 a
+# restitution per contact from its Stokes number (:mod:`millfmu.dem.engine.legendre2006`)
+P_WET = 40
+P_WET_ETA = 41  # viscosity of the contact's Stokes number [Pa s]
+P_WET_ST = 42  # Stokes number scale of e / e_dry = exp(-scale / St) [-]
+P_WTAB = 43  # 256 entries: damping ratio beta [-] of each contact level (legendre2006.beta_table)
+N_PRM = P_WTAB + 256
 
 # wall ids: 0 shaft (rotating), 1 chamber (fixed), 2 disc or shrouds (rotating), 3 vanes
 # (rotating), 4 baffles (fixed)
@@ -903,6 +912,9 @@ def compute_forces(x, v, w, fb, tb, rad, mass, inertia, pst, nnb, pj, pim, psh, 
     rbaf = prm[P_RBAF]
     zdisc = prm[P_ZDISC]
     hproj = prm[P_THIST] != 0.0
+    wet = prm[P_WET] != 0.0
+    weta = prm[P_WET_ETA]
+    wst = prm[P_WET_ST]
     # Equal beads (one radius and mass, as in most mill runs): R*, m* and the partner's
     # radius are the same for every pair, computed once, as the general formulas give
     # them; this saves the pair loop two divisions per contact and a load per pair.
@@ -995,7 +1007,8 @@ def compute_forces(x, v, w, fb, tb, rad, mass, inertia, pst, nnb, pj, pim, psh, 
                         else:
                             mstar = mi * mass[j] / (mi + mass[j])
                             rstar = ri * rj / rsum
-                        if record and pfl[k] == 0:
+                        first = pfl[k] == 0
+                        if record and first:
                             if ne < cap:
                                 lev = ri - 0.5 * delta
                                 write_event(evc[c, ne], 0.0, i, j, xi - lev * nx, yi - lev * ny,
@@ -1005,7 +1018,16 @@ def compute_forces(x, v, w, fb, tb, rad, mass, inertia, pst, nnb, pj, pim, psh, 
                                                                               inertia[j]),
                                             step)
                             ne += 1
-                        pfl[k] = 1
+                        # the contact's damping: the material's, or (wet restitution) that of
+                        # the level its approach gave it, kept in its flag until it opens
+                        bk = beta
+                        if wet:
+                            if first:
+                                pfl[k] = contact_level(abs(vrx * nx + vry * ny + vrz * nz),
+                                                       mstar, rstar, weta, wst)
+                            bk = prm[P_WTAB + pfl[k]]
+                        else:
+                            pfl[k] = 1
                         s0 = psh[k, 0]
                         s1 = psh[k, 1]
                         s2 = psh[k, 2]
@@ -1015,7 +1037,7 @@ def compute_forces(x, v, w, fb, tb, rad, mass, inertia, pst, nnb, pj, pim, psh, 
                         (gx, gy, gz, tix, tiy, tiz, tjx, tjy, tjz, s0, s1,
                          s2) = pair_response(nx, ny, nz, delta, vrx, vry, vrz, w[i, 0], w[i, 1],
                                              w[i, 2], wjx, wjy, w[j, 2], ri, rj, mstar, rstar, s0,
-                                             s1, s2, sdn, sm0, sm1, ystar, gstar, beta, mu, mur,
+                                             s1, s2, sdn, sm0, sm1, ystar, gstar, bk, mu, mur,
                                              dt)
                         psh[k, 0] = s0
                         psh[k, 1] = s1
@@ -1060,15 +1082,25 @@ def compute_forces(x, v, w, fb, tb, rad, mass, inertia, pst, nnb, pj, pim, psh, 
                             or (q == 4 and not has_baffles)):
                         release_wall(flw, shw, i, q)
                         continue
+                    first = flw[i, q] == 0
+                    bk = beta
+                    if wet and not first:
+                        bk = prm[P_WTAB + flw[i, q]]
                     (touch, vrx, vry, vrz, nx, ny, nz, wz_w, gx, gy, gz, tix, tiy, tiz, s0, s1,
                      s2, twall) = wall_response(
                         xi, yi, zi, v[i, 0], v[i, 1], v[i, 2], w[i, 0], w[i, 1], w[i, 2], ri, mi,
-                        q, shw[i, q, 0], shw[i, q, 1], shw[i, q, 2], prm, ystar, gstar, beta, mu,
+                        q, shw[i, q, 0], shw[i, q, 1], shw[i, q, 2], prm, ystar, gstar, bk, mu,
                         mur, dt)
                     if not touch:
                         release_wall(flw, shw, i, q)
                         continue
-                    if record and flw[i, q] == 0:
+                    if wet and first:
+                        # the level from this approach (a sphere on a wall: its own mass and
+                        # radius), known once the wall's normal is: the contact's first step
+                        # is damped as a dry one (its overlap less than one step's approach)
+                        flw[i, q] = contact_level(abs(vrx * nx + vry * ny + vrz * nz), mi, ri,
+                                                  weta, wst)
+                    if record and first:
                         if ne < cap:
                             # recorded at the bead's centre: the contact point lies inside
                             # the wall by the overlap, outside every zone, and at an edge
@@ -1077,7 +1109,8 @@ def compute_forces(x, v, w, fb, tb, rad, mass, inertia, pst, nnb, pj, pim, psh, 
                                         nx, ny, nz, w[i, 0], w[i, 1], w[i, 2] - wz_w, mi,
                                         inertia[i], step)
                         ne += 1
-                    flw[i, q] = 1
+                    if not wet:
+                        flw[i, q] = 1
                     shw[i, q, 0] = s0
                     shw[i, q, 1] = s1
                     shw[i, q, 2] = s2

@@ -28,6 +28,10 @@ class FluidSettings:
     swirl_core_fraction: float = 0.25  # core rotation / stirrer rotation [-]
     swirl_layer_m: float = 0.7e-3  # boundary-layer thickness [m]
     void_fraction: float = 0.5  # used in the drag law [-]
+    # how a collision loses energy to the liquid: "lubrication" (the force above between
+    # close beads, seed 001) or "legendre2006" (a restitution per contact from its Stokes
+    # number, :mod:`millfmu.dem.engine.legendre2006`; lubrication off)
+    wet_collisions: str = "lubrication"
 
 
 @dataclass
@@ -74,6 +78,9 @@ class DemSimulation:
     about 16 % above LAMMPS', "zero" within 1 % of it (four runs each).
     """
 
+    #: how collisions lose energy to the liquid (FluidSettings.wet_collisions), and their
+    #: kernel codes (prm[P_WET])
+    WET_COLLISIONS = {"lubrication": 0.0, "legendre2006": 1.0}
     #: the names of ``tangential_history`` and their kernel codes (prm[P_THIST])
     TANGENTIAL_HISTORIES = {"rescaled": 0.0, "projected": 1.0}
     #: the names of ``history_at_start``
@@ -131,6 +138,14 @@ class DemSimulation:
                 f"height_m = {geometry.height_m!r}: the axial period must hold at least "
                 f"three neighbour cells of {self.cutoff_m:.3e} m (bead diameter + "
                 f"lubrication cutoff + skin)")
+        if fluid is not None and fluid.wet_collisions not in self.WET_COLLISIONS:
+            raise ValueError(f"fluid wet_collisions = {fluid.wet_collisions!r}: one of "
+                             f"{list(self.WET_COLLISIONS)}")
+        self.wet_restitution = fluid is not None and fluid.wet_collisions == "legendre2006"
+        if self.wet_restitution and fluid.lubrication:
+            raise ValueError("fluid wet_collisions = 'legendre2006' with lubrication on: the "
+                             "published restitution includes the liquid film's damping; switch "
+                             "lubrication off")
         prm = self._parameters(gravity_m_per_s2)
         if tangential_history not in self.TANGENTIAL_HISTORIES:
             raise ValueError(f"tangential_history = {tangential_history!r}: one of "
@@ -153,6 +168,9 @@ class DemSimulation:
             raise ValueError(f"device = {device!r}: 'cpu' or 'gpu'")
         self.device = device
         self._gpu = None
+        if device == "gpu" and self.wet_restitution:
+            raise ValueError("device = 'gpu': the GPU stepper has no wet restitution per contact "
+                             "(fluid wet_collisions = 'legendre2006'); use device 'cpu'")
         if device == "gpu" and geometry.vane_count:
             raise ValueError(f"device = 'gpu': the GPU stepper does not turn vanes "
                              f"(vane_count = {geometry.vane_count}); use device 'cpu'")
@@ -194,6 +212,14 @@ class DemSimulation:
             prm[K.P_DELTA] = fluid.swirl_layer_m
             prm[K.P_RHOF] = fluid.density_kg_per_m3
             prm[K.P_KH_F0], prm[K.P_KH_F3] = f0_f3_python(fluid.void_fraction)
+            if fluid.wet_collisions == "legendre2006":
+                from millfmu.dem.engine import legendre2006
+
+                prm[K.P_WET] = self.WET_COLLISIONS[fluid.wet_collisions]
+                prm[K.P_WET_ETA] = fluid.viscosity_Pa_s
+                prm[K.P_WET_ST] = legendre2006.ST_SCALE
+                prm[K.P_WTAB:K.P_WTAB + legendre2006.LEVELS + 2] = \
+                    legendre2006.beta_table(material.restitution)
         prm[K.P_GX:K.P_GZ + 1] = g
         prm[K.P_LZ] = geometry.height_m
         prm[K.P_SECTOR] = geometry.sector_rad
@@ -248,6 +274,15 @@ class DemSimulation:
         self.fext = np.zeros((n, 3))
         # further per-bead arrays of a coupling, permuted with the beads (register_per_bead)
         self.per_bead = {}
+
+    def __setstate__(self, state: dict) -> None:
+        """A checkpoint whose parameter vector predates the wet restitution's entries goes
+        on with them zero: the lubrication law it was made with."""
+        self.__dict__.update(state)
+        self.__dict__.setdefault("wet_restitution", False)
+        n_prm = self.K.N_PRM
+        if self.prm.shape[0] < n_prm:
+            self.prm = np.concatenate([self.prm, np.zeros(n_prm - self.prm.shape[0])])
 
     def _start_cpu(self) -> None:
         """The first neighbour lists (made to fit where ``max_neighbours`` was generous),

@@ -50,6 +50,8 @@ KERNEL_MODULES = {
     "millfmu.dem.fluid.solver": "millfmu.dem.fluid.solver",
     "millfmu.dem.coupling.projection": "millfmu.dem.coupling.projection",
     "millfmu.dem.coupling.koch_hill2001": "millfmu.dem.engine.koch_hill2001",
+    # wet restitution per contact (off unless a scene names it)
+    "millfmu.dem.engine.legendre2006": "millfmu.dem.engine.legendre2006",
     "millfmu.dem.coupling.cfd_dem": "millfmu.dem.coupling.cfd_dem",
     "millfmu.dem.coupling.settings": "millfmu.dem.coupling.settings",
     # the pressure equation's solvers and default, moved out of coupling.settings
@@ -346,6 +348,10 @@ SAME_DEM_AS = {
     # other outputs and the state after 200 more steps the same to the bit (three of them,
     # a 0.4 Pa s liquid started turning, stop as unstable at the same step either way)
     "sha256:ccfe999eeb245cff904badce12eca5351083bf878c6f2247a5f5f24bda20361f":
+        "sha256:97f753cea048d151d29bfc09ed08fc9161f206eb44b7bf748a0474d96810be97",
+    # the wet restitution per contact by name (off by default: the same results to the bit
+    # as the sources before, ccfe999e...)
+    "sha256:24fc121abc14cb39d48cb470a8c68ad789d2018fc52ae82b2a207c4bd2fe242a":
         "sha256:97f753cea048d151d29bfc09ed08fc9161f206eb44b7bf748a0474d96810be97",
 }
 
