@@ -33,6 +33,12 @@ def summary(runs: dict, commands: dict | None = None, note: str = "") -> dict:
     return out
 
 
+def write_json(path, doc: dict) -> None:
+    """Write a run summary to ``path`` as indented JSON and say so on stdout."""
+    Path(path).write_text(json.dumps(doc, indent=1) + "\n")
+    print(f"wrote {path}")
+
+
 def _pairs(items, what) -> dict:
     out = {}
     for it in items or []:

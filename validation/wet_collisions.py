@@ -43,12 +43,13 @@ threshold at 10 um (2.7e-9 J, St 56).
 from __future__ import annotations
 
 import argparse
-import json
 import math
 import sys
 from pathlib import Path
 
 import numpy as np
+
+from validation.run_summary import write_json
 
 #: seed 001 Table 1 (glass, Y reduced by 1e4), water, and the table's lubrication gaps
 MATERIAL = dict(density_kg_per_m3=2510.0, youngs_modulus_pa=6.3e6, poisson_ratio=0.25,
@@ -260,8 +261,7 @@ def main(argv=None) -> int:
     summary = run_study()
     print(report(summary))
     if args.json:
-        Path(args.json).write_text(json.dumps(summary, indent=1) + "\n")
-        print(f"wrote {args.json}")
+        write_json(args.json, summary)
     return 0
 
 

@@ -24,12 +24,12 @@ From a checkout's root:
 from __future__ import annotations
 
 import argparse
-import json
 import sys
 from dataclasses import replace
 from pathlib import Path
 
 from validation import bead_stiffness as B
+from validation.run_summary import write_json
 
 #: the anchor (None) and the trend points of validation.bead_stiffness
 POINTS = (None, "v_t 6", "v_t 14", "d 0.6 mm", "d 1.2 mm", "rho 6040")
@@ -163,8 +163,7 @@ def main(argv=None) -> int:
         return 2
     print(markdown(s))
     if args.json:
-        Path(args.json).write_text(json.dumps(s, indent=1) + "\n")
-        print(f"wrote {args.json}")
+        write_json(args.json, s)
     return 0
 
 
