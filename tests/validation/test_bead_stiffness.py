@@ -75,9 +75,11 @@ def test_the_shipped_summary_agrees_with_its_own_numbers():
     # the trends at the points the runs cover: the simple model's own changes (Kwade, from
     # the trend study) and the detailed model's at each stiffness the points ran at
     tr = s["trends"]
-    assert set(tr["simple"]) == set(B.TREND_POINTS) == set(s["point_runs"])
+    # the points it ran: of the trend points the studies share (the wet-restitution study
+    # runs more of them)
+    assert set(tr["simple"]) == set(s["point_runs"]) <= set(B.TREND_POINTS)
     assert tr["simple"]["v_t 14"] == pytest.approx(1.40, rel=0.01)
     assert tr["simple"]["d 1.2 mm"] == pytest.approx(0.296, rel=0.01)
     assert set(tr["detailed"]) == {f"{f:g}" for f in s["point_factors"]} >= {"1", "10"}
     for d in tr["detailed"].values():
-        assert set(d["relative_rate"]) == set(B.TREND_POINTS) and d["f_mat_kg_per_J_m"] > 0
+        assert set(d["relative_rate"]) == set(s["point_runs"]) and d["f_mat_kg_per_J_m"] > 0
