@@ -29,6 +29,7 @@ import math
 import numpy as np
 
 from millfmu.dem.engine._jit import contact
+from millfmu.dem.engine.params import damping_beta_of
 
 #: the curve's Stokes number scale: e / e_dry = exp(-ST_SCALE / St) [-]
 ST_SCALE = 35.0
@@ -41,23 +42,12 @@ def restitution_ratio(stokes: float) -> float:
     return math.exp(-ST_SCALE / stokes) if stokes > 0.0 else 0.0
 
 
-def beta_of_restitution(e: float) -> float:
-    """Damping ratio beta = ln e / sqrt(ln^2 e + pi^2) [-] of restitution e (-1 at e <= 0,
-    0 at e >= 1), as :attr:`millfmu.dem.engine.params.BeadMaterial.damping_beta`."""
-    if e <= 0.0:
-        return -1.0
-    if e >= 1.0:
-        return 0.0
-    le = math.log(e)
-    return le / math.sqrt(le * le + math.pi ** 2)
-
-
 def beta_table(e_dry: float) -> np.ndarray:
     """beta [-] of each contact level (index 1..255: e = e_dry (level - 1) / LEVELS; index 0,
     no contact, unused), 256 entries for the parameter vector."""
     out = np.zeros(LEVELS + 2)
     for lev in range(1, LEVELS + 2):
-        out[lev] = beta_of_restitution(e_dry * (lev - 1) / LEVELS)
+        out[lev] = damping_beta_of(e_dry * (lev - 1) / LEVELS)
     return out
 
 

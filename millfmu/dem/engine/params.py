@@ -37,11 +37,18 @@ class BeadMaterial:
     @property
     def damping_beta(self) -> float:
         """beta = ln e / sqrt(ln^2 e + pi^2) [-] (0 for e = 1)."""
-        e = self.restitution
-        if e >= 1.0:
-            return 0.0
-        le = math.log(e)
-        return le / math.sqrt(le * le + math.pi ** 2)
+        return damping_beta_of(self.restitution)
+
+
+def damping_beta_of(e: float) -> float:
+    """Damping ratio beta = ln e / sqrt(ln^2 e + pi^2) [-] of restitution e (-1 at e <= 0,
+    the critically damped contact; 0 at e >= 1)."""
+    if e <= 0.0:
+        return -1.0
+    if e >= 1.0:
+        return 0.0
+    le = math.log(e)
+    return le / math.sqrt(le * le + math.pi ** 2)
 
 
 def hertz_contact_time_s(m_star_kg: float, r_star_m: float, y_star_pa: float,

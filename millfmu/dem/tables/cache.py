@@ -353,6 +353,10 @@ SAME_DEM_AS = {
     # as the sources before, ccfe999e...)
     "sha256:24fc121abc14cb39d48cb470a8c68ad789d2018fc52ae82b2a207c4bd2fe242a":
         "sha256:97f753cea048d151d29bfc09ed08fc9161f206eb44b7bf748a0474d96810be97",
+    # the wet restitution's damping ratios from params.damping_beta_of, the material's one
+    # formula (the same results to the bit)
+    "sha256:468c540caa3e8513809a96a86e4780d015288f7cae47c329ced1edbc5aaead9d":
+        "sha256:97f753cea048d151d29bfc09ed08fc9161f206eb44b7bf748a0474d96810be97",
 }
 
 
