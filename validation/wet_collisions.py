@@ -70,10 +70,15 @@ TOLERANCE = 0.01
 SUMMARY = Path(__file__).resolve().parent / "runs" / "wet_collisions.json"
 
 
+def _bead_mass_kg() -> float:
+    from millfmu.dem.engine.params import bead_mass_kg
+
+    return bead_mass_kg(2.0 * RADIUS_M, MATERIAL["density_kg_per_m3"])
+
+
 def reduced():
     """(m* [kg], R* [m]) of two equal beads."""
-    m = 4.0 / 3.0 * math.pi * RADIUS_M ** 3 * MATERIAL["density_kg_per_m3"]
-    return 0.5 * m, 0.5 * RADIUS_M
+    return 0.5 * _bead_mass_kg(), 0.5 * RADIUS_M
 
 
 def speed_at(st: float) -> float:
@@ -100,14 +105,11 @@ def published(st: float, e_dry: float) -> float:
     return e_dry * math.exp(-LEGENDRE_ST / st)
 
 
-def run_collision(speed: float, lubrication: bool, wet_collisions: str = "lubrication") -> float:
-    """Effective restitution [-] of a head-on collision of two beads at relative speed
-    ``speed`` [m/s] through the engine, with the lubrication force or without, or with the
-    restitution per contact of ``wet_collisions = "legendre2006"`` (0 where they have not parted after 100 times the
-    approach's duration); measured once the gap has opened beyond h_cut again, where no
-    force acts on the pair any more."""
-    from millfmu.dem.engine.params import BeadMaterial, hertz_contact_time_s
-    from millfmu.dem.engine.sim import DemSimulation, FluidSettings
+def _engine(lubrication: bool, wet_collisions: str):
+    """(geometry, material, fluid, bead diameter [m]) of the runs: a disc's face far from the
+    other walls, seed 001's beads without rolling friction, water."""
+    from millfmu.dem.engine.params import BeadMaterial
+    from millfmu.dem.engine.sim import FluidSettings
     from millfmu.dem.mills.geometry import MillGeometry
 
     d = 2.0 * RADIUS_M
@@ -117,6 +119,19 @@ def run_collision(speed: float, lubrication: bool, wet_collisions: str = "lubric
     fluid = FluidSettings(density_kg_per_m3=WATER_KG_PER_M3, viscosity_Pa_s=VISCOSITY_PA_S,
                           drag=False, lubrication=lubrication, lubrication_cutoff_m=H_CUT_M,
                           lubrication_min_gap_m=H_MIN_M, wet_collisions=wet_collisions)
+    return geo, mat, fluid, d
+
+
+def run_collision(speed: float, lubrication: bool, wet_collisions: str = "lubrication") -> float:
+    """Effective restitution [-] of a head-on collision of two beads at relative speed
+    ``speed`` [m/s] through the engine, with the lubrication force or without, or with the
+    restitution per contact of ``wet_collisions = "legendre2006"`` (0 where they have not parted after 100 times the
+    approach's duration); measured once the gap has opened beyond h_cut again, where no
+    force acts on the pair any more."""
+    from millfmu.dem.engine.params import hertz_contact_time_s
+    from millfmu.dem.engine.sim import DemSimulation
+
+    geo, mat, fluid, d = _engine(lubrication, wet_collisions)
     m, r = reduced()
     tc = hertz_contact_time_s(m, r, mat.effective_youngs_pa, speed)
     gap0 = 2.0 * H_CUT_M
@@ -145,20 +160,11 @@ def run_wall_collision(speed: float, wet_collisions: str = "lubrication") -> flo
     """Effective restitution [-] of one bead hitting a disc's face head-on at ``speed``
     [m/s] through the engine (the DEM's lubrication acts between beads only, so with
     ``"lubrication"`` the wall contact is dry)."""
-    from millfmu.dem.engine.params import BeadMaterial, hertz_contact_time_s
-    from millfmu.dem.engine.sim import DemSimulation, FluidSettings
-    from millfmu.dem.mills.geometry import MillGeometry
+    from millfmu.dem.engine.params import hertz_contact_time_s
+    from millfmu.dem.engine.sim import DemSimulation
 
-    d = 2.0 * RADIUS_M
-    geo = MillGeometry(shaft_radius_m=5.0 * d, chamber_radius_m=80.0 * d, height_m=10.0 * d,
-                       disc_radius_m=70.0 * d, disc_thickness_m=d, disc_z_m=0.0)
-    mat = BeadMaterial(rolling_friction=0.0, **MATERIAL)
-    fluid = FluidSettings(density_kg_per_m3=WATER_KG_PER_M3, viscosity_Pa_s=VISCOSITY_PA_S,
-                          drag=False, lubrication=wet_collisions == "lubrication",
-                          lubrication_cutoff_m=H_CUT_M, lubrication_min_gap_m=H_MIN_M,
-                          wet_collisions=wet_collisions)
-    m = 4.0 / 3.0 * math.pi * RADIUS_M ** 3 * MATERIAL["density_kg_per_m3"]
-    tc = hertz_contact_time_s(m, RADIUS_M, mat.effective_youngs_pa, speed)
+    geo, mat, fluid, d = _engine(wet_collisions == "lubrication", wet_collisions)
+    tc = hertz_contact_time_s(_bead_mass_kg(), RADIUS_M, mat.effective_youngs_pa, speed)
     gap0 = 2.0 * H_CUT_M
     dt = tc / 50.0
     face = 0.5 * d
@@ -178,8 +184,7 @@ def run_wall_collision(speed: float, wet_collisions: str = "lubrication") -> flo
 def wall_speed_at(st: float) -> float:
     """Impact speed [m/s] of a bead on a wall at Stokes number ``st`` (its own mass and
     radius: St = m v / (6 pi eta a^2))."""
-    m = 4.0 / 3.0 * math.pi * RADIUS_M ** 3 * MATERIAL["density_kg_per_m3"]
-    return st * 6.0 * math.pi * VISCOSITY_PA_S * RADIUS_M ** 2 / m
+    return st * 6.0 * math.pi * VISCOSITY_PA_S * RADIUS_M ** 2 / _bead_mass_kg()
 
 
 def run_study() -> dict:

@@ -29,7 +29,7 @@ else:  # pragma: no cover
 from millfmu.dem.coupling.settings import (PRESSURE_GRADIENT_TIMINGS, SMOOTHINGS,
                                            CouplingSettings)
 from millfmu.dem.engine.params import BeadMaterial
-from millfmu.dem.engine.sim import FluidSettings
+from millfmu.dem.engine.sim import DemSimulation, FluidSettings
 from millfmu.dem.fluid.settings import DEFAULT_PRESSURE_SOLVER, PRESSURE_SOLVERS
 from millfmu.dem.mills.accelerator import SevSpec
 from millfmu.dem.mills.geometry import MillGeometry
@@ -514,8 +514,8 @@ def _tip_speed(kind: str, mill: dict, geo: MillGeometry) -> float:
 _FLUID_KEYS = {"mode", "enabled", "density_kg_per_m3", "viscosity_Pa_s", "drag", "lubrication",
                "lubrication_cutoff_m", "lubrication_min_gap_m", "swirl_core_fraction",
                "swirl_layer_m", "void_fraction", "wet_collisions", "coupled"}
-#: how collisions lose energy to the liquid ([fluid] wet_collisions)
-WET_COLLISIONS = ("lubrication", "legendre2006")
+#: how collisions lose energy to the liquid ([fluid] wet_collisions): the simulation's names
+WET_COLLISIONS = tuple(DemSimulation.WET_COLLISIONS)
 _COUPLED_KEYS = {"vans_model": str, "turbulence": str, "coupling_steps": int, "cell_m": float,
                  "n_theta": int, "smoothing_diameters": float, "eps_min": float,
                  "cfl": float, "scheme": str, "cfd_step_s": float,

@@ -217,7 +217,7 @@ class Plan:
         runs = self.runs_s()
         if runs is None or not self.costs:
             return runs
-        return max(runs / max(1, min(self.workers, len(self.costs))),
+        return max(runs / points_at_once(self.workers, len(self.costs)),
                    max(self.costs) * self.seconds_per_cost)
 
     def starts_text(self) -> str:
