@@ -377,13 +377,17 @@ def _detailed_models(scene, MillModel):
             continue
         oat = getattr(table, "one_at_a_time", {})
         if tax in oat:
-            ax = np.asarray(oat[tax].axes[tax], dtype=float)
+            ax = table.one_at_a_time_values(tax)
             cover[p] = _Coverage("gridded", float(ax[0]), float(ax[-1]), tax in sd.similar_axes)
             beyond = "the edge's beyond it (similarity)" if tax in sd.similar_axes else "refused beyond it"
             sub = {a: v for a, v in oat[tax].axes.items() if a != tax}
             where = (f"across {', '.join(f'{a} ' + '/'.join(f'{x:g}' for x in v) for a, v in sub.items())}: "
                      f"its change interpolated there scales the grid's fields" if sub else
                      f"at {table.anchor}: its change there scales the grid's fields (separability assumed)")
+            if tax in table.one_at_a_time_anchor:
+                part = np.asarray(oat[tax].axes[tax], dtype=float)
+                where = (f"{part[0]:g}-{part[-1]:g} {where}; beyond {part[0]:g}-{part[-1]:g} at {table.anchor}: "
+                         f"its change there scales the grid's fields (separability assumed)")
             desc[p] = f"DEM table {sd.table!r}, varied one at a time over {ax[0]:g}-{ax[-1]:g} {where}; {beyond}"
             continue
         value = float(np.asarray(table.axes[tax])[0]) if tax in table.axes else fixed.get(tax, math.nan)

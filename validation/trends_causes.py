@@ -132,7 +132,7 @@ def similarity_source(src):
     by similarity alone (energies over E_ref = pi/12 d^3 rho v_t^2 and collision
     frequencies over omega n_gb held at the grid's values)."""
     t = src.table
-    bare = replace(t, one_at_a_time={}, one_at_a_time_ref={}, anchor={})
+    bare = replace(t, one_at_a_time={}, one_at_a_time_ref={}, anchor={}, one_at_a_time_anchor={})
     return replace(src, table=bare,
                    similar_axes=tuple(src.similar_axes) + ("bead_diameter_m", "bead_density_kg_per_m3"),
                    last_lookup=None, last_notes=[], similarity_seen={})

@@ -139,7 +139,12 @@ class TableSpec:
     own nodes instead of at the anchor alone; a lookup then scales the grid's fields by
     the change interpolated over that sub-grid (held at its edges beyond it). At least 2
     values per listed grid axis; at the scene's value of the axis, a sub-grid point that is
-    a node of the grid is that node. Absent: the axis is measured at the anchor."""
+    a node of the grid is that node. Absent: the axis is measured at the anchor. The sub-grid
+    may also name the axis itself with some of its values (consecutive ones, the scene's
+    among them): only those run across the sub-grid, the others at the anchor alone, and a
+    lookup beyond the values run across reads the change at the anchor (separability
+    assumed there), e.g. the bead diameter's 0.8 and 1.2 mm across tip speed and filling
+    and its costly 0.5 mm at the anchor."""
 
     scene: dict
     grid: dict
@@ -187,7 +192,18 @@ class TableSpec:
                 raise TableError(f"across {name}: give grid axes and their values, e.g. "
                                  f"{{'tip_speed_m_per_s': [6, 10, 14]}}; got {sub!r}")
             sub = _clean_axes({modern_name(k): v for k, v in sub.items()}, f"across {name}: grid axis")
+            if name in sub:
+                own = self._across_values(name, sub[name])
+                if own == tuple(self.one_at_a_time[name]):
+                    del sub[name]  # every value across: the same table as without the list
+                else:
+                    sub[name] = own
+            if not [ax for ax in sub if ax != name]:
+                raise TableError(f"across {name}: give grid axes and their values besides its own, "
+                                 f"e.g. {{'tip_speed_m_per_s': [6, 10, 14]}}; got {sub!r}")
             for ax, vals in sub.items():
+                if ax == name:
+                    continue
                 if ax not in self.grid:
                     raise TableError(f"across {name}: {ax} is not a grid axis; the grid's are "
                                      f"{list(self.grid)}")
@@ -196,6 +212,22 @@ class TableSpec:
                                      f"values, e.g. of the grid's nodes {list(self.grid[ax])}")
             clean[name] = sub
         return {k: clean[k] for k in AXES if k in clean}
+
+    def _across_values(self, name: str, vals: tuple) -> tuple:
+        """The values of one-at-a-time axis ``name`` that its ``across`` sub-grid names,
+        checked: values of the axis, consecutive, the scene's among them, at least 2."""
+        have = list(self.one_at_a_time[name])
+        idx = []
+        for v in vals:
+            hit = [i for i, h in enumerate(have) if math.isclose(v, h, rel_tol=1e-9)]
+            if not hit:
+                raise TableError(f"across {name}: value {v!r} is not one of the axis's values {have}")
+            idx.append(hit[0])
+        if len(idx) < 2 or idx != list(range(idx[0], idx[0] + len(idx))) or \
+                not any(self._is_reference(name, have[i]) for i in idx):
+            raise TableError(f"across {name}: values {list(vals)!r}: give at least 2 consecutive values of "
+                             f"the axis {have}, the scene's value {self.scene_value(name)!r} among them")
+        return tuple(have[i] for i in idx)
 
     @classmethod
     def from_manifest(cls, m: dict) -> TableSpec:
@@ -229,16 +261,32 @@ class TableSpec:
         return a if self._is_reference(name, v) else dict(a, **{name: v})
 
     def side_axes(self, name: str) -> dict:
-        """The axes of one-at-a-time axis ``name``'s side table: the axis itself, then the
-        grid axes it is run across (``across``), in the grid's order."""
+        """The axes of one-at-a-time axis ``name``'s side table: the axis itself (the values
+        it is run across where ``across`` names some, else all), then the grid axes it is
+        run across (``across``), in the grid's order."""
         sub = self.across.get(name, {})
-        return {name: self.one_at_a_time[name], **{ax: sub[ax] for ax in self.grid if ax in sub}}
+        return {name: sub.get(name, self.one_at_a_time[name]),
+                **{ax: sub[ax] for ax in self.grid if ax in sub}}
 
-    def side_points(self, name: str) -> list[dict]:
+    def partly_across(self, name: str) -> bool:
+        """Whether only some values of one-at-a-time axis ``name`` run across a sub-grid
+        (``across`` names the axis's own values): the others have a side table of their
+        own at the anchor (:meth:`anchor_side_axes`)."""
+        return name in self.across.get(name, {})
+
+    def anchor_side_axes(self, name: str) -> dict:
+        """The axes of the side table at the anchor of an axis run partly across: the axis
+        with all its values ({} where the axis is not run partly across)."""
+        return {name: self.one_at_a_time[name]} if self.partly_across(name) else {}
+
+    def side_points(self, name: str, at_anchor: bool = False) -> list[dict]:
         """The points of ``name``'s side table in C order (last axis fastest): the anchor
         with ``name``'s value (:meth:`point_along`) and the sub-grid's values; at the scene's
-        value these are points of the grid (or the anchor)."""
-        axes = self.side_axes(name)
+        value these are points of the grid (or the anchor). ``at_anchor``: the points of the
+        side table at the anchor of an axis run partly across ([] otherwise)."""
+        axes = self.anchor_side_axes(name) if at_anchor else self.side_axes(name)
+        if not axes:
+            return []
         out = []
         for combo in itertools.product(*axes.values()):
             p = self.point_along(name, combo[0])
@@ -266,6 +314,7 @@ class TableSpec:
         if a not in pts:
             pts.append(a)
         for name in self.one_at_a_time:
+            pts += [p for p in self.side_points(name, at_anchor=True) if p not in pts]
             pts += [p for p in self.side_points(name) if p not in pts]
         return pts
 
@@ -381,7 +430,8 @@ def resolution_of(spec: TableSpec) -> dict:
                                               for k, sub in spec.across.items()}
             res["one_at_a_time"]["note"] += (
                 "; an axis named in 'across' is run at each of its values across that sub-grid "
-                "of the grid's nodes, and the change is interpolated over it")
+                "of the grid's nodes (where its sub-grid names some of the axis's own values, "
+                "those only, the others at the anchor), and the change is interpolated over it")
     if spec.builder_id == DEM_BUILDER_ID:
         mill, run = spec.scene.get("mill", {}), spec.scene.get("run", {})
         res["dem"] = {"sector_deg": mill.get("sector_deg", 360.0),

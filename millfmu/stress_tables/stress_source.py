@@ -137,7 +137,7 @@ class TableStressSource:
         for ax, x in self.point_of(op).items():
             if ax == "tip_speed_m_per_s" and not x > 0.0:
                 continue  # the stirrer at rest: no collisions, nothing to look up
-            t = self.table.one_at_a_time.get(ax, self.table)
+            t = self.table.side_of(ax, x) if ax in self.table.one_at_a_time else self.table
             try:
                 t.axis_value(ax, x, self.similar_axes)
             except OutsideGridError as e:
@@ -315,8 +315,8 @@ class TableStressSource:
             if ax in fixed:
                 held = f"the table's single value {fixed[ax]:g}"
             else:
-                t = self.table.one_at_a_time.get(ax, self.table)
-                held = f"the table's range {float(t.axes[ax][0]):g} to {float(t.axes[ax][-1]):g}"
+                a = self.table.one_at_a_time_values(ax) if ax in self.table.one_at_a_time else self.table.axes[ax]
+                held = f"the table's range {float(a[0]):g} to {float(a[-1]):g}"
             reached = f"{lo:g}" if lo == hi else f"{lo:g} to {hi:g}"
             out[ax] = (f"{ax} = {reached} lies outside {held}: the dimensionless fields of the nearest node were used "
                        f"(similarity assumed, named in similar_axes: collision rates scaled with omega n_gb, stress "

@@ -46,6 +46,8 @@ STATED_ERROR_ENTRIES = ("interpolation_check", "separability_check", "realizatio
 FIXED_AXIS_RTOL = 1e-9
 #: Prefix of a one-at-a-time axis's arrays in table.npz: ``oat__<axis>__<array>``.
 ONE_AT_A_TIME_PREFIX = "oat__"
+#: Prefix of the arrays of an axis's side table at the anchor, where it was run partly across.
+ONE_AT_A_TIME_ANCHOR_PREFIX = "oat_anchor__"
 
 
 class OutsideGridError(TableError):
@@ -102,6 +104,10 @@ class Table:
     #: values of the grid axes) they are varied from.
     one_at_a_time_ref: dict = field(default_factory=dict)
     anchor: dict = field(default_factory=dict)
+    #: Axes run partly across a sub-grid (:meth:`TableSpec.partly_across`): axis -> a 1-D
+    #: table along all its values at the anchor, read beyond the values run across
+    #: (:meth:`side_of`); ``one_at_a_time`` holds those values across the sub-grid.
+    one_at_a_time_anchor: dict = field(default_factory=dict)
 
     # -- geometry of the grid
     @property
@@ -138,6 +144,30 @@ class Table:
                 raise TableError(f"table: one-at-a-time axis {name}: its table has axes "
                                  f"{list(side.axes)} and zones {side.zone_names}")
             side.check_shapes()
+        for name, side in self.one_at_a_time_anchor.items():
+            if name not in self.one_at_a_time or list(side.axes) != [name] or side.zone_names != self.zone_names:
+                raise TableError(f"table: one-at-a-time axis {name}: its table at the anchor has axes "
+                                 f"{list(side.axes)} and zones {side.zone_names}")
+            side.check_shapes()
+
+    def side_of(self, name: str, x: float | None = None) -> Table:
+        """The side table of one-at-a-time axis ``name`` that a lookup at its value ``x``
+        reads: the one in ``one_at_a_time``, except for an axis run partly across
+        (``one_at_a_time_anchor``) with ``x`` beyond the values run across: then its table
+        at the anchor."""
+        side = self.one_at_a_time[name]
+        outer = self.one_at_a_time_anchor.get(name)
+        if outer is None or x is None:
+            return side
+        a = side.axes[name]
+        inside = float(a[0]) * (1.0 - FIXED_AXIS_RTOL) <= x <= float(a[-1]) * (1.0 + FIXED_AXIS_RTOL)
+        return side if inside else outer
+
+    def one_at_a_time_values(self, name: str) -> np.ndarray:
+        """Every value one-at-a-time axis ``name`` was run at (across a sub-grid or at the
+        anchor) [the axis's unit]."""
+        side = self.one_at_a_time_anchor.get(name, self.one_at_a_time[name])
+        return np.asarray(side.axes[name], float)
 
     def check_values(self, where: str = "table"):
         """Raise TableError unless the contents are what a DEM run gives: finite (nan only
@@ -146,6 +176,8 @@ class Table:
         _check_values(self, where)
         for name, side in self.one_at_a_time.items():
             _check_values(side, f"{where} (one-at-a-time axis {name})")
+        for name, side in self.one_at_a_time_anchor.items():
+            _check_values(side, f"{where} (one-at-a-time axis {name} at the anchor)")
 
     # -- lookup
     def axis_value(self, name: str, x: float, similar=()) -> tuple:
@@ -266,7 +298,8 @@ class Table:
         from its reference (the scene's value) to ``x`` (separability assumed); where the
         axis was run across a sub-grid of the grid axes (``TableSpec.across``: its side
         table has those axes too), by the change interpolated there at the lookup's values
-        of them, ``at_grid`` (held at the sub-grid's edges beyond it):
+        of them, ``at_grid`` (held at the sub-grid's edges beyond it); for an axis run partly
+        across, beyond the values run across by the change at the anchor (:meth:`side_of`):
 
         - local filling, speed, collision frequency and power: times S(x) / S(ref), S the
           side table's value per zone (unchanged where S(ref) = 0);
@@ -280,7 +313,7 @@ class Table:
         reference in quadrature. Returns the shift [decades] per (component, zone) that the
         caller applies to the densities, and that shift's interpolation error and sigma
         [decades] (0.0 each at the reference)."""
-        side = self.one_at_a_time[name]
+        side = self.side_of(name, x)
         xu, note = side.axis_value(name, x, similar)
         if note:
             lk.notes.append(note)
@@ -288,7 +321,7 @@ class Table:
         ref = self.one_at_a_time_ref[name]
         if math.isclose(xu, ref, rel_tol=FIXED_AXIS_RTOL):
             return 0.0, 0.0, 0.0
-        across = {ax: v for ax, v in self._side_point(name, at_grid).items() if ax != name}
+        across = {ax: v for ax, v in self._side_point(name, {**at_grid, name: xu}).items() if ax != name}
         at = side.lookup({name: xu, **across})
         r0 = side.lookup({name: ref, **across})
         if across:
@@ -354,7 +387,9 @@ class Table:
         references. NaN in every zone for an axis off its reference away from where it was
         run that no check measured, and in a zone that every check of the axis found empty.
         A check at a node of the axis's side table (g_c = 0: another realization of it) adds
-        its b_c there, carried to nearby points by the side table's interpolation weights."""
+        its b_c there, carried to nearby points by the side table's interpolation weights.
+        For an axis run partly across, a point reads the checks of the side table it is
+        looked up on (:meth:`side_of`): across the sub-grid or at the anchor."""
         names = self.zone_names
         out = {"collision_frequency": np.zeros(len(names)), "se_median": np.zeros(len(names))}
         if not self.one_at_a_time:
@@ -365,12 +400,13 @@ class Table:
             if h <= FIXED_AXIS_RTOL:
                 continue
             g = self._measured_distance(name, point)
+            side = self.side_of(name, float(point.get(name, ref)))
             worst = {k: np.full(len(names), np.nan) if g > 0.0 else np.zeros(len(names)) for k in out}
             at_nodes = {k: np.zeros(len(names)) for k in out}
             weights = None
             for c in checks:
                 hc = abs(math.log(float(c["point"].get(name, ref)) / ref))
-                if hc <= FIXED_AXIS_RTOL:
+                if hc <= FIXED_AXIS_RTOL or self.side_of(name, float(c["point"].get(name, ref))) is not side:
                     continue
                 gc = self._measured_distance(name, c["point"])
                 if gc > 0.0 and g == 0.0:
@@ -378,7 +414,7 @@ class Table:
                 if gc == 0.0:  # another realization of a node of the axis's side table
                     if weights is None:
                         weights = self._side_weights(name, point)
-                    w = weights.get(self.one_at_a_time[name]._node_of(self._side_point(name, c["point"])), 0.0)
+                    w = weights.get(side._node_of(self._side_point(name, c["point"])), 0.0)
                     if w == 0.0:
                         continue
                 for key, fld in (("collision_frequency", "collision_frequency_norm"),
@@ -396,9 +432,10 @@ class Table:
         return out
 
     def _side_point(self, name: str, point: dict) -> dict:
-        """Where ``name``'s side table is read for ``point``: the axis's value and, on the
-        grid axes it was run across, the point's values held within that sub-grid."""
-        side = self.one_at_a_time[name]
+        """Where ``name``'s side table (:meth:`side_of` at the point's value) is read for
+        ``point``: the axis's value and, on the grid axes it was run across, the point's
+        values held within that sub-grid."""
+        side = self.side_of(name, float(point.get(name, self.one_at_a_time_ref[name])))
         q = {}
         for ax, a in side.axes.items():
             x = float(point.get(ax, self.one_at_a_time_ref[name] if ax == name else self.anchor.get(ax, a[0])))
@@ -408,7 +445,8 @@ class Table:
     def _side_weights(self, name: str, point: dict) -> dict:
         """Interpolation weight of each node of ``name``'s side table at ``point`` (index ->
         weight)."""
-        return {idx: w for idx, w in self.one_at_a_time[name].lookup(self._side_point(name, point)).cell}
+        side = self.side_of(name, float(point.get(name, self.one_at_a_time_ref[name])))
+        return {idx: w for idx, w in side.lookup(self._side_point(name, point)).cell}
 
     def node_check_error(self, lk: Lookup) -> dict:
         """Relative error [-] per zone from the checks that ran the DEM again at a grid node
@@ -488,7 +526,7 @@ class Table:
         """Largest distance of ``point`` over the grid axes from where one-at-a-time axis
         ``name`` was run, in units of each axis's range [-]: from the anchor's value, or on a
         grid axis its side table spans (``across``), from the nearest of its values there."""
-        side = self.one_at_a_time[name]
+        side = self.side_of(name, float(point.get(name, self.one_at_a_time_ref[name])))
         d = 0.0
         for ax, a in self.anchor.items():
             grid = self.axes.get(ax)
@@ -632,7 +670,8 @@ class Table:
         refs = {k: v[sel] for k, v in self.refs.items()}
         sub = Table(axes=axes, zone_names=self.zone_names, data=data, refs=refs,
                     one_at_a_time=dict(self.one_at_a_time),
-                    one_at_a_time_ref=dict(self.one_at_a_time_ref), anchor=dict(self.anchor))
+                    one_at_a_time_ref=dict(self.one_at_a_time_ref), anchor=dict(self.anchor),
+                    one_at_a_time_anchor=dict(self.one_at_a_time_anchor))
         if "scene" in self.manifest:
             old = self.spec()
             spec = replace(old, grid={k: list(v) for k, v in axes.items()})
@@ -671,6 +710,10 @@ class Table:
             out.update({pre + k: v for k, v in side.arrays().items()
                         if k != "norm_log10_edges"})
             out[pre + "reference"] = np.float64(self.one_at_a_time_ref[name])
+        for name, side in self.one_at_a_time_anchor.items():
+            pre = f"{ONE_AT_A_TIME_ANCHOR_PREFIX}{name}__"
+            out.update({pre + k: v for k, v in side.arrays().items()
+                        if k != "norm_log10_edges"})
         out.update({f"anchor_{k}": np.float64(v) for k, v in self.anchor.items()})
         return out
 
@@ -900,6 +943,15 @@ def _table_from_arrays(arrs: dict, spec: TableSpec, m: dict, npz: Path) -> Table
             side_axes[ax] = a
         t.one_at_a_time[name] = _table_of(sub, side_axes, t.zone_names)
         t.one_at_a_time_ref[name] = float(sub["reference"])
+        if spec.partly_across(name):
+            pre = f"{ONE_AT_A_TIME_ANCHOR_PREFIX}{name}__"
+            sub = {k[len(pre):]: v for k, v in arrs.items() if k.startswith(pre)}
+            vals = spec.anchor_side_axes(name)[name]
+            a = sub.get(f"axis_{name}")
+            if a is None or not np.array_equal(a, np.asarray(vals)):
+                raise TableError(f"{npz}: one-at-a-time axis {name} at the anchor missing or differs from "
+                                 f"the manifest (its values {list(vals)}, the manifest's one_at_a_time)")
+            t.one_at_a_time_anchor[name] = _table_of(sub, {name: a}, t.zone_names)
     if spec.one_at_a_time:
         t.anchor = {k: float(arrs[f"anchor_{k}"]) for k in axes if f"anchor_{k}" in arrs}
         if t.anchor != spec.anchor():

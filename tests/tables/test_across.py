@@ -225,7 +225,7 @@ def test_cli_across_builds_and_names_it_in_the_rebuild_command(tmp_path, capsys)
     assert "'bead_diameter_m' is not a one-at-a-time axis" in capsys.readouterr().err
     with pytest.raises(SystemExit):
         main(argv[:2] + ["--across", "bead-density"])
-    assert "expected AXIS:GRID-AXIS=V1,V2" in capsys.readouterr().err
+    assert "expected AXIS[=V1,V2,..]:GRID-AXIS=V1,V2" in capsys.readouterr().err
     for bad, words in (("bead-density,filling:tip-speed=8,12", "expected one axis name"),
                        ("bead-density:tip-speed=8,12:tip-speed=8,10", "tip-speed given twice")):
         with pytest.raises(SystemExit):
@@ -233,3 +233,185 @@ def test_cli_across_builds_and_names_it_in_the_rebuild_command(tmp_path, capsys)
         assert words in capsys.readouterr().err
     assert main(argv[:-2] + ["--across", "bead-density:filling=0.7,0.8"]) == 2
     assert "--across bead_density_kg_per_m3: given more than once" in capsys.readouterr().err
+
+
+# ---- an axis run partly across: some of its values across the sub-grid, the others at the anchor
+D_LO, D_HI = 0.5e-3, 1.2e-3
+PART = {"bead_diameter_m": [D_GB_M, D_HI], "tip_speed_m_per_s": [6.0, 14.0], "filling": [0.5, 0.7, 0.9]}
+
+
+def diameter_effect(d: float, v: float, phi: float) -> tuple:
+    """What the bead diameter changes beyond the separable builder's, depending on tip speed
+    and filling: rates times (d/0.8 mm)^(0.1 (v - 10)), energies shifted by
+    log10 (d/0.8 mm)^(phi - 0.7)."""
+    r = d / D_GB_M
+    return r ** (0.1 * (v - 10.0)), math.log10(r ** (phi - 0.7))
+
+
+def diameter_builder(scene: dict, point: dict) -> dict:
+    beads = scene.get("beads", {})
+    d = float(point.get("bead_diameter_m", beads.get("diameter_m", D_GB_M)))
+    v = float(point.get("tip_speed_m_per_s", 10.0))
+    phi = float(point.get("filling", 0.8))
+    out = coupled_builder(scene, point)
+    f, shift = diameter_effect(d, v, phi)
+    for k in ("filling_local", "speed_over_tip_speed", "collision_frequency_norm",
+              "collision_power_norm"):
+        out[k] = out[k] * f
+    out["se_quantiles_norm"] = out["se_quantiles_norm"] * 10.0 ** shift
+    rho = float(point.get("bead_density_kg_per_m3", beads.get("density_kg_per_m3", RHO_KG_PER_M3)))
+    base = math.log10((d / D_GB_M) ** 0.7 * (rho / RHO_KG_PER_M3) ** 0.3)
+    out["se_density"] = np.array(_densities(np.log10(q50_norm(v, phi)) + base + shift
+                                            + density_effect(rho, v, phi)[1]))
+    return out
+
+
+def part_spec(across) -> T.TableSpec:
+    return T.TableSpec(**{**spec().__dict__, "builder_id": T.builder_id_of(diameter_builder),
+                          "across": across})
+
+
+@pytest.fixture(scope="module")
+def part_tables(tmp_path_factory):
+    """(partly across, every diameter at the anchor alone, every diameter across)."""
+    d = tmp_path_factory.mktemp("part")
+    kw = dict(cache_dir=d / "c", executor="serial", progress=False)
+    full = {k: v for k, v in PART.items() if k != "bead_diameter_m"}
+    return tuple(T.get_table(part_spec(a), diameter_builder, **kw)
+                 for a in ({"bead_diameter_m": PART}, {}, {"bead_diameter_m": full}))
+
+
+def test_partly_across_points_and_key():
+    s = part_spec({"bead_diameter_m": PART})
+    assert s.partly_across("bead_diameter_m")
+    assert s.side_axes("bead_diameter_m") == {"bead_diameter_m": (D_GB_M, D_HI),
+                                              "tip_speed_m_per_s": (6.0, 14.0), "filling": (0.5, 0.7, 0.9)}
+    assert s.anchor_side_axes("bead_diameter_m") == {"bead_diameter_m": (D_LO, D_GB_M, D_HI)}
+    pts = s.points()
+    # 9 grid points, 0.5 and 1.2 mm and the density's 6040 at the anchor, 1.2 mm at the 2 x 3
+    # sub-grid; 0.5 mm at no sub-grid point
+    assert len(pts) == 9 + 3 + 6
+    assert {"tip_speed_m_per_s": 6.0, "filling": 0.5, "bead_diameter_m": D_HI} in pts
+    assert not [p for p in pts if p.get("bead_diameter_m") == D_LO and p["tip_speed_m_per_s"] != 10.0]
+    # all values named: the same specification as the axis across without the list
+    every = dict(PART, bead_diameter_m=[D_LO, D_GB_M, D_HI])
+    full = {k: v for k, v in PART.items() if k != "bead_diameter_m"}
+    assert part_spec({"bead_diameter_m": every}).key() == part_spec({"bead_diameter_m": full}).key()
+    assert s.key() != part_spec({"bead_diameter_m": full}).key()
+
+
+@pytest.mark.parametrize("vals,words", [([D_LO, D_HI], "consecutive values"),
+                                        ([D_HI], "consecutive values"),
+                                        ([D_GB_M, 1.0e-3], "is not one of the axis's values"),
+                                        ([D_LO, D_GB_M - 1e-9], "is not one of")])
+def test_partly_across_errors_name_the_values(vals, words):
+    with pytest.raises(T.TableError, match=words):
+        part_spec({"bead_diameter_m": dict(PART, bead_diameter_m=vals)})
+    with pytest.raises(T.TableError, match="besides its own"):
+        part_spec({"bead_diameter_m": {"bead_diameter_m": [D_GB_M, D_HI]}})
+
+
+@pytest.mark.parametrize("v,phi", [(6.0, 0.5), (14.0, 0.9), (6.0, 0.7)])
+def test_partly_across_exact_at_the_nodes_and_the_anchor_beyond(part_tables, v, phi):
+    """1.2 mm at the sub-grid's nodes: the builder's run; 0.5 mm (run at the anchor alone):
+    the anchor-alone table's lookup to the bit; 1.0 mm (between the values run across):
+    the every-value-across table's values."""
+    part, alone, full = part_tables
+    run = diameter_builder({"beads": {"diameter_m": D_GB_M}}, _point(v, phi, rho=RHO_KG_PER_M3, d=D_HI))
+    got = part.lookup(_point(v, phi, rho=RHO_KG_PER_M3, d=D_HI))
+    for k in ("collision_frequency_norm", "filling_local", "speed_over_tip_speed"):
+        np.testing.assert_allclose(got.values[k], run[k], rtol=1e-12)
+    np.testing.assert_allclose(got.values["se_quantiles_norm"][..., 1], run["se_quantiles_norm"][..., 1],
+                               rtol=1e-12)
+    lo = _point(v, phi, rho=RHO_KG_PER_M3, d=0.6e-3)
+    a, b = part.lookup(lo), alone.lookup(lo)
+    for k in a.values:
+        np.testing.assert_array_equal(a.values[k], b.values[k])
+    assert any("separability assumed" in n for n in a.notes)
+    mid = _point(v, phi, rho=RHO_KG_PER_M3, d=1.0e-3)
+    a, c = part.lookup(mid), full.lookup(mid)
+    for k in ("collision_frequency_norm", "collision_power_norm", "se_density"):
+        np.testing.assert_allclose(a.values[k], c.values[k], rtol=1e-12, atol=1e-300)
+
+
+def test_partly_across_files_slice_and_range(part_tables, tmp_path):
+    part, _, _ = part_tables
+    npz, man = part.export(tmp_path / "p")
+    back = T.read_table(npz=npz, manifest_path=man)
+    assert list(back.one_at_a_time_anchor) == ["bead_diameter_m"]
+    assert list(back.one_at_a_time_values("bead_diameter_m")) == [D_LO, D_GB_M, D_HI]
+    for d in (0.6e-3, 1.1e-3):
+        p = _point(7.0, 0.55, rho=RHO_KG_PER_M3, d=d)
+        np.testing.assert_array_equal(back.lookup(p).values["se_density"], part.lookup(p).values["se_density"])
+        sub = part.subset({"tip_speed_m_per_s": (6.0, 9.0)})
+        np.testing.assert_array_equal(sub.lookup(p).values["collision_frequency_norm"],
+                                      part.lookup(p).values["collision_frequency_norm"])
+    with pytest.raises(T.OutsideGridError, match="bead_diameter_m"):
+        part.lookup(_point(8.0, 0.6, rho=RHO_KG_PER_M3, d=0.4e-3))
+    with pytest.raises(T.OutsideGridError, match="bead_diameter_m"):
+        part.lookup(_point(8.0, 0.6, rho=RHO_KG_PER_M3, d=1.4e-3))
+    # the side table at the anchor is missing from the file: refused, naming it
+    from millfmu.stress_tables.files import sha256_file
+
+    with np.load(npz) as f:
+        arrs = {k: f[k] for k in f.files if not k.startswith("oat_anchor__")}
+    bad = tmp_path / "q.npz"
+    np.savez_compressed(bad, **arrs)
+    m = json.loads(man.read_text())
+    m["files"] = {"table.npz": {"bytes": bad.stat().st_size, "sha256": sha256_file(bad)}}
+    with pytest.raises(T.TableError, match="bead_diameter_m at the anchor missing"):
+        T.read_table(npz=bad, manifest_path=_rewrite(tmp_path / "q.json", m))
+
+
+def test_partly_across_separability_reads_the_checks_of_its_side(part_tables):
+    """A point beyond the values run across reads the checks at the anchor's side (distance
+    from the anchor); one within them, the sub-grid's checks only."""
+    part, _, _ = part_tables
+    off = _point(8.0, 0.6, rho=RHO_KG_PER_M3, d=D_LO)  # a check of the side at the anchor
+    t = _with_check(part, off, 0.3)
+    assert t.separability_error(off)["collision_frequency"][0] == pytest.approx(0.3)
+    # 1.0 mm between the sub-grid's nodes: that check is not its side's, so nothing measured it
+    assert math.isnan(t.separability_error(_point(8.0, 0.6, rho=RHO_KG_PER_M3, d=1.0e-3))["collision_frequency"][0])
+    # at the sub-grid's nodes nothing is added
+    assert t.separability_error(_point(6.0, 0.5, rho=RHO_KG_PER_M3, d=D_HI))["collision_frequency"][0] == 0.0
+    within = _point(8.0, 0.6, rho=RHO_KG_PER_M3, d=D_HI)
+    t = _with_check(part, within, 0.2)
+    assert t.separability_error(within)["collision_frequency"][0] == pytest.approx(0.2)
+    assert math.isnan(t.separability_error(off)["collision_frequency"][0])
+
+
+def test_cli_partly_across_parses_and_names_it_in_the_rebuild_command(tmp_path):
+    from millfmu.cli import main
+    from millfmu.dem.tables.cli import _across
+
+    assert _across("bead-diameter=0.0008,0.0012:tip-speed=6,14") == (
+        "bead_diameter_m", {"bead_diameter_m": [0.0008, 0.0012], "tip_speed_m_per_s": [6.0, 14.0]})
+    argv = ["tables", "build", "--scene", "disc_slice", "--tip-speed", "8,10,12",
+            "--filling", "0.7,0.8", "--bead-diameter", "0.0005,0.0008,0.0012", "--one-at-a-time",
+            "bead-diameter", "--across", "bead-diameter=0.0008,0.0012:tip-speed=8,12", "--sector-deg", "10",
+            "--no-gravity", "--cache-dir", str(tmp_path / "cache"), "--executor", "serial",
+            "--no-progress", "--builder", "tests.tables.test_across:diameter_builder",
+            "--export", str(tmp_path / "t")]
+    assert main(argv) == 0
+    m = json.loads((tmp_path / "t.json").read_text())
+    assert "--across bead-diameter=0.0008,0.0012:tip-speed=8,12" in m["rebuild_command"]
+    assert m["across"] == {"bead_diameter_m": {"bead_diameter_m": [0.0008, 0.0012],
+                                               "tip_speed_m_per_s": [8.0, 12.0]}}
+    t = T.read_table(npz=tmp_path / "t.npz", manifest_path=tmp_path / "t.json")
+    assert t.one_at_a_time["bead_diameter_m"].shape == (2, 2)
+    assert t.one_at_a_time_anchor["bead_diameter_m"].shape == (3,)
+
+
+def test_a_value_added_beyond_the_values_run_across_runs_at_the_anchor(part_tables, tmp_path):
+    """On demand, 1.4 mm beyond the diameters run across (0.8, 1.2 mm): one new point, at the
+    anchor; the values run across and their sub-grid stay as they are."""
+    from millfmu.dem.tables.dem_builder import rebuild_including
+
+    part, _, _ = part_tables
+    big = rebuild_including(part, {"bead_diameter_m": 1.4e-3}, builder=diameter_builder,
+                            cache_dir=tmp_path, executor="serial", progress=False)
+    assert big.manifest["points_run"] == 1
+    assert list(big.one_at_a_time_values("bead_diameter_m")) == [D_LO, D_GB_M, D_HI, 1.4e-3]
+    assert big.one_at_a_time["bead_diameter_m"].shape == part.one_at_a_time["bead_diameter_m"].shape
+    p = _point(7.0, 0.55, rho=RHO_KG_PER_M3, d=1.3e-3)
+    assert any("separability assumed" in n for n in big.lookup(p).notes)

@@ -138,9 +138,12 @@ def unstack(spec: TableSpec, table: Table) -> list:
     for i, point in enumerate(spec.grid_points()):
         out.append((point, one(table, np.unravel_index(i, shape))))
     for name in spec.one_at_a_time:
-        side = table.one_at_a_time[name]
-        for j, p in enumerate(spec.side_points(name)):
-            out.append((p, one(side, np.unravel_index(j, side.shape))))
+        sides = [(table.one_at_a_time[name], spec.side_points(name))]
+        if spec.partly_across(name):
+            sides.insert(0, (table.one_at_a_time_anchor[name], spec.side_points(name, at_anchor=True)))
+        for side, pts in sides:
+            for j, p in enumerate(pts):
+                out.append((p, one(side, np.unravel_index(j, side.shape))))
     return out
 
 
@@ -162,7 +165,8 @@ def assemble(spec: TableSpec, results: list[dict]) -> Table:
     points into the table, the anchor and one-at-a-time points into its side tables
     (``Table.one_at_a_time``: 1-D along the axis at the anchor, each holding the scene's
     value from the anchor's result; over the axis and its ``across`` sub-grid where the spec
-    names one, the scene's value there from the grid's results)."""
+    names one, the scene's value there from the grid's results; an axis run partly across
+    has both, ``Table.one_at_a_time_anchor`` the one at the anchor)."""
     points = spec.points()
     if len(results) != len(points):
         raise TableError(f"assemble: {len(results)} results for {len(points)} points")
@@ -179,6 +183,9 @@ def assemble(spec: TableSpec, results: list[dict]) -> Table:
             rs = [by_point[json.dumps(p, sort_keys=True)] for p in spec.side_points(name)]
             t.one_at_a_time[name] = _stack(spec.side_axes(name), rs, zn)
             t.one_at_a_time_ref[name] = spec.scene_value(name)
+            if spec.partly_across(name):
+                rs = [by_point[json.dumps(p, sort_keys=True)] for p in spec.side_points(name, at_anchor=True)]
+                t.one_at_a_time_anchor[name] = _stack(spec.anchor_side_axes(name), rs, zn)
         t.anchor = spec.anchor()
     return t
 

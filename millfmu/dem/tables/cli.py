@@ -79,11 +79,12 @@ def _axis_names(text: str) -> list:
 
 
 def _across(text: str) -> tuple:
-    """``AXIS:GRID-AXIS=V1,V2,..[:GRID-AXIS=..]`` -> (axis name, {grid axis name: values})."""
+    """``AXIS[=V1,V2,..]:GRID-AXIS=V1,V2,..[:GRID-AXIS=..]`` -> (axis name, {grid axis name:
+    values}, with the axis's own values under its name where given: only those run across)."""
     parts = [x.strip() for x in text.split(":")]
     if len(parts) < 2 or not all(parts):
         raise argparse.ArgumentTypeError(
-            f"{text!r}: expected AXIS:GRID-AXIS=V1,V2,.., e.g. "
+            f"{text!r}: expected AXIS[=V1,V2,..]:GRID-AXIS=V1,V2,.., e.g. "
             f"bead-density:tip-speed=6,10,14:filling=0.5,0.8,0.9")
     def one(name):
         names = _axis_names(name)
@@ -91,7 +92,10 @@ def _across(text: str) -> tuple:
             raise argparse.ArgumentTypeError(f"{name!r} in {text!r}: expected one axis name")
         return names[0]
 
-    axis, sub = one(parts[0]), {}
+    name, eq, vals = parts[0].partition("=")
+    axis, sub = one(name), {}
+    if eq:
+        sub[axis] = _floats(vals)
     for part in parts[1:]:
         name, eq, vals = part.partition("=")
         if not eq:
@@ -151,10 +155,12 @@ def _register_build(sub) -> None:
                    help="axes (e.g. bead-diameter,bead-density) varied one at a time from the "
                         "scene's operating point instead of over the whole grid; their values "
                         "must include the scene's")
-    b.add_argument("--across", type=_across, action="append", metavar="AXIS:GRID-AXIS=V1,V2,..",
+    b.add_argument("--across", type=_across, action="append", metavar="AXIS[=V1,..]:GRID-AXIS=V1,V2,..",
                    help="run a one-at-a-time axis at each of its values across a sub-grid of grid "
                         "axes, where its effect depends on them, e.g. "
-                        "bead-density:tip-speed=6,10,14:filling=0.5,0.8,0.9 (repeatable)")
+                        "bead-density:tip-speed=6,10,14:filling=0.5,0.8,0.9 (repeatable); "
+                        "AXIS=V1,V2 runs only those of its values across (consecutive ones, the "
+                        "scene's among them), the others at the anchor alone")
     b.add_argument("--no-gravity", action="store_true", help="switch gravity off")
     b.add_argument("--fluid", choices=("coupled", "prescribed", "none"),
                    help="fluid model of the DEM runs (default: the scene's [fluid] mode; "
@@ -294,9 +300,13 @@ def _build(args) -> int:
         return 2
     entry = T.entry_dir(spec, args.cache_dir)
     m = table.manifest
-    extra = "".join(f" + {len(v)} {k} values one at a time" +
-                    (f" across {math.prod(len(x) for x in spec.across[k].values())} grid points"
-                     if k in spec.across else "") for k, v in oat.items())
+    def across_text(k):
+        sub = spec.across.get(k, {})
+        n = math.prod(len(x) for a, x in sub.items() if a != k)
+        return "" if not sub else (f", {len(sub[k])} of them across {n} grid points" if k in sub
+                                   else f" across {n} grid points")
+
+    extra = "".join(f" + {len(v)} {k} values one at a time{across_text(k)}" for k, v in oat.items())
     print(f"table {spec.key()} ({' x '.join(map(str, spec.shape))} points{extra}, "
           f"{(entry / T.TABLE_FILE).stat().st_size} bytes): {entry}")
     if m.get("build_wall_time_s"):
@@ -330,8 +340,9 @@ def _command(args) -> str:
         by_axis = {axis: opt[2:] for opt, (axis, _) in GRID_OPTIONS.items()}
         cmd += ["--one-at-a-time", ",".join(by_axis[a] for a in args.one_at_a_time)]
         for axis, sub in args.across or ():
-            cmd += ["--across", ":".join([by_axis[axis]] + [
-                f"{by_axis[a]}={','.join(f'{x:g}' for x in v)}" for a, v in sub.items()])]
+            own = f"={','.join(f'{x:g}' for x in sub[axis])}" if axis in sub else ""
+            cmd += ["--across", ":".join([by_axis[axis] + own] + [
+                f"{by_axis[a]}={','.join(f'{x:g}' for x in v)}" for a, v in sub.items() if a != axis])]
     for opt, (sec, key, _) in RUN_OPTIONS.items():
         v = getattr(args, f"run_{sec}_{key}")
         if v is not None:
