@@ -46,6 +46,10 @@ STATED_ERROR_ENTRIES = ("interpolation_check", "separability_check", "realizatio
 FIXED_AXIS_RTOL = 1e-9
 #: Prefix of a one-at-a-time axis's arrays in table.npz: ``oat__<axis>__<array>``.
 ONE_AT_A_TIME_PREFIX = "oat__"
+#: Upper limit of a Poisson mean where a count of 0 was observed, at the confidence of one
+#: Gaussian sigma (84.13 %, one-sided): -ln(1 - 0.8413) = 1.841 (Gehrels 1986, ApJ 303:336,
+#: Table 1). The sampling sigma of a zone's collision frequency where its run counted none.
+ZERO_COUNT_SIGMA = 1.841
 #: Prefix of the arrays of an axis's side table at the anchor, where it was run partly across.
 ONE_AT_A_TIME_ANCHOR_PREFIX = "oat_anchor__"
 
@@ -541,7 +545,10 @@ class Table:
         """Sampling standard deviation of each stored value, from the recorded collision
         count N of its zone (Poisson / binomial statistics; collisions treated as
         independent, so a lower bound where the same beads collide repeatedly):
-        collision frequency f/sqrt(N); collision power P sqrt(<e^2>)/(<e> sqrt(N)) with the
+        collision frequency f/sqrt(N), and in a zone that recorded none (N = 0) the frequency
+        of ZERO_COUNT_SIGMA collisions there, the one-sided 1-sigma upper limit of a Poisson
+        count of 0 (from the frequency per collision of the point's other zones, f_j vf_j /
+        N_j, over the zone's volume fraction); collision power P sqrt(<e^2>)/(<e> sqrt(N)) with the
         moments of the SE_total bins; bin density sqrt(w (1 - w) / N) / dlog10; quantile
         q_p: q ln10 sqrt(p (1 - p) / N) / g, g the density per decade at q_p. Fields
         without a count model (volume fraction, local filling, speed) get 0.
@@ -561,6 +568,14 @@ class Table:
             inv = np.where(n > 0, 1.0 / np.sqrt(np.maximum(n, 1.0)), np.inf)
             out = {k: np.zeros_like(v, dtype=float) for k, v in self.data.items()}
             out["collision_frequency_norm"] = np.abs(self.data["collision_frequency_norm"]) * inv
+            # f = N / (T V_z omega n_gb): one collision's share f_j vf_j / N_j is the same in
+            # every zone of a point, so an empty zone's count sigma is known from the others
+            vf = self.data["volume_fraction"]
+            per = np.where(n > 0, np.abs(self.data["collision_frequency_norm"]) * vf / np.maximum(n, 1.0), np.nan)
+            share = np.nanmax(np.where(np.isfinite(per), per, -np.inf), axis=-1, keepdims=True)
+            empty = (n <= 0) & np.isfinite(share) & (share > 0) & (vf > 0)
+            out["collision_frequency_norm"] = np.where(
+                empty, ZERO_COUNT_SIGMA * share / np.where(vf > 0, vf, 1.0), out["collision_frequency_norm"])
             dens = self.data["se_density"]  # (..., C, Z, B)
             w = dens * dU
             out["se_density"] = np.sqrt(np.clip(w * (1.0 - w), 0.0, None)) \
@@ -1038,6 +1053,7 @@ REBUILD_DEFAULT = (
     "millfmu tables build --scene disc_slice --tip-speed 6,8,10,12,14 --filling "
     "0.5,0.6,0.7,0.8,0.9 --bead-diameter 0.0005,0.0008,0.0012 --bead-density "
     "2510,6040 --one-at-a-time bead-diameter,bead-density --across "
+    "bead-diameter=0.0008,0.0012:tip-speed=6,10,14:filling=0.5,0.6,0.8,0.9 --across "
     "bead-density:tip-speed=6,10,14:filling=0.5,0.6,0.8,0.9 --sector-deg 10 --spin-up "
     "1.5 --record 0.4 --sample-every 0.01 --initial-rotation 0.1 --no-gravity "
     "--fluid coupled --export millfmu/data/coupled_table")

@@ -299,7 +299,7 @@ def test_a_bad_build_limit_is_refused_by_name(monkeypatch, value):
 
 
 def test_run_refuses_the_stale_coupled_tables_full_rebuild_without_yes(tmp_path, capsys, monkeypatch):
-    """--on-stale rebuild of the coupled table (51 DEM points with the steel beads, hours): refused before any point
+    """--on-stale rebuild of the coupled table (62 DEM points with the steel beads, hours): refused before any point
     runs, naming the cost, the limit and --yes."""
     from millfmu.dem.tables import cache
 
@@ -310,7 +310,7 @@ def test_run_refuses_the_stale_coupled_tables_full_rebuild_without_yes(tmp_path,
                      '[kinetics.stress_distribution]\nsource = "table"\ntable = "coupled"\non_outside = "build"\n')
     assert main(["run", str(scene), "--out", str(tmp_path / "out"), "-q", "--no-plots", "--on-stale", "rebuild"]) == 2
     err = capsys.readouterr().err
-    assert ("51 points, 0 already built, 51 to run" in err
+    assert ("62 points, 0 already built, 62 to run" in err
             and "over the 30 min a build may take without confirmation" in err)
     assert "--yes" in err and "Traceback" not in err and not (tmp_path / "out").exists()
 
