@@ -74,15 +74,37 @@ MOVES_FACTOR = 1.5
 
 
 #: Points off the anchor for the trends (the trend study's, validation.trends_causes):
-#: label -> (OperatingPoint field, value); each runs at every factor with the anchor's protocol
+#: label -> (OperatingPoint field, value), or a tuple of such pairs for a point off the anchor
+#: on two axes (the yeast pair's points at its own reference, 8 m/s); each runs at every
+#: factor with the anchor's protocol
 TREND_POINTS = {"v_t 14": ("tip_speed_m_per_s", 14.0), "d 1.2 mm": ("d_gb_m", 1.2e-3),
                 "v_t 6": ("tip_speed_m_per_s", 6.0), "d 0.6 mm": ("d_gb_m", 0.6e-3),
-                "rho 6040": ("rho_gb_kg_per_m3", 6040.0)}
+                "rho 6040": ("rho_gb_kg_per_m3", 6040.0), "v_t 8": ("tip_speed_m_per_s", 8.0),
+                "d 0.6 mm, 8 m/s": (("tip_speed_m_per_s", 8.0), ("d_gb_m", 0.6e-3)),
+                "d 1.2 mm, 8 m/s": (("tip_speed_m_per_s", 8.0), ("d_gb_m", 1.2e-3)),
+                "rho 6040, 8 m/s": (("tip_speed_m_per_s", 8.0), ("rho_gb_kg_per_m3", 6040.0))}
+
+
+def point_pairs(point: str | None) -> tuple:
+    """The (OperatingPoint field, value) pairs of trend point ``point`` (none for the anchor)."""
+    if point is None:
+        return ()
+    v = TREND_POINTS[point]
+    return (v,) if isinstance(v[0], str) else tuple(v)
+
+
+def at_point(op, point: str | None):
+    """Operating point ``op`` moved to trend point ``point``."""
+    from validation import trends_causes as tc
+
+    for field, value in point_pairs(point):
+        op = tc.at(op, field, value)
+    return op
 
 
 def case_dir(out_dir, factor: float, point: str | None = None) -> Path:
     """``DIR/y<factor>`` for the anchor, ``DIR/<point>_y<factor>`` off it."""
-    tag = "" if point is None else point.replace(" ", "").replace(".", "p") + "_"
+    tag = "" if point is None else point.replace(" ", "").replace(".", "p").replace(",", "_").replace("/", "") + "_"
     return Path(out_dir) / f"{tag}y{factor:g}"
 
 
@@ -92,15 +114,16 @@ def scene_for(factor: float, spin_up_s: float, record_s: float, point: str | Non
     interval kept at the table's 5e-5 s."""
     from millfmu.dem.scene import load_scene
 
-    tip = ANCHOR[0] if point is None or TREND_POINTS[point][0] != "tip_speed_m_per_s" else TREND_POINTS[point][1]
+    pairs = dict(point_pairs(point))
+    tip = pairs.get("tip_speed_m_per_s", ANCHOR[0])
     base = load_scene("disc_slice").with_overrides(
         fluid_mode="coupled", tip_speed_m_per_s=tip, filling=ANCHOR[1], sector_deg=10.0,
         gravity_m_per_s2=(0.0, 0.0, 0.0), spin_up_s=spin_up_s, record_s=record_s,
         sample_every_s=0.01, initial_rotation=INITIAL_ROTATION)
-    if point is not None and TREND_POINTS[point][0] == "d_gb_m":
-        base = replace(base, bead_diameter_m=TREND_POINTS[point][1])
-    if point is not None and TREND_POINTS[point][0] == "rho_gb_kg_per_m3":
-        base = replace(base, material=replace(base.material, density_kg_per_m3=TREND_POINTS[point][1]))
+    if "d_gb_m" in pairs:
+        base = replace(base, bead_diameter_m=pairs["d_gb_m"])
+    if "rho_gb_kg_per_m3" in pairs:
+        base = replace(base, material=replace(base.material, density_kg_per_m3=pairs["rho_gb_kg_per_m3"]))
     dt = DT_TABLE_S * factor ** -0.4
     steps = max(1, round(COUPLING_STEPS_TABLE * DT_TABLE_S / dt))
     return replace(base, name=f"disc_slice_{case_dir('', factor, point).name}",
@@ -160,14 +183,14 @@ def trends(out_dir, factors, points) -> dict:
     sm, dm = ps.simple, ps.detailed
     s_ref = tc.rate(sm, sm.material, None, ps.op_simple, ps)
     target = tc.rate(dm, dm.material, dm.source, ps.op_detailed, ps)
-    out = {"simple": {p: tc.rate(sm, sm.material, None, tc.at(ps.op_simple, *TREND_POINTS[p]), ps) / s_ref
+    out = {"simple": {p: tc.rate(sm, sm.material, None, at_point(ps.op_simple, p), ps) / s_ref
                       for p in points}, "detailed": {}}
     for f in factors:
         src0 = run_source(_stats(case_dir(out_dir, f)))
         mat, const = tc._refit(ps, dm.material, src0, ps.op_detailed, target)
         ref = tc.rate(dm, mat, src0, ps.op_detailed, ps)
         rel = {p: tc.rate(dm, mat, run_source(_stats(case_dir(out_dir, f, p))),
-                          tc.at(ps.op_detailed, *TREND_POINTS[p]), ps) / ref for p in points}
+                          at_point(ps.op_detailed, p), ps) / ref for p in points}
         out["detailed"][f"{f:g}"] = {"f_mat_kg_per_J_m": const, "relative_rate": rel}
     return out
 

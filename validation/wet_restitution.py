@@ -13,7 +13,9 @@ restitution e_dry exp(-35 / St) per contact from its approach, lubrication off;
 of :mod:`validation.bead_stiffness` (started turning at 0.1 of the stirrer's angular
 velocity, 0.8 s spin-up, 0.2 s recorded, seed 1), and compares the collisions the detailed
 model reads and the limestone pair's trends, f_Mat refitted at each law's anchor, with the
-simple model's.
+simple model's; with the yeast pair's runs at its own reference, 8 m/s (run only when named:
+``--point "v_t 8" --point "d 0.6 mm, 8 m/s" ...``), the yeast pair's trends too, its burst
+energy refitted at each law's reference run.
 
 From a checkout's root:
 
@@ -33,6 +35,13 @@ from validation.run_summary import write_json
 
 #: the anchor (None) and the trend points of validation.bead_stiffness
 POINTS = (None, "v_t 6", "v_t 14", "d 0.6 mm", "d 1.2 mm", "rho 6040")
+#: The yeast pair's reference is 8 m/s: the runs its trends read, by trend (the reference
+#: "anchor" and the points of its bead diameter and density at 8 m/s; tip speed 6 and 14 m/s
+#: are the limestone pair's runs)
+YEAST_RUNS = {"anchor": "v_t 8", "v_t 6": "v_t 6", "v_t 14": "v_t 14", "d 0.6 mm": "d 0.6 mm, 8 m/s",
+              "d 1.2 mm": "d 1.2 mm, 8 m/s", "rho 6040": "rho 6040, 8 m/s"}
+#: the runs the yeast pair adds
+YEAST_POINTS = ("v_t 8", "d 0.6 mm, 8 m/s", "d 1.2 mm, 8 m/s", "rho 6040, 8 m/s")
 #: the DEM's laws of wet collisions, each run into its own subfolder
 LAWS = ("lubrication", "legendre2006")
 SPIN_UP_S = 0.8
@@ -76,6 +85,8 @@ def summarize(out_dir) -> dict:
     ratios = {k: {key: wet[k][key] / lub[k][key] if lub[k][key] > 0 else None
                   for key in B.CHAMBER_KEYS} for k in wet}
     tr = {law: B.trends(Path(out_dir) / law, [1.0], points) for law in LAWS}
+    have = all((B.case_dir(Path(out_dir) / law, 1.0, p) / "stats.json").exists() for law in LAWS for p in YEAST_POINTS)
+    yeast = yeast_trends(out_dir) if have else None
     return {"note": ("coupled table's anchor (10 m/s, 80 %, 0.8 mm) and trend points by the DEM's two "
                      "wet-collision laws: the lubrication force (the table's) and Legendre et al. "
                      "(2006)'s restitution per contact (lubrication off); chamber readings (1/(m3 s), "
@@ -87,7 +98,33 @@ def summarize(out_dir) -> dict:
             "runs": runs, "ratio_to_lubrication": ratios,
             "trends": {"simple": tr["lubrication"]["simple"],
                        **{law: tr[law]["detailed"]["1"]["relative_rate"] for law in LAWS},
-                       "f_mat_kg_per_J_m": {law: tr[law]["detailed"]["1"]["f_mat_kg_per_J_m"] for law in LAWS}}}
+                       "f_mat_kg_per_J_m": {law: tr[law]["detailed"]["1"]["f_mat_kg_per_J_m"] for law in LAWS}},
+            **({"yeast_trends": yeast} if yeast is not None else {})}
+
+
+def yeast_trends(out_dir) -> dict:
+    """The yeast pair's disruption rate at each trend point over its reference (8 m/s, 80 %,
+    0.8 mm glass) by the simple model and by the detailed model on each law's runs, its burst
+    energy refitted at the reference run so that the reference rate is the shipped detailed
+    model's (as validation.trends_causes refits), with the refitted burst energies [J]."""
+    from validation import trends_causes as tc
+
+    ps = next(p for p in tc.setups() if p.w_feed is not None)  # yeast: the feed's disruption rate
+    sm, dm = ps.simple, ps.detailed
+    ref_op = lambda op, label: B.at_point(op, YEAST_RUNS[label])  # noqa: E731
+    pts = [k for k in YEAST_RUNS if k != "anchor"]
+    s_ref = tc.rate(sm, sm.material, None, ps.op_simple, ps)
+    out = {"simple": {p: tc.rate(sm, sm.material, None, ref_op(ps.op_simple, p), ps) / s_ref for p in pts},
+           "burst_median_J": {}}
+    target = tc.rate(dm, dm.material, dm.source, ps.op_detailed, ps)
+    for law in LAWS:
+        run = lambda label: B.run_source(B._stats(B.case_dir(Path(out_dir) / law, 1.0, YEAST_RUNS[label])))  # noqa: E731
+        src0 = run("anchor")
+        mat, const = tc._refit(ps, dm.material, src0, ps.op_detailed, target)
+        ref = tc.rate(dm, mat, src0, ps.op_detailed, ps)
+        out[law] = {p: tc.rate(dm, mat, run(p), ref_op(ps.op_detailed, p), ps) / ref for p in pts}
+        out["burst_median_J"][law] = const
+    return out
 
 
 #: the points' names on the page
@@ -107,16 +144,23 @@ def page_tables(s: dict) -> str:
                       ("above_limestone_threshold_per_m3_s", "collisions with SE_tn above 2.7e-9 J"),
                       ("power_W_per_m3", "collision power")):
         out.append(f"| {name} | " + " | ".join(f"{r[c][key]:.2f}" for c in cols) + " |")
-    t = s["trends"]
+    out += ["", *_trend_rows("limestone S(10 um) over its anchor", s["trends"])]
+    if s.get("yeast_trends") is not None:
+        out += ["", *_trend_rows("yeast disruption rate over its reference (8 m/s)", s["yeast_trends"])]
+    return "\n".join(out)
+
+
+def _trend_rows(title: str, t: dict) -> list:
+    """A pair's trend table: the simple model's change at each point, each law's detailed
+    change with its ratio to the simple model's in brackets."""
     pts = list(t["simple"])
-    out += ["", "| limestone S(10 um) over its anchor | " + " | ".join(NAMES[p] for p in pts) + " |",
-            "|---" * (1 + len(pts)) + "|",
-            "| simple model | " + " | ".join(f"{t['simple'][p]:.3g}" for p in pts) + " |"]
+    out = [f"| {title} | " + " | ".join(NAMES[p] for p in pts) + " |", "|---" * (1 + len(pts)) + "|",
+           "| simple model | " + " | ".join(f"{t['simple'][p]:.3g}" for p in pts) + " |"]
     for law, name in (("lubrication", "detailed, the table's law (over the simple model's)"),
                       ("legendre2006", "detailed, the published curve (over the simple model's)")):
         out.append(f"| {name} | " + " | ".join(f"{t[law][p]:.3g} ({t[law][p] / t['simple'][p]:.2f})"
                                                 for p in pts) + " |")
-    return "\n".join(out)
+    return out
 
 
 def markdown(s: dict) -> str:
@@ -140,6 +184,16 @@ def markdown(s: dict) -> str:
         lines.append(f"| {law} | " + " | ".join(f"{t[law][p]:.3g}" for p in pts) + " |")
     lines.append(f"\nf_Mat refitted at the anchor [kg/(J m)]: lubrication {t['f_mat_kg_per_J_m']['lubrication']:.4g}, "
                  f"legendre2006 {t['f_mat_kg_per_J_m']['legendre2006']:.4g}")
+    y = s.get("yeast_trends")
+    if y is not None:
+        pts = list(y["simple"])
+        lines += ["", "| yeast disruption rate over its reference (8 m/s) | " + " | ".join(pts) + " |",
+                  "|---" * (1 + len(pts)) + "|"]
+        for law in ("simple", *LAWS):
+            lines.append(f"| {law} | " + " | ".join(f"{y[law][p]:.3g}" for p in pts) + " |")
+        lines.append("burst energy refitted at the reference [J]: " + ", ".join(
+            f"{law} {y['burst_median_J'][law]:.3g}" for law in LAWS))
+    return "\n".join(lines)
     return "\n".join(lines)
 
 
@@ -150,8 +204,8 @@ def main(argv=None) -> int:
     ap.add_argument("--threads", type=int, help="numba threads (default: all cores)")
     ap.add_argument("--json", help="table: also write the run summary to this file")
     ap.add_argument("--law", choices=LAWS, action="append", help="run: only this law (repeatable)")
-    ap.add_argument("--point", choices=["anchor", *POINTS[1:]], action="append",
-                    help="run: only this point (repeatable)")
+    ap.add_argument("--point", choices=["anchor", *POINTS[1:], *YEAST_POINTS], action="append",
+                    help="run: only this point (repeatable; the yeast pair's points at 8 m/s run only when named)")
     args = ap.parse_args(argv)
     if args.action == "run":
         pts = POINTS if not args.point else [None if p == "anchor" else p for p in args.point]

@@ -26,18 +26,23 @@ def density_effect(rho: float, v: float, phi: float) -> tuple:
     return r ** (0.05 * (v - 10.0)), math.log10(r ** (0.5 * (phi - 0.7)))
 
 
+def _with_effect(out: dict, f: float, shift: float) -> tuple:
+    """A builder's result with rates and speeds times ``f`` and the SE quantiles shifted by
+    ``shift`` decades, and the shift (for the densities the caller rebuilds)."""
+    for k in ("filling_local", "speed_over_tip_speed", "collision_frequency_norm",
+              "collision_power_norm"):
+        out[k] = out[k] * f
+    out["se_quantiles_norm"] = out["se_quantiles_norm"] * 10.0 ** shift
+    return out, shift
+
+
 def coupled_builder(scene: dict, point: dict) -> dict:
     beads = scene.get("beads", {})
     rho = float(point.get("bead_density_kg_per_m3", beads.get("density_kg_per_m3", RHO_KG_PER_M3)))
     d = float(point.get("bead_diameter_m", beads.get("diameter_m", D_GB_M)))
     v = float(point.get("tip_speed_m_per_s", 10.0))
     phi = float(point.get("filling", 0.8))
-    out = separable_builder(scene, point)
-    f, shift = density_effect(rho, v, phi)
-    for k in ("filling_local", "speed_over_tip_speed", "collision_frequency_norm",
-              "collision_power_norm"):
-        out[k] = out[k] * f
-    out["se_quantiles_norm"] = out["se_quantiles_norm"] * 10.0 ** shift
+    out, shift = _with_effect(separable_builder(scene, point), *density_effect(rho, v, phi))
     base = math.log10((d / D_GB_M) ** 0.7 * (rho / RHO_KG_PER_M3) ** 0.3)
     out["se_density"] = np.array(_densities(np.log10(q50_norm(v, phi)) + base + shift))
     return out
@@ -206,15 +211,20 @@ def _with_check(table, point, b):
     return t
 
 
+def _build_argv(tmp_path, axis: str, values: str, across: str, builder: str) -> list:
+    """``millfmu tables build`` of the disc slice on 8/10/12 m/s x 70/80 % with one
+    one-at-a-time axis run across, by a stand-in builder of this module, exported to t."""
+    return ["tables", "build", "--scene", "disc_slice", "--tip-speed", "8,10,12",
+            "--filling", "0.7,0.8", f"--{axis}", values, "--one-at-a-time", axis, "--across", across,
+            "--sector-deg", "10", "--no-gravity", "--cache-dir", str(tmp_path / "cache"), "--executor",
+            "serial", "--no-progress", "--builder", f"tests.tables.test_across:{builder}",
+            "--export", str(tmp_path / "t")]
+
+
 def test_cli_across_builds_and_names_it_in_the_rebuild_command(tmp_path, capsys):
     from millfmu.cli import main
 
-    argv = ["tables", "build", "--scene", "disc_slice", "--tip-speed", "8,10,12",
-            "--filling", "0.7,0.8", "--bead-density", "2510,6040", "--one-at-a-time",
-            "bead-density", "--across", "bead-density:tip-speed=8,12", "--sector-deg", "10",
-            "--no-gravity", "--cache-dir", str(tmp_path / "cache"), "--executor", "serial",
-            "--no-progress", "--builder", "tests.tables.test_across:coupled_builder",
-            "--export", str(tmp_path / "t")]
+    argv = _build_argv(tmp_path, "bead-density", "2510,6040", "bead-density:tip-speed=8,12", "coupled_builder")
     assert main(argv) == 0
     out = capsys.readouterr().out
     assert "3 x 2 points + 2 bead_density_kg_per_m3 values one at a time across 2 grid points" in out
@@ -253,12 +263,7 @@ def diameter_builder(scene: dict, point: dict) -> dict:
     d = float(point.get("bead_diameter_m", beads.get("diameter_m", D_GB_M)))
     v = float(point.get("tip_speed_m_per_s", 10.0))
     phi = float(point.get("filling", 0.8))
-    out = coupled_builder(scene, point)
-    f, shift = diameter_effect(d, v, phi)
-    for k in ("filling_local", "speed_over_tip_speed", "collision_frequency_norm",
-              "collision_power_norm"):
-        out[k] = out[k] * f
-    out["se_quantiles_norm"] = out["se_quantiles_norm"] * 10.0 ** shift
+    out, shift = _with_effect(coupled_builder(scene, point), *diameter_effect(d, v, phi))
     rho = float(point.get("bead_density_kg_per_m3", beads.get("density_kg_per_m3", RHO_KG_PER_M3)))
     base = math.log10((d / D_GB_M) ** 0.7 * (rho / RHO_KG_PER_M3) ** 0.3)
     out["se_density"] = np.array(_densities(np.log10(q50_norm(v, phi)) + base + shift
@@ -386,12 +391,8 @@ def test_cli_partly_across_parses_and_names_it_in_the_rebuild_command(tmp_path):
 
     assert _across("bead-diameter=0.0008,0.0012:tip-speed=6,14") == (
         "bead_diameter_m", {"bead_diameter_m": [0.0008, 0.0012], "tip_speed_m_per_s": [6.0, 14.0]})
-    argv = ["tables", "build", "--scene", "disc_slice", "--tip-speed", "8,10,12",
-            "--filling", "0.7,0.8", "--bead-diameter", "0.0005,0.0008,0.0012", "--one-at-a-time",
-            "bead-diameter", "--across", "bead-diameter=0.0008,0.0012:tip-speed=8,12", "--sector-deg", "10",
-            "--no-gravity", "--cache-dir", str(tmp_path / "cache"), "--executor", "serial",
-            "--no-progress", "--builder", "tests.tables.test_across:diameter_builder",
-            "--export", str(tmp_path / "t")]
+    argv = _build_argv(tmp_path, "bead-diameter", "0.0005,0.0008,0.0012",
+                       "bead-diameter=0.0008,0.0012:tip-speed=8,12", "diameter_builder")
     assert main(argv) == 0
     m = json.loads((tmp_path / "t.json").read_text())
     assert "--across bead-diameter=0.0008,0.0012:tip-speed=8,12" in m["rebuild_command"]
