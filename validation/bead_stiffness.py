@@ -180,19 +180,41 @@ def trends(out_dir, factors, points) -> dict:
     from validation import trends_causes as tc
 
     ps = next(p for p in tc.setups() if p.w_feed is None)  # limestone: S(10 um)
-    sm, dm = ps.simple, ps.detailed
-    s_ref = tc.rate(sm, sm.material, None, ps.op_simple, ps)
+    dm = ps.detailed
     target = tc.rate(dm, dm.material, dm.source, ps.op_detailed, ps)
-    out = {"simple": {p: tc.rate(sm, sm.material, None, at_point(ps.op_simple, p), ps) / s_ref
-                      for p in points}, "detailed": {}}
+    runs = {p: p for p in points}
+    out = {"simple": simple_trend(ps, runs)[1], "detailed": {}}
     for f in factors:
-        src0 = run_source(_stats(case_dir(out_dir, f)))
-        mat, const = tc._refit(ps, dm.material, src0, ps.op_detailed, target)
-        ref = tc.rate(dm, mat, src0, ps.op_detailed, ps)
-        rel = {p: tc.rate(dm, mat, run_source(_stats(case_dir(out_dir, f, p))),
-                          at_point(ps.op_detailed, p), ps) / ref for p in points}
+        const, rel, _ = detailed_trend(ps, target, out_dir, f, None, runs)
         out["detailed"][f"{f:g}"] = {"f_mat_kg_per_J_m": const, "relative_rate": rel}
     return out
+
+
+def simple_trend(ps, runs: dict) -> tuple:
+    """(the simple model's rate at the pair's reference [1/s], {label: its rate at the trend
+    point ``runs[label]`` over it})."""
+    from validation import trends_causes as tc
+
+    sm = ps.simple
+    s_ref = tc.rate(sm, sm.material, None, ps.op_simple, ps)
+    return s_ref, {k: tc.rate(sm, sm.material, None, at_point(ps.op_simple, p), ps) / s_ref for k, p in runs.items()}
+
+
+def detailed_trend(ps, target: float, out_dir, factor: float, ref_run: str | None, runs: dict) -> tuple:
+    """The detailed model on the runs of ``out_dir``: its material constant refitted at run
+    ``ref_run`` (None: the anchor) so that its rate there is ``target`` [1/s], then {label:
+    its rate on the run of trend point ``runs[label]`` over its rate on ``ref_run``}. Returns
+    (the constant, NaN where none reaches ``target``; those rates; the reference run's
+    source)."""
+    from validation import trends_causes as tc
+
+    dm = ps.detailed
+    src0 = run_source(_stats(case_dir(out_dir, factor, ref_run)))
+    mat, const = tc._refit(ps, dm.material, src0, ps.op_detailed, target)
+    ref = tc.rate(dm, mat, src0, ps.op_detailed, ps)
+    rel = {k: tc.rate(dm, mat, run_source(_stats(case_dir(out_dir, factor, p))), at_point(ps.op_detailed, p), ps) / ref
+           for k, p in runs.items()}
+    return const, rel, src0
 
 
 def _stats(d: Path) -> dict:

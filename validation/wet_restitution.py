@@ -42,7 +42,7 @@ POINTS = (None, "v_t 6", "v_t 14", "d 0.6 mm", "d 1.2 mm", "rho 6040")
 YEAST_RUNS = {"anchor": "v_t 8", "v_t 6": "v_t 6", "v_t 14": "v_t 14", "d 0.6 mm": "d 0.6 mm, 8 m/s",
               "d 1.2 mm": "d 1.2 mm, 8 m/s", "rho 6040": "rho 6040, 8 m/s"}
 #: the runs the yeast pair adds
-YEAST_POINTS = ("v_t 8", "d 0.6 mm, 8 m/s", "d 1.2 mm, 8 m/s", "rho 6040, 8 m/s")
+YEAST_POINTS = tuple(p for p in YEAST_RUNS.values() if p not in POINTS)
 #: the DEM's laws of wet collisions, each run into its own subfolder
 LAWS = ("lubrication", "legendre2006")
 SPIN_UP_S = 0.8
@@ -114,20 +114,12 @@ def yeast_trends(out_dir) -> dict:
     from validation import trends_causes as tc
 
     ps = next(p for p in tc.setups() if p.w_feed is not None)  # yeast: the feed's disruption rate
-    sm, dm = ps.simple, ps.detailed
-    ref_op = lambda op, label: B.at_point(op, YEAST_RUNS[label])  # noqa: E731
-    pts = [k for k in YEAST_RUNS if k != "anchor"]
-    s_ref = tc.rate(sm, sm.material, None, ps.op_simple, ps)
-    out = {"simple": {p: tc.rate(sm, sm.material, None, ref_op(ps.op_simple, p), ps) / s_ref for p in pts},
-           "burst_median_J": {}}
-    target = s_ref  # as validation.trends_causes refits the cells' pair
-    out["reach_at_p1"] = {}
+    dm = ps.detailed
+    runs = {k: p for k, p in YEAST_RUNS.items() if k != "anchor"}
+    target, simple = B.simple_trend(ps, runs)  # as validation.trends_causes refits the cells' pair
+    out = {"simple": simple, "burst_median_J": {}, "reach_at_p1": {}}
     for law in LAWS:
-        run = lambda label: B.run_source(B._stats(B.case_dir(Path(out_dir) / law, 1.0, YEAST_RUNS[label])))  # noqa: E731
-        src0 = run("anchor")
-        mat, const = tc._refit(ps, dm.material, src0, ps.op_detailed, target)
-        ref = tc.rate(dm, mat, src0, ps.op_detailed, ps)
-        out[law] = {p: tc.rate(dm, mat, run(p), ref_op(ps.op_detailed, p), ps) / ref for p in pts}
+        const, out[law], src0 = B.detailed_trend(ps, target, Path(out_dir) / law, 1.0, YEAST_RUNS["anchor"], runs)
         out["burst_median_J"][law] = None if math.isnan(const) else const
         every = replace(dm.material, **{ps.constant: getattr(dm.material, ps.constant) * 1e-12})
         out["reach_at_p1"][law] = tc.rate(dm, every, src0, ps.op_detailed, ps) / target
@@ -189,26 +181,25 @@ def markdown(s: dict) -> str:
             "n/a" if s["ratio_to_lubrication"][c][key] is None else f"{s['ratio_to_lubrication'][c][key]:.2f}"
             for c in cols) + " |")
     t = s["trends"]
-    pts = list(t["simple"])
-    lines += ["", "| limestone S(10 um) over its anchor | " + " | ".join(pts) + " |",
-              "|---" * (1 + len(pts)) + "|"]
-    for law in ("simple", "lubrication", "legendre2006"):
-        lines.append(f"| {law} | " + " | ".join(f"{t[law][p]:.3g}" for p in pts) + " |")
+    lines += ["", *_plain_rows("limestone S(10 um) over its anchor", t)]
     lines.append(f"\nf_Mat refitted at the anchor [kg/(J m)]: lubrication {t['f_mat_kg_per_J_m']['lubrication']:.4g}, "
                  f"legendre2006 {t['f_mat_kg_per_J_m']['legendre2006']:.4g}")
     y = s.get("yeast_trends")
     if y is not None:
-        pts = list(y["simple"])
-        lines += ["", "| yeast disruption rate over its reference (8 m/s) | " + " | ".join(pts) + " |",
-                  "|---" * (1 + len(pts)) + "|"]
-        for law in ("simple", *LAWS):
-            lines.append(f"| {law} | " + " | ".join(f"{y[law][p]:.3g}" for p in pts) + " |")
+        lines += ["", *_plain_rows("yeast disruption rate over its reference (8 m/s)", y)]
         fit = {law: "none reaches it" if y["burst_median_J"][law] is None else f"{y['burst_median_J'][law]:.3g}"
                for law in LAWS}
         lines.append("burst energy refitted at the reference [J]: " + ", ".join(
             f"{law} {fit[law]} (at most {y['reach_at_p1'][law]:.2f} of the reference rate)" for law in LAWS))
     return "\n".join(lines)
-    return "\n".join(lines)
+
+
+def _plain_rows(title: str, t: dict) -> list:
+    """A pair's trends for the terminal: the simple model's and each law's rate over its
+    reference at each point."""
+    pts = list(t["simple"])
+    return [f"| {title} | " + " | ".join(pts) + " |", "|---" * (1 + len(pts)) + "|",
+            *(f"| {law} | " + " | ".join(f"{t[law][p]:.3g}" for p in pts) + " |" for law in ("simple", *LAWS))]
 
 
 def main(argv=None) -> int:
