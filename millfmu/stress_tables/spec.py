@@ -279,6 +279,15 @@ class TableSpec:
         with all its values ({} where the axis is not run partly across)."""
         return {name: self.one_at_a_time[name]} if self.partly_across(name) else {}
 
+    def sides(self, name: str) -> list[tuple]:
+        """(at_anchor, axes, points) of each side table of one-at-a-time axis ``name``: for an
+        axis run partly across first the one at the anchor (``Table.one_at_a_time_anchor``),
+        then the one over its values run across (``Table.one_at_a_time``)."""
+        out = [(False, self.side_axes(name), self.side_points(name))]
+        if self.partly_across(name):
+            out.insert(0, (True, self.anchor_side_axes(name), self.side_points(name, at_anchor=True)))
+        return out
+
     def side_points(self, name: str, at_anchor: bool = False) -> list[dict]:
         """The points of ``name``'s side table in C order (last axis fastest): the anchor
         with ``name``'s value (:meth:`point_along`) and the sub-grid's values; at the scene's
@@ -314,8 +323,8 @@ class TableSpec:
         if a not in pts:
             pts.append(a)
         for name in self.one_at_a_time:
-            pts += [p for p in self.side_points(name, at_anchor=True) if p not in pts]
-            pts += [p for p in self.side_points(name) if p not in pts]
+            for _, _, side in self.sides(name):
+                pts += [p for p in side if p not in pts]
         return pts
 
     def key_content(self) -> dict:

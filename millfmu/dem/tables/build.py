@@ -138,10 +138,8 @@ def unstack(spec: TableSpec, table: Table) -> list:
     for i, point in enumerate(spec.grid_points()):
         out.append((point, one(table, np.unravel_index(i, shape))))
     for name in spec.one_at_a_time:
-        sides = [(table.one_at_a_time[name], spec.side_points(name))]
-        if spec.partly_across(name):
-            sides.insert(0, (table.one_at_a_time_anchor[name], spec.side_points(name, at_anchor=True)))
-        for side, pts in sides:
+        for at_anchor, _, pts in spec.sides(name):
+            side = (table.one_at_a_time_anchor if at_anchor else table.one_at_a_time)[name]
             for j, p in enumerate(pts):
                 out.append((p, one(side, np.unravel_index(j, side.shape))))
     return out
@@ -180,12 +178,10 @@ def assemble(spec: TableSpec, results: list[dict]) -> Table:
     if spec.one_at_a_time:
         by_point = {json.dumps(p, sort_keys=True): r for p, r in zip(points, results)}
         for name in spec.one_at_a_time:
-            rs = [by_point[json.dumps(p, sort_keys=True)] for p in spec.side_points(name)]
-            t.one_at_a_time[name] = _stack(spec.side_axes(name), rs, zn)
+            for at_anchor, axes, pts in spec.sides(name):
+                rs = [by_point[json.dumps(p, sort_keys=True)] for p in pts]
+                (t.one_at_a_time_anchor if at_anchor else t.one_at_a_time)[name] = _stack(axes, rs, zn)
             t.one_at_a_time_ref[name] = spec.scene_value(name)
-            if spec.partly_across(name):
-                rs = [by_point[json.dumps(p, sort_keys=True)] for p in spec.side_points(name, at_anchor=True)]
-                t.one_at_a_time_anchor[name] = _stack(spec.anchor_side_axes(name), rs, zn)
         t.anchor = spec.anchor()
     return t
 
