@@ -26,8 +26,8 @@ if sys.version_info >= (3, 11):
 else:  # pragma: no cover
     import tomli as tomllib
 
-from millfmu.dem.coupling.settings import (PRESSURE_GRADIENT_TIMINGS, SMOOTHINGS,
-                                           CouplingSettings)
+from millfmu.dem.coupling.settings import (DPM_DRAG_LAWS, PRESSURE_GRADIENT_TIMINGS,
+                                           SMOOTHINGS, CouplingSettings)
 from millfmu.dem.engine.params import BeadMaterial
 from millfmu.dem.engine.sim import DemSimulation, FluidSettings
 from millfmu.dem.fluid.settings import DEFAULT_PRESSURE_SOLVER, PRESSURE_SOLVERS
@@ -49,6 +49,9 @@ FLUID_MODES = ("coupled", "prescribed", "none")
 #: Navier-Stokes (millfmu.dem.coupling.cfd_dem) or a dilute discrete phase model
 #: (millfmu.dem.coupling.dpm)
 COUPLING_SCHEMES = ("vans", "dpm")
+#: the discrete phase model's drag laws as its description line names them
+DPM_DRAG_NAMES = {"schiller_naumann": "Schiller-Naumann",
+                  "koch_hill2001": "Koch-Hill (at the beads' void fraction)"}
 
 
 class DemSceneError(ValueError):
@@ -157,10 +160,10 @@ class DemScene:
         c = self.coupling
         if c.scheme == "dpm":
             return (f"coupled CFD-DEM, dilute discrete phase model (dpm): no void fraction in "
-                    f"the liquid, Schiller-Naumann drag only, updated every {c.steps} DEM "
-                    f"steps ({c.steps * self.dt_s:.3g} s) in the liquid's field frozen over "
-                    f"the CFD step and exchange interval of {c.cfd_step_s:g} s; turbulence "
-                    f"{c.turbulence}, cylindrical grid of ~{c.cell_m * 1e3:g} mm cells, "
+                    f"the liquid, {DPM_DRAG_NAMES[c.dpm_drag]} drag only, updated every "
+                    f"{c.steps} DEM steps ({c.steps * self.dt_s:.3g} s) in the liquid's field "
+                    f"frozen over the CFD step and exchange interval of {c.cfd_step_s:g} s; "
+                    f"turbulence {c.turbulence}, cylindrical grid of ~{c.cell_m * 1e3:g} mm cells, "
                     f"{c.n_theta} theta cell(s)")
         smoothing = (f", smoothing split_implicit in {c.smoothing_steps} step(s)"
                      if c.smoothing == "split_implicit" else "")
@@ -520,7 +523,7 @@ _COUPLED_KEYS = {"vans_model": str, "turbulence": str, "coupling_steps": int, "c
                  "n_theta": int, "smoothing_diameters": float, "eps_min": float,
                  "cfl": float, "scheme": str, "cfd_step_s": float,
                  "pressure_gradient": str, "smoothing": str, "smoothing_steps": int,
-                 "pressure_solver": str}
+                 "pressure_solver": str, "dpm_drag": str}
 
 
 def _fluid_from_dict(fluid: dict, dia: float):
@@ -597,7 +600,8 @@ def _coupling_from_dict(c: dict) -> CouplingSettings:
         smoothing_steps=(kw["smoothing_steps"] if kw["smoothing_steps"] is not None
                          else d.smoothing_steps),
         pressure_solver=(kw["pressure_solver"] if kw["pressure_solver"] is not None
-                         else d.pressure_solver))
+                         else d.pressure_solver),
+        dpm_drag=kw["dpm_drag"] if kw["dpm_drag"] is not None else d.dpm_drag)
     if out.pressure_solver not in PRESSURE_SOLVERS:
         raise DemSceneError(f"fluid.coupled.pressure_solver = {out.pressure_solver!r}: "
                             f"allowed {list(PRESSURE_SOLVERS)}")
@@ -615,6 +619,14 @@ def _coupling_from_dict(c: dict) -> CouplingSettings:
         raise DemSceneError(f"fluid.coupled.scheme = {out.scheme!r}: allowed "
                             f"{list(COUPLING_SCHEMES)}")
     _positive("fluid.coupled.cfd_step_s", out.cfd_step_s)
+    if out.dpm_drag not in DPM_DRAG_LAWS:
+        raise DemSceneError(f"fluid.coupled.dpm_drag = {out.dpm_drag!r}: allowed "
+                            f"{list(DPM_DRAG_LAWS)}")
+    if kw["dpm_drag"] is not None and out.scheme != "dpm":
+        raise DemSceneError(f"fluid.coupled.dpm_drag = {out.dpm_drag!r} with scheme "
+                            f"{out.scheme!r}: only the discrete phase model (scheme 'dpm') "
+                            f"takes a drag law by name (the volume-averaged scheme's is Koch "
+                            f"and Hill's); leave it out")
     if out.scheme == "dpm" and kw["vans_model"] is not None:
         raise DemSceneError(f"fluid.coupled.vans_model = {out.model!r} with scheme 'dpm': "
                             f"the discrete phase model has no volume-averaged equations "

@@ -25,7 +25,7 @@ RHO_F, MU_F = 1050.0, 0.4
 DT = 1e-5
 
 
-def _settle(scheme, t_s=0.2, steps=5, cfd_step_s=0.01):
+def _settle(scheme, t_s=0.2, steps=5, cfd_step_s=0.01, dpm_drag="schiller_naumann"):
     """One zirconia bead settling along the axis of an annulus in still liquid (the column
     held by a mean pressure gradient, as in a closed container): its speed [m/s] after
     t_s, and the coupling."""
@@ -36,7 +36,7 @@ def _settle(scheme, t_s=0.2, steps=5, cfd_step_s=0.01):
                                             drag=False, lubrication=False), threads=1)
     grid = mill_grid(geo, 1e-3)
     st = CouplingSettings(model="B", turbulence="laminar", steps=steps, scheme=scheme,
-                          cfd_step_s=cfd_step_s)
+                          cfd_step_s=cfd_step_s, dpm_drag=dpm_drag)
     cls = DiscretePhaseCoupling if scheme == "dpm" else CfdDem
     cpl = cls(sim, grid, FluidProperties(RHO_F, MU_F), st, 0.0)
     weight = sim.mass[0] * 9.81 * (1.0 - RHO_F / RHO_P)
@@ -78,6 +78,65 @@ def test_dpm_settling_bead_at_the_papers_cfd_step():
     print(f"liquid lost {-f:.6g} N s, bead gained {b:.6g} N s, one step of weight "
           f"{weight * 0.01:.6g} N s")
     assert abs(f + b - weight * 0.01) <= 1e-3 * abs(b)
+
+
+def _koch_hill_terminal_speed(eps):
+    """Settling speed [m/s] of the zirconia bead in still liquid under Koch-Hill's drag at
+    void fraction eps, V beta(eps, u) / eps u = (rho_p - rho_f) V g (model B's form), by
+    bisection on the plain-Python terms of the law."""
+    from millfmu.dem.engine.koch_hill2001 import f0_f3_python
+
+    f0, f3 = f0_f3_python(eps)
+    vol = math.pi / 6 * D ** 3
+
+    def drag(u):
+        re = D * eps * u * RHO_F / MU_F
+        return vol * 18 * MU_F * eps * eps * (f0 + 0.5 * f3 * re) / D ** 2 / eps * u
+
+    weight = (RHO_P - RHO_F) * vol * 9.81
+    lo, hi = 0.0, 1.0
+    for _ in range(200):
+        mid = 0.5 * (lo + hi)
+        lo, hi = (mid, hi) if drag(mid) < weight else (lo, mid)
+    return 0.5 * (lo + hi)
+
+
+def test_koch_hill_closed_forms():
+    """Koch-Hill's law without neighbours is Stokes' drag with its own inertial term: F0 =
+    1, F3 = 0.0673 + 0.0232, so V beta = 3 pi mu d (1 + 0.04525 Re_p); at seed 002's packed
+    layer (eps 0.4) F0 = 10 phi / eps^3 = 93.75, 93.75 eps^2 / eps = 37.5 times the
+    isolated sphere's Stokes coefficient at Re_p -> 0."""
+    from millfmu.dem.engine.koch_hill2001 import f0_f3_python
+
+    assert f0_f3_python(1.0) == pytest.approx((1.0, 0.0905), rel=1e-12)
+    assert _koch_hill_terminal_speed(1.0) * (1 + 0.04525 * RHO_F * D * _koch_hill_terminal_speed(
+        1.0) / MU_F) == pytest.approx((RHO_P - RHO_F) * 9.81 * D ** 2 / (18 * MU_F), rel=1e-9)
+    f0, _ = f0_f3_python(0.4)
+    assert f0 == pytest.approx(93.75, rel=1e-12)
+    assert f0 * 0.4 == pytest.approx(37.5, rel=1e-12)
+
+
+def test_dpm_koch_hill_settling_bead_at_its_void_fraction():
+    """With seed 002's drag law the discrete phase model settles the bead at Koch-Hill's
+    closed-form speed at the void fraction the bead's own volume leaves in its smoothed
+    cells (0.9998): a law of its own, not Schiller-Naumann's (which it differs from by the
+    neighbours' term and the inertial term), and the liquid still sees no void fraction."""
+    v, cpl, sim = _settle("dpm", dpm_drag="koch_hill2001")
+    uf = float(sim.per_bead["fluid_at_bead"][0, 2])
+    eps = float(cpl.drag_void_fraction_at_beads()[0])
+    u_kh = _koch_hill_terminal_speed(eps)
+    u_sn = terminal_speed_m_per_s(D, RHO_P, RHO_F, MU_F)
+    print(f"dpm, Koch-Hill: settling {v + uf:.7f} m/s relative to the liquid, closed form "
+          f"{u_kh:.7f} m/s at eps {eps:.6f} (ratio {(v + uf) / u_kh:.6f}); "
+          f"Schiller-Naumann's {u_sn:.7f} m/s")
+    assert 0.99 < eps < 1.0
+    # within a tenth of the two laws' difference (2.3 %)
+    assert (v + uf) / u_kh == pytest.approx(1.0, abs=0.002)
+    assert abs(u_kh / u_sn - 1.0) > 0.02
+    assert float(np.abs(cpl.solver.eps_c - 1.0).max()) == 0.0
+    # Schiller-Naumann's coupling reads no void fraction
+    _, cpl_sn, _ = _settle("dpm", t_s=0.01)
+    assert np.all(cpl_sn.drag_void_fraction_at_beads() == 1.0)
 
 
 def test_held_drag_at_the_same_interval_misses_where_dpm_does_not():
@@ -155,6 +214,20 @@ def test_scene_chooses_the_scheme_by_name_and_refuses_what_does_not_fit():
     c["scheme"] = "dpm"
     c["cfd_step_s"] = -1.0
     with pytest.raises(DemSceneError, match="cfd_step_s"):
+        scene_from_dict(d)
+    c["cfd_step_s"] = 0.01
+    # the drag law by name
+    assert sc.coupling.dpm_drag == "schiller_naumann" and "Schiller-Naumann" in sc.fluid_description
+    c["dpm_drag"] = "koch_hill2001"
+    sc = scene_from_dict(d)
+    assert sc.coupling.dpm_drag == "koch_hill2001" and "Koch-Hill" in sc.fluid_description
+    c["dpm_drag"] = "stokes"
+    with pytest.raises(DemSceneError, match=r"dpm_drag = 'stokes': allowed \['schiller_naumann', "
+                                            r"'koch_hill2001'\]"):
+        scene_from_dict(d)
+    c["dpm_drag"] = "koch_hill2001"
+    c["scheme"] = "vans"
+    with pytest.raises(DemSceneError, match="dpm_drag = 'koch_hill2001' with scheme 'vans'"):
         scene_from_dict(d)
 
 

@@ -5,8 +5,16 @@ What differs from the volume-averaged scheme (:mod:`millfmu.dem.coupling.cfd_dem
 
 - no void fraction: the liquid's continuity and momentum equations are those of the pure
   liquid (eps = 1 everywhere); the beads act on it only through their drag;
-- drag only, of an isolated sphere (:mod:`millfmu.dem.coupling.schiller_naumann`), no
-  pressure-gradient force (buoyancy stays in the DEM's reduced gravity);
+- drag only, no pressure-gradient force (buoyancy stays in the DEM's reduced gravity), by
+  the law ``settings.dpm_drag`` names
+  (:data:`millfmu.dem.coupling.settings.DPM_DRAG_LAWS`): an isolated sphere's
+  (``schiller_naumann``, :mod:`millfmu.dem.coupling.schiller_naumann`), or Koch & Hill's
+  (``koch_hill2001``, :mod:`millfmu.dem.engine.koch_hill2001`: the law seed 002 adopted)
+  at the void fraction of the beads around the bead, V_p beta / eps as the volume-averaged
+  scheme's model B takes it. That void fraction is the beads' deposited volume, smoothed
+  as the volume-averaged scheme's, at the start of each CFD step, and frozen over it with
+  the liquid's velocity (the coupling exchanges once per CFD step); the liquid itself
+  still sees none;
 - two time scales: the liquid advances by a CFD step of ``cfd_step_s`` (seed 002: 0.01 s,
   about 19 relaxation times of a 0.8 mm zirconia bead at 0.4 Pa s); over that step its
   velocity field is frozen, and every bead's drag c (u(x) - v) is evaluated again every
@@ -38,18 +46,20 @@ from millfmu.dem.coupling.exchange_kernels import held_coefficient, held_sums
 from millfmu.dem.coupling.projection import stencil_one
 from millfmu.dem.coupling.schiller_naumann import drag_coefficient
 from millfmu.dem.engine._jit import kernel, nonneg
+from millfmu.dem.engine.koch_hill2001 import beta
 
 
 @kernel
 def particle_drag(x, v, rad, mass, cellv, mu, rho, interval, rc, rtab, rh, dth, nt, dz, nz,
-                  lz, solid, idx, w, fab, q, fext, xmax):
+                  lz, solid, idx, w, fab, q, fext, xmax, koch_hill, eps_cells):
     """Drag of every bead in the frozen liquid: stencil at the bead's present position,
-    the liquid's velocity read there (cellv[0:3], smoothed cell values), Schiller-Naumann
-    coefficient c at the present relative speed (held over the interval by
-    :func:`~millfmu.dem.coupling.exchange_kernels.held_coefficient`), the force held over
-    the next ``interval`` [s], fext = (F_r [N], T_z [N m], F_z [N]), the deposit columns
-    q (0, c, c r, c v_r, r c v_theta, c v_z) and fab[:, 0:3] the liquid's velocity at the
-    bead. Returns the sums of T_z and F_z."""
+    the liquid's velocity read there (cellv[0:3], smoothed cell values), the coefficient c
+    at the present relative speed (Schiller-Naumann's or, with ``koch_hill``, Koch and
+    Hill's V_p beta / eps at the void fraction eps read from eps_cells; held over the
+    interval by :func:`~millfmu.dem.coupling.exchange_kernels.held_coefficient`), the force
+    held over the next ``interval`` [s], fext = (F_r [N], T_z [N m], F_z [N]), the deposit
+    columns q (0, c, c r, c v_r, r c v_theta, c v_z) and fab[:, 0:3] the liquid's velocity
+    at the bead. Returns the sums of T_z and F_z."""
     for b in prange(x.shape[0]):
         r = stencil_one(b, x, rc, rtab, rh, dth, nt, dz, nz, lz, solid, idx, w)
         inv = 1.0 / r if r > 0.0 else 0.0
@@ -67,8 +77,16 @@ def particle_drag(x, v, rad, mass, cellv, mu, rho, interval, rc, rtab, rh, dth, 
                 u1 += ww * cellv[1, cc]
                 u2 += ww * cellv[2, cc]
         urel = math.sqrt((u0 - vr) ** 2 + (u1 - vt) ** 2 + (u2 - vz) ** 2)
-        c, xx = held_coefficient(drag_coefficient(2.0 * rad[b], mu, rho, urel), mass[b],
-                                 interval)
+        if koch_hill:
+            eb = 0.0
+            for s in range(idx.shape[1]):
+                if w[b, s] != 0.0:
+                    eb += w[b, s] * eps_cells[nonneg(idx[b, s])]
+            d = 2.0 * rad[b]
+            cf = math.pi / 6.0 * d * d * d * beta(d, eb, mu, rho, urel) / eb
+        else:
+            cf = drag_coefficient(2.0 * rad[b], mu, rho, urel)
+        c, xx = held_coefficient(cf, mass[b], interval)
         xmax[b] = xx
         fr = c * (u0 - vr)
         tz = r * c * (u1 - vt)
@@ -113,6 +131,10 @@ class DiscretePhaseCoupling(CfdDem):
         self._acc_n = 0
         self._eps_cells[:] = 1.0
         self._xb = np.zeros(sim.n)
+        #: Koch-Hill's drag (settings.dpm_drag), at the void fraction per cell [-] that
+        #: :meth:`_drag_void_fraction` gives at each CFD step's start
+        self.koch_hill = settings.dpm_drag == "koch_hill2001"
+        self._eps_drag = np.ones(ncell)
         # the frozen field of the first CFD step is the liquid as it starts, and the beads'
         # drag in it is what the liquid sees over its first step (no DEM step made yet)
         self._read_liquid(initial=True)
@@ -143,6 +165,41 @@ class DiscretePhaseCoupling(CfdDem):
         EK.nodes_to_cell_values(u[0], u[1], u[2], gp[0], gp[1], gp[2], s.kr, s.kt, s.kz,
                                 self.grid.solid, self._cellv)
         self.projector.smooth_values(self._cellv, ncols=3)
+        if self.koch_hill:
+            self._drag_void_fraction()
+
+    def _drag_void_fraction(self) -> None:
+        """The beads' void fraction per cell [-] at their present positions, for the drag
+        over the next CFD step: their volumes deposited and smoothed as the volume-averaged
+        scheme's (:meth:`CfdDem._deposit_and_split`), 1 - V_beads / V per cell clipped to
+        [eps_min, 1], 1 in solid cells. The liquid does not see it."""
+        sim, g, pj = self.sim, self.grid, self.projector
+        nr, nt, nz = g.shape
+        PJ.bead_stencils(sim.x, pj.rc, pj.rtab, pj.rh, g.dtheta_rad, nt, g.dz_m, nz,
+                         g.height_m, g.solid, self._idx, self._w, np.empty(sim.n))
+        q = np.zeros_like(self._q)
+        q[:, 0] = math.pi / 6.0 * (2.0 * sim.rad) ** 3
+        tot = np.zeros_like(self._tot)
+        PJ.deposit(self._idx, self._w, q, tot)
+        pj.smooth_totals(tot)
+        e = 1.0 - tot[0].reshape(g.shape) / self._vc[:, None, None]
+        e = np.clip(e, self.settings.eps_min, 1.0)
+        e[g.solid != 0] = 1.0
+        self._eps_drag[:] = e.ravel()
+
+    def drag_void_fraction_at_beads(self) -> np.ndarray:
+        """The void fraction [-] that Koch-Hill's drag reads at each bead (from the cells
+        of :meth:`_drag_void_fraction`, through the stencils of the last drag update); 1
+        everywhere with Schiller-Naumann's."""
+        out = np.zeros((self.sim.n, 1))
+        PJ.gather(self._idx, self._w, self._eps_drag.reshape(1, -1), out)
+        return out[:, 0]
+
+    def __setstate__(self, d):
+        super().__setstate__(d)
+        # a checkpoint of sources before the drag law was a choice: Schiller-Naumann
+        self.__dict__.setdefault("koch_hill", False)
+        self.__dict__.setdefault("_eps_drag", np.ones(self._tot.shape[1]))
 
     def _drag(self, account: bool = True) -> None:
         """Drag of every bead for the next ``steps`` DEM steps; its deposit summed into
@@ -155,7 +212,7 @@ class DiscretePhaseCoupling(CfdDem):
                                self.projector.rc, self.projector.rtab, self.projector.rh,
                                g.dtheta_rad, nt, g.dz_m, nz, g.height_m, g.solid, self._idx,
                                self._w, sim.per_bead["fluid_at_bead"], self._q, sim.fext,
-                               self._xb)
+                               self._xb, self.koch_hill, self._eps_drag)
         PJ.deposit(self._idx, self._w, self._q, self._tot)
         self._acc += self._tot
         self._acc_n += 1

@@ -8,7 +8,7 @@ from dataclasses import dataclass
 
 from millfmu.dem.fluid.settings import DEFAULT_PRESSURE_SOLVER, PRESSURE_SOLVERS
 
-__all__ = ["PRESSURE_GRADIENT_TIMINGS", "SMOOTHINGS", "PRESSURE_SOLVERS",
+__all__ = ["PRESSURE_GRADIENT_TIMINGS", "SMOOTHINGS", "DPM_DRAG_LAWS", "PRESSURE_SOLVERS",
            "DEFAULT_PRESSURE_SOLVER", "CouplingSettings"]
 
 
@@ -34,6 +34,14 @@ PRESSURE_GRADIENT_TIMINGS = ("previous_interval", "this_interval")
 #:   the smallest cell shrinks, are the largest part of a coupling interval.
 SMOOTHINGS = ("explicit_diffusion", "split_implicit")
 
+#: The discrete phase model's drag law (``scheme = "dpm"``; millfmu.dem.coupling.dpm):
+#: - ``schiller_naumann``: an isolated sphere's (Schiller & Naumann 1933), as a dilute
+#:   discrete phase model has it;
+#: - ``koch_hill2001``: Koch & Hill (2001) at the beads' void fraction around the bead, the
+#:   law seed 002 adopted with its discrete phase model (section 2.3); the liquid still
+#:   sees no void fraction.
+DPM_DRAG_LAWS = ("schiller_naumann", "koch_hill2001")
+
 
 @dataclass(frozen=True)
 class CouplingSettings:
@@ -53,9 +61,10 @@ class CouplingSettings:
     cfl: float = 0.4
     # "vans": volume-averaged Navier-Stokes (CfdDem; the void fraction in the liquid, the
     # drag held over each coupling interval); "dpm": a dilute discrete phase model
-    # (millfmu.dem.coupling.dpm: no void fraction, Schiller-Naumann drag updated every
+    # (millfmu.dem.coupling.dpm: no void fraction, the drag of ``dpm_drag`` updated every
     # ``steps`` DEM steps in the liquid's field frozen over a CFD step of ``cfd_step_s``)
     scheme: str = "vans"
     # model A: which interval's pressure gradient the beads feel (PRESSURE_GRADIENT_TIMINGS)
     pressure_gradient: str = "previous_interval"
     cfd_step_s: float = 0.01  # dpm: CFD step and exchange interval [s] (seed 002: 0.01)
+    dpm_drag: str = "schiller_naumann"  # dpm: the beads' drag law (DPM_DRAG_LAWS)

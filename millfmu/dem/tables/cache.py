@@ -357,6 +357,8 @@ SAME_DEM_AS = {
     # formula (the same results to the bit)
     "sha256:468c540caa3e8513809a96a86e4780d015288f7cae47c329ced1edbc5aaead9d":
         "sha256:97f753cea048d151d29bfc09ed08fc9161f206eb44b7bf748a0474d96810be97",
+    "sha256:4e1132db37500f254fa6463996054d53ba92e8018fecc9b47a3f0538e65a690e":
+        "sha256:97f753cea048d151d29bfc09ed08fc9161f206eb44b7bf748a0474d96810be97",
 }
 
 
