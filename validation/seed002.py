@@ -51,20 +51,37 @@ def case_dir(out_dir, rpm: float, filling: float) -> Path:
 #: How a campaign computes and counts (``seed002 run --method``):
 #: - ``physical``: the accelerator slice's own coupling (volume-averaged liquid, model B,
 #:   exchange every 5e-5 s); contacts counted at every event;
-#: - ``paper``: seed 002's numerics: a dilute discrete phase model (no void fraction,
-#:   drag only, CFD step 0.01 s; :mod:`millfmu.dem.coupling.dpm`); contacts counted at its
-#:   20 frames per second (``flow.seed002.snapshots``);
+#: - ``paper``: seed 002's numerics: a dilute discrete phase model (no void fraction in the
+#:   liquid, drag only, CFD step 0.01 s; :mod:`millfmu.dem.coupling.dpm`) with the drag law
+#:   it adopted, Koch and Hill's at the beads' void fraction; its spin-up (2 s) and
+#:   recording (1 s) (:data:`PAPER_PROTOCOL`); contacts counted at its 20 frames per second
+#:   (``flow.seed002.snapshots``);
+#: - ``paper-SN``: as ``paper`` with an isolated sphere's drag (Schiller-Naumann) and the
+#:   campaigns' shorter protocol;
 #: - ``physical-A``: as ``physical`` with model A (the beads feel the liquid's pressure
 #:   gradient: the swirl's radial pressure gradient pushes them inwards with rho_f / rho_b
 #:   of their centrifugal force, which model B leaves out), the gradient of the interval
 #:   just solved (``pressure_gradient = "this_interval"``: with the previous interval's the
 #:   packed wall layer's compaction and pressure oscillate and the run blows up at 0.83 s).
 METHODS = {"physical": dict(scheme="vans", counting="events"),
-           "paper": dict(scheme="dpm", counting="snapshots"),
+           "paper": dict(scheme="dpm", counting="snapshots", dpm_drag="koch_hill2001",
+                         protocol="paper"),
+           "paper-SN": dict(scheme="dpm", counting="snapshots"),
            "physical-A": dict(scheme="vans", model="A", counting="events",
                               pressure_gradient="this_interval")}
 #: seed 002's CFD step [s]
 PAPER_CFD_STEP_S = 0.01
+#: seed 002's spin-up and recording [s] (section 2.3: "Data analysis started after a
+#: processing time of 2 s"; SN_g and the energies evaluated over 1 s)
+PAPER_PROTOCOL = {"spin_up_s": 2.0, "record_s": 1.0}
+
+
+def protocol_of(method: str) -> dict:
+    """Spin-up and recording [s] of a campaign by ``method``: seed 002's for ``paper``,
+    the campaigns' shorter :data:`SPIN_UP_S` and :data:`RECORD_S` for the others."""
+    if METHODS[method].get("protocol") == "paper":
+        return dict(PAPER_PROTOCOL)
+    return {"spin_up_s": SPIN_UP_S, "record_s": RECORD_S}
 #: seed 002's highest local stress number [1/(m3 s)]: "more than 15 x 10^8" at 1400 rpm and
 #: 80 % (section 3.4, figure 13b), the top of its colour scale
 PAPER_PEAK_SN_G = 1.5e9
@@ -101,6 +118,8 @@ def scene_for(rpm: float, filling: float, sector_deg: float | None = None,
     if METHODS[method]["scheme"] == "dpm":
         c.pop("vans_model", None)
         c.update(scheme="dpm", cfd_step_s=PAPER_CFD_STEP_S)
+        if "dpm_drag" in METHODS[method]:
+            c["dpm_drag"] = METHODS[method]["dpm_drag"]
     elif "model" in METHODS[method]:
         c["vans_model"] = METHODS[method]["model"]
         if "pressure_gradient" in METHODS[method]:
@@ -113,8 +132,8 @@ def scene_for(rpm: float, filling: float, sector_deg: float | None = None,
     base = scene_from_dict(d)
     tip = rpm * 2.0 * math.pi / 60.0 * base.geometry.disc_radius_m
     return base.with_overrides(tip_speed_m_per_s=tip, filling=filling, sector_deg=sector_deg,
-                               gravity_m_per_s2=(0.0, 0.0, 0.0), spin_up_s=SPIN_UP_S,
-                               record_s=RECORD_S, sample_every_s=SAMPLE_S,
+                               gravity_m_per_s2=(0.0, 0.0, 0.0), **protocol_of(method),
+                               sample_every_s=SAMPLE_S,
                                primed_s=PRIMED_S if primed else 0.0)
 
 
@@ -293,6 +312,7 @@ def summarize(out_dir, label: str | None = None, path=None) -> Path:
     label = label or _label(out_dir)
     opts = (f" --method {camp['method']}" if camp["method"] != "physical" else "") + \
         (" --primed" if camp.get("primed") else "") + (" --baffles" if camp.get("baffles") else "")
+    quoted = f'"{label}"' if "'" in label else f"'{label}'"
     p = Path(path) if path is not None else SUMMARY
     doc = json.loads(p.read_text()) if p.exists() else {}
     doc["note"] = ("seed 002's cases on the 60-degree accelerator sector without gravity, per "
@@ -301,11 +321,14 @@ def summarize(out_dir, label: str | None = None, path=None) -> Path:
                    "the radial speed profile)")
     doc["protocol"] = {"sector_deg": SECTOR_DEG, "spin_up_s": SPIN_UP_S, "record_s": RECORD_S,
                        "window_s": WINDOW_S, "sample_every_s": SAMPLE_S,
-                       "gravity_m_per_s2": [0.0, 0.0, 0.0], "threads": 1}
+                       "gravity_m_per_s2": [0.0, 0.0, 0.0], "threads": 1,
+                       "note": "the campaigns' protocol; spin-up and recording [s] of each "
+                               "campaign in its own 'protocol'"}
     doc.setdefault("campaigns", {})[label] = {
         "campaign": camp,
+        "protocol": protocol_of(camp["method"]),
         "command": f"python -m validation.seed002 run --out DIR{opts} --threads 1, then python -m "
-                   f"validation.seed002 summarize --out DIR --label '{label}'",
+                   f"validation.seed002 summarize --out DIR --label {quoted}",
         "runs": runs}
     p.write_text(json.dumps(doc, indent=1, allow_nan=False) + "\n")
     return p
@@ -662,11 +685,13 @@ def parser() -> argparse.ArgumentParser:
     s2.add_argument("--label", help="summarize: the campaign's name in the summary (default "
                     "its method); table without --out: print this shipped campaign alone, "
                     "case by case")
-    s2.add_argument("--method", choices=("physical", "paper", "physical-A"),
+    s2.add_argument("--method", choices=tuple(METHODS),
                     default="physical",
                     help="run: physical (the slice's own coupling, every contact event "
-                         "counted), paper (seed 002's numerics: discrete phase model, CFD "
-                         "step 0.01 s, contacts counted at 20 frames per second) or "
+                         "counted), paper (seed 002's numerics: discrete phase model with "
+                         "Koch-Hill drag, CFD step 0.01 s, 2 s spin-up and 1 s recorded, "
+                         "contacts counted at 20 frames per second), paper-SN (paper with "
+                         "Schiller-Naumann drag, 1 s spin-up and 0.5 s recorded) or "
                          "physical-A (physical with model A's pressure-gradient force)")
     s2.add_argument("--primed", action="store_true", help="run: start the beads in the "
                     "bead-free liquid's circulation (primed start) instead of from rest")
