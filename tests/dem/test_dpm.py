@@ -231,6 +231,21 @@ def test_scene_chooses_the_scheme_by_name_and_refuses_what_does_not_fit():
         scene_from_dict(d)
 
 
+def test_seed002_paper_method_takes_the_papers_drag_law_and_run_length():
+    """`seed002 run --method paper` is seed 002's numerics with its Koch-Hill drag, 2 s of
+    spin-up and 1 s recorded (section 2.3); `paper-SN` the earlier Schiller-Naumann form on
+    the campaigns' shorter protocol."""
+    from validation import seed002 as S
+
+    sc = S.scene_for(1200.0, 0.8, method="paper")
+    assert (sc.coupling.scheme, sc.coupling.dpm_drag) == ("dpm", "koch_hill2001")
+    assert (sc.spin_up_s, sc.record_s) == (2.0, 1.0)
+    sn = S.scene_for(1200.0, 0.8, method="paper-SN")
+    assert (sn.coupling.scheme, sn.coupling.dpm_drag) == ("dpm", "schiller_naumann")
+    assert (sn.spin_up_s, sn.record_s) == (S.SPIN_UP_S, S.RECORD_S)
+    assert S.scene_for(1200.0, 0.8).coupling.scheme == "vans"
+
+
 def test_dem_run_primed_from_the_command_line(tmp_path, capsys):
     """`dem run --primed S` runs the bead-free liquid first; with a prescribed fluid it is
     refused by name (exit 2), nothing run."""
