@@ -214,6 +214,12 @@ def export_table(out_dir, prefix, filling: float = 0.8):
     from millfmu.stress_tables.spec import (TableError, TableSpec, manifest_for,
                                             scene_at_point)
 
+    camp = campaign_of(out_dir)
+    if camp != {"method": "physical", "primed": False, "baffles": False}:
+        # the table's scene and rebuild command are the physical campaign's from rest
+        raise TableError(f"{out_dir}: holds a campaign of {camp}; a table is exported from "
+                         f"the physical campaign from rest without baffles ('python -m "
+                         f"validation.seed002 run --out DIR')")
     base = load_scene_dict("accelerator_slice")
     for sec, kv in protocol_overrides().items():
         base.setdefault(sec, {}).update(kv)

@@ -359,6 +359,10 @@ def test_campaign_table_from_short_runs(tmp_path, monkeypatch):
     monkeypatch.setattr(S, "SPIN_UP_S", 2e-3)
     with pytest.raises(TableError, match="not the protocol"):
         S.export_table(tmp_path, tmp_path / "again")
+    # a campaign of another method is not the table's scene: refused by name
+    (tmp_path / "campaign.json").write_text(json.dumps({"method": "paper", "primed": False}))
+    with pytest.raises(TableError, match="'method': 'paper'.*from the physical campaign"):
+        S.export_table(tmp_path, tmp_path / "again")
 
 
 def test_seed002_columns_by_method_and_counting(tmp_path):
