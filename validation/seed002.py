@@ -48,6 +48,10 @@ def case_dir(out_dir, rpm: float, filling: float) -> Path:
     return Path(out_dir) / f"n{rpm:g}_f{round(filling * 100)}"
 
 
+#: seed 002's spin-up and recording [s] (section 2.3: "Data analysis started after a
+#: processing time of 2 s"; SN_g and the energies evaluated over 1 s)
+PAPER_PROTOCOL = {"spin_up_s": 2.0, "record_s": 1.0}
+
 #: How a campaign computes and counts (``seed002 run --method``):
 #: - ``physical``: the accelerator slice's own coupling (volume-averaged liquid, model B,
 #:   exchange every 5e-5 s); contacts counted at every event;
@@ -65,23 +69,21 @@ def case_dir(out_dir, rpm: float, filling: float) -> Path:
 #:   packed wall layer's compaction and pressure oscillate and the run blows up at 0.83 s).
 METHODS = {"physical": dict(scheme="vans", counting="events"),
            "paper": dict(scheme="dpm", counting="snapshots", dpm_drag="koch_hill2001",
-                         protocol="paper"),
+                         protocol=PAPER_PROTOCOL),
            "paper-SN": dict(scheme="dpm", counting="snapshots"),
            "physical-A": dict(scheme="vans", model="A", counting="events",
                               pressure_gradient="this_interval")}
 #: seed 002's CFD step [s]
 PAPER_CFD_STEP_S = 0.01
-#: seed 002's spin-up and recording [s] (section 2.3: "Data analysis started after a
-#: processing time of 2 s"; SN_g and the energies evaluated over 1 s)
-PAPER_PROTOCOL = {"spin_up_s": 2.0, "record_s": 1.0}
 
 
 def protocol_of(method: str) -> dict:
-    """Spin-up and recording [s] of a campaign by ``method``: seed 002's for ``paper``,
-    the campaigns' shorter :data:`SPIN_UP_S` and :data:`RECORD_S` for the others."""
-    if METHODS[method].get("protocol") == "paper":
-        return dict(PAPER_PROTOCOL)
-    return {"spin_up_s": SPIN_UP_S, "record_s": RECORD_S}
+    """Spin-up and recording [s] of a campaign by ``method``: its own where
+    :data:`METHODS` gives one (seed 002's for ``paper``), else the campaigns' shorter
+    :data:`SPIN_UP_S` and :data:`RECORD_S`."""
+    return dict(METHODS[method].get("protocol") or {"spin_up_s": SPIN_UP_S, "record_s": RECORD_S})
+
+
 #: seed 002's highest local stress number [1/(m3 s)]: "more than 15 x 10^8" at 1400 rpm and
 #: 80 % (section 3.4, figure 13b), the top of its colour scale
 PAPER_PEAK_SN_G = 1.5e9
