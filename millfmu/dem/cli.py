@@ -259,5 +259,5 @@ def _report(stats, out) -> int:
 
     print(summary_table(stats))
     print(f"fluid: {stats.fluid_model}")
-    print(f"wrote {out}/stats.json, se_histograms.csv, kinetic_energy.csv, map_*.png")
+    print(f"wrote {out}/stats.json, se_histograms.csv, kinetic_energy.csv, map_*.png, collision_maps.npz")
     return 0

@@ -15,7 +15,10 @@ Outputs in the output folder:
   of any part of the recording can be recomputed (see :func:`write_contacts`);
 - ``map_stress_energy.png``, ``map_collision_frequency.png``, ``map_collision_power.png``:
   radially averaged (i.e. averaged over the angle) maps in the axial section, like seed 001
-  figures 12-15; ``se_distributions.png``: SE_tn distributions per zone (seed 001 Fig. A1);
+  figures 12-15, their numbers in ``collision_maps.npz`` (for a plain disc slice with the
+  radial profile of the collision frequency and power on bins of a quarter bead diameter,
+  :func:`millfmu.dem.analysis.plots.radial_collision_profile`); ``se_distributions.png``:
+  SE_tn distributions per zone (seed 001 Fig. A1);
 - accelerator slices: ``map_stress_intensity.png``, ``map_stress_number.png``,
   ``map_collision_stress_energy.png``, ``map_se_tn.png``, ``map_se_ts.png`` (seed 002
   figures 12-15), ``speed_profiles.png`` (figures 3 and 4), and in ``stats.json``

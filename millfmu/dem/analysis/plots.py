@@ -43,6 +43,42 @@ def section_maps(scene, events: np.ndarray, cols: dict):
     return zr_edges, r_edges, mean_se, n / (vol * t), s / (vol * t)
 
 
+#: radial bins of the collision profile per bead diameter (``collision_maps.npz``)
+PROFILE_BINS_PER_DIAMETER = 4
+
+
+def radial_collision_profile(scene, events: np.ndarray, cols: dict):
+    """Bead-bead collisions of a plain disc slice (no vanes, no baffles) over the radius,
+    every axial position together, on bins of 1 / :data:`PROFILE_BINS_PER_DIAMETER` bead
+    diameter from the shaft to the chamber wall (seed 001 figure 13 reads a peak two bead
+    diameters from the wall, finer than the maps' bins). Per volume open to the beads:
+    inside the disc's radius its thickness is taken out of the axial period. Returns
+    (r_edges [m], collision frequency [1/(m3 s)], collision power density [W/m3]), or None
+    for a slice with other solids."""
+    g = scene.geometry
+    if g.has_channel or g.has_baffles:
+        return None
+    width = scene.bead_diameter_m / PROFILE_BINS_PER_DIAMETER
+    n_bins = max(1, int(round((g.chamber_radius_m - g.shaft_radius_m) / width)))
+    r_edges = np.linspace(g.shaft_radius_m, g.chamber_radius_m, n_bins + 1)
+    n = np.zeros(n_bins)
+    s = np.zeros(n_bins)
+    for i in range(0, events.shape[0] if events.size else 0, BLOCK_ROWS):
+        blk = events[i:i + BLOCK_ROWS]
+        bb = blk[blk[:, cols["type"]] == 0]
+        r = np.hypot(bb[:, cols["x"]], bb[:, cols["y"]])
+        se = bb[:, cols["setn"]] + bb[:, cols["sets"]] + bb[:, cols["serot"]]
+        n += np.histogram(r, bins=r_edges)[0]
+        s += np.histogram(r, bins=r_edges, weights=se)[0]
+    rd = g.disc_radius_m if g.has_disc else g.shaft_radius_m
+    thick = g.disc_thickness_m if g.has_disc else 0.0
+    inner = np.diff(np.minimum(r_edges, rd) ** 2)  # the part of each ring inside the disc
+    outer = np.diff(np.maximum(r_edges, rd) ** 2)
+    vol = math.pi * g.sector_fraction * (inner * (g.height_m - thick) + outer * g.height_m)
+    t = scene.record_s
+    return r_edges, n / (vol * t), s / (vol * t)
+
+
 def _sev_outline(ax, scene):
     """Rotor (shrouds, channel) and the SEV_1-4 boundaries of an accelerator slice."""
     g = scene.geometry
@@ -105,6 +141,10 @@ def _zone_outline(ax, scene):
 
 
 def write_maps(out: Path, scene, events: np.ndarray, cols: dict):
+    """The maps of :func:`section_maps` as PNG files in ``out``, and their numbers in
+    ``collision_maps.npz`` (bin edges [m], mean SE_total [J], collision frequency
+    [1/(m3 s)], collision power density [W/m3]; for a plain disc slice also
+    :func:`radial_collision_profile` as ``profile_*``)."""
     import matplotlib
 
     matplotlib.use("Agg")
@@ -112,6 +152,13 @@ def write_maps(out: Path, scene, events: np.ndarray, cols: dict):
     from matplotlib.colors import LogNorm
 
     ze, re_, mean_se, freq, power = section_maps(scene, events, cols)
+    data = dict(z_edges_m=ze, r_edges_m=re_, mean_se_total_j=mean_se,
+                collision_frequency_per_m3_s=freq, collision_power_w_per_m3=power)
+    prof = radial_collision_profile(scene, events, cols)
+    if prof is not None:
+        data.update(profile_r_edges_m=prof[0], profile_collision_frequency_per_m3_s=prof[1],
+                    profile_collision_power_w_per_m3=prof[2])
+    np.savez(out / "collision_maps.npz", **data)
     items = [("map_stress_energy.png", mean_se, "mean SE_total per collision [J]", True),
              ("map_collision_frequency.png", freq, "collision frequency [1/(m3 s)]", False),
              ("map_collision_power.png", power, "collision power density [W/m3]", True)]
