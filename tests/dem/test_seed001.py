@@ -52,6 +52,50 @@ def test_deviation_table_verdicts(tmp_path):
     assert "Coupled runs: 12 of 14 statements match, 0 missed, 2 not evaluated." in md
 
 
+def write_maps(tmp_path, wall_peak_d=2.125, rim_bin=(18, 20)):
+    """collision_maps.npz of every coupled case: the radial profile peaking ``wall_peak_d``
+    bead diameters from the chamber wall (and a lesser bump 1.5 mm from it), the power map's
+    highest bin at ``rim_bin`` (axial, radial index on 1 mm bins; (18, 20) is the bin beside
+    the disc's outer edge at axial +4.5 mm, r 35.5 mm)."""
+    import numpy as np
+
+    re_ = np.linspace(0.015, 0.045, 151)
+    rc = 0.5 * (re_[1:] + re_[:-1])
+    w = 0.045 - rc
+    prof = 1e12 * (np.exp(-((w - wall_peak_d * 8e-4) / 4e-4) ** 2) +
+                   0.5 * np.exp(-((w - 1.5e-3) / 4e-4) ** 2))
+    power = np.ones((28, 30))
+    power[rim_bin] = 50.0
+    for vt, fill in seed001.CASES:
+        np.savez(seed001.case_dir(tmp_path, "coupled", vt, fill) / "collision_maps.npz",
+                 z_edges_m=np.linspace(-0.014, 0.014, 29), r_edges_m=np.linspace(0.015, 0.045, 31),
+                 collision_power_w_per_m3=power, profile_r_edges_m=re_,
+                 profile_collision_frequency_per_m3_s=prof)
+
+
+def test_the_map_statements_are_judged_from_the_runs_collision_maps(tmp_path):
+    """Seed 001 sections 3.4 and 3.5: the collision frequency peaks about two bead diameters
+    from the chamber wall; the collision power peaks beside the disc's outer edge. Judged
+    from each run's collision_maps.npz, in the summary as well."""
+    write(tmp_path, "coupled")
+    write_maps(tmp_path)
+    rows = {r["statement"][:24]: r for r in seed001.deviation_rows(tmp_path)}
+    wall = rows["collision frequency peak"]
+    rim = rows["locally highest collisio"]
+    assert wall["verdict"].startswith("matches") and "10 m/s 80 %: 1.7 mm (2.1 d)" in wall["coupled"]
+    assert rim["verdict"].startswith("matches") and "axial +4.5 mm, r 35.5 mm: 0.9 d" in rim["coupled"]
+    assert seed001.count(list(rows.values()))["not evaluated"] == 0
+    st = seed001.compact(seed001._load(tmp_path, "coupled", 10.0, 0.8))
+    assert abs(st["maps"]["frequency_peak"]["from_wall_diameters"] - 2.125) < 1e-9
+    # a peak 5 bead diameters in, and the power highest at the shaft: both missed, the
+    # lesser peak near the wall named
+    write_maps(tmp_path, wall_peak_d=5.125, rim_bin=(2, 0))
+    rows = {r["statement"][:24]: r for r in seed001.deviation_rows(tmp_path)}
+    wall = rows["collision frequency peak"]
+    assert wall["verdict"].startswith("missed") and "4.1 mm (5.1 d); near the wall 1.5 mm" in wall["coupled"]
+    assert rows["locally highest collisio"]["verdict"].startswith("missed")
+
+
 def test_deviation_table_names_what_is_missed(tmp_path):
     write(tmp_path, "coupled", speeds=(0.33, 0.32, 0.17, 0.17), layer=0.5, secondary=0)
     rows = {r["statement"][:40]: r for r in seed001.deviation_rows(tmp_path)}
