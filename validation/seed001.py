@@ -88,9 +88,14 @@ def _load(out_dir, fluid, vt, fill):
     return st
 
 
-#: "about two bead diameters" from the chamber wall (section 3.4): the collision
-#: frequency's peak counts as there between these many bead diameters from the wall
-WALL_PEAK_DIAMETERS = (1.0, 3.0)
+#: "in two grinding bead diameters distance to the grinding chamber wall" (section 3.4):
+#: the collision frequency's peak counts as there where its distance rounds to two bead
+#: diameters
+WALL_PEAK_DIAMETERS = (1.5, 2.5)
+#: the radial profile's quarter-bead bins averaged over one bead diameter before its peak is
+#: read: at quarter-bead bins the packed layers at the wall make a comb (contacts between
+#: two layers, none within one), whose teeth would decide the peak
+PROFILE_MEAN_BINS = 4
 #: "at the side of the outer edge of the stirrer disc" (section 3.5): the collision power
 #: density's peak counts as there within this many bead diameters of the disc's rim
 RIM_PEAK_DIAMETERS = 2.0
@@ -99,19 +104,21 @@ RIM_PEAK_DIAMETERS = 2.0
 def map_peaks(maps) -> dict:
     """Where the recorded collisions peak (a run's ``collision_maps.npz``, disc slice):
     the radial profile's highest collision frequency (every axial position together, bins
-    of a quarter bead diameter) and the highest of it within :data:`WALL_PEAK_DIAMETERS`'s
-    upper bound of the wall, with their distances from the chamber wall; and the axial
-    section's highest collision power density (bins of 1 mm) with its distance from the
-    disc's rim (the disc's outer face, r = R_disc over its thickness, corners included).
-    Units: m, 1/(m3 s), W/m3; distances also in bead diameters."""
+    of a quarter bead diameter averaged over one bead diameter, :data:`PROFILE_MEAN_BINS`)
+    and the highest of it within three bead diameters of the wall, with their distances
+    from the chamber wall; and the axial section's highest collision power density (bins of
+    1 mm) with its distance from the disc's rim (the disc's outer face, r = R_disc over its
+    thickness, corners included). Units: m, 1/(m3 s), W/m3; distances also in bead
+    diameters."""
     from millfmu.dem.scene import load_scene
 
     sc = load_scene("disc_slice")
     g, dia = sc.geometry, sc.bead_diameter_m
     re_ = maps["profile_r_edges_m"]
-    rc = 0.5 * (re_[1:] + re_[:-1])
-    f = maps["profile_collision_frequency_per_m3_s"]
-    near = g.chamber_radius_m - rc <= WALL_PEAK_DIAMETERS[1] * dia
+    k = np.ones(PROFILE_MEAN_BINS) / PROFILE_MEAN_BINS
+    rc = np.convolve(0.5 * (re_[1:] + re_[:-1]), k, mode="valid")
+    f = np.convolve(maps["profile_collision_frequency_per_m3_s"], k, mode="valid")
+    near = g.chamber_radius_m - rc <= 3.0 * dia
 
     def peak(mask):
         i = int(np.flatnonzero(mask)[np.argmax(f[mask])])
