@@ -9,8 +9,9 @@ row per statement: the paper's, ours, the verdict. ``python -m validation.seed00
 --out DIR --label NAME`` keeps what the table reads of a campaign's runs (zone statistics,
 no contacts) in ``validation/runs/seed002_sector.json``; ``python -m validation.seed002
 table`` computes the table from that summary. Statements are counted on the paper's
-configuration: a campaign with stationary baffles (``--baffles``; seed 002's mill has none)
-is a variant, shown in its own column and never counted as a match.
+configuration and start: a campaign with stationary baffles (``--baffles``; seed 002's mill
+has none) or a primed start (``--primed``; seed 002 starts from rest) is a variant, shown
+in its own column and never counted as a match.
 """
 
 from __future__ import annotations
@@ -153,11 +154,15 @@ def campaign_of(out_dir) -> dict:
 
 
 def variant_of(out_dir) -> str | None:
-    """What the campaign in ``out_dir`` adds to seed 002's mill, or None on the paper's
-    configuration. Seed 002's mill has no baffles (section 2.2: three acceleration rotors in
-    an outer chamber), so a baffled campaign is a variant: its verdicts are shown, never
-    counted as a match of the paper's statements."""
-    return "baffles" if campaign_of(out_dir).get("baffles") else None
+    """What the campaign in ``out_dir`` adds to seed 002's mill and start, or None on the
+    paper's configuration and start. Seed 002's mill has no baffles (section 2.2: three
+    acceleration rotors in an outer chamber), and its runs start from rest (section 2.3:
+    once every bead was generated, the stirrer started), so a baffled campaign or a primed
+    start is a variant: its verdicts are shown, never counted as a match of the paper's
+    statements."""
+    c = campaign_of(out_dir)
+    return " and ".join(name for name, on in (("baffles", c.get("baffles")),
+                                              ("primed start", c.get("primed"))) if on) or None
 
 
 def run_campaign(out_dir, cases=CASES, threads=None, progress=True, method="physical",

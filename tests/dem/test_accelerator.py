@@ -397,7 +397,8 @@ def test_seed002_columns_by_method_and_counting(tmp_path):
     assert S.count(rows) == {"statements": 15, "per_campaign": {"physical": 12, "paper": 13},
                              "together": 13}
     assert md.endswith("of 15 statements: physical 12, paper 13; 13 under these together.")
-    # a variant run at one point is judged on it; statements across cases are not
+    # a variant run at one point (a primed start) is judged on it; statements across cases
+    # are not
     one = tmp_path / "primed"
     d = S.case_dir(one, 1200.0, 0.8)
     d.mkdir(parents=True)
@@ -453,7 +454,10 @@ def test_seed002_summary_gives_the_tables_of_its_run_folders(tmp_path, capsys):
     S.SUMMARY, keep = path, S.SUMMARY
     try:
         assert S.main(["table"]) == 0
-        assert "model B 12, paper's 13, primed 11; 13 under" in capsys.readouterr().out
+        # a primed start is a variant of seed 002's start from rest: shown, not counted
+        out = capsys.readouterr().out
+        assert "| primed (variant: primed start, not counted) |" in out
+        assert "model B 12, paper's 13; 13 under these together. Variants are shown" in out
         assert S.main(["table", "--label", "paper's"]) == 0
         assert "On the paper's mill: 13 of 15" in capsys.readouterr().out
         assert S.main(["summarize"]) == 2
