@@ -438,7 +438,7 @@ def deviation_rows(out_dir=None) -> list[dict]:
             return None
         p, q = m["frequency_peak"], m["frequency_peak_near_wall"]
         txt = f"{p['from_wall_m'] * 1e3:.1f} mm ({p['from_wall_diameters']:.1f} d)"
-        if not lo_d <= p["from_wall_diameters"] <= hi_d:
+        if q["r_m"] != p["r_m"]:  # the highest beyond three bead diameters: and near the wall
             txt += (f"; near the wall {q['from_wall_m'] * 1e3:.1f} mm, "
                     f"{q['collision_frequency_per_m3_s'] / p['collision_frequency_per_m3_s']:.2f} of the peak")
         return p["from_wall_diameters"], txt
@@ -449,7 +449,7 @@ def deviation_rows(out_dir=None) -> list[dict]:
             return None
         p = m["power_peak"]
         return p["from_rim_diameters"], (f"axial {p['z_m'] * 1e3:+.1f} mm, r {p['r_m'] * 1e3:.1f} mm: "
-                                         f"{p['from_rim_diameters']:.1f} d from the rim")
+                                         f"{p['from_rim_diameters']:.2f} d from the rim")
 
     for stmt, paper_v, fn, ok, rule, what in (
             ("collision frequency peaks about two bead diameters from the chamber wall "

@@ -38,6 +38,7 @@ def test_the_summary_holds_every_case_with_what_the_table_reads():
         assert [z["name"] for z in st["zones"]] == ["V1", "V2", "V3", "V4"]
         assert all(set(S.ZONE_KEYS) <= set(z) for z in st["zones"])
         assert set(st["flow"]) == set(S.FLOW_KEYS)
+        assert set(st["maps"]) == {"frequency_peak", "frequency_peak_near_wall", "power_peak"}
     assert S.SUMMARY.stat().st_size < 200_000  # zone statistics, not contacts or maps
 
 
@@ -52,8 +53,11 @@ def test_the_pages_figures_verdicts_and_count_are_the_summarys(rows):
         assert verdict.startswith(word), (r["statement"], r["verdict"], verdict)
     c = S.count(rows)
     text = " ".join(PAGE.read_text(encoding="utf-8").split())
+    left = c["not evaluated"] or "none"
     assert (f"The sector campaign matches {c['matches']} of the {c['statements']} statements" in text
-            and f"misses {c['missed']}" in text and f"leaves {c['not evaluated']} unevaluated" in text)
+            and f"misses {c['missed']}" in text and f"leaves {left} unevaluated" in text)
+    readme = " ".join((PAGE.parents[1] / "README.md").read_text(encoding="utf-8").split())
+    assert f"seed 001 (disc mill): {c['matches']} of {c['statements']} statements match on a sector" in readme
 
 
 def test_the_table_command_reads_the_summary_without_a_run_folder(capsys):
