@@ -17,7 +17,8 @@ ROOT = Path(__file__).resolve().parents[2]
 PAGE = ROOT / "docs" / "validation-seed002.md"
 #: the summary's campaigns and the page's columns they fill
 COLUMNS = {"physical, model B": "physical, model B", "paper's method": "paper's method",
-           "paper's method, Schiller-Naumann": "paper's method, Schiller-Naumann"}
+           "paper's method, Schiller-Naumann": "paper's method, Schiller-Naumann",
+           "physical, model A": "physical, model A"}
 
 
 @pytest.fixture(scope="module")
@@ -80,13 +81,14 @@ def test_the_columns_verdicts_and_the_count_follow_from_the_summary(table):
     text = " ".join(PAGE.read_text(encoding="utf-8").split())
     n_b, n_p = c["per_campaign"]["physical, model B"], c["per_campaign"]["paper's method"]
     n_sn = c["per_campaign"]["paper's method, Schiller-Naumann"]
-    assert f"Model B matches {n_b} " in text
+    n_a = c["per_campaign"]["physical, model A"]
+    assert f"Model B matches {n_b} " in text and f"model A matches {n_a} " in text
     assert f"the paper's method matches {n_p} " in text
     assert f"with Schiller-Naumann drag {n_sn} " in text
-    assert f"Under these three together {c['together']} match" in text
+    assert f"Under these four together {c['together']} match" in text
     readme = " ".join((ROOT / "README.md").read_text(encoding="utf-8").split())
-    assert (f"seed 002 (accelerator mill): {max(n_b, n_p, n_sn)} of {c['statements']} match on its mill "
-            f"by one method, {c['together']} by three") in readme
+    assert (f"seed 002 (accelerator mill): {max(n_b, n_p, n_sn, n_a)} of {c['statements']} match on its "
+            f"mill by one method, {c['together']} by four") in readme
 
 
 def test_the_table_command_reads_the_summary_without_a_run_folder(capsys):
