@@ -383,7 +383,8 @@ def test_seed002_columns_by_method_and_counting(tmp_path):
             d.mkdir(parents=True)
             (d / "stats.json").write_text(json.dumps(st))
     (paper / "campaign.json").write_text(json.dumps({"method": "paper", "primed": False}))
-    assert S.campaign_of(phys) == {"method": "physical", "primed": False, "baffles": False}
+    assert S.campaign_of(phys) == {"method": "physical", "primed": False, "baffles": False,
+                                   "full_slice": False}
     eff = [r for r in S.deviation_rows(paper) if r["statement"].startswith("efficiency")][0]
     assert eff["verdict"].startswith("matches") and "0.003" in eff["ours"]
     eff = [r for r in S.deviation_rows(phys) if r["statement"].startswith("efficiency")][0]
@@ -446,7 +447,8 @@ def test_seed002_summary_gives_the_tables_of_its_run_folders(tmp_path, capsys):
     shipped = [(lab, S.Shipped(lab, path)) for lab, _ in folders]
     assert S.deviation_table(shipped) == S.deviation_table(folders)
     assert S.deviation_rows(shipped[1][1]) == S.deviation_rows(paper)
-    assert S.campaign_of(shipped[2][1]) == {"method": "paper", "primed": True, "baffles": False}
+    assert S.campaign_of(shipped[2][1]) == {"method": "paper", "primed": True, "baffles": False,
+                                            "full_slice": False}
     with pytest.raises(ValueError, match="campaign 'x': not in the shipped summary"):
         S.Shipped("x", path)
     with pytest.raises(ValueError, match="no case has a stats.json"):
@@ -457,7 +459,7 @@ def test_seed002_summary_gives_the_tables_of_its_run_folders(tmp_path, capsys):
         # a primed start is a variant of seed 002's start from rest: shown, not counted
         out = capsys.readouterr().out
         assert "| primed (variant: primed start, not counted) |" in out
-        assert "model B 12, paper's 13; 13 under these together. Variants are shown" in out
+        assert "model B 12, paper's 13; 13 under these together. Variants and campaigns of some" in out
         assert S.main(["table", "--label", "paper's"]) == 0
         assert "On the paper's mill: 13 of 15" in capsys.readouterr().out
         assert S.main(["summarize"]) == 2
@@ -497,8 +499,8 @@ def test_seed002_baffled_variant_is_shown_never_counted(tmp_path):
                              "together": 13}
     md = S.markdown_columns(rows)
     assert "| baffles (variant: baffles, not counted) |" in md.splitlines()[0]
-    assert md.endswith("physical 13; 13 under these together. Variants are shown, not "
-                       "counted.")
+    assert md.endswith("physical 13; 13 under these together. Variants and campaigns of some "
+                       "cases are shown, not counted.")
     alone = S.markdown(S.deviation_rows(baffled))
     assert alone.endswith("Variant (baffles; seed 002's mill has none): 14 of 15 statements "
                           "hold here, none counted as a match of the paper's.")
@@ -597,3 +599,54 @@ def test_seed002_cli_refuses_bad_cases_and_mixed_campaigns(tmp_path, capsys):
     (tmp_path / "p" / "campaign.json").write_text(json.dumps({"method": "paper", "primed": False}))
     assert S.main(["run", "--out", str(tmp_path / "p"), "--method", "physical", "--case", "1200:0.8"]) == 2
     assert "holds a campaign of" in capsys.readouterr().err
+
+
+def test_seed002_full_slice_judges_its_case_and_the_circumferential_maximum(tmp_path):
+    """The paper's whole slice with gravity (``--full-slice``): the scene of
+    validation/scenes/accelerator_full_gravity.toml; its one case judged (the circumferential
+    maximum too, from ``flow.circumferential``), shown and not counted; kept in a summary
+    with what row 15 reads."""
+    from pathlib import Path
+
+    from validation import seed002 as S
+
+    sc = S.scene_for(1200.0, 0.8, full_slice=True)
+    ref = load_scene(str(Path(S.__file__).parent / "scenes" / "accelerator_full_gravity.toml"))
+    assert sc.geometry.sector_deg == 360.0 and sc.gravity_m_per_s2 == ref.gravity_m_per_s2
+    assert sc.geometry == ref.geometry and sc.spin_up_s == 1.0 and sc.record_s == 0.5
+    with pytest.raises(ValueError, match="full_slice"):
+        S.scene_for(1200.0, 0.8, full_slice=True, baffles=True)
+    plain, full = tmp_path / "plain", tmp_path / "full"
+    for case in S.CASES:
+        d = S.case_dir(plain, *case)
+        d.mkdir(parents=True)
+        (d / "stats.json").write_text(json.dumps(_fake_stats(*case, 0.003)))
+    st = _fake_stats(1200.0, 0.8, 0.003)
+    rel = [1.0] * 12
+    rel[6] = 1.05  # 195 degrees from the top with the rotation: 15 from the paper's 210
+    st["flow"]["circumferential"] = dict(azimuth_bin_deg=30.0, samples=10, per_bin_over_mean=rel,
+                                         rising_over_falling_half=1.01, centroid_up_m=[0.0])
+    d = S.case_dir(full, 1200.0, 0.8)
+    d.mkdir(parents=True)
+    (d / "stats.json").write_text(json.dumps(st))
+    (full / "campaign.json").write_text(json.dumps({"method": "physical", "primed": False,
+                                                    "baffles": False, "full_slice": True}))
+    rows = S.deviation_table([("sector", plain), ("full", full)])
+    circ = next(r for r in rows if r["statement"].startswith("circumferential filling"))
+    assert circ["cells"]["full"]["verdict"].startswith("matches at 1200 rpm 80 %")
+    assert "highest bin at 195 degrees" in circ["cells"]["full"]["ours"]
+    assert circ["cells"]["sector"]["verdict"].startswith("not evaluated")
+    assert circ["verdict"] == "not evaluated; not counted: holds at its case under full (1200 rpm 80 %)"
+    assert S.count(rows)["per_campaign"] == {"sector": 13}  # the full slice not counted
+    path = tmp_path / "summary.json"
+    S.summarize(full, "full", path)
+    kept = json.loads(path.read_text())["campaigns"]["full"]
+    assert "--full-slice" in kept["command"]
+    assert set(kept["runs"]["1200 rpm, 80 %"]["stats"]["flow"]["circumferential"]) == {
+        "azimuth_bin_deg", "samples", "per_bin_over_mean", "rising_over_falling_half"}
+    # flat within 1 %: no maximum, wherever the highest bin lies
+    rel[6] = 1.01
+    (d / "stats.json").write_text(json.dumps(st))
+    assert S.deviation_rows(full, partial=True)[-1]["verdict"].startswith("missed at 1200 rpm 80 %")
+    with pytest.raises(ValueError, match="holds a campaign of"):
+        S.run_campaign(full, cases=(), method="physical")
