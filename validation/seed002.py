@@ -11,7 +11,9 @@ no contacts) in ``validation/runs/seed002_sector.json``; ``python -m validation.
 table`` computes the table from that summary. Statements are counted on the paper's
 configuration and start: a campaign with stationary baffles (``--baffles``; seed 002's mill
 has none) or a primed start (``--primed``; seed 002 starts from rest) is a variant, shown
-in its own column and never counted as a match.
+in its own column and never counted as a match. ``--full-slice`` runs the paper's own slice
+(360 degrees, gravity across the axis) instead of the sector; one case of it is judged on
+that case, shown and not counted as a match of a statement made over the cases.
 """
 
 from __future__ import annotations
@@ -358,10 +360,11 @@ def summarize(out_dir, label: str | None = None, path=None) -> Path:
     quoted = f'"{label}"' if "'" in label else f"'{label}'"
     p = Path(path) if path is not None else SUMMARY
     doc = json.loads(p.read_text()) if p.exists() else {}
-    doc["note"] = ("seed 002's cases on the 60-degree accelerator sector without gravity, per "
-                   "campaign: per case what the deviation table reads (zone filling and speed "
-                   "[-]; SN_g [1/(m3 s)], SE_cs [W/m3], SI [J] per zone; totals [1/(m3 s), W, -]; "
-                   "the radial speed profile)")
+    doc["note"] = ("seed 002's cases on the 60-degree accelerator sector without gravity (a campaign "
+                   "with full_slice: the whole 360-degree slice with gravity), per campaign: per case "
+                   "what the deviation table reads (zone filling and speed [-]; SN_g [1/(m3 s)], "
+                   "SE_cs [W/m3], SI [J] per zone; totals [1/(m3 s), W, -]; the radial speed profile; "
+                   "a full slice's beads per 30 degrees over their mean)")
     doc["protocol"] = {"sector_deg": SECTOR_DEG, "spin_up_s": SPIN_UP_S, "record_s": RECORD_S,
                        "window_s": WINDOW_S, "sample_every_s": SAMPLE_S,
                        "gravity_m_per_s2": [0.0, 0.0, 0.0], "threads": 1,

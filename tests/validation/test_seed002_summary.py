@@ -24,6 +24,10 @@ COLUMNS = {"physical, model B": "physical, model B", "paper's method": "paper's 
 PRIMED = ("primed start, model B", "primed start, paper's method, Schiller-Naumann")
 PRIMED_COLUMN = ("primed start, 1200 rpm 80 % (model B; paper's method, Schiller-Naumann; variant, "
                  "not counted)")
+#: the paper's whole slice with gravity, one case, and its page column
+FULL = "full slice, gravity"
+FULL_COLUMN = "full slice, gravity, 1200 rpm 80 %"
+ONE_CASE = PRIMED + (FULL,)
 
 
 @pytest.fixture(scope="module")
@@ -53,11 +57,12 @@ def _page_columns() -> tuple[list[str], list[list[str]]]:
 
 def test_the_summary_holds_every_case_of_its_campaigns_with_what_the_table_reads():
     doc = json.loads(S.SUMMARY.read_text())
-    assert list(doc["campaigns"]) == list(COLUMNS) + list(PRIMED)
+    assert list(doc["campaigns"]) == list(COLUMNS) + list(ONE_CASE)
     for label, camp in doc["campaigns"].items():
-        cases = [(1200.0, 0.8)] if label in PRIMED else S.CASES
+        cases = [(1200.0, 0.8)] if label in ONE_CASE else S.CASES
         assert sorted((r["rpm"], r["filling"]) for r in camp["runs"].values()) == sorted(cases), label
         assert camp["campaign"]["primed"] == (label in PRIMED)
+        assert camp["campaign"].get("full_slice", False) == (label == FULL)
         for r in camp["runs"].values():
             st = r["stats"]
             assert [z["name"] for z in st["zones"]] == list(S.ZONE_NAMES)
@@ -65,6 +70,8 @@ def test_the_summary_holds_every_case_of_its_campaigns_with_what_the_table_reads
             q = st["flow"]["seed002"]
             assert set(q["total"]) == set(S.Q_TOTAL_KEYS)
             assert "snapshots_20_per_s" in q  # both countings
+    circ = doc["campaigns"][FULL]["runs"]["1200 rpm, 80 %"]["stats"]["flow"]["circumferential"]
+    assert len(circ["per_bin_over_mean"]) == 12
     assert S.SUMMARY.stat().st_size < 200_000  # zone statistics, not contacts or maps
 
 
@@ -98,23 +105,24 @@ def test_the_columns_verdicts_and_the_count_follow_from_the_summary(table):
             f"mill by one method, {c['together']} by four") in readme
 
 
-def test_the_primed_starts_column_follows_from_the_summary():
-    """The primed start's column: per statement its two campaigns' verdicts at their one case
-    ("holds" / "missed"; "(one ...)" where a statement needs several cases), and neither
-    counted in the verdict on the paper's mill (a variant of the start from rest)."""
-    table = S.deviation_table([(lab, S.Shipped(lab)) for lab in list(COLUMNS) + list(PRIMED)])
+def test_the_one_case_columns_follow_from_the_summary():
+    """The primed start's column (its two campaigns, model B; the paper's method with
+    Schiller-Naumann drag) and the full slice's: per statement the verdict at their one case
+    ("holds" / "missed"; "(one ...)" where a statement needs several cases), none counted in
+    the verdict on the paper's mill (a primed start is a variant of the start from rest; a
+    full slice has one of the cases)."""
+    table = S.deviation_table([(lab, S.Shipped(lab)) for lab in list(COLUMNS) + list(ONE_CASE)])
     head, rows = _page_columns()
-    col = head.index(PRIMED_COLUMN)
 
     def word(v):
         return ("holds" if v.startswith("matches") else "(one" if v.startswith(("incomplete", "not run"))
                 else "missed" if v.startswith("missed") else "not evaluated")
     for n, (page, r) in enumerate(zip(rows, table), 1):
-        parts = page[col].split("; ")
-        assert len(parts) == 2, (n, page[col])
-        for part, lab in zip(parts, PRIMED):
+        parts = page[head.index(PRIMED_COLUMN)].split("; ")
+        assert len(parts) == 2, (n, parts)
+        for part, lab in zip(parts + [page[head.index(FULL_COLUMN)]], ONE_CASE):
             assert part.startswith(word(r["cells"][lab]["verdict"])), (n, lab, part)
-            assert r["cells"][lab]["variant"] == "primed start"
+        assert all(r["cells"][lab]["variant"] == "primed start" for lab in PRIMED)
     assert S.count(table) == S.count(S.deviation_table([(lab, S.Shipped(lab)) for lab in COLUMNS]))
 
 
