@@ -164,9 +164,9 @@ def scene_for(rpm: float, filling: float, sector_deg: float | None = None,
 
 
 def campaign_of(out_dir) -> dict:
-    """The method, start and baffles of the campaign in ``out_dir`` (``campaign.json``; a
-    folder without one holds a campaign of the physical method from rest, made before the
-    file)."""
+    """The method, start, baffles and slice of the campaign in ``out_dir``
+    (``campaign.json``; a folder without one holds a campaign of the physical method from
+    rest on the sector, made before the file; keys a file lacks take those defaults)."""
     have = {"method": "physical", "primed": False, "baffles": False, "full_slice": False}
     if isinstance(out_dir, Shipped):
         return dict(have, **out_dir.campaign)
