@@ -14,15 +14,37 @@ import numpy as np
 from millfmu.dem.analysis.stats import BLOCK_ROWS
 
 
-def section_maps(scene, events: np.ndarray, cols: dict):
-    """Binned maps over (axial position [m], radius [m]) of bead-bead collisions:
-    mean SE_total per collision [J], collision frequency [1/(m3 s)], collision power
-    density [W/m3]. Returns (z_edges, r_edges, mean_se, freq, power)."""
+#: radial bins of the collision profile per bead diameter (``collision_maps.npz``)
+PROFILE_BINS_PER_DIAMETER = 4
+
+
+def _profile_edges(scene):
+    """Radial bin edges [m] of :func:`radial_collision_profile`: 1 /
+    :data:`PROFILE_BINS_PER_DIAMETER` bead diameter from the shaft to the chamber wall; None
+    for a slice with other solids than a disc (vanes, baffles)."""
+    g = scene.geometry
+    if g.has_channel or g.has_baffles:
+        return None
+    width = scene.bead_diameter_m / PROFILE_BINS_PER_DIAMETER
+    n_bins = max(1, int(round((g.chamber_radius_m - g.shaft_radius_m) / width)))
+    return np.linspace(g.shaft_radius_m, g.chamber_radius_m, n_bins + 1)
+
+
+def _binned(scene, events: np.ndarray, cols: dict, profile_edges=None):
+    """One pass over the recorded contacts: the bead-bead collisions' counts and SE_total
+    sums [J] on the axial section's bins (axial position from the disc mid-plane, radius)
+    and, with ``profile_edges``, on those radial bins (every axial position together).
+    Returns (z_edges, r_edges, n, s, profile n, profile s), the profile's None without
+    edges."""
     g = scene.geometry
     zr_edges = np.linspace(-0.5 * g.height_m, 0.5 * g.height_m, scene.map_bins_z + 1)
     r_edges = np.linspace(g.shaft_radius_m, g.chamber_radius_m, scene.map_bins_r + 1)
     n = np.zeros((scene.map_bins_z, scene.map_bins_r))
     s = np.zeros_like(n)
+    pn = ps = None
+    if profile_edges is not None:
+        pn = np.zeros(profile_edges.size - 1)
+        ps = np.zeros_like(pn)
     # in blocks of rows: copying all bead-bead rows at once took 88 bytes per contact
     for i in range(0, events.shape[0] if events.size else 0, BLOCK_ROWS):
         blk = events[i:i + BLOCK_ROWS]
@@ -35,16 +57,43 @@ def section_maps(scene, events: np.ndarray, cols: dict):
         se = bb[:, cols["setn"]] + bb[:, cols["sets"]] + bb[:, cols["serot"]]
         n += np.histogram2d(z, r, bins=[zr_edges, r_edges])[0]
         s += np.histogram2d(z, r, bins=[zr_edges, r_edges], weights=se)[0]
-    ring = math.pi * np.diff(r_edges ** 2) * g.sector_fraction
+        if pn is not None:
+            pn += np.histogram(r, bins=profile_edges)[0]
+            ps += np.histogram(r, bins=profile_edges, weights=se)[0]
+    return zr_edges, r_edges, n, s, pn, ps
+
+
+def _section_values(scene, zr_edges, r_edges, n, s):
+    """(mean SE_total per collision [J], collision frequency [1/(m3 s)], collision power
+    density [W/m3]) of the section's counts n and sums s."""
+    ring = math.pi * np.diff(r_edges ** 2) * scene.geometry.sector_fraction
     vol = np.outer(np.diff(zr_edges), ring)
     t = scene.record_s
     with np.errstate(invalid="ignore", divide="ignore"):
         mean_se = np.where(n > 0, s / n, np.nan)
-    return zr_edges, r_edges, mean_se, n / (vol * t), s / (vol * t)
+    return mean_se, n / (vol * t), s / (vol * t)
 
 
-#: radial bins of the collision profile per bead diameter (``collision_maps.npz``)
-PROFILE_BINS_PER_DIAMETER = 4
+def _profile_values(scene, edges, n, s):
+    """(collision frequency [1/(m3 s)], collision power density [W/m3]) of the radial
+    profile's counts n and sums s, per volume open to the beads: inside the disc's radius
+    its thickness is taken out of the axial period."""
+    g = scene.geometry
+    rd = g.disc_radius_m if g.has_disc else g.shaft_radius_m
+    thick = g.disc_thickness_m if g.has_disc else 0.0
+    inner = np.diff(np.minimum(edges, rd) ** 2)  # the part of each ring inside the disc
+    outer = np.diff(np.maximum(edges, rd) ** 2)
+    vol = math.pi * g.sector_fraction * (inner * (g.height_m - thick) + outer * g.height_m)
+    t = scene.record_s
+    return n / (vol * t), s / (vol * t)
+
+
+def section_maps(scene, events: np.ndarray, cols: dict):
+    """Binned maps over (axial position [m], radius [m]) of bead-bead collisions:
+    mean SE_total per collision [J], collision frequency [1/(m3 s)], collision power
+    density [W/m3]. Returns (z_edges, r_edges, mean_se, freq, power)."""
+    ze, re_, n, s, _, _ = _binned(scene, events, cols)
+    return (ze, re_) + _section_values(scene, ze, re_, n, s)
 
 
 def radial_collision_profile(scene, events: np.ndarray, cols: dict):
@@ -55,28 +104,11 @@ def radial_collision_profile(scene, events: np.ndarray, cols: dict):
     inside the disc's radius its thickness is taken out of the axial period. Returns
     (r_edges [m], collision frequency [1/(m3 s)], collision power density [W/m3]), or None
     for a slice with other solids."""
-    g = scene.geometry
-    if g.has_channel or g.has_baffles:
+    edges = _profile_edges(scene)
+    if edges is None:
         return None
-    width = scene.bead_diameter_m / PROFILE_BINS_PER_DIAMETER
-    n_bins = max(1, int(round((g.chamber_radius_m - g.shaft_radius_m) / width)))
-    r_edges = np.linspace(g.shaft_radius_m, g.chamber_radius_m, n_bins + 1)
-    n = np.zeros(n_bins)
-    s = np.zeros(n_bins)
-    for i in range(0, events.shape[0] if events.size else 0, BLOCK_ROWS):
-        blk = events[i:i + BLOCK_ROWS]
-        bb = blk[blk[:, cols["type"]] == 0]
-        r = np.hypot(bb[:, cols["x"]], bb[:, cols["y"]])
-        se = bb[:, cols["setn"]] + bb[:, cols["sets"]] + bb[:, cols["serot"]]
-        n += np.histogram(r, bins=r_edges)[0]
-        s += np.histogram(r, bins=r_edges, weights=se)[0]
-    rd = g.disc_radius_m if g.has_disc else g.shaft_radius_m
-    thick = g.disc_thickness_m if g.has_disc else 0.0
-    inner = np.diff(np.minimum(r_edges, rd) ** 2)  # the part of each ring inside the disc
-    outer = np.diff(np.maximum(r_edges, rd) ** 2)
-    vol = math.pi * g.sector_fraction * (inner * (g.height_m - thick) + outer * g.height_m)
-    t = scene.record_s
-    return r_edges, n / (vol * t), s / (vol * t)
+    *_, n, s = _binned(scene, events, cols, edges)
+    return (edges,) + _profile_values(scene, edges, n, s)
 
 
 def _sev_outline(ax, scene):
@@ -151,13 +183,16 @@ def write_maps(out: Path, scene, events: np.ndarray, cols: dict):
     import matplotlib.pyplot as plt
     from matplotlib.colors import LogNorm
 
-    ze, re_, mean_se, freq, power = section_maps(scene, events, cols)
+    # the maps and the profile from one pass over the contacts (a full slice's are on disk)
+    edges = _profile_edges(scene)
+    ze, re_, n, s, pn, ps = _binned(scene, events, cols, edges)
+    mean_se, freq, power = _section_values(scene, ze, re_, n, s)
     data = dict(z_edges_m=ze, r_edges_m=re_, mean_se_total_j=mean_se,
                 collision_frequency_per_m3_s=freq, collision_power_w_per_m3=power)
-    prof = radial_collision_profile(scene, events, cols)
-    if prof is not None:
-        data.update(profile_r_edges_m=prof[0], profile_collision_frequency_per_m3_s=prof[1],
-                    profile_collision_power_w_per_m3=prof[2])
+    if edges is not None:
+        pf, pp = _profile_values(scene, edges, pn, ps)
+        data.update(profile_r_edges_m=edges, profile_collision_frequency_per_m3_s=pf,
+                    profile_collision_power_w_per_m3=pp)
     np.savez(out / "collision_maps.npz", **data)
     items = [("map_stress_energy.png", mean_se, "mean SE_total per collision [J]", True),
              ("map_collision_frequency.png", freq, "collision frequency [1/(m3 s)]", False),
