@@ -597,8 +597,7 @@ def deviation_rows(out_dir, counting: str | None = None, partial: bool = False) 
         f"peak ~{PAPER_PEAK_SN_G:.2g}", lambda st: cq(st)["total"]["SN_g_per_m3_s"],
         list(CASES), lambda got, vals: all(g <= 10.0 * PAPER_PEAK_SN_G for g in got),
         "the chamber's mean at most a decade above the paper's peak")
-    circ = [k for k in at80 if runs.get(k) is not None and runs[k]["flow"].get("circumferential")]
-    if circ:
+    if any(runs.get(k) is not None and runs[k]["flow"].get("circumferential") for k in at80):
         add("circumferential filling at 80 %: a maximum near 60 degrees at every speed (section 3.2, "
             "figure 8b)", "max near 60 degrees", _circ_text, at80,
             lambda got, vals: all(_circ_max(runs[k]) for k, _ in vals),

@@ -307,19 +307,24 @@ def _fake_stats(rpm, fill, eff):
                     ts_share=10.0 / 11.0, efficiency=eff))))
 
 
+def _write_case(folder, case, st: dict):
+    """A seed 002 case's stats.json with ``st`` in campaign ``folder``; returns its folder."""
+    from validation.seed002 import case_dir
+
+    d = case_dir(folder, *case)
+    d.mkdir(parents=True, exist_ok=True)
+    (d / "stats.json").write_text(json.dumps(st))
+    return d
+
+
 def test_seed002_table_gives_verdicts_from_the_runs(tmp_path):
     from validation import seed002 as S
-
-    def write(case, st):
-        d = S.case_dir(tmp_path, *case)
-        d.mkdir(parents=True, exist_ok=True)
-        (d / "stats.json").write_text(json.dumps(st))
 
     for case in S.CASES:
         eff = 0.004 if case in ((1000.0, 0.8), (1200.0, 0.8)) else 0.003
         if case == (1000.0, 0.8):
             eff = 0.0044
-        write(case, _fake_stats(*case, eff))
+        _write_case(tmp_path, case, _fake_stats(*case, eff))
     rows = S.deviation_rows(tmp_path)
     assert len(rows) == 15  # the twelve and the three they left out
     judged = [r for r in rows if not r["verdict"].startswith("not evaluated")]
@@ -328,7 +333,7 @@ def test_seed002_table_gives_verdicts_from_the_runs(tmp_path):
     assert S.markdown(rows).endswith("On the paper's mill: 14 of 15 statements match.")
     bad = _fake_stats(800.0, 0.8, 0.01)  # 1 % efficiency, and SEV_3 the slowest
     bad["zones"][2]["speed_over_tip_speed"] = 0.1
-    write((800.0, 0.8), bad)
+    _write_case(tmp_path, (800.0, 0.8), bad)
     v = {r["statement"][:40]: r["verdict"] for r in S.deviation_rows(tmp_path)}
     assert v["efficiency SE_cs,sum / SE_net at most 0."].startswith("missed")
     assert v["beads fastest in SEV_3 and SEV_4, slowes"].startswith("missed")
@@ -379,9 +384,7 @@ def test_seed002_columns_by_method_and_counting(tmp_path):
             snap = json.loads(json.dumps({k: q[k] for k in ("zones", "total")}))
             snap["total"]["efficiency"] = 0.004 if case == (1000.0, 0.8) else 0.003
             q["snapshots_20_per_s"] = snap
-            d = S.case_dir(folder, *case)
-            d.mkdir(parents=True)
-            (d / "stats.json").write_text(json.dumps(st))
+            _write_case(folder, case, st)
     (paper / "campaign.json").write_text(json.dumps({"method": "paper", "primed": False}))
     assert S.campaign_of(phys) == {"method": "physical", "primed": False, "baffles": False,
                                    "full_slice": False}
@@ -430,9 +433,7 @@ def test_seed002_summary_gives_the_tables_of_its_run_folders(tmp_path, capsys):
             snap["total"]["efficiency"] = 0.004 if case == (1000.0, 0.8) else 0.003
             q["snapshots_20_per_s"] = snap
             st["zones"][0]["collision_frequency_per_m3_s"] = 1.0  # not read: not kept
-            d = S.case_dir(folder, *case)
-            d.mkdir(parents=True)
-            (d / "stats.json").write_text(json.dumps(st))
+            _write_case(folder, case, st)
     (paper / "campaign.json").write_text(json.dumps({"method": "paper", "primed": False}))
     (one / "campaign.json").write_text(json.dumps({"method": "paper", "primed": True}))
     path = tmp_path / "summary.json"
@@ -482,9 +483,7 @@ def test_seed002_baffled_variant_is_shown_never_counted(tmp_path):
                                                                                      0.003))
             if folder == plain:  # SEV_2 the slowest zone: the speed order missed
                 st["zones"][1]["speed_over_tip_speed"] = 0.2
-            d = S.case_dir(folder, *case)
-            d.mkdir(parents=True)
-            (d / "stats.json").write_text(json.dumps(st))
+            _write_case(folder, case, st)
     (baffled / "campaign.json").write_text(json.dumps({"method": "physical", "primed": False,
                                                        "baffles": True}))
     assert S.variant_of(plain) is None and S.variant_of(baffled) == "baffles"
@@ -618,17 +617,13 @@ def test_seed002_full_slice_judges_its_case_and_the_circumferential_maximum(tmp_
         S.scene_for(1200.0, 0.8, full_slice=True, baffles=True)
     plain, full = tmp_path / "plain", tmp_path / "full"
     for case in S.CASES:
-        d = S.case_dir(plain, *case)
-        d.mkdir(parents=True)
-        (d / "stats.json").write_text(json.dumps(_fake_stats(*case, 0.003)))
+        _write_case(plain, case, _fake_stats(*case, 0.003))
     st = _fake_stats(1200.0, 0.8, 0.003)
     rel = [1.0] * 12
     rel[6] = 1.05  # 195 degrees from the top with the rotation: 15 from the paper's 210
     st["flow"]["circumferential"] = dict(azimuth_bin_deg=30.0, samples=10, per_bin_over_mean=rel,
                                          rising_over_falling_half=1.01, centroid_up_m=[0.0])
-    d = S.case_dir(full, 1200.0, 0.8)
-    d.mkdir(parents=True)
-    (d / "stats.json").write_text(json.dumps(st))
+    d = _write_case(full, (1200.0, 0.8), st)
     (full / "campaign.json").write_text(json.dumps({"method": "physical", "primed": False,
                                                     "baffles": False, "full_slice": True}))
     rows = S.deviation_table([("sector", plain), ("full", full)])
