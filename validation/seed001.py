@@ -75,8 +75,48 @@ def run_campaign(out_dir, fluids=("coupled", "prescribed"), sector_deg: float = 
             run_scene(sc, d, progress=progress, threads=threads, window_s=WINDOW_S)
 
 
-def _load(out_dir, fluid, vt, fill):
-    d = case_dir(out_dir, fluid, vt, fill)
+#: seed 001's own configuration, one case: the whole slice (360 degrees) with the scene's
+#: gravity across the axis, the liquid in 32 theta cells, by the sector campaign's protocol
+#: (coupled, started at COUPLED_INITIAL_ROTATION, COUPLED_SPIN_UP_S, RECORD_S in windows of
+#: WINDOW_S); 2.0-2.5 h per simulated second on 2 threads, so it keeps a checkpoint
+FULL_CASE = (10.0, 0.8)
+FULL_SECTOR_DEG = 360.0
+FULL_THETA_CELLS = 32
+#: [s of wall time] between the full slice's checkpoints
+FULL_CHECKPOINT_EVERY_S = 600.0
+
+
+def run_full_slice(out_dir, threads=None, progress=True) -> Path:
+    """Run (or, from its checkpoint, go on with) the full slice's case into
+    ``out_dir/c360_v10_f80``; nothing where its stats.json is there. Returns the folder."""
+    from millfmu.dem.run import CHECKPOINT, resume_run, run_scene
+
+    vt, fill = FULL_CASE
+    d = case_dir(out_dir, "coupled", vt, fill, FULL_SECTOR_DEG)
+    if (d / "stats.json").exists():
+        return d
+    if (d / CHECKPOINT).exists():
+        resume_run(d, progress=progress, threads=threads)
+        return d
+    run_scene(full_slice_scene(), d, progress=progress, threads=threads, window_s=WINDOW_S,
+              checkpoint_every_s=FULL_CHECKPOINT_EVERY_S)
+    return d
+
+
+def full_slice_scene():
+    """The full slice's case as a DEM scene (disc_slice with the overrides of
+    :data:`FULL_CASE` and the campaign's protocol; the scene's gravity kept)."""
+    from millfmu.dem.scene import load_scene
+
+    vt, fill = FULL_CASE
+    return load_scene("disc_slice").with_overrides(
+        fluid_mode="coupled", tip_speed_m_per_s=vt, filling=fill, sector_deg=FULL_SECTOR_DEG,
+        n_theta=FULL_THETA_CELLS, spin_up_s=COUPLED_SPIN_UP_S, record_s=RECORD_S,
+        sample_every_s=0.01, initial_rotation=COUPLED_INITIAL_ROTATION)
+
+
+def _load(out_dir, fluid, vt, fill, sector_deg=None):
+    d = case_dir(out_dir, fluid, vt, fill, sector_deg)
     p = d / "stats.json"
     if not p.exists():
         return None
@@ -161,32 +201,59 @@ def compact(st: dict) -> dict:
     return out
 
 
-def summarize(out_dir, path=None) -> Path:
+def summarize(out_dir, path=None, full_slice: bool = False) -> Path:
     """Write the compact stats of the coupled cases in ``out_dir`` (:func:`compact`) to
-    ``path`` (default :data:`SUMMARY`), with the protocol and the command that made them."""
-    runs = {}
-    for vt, fl in CASES:
-        st = _load(out_dir, "coupled", vt, fl)
-        if st is not None:
-            runs[f"{vt:g} m/s, {round(fl * 100)} %"] = {"tip_speed_m_per_s": vt, "filling": fl, "stats": compact(st)}
-    doc = {"note": ("seed 001's cases on the coupled 10-degree disc sector without gravity: per zone what "
-                    "the deviation table reads (units: m3, 1/(m3 s), W, J), the flow's first bead layer "
-                    "and vortex census"),
-           "protocol": {"initial_rotation": COUPLED_INITIAL_ROTATION, "spin_up_s": COUPLED_SPIN_UP_S,
-                        "record_s": RECORD_S, "window_s": WINDOW_S, "sample_every_s": 0.01,
-                        "sector_deg": 10.0, "gravity_m_per_s2": [0.0, 0.0, 0.0], "threads": 1},
-           "command": "python -m validation.seed001 run --out DIR --fluid coupled --threads 1, then "
-                      "python -m validation.seed001 summarize --out DIR",
-           "runs": runs}
+    ``path`` (default :data:`SUMMARY`), with the protocol and the command that made them;
+    ``full_slice``: instead the full slice's case (:func:`run_full_slice`), kept under
+    ``full_slice`` beside the sector's cases. Either keeps the other's part of the file."""
     p = Path(path) if path is not None else SUMMARY
+    old = json.loads(p.read_text()) if p.exists() else {}
+    protocol = {"initial_rotation": COUPLED_INITIAL_ROTATION, "spin_up_s": COUPLED_SPIN_UP_S,
+                "record_s": RECORD_S, "window_s": WINDOW_S, "sample_every_s": 0.01}
+    if full_slice:
+        vt, fl = FULL_CASE
+        st = _load(out_dir, "coupled", vt, fl, FULL_SECTOR_DEG)
+        if st is None:
+            raise FileNotFoundError(f"{case_dir(out_dir, 'coupled', vt, fl, FULL_SECTOR_DEG)}: no "
+                                    f"stats.json (run it: python -m validation.seed001 run --out "
+                                    f"{out_dir} --full-slice)")
+        doc = dict(old)
+        doc["full_slice"] = {
+            "note": ("seed 001's own configuration, one case: the whole disc slice with gravity "
+                     "across the axis, coupled; what the deviation table reads (units as above)"),
+            "protocol": dict(protocol, sector_deg=FULL_SECTOR_DEG, theta_cells=FULL_THETA_CELLS,
+                             gravity_m_per_s2="the scene's"),
+            "command": "python -m validation.seed001 run --out DIR --full-slice --threads 2, then "
+                       "python -m validation.seed001 summarize --out DIR --full-slice",
+            "runs": {f"{vt:g} m/s, {round(fl * 100)} %": {"tip_speed_m_per_s": vt, "filling": fl,
+                                                          "stats": compact(st)}}}
+    else:
+        runs = {}
+        for vt, fl in CASES:
+            st = _load(out_dir, "coupled", vt, fl)
+            if st is not None:
+                runs[f"{vt:g} m/s, {round(fl * 100)} %"] = {"tip_speed_m_per_s": vt, "filling": fl,
+                                                            "stats": compact(st)}
+        doc = {"note": ("seed 001's cases on the coupled 10-degree disc sector without gravity: per zone "
+                        "what the deviation table reads (units: m3, 1/(m3 s), W, J), the flow's first "
+                        "bead layer and vortex census"),
+               "protocol": dict(protocol, sector_deg=10.0, gravity_m_per_s2=[0.0, 0.0, 0.0], threads=1),
+               "command": "python -m validation.seed001 run --out DIR --fluid coupled --threads 1, then "
+                          "python -m validation.seed001 summarize --out DIR",
+               "runs": runs}
+        if "full_slice" in old:
+            doc["full_slice"] = old["full_slice"]
     p.write_text(json.dumps(doc, indent=1, allow_nan=False) + "\n")
     return p
 
 
-def summary_stats(path=None) -> dict:
-    """{(tip speed, filling): compact stats} of the shipped summary (:data:`SUMMARY`)."""
+def summary_stats(path=None, full_slice: bool = False) -> dict:
+    """{(tip speed, filling): compact stats} of the shipped summary (:data:`SUMMARY`): its
+    sector cases, or (``full_slice``) its full slice's case, {} where it has none."""
     doc = json.loads(Path(path if path is not None else SUMMARY).read_text())
-    return {(r["tip_speed_m_per_s"], r["filling"]): r["stats"] for r in doc["runs"].values()}
+    part = doc.get("full_slice", {}) if full_slice else doc
+    return {(r["tip_speed_m_per_s"], r["filling"]): r["stats"]
+            for r in part.get("runs", {}).values()}
 
 
 def _recount_vortices(d: Path, st: dict):
@@ -267,15 +334,22 @@ def _fmt(x, nd=3):
         f"{x:.{nd}g}"
 
 
-def deviation_rows(out_dir=None) -> list[dict]:
-    """One dict per statement of seed 001 section 3: statement, paper, coupled, prescribed,
-    verdict (from the coupled runs): of the run folders in ``out_dir``, or with None of the
-    shipped summary (:data:`SUMMARY`)."""
+def deviation_rows(out_dir=None, summary=None) -> list[dict]:
+    """One dict per statement of seed 001 section 3: statement, paper, coupled, full (the
+    full slice at its one case: the value and whether the statement holds there, not
+    counted), prescribed, verdict (from the coupled sector runs): of the run folders in
+    ``out_dir``, or with None of the summary ``summary`` (default the shipped one,
+    :data:`SUMMARY`)."""
     if out_dir is None:
-        shipped = summary_stats()
+        shipped = summary_stats(summary)
+        full = summary_stats(summary, full_slice=True)
         runs = {"coupled": {k: shipped.get(k) for k in CASES}, "prescribed": {k: None for k in CASES}}
     else:
         runs = {f: {(vt, fl): _load(out_dir, f, vt, fl) for vt, fl in CASES} for f in FLUIDS}
+        st = _load(out_dir, "coupled", *FULL_CASE, FULL_SECTOR_DEG)
+        full = {} if st is None else {FULL_CASE: st}
+    runs["full"] = {k: full.get(k) for k in CASES}
+    has_full = bool(full)
     source = "prescribed-swirl runs in the folder"
     if not any(runs["prescribed"].values()):
         runs["prescribed"] = {(vt, fl): prescribed_from_table(vt, fl) for vt, fl in CASES}
@@ -295,12 +369,26 @@ def deviation_rows(out_dir=None) -> list[dict]:
                          else f"{k[0]:g} m/s {round(k[1] * 100)} %: {_fmt(v, nd)}"
                          for v, k in zip(vals, keys) if v is not None) or "not run"
 
+    def full_cell(fn, keys, accept, value=lambda v: v, text=None):
+        """The full slice's cell: its value at its one case (fn(stats), shown by text, judged
+        by accept([value]))) and whether the statement holds there."""
+        if not has_full:
+            return "not run"
+        if FULL_CASE not in keys:
+            return f"not run (its one case: {FULL_CASE[0]:g} m/s, {round(FULL_CASE[1] * 100)} %)"
+        v = fn(runs["full"][FULL_CASE])
+        if v is None:
+            return "not evaluated"
+        txt = text(v) if text else v if isinstance(v, str) else _fmt(v)
+        return f"{txt} ({'holds' if accept([value(v)]) else 'missed'})"
+
     def add_row(statement, paper, fn, keys, accept, note=""):
         """A row from fn(stats) per case in keys; verdict from accept(coupled values)."""
         vals = {f: per(f, fn, keys) for f in FLUIDS}
         got = [v for v in vals["coupled"] if v is not None]
         rows.append(dict(statement=statement, paper=paper,
                          coupled=show(vals["coupled"], keys),
+                         full=full_cell(fn, keys, accept),
                          prescribed=show(vals["prescribed"], keys),
                          verdict=("matches" if accept(got) else "missed") + note if got
                          else "not run"))
@@ -367,6 +455,7 @@ def deviation_rows(out_dir=None) -> list[dict]:
     rows.append(dict(statement="collision density of the chamber about linear in tip speed, "
                                "not proportional (section 3.4)",
                      paper="linear, not proportional", coupled=txt_c, prescribed=txt_p,
+                     full="not evaluated (one tip speed)" if has_full else "not run",
                      verdict=("matches" if ok else "missed") + " (R^2 >= 0.95, intercept "
                      "beyond 5 %)" if lin_c is not None else "not run"))
 
@@ -408,11 +497,19 @@ def deviation_rows(out_dir=None) -> list[dict]:
         counts = per("coupled", lambda st: st.get("flow", {}).get("vortices_fluid", {}).get(
             region), keys80)
         got = [(k, v) for k, v in zip(keys80, counts) if v is not None]
-        if region == "between_discs":
-            ok = bool(got) and all(v == 1 for _, v in got)
+        def holds(k, v, region=region):
+            return v == 1 if region == "between_discs" else (v == 0) if k[0] < 7 else (v >= 1)
+
+        ok = bool(got) and all(holds(k, v) for k, v in got)
+        fs = runs["full"].get(FULL_CASE)
+        if fs is None:
+            full = "not run"
         else:
-            ok = bool(got) and all((v == 0) if k[0] < 7 else (v >= 1) for k, v in got)
-        rows.append(dict(statement=stmt, paper=paper_v,
+            n = fs.get("flow", {}).get("vortices_fluid", {}).get(region)
+            full = (f"fluid: {census(fs, 'vortices_fluid', region) or 'not evaluated'} / beads: "
+                    f"{census(fs, 'vortices_beads', region) or 'not evaluated'}" +
+                    ("" if n is None else f" ({'holds' if holds(FULL_CASE, n) else 'missed'})"))
+        rows.append(dict(statement=stmt, paper=paper_v, full=full,
                          coupled="fluid: " + show(fl, keys80) + " / beads: " + show(bc, keys80),
                          prescribed="beads: " + show(bp, keys80) +
                          " (the prescribed swirl has no meridional flow)",
@@ -462,12 +559,16 @@ def deviation_rows(out_dir=None) -> list[dict]:
              "the map of the collision power")):
         got = [(k, fn(runs["coupled"][k])) for k in all_keys if runs["coupled"].get(k) is not None]
         got = [(k, v) for k, v in got if v is not None]
+        full = full_cell(fn, all_keys, lambda vs, ok=ok: all(ok(v) for v in vs),
+                         value=lambda v: v[0], text=lambda v: v[1])
+        if full == "not evaluated":
+            full = "not evaluated (its run kept no collision maps)"
         if not got:
-            rows.append(dict(statement=stmt, paper=paper_v, coupled="not evaluated",
+            rows.append(dict(statement=stmt, paper=paper_v, coupled="not evaluated", full=full,
                              prescribed="not evaluated",
                              verdict=f"not evaluated (no collision_maps.npz behind {what})"))
             continue
-        rows.append(dict(statement=stmt, paper=paper_v,
+        rows.append(dict(statement=stmt, paper=paper_v, full=full,
                          coupled=show([v[1] for _, v in got], [k for k, _ in got]),
                          prescribed="not run (the shipped table keeps no maps)",
                          verdict=("matches" if all(ok(v[0]) for _, v in got) else "missed") +
@@ -489,11 +590,12 @@ def count(rows) -> dict:
 
 
 def markdown(rows) -> str:
-    lines = ["| seed 001 statement | paper | ours (coupled) | ours (prescribed) | verdict |",
-             "|---|---|---|---|---|"]
+    lines = ["| seed 001 statement | paper | ours (coupled sector) | full slice, gravity, coupled "
+             f"({FULL_CASE[0]:g} m/s, {round(FULL_CASE[1] * 100)} %; not counted) | ours (prescribed) | "
+             "verdict (sector) |", "|---|---|---|---|---|---|"]
     for r in rows:
         lines.append("| " + " | ".join(str(r[k]).replace("|", "/") for k in
-                                       ("statement", "paper", "coupled", "prescribed",
+                                       ("statement", "paper", "coupled", "full", "prescribed",
                                         "verdict")) + " |")
     if rows:
         c = count(rows)
@@ -520,20 +622,32 @@ def parser() -> argparse.ArgumentParser:
     s.add_argument("--fluid", default="coupled,prescribed",
                    help="fluid models to run (comma-separated; default both)")
     s.add_argument("--threads", type=int, help="numba threads (default: all cores)")
+    s.add_argument("--full-slice", action="store_true", help="run: instead seed 001's own "
+                   "configuration at 10 m/s and 80 %% (the whole slice with gravity, 32 theta "
+                   "cells, a checkpoint every 600 s; run again to go on from it), into "
+                   "DIR/c360_v10_f80; summarize: keep it in the summary beside the sector's cases")
     return s
 
 
 def main(argv=None) -> int:
     """``python -m validation.seed001 run|table --out DIR``: print the deviation table (after
-    running the missing cases with ``run``); 2 for a fluid model it does not know."""
+    running the missing cases with ``run``, or with ``--full-slice`` the full slice's case);
+    ``summarize``: keep them in the summary; 2 for a fluid model it does not know or a
+    full slice not run."""
     args = parser().parse_args(argv)
     if args.out is None and args.action != "table":
         print(f"python -m validation.seed001 {args.action}: give --out DIR", file=sys.stderr)
         return 2
     if args.action == "summarize":
-        print(f"wrote {summarize(args.out)}")
+        try:
+            print(f"wrote {summarize(args.out, full_slice=args.full_slice)}")
+        except FileNotFoundError as e:
+            print(f"python -m validation.seed001 summarize: {e}", file=sys.stderr)
+            return 2
         return 0
-    if args.action == "run":
+    if args.action == "run" and args.full_slice:
+        run_full_slice(args.out, threads=args.threads)
+    elif args.action == "run":
         fluids = [f.strip() for f in args.fluid.split(",") if f.strip()]
         bad = [f for f in fluids if f not in FLUIDS]
         if bad:

@@ -48,6 +48,8 @@ def test_the_pages_figures_verdicts_and_count_are_the_summarys(rows):
         cells = page[r["statement"]]
         assert cells[2] == r["coupled"].replace("|", "/"), r["statement"]  # the sector's figures
         assert cells[-1] == r["verdict"], r["statement"]  # with its rule, word for word
+        if S.summary_stats(full_slice=True):  # the full slice's column, once its summary is kept
+            assert cells[3] == r["full"].replace("|", "/"), r["statement"]
     c = S.count(rows)
     text = " ".join(PAGE.read_text(encoding="utf-8").split())
     left = c["not evaluated"] or "none"
@@ -62,3 +64,80 @@ def test_the_table_command_reads_the_summary_without_a_run_folder(capsys):
     out = capsys.readouterr().out
     assert "Coupled runs: " in out and "statements match" in out
     assert S.main(["summarize"]) == 2
+
+
+def _with_full_slice(tmp_path, stats):
+    """The shipped summary with ``stats`` as its full slice's case, written to tmp_path."""
+    doc = json.loads(S.SUMMARY.read_text())
+    doc["full_slice"] = {"runs": {"10 m/s, 80 %": {"tip_speed_m_per_s": 10.0, "filling": 0.8,
+                                                   "stats": stats}}}
+    p = tmp_path / "summary.json"
+    p.write_text(json.dumps(doc))
+    return p
+
+
+def test_the_full_slice_column_is_computed_from_the_summary_and_never_counted(tmp_path, rows):
+    """A summary with a full slice (here, synthetically, the sector's 10 m/s, 80 % case in
+    its place): its column shows the value at its one case and whether the statement holds
+    there; the verdicts and the count stay the sector's."""
+    sector = S.summary_stats()[(10.0, 0.8)]
+    got = S.deviation_rows(summary=_with_full_slice(tmp_path, sector))
+    assert [r["verdict"] for r in got] == [r["verdict"] for r in rows]
+    assert S.count(got) == S.count(rows)
+
+    def full(start):
+        return next(r["full"] for r in got if r["statement"].startswith(start))
+    assert full("mean bead speed / tip speed in V1 at 80 ") == "0.136 (holds)"
+    assert full("mean bead speed / tip speed in V3 at 80 ") == "0.0976 (holds)"  # the sector misses it
+    assert full("angular velocity of the first bead layer") == "0.16 (missed)"
+    assert full("at 90 % filling V3 has the lowest collis").startswith("not run (its one case")
+    assert full("collision density of the chamber about l") == "not evaluated (one tip speed)"
+    assert full("mean bead speed lowest in V3 in all case") == "slowest V2 (missed)"
+    assert full("collision frequency peaks about two bead ") == "0.8 mm (1.0 d) (missed)"
+    assert full("locally highest collision power at the s").endswith("0.88 d from the rim (holds)")
+    assert full("a secondary vortex between disc tip and c") == "fluid: none / beads: none (missed)"
+    # without the maps the map rows cannot be judged there
+    bare = {k: v for k, v in sector.items() if k != "maps"}
+    got = S.deviation_rows(summary=_with_full_slice(tmp_path, bare))
+    assert got[-1]["full"] == "not evaluated (its run kept no collision maps)"
+    assert all(r["full"] == "not run" for r in rows)  # the shipped summary has none yet
+
+
+def test_summarize_keeps_the_sector_cases_and_the_full_slice_apart(tmp_path):
+    """summarize --full-slice adds the full slice's case beside the sector's cases, and a
+    summary of the sector's cases keeps it; each from its own run folders."""
+    shipped = S.summary_stats()
+    out = tmp_path / "runs"
+    for (vt, fl), st in shipped.items():
+        d = S.case_dir(out, "coupled", vt, fl)
+        d.mkdir(parents=True)
+        (d / "stats.json").write_text(json.dumps(st))
+    p = tmp_path / "summary.json"
+    S.summarize(out, path=p)
+    assert S.summary_stats(p) == shipped and S.summary_stats(p, full_slice=True) == {}
+    with pytest.raises(FileNotFoundError, match="c360_v10_f80"):
+        S.summarize(out, path=p, full_slice=True)
+    d = S.case_dir(out, "coupled", 10.0, 0.8, S.FULL_SECTOR_DEG)
+    d.mkdir()
+    (d / "stats.json").write_text(json.dumps(shipped[(6.0, 0.8)]))
+    S.summarize(out, path=p, full_slice=True)
+    assert S.summary_stats(p, full_slice=True) == {(10.0, 0.8): shipped[(6.0, 0.8)]}
+    S.summarize(out, path=p)  # the sector's again: the full slice stays
+    assert S.summary_stats(p) == shipped
+    assert S.summary_stats(p, full_slice=True) == {(10.0, 0.8): shipped[(6.0, 0.8)]}
+    assert S.deviation_rows(out)[0]["full"] == "0.147 (holds)"  # from the run folders too
+
+
+def test_the_full_slice_is_seed_001s_configuration_as_the_page_runs_it():
+    """The campaign's full slice is the scene the page's command runs (disc_slice, its
+    gravity, 360 degrees, 32 theta cells, the sector campaign's protocol)."""
+    from millfmu.dem.scene import load_scene
+
+    sc = S.full_slice_scene()
+    assert sc == load_scene("disc_slice").with_overrides(
+        tip_speed_m_per_s=10.0, filling=0.8, n_theta=32, spin_up_s=1.0, record_s=0.3,
+        sample_every_s=0.01, initial_rotation=0.1)
+    assert sc.geometry.sector_deg == 360.0 and sc.gravity_m_per_s2 == (0.0, -9.81, 0.0)
+    assert sc.coupling.n_theta == 32 and sc.fluid_mode == "coupled"
+    text = PAGE.read_text(encoding="utf-8")
+    assert "python -m validation.seed001 run --out DIR --full-slice" in text
