@@ -73,6 +73,41 @@ def with_values(scene: Scene, values: dict) -> Scene:
     return load_any(scene, overrides={k: float(v) for k, v in values.items()})
 
 
+#: Relative distance beyond the size grid's end edges within which a measured size is taken
+#: as at the edge: psd.csv writes the edges with 6 significant digits (5e-6 relative).
+EDGE_TOLERANCE = 1e-5
+#: A measured feed (rows at t_s = 0) further than this from the scene's feed draws a warning:
+#: sizes by this factor (ln), Q3 and disrupted fractions by this much.
+FEED_MISMATCH_LN = math.log(1.1)
+FEED_MISMATCH_FRACTION = 0.05
+
+
+def feed_mismatch(scene: Scene, data: Data) -> list:
+    """A warning (a list of none or one) where the data's feed (rows at t_s = 0) differs
+    from the scene's feed, which the fit starts from: sizes beyond 10 %, Q3 or disrupted
+    fractions beyond 0.05."""
+    if not data.feed:
+        return []
+    model = MillModel(scene)
+    out = model.outputs()
+    e = np.log(model.grid.edges_m)
+    off = []
+    for _t, col, x, v in data.feed:
+        if col == "Q3":
+            m = float(np.interp(math.log(x), e, q3_at_edges(out)))
+            if abs(m - v) > FEED_MISMATCH_FRACTION:
+                off.append(f"Q3 at x_m = {x:g} m {v:g} against {m:.3g}")
+        elif col in out:
+            m = float(out[col])
+            if (abs(math.log(v / m)) > FEED_MISMATCH_LN if col in SIZE_COLUMNS
+                    else abs(m - v) > FEED_MISMATCH_FRACTION):
+                off.append(f"{col} {v:g} against {m:.4g}")
+    if not off:
+        return []
+    return [f"{data.source}: the measured feed (t_s = 0) differs from the scene's ({', '.join(off)}); the fit "
+            "starts from the scene's feed: set [feed] to the measured one"]
+
+
 class Predictor:
     """The model's values at the data's times and sizes for given constants."""
 
@@ -84,9 +119,10 @@ class Predictor:
         lo, hi = model.grid.edges_m[0], model.grid.edges_m[-1]
         for t, col, x, v in data.rows:
             size = x if x is not None else (v if col in SIZE_COLUMNS else None)
-            if check_sizes and size is not None and not lo <= size <= hi:
-                raise CalibrationError(f"{data.source}: {('x_m' if x is not None else col)} = {size:g} m at t_s = "
-                                       f"{t:g}: outside the scene's size grid [{lo:.4g}, {hi:.4g}] m; widen [grid] "
+            # an edge written with 6 significant digits (psd.csv's header) may lie just outside
+            if check_sizes and size is not None and not lo * (1 - EDGE_TOLERANCE) <= size <= hi * (1 + EDGE_TOLERANCE):
+                raise CalibrationError(f"{data.source}: {('x_m' if x is not None else col)} = {size:.6g} m at t_s = "
+                                       f"{t:g}: outside the scene's size grid [{lo:.6g}, {hi:.6g}] m; widen [grid] "
                                        "(x_min_m, x_max_m)")
         if data.kind == "disrupted" and scene.material.model != "yeast":
             raise CalibrationError(f"{data.source}: disrupted_fraction needs a cell scene (material.model = 'yeast'), "
@@ -187,7 +223,7 @@ class Calibration:
         parts = []
         for k, c in self.constants.items():
             ci = f" (95 % interval {c.ci95[0]:.4g} to {c.ci95[1]:.4g})" if c.ci95 else " (exact, no interval)"
-            parts.append(f"{k} = {c.value:.6g} {c.unit}{ci}")
+            parts.append(f"{k} = {c.value:.6g}{_unit(c.unit)}{ci}")
         return (f"{', '.join(parts)} fitted at this operating point to {Path(self.data_source).name} (sha256 "
                 f"{self.data_sha256[:16]}...) by millfmu calibrate on {self.date_utc}, rms residual "
                 f"{self.rms_residual:.3g} ({self.residual_unit})")
@@ -197,7 +233,7 @@ class Calibration:
                f"{self.dof} degrees of freedom)"]
         for k, c in self.constants.items():
             ci = f"95 % interval [{c.ci95[0]:.4g}, {c.ci95[1]:.4g}]" if c.ci95 else "no interval (no degree of freedom)"
-            out.append(f"  {k} = {c.value:.5g} {c.unit}  ({ci}; start {c.start:.4g})")
+            out.append(f"  {k} = {c.value:.5g}{_unit(c.unit)}  ({ci}; start {c.start:.4g})")
         if self.correlation is not None and len(self.constants) == 2:
             out.append(f"  correlation of the pair: {self.correlation[0][1]:+.3f}")
         out.append(f"  rms residual {self.rms_residual:.3g} ({self.residual_unit})")
@@ -206,6 +242,11 @@ class Calibration:
         out.extend(f"  warning: lack of fit: {w}" for w in self.lack_of_fit)
         out.extend(f"  note: {n}" for n in self.notes)
         return "\n".join(out)
+
+
+def _unit(unit: str) -> str:
+    """' UNIT' after a value; nothing for a dimensionless constant (unit '1')."""
+    return "" if unit in ("1", "") else f" {unit}"
 
 
 def _other_constants(scene: Scene, key: str) -> list:
@@ -265,6 +306,7 @@ def calibrate(scene, data, fit, start: dict | None = None, progress=None,
     notes = []
     if data.feed_rows:
         notes.append(f"{data.feed_rows} row(s) at t_s = 0 describe the feed (the scene's) and were not fitted")
+    notes += feed_mismatch(scene, data)
     model = choose_error_model(data, p, error_model, notes)
     iv = None
     if n > p:

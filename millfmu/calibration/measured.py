@@ -65,6 +65,9 @@ class Data:
     feed_rows: int = 0
     #: What the data's reader noticed that does not stop a fit (duplicate measurements).
     notes: tuple = ()
+    #: The rows at t = 0 (the feed) as (0.0, column, x_m or None, value), checked as the
+    #: others: what a fit compares with the scene's feed, not fits.
+    feed: tuple = ()
 
     @property
     def times_s(self) -> list:
@@ -97,9 +100,13 @@ def _header(reader: list, source: str) -> tuple[list, set, str]:
     allowed = ("t_s",) + SIZE_COLUMNS + ("x_m", "Q3", "disrupted_fraction")
     unknown = [h for h in header if h not in allowed]
     if unknown or "t_s" not in header or len(set(header)) != len(header):
+        # a spreadsheet's export in a comma-decimal locale separates by ';' (or tabs)
+        sep = next((c for c in (";", "\t") if len(header) == 1 and c in header[0]), None)
         raise CalibrationError(f"{source}: header {','.join(header)!r}: needs t_s and either some of x10_m, x50_m, "
                                "x90_m, or x_m and Q3, or disrupted_fraction (each once)"
-                               + (f"; unknown column(s) {unknown}" if unknown else ""))
+                               + (f"; unknown column(s) {unknown}" if unknown else "")
+                               + (f"; the columns are separated by {sep!r}: separate them by commas, with '.' as "
+                                  "the decimal point" if sep else ""))
     cols = set(header) - {"t_s"}
     kinds = {"sizes": cols <= set(SIZE_COLUMNS) and bool(cols), "q3": cols == {"x_m", "Q3"},
              "disrupted": cols == {"disrupted_fraction"}}
@@ -154,7 +161,7 @@ def parse_data(text: str, source: str = "data") -> Data:
         raise CalibrationError(f"{source}: no header and no data rows")
     reader = list(csv.reader(io.StringIO("\n".join(ln for _, ln in lines))))
     header, cols, kind = _header(reader, source)
-    rows, feed = [], 0
+    rows, feed, feed_values, q3_lines = [], 0, [], []
     for (lineno, _), rec in zip(lines[1:], reader[1:]):
         where = f"{source} line {lineno}"
         if len(rec) != len(header):
@@ -163,12 +170,17 @@ def parse_data(text: str, source: str = "data") -> Data:
         t = _num(cell["t_s"], where, "t_s")
         if t < 0.0:
             raise CalibrationError(f"{where}: column t_s = {t:g}: must be >= 0 s")
+        got = _row_values(cell, kind, cols, where, t)
+        if kind == "q3":
+            q3_lines += [(lineno, r) for r in got]
         if t == 0.0:
             feed += 1
+            feed_values += got
             continue
-        rows += _row_values(cell, kind, cols, where, t)
+        rows += got
     if not rows:
         raise CalibrationError(f"{source}: no measured values after t_s = 0")
+    _check_q3_rises(q3_lines, source)
     seen, dup = set(), []
     for t, col, x, _ in rows:
         key = (t, col, x)
@@ -178,7 +190,23 @@ def parse_data(text: str, source: str = "data") -> Data:
     notes = tuple(f"{source}: {col}{'' if x is None else f' at x_m = {x:g}'} at t_s = {t:g} is given more than once; "
                   "each is fitted as an independent measurement (average repeats first if they are one sample's)"
                   for t, col, x in dup)
-    return Data(kind, tuple(rows), source, hashlib.sha256(text.encode()).hexdigest(), feed, notes)
+    return Data(kind, tuple(rows), source, hashlib.sha256(text.encode()).hexdigest(), feed, notes,
+                tuple(feed_values))
+
+
+def _check_q3_rises(q3_lines: list, source: str):
+    """Refuse a Q3 that falls with size at one time: a cumulative distribution does not.
+    ``q3_lines``: (line number, (t_s, 'Q3', x_m, Q3)) in the file's order."""
+    by_t = {}
+    for lineno, (t, _c, x, q) in q3_lines:
+        by_t.setdefault(t, []).append((x, q, lineno))
+    for t, pts in by_t.items():
+        pts.sort()
+        for (x1, q1, l1), (x2, q2, l2) in zip(pts, pts[1:]):
+            if q2 < q1:
+                raise CalibrationError(f"{source} line {l2}: Q3 = {q2:g} at x_m = {x2:g} m is below Q3 = {q1:g} at "
+                                       f"x_m = {x1:g} m (line {l1}), both at t_s = {t:g}: Q3 is a cumulative "
+                                       "distribution and must not fall with size")
 
 
 def read_data(path) -> Data:

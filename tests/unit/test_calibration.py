@@ -308,3 +308,62 @@ def test_a_measurement_given_twice_is_noted(tmp_path, capsys):
     f.write_text(text)
     assert main(["calibrate", "--data", str(f), "--fit", "mill.stress_frequency_factor", "-q"]) == 0
     assert "warning: " in capsys.readouterr().err
+
+
+def test_q3_that_falls_with_size_is_refused_by_line():
+    from millfmu.calibration import CalibrationError, parse_data
+
+    ok = "t_s,x_m,Q3\n60,1e-6,0.2\n60,2e-6,0.5\n60,4e-6,0.5\n120,1e-6,0.4\n"
+    assert len(parse_data(ok, "lab.csv").rows) == 4  # equal neighbours and another time's lower value pass
+    with pytest.raises(CalibrationError) as e:  # the lines in any order: sorted by size per time
+        parse_data("t_s,x_m,Q3\n60,4e-6,0.45\n60,1e-6,0.2\n60,2e-6,0.5\n", "lab.csv")
+    assert ("lab.csv line 2: Q3 = 0.45 at x_m = 4e-06 m is below Q3 = 0.5 at x_m = 2e-06 m (line 4), both at "
+            "t_s = 60: Q3 is a cumulative distribution and must not fall with size") in str(e.value)
+    with pytest.raises(CalibrationError, match="line 3: Q3 = 0.1"):  # the feed's rows are checked too
+        parse_data("t_s,x_m,Q3\n0,1e-6,0.2\n0,2e-6,0.1\n60,2e-6,0.5\n", "lab.csv")
+
+
+def test_a_measured_feed_unlike_the_scenes_is_noted():
+    """Rows at t_s = 0 are not fitted; where they differ from the scene's feed (which the fit
+    starts from) by more than 10 % in size, the calibration says so, naming each."""
+    scene = millfmu.load_scene()
+    feed = MillModel(scene).outputs()
+    text = synthetic(scene, (120, 600, 1800), 0.0, columns=("x50_m",))
+    same = text.replace("t_s,x50_m\n", f"t_s,x50_m\n0,{feed['x50_m'] * 1.05:.6e}\n")
+    c = cal.calibrate(scene, same, ["mill.stress_frequency_factor"])
+    assert not any("measured feed" in n for n in c.notes)
+    other = text.replace("t_s,x50_m\n", "t_s,x50_m\n0,2e-5\n")
+    c = cal.calibrate(scene, other, ["mill.stress_frequency_factor"])
+    (note,) = [n for n in c.notes if "measured feed" in n]
+    assert f"x50_m 2e-05 against {feed['x50_m']:.4g}" in note and "set [feed] to the measured one" in note
+    assert c.value("mill.stress_frequency_factor") == pytest.approx(number_key(scene, "mill.stress_frequency_factor"),
+                                                                    rel=1e-6)  # the feed row is not fitted
+
+
+def test_sizes_at_the_grids_edge_as_psd_csv_writes_them_are_accepted():
+    """psd.csv's header writes the grid's edges with 6 significant digits; the top edge so
+    written lies just above the grid, and is taken as the edge."""
+    from millfmu.calibration.fitting import Predictor
+
+    scene = millfmu.load_scene()
+    hi = MillModel(scene).grid.edges_m[-1]
+    top = float(f"{hi:.6g}")
+    assert top > hi
+    text = f"t_s,x_m,Q3\n60,{top:.6g},1\n60,5e-6,0.5\n"
+    Predictor(scene, cal.parse_data(text))  # accepted
+    with pytest.raises(cal.CalibrationError, match=f"x_m = {hi * 1.001:.6g} m at t_s = 60: outside the scene's "
+                                                   rf"size grid \[2e-08, {hi:.6g}\] m"):
+        Predictor(scene, cal.parse_data(f"t_s,x_m,Q3\n60,{hi * 1.001:.6g},1\n"))
+
+
+def test_a_semicolon_separated_file_gets_the_separator_named():
+    with pytest.raises(cal.CalibrationError, match="separated by ';': separate them by commas"):
+        cal.parse_data("t_s;x50_m\n60;5e-6\n", "lab.csv")
+
+
+def test_a_dimensionless_constant_is_printed_without_a_unit(capsys):
+    from millfmu.cli import main
+
+    assert main(["calibrate", "--data", "limestone_standin_batch.csv", "--fit", "mill.stress_frequency_factor",
+                 "-q"]) == 0
+    assert "  mill.stress_frequency_factor = 1.0013  (95 % interval [0.9968, 1.006]" in capsys.readouterr().out
