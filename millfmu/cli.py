@@ -204,20 +204,27 @@ def build_parser() -> argparse.ArgumentParser:
     r.set_defaults(func=_cmd_run)
 
     e = sub.add_parser("examples",
-                       help="list the shipped example scenes and data with their paths (commands take them by name)")
+                       help="list the shipped example scenes and data with their paths (commands take them by name)",
+                       description="List the shipped example scenes and stand-in data with their paths; run, "
+                                   "calibrate and rates take them by name.")
     e.set_defaults(func=_cmd_examples)
 
     k = sub.add_parser("scene-keys", help="list every scene key with unit, default and allowed values")
     k.add_argument("--default", action="store_true", help="print the embedded default scene instead")
     k.set_defaults(func=_cmd_scene_keys)
 
-    b = sub.add_parser("bench", help="benchmarks (printed ratios against a baseline in the same run)")
+    b = sub.add_parser("bench", help="benchmarks (printed ratios against a baseline in the same run)",
+                       description="Benchmarks: each prints its cost as a ratio against a baseline timed in the "
+                                   "same run.")
     bsub = b.add_subparsers(dest="bench", metavar="WHAT")
     bsub.required = True
     bp = bsub.add_parser("pbm", help="population balance step cost, and against scipy's BDF at equal accuracy")
-    bp.add_argument("--classes", type=whole_number(2), nargs="+", default=[50, 100, 200])
-    bp.add_argument("--hours", type=positive_number, default=1.0, help="simulated batch time [h] at 1 s steps")
-    bp.add_argument("--repeats", type=whole_number(1), default=3)
+    bp.add_argument("--classes", type=whole_number(2), nargs="+", default=[50, 100, 200],
+                    help="size classes of the grids to time (default: 50 100 200)")
+    bp.add_argument("--hours", type=positive_number, default=1.0,
+                    help="simulated batch time [h] at 1 s steps (default: 1)")
+    bp.add_argument("--repeats", type=whole_number(1), default=3,
+                    help="timed repeats, the best counted (default: 3)")
     bp.add_argument("--tanks", type=whole_number(0), default=50,
                     help="tanks in series of the continuous row (0: leave it out)")
     bp.add_argument("--no-dense", action="store_true",

@@ -386,8 +386,8 @@ def _detailed_models(scene, MillModel):
                      f"at {table.anchor}: its change there scales the grid's fields (separability assumed)")
             if tax in table.one_at_a_time_anchor:
                 part = np.asarray(oat[tax].axes[tax], dtype=float)
-                where = (f"{part[0]:g}-{part[-1]:g} {where}; beyond {part[0]:g}-{part[-1]:g} at {table.anchor}: "
-                         f"its change there scales the grid's fields (separability assumed)")
+                where = (f"(of which {part[0]:g}-{part[-1]:g} {where}; beyond {part[0]:g}-{part[-1]:g} at "
+                         f"{table.anchor}: its change there scales the grid's fields, separability assumed)")
             desc[p] = f"DEM table {sd.table!r}, varied one at a time over {ax[0]:g}-{ax[-1]:g} {where}; {beyond}"
             continue
         value = float(np.asarray(table.axes[tax])[0]) if tax in table.axes else fixed.get(tax, math.nan)
@@ -439,8 +439,9 @@ def _check_value(parameter, v, scene):
     hi = {"tip_speed": 40.0, "bead_diameter": 0.05, "bead_density": 20000.0, "solids_mass_fraction": 0.8,
           "filling": min(1.0, 0.64 / (1.0 - scene.mill.bead_porosity))}[parameter]
     if not (math.isfinite(v) and lo < v < hi):
-        raise SceneError(f"--values {parameter}", v, f"must lie in ({lo:g}, {hi:g}) {PARAMETERS[parameter][1]}",
-                         "millfmu rates")
+        unit = PARAMETERS[parameter][1]
+        raise SceneError(f"--values {parameter}", v,
+                         f"must lie in ({lo:g}, {hi:g})" + ("" if unit == "-" else f" {unit}"), "millfmu rates")
 
 
 def compute(scene, name: str | None = None, sizes_m=None, values: dict | None = None,
@@ -466,7 +467,7 @@ def compute(scene, name: str | None = None, sizes_m=None, values: dict | None = 
     reference = {p: float(getattr(op_ref, PARAMETERS[p][4])) for p in PARAMETERS}
     sizes = tuple(float(x) for x in (sizes_m if sizes_m is not None else _default_sizes(scene, simple)))
     if not sizes or any(not (math.isfinite(x) and x > 0.0) for x in sizes):
-        raise SceneError("--sizes", sizes, "must be positive sizes in m", "millfmu rates")
+        raise SceneError("--sizes", ",".join(f"{x:g}" for x in sizes), "must be positive sizes in m", "millfmu rates")
     from .calibration.measured import MAX_SIZE_M
 
     if max(sizes) > MAX_SIZE_M:

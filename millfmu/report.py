@@ -621,7 +621,8 @@ def register(subparsers):
     r.add_argument("--out", default="report", help="output folder (default ./report): "
                    "report.html, PNGs beside it, the studies' JSON")
     r.add_argument("--quick", action="store_true", help="short versions of each study "
-                   "(minutes; for CI)")
+                   "(about half a minute; a first run on a fresh machine also compiles the DEM's "
+                   "kernels, about 2 minutes)")
     r.add_argument("--dem-runs", default=None, metavar="DIR", help="also a full DEM "
                    "work-precision study: its folder, with the work_precision.json that "
                    "'python -m validation.work_precision table --out DIR' writes (from a "

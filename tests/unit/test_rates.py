@@ -199,9 +199,10 @@ def test_rates_command_writes_csv_json_png(tmp_path, capsys):
 
 
 @pytest.mark.parametrize("argv, key", [
-    (["--values", "tip_speed=50"], "--values tip_speed"),
+    (["--values", "tip_speed=50"], "--values tip_speed = 50.0: must lie in (0, 40) m/s"),
+    (["--values", "filling=0.5,1.5"], "--values filling = 1.5: must lie in (0, 1)\n"),  # no unit '-' after it
     (["--values", "spin=1,2"], "--values"),
-    (["--sizes", "0"], "--sizes"),
+    (["--sizes", "0"], "--sizes = '0': must be positive sizes in m"),
 ])
 def test_rates_command_refuses_bad_options(tmp_path, capsys, argv, key):
     scene = tmp_path / "s.toml"

@@ -1,4 +1,4 @@
-"""``millfmu tables build|status|verify|check|clear``: the stress-energy lookup tables' cache.
+"""millfmu tables build|status|verify|check|clear: the stress-energy lookup tables' cache.
 
 The main CLI calls :func:`register` with its subparsers object. Nothing here imports numba;
 the DEM loads only in the processes that build grid points.
