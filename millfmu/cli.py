@@ -69,6 +69,9 @@ def _cmd_run(args) -> int:
     if band is not None:
         for line in band_lines(band, records[-1]):
             print(line)
+    else:
+        print("prediction band: none (the scene records no fitted constant with its interval, [scene] fitted, and "
+              "takes no DEM table): what is known of its constants is not carried into the result")
     m_err = abs(records[-1]["total_mass_kg"] - (model.m0_kg + model.fed_kg)) / max(model.m0_kg + model.fed_kg, 1e-300)
     print(f"mass balance: relative residual {m_err:.2e}; simulated {scene.run.t_end_s:g} s in {wall:.3g} s wall")
     print("wrote " + ", ".join(str(f) for f in files))

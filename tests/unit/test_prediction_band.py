@@ -64,6 +64,18 @@ def test_a_scene_without_a_table_has_no_band():
     assert prediction_band(millfmu.load_scene(overrides={"kinetics.model": "simple"})) is None
 
 
+def test_a_run_without_a_band_says_so(tmp_path, capsys):
+    """A scene of its own material (no fitted constant of its own, no table): the run says
+    that no band is carried, and why, instead of printing nothing."""
+    from millfmu.cli import main
+
+    f = tmp_path / "s.toml"
+    f.write_text("[material]\nf_mat_kg_per_J_m = 0.01\nx_w_min_J_m_per_kg = 1.0\n")
+    assert main(["run", str(f), "--out", str(tmp_path / "o")]) == 0
+    assert "prediction band: none (the scene records no fitted constant" in capsys.readouterr().out
+    assert json.loads((tmp_path / "o" / "result.json").read_text())["prediction_band"] is None
+
+
 def test_result_json_carries_the_band_and_the_calibration_record(tmp_path):
     """The default scene (simple model): the band is its k_c interval's part alone."""
     r = subprocess.run([sys.executable, "-m", "millfmu.cli", "run", "-q", "--no-plots", "--out", str(tmp_path)],
