@@ -304,6 +304,25 @@ def _check_value(key, v, ftype, md, source):
     return v
 
 
+def _elsewhere(name: str, prefix: str) -> str:
+    """' here: it is a key of [SECTION] (write it there)' where ``name`` is a key of
+    another section of a scene file than ``prefix`` (e.g. a tip speed written at the top)."""
+    hits = []
+
+    def walk(cls, at):
+        for f in fields(cls):
+            key = f"{at}.{f.name}" if at else f.name
+            sub = _section_type(f)
+            if sub is not None:
+                walk(sub, key)
+            elif f.name == name and at != prefix:
+                hits.append(at)
+    walk(Scene, "")
+    if not hits:
+        return ""
+    return " here: it is a key of " + " and of ".join(f"[{h}]" for h in hits) + " (write it there)"
+
+
 def _load_section(cls, table, prefix, source):
     if not isinstance(table, dict):
         raise SceneError(prefix, table, "must be a table", source)
@@ -311,7 +330,8 @@ def _load_section(cls, table, prefix, source):
     for k in table:
         if k not in names:
             raise SceneError(f"{prefix}.{k}" if prefix else k, table[k],
-                             "unknown key" + did_you_mean(k, names) + "; allowed: " + ", ".join(sorted(names)), source)
+                             "unknown key" + (_elsewhere(k, prefix) or did_you_mean(k, names)) + "; allowed: "
+                             + ", ".join(sorted(names)), source)
     kw = {}
     for f in fields(cls):
         key = f"{prefix}.{f.name}" if prefix else f.name

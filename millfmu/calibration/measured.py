@@ -215,7 +215,13 @@ def read_data(path) -> Data:
     try:
         raw = p.read_bytes()
     except OSError as e:
-        raise CalibrationError(f"cannot be read ({e.strerror or e})", "data", str(p)) from None
+        hint = ""
+        if not p.exists() and str(p) == p.name:  # a bare name: perhaps a shipped example misspelt
+            from ..scene import closest, example_files
+
+            near = closest(p.name, [n for n in example_files() if n.endswith(".csv")])
+            hint = f"; did you mean {near}, a shipped example?" if near else ""
+        raise CalibrationError(f"cannot be read ({e.strerror or e}{hint})", "data", str(p)) from None
     try:
         text = utf8_text(raw)
     except NotUtf8 as e:

@@ -74,6 +74,17 @@ def test_an_unknown_key_names_the_allowed_one_closest_to_it(key, hint):
     assert (f"(did you mean {hint}?)" in msg) if hint else "did you mean" not in msg
 
 
+@pytest.mark.parametrize("table, where", [
+    ({"tip_speed_m_per_s": 8.0}, "tip_speed_m_per_s = 8.0: unknown key here: it is a key of [mill] (write it there)"),
+    ({"mill": {"f_mat_kg_per_J_m": 9.0}}, "mill.f_mat_kg_per_J_m = 9.0: unknown key here: it is a key of [material]"),
+    ({"mill": {"density_kg_per_m3": 9.0}}, "it is a key of [beads] and of [material] (write it there)"),
+])
+def test_a_key_in_the_wrong_section_is_sent_to_its_own(table, where):
+    with pytest.raises(SceneError) as e:
+        scene_from_dict(table)
+    assert where in str(e.value)
+
+
 def test_an_unknown_section_names_the_section_closest_to_it():
     with pytest.raises(SceneError, match=r"mil = \{'n_discs': 3\}: unknown key \(did you mean mill\?\)"):
         scene_from_dict({"mil": {"n_discs": 3}})

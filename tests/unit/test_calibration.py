@@ -367,3 +367,12 @@ def test_a_dimensionless_constant_is_printed_without_a_unit(capsys):
     assert main(["calibrate", "--data", "limestone_standin_batch.csv", "--fit", "mill.stress_frequency_factor",
                  "-q"]) == 0
     assert "  mill.stress_frequency_factor = 1.0013  (95 % interval [0.9968, 1.006]" in capsys.readouterr().out
+
+
+def test_a_misspelt_shipped_data_file_is_answered_with_its_name(tmp_path, monkeypatch, capsys):
+    from millfmu.cli import main
+
+    monkeypatch.chdir(tmp_path)
+    assert main(["calibrate", "--data", "limestone_standin.csv", "--fit", "mill.stress_frequency_factor"]) == 2
+    assert ("--data limestone_standin.csv: cannot be read (No such file or directory; did you mean "
+            "limestone_standin_batch.csv, a shipped example?)") in capsys.readouterr().err
