@@ -63,3 +63,23 @@ def test_the_first_bead_layer_against_friction_from_the_kept_summary():
     assert table1 < 0.20 and r03 < table1 < f06 < 0.20 < 0.26 < f10
     se = {k: r["values"]["median SE_tn V2"] for k, r in doc["runs"].items()}
     assert se["friction 1.0"] > se["friction 0.6"] > 4 * se["friction 0.3 (Table 1)"]
+
+
+def test_the_first_bead_layer_against_the_smoothing_from_the_kept_summaries():
+    """The seed 001 page's smoothing runs (validation/runs/seed001_smoothing.json, beside
+    the 1 d reference in seed001_friction.json): the shorter the coupling's smoothing, the
+    faster the first bead layer (none: inside seed 001's 0.20-0.26 within 15 %) and the
+    faster V2 and V3 (none: beyond seed 001's 0.095 and 0.085 by more than 15 %), so no
+    smoothing length matches the layer and the zone speeds together."""
+    import json
+
+    runs = json.loads((ROOT / "validation" / "runs" / "seed001_friction.json").read_text())["runs"]
+    runs = {"1 d": runs["friction 0.3 (Table 1)"],
+            **json.loads((ROOT / "validation" / "runs" / "seed001_smoothing.json").read_text())["runs"]}
+    v = {k: r["values"] for k, r in runs.items()}
+    one, half, none = v["1 d"], v["smoothing 0.5 d"], v["smoothing 0 (trilinear weights only)"]
+    key = "first bead layer / disc angular velocity"
+    assert one[key] < half[key] < none[key] and one[key] < 0.20 * 0.85 <= none[key]
+    for zone, paper in (("V2", 0.095), ("V3", 0.085)):
+        q = f"bead speed / tip speed {zone}"
+        assert one[q] < half[q] < none[q] and none[q] > paper * 1.15
