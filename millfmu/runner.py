@@ -636,8 +636,13 @@ def sizes_figure(model: MillModel, records):
 
 
 def summary_table(records, rows: int = 8) -> str:
-    """A short fixed-width table of the run for the terminal."""
-    idx = np.unique(np.linspace(0, len(records) - 1, min(rows, len(records))).round().astype(int))
+    """A short fixed-width table of the run for the terminal: at most ``rows`` records, every
+    k-th (evenly spaced in time where the outputs are) and the last."""
+    n = len(records)
+    stride = max(1, -(-(n - 1) // max(rows - 1, 1)))
+    idx = list(range(0, n, stride))
+    if idx[-1] != n - 1:
+        idx.append(n - 1)
     yeast = "disrupted_fraction" in records[0]
     head = (f"{'t [s]':>9} {'x10 [um]':>9} {'x50 [um]':>9} {'x90 [um]':>9} {'SF@x50 [1/s]':>13} {'E_m [kJ/kg]':>12} "
             f"{'holdup [kg]':>11}")
