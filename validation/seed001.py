@@ -51,16 +51,29 @@ RECORD_S = 0.3
 WINDOW_S = 0.1
 
 
+def with_smoothing(scene, diameters: float | None):
+    """The scene with the coupled exchange's smoothing length ``diameters`` [bead diameters]
+    (None: the scene's own, 1 d for disc_slice); refused by name below 0."""
+    from dataclasses import replace
+
+    if diameters is None:
+        return scene
+    if not (isinstance(diameters, (int, float)) and diameters >= 0.0 and math.isfinite(diameters)):
+        raise ValueError(f"--smoothing-diameters {diameters!r}: must be a number >= 0 (bead diameters)")
+    return replace(scene, coupling=replace(scene.coupling, smoothing_diameters=float(diameters)))
+
+
 def run_campaign(out_dir, fluids=("coupled", "prescribed"), sector_deg: float = 10.0,
-                 cases=CASES, threads=None, progress=True):
+                 cases=CASES, threads=None, progress=True, smoothing_diameters=None):
     """Run the cases that have no stats.json yet, the protocol of the table in docs/validation-seed001.md:
     no gravity, 10 degree sector, coupled runs started at COUPLED_INITIAL_ROTATION and spun
     up for COUPLED_SPIN_UP_S (27-62 stirrer revolutions at 6-14 m/s); RECORD_S of recording
-    in windows of WINDOW_S; samples every 0.01 s."""
+    in windows of WINDOW_S; samples every 0.01 s. ``smoothing_diameters``: the coupled
+    exchange's smoothing length instead of the scene's (a variant of the campaign)."""
     from millfmu.dem.run import run_scene
     from millfmu.dem.scene import load_scene
 
-    base = load_scene("disc_slice")
+    base = with_smoothing(load_scene("disc_slice"), smoothing_diameters)
     for fluid in fluids:
         for vt, fill in cases:
             d = case_dir(out_dir, fluid, vt, fill, sector_deg)
@@ -201,11 +214,13 @@ def compact(st: dict) -> dict:
     return out
 
 
-def summarize(out_dir, path=None, full_slice: bool = False) -> Path:
+def summarize(out_dir, path=None, full_slice: bool = False, smoothing_diameters=None) -> Path:
     """Write the compact stats of the coupled cases in ``out_dir`` (:func:`compact`) to
     ``path`` (default :data:`SUMMARY`), with the protocol and the command that made them;
     ``full_slice``: instead the full slice's case (:func:`run_full_slice`), kept under
-    ``full_slice`` beside the sector's cases. Either keeps the other's part of the file."""
+    ``full_slice`` beside the sector's cases. Either keeps the other's part of the file.
+    ``smoothing_diameters``: the runs' smoothing length where it is not the scene's (a
+    variant campaign, summarized into a file of its own)."""
     p = Path(path) if path is not None else SUMMARY
     old = json.loads(p.read_text()) if p.exists() else {}
     protocol = {"initial_rotation": COUPLED_INITIAL_ROTATION, "spin_up_s": COUPLED_SPIN_UP_S,
@@ -234,12 +249,19 @@ def summarize(out_dir, path=None, full_slice: bool = False) -> Path:
             if st is not None:
                 runs[f"{vt:g} m/s, {round(fl * 100)} %"] = {"tip_speed_m_per_s": vt, "filling": fl,
                                                             "stats": compact(st)}
+        var = "" if smoothing_diameters is None else f" --smoothing-diameters {smoothing_diameters:g}"
+        dest = "" if path is None else f" --summary validation/runs/{Path(path).name}"
         doc = {"note": ("seed 001's cases on the coupled 10-degree disc sector without gravity: per zone "
                         "what the deviation table reads (units: m3, 1/(m3 s), W, J), the flow's first "
-                        "bead layer and vortex census"),
-               "protocol": dict(protocol, sector_deg=10.0, gravity_m_per_s2=[0.0, 0.0, 0.0], threads=1),
-               "command": "python -m validation.seed001 run --out DIR --fluid coupled --threads 1, then "
-                          "python -m validation.seed001 summarize --out DIR",
+                        "bead layer and vortex census"
+                        + ("" if smoothing_diameters is None else
+                           f"; a variant: the exchange smoothed over {smoothing_diameters:g} bead diameters, "
+                           "not the scene's 1")),
+               "protocol": dict(protocol, sector_deg=10.0, gravity_m_per_s2=[0.0, 0.0, 0.0], threads=1,
+                                **({} if smoothing_diameters is None else
+                                   {"smoothing_diameters": smoothing_diameters})),
+               "command": f"python -m validation.seed001 run --out DIR --fluid coupled --threads 1{var}, then "
+                          f"python -m validation.seed001 summarize --out DIR{var}{dest}",
                "runs": runs}
         if "full_slice" in old:
             doc["full_slice"] = old["full_slice"]
@@ -622,6 +644,11 @@ def parser() -> argparse.ArgumentParser:
     s.add_argument("--fluid", default="coupled,prescribed",
                    help="fluid models to run (comma-separated; default both)")
     s.add_argument("--threads", type=int, help="numba threads (default: all cores)")
+    s.add_argument("--smoothing-diameters", type=float, metavar="D", help="run and summarize: a "
+                   "variant of the sector campaign with the coupled exchange smoothed over D bead "
+                   "diameters instead of the scene's 1")
+    s.add_argument("--summary", metavar="FILE", help="summarize and table: this summary instead of "
+                   "validation/runs/seed001_sector.json")
     s.add_argument("--full-slice", action="store_true", help="run: instead seed 001's own "
                    "configuration at 10 m/s and 80 %% (the whole slice with gravity, 32 theta "
                    "cells, a checkpoint every 600 s; run again to go on from it), into "
@@ -640,7 +667,9 @@ def main(argv=None) -> int:
         return 2
     if args.action == "summarize":
         try:
-            print(f"wrote {summarize(args.out, full_slice=args.full_slice)}")
+            wrote = summarize(args.out, path=args.summary, full_slice=args.full_slice,
+                              smoothing_diameters=args.smoothing_diameters)
+            print(f"wrote {wrote}")
         except FileNotFoundError as e:
             print(f"python -m validation.seed001 summarize: {e}", file=sys.stderr)
             return 2
@@ -654,8 +683,13 @@ def main(argv=None) -> int:
             print(f"python -m validation.seed001: --fluid {args.fluid!r}: allowed "
                   f"{sorted(FLUIDS)}", file=sys.stderr)
             return 2
-        run_campaign(args.out, fluids=fluids, threads=args.threads)
-    print(markdown(deviation_rows(args.out)))
+        try:
+            run_campaign(args.out, fluids=fluids, threads=args.threads,
+                         smoothing_diameters=args.smoothing_diameters)
+        except ValueError as e:
+            print(f"python -m validation.seed001: {e}", file=sys.stderr)
+            return 2
+    print(markdown(deviation_rows(args.out, summary=args.summary)))
     return 0
 
 

@@ -141,3 +141,27 @@ def test_the_full_slice_is_seed_001s_configuration_as_the_page_runs_it():
     assert sc.coupling.n_theta == 32 and sc.fluid_mode == "coupled"
     text = PAGE.read_text(encoding="utf-8")
     assert "python -m validation.seed001 run --out DIR --full-slice" in text
+
+
+def test_a_smoothing_variant_runs_and_is_summarized_as_such(tmp_path):
+    """--smoothing-diameters D: the campaign's scene with the exchange smoothed over D bead
+    diameters (refused below 0), its summary in a file of its own saying so, with the
+    commands that rebuild it."""
+    from millfmu.dem.scene import load_scene
+
+    base = load_scene("disc_slice")
+    assert S.with_smoothing(base, None) is base
+    assert S.with_smoothing(base, 0.0).coupling.smoothing_diameters == 0.0
+    assert S.with_smoothing(base, 0.0).coupling.cell_m == base.coupling.cell_m
+    with pytest.raises(ValueError, match="--smoothing-diameters -1: must be a number >= 0"):
+        S.with_smoothing(base, -1)
+    out = tmp_path / "runs"
+    d = S.case_dir(out, "coupled", 10.0, 0.8)
+    d.mkdir(parents=True)
+    (d / "stats.json").write_text(json.dumps(S.summary_stats()[(10.0, 0.8)]))
+    p = S.summarize(out, path=tmp_path / "seed001_sector_smoothing0.json", smoothing_diameters=0.0)
+    doc = json.loads(p.read_text())
+    assert doc["protocol"]["smoothing_diameters"] == 0.0 and "a variant" in doc["note"]
+    assert doc["command"].endswith("summarize --out DIR --smoothing-diameters 0 --summary "
+                                   "validation/runs/seed001_sector_smoothing0.json")
+    assert S.summary_stats(p) == {(10.0, 0.8): S.summary_stats()[(10.0, 0.8)]}
