@@ -165,3 +165,19 @@ def test_a_smoothing_variant_runs_and_is_summarized_as_such(tmp_path):
     assert doc["command"].endswith("summarize --out DIR --smoothing-diameters 0 --summary "
                                    "validation/runs/seed001_sector_smoothing0.json")
     assert S.summary_stats(p) == {(10.0, 0.8): S.summary_stats()[(10.0, 0.8)]}
+
+
+def test_the_no_smoothing_variants_count_on_the_page_is_its_summarys():
+    """The page's count of the campaign with no smoothing (a variant, not counted) follows
+    from its kept summary, validation/runs/seed001_sector_smoothing0.json."""
+    p = S.SUMMARY.parent / "seed001_sector_smoothing0.json"
+    doc = json.loads(p.read_text())
+    assert doc["protocol"]["smoothing_diameters"] == 0.0
+    assert sorted((r["tip_speed_m_per_s"], r["filling"]) for r in doc["runs"].values()) == sorted(S.CASES)
+    rows = S.deviation_rows(summary=p)
+    c = S.count(rows)
+    text = " ".join(PAGE.read_text(encoding="utf-8").split())
+    assert "with no smoothing (a variant, not counted:" in text
+    assert f"the sector matches {c['matches']} of the {c['statements']} statements: it gains the first layer" in text
+    layer = next(r for r in rows if r["statement"].startswith("angular velocity of the first bead layer"))
+    assert layer["verdict"].startswith("matches")
