@@ -671,7 +671,9 @@ def markdown(rows, label: str = "ours (coupled)") -> str:
 def deviation_table(columns) -> list[dict]:
     """Seed 002's statements against several campaigns: ``columns`` a list of (label,
     folder[, counting]). One dict per statement: statement, paper, ``cells`` (label ->
-    {ours, verdict}) and ``verdict``: the labels under which it matches, or missed. A
+    {ours, verdict}), ``verdict``: the labels under which it matches, or missed, and
+    ``not_counted``: what holds under a variant or at a one-case campaign's case (the end of
+    ``verdict``). A
     campaign of some of the cases (a full slice at one point) is judged on the cases it has,
     and what holds there is shown, not counted: a statement of seed 002's cases is matched
     by a campaign of all of them."""
@@ -702,14 +704,13 @@ def deviation_table(columns) -> list[dict]:
         own = [(lab, c) for lab, c in r["cells"].items() if not c["variant"] and not c["partial"]]
         ok = named(own)
         judged = any(c["verdict"].startswith(("matches", "missed")) for _, c in own)
-        r["verdict"] = ("matches under " + ", ".join(ok) if ok else
-                        "missed under all" if judged else "not evaluated")
         var = named((lab, c) for lab, c in r["cells"].items() if c["variant"])
-        if var:
-            r["verdict"] += "; not counted: holds under the variant " + ", ".join(var)
         some = named((lab, c) for lab, c in r["cells"].items() if c["partial"] and not c["variant"])
-        if some:
-            r["verdict"] += "; not counted: holds at its case under " + ", ".join(some)
+        # what holds under a variant or at a one-case campaign's case, shown after any verdict
+        r["not_counted"] = (("; not counted: holds under the variant " + ", ".join(var) if var else "") +
+                            ("; not counted: holds at its case under " + ", ".join(some) if some else ""))
+        r["verdict"] = ("matches under " + ", ".join(ok) if ok else
+                        "missed under all" if judged else "not evaluated") + r["not_counted"]
         rows.append(r)
     return rows
 
@@ -772,9 +773,8 @@ def markdown_columns(rows) -> str:
              "|---" * (3 + len(labels)) + "|"]
     for r in rows:
         cells = [f"{c['verdict']}: {c['ours']}" for c in r["cells"].values()]
-        tail = r["verdict"].find("; not counted: holds")
         lines.append(f"| {r['statement']} | {r['paper']} | " + " | ".join(cells) +
-                     f" | {verdict_cell(r)}{r['verdict'][tail:] if tail >= 0 else ''} |")
+                     f" | {verdict_cell(r)}{r['not_counted']} |")
     if rows:
         c = count(rows)
         lines += ["", f"On the paper's mill, of {c['statements']} statements: " +
