@@ -393,7 +393,8 @@ def deviation_rows(out_dir=None, summary=None) -> list[dict]:
 
     def full_cell(fn, keys, accept, value=lambda v: v, text=None):
         """The full slice's cell: its value at its one case (fn(stats), shown by text, judged
-        by accept([value]))) and whether the statement holds there."""
+        by accept([value]))) and whether the statement holds there (nothing to judge where
+        value is None)."""
         if not has_full:
             return "not run"
         if FULL_CASE not in keys:
@@ -402,7 +403,8 @@ def deviation_rows(out_dir=None, summary=None) -> list[dict]:
         if v is None:
             return "not evaluated"
         txt = text(v) if text else v if isinstance(v, str) else _fmt(v)
-        return f"{txt} ({'holds' if accept([value(v)]) else 'missed'})"
+        judged = value(v)
+        return txt if judged is None else f"{txt} ({'holds' if accept([judged]) else 'missed'})"
 
     def add_row(statement, paper, fn, keys, accept, note=""):
         """A row from fn(stats) per case in keys; verdict from accept(coupled values)."""
@@ -523,14 +525,15 @@ def deviation_rows(out_dir=None, summary=None) -> list[dict]:
             return v == 1 if region == "between_discs" else (v == 0) if k[0] < 7 else (v >= 1)
 
         ok = bool(got) and all(holds(k, v) for k, v in got)
-        fs = runs["full"].get(FULL_CASE)
-        if fs is None:
-            full = "not run"
-        else:
-            n = fs.get("flow", {}).get("vortices_fluid", {}).get(region)
-            full = (f"fluid: {census(fs, 'vortices_fluid', region) or 'not evaluated'} / beads: "
-                    f"{census(fs, 'vortices_beads', region) or 'not evaluated'}" +
-                    ("" if n is None else f" ({'holds' if holds(FULL_CASE, n) else 'missed'})"))
+
+        def full_census(st, region=region):
+            """(the fluid's count there, both censuses as text)."""
+            return (st.get("flow", {}).get("vortices_fluid", {}).get(region),
+                    f"fluid: {census(st, 'vortices_fluid', region) or 'not evaluated'} / beads: "
+                    f"{census(st, 'vortices_beads', region) or 'not evaluated'}")
+
+        full = full_cell(full_census, keys80, lambda ns, holds=holds: all(holds(FULL_CASE, n) for n in ns),
+                         value=lambda v: v[0], text=lambda v: v[1])
         rows.append(dict(statement=stmt, paper=paper_v, full=full,
                          coupled="fluid: " + show(fl, keys80) + " / beads: " + show(bc, keys80),
                          prescribed="beads: " + show(bp, keys80) +
