@@ -307,17 +307,8 @@ def _check_value(key, v, ftype, md, source):
 def _elsewhere(name: str, prefix: str) -> str:
     """' here: it is a key of [SECTION] (write it there)' where ``name`` is a key of
     another section of a scene file than ``prefix`` (e.g. a tip speed written at the top)."""
-    hits = []
-
-    def walk(cls, at):
-        for f in fields(cls):
-            key = f"{at}.{f.name}" if at else f.name
-            sub = _section_type(f)
-            if sub is not None:
-                walk(sub, key)
-            elif f.name == name and at != prefix:
-                hits.append(at)
-    walk(Scene, "")
+    hits = [at for at, _, leaf in (k.rpartition(".") for k, *_ in iter_keys(default_obj=None))
+            if leaf == name and at != prefix]
     if not hits:
         return ""
     return " here: it is a key of " + " and of ".join(f"[{h}]" for h in hits) + " (write it there)"
