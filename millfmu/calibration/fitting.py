@@ -82,6 +82,15 @@ FEED_MISMATCH_LN = math.log(1.1)
 FEED_MISMATCH_FRACTION = 0.05
 
 
+def model_value(out: dict, log_edges, col: str, x: float | None) -> float | None:
+    """The model's value of a data row's column: Q3 at size x [m] from the outputs ``out``
+    (log_edges: ln of the grid's edges), else the output of that name; None where the
+    outputs have none."""
+    if col == "Q3":
+        return float(np.interp(math.log(x), log_edges, q3_at_edges(out)))
+    return float(out[col]) if col in out else None
+
+
 def feed_mismatch(scene: Scene, data: Data) -> list:
     """A warning (a list of none or one) where the data's feed (rows at t_s = 0) differs
     from the scene's feed, which the fit starts from: sizes beyond 10 %, Q3 or disrupted
@@ -93,15 +102,15 @@ def feed_mismatch(scene: Scene, data: Data) -> list:
     e = np.log(model.grid.edges_m)
     off = []
     for _t, col, x, v in data.feed:
+        m = model_value(out, e, col, x)
+        if m is None:
+            continue
         if col == "Q3":
-            m = float(np.interp(math.log(x), e, q3_at_edges(out)))
             if abs(m - v) > FEED_MISMATCH_FRACTION:
                 off.append(f"Q3 at x_m = {x:g} m {v:g} against {m:.3g}")
-        elif col in out:
-            m = float(out[col])
-            if (abs(math.log(v / m)) > FEED_MISMATCH_LN if col in SIZE_COLUMNS
-                    else abs(m - v) > FEED_MISMATCH_FRACTION):
-                off.append(f"{col} {v:g} against {m:.4g}")
+        elif (abs(math.log(v / m)) > FEED_MISMATCH_LN if col in SIZE_COLUMNS
+              else abs(m - v) > FEED_MISMATCH_FRACTION):
+            off.append(f"{col} {v:g} against {m:.4g}")
     if not off:
         return []
     return [f"{data.source}: the measured feed (t_s = 0) differs from the scene's ({', '.join(off)}); the fit "
@@ -139,13 +148,10 @@ class Predictor:
         e = np.log(model.grid.edges_m)
         res = []
         for t, col, x, _v in self.data.rows:
-            out = at[t]
-            if col == "Q3":
-                res.append(float(np.interp(math.log(x), e, q3_at_edges(out))))
-            else:
-                if col not in out:
-                    raise CalibrationError(f"{self.data.source}: scene {scene.scene.name!r} has no output {col}")
-                res.append(float(out[col]))
+            m = model_value(at[t], e, col, x)
+            if m is None:
+                raise CalibrationError(f"{self.data.source}: scene {scene.scene.name!r} has no output {col}")
+            res.append(m)
         return np.asarray(res)
 
     def residuals(self, model_values: np.ndarray) -> np.ndarray:
