@@ -165,6 +165,8 @@ def check_output(out: Path) -> Path:
     its nearest existing folder takes a new file. Creates nothing."""
     from millfmu.runner import OutputError, _existing_ancestor
 
+    if not str(out).strip() or str(out) == ".":  # an empty shell variable (Path("") is ".")
+        raise OutputError(repr(""), "is empty; give a file name ending in .fmu", option="-o")
     if out.suffix != ".fmu":
         raise OutputError(out, "must end in .fmu", option="-o")
     if out.is_dir():
@@ -177,7 +179,8 @@ def check_output(out: Path) -> Path:
         os.close(fd)
         os.unlink(probe)
     except OSError as e:
-        raise OutputError(out, f"cannot write there ({e.strerror or e}: {base}); give a writable place for the FMU",
+        raise OutputError(out, f"cannot write there (making a file in {base} failed: {e.strerror or e}); "
+                          "give a writable place for the FMU",
                           option="-o") from None
     return out
 

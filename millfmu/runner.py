@@ -107,8 +107,10 @@ def check_out_dir(out_dir, option: str = "--out", staged: bool = True) -> Path:
             why = "" if where == out or not staged else (
                 f"; the results are first written into a hidden folder {TEMP_PREFIX}* in {where} beside it and "
                 "switched in with one rename")
-            raise OutputError(out, f"cannot write there ({e.strerror or e}: {where}{why}); give a writable folder",
-                              option) from None
+            # the OS's words alone mislead where the folder exists (a pseudo file system such
+            # as /proc answers "No such file or directory" to a new folder in it)
+            raise OutputError(out, f"cannot write there (making a folder in {where} failed: {e.strerror or e}{why}); "
+                              "give a writable folder", option) from None
     return out
 
 

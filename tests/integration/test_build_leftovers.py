@@ -29,7 +29,8 @@ def test_an_output_that_cannot_be_written_is_exit_2_without_traceback(tmp_path):
     f = tmp_path / "file"
     f.write_text("x")
     for out, why in (("/proc/x.fmu", "-o /proc/x.fmu: cannot write there"), (f / "sub" / "x.fmu", "cannot write there"),
-                     (tmp_path, "must end in .fmu")):
+                     (tmp_path, "must end in .fmu"), ("", "-o '': is empty; give a file name ending in .fmu"),
+                     ("/proc/x.fmu", "making a file in /proc failed")):
         r = _build("-o", out)
         assert r.returncode == 2 and "Traceback" not in r.stderr and why in r.stderr, r.stderr
     d = tmp_path / "d.fmu"
