@@ -53,14 +53,11 @@ WINDOW_S = 0.1
 
 def with_smoothing(scene, diameters: float | None):
     """The scene with the coupled exchange's smoothing length ``diameters`` [bead diameters]
-    (None: the scene's own, 1 d for disc_slice); refused by name below 0."""
-    from dataclasses import replace
-
+    (None: the scene's own, 1 d for disc_slice); refused by name below 0
+    (:meth:`DemScene.with_overrides`)."""
     if diameters is None:
         return scene
-    if not (isinstance(diameters, (int, float)) and diameters >= 0.0 and math.isfinite(diameters)):
-        raise ValueError(f"--smoothing-diameters {diameters!r}: must be a number >= 0 (bead diameters)")
-    return replace(scene, coupling=replace(scene.coupling, smoothing_diameters=float(diameters)))
+    return scene.with_overrides(smoothing_diameters=diameters)
 
 
 def run_campaign(out_dir, fluids=("coupled", "prescribed"), sector_deg: float = 10.0,

@@ -105,7 +105,8 @@ class DemScene:
     def with_overrides(self, **kw) -> DemScene:
         """Copy with run-time overrides (tip_speed_m_per_s, filling, sector_deg, spin_up_s,
         record_s, dt_s, fluid_mode, initial_rotation, primed_s, n_theta: the coupled
-        liquid's theta cells; smoothing: its smoothing (SMOOTHINGS); pressure_solver: its
+        liquid's theta cells; smoothing_diameters: its exchange's smoothing length [bead
+        diameters], >= 0; smoothing: its smoothing (SMOOTHINGS); pressure_solver: its
         pressure equation's solver (PRESSURE_SOLVERS); ``baffles``: a dict of the [mill]
         baffle keys, BAFFLE_KEYS); validated like file values."""
         geo = self.geometry
@@ -117,6 +118,7 @@ class DemScene:
         kw.pop("sector_deg", None)
         mode = kw.pop("fluid_mode", None)
         n_theta = kw.pop("n_theta", None)
+        smoothing_d = kw.pop("smoothing_diameters", None)
         smoothing = kw.pop("smoothing", None)
         pressure_solver = kw.pop("pressure_solver", None)
         if kw.get("filling") is not None and self.placement != "filling":
@@ -134,6 +136,15 @@ class DemScene:
                 raise DemSceneError(f"n_theta = {n_theta}: theta cells are the coupled "
                                     f"liquid's; the fluid here is {new.fluid_mode!r}")
             new = replace(new, coupling=replace(new.coupling, n_theta=n_theta))
+        if smoothing_d is not None:
+            if (isinstance(smoothing_d, bool) or not isinstance(smoothing_d, (int, float))
+                    or not (math.isfinite(smoothing_d) and smoothing_d >= 0.0)):
+                raise DemSceneError(f"smoothing_diameters = {smoothing_d!r}: must be a number >= 0 (bead diameters "
+                                    "over which the coupled exchange is smoothed; 0: none)")
+            if new.coupling is None:
+                raise DemSceneError(f"smoothing_diameters = {smoothing_d!r}: the coupled liquid's; the fluid "
+                                    f"here is {new.fluid_mode!r}")
+            new = replace(new, coupling=replace(new.coupling, smoothing_diameters=float(smoothing_d)))
         # the coupled liquid's choices by name
         for key, value, allowed in (("smoothing", smoothing, SMOOTHINGS),
                                     ("pressure_solver", pressure_solver, PRESSURE_SOLVERS)):

@@ -199,3 +199,15 @@ def test_explicit_sweeps_add_in_the_cell_by_cell_order_to_the_bit(shape, totals)
     _diffuse_cell_by_cell(ref, vol, *a, 4, totals, 2)
     PJ.diffuse(q, vol, *a, 4, totals, np.zeros_like(q), 2)
     assert q.tobytes() == ref.tobytes()
+
+
+def test_the_smoothing_length_as_an_override_and_its_refusals():
+    """smoothing_diameters as a run-time override: the same check as the scene file's key."""
+    sc = load_scene("disc_slice")
+    assert sc.with_overrides(smoothing_diameters=0.5).coupling.smoothing_diameters == 0.5
+    assert sc.with_overrides(smoothing_diameters=0).coupling.cell_m == sc.coupling.cell_m
+    for bad in (-1, float("nan"), float("inf"), True, "1"):
+        with pytest.raises(DemSceneError, match="smoothing_diameters = .*: must be a number >= 0"):
+            sc.with_overrides(smoothing_diameters=bad)
+    with pytest.raises(DemSceneError, match="the coupled liquid's; the fluid here is 'prescribed'"):
+        sc.with_overrides(fluid_mode="prescribed", smoothing_diameters=0.5)

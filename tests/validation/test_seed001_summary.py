@@ -153,7 +153,7 @@ def test_a_smoothing_variant_runs_and_is_summarized_as_such(tmp_path):
     assert S.with_smoothing(base, None) is base
     assert S.with_smoothing(base, 0.0).coupling.smoothing_diameters == 0.0
     assert S.with_smoothing(base, 0.0).coupling.cell_m == base.coupling.cell_m
-    with pytest.raises(ValueError, match="--smoothing-diameters -1: must be a number >= 0"):
+    with pytest.raises(ValueError, match="smoothing_diameters = -1: must be a number >= 0"):
         S.with_smoothing(base, -1)
     out = tmp_path / "runs"
     d = S.case_dir(out, "coupled", 10.0, 0.8)
