@@ -65,13 +65,29 @@ def _cmd_bench_fmu(args) -> int:
 
     from .fmi3_wrapper import WrapperError
 
+    from millfmu.machine import write_record
+    from millfmu.runner import check_record_file
+
+    if args.json is not None:
+        check_record_file(args.json)  # before the builds: OutputError -> exit 2
+    figures = {}
     try:
-        return bench_fmu(classes=args.classes, steps=args.steps, repeats=args.repeats,
-                         fmi_versions=args.fmi_version or (2, 3),
-                         required=bool(args.fmi_version))
+        rc = bench_fmu(classes=args.classes, steps=args.steps, repeats=args.repeats,
+                       fmi_versions=args.fmi_version or (2, 3),
+                       required=bool(args.fmi_version), figures=figures)
     except WrapperError as e:
         print(f"millfmu bench fmu: error: {e}", file=sys.stderr)
         return 1
+    if args.json is not None:
+        opts = "" if args.classes == 100 else f" --classes {args.classes}"
+        opts += "".join(f" --fmi-version {v}" for v in args.fmi_version or ())
+        wrote = write_record(args.json, "millfmu bench fmu" + opts, figures, host=args.host,
+                             unit="doStep + reading all outputs, per step [us], and over the same for a trivial FMU of "
+                                  "that FMI version in the same run [-]; best of "
+                                  f"{args.repeats} x {args.steps} steps of 1 s, {args.classes} size classes",
+                             aim={"fmi2_over_floor": 1.5, "fmi3_over_floor": 2})
+        print(f"wrote {wrote}")
+    return rc
 
 
 def register(subparsers) -> None:
@@ -98,4 +114,7 @@ def register_bench(bench_subparsers) -> None:
     f.add_argument("--repeats", type=whole_number(1), default=5, help="timing runs; the best is reported")
     f.add_argument("--fmi-version", type=int, choices=(2, 3), action="append",
                    help="FMI version to measure (repeatable; default: 2 and 3)")
+    f.add_argument("--json", metavar="FILE", help="also write the figures to FILE as one JSON record (with the "
+                                                  "commit, the date and the machine)")
+    f.add_argument("--host", default="", help="the machine in words, for --json's record")
     f.set_defaults(func=_cmd_bench_fmu)

@@ -149,9 +149,14 @@ def _floor(tmp: Path, fmi_version: int, classes: int, n_values: int, n_scalars: 
     return out
 
 
-def bench_fmu(classes=100, steps=2000, repeats=5, out=print, fmi_versions=(2, 3), required=False) -> int:
+def bench_fmu(classes=100, steps=2000, repeats=5, out=print, fmi_versions=(2, 3), required=False,
+              figures: dict | None = None) -> int:
     """Print the table; ``required``: an FMI 3.0 FMU that cannot be built here is an error
-    (else that version is skipped with the reason)."""
+    (else that version is skipped with the reason). ``figures``: a dict that receives, per
+    FMI version v and mode (batch, continuous), ``fmi{v}_{mode}_over_floor`` [-] and
+    ``fmi{v}_{mode}_step_us``, ``fmi{v}_floor_step_us`` and ``fmi{v}_{mode}_model_step_us``
+    (MillModel.step alone) [us]."""
+    figures = {} if figures is None else figures
     from millfmu.mill import MillModel
     from millfmu.scene import load_scene
 
@@ -189,6 +194,7 @@ def bench_fmu(classes=100, steps=2000, repeats=5, out=print, fmi_versions=(2, 3)
             t_floor = _per_step(floor, f_read, steps, repeats)
             out(f"{'FMU':34s} {'values':>7s} {'per step [us]':>14s} {'/ floor':>8s} {'instantiate [ms]':>17s}")
             out(f"{f'trivial {lib} FMU (floor)':34s} {f_n:7d} {t_floor * 1e6:14.1f} {1.0:8.2f} {f_inst * 1e3:17.1f}")
+            figures[f"fmi{v}_floor_step_us"] = round(t_floor * 1e6, 2)
             for scene, r in rows:
                 fmu, read, n, t_inst = _open(r.fmu, "mill")
                 t_mill = _per_step(fmu, read, steps, repeats)
@@ -200,7 +206,11 @@ def bench_fmu(classes=100, steps=2000, repeats=5, out=print, fmi_versions=(2, 3)
                     for _ in range(steps):
                         model.step(1.0)
                     t_model = min(t_model, (time.perf_counter() - t0) / steps)
-                label = f"mill, {load_scene(scene).operation.mode}"
+                mode = load_scene(scene).operation.mode
+                label = f"mill, {mode}"
+                figures[f"fmi{v}_{mode}_over_floor"] = round(t_mill / t_floor, 3)
+                figures[f"fmi{v}_{mode}_step_us"] = round(t_mill * 1e6, 2)
+                figures[f"fmi{v}_{mode}_model_step_us"] = round(t_model * 1e6, 2)
                 out(f"{label:34s} {n:7d} {t_mill * 1e6:14.1f} {t_mill / t_floor:8.2f} {t_inst * 1e3:17.1f}")
                 out(f"{'  (MillModel.step alone, in-process)':34s} {'':7s} {t_model * 1e6:14.1f} "
                     f"{t_model / t_floor:8.2f}")

@@ -138,7 +138,39 @@ def _cmd_bench_pbm(args) -> int:
         print(f"millfmu: error: bench pbm: --hours {args.hours:g}: allowed 1/3600 h (one 1 s step) or more",
               file=sys.stderr)
         return 2
-    bench_pbm(classes=args.classes, hours=args.hours, repeats=args.repeats, tanks=args.tanks, dense=not args.no_dense)
+    if args.json is not None:
+        from .runner import check_record_file
+
+        check_record_file(args.json)  # before the timings: OutputError -> exit 2
+    rows = bench_pbm(classes=args.classes, hours=args.hours, repeats=args.repeats, tanks=args.tanks,
+                     dense=not args.no_dense)
+    if args.json is not None:
+        from .machine import write_record
+
+        figures = {}
+        for r in rows:
+            if "classes" in r:
+                n = r["classes"]
+                figures.update({f"step_us_{n}_classes": round(r["model_step_us"], 2),
+                                f"exact_step_us_{n}_classes": round(r["step_us"], 3),
+                                f"bdf_restarted_over_ours_{n}_classes": round(r["ratio_steps"], 1),
+                                f"bdf_span_over_ours_{n}_classes": round(r["ratio_span"], 2)})
+        tanks = [r for r in rows if "tanks" in r]
+        for r, what in zip(tanks, ("default", "stiff")):
+            figures[f"tanks_{r['tanks']}_{what}_step_us"] = round(r["step_us"], 2)
+            figures[f"tanks_{r['tanks']}_{what}_propagator_ms"] = round(r["setup_ms"], 3)
+        opts = "".join(f" --{k} {' '.join(map(str, v)) if isinstance(v, list) else v}"
+                       for k, v in (("classes", args.classes), ("hours", args.hours), ("repeats", args.repeats),
+                                    ("tanks", args.tanks))
+                       if v != {"classes": [50, 100, 200], "hours": 1.0, "repeats": 3, "tanks": 50}[k])
+        opts += " --no-dense" if args.no_dense else ""
+        wrote = write_record(args.json, "millfmu bench pbm" + opts, figures, host=args.host,
+                             aim={"step_us_100_classes": 10},
+                             unit="us per MillModel.step with all outputs (step_us), per exact step alone "
+                                  "(exact_step_us); scipy BDF's time over ours at equal accuracy, restarted at every "
+                                  f"1 s step and over the whole span; {args.hours:g} h at 1 s steps, best of "
+                                  f"{args.repeats}; tanks: the continuous mill's step and propagator")
+        print(f"wrote {wrote}")
     return 0
 
 
@@ -233,6 +265,9 @@ def build_parser() -> argparse.ArgumentParser:
     bp.add_argument("--no-dense", action="store_true",
                     help="continuous row without the dense matrix exponential (the method before; tens of seconds at "
                          "50 tanks)")
+    bp.add_argument("--json", metavar="FILE", help="also write the figures to FILE as one JSON record (with the "
+                                                   "commit, the date and the machine)")
+    bp.add_argument("--host", default="", help="the machine in words, for --json's record")
     bp.set_defaults(func=_cmd_bench_pbm)
 
     for mod in PLUGINS:

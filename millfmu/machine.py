@@ -3,9 +3,13 @@ work-precision study), so that their records compare."""
 
 from __future__ import annotations
 
+import datetime
+import json
 import os
 import platform
+import subprocess
 import time
+from pathlib import Path
 
 
 def machine() -> dict:
@@ -25,3 +29,37 @@ def machine() -> dict:
     if hasattr(os, "getloadavg"):
         m["load_average_1min"] = round(os.getloadavg()[0], 2)
     return m
+
+
+def source_commit() -> str:
+    """The short git commit of the millfmu sources where they are a git checkout, else
+    "unknown" (an installed wheel)."""
+    here = Path(__file__).resolve().parent
+    try:
+        r = subprocess.run(["git", "-C", str(here), "rev-parse", "--short", "HEAD"], capture_output=True, text=True,
+                           timeout=10)
+    except (OSError, subprocess.SubprocessError):
+        return "unknown"
+    return r.stdout.strip() if r.returncode == 0 and r.stdout.strip() else "unknown"
+
+
+def write_record(path, command: str, figures: dict, unit: str, aim: dict | None = None, host: str = "",
+                 note: str = "") -> Path:
+    """A benchmark's figures as one JSON record (commit, host, date, command, figures, aim,
+    unit, note, and :func:`machine`), written whole: to a temporary file beside ``path`` and
+    then renamed, so that a failed write leaves the old file. ``host``: the machine in
+    words (``machine()`` records the platform either way)."""
+    path = Path(path)
+    cpu = platform.processor() or platform.machine()
+    rec = {"commit": source_commit(), "host": host or f"{os.cpu_count()} cores, {cpu}",
+           "date": datetime.date.today().isoformat(), "command": command, "figures": figures}
+    if aim:
+        rec["aim"] = aim
+    rec["unit"] = unit
+    if note:
+        rec["note"] = note
+    rec["machine"] = machine()
+    tmp = path.with_name(f".{path.name}.part")
+    tmp.write_text(json.dumps(rec, indent=2) + "\n")
+    tmp.replace(path)
+    return path

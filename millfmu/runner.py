@@ -114,6 +114,28 @@ def check_out_dir(out_dir, option: str = "--out", staged: bool = True) -> Path:
     return out
 
 
+def check_record_file(path, option: str = "--json") -> Path:
+    """OutputError unless ``path`` names a file (not a folder) whose folder exists and takes
+    a new file: checked before a long measurement whose record it is to hold. Creates
+    nothing."""
+    if not str(path).strip():
+        raise OutputError(repr(str(path)), "is empty; give a file name", option)
+    p = Path(path)
+    if p.is_dir():
+        raise OutputError(p, "is a folder; give a file name", option)
+    parent = p.parent if str(p.parent) else Path(".")
+    if not parent.is_dir():
+        raise OutputError(p, f"its folder {parent} does not exist (or is not a folder)", option)
+    try:
+        fd, probe = tempfile.mkstemp(prefix=TEMP_PREFIX + "probe-", dir=parent)
+        os.close(fd)
+        os.unlink(probe)
+    except OSError as e:
+        raise OutputError(p, f"cannot write there (making a file in {parent} failed: {e.strerror or e})",
+                          option) from None
+    return p
+
+
 def pid_alive(pid: int) -> bool:
     """Whether a process of this id runs (one of another user counts as running)."""
     try:

@@ -374,8 +374,9 @@ def test_bench_fmu_command_prints_ratios_against_the_floor(tmp_path):
 
     from .fmu_support import ROOT
 
-    r = subprocess.run([sys.executable, "-m", "millfmu.cli", "bench", "fmu", "--steps", "5", "--repeats", "1"],
-                       capture_output=True, text=True, cwd=ROOT, timeout=300)
+    rec = tmp_path / "bench-fmu.json"
+    r = subprocess.run([sys.executable, "-m", "millfmu.cli", "bench", "fmu", "--steps", "5", "--repeats", "1",
+                        "--json", str(rec), "--host", "test"], capture_output=True, text=True, cwd=ROOT, timeout=300)
     assert r.returncode == 0, r.stderr
     lines = r.stdout.splitlines()
     # One block per FMI version, each against the trivial FMU of its own version (FMI 3.0
@@ -388,3 +389,14 @@ def test_bench_fmu_command_prints_ratios_against_the_floor(tmp_path):
     rows = [ln for ln in lines if ln.startswith("mill, ")]
     assert [ln.split()[1] for ln in rows] == ["batch", "continuous"] * len(libs)
     assert all(ln.split()[2] == "114" for ln in rows)  # 100 classes + 14 scalar outputs
+    # --json: the same figures as one record, each ratio the printed one
+    import json
+
+    d = json.loads(rec.read_text())
+    assert d["command"] == "millfmu bench fmu" and d["host"] == "test" and d["machine"]["cpus"] >= 1
+    versions = [v for v in ("2", "3")[:len(libs)] for _ in range(2)]
+    for ln, v in zip(rows, versions):
+        assert abs(d["figures"][f"fmi{v}_{ln.split()[1]}_over_floor"] - float(ln.split()[4])) <= 0.0051, ln
+    r = subprocess.run([sys.executable, "-m", "millfmu.cli", "bench", "fmu", "--json", str(tmp_path / "no" / "x")],
+                       capture_output=True, text=True, cwd=ROOT, timeout=60)
+    assert r.returncode == 2 and "--json" in r.stderr and "does not exist" in r.stderr and "Traceback" not in r.stderr

@@ -42,3 +42,24 @@ def test_taylor_step_diverges_beyond_its_stability_limit_where_the_exponential_d
     e = expm(1e-3 * a)
     z = np.linalg.matrix_power(e, 20) @ y0
     assert z.min() > -1e-15 and abs(z.sum() - 1.0) < 1e-12
+
+
+def test_bench_pbm_writes_its_figures_as_one_record(tmp_path):
+    """`millfmu bench pbm --json FILE`: the printed figures as one JSON record whose command
+    names the options that were not the defaults (timings not checked)."""
+    import json
+
+    from millfmu.cli import main
+
+    rec = tmp_path / "pbm.json"
+    assert main(["bench", "pbm", "--classes", "20", "--hours", "0.01", "--repeats", "1", "--tanks", "2",
+                 "--json", str(rec), "--host", "a test"]) == 0
+    d = json.loads(rec.read_text())
+    assert d["command"] == "millfmu bench pbm --classes 20 --hours 0.01 --repeats 1 --tanks 2"
+    assert d["host"] == "a test" and set(d["figures"]) == {
+        "step_us_20_classes", "exact_step_us_20_classes", "bdf_restarted_over_ours_20_classes",
+        "bdf_span_over_ours_20_classes", "tanks_2_default_step_us", "tanks_2_default_propagator_ms",
+        "tanks_2_stiff_step_us", "tanks_2_stiff_propagator_ms"}
+    assert all(v > 0 for v in d["figures"].values())
+    assert not list(tmp_path.glob(".*"))  # written whole, no part file left
+    assert main(["bench", "pbm", "--json", str(tmp_path)]) == 2  # a folder: refused before timing
