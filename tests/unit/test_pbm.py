@@ -239,3 +239,22 @@ def test_adaptive_ramp_matches_fine_steps(scene_dict):
     assert np.abs(a.y - b.y).sum() / b.y.sum() < 1e-5
     assert abs(a.total_mass_kg() - a.m0_kg) <= 1e-14 * a.m0_kg
     assert abs(b.total_mass_kg() - b.m0_kg) <= n * np.finfo(float).eps * b.m0_kg  # round-off of n steps
+
+
+def test_no_subnormal_masses_after_a_long_batch():
+    """A class that decays below the smallest normal double is set to zero (a subnormal
+    makes every later product with it several times slower on x86); the mass stays."""
+    from millfmu.kinetics.pbm import SUBNORMAL, flush_subnormal
+    from millfmu.mill import MillModel
+    from millfmu.scene import load_scene
+
+    a = np.array([1.0, 1e-310, -1e-310, 2.2250738585072014e-308, 0.0])
+    assert flush_subnormal(a).tolist() == [1.0, 0.0, 0.0, 2.2250738585072014e-308, 0.0]
+    m = MillModel(load_scene())
+    total = m.y.sum()
+    for _ in range(3000):  # the default scene's coarse classes reach 1e-308 kg within the hour
+        m.step(1.0)
+    y = m.y
+    assert not np.any((y != 0.0) & (np.abs(y) < SUBNORMAL)) and np.all(y >= 0.0)
+    assert np.any(y == 0.0)  # the case reaches the flush
+    assert abs(y.sum() - total) <= 1e-13 * total
