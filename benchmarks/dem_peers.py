@@ -541,6 +541,33 @@ def bench(steps: int = BENCH_STEPS, repeats: int = BENCH_REPEATS, cores=(1, 2),
     return [r for rs in runs.values() for r in rs]
 
 
+def peer_figures(runs: list, cores) -> dict:
+    """The CPU rows of one bed's runs (in the order they ran, :func:`bench`'s return) as
+    figures: per core count n, millfmu.dem's fastest rate over the faster reference's fastest
+    (``ratio_n_cores``), the median of the rounds' ratios (``round_median_n_cores``), and
+    each code's fastest rate [M particle-steps/s]; {} where no reference ran."""
+    by: dict[tuple, list] = {}
+    for r in runs:
+        if r.device == "cpu":
+            by.setdefault((r.code, r.cores), []).append(r)
+    out = {}
+    for nc in sorted(cores):
+        ours = by.get(("millfmu.dem", nc))
+        refs = {c: rs for (c, n), rs in by.items() if n == nc and c != "millfmu.dem"}
+        if not (ours and refs):
+            continue
+        best = {c: max(r.rate for r in rs) for c, rs in refs.items()}
+        faster = max(best, key=best.get)
+        mine = max(r.rate for r in ours)
+        pairs = [a.rate / b.rate for a, b in zip(ours, refs[faster])]
+        out[f"ratio_{nc}_cores"] = round(mine / best[faster], 2)
+        out[f"round_median_{nc}_cores"] = round(float(np.median(pairs)), 2)
+        out[f"ours_M_particle_steps_per_s_{nc}_cores"] = round(mine / 1e6, 2)
+        for c, v in sorted(best.items()):
+            out[f"{c.lower()}_M_particle_steps_per_s_{nc}_cores"] = round(v / 1e6, 2)
+    return out
+
+
 def ratio_lines(runs: dict, cores) -> list[str]:
     """Lines of the speed ratios: for each core count, millfmu.dem's fastest run against
     the faster reference's fastest, and the same ratio round by round (``runs``: name ->
@@ -827,6 +854,10 @@ def parser() -> argparse.ArgumentParser:
     b.add_argument("--regenerate-bed", action="store_true",
                    help="make the bed again (it is made once and cached)")
     b.add_argument("--json", action="store_true", help="also print every run as JSON")
+    b.add_argument("--record", metavar="FILE",
+                   help="write the CPU rows' ratios against the faster of LAMMPS and LIGGGHTS as one "
+                        "JSON record (commit, date, machine; one bed: --bed dense or dilute)")
+    b.add_argument("--host", default="", help="the machine in words, for --record's record")
     b.add_argument("--bed", choices=("dense", "dilute", "both", "none"), default="dense",
                    help="the dense sheared bed (default), the dilute one (a granular gas: "
                         "few contacts, frequent neighbour rebuilds), both in turn, or none "
@@ -877,6 +908,18 @@ def main(argv=None) -> int:
     steps = args.steps or BENCH_STEPS
     cores = tuple(args.cores or (1, 2))
     beds = dict(both=("dense", "dilute"), none=()).get(args.bed, (args.bed,))
+    if args.record:
+        if len(beds) != 1 or args.profile or args.ours_only or args.device == "gpu":
+            print("python -m benchmarks.dem_peers: --record: the CPU rows of one bed against the peers "
+                  "(--bed dense or dilute, without --profile, --ours-only or --device gpu)", file=sys.stderr)
+            return 2
+        from millfmu.runner import OutputError, check_record_file
+
+        try:
+            check_record_file(args.record, "--record")
+        except OutputError as e:
+            print(f"python -m benchmarks.dem_peers: {e}", file=sys.stderr)
+            return 2
     if args.profile:
         if args.coupled:
             from benchmarks.coupled_bench import profile_coupled
@@ -897,6 +940,25 @@ def main(argv=None) -> int:
                       others=not args.ours_only, regenerate=args.regenerate_bed,
                       devices=(args.device,) if args.device else ("cpu", "gpu"), bed=bed)
     out = {"runs": [dict(r.__dict__, rate=r.rate) for r in runs]}
+    if args.record:
+        from millfmu.machine import write_record
+
+        figures = peer_figures(runs, cores)
+        if not figures:
+            print("python -m benchmarks.dem_peers: --record: neither LAMMPS nor LIGGGHTS ran (lmp, liggghts "
+                  "and mpirun on the PATH); nothing written", file=sys.stderr)
+            return 1
+        opts = "" if args.bed == "dense" else f" --bed {args.bed}"
+        opts += "" if cores == (1, 2) else " --cores " + " ".join(map(str, cores))
+        opts += "" if args.steps is None else f" --steps {steps}"
+        opts += "" if args.repeats is None else f" --repeats {args.repeats}"
+        wrote = write_record(args.record, "python -m benchmarks.dem_peers" + opts, figures, host=args.host,
+                             aim={"ratio_2_cores": 1.5},
+                             unit=f"millfmu.dem's particle-steps per second over the faster of LAMMPS and "
+                                  f"LIGGGHTS (fastest runs; and the median of the rounds' ratios), {args.bed} bed, "
+                                  f"{runs[0].beads} beads, {steps} steps, codes alternating in "
+                                  f"{args.repeats or BENCH_REPEATS} rounds")
+        print(f"wrote {wrote}")
     if args.coupled:
         from benchmarks.coupled_bench import row_line, run_coupled_bench
 

@@ -106,6 +106,25 @@ def test_bench_ratio_lines_give_the_bests_and_each_rounds_ratio():
     assert lines == [
         "on 2 core(s): millfmu.dem / LAMMPS (the faster reference) = 1.50; / LIGGGHTS = 3.00",
         "  per round, millfmu.dem / LAMMPS: 1.50, 1.10, 1.25 (median 1.25)"]
+    # the same as --record's figures, from the runs in the order they ran
+    flat = [rs[k] for k in range(3) for rs in runs.values() if k < len(rs)]
+    f = B.peer_figures(flat, (1, 2))
+    assert f == {"ratio_2_cores": 1.5, "round_median_2_cores": 1.25,
+                 "ours_M_particle_steps_per_s_2_cores": 0.1, "lammps_M_particle_steps_per_s_2_cores": 0.07,
+                 "liggghts_M_particle_steps_per_s_2_cores": 0.03}
+    assert B.peer_figures([r for r in flat if r.code == "millfmu.dem"], (1, 2)) == {}
+
+
+def test_bench_record_refusals(tmp_path, capsys):
+    """--record takes one bed's CPU rows against the peers, into a file that can be written;
+    refused before anything runs otherwise."""
+    from benchmarks import dem_peers as B
+
+    assert B.main(["--record", str(tmp_path / "r.json"), "--bed", "both"]) == 2
+    assert "--record: the CPU rows of one bed" in capsys.readouterr().err
+    assert B.main(["--record", str(tmp_path / "no" / "r.json")]) == 2
+    assert "does not exist" in capsys.readouterr().err
+    assert not list(tmp_path.iterdir())
 
 
 def test_zone_volumes_partition_the_pm1_cell_and_follow_seed_order():
