@@ -202,17 +202,18 @@ def order(jobs: list[dict], processes: int) -> tuple[list[int], float]:
     return started, now
 
 
-def processes_here(log=None) -> int:
+def processes_here(log=None, cores: int | None = None) -> int:
     """The compiling processes to start: MILLFMU_COMPILE_PROCESSES where set (1: compile
-    in the run's own process), else the cores this process may use; at most
-    :data:`MAX_PROCESSES`. A value that is no whole number is named (on stderr or ``log``)
-    and the cores are taken."""
+    in the run's own process), else ``cores`` (the cores the run was given) where given,
+    else the cores this process may use; at most :data:`MAX_PROCESSES`. A value that is no
+    whole number is named (on stderr or ``log``) and the cores are taken."""
     import os
 
-    try:
-        cores = len(os.sched_getaffinity(0))
-    except (AttributeError, OSError):
-        cores = os.cpu_count() or 1
+    if cores is None:
+        try:
+            cores = len(os.sched_getaffinity(0))
+        except (AttributeError, OSError):
+            cores = os.cpu_count() or 1
     given = os.environ.get("MILLFMU_COMPILE_PROCESSES", "").strip()
     if given:
         try:
@@ -220,7 +221,7 @@ def processes_here(log=None) -> int:
         except ValueError:
             _say(log)(f"millfmu: MILLFMU_COMPILE_PROCESSES = {given!r} is not a whole number "
                       f"(1 to {MAX_PROCESSES} processes): the cores here are taken")
-    return max(1, min(MAX_PROCESSES, cores))
+    return max(1, min(MAX_PROCESSES, int(cores)))
 
 
 def estimate_s(jobs: list[dict], processes: int) -> float:
@@ -309,7 +310,8 @@ def compile_if_cold(coupled: bool, log=None, processes: int | None = None,
     say = _say(log)
     d = kernel_cache_dir()
     label = "with the coupled liquid" if coupled else "of the DEM"
-    n = processes_here(log) if processes is None else max(1, int(processes))
+    # the variable, where set, says how to compile whatever cores the run was given
+    n = processes_here(log, cores=processes)
     if jobs is None or n < 2:
         est = SECONDS[what] if jobs is None else estimate_s(jobs, 1)
         say(f"millfmu: compiling the kernels {label} for this machine first (about {est:.0f} s "

@@ -281,3 +281,19 @@ def test_a_resumed_run_compiles_a_cold_cache_first(monkeypatch, tmp_path):
     read.clear()
     assert main(["dem", "run", "--resume", str(tmp_path)]) == 2
     assert len(asked) == 1 and len(read) == 1  # read by the resume only
+
+
+def test_the_variable_sets_the_compiling_processes_whatever_cores_the_run_has(monkeypatch):
+    """MILLFMU_COMPILE_PROCESSES, where set, wins over the cores a run was given (dem run
+    --threads), so that 1 compiles in the run's own process; unset, those cores are taken;
+    not a whole number, it is named and the cores are taken."""
+    from millfmu.dem import first_compile as fc
+
+    monkeypatch.delenv("MILLFMU_COMPILE_PROCESSES", raising=False)
+    assert fc.processes_here(cores=2) == 2 and fc.processes_here(cores=99) == fc.MAX_PROCESSES
+    monkeypatch.setenv("MILLFMU_COMPILE_PROCESSES", "1")
+    assert fc.processes_here(cores=2) == 1
+    said = []
+    monkeypatch.setenv("MILLFMU_COMPILE_PROCESSES", "two")
+    assert fc.processes_here(log=said.append, cores=3) == 3
+    assert said and "MILLFMU_COMPILE_PROCESSES = 'two' is not a whole number" in said[0]
