@@ -380,6 +380,9 @@ def main(argv=None) -> int:
     ap.add_argument("--profile", action="store_true", help="instead: where a coupled "
                     "interval's time goes, part by part (the sector on the CPU)")
     ap.add_argument("--json", action="store_true", help="also print the row as JSON")
+    ap.add_argument("--record", metavar="FILE", help="write the row's figures as one JSON record (commit, date, "
+                                                     "machine)")
+    ap.add_argument("--host", default="", help="the machine in words, for --record's record")
     a = ap.parse_args(argv)
     args = ["--bed", "none", "--coupled", a.scene]
     for opt, v in (("--steps", a.steps), ("--repeats", a.repeats), ("--device", a.device),
@@ -389,6 +392,8 @@ def main(argv=None) -> int:
     if a.cores:
         args += ["--cores", *map(str, a.cores)]
     args += ["--profile"] * a.profile + ["--json"] * a.json
+    if a.record:
+        args += ["--record", a.record, "--host", a.host]
     return peers(args)
 
 

@@ -909,9 +909,12 @@ def main(argv=None) -> int:
     cores = tuple(args.cores or (1, 2))
     beds = dict(both=("dense", "dilute"), none=()).get(args.bed, (args.bed,))
     if args.record:
-        if len(beds) != 1 or args.profile or args.ours_only or args.device == "gpu":
+        coupled_only = args.coupled and not beds
+        if args.profile or (not coupled_only and (len(beds) != 1 or args.coupled or args.ours_only
+                                                  or args.device == "gpu")):
             print("python -m benchmarks.dem_peers: --record: the CPU rows of one bed against the peers "
-                  "(--bed dense or dilute, without --profile, --ours-only or --device gpu)", file=sys.stderr)
+                  "(--bed dense or dilute, without --profile, --ours-only or --device gpu), or the coupled "
+                  "row alone (--bed none --coupled)", file=sys.stderr)
             return 2
         from millfmu.runner import OutputError, check_record_file
 
@@ -940,7 +943,25 @@ def main(argv=None) -> int:
                       others=not args.ours_only, regenerate=args.regenerate_bed,
                       devices=(args.device,) if args.device else ("cpu", "gpu"), bed=bed)
     out = {"runs": [dict(r.__dict__, rate=r.rate) for r in runs]}
-    if args.record:
+    if args.record and args.coupled:
+        from millfmu.machine import write_record
+
+        c = out["coupled"]
+        figures = {"added_percent": round(100.0 * c["added_cost"]),
+                   "block_pair_median_percent": round(100.0 * c["added_cost_median"]),
+                   "dem_alone_M_particle_steps_per_s": round(c["dem_particle_steps_per_s"] / 1e6, 2),
+                   "coupled_M_particle_steps_per_s": round(c["coupled_particle_steps_per_s"] / 1e6, 2)}
+        opts = f" {args.coupled}" if args.coupled != "sector" else ""
+        opts += f" --cores {' '.join(map(str, cores))}" if cores != (1, 2) else ""
+        opts += f" --device {args.device}" if args.device else ""
+        wrote = write_record(args.record, "python -m benchmarks.coupled_bench" + opts, figures, host=args.host,
+                             aim={"added_percent": 15},
+                             unit=f"what the coupled liquid and exchange add to the DEM's time [%], {args.coupled}, "
+                                  f"{c['threads']} threads, beads from the {c['start']} start; best of "
+                                  f"{len(c['dem_times_s'])} rounds, and the median of "
+                                  f"{len(c['block_added_costs'])} block pairs")
+        print(f"wrote {wrote}")
+    elif args.record:
         from millfmu.machine import write_record
 
         figures = peer_figures(runs, cores)

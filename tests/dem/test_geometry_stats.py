@@ -122,6 +122,8 @@ def test_bench_record_refusals(tmp_path, capsys):
 
     assert B.main(["--record", str(tmp_path / "r.json"), "--bed", "both"]) == 2
     assert "--record: the CPU rows of one bed" in capsys.readouterr().err
+    assert B.main(["--record", str(tmp_path / "r.json"), "--bed", "dense", "--coupled"]) == 2
+    assert "or the coupled row alone (--bed none --coupled)" in capsys.readouterr().err
     assert B.main(["--record", str(tmp_path / "no" / "r.json")]) == 2
     assert "does not exist" in capsys.readouterr().err
     assert not list(tmp_path.iterdir())
