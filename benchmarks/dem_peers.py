@@ -943,6 +943,14 @@ def main(argv=None) -> int:
                       others=not args.ours_only, regenerate=args.regenerate_bed,
                       devices=(args.device,) if args.device else ("cpu", "gpu"), bed=bed)
     out = {"runs": [dict(r.__dict__, rate=r.rate) for r in runs]}
+    if args.coupled:
+        from benchmarks.coupled_bench import row_line, run_coupled_bench
+
+        out["coupled"] = run_coupled_bench(
+            steps=steps, repeats=args.repeats or 3, threads=max(cores), scene=args.coupled,
+            device="gpu" if args.device == "gpu" else "cpu",
+            start=args.coupled_start).as_dict()
+        print(row_line(out["coupled"]))
     if args.record and args.coupled:
         from millfmu.machine import write_record
 
@@ -954,6 +962,8 @@ def main(argv=None) -> int:
         opts = f" {args.coupled}" if args.coupled != "sector" else ""
         opts += f" --cores {' '.join(map(str, cores))}" if cores != (1, 2) else ""
         opts += f" --device {args.device}" if args.device else ""
+        opts += "" if args.steps is None else f" --steps {steps}"
+        opts += "" if args.repeats is None else f" --repeats {args.repeats}"
         wrote = write_record(args.record, "python -m benchmarks.coupled_bench" + opts, figures, host=args.host,
                              aim={"added_percent": 15},
                              unit=f"what the coupled liquid and exchange add to the DEM's time [%], {args.coupled}, "
@@ -980,14 +990,6 @@ def main(argv=None) -> int:
                                   f"{runs[0].beads} beads, {steps} steps, codes alternating in "
                                   f"{args.repeats or BENCH_REPEATS} rounds")
         print(f"wrote {wrote}")
-    if args.coupled:
-        from benchmarks.coupled_bench import row_line, run_coupled_bench
-
-        out["coupled"] = run_coupled_bench(
-            steps=steps, repeats=args.repeats or 3, threads=max(cores), scene=args.coupled,
-            device="gpu" if args.device == "gpu" else "cpu",
-            start=args.coupled_start).as_dict()
-        print(row_line(out["coupled"]))
     if args.json:
         print(json.dumps(out))
     return 0
