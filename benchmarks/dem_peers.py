@@ -951,45 +951,37 @@ def main(argv=None) -> int:
             device="gpu" if args.device == "gpu" else "cpu",
             start=args.coupled_start).as_dict()
         print(row_line(out["coupled"]))
-    if args.record and args.coupled:
+    if args.record:
         from millfmu.machine import write_record
 
-        c = out["coupled"]
-        figures = {"added_percent": round(100.0 * c["added_cost"]),
-                   "block_pair_median_percent": round(100.0 * c["added_cost_median"]),
-                   "dem_alone_M_particle_steps_per_s": round(c["dem_particle_steps_per_s"] / 1e6, 2),
-                   "coupled_M_particle_steps_per_s": round(c["coupled_particle_steps_per_s"] / 1e6, 2)}
-        opts = f" {args.coupled}" if args.coupled != "sector" else ""
-        opts += f" --cores {' '.join(map(str, cores))}" if cores != (1, 2) else ""
-        opts += f" --device {args.device}" if args.device else ""
-        opts += "" if args.steps is None else f" --steps {steps}"
+        # the options that were not the defaults, as the record's command names them
+        opts = "" if args.steps is None else f" --steps {steps}"
         opts += "" if args.repeats is None else f" --repeats {args.repeats}"
-        wrote = write_record(args.record, "python -m benchmarks.coupled_bench" + opts, figures, host=args.host,
-                             aim={"added_percent": 15},
-                             unit=f"what the coupled liquid and exchange add to the DEM's time [%], {args.coupled}, "
-                                  f"{c['threads']} threads, beads from the {c['start']} start; best of "
-                                  f"{len(c['dem_times_s'])} rounds, and the median of "
-                                  f"{len(c['block_added_costs'])} block pairs")
-        print(f"wrote {wrote}")
-    elif args.record:
-        from millfmu.machine import write_record
-
-        figures = peer_figures(runs, cores)
-        if not figures:
-            print("python -m benchmarks.dem_peers: --record: neither LAMMPS nor LIGGGHTS ran (lmp, liggghts "
-                  "and mpirun on the PATH); nothing written", file=sys.stderr)
-            return 1
-        opts = "" if args.bed == "dense" else f" --bed {args.bed}"
         opts += "" if cores == (1, 2) else " --cores " + " ".join(map(str, cores))
-        opts += "" if args.steps is None else f" --steps {steps}"
-        opts += "" if args.repeats is None else f" --repeats {args.repeats}"
-        wrote = write_record(args.record, "python -m benchmarks.dem_peers" + opts, figures, host=args.host,
-                             aim={"ratio_2_cores": 1.5},
-                             unit=f"millfmu.dem's particle-steps per second over the faster of LAMMPS and "
-                                  f"LIGGGHTS (fastest runs; and the median of the rounds' ratios), {args.bed} bed, "
-                                  f"{runs[0].beads} beads, {steps} steps, codes alternating in "
-                                  f"{args.repeats or BENCH_REPEATS} rounds")
-        print(f"wrote {wrote}")
+        if args.coupled:
+            c = out["coupled"]
+            figures = {"added_percent": round(100.0 * c["added_cost"]),
+                       "block_pair_median_percent": round(100.0 * c["added_cost_median"]),
+                       "dem_alone_M_particle_steps_per_s": round(c["dem_particle_steps_per_s"] / 1e6, 2),
+                       "coupled_M_particle_steps_per_s": round(c["coupled_particle_steps_per_s"] / 1e6, 2)}
+            command = ("python -m benchmarks.coupled_bench" + ("" if args.coupled == "sector" else f" {args.coupled}")
+                       + opts + (f" --device {args.device}" if args.device else ""))
+            aim = {"added_percent": 15}
+            unit = (f"what the coupled liquid and exchange add to the DEM's time [%], {args.coupled}, {c['threads']} "
+                    f"threads, beads from the {c['start']} start; best of {len(c['dem_times_s'])} rounds, and the "
+                    f"median of {len(c['block_added_costs'])} block pairs")
+        else:
+            figures = peer_figures(runs, cores)
+            if not figures:
+                print("python -m benchmarks.dem_peers: --record: neither LAMMPS nor LIGGGHTS ran (lmp, liggghts "
+                      "and mpirun on the PATH); nothing written", file=sys.stderr)
+                return 1
+            command = "python -m benchmarks.dem_peers" + ("" if args.bed == "dense" else f" --bed {args.bed}") + opts
+            aim = {"ratio_2_cores": 1.5}
+            unit = (f"millfmu.dem's particle-steps per second over the faster of LAMMPS and LIGGGHTS (fastest runs; "
+                    f"and the median of the rounds' ratios), {args.bed} bed, {runs[0].beads} beads, {steps} steps, "
+                    f"codes alternating in {args.repeats or BENCH_REPEATS} rounds")
+        print(f"wrote {write_record(args.record, command, figures, host=args.host, aim=aim, unit=unit)}")
     if args.json:
         print(json.dumps(out))
     return 0
