@@ -198,7 +198,7 @@ def test_an_unwritable_output_folder_is_the_one_named(tmp_path, monkeypatch):
     with pytest.raises(runner.OutputError) as e:
         runner.check_out_dir(out)
     msg = str(e.value)
-    assert f"Permission denied: {out})" in msg and f"in {tmp_path} beside it" not in msg
+    assert f"making a folder in {out} failed: Permission denied)" in msg and f"in {tmp_path} beside it" not in msg
 
 
 def test_a_bead_size_the_dem_cell_cannot_hold_is_refused_before_its_cost(tmp_path, capsys):
