@@ -18,12 +18,10 @@ from __future__ import annotations
 
 import hashlib
 import json
-import os
 import re
 import shutil
 import subprocess
 import sys
-import tempfile
 import zipfile
 from dataclasses import dataclass
 from pathlib import Path
@@ -163,7 +161,7 @@ def write_fmu(built: Path, out: Path, replace: dict | None = None):
 def check_output(out: Path) -> Path:
     """OutputError (exit 2) unless ``out`` ends in .fmu and can be written: not a folder, and
     its nearest existing folder takes a new file. Creates nothing."""
-    from millfmu.runner import OutputError, _existing_ancestor
+    from millfmu.runner import OutputError, _existing_ancestor, probe_new_file
 
     if not str(out).strip() or str(out) == ".":  # an empty shell variable (Path("") is ".")
         raise OutputError(repr(""), "is empty; give a file name ending in .fmu", option="-o")
@@ -171,17 +169,8 @@ def check_output(out: Path) -> Path:
         raise OutputError(out, "must end in .fmu", option="-o")
     if out.is_dir():
         raise OutputError(out, "is a folder; give a file name ending in .fmu", option="-o")
-    base = _existing_ancestor(out.parent)
-    try:
-        if not base.is_dir():
-            raise NotADirectoryError(20, "Not a directory")
-        fd, probe = tempfile.mkstemp(prefix=tag(f".{out.name}.") + "probe", dir=base)
-        os.close(fd)
-        os.unlink(probe)
-    except OSError as e:
-        raise OutputError(out, f"cannot write there (making a file in {base} failed: {e.strerror or e}); "
-                          "give a writable place for the FMU",
-                          option="-o") from None
+    probe_new_file(out, _existing_ancestor(out.parent), "-o", prefix=tag(f".{out.name}.") + "probe",
+                   hint="; give a writable place for the FMU")
     return out
 
 

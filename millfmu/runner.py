@@ -126,14 +126,23 @@ def check_record_file(path, option: str = "--json") -> Path:
     parent = p.parent if str(p.parent) else Path(".")
     if not parent.is_dir():
         raise OutputError(p, f"its folder {parent} does not exist (or is not a folder)", option)
+    probe_new_file(p, parent, option)
+    return p
+
+
+def probe_new_file(out, where: Path, option: str, prefix: str = TEMP_PREFIX + "probe-", hint: str = "") -> None:
+    """OutputError for ``out`` (given by ``option``) unless the folder ``where`` takes a new
+    file: one is made there (named ``prefix``...) and removed at once. ``hint``: what to
+    give instead, appended to the message."""
     try:
-        fd, probe = tempfile.mkstemp(prefix=TEMP_PREFIX + "probe-", dir=parent)
+        if not where.is_dir():
+            raise NotADirectoryError(20, "Not a directory")
+        fd, probe = tempfile.mkstemp(prefix=prefix, dir=where)
         os.close(fd)
         os.unlink(probe)
     except OSError as e:
-        raise OutputError(p, f"cannot write there (making a file in {parent} failed: {e.strerror or e})",
+        raise OutputError(out, f"cannot write there (making a file in {where} failed: {e.strerror or e}){hint}",
                           option) from None
-    return p
 
 
 def pid_alive(pid: int) -> bool:
