@@ -60,6 +60,10 @@ def _cmd_host_env(args) -> int:
     return 0
 
 
+#: ``millfmu bench fmu``'s default size classes (its --json record names others)
+BENCH_FMU_CLASSES = 100
+
+
 def _cmd_bench_fmu(args) -> int:
     from .step_cost import bench_fmu
 
@@ -79,7 +83,7 @@ def _cmd_bench_fmu(args) -> int:
         print(f"millfmu bench fmu: error: {e}", file=sys.stderr)
         return 1
     if args.json is not None:
-        opts = "" if args.classes == 100 else f" --classes {args.classes}"
+        opts = "" if args.classes == BENCH_FMU_CLASSES else f" --classes {args.classes}"
         opts += "".join(f" --fmi-version {v}" for v in args.fmi_version or ())
         wrote = write_record(args.json, "millfmu bench fmu" + opts, figures, host=args.host,
                              unit="doStep + reading all outputs, per step [us], and over the same for a trivial FMU of "
@@ -109,7 +113,8 @@ def register_bench(bench_subparsers) -> None:
     f = bench_subparsers.add_parser("fmu",
                                     help="FMU doStep + reading all outputs, against a trivial FMU of the same FMI "
                                          "version in the same run")
-    f.add_argument("--classes", type=whole_number(2), default=100, help="size classes of the mill FMU (default 100)")
+    f.add_argument("--classes", type=whole_number(2), default=BENCH_FMU_CLASSES,
+                   help=f"size classes of the mill FMU (default {BENCH_FMU_CLASSES})")
     f.add_argument("--steps", type=whole_number(1), default=2000, help="steps per timing run")
     f.add_argument("--repeats", type=whole_number(1), default=5, help="timing runs; the best is reported")
     f.add_argument("--fmi-version", type=int, choices=(2, 3), action="append",

@@ -131,6 +131,10 @@ def _cmd_scene_keys(args) -> int:
     return 0
 
 
+#: ``millfmu bench pbm``'s defaults: the options' and those its --json record leaves unnamed
+BENCH_PBM_DEFAULTS = {"classes": [50, 100, 200], "hours": 1.0, "repeats": 3, "tanks": 50}
+
+
 def _cmd_bench_pbm(args) -> int:
     from .studies.pbm_integrators import bench_pbm
 
@@ -161,9 +165,7 @@ def _cmd_bench_pbm(args) -> int:
             figures[f"tanks_{r['tanks']}_{what}_step_us"] = round(r["step_us"], 1)
             figures[f"tanks_{r['tanks']}_{what}_propagator_ms"] = round(r["setup_ms"], 2)
         opts = "".join(f" --{k} {' '.join(map(str, v)) if isinstance(v, list) else v}"
-                       for k, v in (("classes", args.classes), ("hours", args.hours), ("repeats", args.repeats),
-                                    ("tanks", args.tanks))
-                       if v != {"classes": [50, 100, 200], "hours": 1.0, "repeats": 3, "tanks": 50}[k])
+                       for k, default in BENCH_PBM_DEFAULTS.items() if (v := getattr(args, k)) != default)
         opts += " --no-dense" if args.no_dense else ""
         wrote = write_record(args.json, "millfmu bench pbm" + opts, figures, host=args.host,
                              aim={"step_us_100_classes": 10},
@@ -255,13 +257,13 @@ def build_parser() -> argparse.ArgumentParser:
     bsub = b.add_subparsers(dest="bench", metavar="WHAT")
     bsub.required = True
     bp = bsub.add_parser("pbm", help="population balance step cost, and against scipy's BDF at equal accuracy")
-    bp.add_argument("--classes", type=whole_number(2), nargs="+", default=[50, 100, 200],
+    bp.add_argument("--classes", type=whole_number(2), nargs="+", default=BENCH_PBM_DEFAULTS["classes"],
                     help="size classes of the grids to time (default: 50 100 200)")
-    bp.add_argument("--hours", type=positive_number, default=1.0,
+    bp.add_argument("--hours", type=positive_number, default=BENCH_PBM_DEFAULTS["hours"],
                     help="simulated batch time [h] at 1 s steps (default: 1)")
-    bp.add_argument("--repeats", type=whole_number(1), default=3,
+    bp.add_argument("--repeats", type=whole_number(1), default=BENCH_PBM_DEFAULTS["repeats"],
                     help="timed repeats, the best counted (default: 3)")
-    bp.add_argument("--tanks", type=whole_number(0), default=50,
+    bp.add_argument("--tanks", type=whole_number(0), default=BENCH_PBM_DEFAULTS["tanks"],
                     help="tanks in series of the continuous row (0: leave it out)")
     bp.add_argument("--no-dense", action="store_true",
                     help="continuous row without the dense matrix exponential (the method before; tens of seconds at "
