@@ -166,8 +166,7 @@ def flush_subnormal(a: np.ndarray) -> np.ndarray:
 def _clean(p: np.ndarray, column_sum: float) -> np.ndarray:
     """Remove expm round-off: no negative entries, none below the smallest normal double
     (:data:`SUBNORMAL`), each column sums to column_sum."""
-    p = np.maximum(p, 0.0)
-    p[p < SUBNORMAL] = 0.0
+    p = flush_subnormal(np.maximum(p, 0.0))
     s = p.sum(axis=0)
     ok = s > 0.0
     p[:, ok] *= column_sum / s[ok]
