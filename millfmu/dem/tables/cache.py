@@ -629,6 +629,9 @@ def _clear_points(folder: Path, only_stale: bool, kernel_version: str) -> list[s
         f.unlink(missing_ok=True)
         removed.append(f"{POINTS_DIR}/{f.stem}")
     removed += _clear_states(folder, only_stale, kernel_version)
+    from .point_work import clear_running
+
+    removed += [f"{POINTS_DIR}/{r}" for r in clear_running(folder, only_stale, kernel_version)]
     # Temporary files of a point being written live for milliseconds; one older than an
     # hour was left by a killed build.
     for f in [*folder.glob(".tmp-point-*"), *folder.glob(".tmp-state-*")]:

@@ -11,7 +11,6 @@ from __future__ import annotations
 
 import math
 import sys
-import tempfile
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -22,7 +21,8 @@ import numpy as np
 from ..scene import load_scene_dict, scene_from_dict
 from .cache import dem_kernel_version, get_table
 from .cells import dem_cells, dem_scene_at_point
-from .warm_start import run_point, start_of, warm_candidates
+from .point_work import point_work, work_key
+from .warm_start import resume_point, run_point, start_of, warm_candidates
 from ...stress_tables.spec import (COMPONENTS, DEM_BUILDER_ID, DRIFT_FIELDS, QUANTILE_NAMES, TableError,
                    TableSpec, e_ref_J, n_gb_per_m3, norm_log10_edges,
                    scene_at_point)
@@ -125,20 +125,30 @@ class DemBuilder:
         return replace(self, state_dir=str(folder), warm_from=names)
 
     def __call__(self, scene: dict, point: dict) -> dict:
-        s = scene_from_dict(dem_scene_at_point(scene, point))
+        at = dem_scene_at_point(scene, point)
+        s = scene_from_dict(at)
         if s.placement != "filling":
             raise TableError(f"scene {s.name}: beads.placement = {s.placement!r}; tables "
                              f"need placement 'filling'")
-        with tempfile.TemporaryDirectory(prefix="millfmu-table-point-") as tmp:
-            t0 = time.perf_counter()
-            # Two windows, the halves of the recording: their difference shows whether the
-            # recorded state is stationary (manifest "stationarity").
-            # (a warm start from a stored point's settled state where it may: .warm_start)
-            stats, start = run_point(s, dem_scene_at_point(scene, point), tmp, threads=self.threads,
-                                     window_s=0.5 * s.record_s, **self.start_kw())
+        # Two windows, the halves of the recording: their difference shows whether the
+        # recorded state is stationary (manifest "stationarity").
+        window_s = 0.5 * s.record_s
+        kv = dem_kernel_version()
+        kw = dict(threads=self.threads, kernel_version=kv)
+        content = work_key(at, kv, {"window_s": window_s, "warm_spin_up_s": self.warm_spin_up_s})
+        label = ", ".join(f"{k} {v:g}" for k, v in point.items())
+        t0 = time.perf_counter()
+        # in the point store's folder with checkpoints where there is a store (.point_work);
+        # a warm start from a stored point's settled state where it may (.warm_start)
+        with point_work(self.state_dir, content, label) as work:
+            stats, start = work.run(
+                lambda out, every, on_start: run_point(
+                    s, at, out, window_s=window_s, checkpoint_every_s=every, on_start=on_start,
+                    **kw, **self.start_kw()),
+                lambda out, start: resume_point(out, at, start, state_dir=self.state_dir, **kw))
             out = normalize_stats(stats, s)
-            out["drift"] = recording_drift(Path(tmp) / "windows.csv", out["zone_names"])
-        out["wall_time_s"] = time.perf_counter() - t0
+            out["drift"] = recording_drift(work.folder / "windows.csv", out["zone_names"])
+        out["wall_time_s"] = time.perf_counter() - t0 + work.wall_before_s
         out["start"] = start
         return out
 

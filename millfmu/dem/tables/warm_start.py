@@ -423,7 +423,8 @@ def _loop(scene, sim) -> dict:
 
 
 def run_point(scene, scene_at_point: dict, out_dir, *, threads=None, window_s=None,
-              state_dir=None, candidates=None, warm_spin_up_s=None, kernel_version=None):
+              state_dir=None, candidates=None, warm_spin_up_s=None, kernel_version=None,
+              checkpoint_every_s=None, on_start=None):
     """Run the table point ``scene`` (:class:`~millfmu.dem.scene.DemScene`; its scene dict
     ``scene_at_point``) into ``out_dir``; returns (statistics, start record).
 
@@ -434,7 +435,10 @@ def run_point(scene, scene_at_point: dict, out_dir, *, threads=None, window_s=No
     but all lie beyond the range, it says so on stderr and its start record says why
     (``why_cold``). With ``state_dir`` the state at the end of the
     run is saved there (:func:`state_file`) with the start record. ``kernel_version``: the
-    installed DEM's (default :func:`~.cache.dem_kernel_version`)."""
+    installed DEM's (default :func:`~.cache.dem_kernel_version`). ``checkpoint_every_s`` [s
+    of wall time]: keep the run's checkpoint in ``out_dir`` (:func:`~millfmu.dem.run.run_scene`;
+    :func:`resume_point` goes on from it); ``on_start``: called with the start record before
+    the run begins (so that a resumed point knows how it was started)."""
     from millfmu.dem.run import make_simulation, run_scene
 
     if kernel_version is None:
@@ -467,14 +471,51 @@ def run_point(scene, scene_at_point: dict, out_dir, *, threads=None, window_s=No
         except GridError as e:  # as run_scene says it
             raise DemRunError(f"{scene.name}: the coupled liquid's grid: {e}") from None
         start = cold_record(scene, why)
+    if on_start is not None:
+        on_start(start)
     stats = run_scene(run, out_dir, progress=False, threads=threads, window_s=window_s,
+                      checkpoint_every_s=checkpoint_every_s,
                       _state=dict(sim=sim, cpl=cpl, loop=_loop(run, sim)))
-    if state_dir is not None:
-        arrays = capture(sim, cpl)
-        if arrays is not None:
-            try:
-                save_state(state_file(state_dir, scene_at_point, kernel_version), arrays,
-                           {"scene": scene_at_point, "kernel_version": kernel_version, "start": start})
-            except OSError:
-                pass  # the point's result is what counts; a later point starts cold
+    keep_state(state_dir, scene_at_point, kernel_version, sim, cpl, start)
     return stats, start
+
+
+def keep_state(state_dir, scene_at_point: dict, kernel_version: str, sim, cpl, start: dict) -> None:
+    """Save the settled state of a point's finished run (``sim``, ``cpl``) in ``state_dir``
+    (None: nowhere) with its start record, for later points' warm starts."""
+    if state_dir is None:
+        return
+    arrays = capture(sim, cpl)
+    if arrays is not None:
+        try:
+            save_state(state_file(state_dir, scene_at_point, kernel_version), arrays,
+                       {"scene": scene_at_point, "kernel_version": kernel_version, "start": start})
+        except OSError:
+            pass  # the point's result is what counts; a later point starts cold
+
+
+def resume_point(out_dir, scene_at_point: dict, start: dict, *, threads=None, state_dir=None,
+                 kernel_version=None, checkpoint_every_s=None):
+    """Go on with the table point whose run (:func:`run_point` with ``checkpoint_every_s``)
+    left its checkpoint in ``out_dir``; ``start``: the start record the run began with.
+    Returns the statistics, those of the run that was not stopped to the digit (the DEM's
+    resume), and keeps the settled state as :func:`run_point` does. DemRunError (from
+    :func:`~millfmu.dem.run.load_checkpoint`) where the checkpoint cannot be read or was
+    made by DEM sources that do not give the same results."""
+    from millfmu.dem import run as R
+    from millfmu.dem.tables.cache import SAME_DEM_AS, dem_kernel_version
+
+    if kernel_version is None:
+        kernel_version = dem_kernel_version()
+    state = R.load_checkpoint(out_dir)
+    made, here = state["kernel_version"], R._kernel_version()
+    if SAME_DEM_AS.get(made, made) != SAME_DEM_AS.get(here, here):
+        raise R.DemRunError(f"{out_dir}: its checkpoint was made by other DEM sources ({made}); "
+                            f"these are {here}")
+    if threads is not None:
+        state["sim"].threads = int(threads)
+    every = checkpoint_every_s if checkpoint_every_s is not None else state["checkpoint_every_s"]
+    stats = R.run_scene(state["scene"], out_dir, progress=False, window_s=state["window_s"],
+                        contacts=state["contacts"], checkpoint_every_s=every, _state=state)
+    keep_state(state_dir, scene_at_point, kernel_version, state["sim"], state["cpl"], start)
+    return stats

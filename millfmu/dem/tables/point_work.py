@@ -1,0 +1,191 @@
+"""Checkpointed table points: a DEM point that a build (or an on-demand point) runs beside a
+point store keeps its run's checkpoint, so that a build stopped in the middle of a point (a
+killed process, a machine that sleeps or reboots) goes on from there when it is run again,
+instead of from the point's start.
+
+A point of the coupled table with 0.5 mm beads runs for about an hour on one core. Each DEM
+point of a build with a point store runs in its own folder ``<store>/running/<key>/`` (:func:`work_key`:
+sha256 over the point's scene, the DEM kernel version and how the point is run) and keeps
+the DEM's checkpoint there (:mod:`millfmu.dem.run`) every :data:`POINT_CHECKPOINT_EVERY_S`
+of wall time, with the point's start record (``start.json``: warm or cold, from which
+state). A point whose folder holds a checkpoint goes on from it with the start it began
+with, and its result is that of the run that was not stopped, to the digit (the DEM's
+resume: ``tests/dem/test_checkpoint.py``); it says so on stderr. The folder is removed
+when the point's run has ended.
+
+A checkpoint that cannot be used (unreadable, another layout, made by DEM sources that do
+not give the same results) is said on stderr and the point starts again. Without a store,
+or where another process holds the folder (its ``lock``, taken with ``flock``), the point
+runs in a temporary folder without checkpoints. ``millfmu tables clear
+--stale`` removes the folders of other DEM kernel versions (:func:`clear_running`).
+"""
+
+from __future__ import annotations
+
+import json
+import shutil
+import sys
+import tempfile
+import time
+from contextlib import contextmanager
+from pathlib import Path
+
+from ...stress_tables.files import canonical_json, sha256_bytes, write_replacing
+
+try:  # POSIX; elsewhere a point's folder is not locked
+    import fcntl
+except ImportError:  # pragma: no cover - not on the platforms the tests run on
+    fcntl = None
+
+#: [s of wall time] how often a point's run writes its checkpoint: at most this much of a
+#: point's run is lost when a build is stopped (a coupled 0.5 mm point's checkpoint is a few
+#: MB and takes well under a second to write)
+POINT_CHECKPOINT_EVERY_S = 600.0
+#: the folder of a point store that holds the points being run
+RUNNING_DIR = "running"
+#: a point folder's description: its key's content (JSON)
+META = "meta.json"
+#: a point folder's start record (JSON), written before the run begins
+START = "start.json"
+LOCK = "lock"
+
+
+def work_key(scene_at_point: dict, kernel_version: str, how: dict) -> dict:
+    """The content of a point folder's key: the scene the point runs, the DEM kernel version
+    and ``how`` (what else decides the run: its windows, the warm start's spin-up)."""
+    return json.loads(canonical_json({"scene": scene_at_point, "kernel_version": kernel_version,
+                                      "how": how}))
+
+
+class PointWork:
+    """The folder one point's run works in (:func:`point_work`): ``folder``, whether it
+    keeps checkpoints (``checkpointed``), and after :meth:`run` the wall time [s] the run
+    had taken before it was stopped (``wall_before_s``; 0 for a run that was not)."""
+
+    def __init__(self, folder: Path, checkpointed: bool, label: str):
+        self.folder = Path(folder)
+        self.checkpointed = checkpointed
+        self.label = label
+        self.wall_before_s = 0.0
+
+    def run(self, run_new, resume):
+        """The point's statistics and start record: ``resume(folder, start)`` (returns the
+        statistics) where the folder holds a usable checkpoint, else ``run_new(folder,
+        checkpoint_every_s, on_start)`` (returns (statistics, start))."""
+        from millfmu.dem.run import CHECKPOINT, DemRunError, load_checkpoint
+
+        if self.checkpointed and (self.folder / CHECKPOINT).exists():
+            try:
+                start = json.loads((self.folder / START).read_text())
+                state = load_checkpoint(self.folder)
+                loop, scene = state["loop"], state["scene"]
+                self.wall_before_s = float(loop.get("wall_s", 0.0))
+                print(f"millfmu: table point {self.label} goes on from its checkpoint "
+                      f"({loop['done'] * scene.dt_s:.4g} of {scene.spin_up_s + scene.record_s:.4g} s "
+                      f"simulated, {self.wall_before_s:.0f} s run before)", file=sys.stderr, flush=True)
+                del state
+                return resume(self.folder, start), start
+            except (OSError, ValueError, KeyError, TypeError, AttributeError, DemRunError) as e:
+                print(f"millfmu: table point {self.label}: the checkpoint in {self.folder} is not "
+                      f"used ({e}); the point starts again", file=sys.stderr, flush=True)
+                self.wall_before_s = 0.0
+                _empty(self.folder)
+
+        def on_start(start: dict):
+            if self.checkpointed:
+                write_replacing(self.folder / START, json.dumps(start).encode(), prefix=".tmp-start-")
+
+        every = POINT_CHECKPOINT_EVERY_S if self.checkpointed else None
+        return run_new(self.folder, every, on_start)
+
+
+def _empty(folder: Path) -> None:
+    """Remove what a point's folder holds except its description and lock."""
+    for p in folder.iterdir():
+        if p.name in (META, LOCK):
+            continue
+        if p.is_dir():
+            shutil.rmtree(p, ignore_errors=True)
+        else:
+            p.unlink(missing_ok=True)
+
+
+@contextmanager
+def point_work(store, content: dict, label: str):
+    """The :class:`PointWork` of the point whose key content is ``content``
+    (:func:`work_key`) in the point store ``store`` (None: a temporary folder, no
+    checkpoints). The folder is removed when the block ends, unless it ends by an exception
+    with a checkpoint in the folder (kept for the next run of the build)."""
+    folder = _claim(store, content) if store is not None else None
+    if folder is None:
+        with tempfile.TemporaryDirectory(prefix="millfmu-table-point-") as tmp:
+            yield PointWork(Path(tmp), False, label)
+        return
+    path, fh = folder
+    from millfmu.dem.run import CHECKPOINT
+
+    done = False
+    try:
+        yield PointWork(path, True, label)
+        done = True
+    finally:
+        if done or not (path / CHECKPOINT).exists():
+            shutil.rmtree(path, ignore_errors=True)
+        if fh is not None:
+            fh.close()  # releases the lock
+
+
+def _claim(store, content: dict):
+    """(folder, open lock file) of the point in ``store``, made where missing and locked for
+    this process; None where it cannot be made or another process holds it."""
+    key = sha256_bytes(canonical_json(content).encode())
+    path = Path(store) / RUNNING_DIR / key
+    try:
+        path.mkdir(parents=True, exist_ok=True)
+        fh = open(path / LOCK, "a+")
+    except OSError as e:
+        print(f"millfmu: a table point's folder {path} cannot be made ({e}); the point runs "
+              f"without checkpoints", file=sys.stderr, flush=True)
+        return None
+    if fcntl is not None:
+        try:
+            fcntl.flock(fh.fileno(), fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except OSError:
+            fh.close()
+            print(f"millfmu: another process runs the table point of {path}; this one runs it "
+                  f"apart, without checkpoints", file=sys.stderr, flush=True)
+            return None
+    meta = path / META
+    if not meta.exists():
+        write_replacing(meta, canonical_json(content).encode(), prefix=".tmp-meta-")
+    return path, fh
+
+
+def clear_running(folder, only_stale: bool, kernel_version: str) -> list[str]:
+    """Remove the folders of points being run in the point store ``folder`` (all, or those
+    of another DEM kernel version or without a readable description), skipping any that a
+    process holds; returns 'running/KEY' for each removed folder."""
+    removed = []
+    root = Path(folder) / RUNNING_DIR
+    if not root.is_dir():
+        return removed
+    for path in sorted(p for p in root.iterdir() if p.is_dir()):
+        if only_stale:
+            try:
+                if json.loads((path / META).read_text())["kernel_version"] == kernel_version:
+                    continue
+            except (OSError, ValueError, KeyError, TypeError):
+                # a folder made a moment ago has no description yet
+                if time.time() - path.stat().st_mtime < 3600.0:
+                    continue
+        if fcntl is not None:
+            try:
+                with open(path / LOCK, "a+") as fh:
+                    fcntl.flock(fh.fileno(), fcntl.LOCK_EX | fcntl.LOCK_NB)
+                    shutil.rmtree(path, ignore_errors=True)
+            except OSError:
+                continue  # a build runs this point now
+        else:
+            shutil.rmtree(path, ignore_errors=True)
+        removed.append(f"{RUNNING_DIR}/{path.name}")
+    return removed
