@@ -158,17 +158,19 @@ def write_fmu(built: Path, out: Path, replace: dict | None = None):
         part.unlink(missing_ok=True)
 
 
-def check_output(out: Path) -> Path:
-    """OutputError (exit 2) unless ``out`` ends in .fmu and can be written: not a folder, and
-    its nearest existing folder takes a new file. Creates nothing."""
+def check_output(out: str | Path) -> Path:
+    """OutputError (exit 2) unless ``out`` (as given: Path("") would read as ".") is not
+    empty, ends in .fmu and can be written: not a folder, and its nearest existing folder
+    takes a new file. Creates nothing."""
     from millfmu.runner import OutputError, _existing_ancestor, probe_new_file
 
-    if not str(out).strip() or str(out) == ".":  # an empty shell variable (Path("") is ".")
-        raise OutputError(repr(""), "is empty; give a file name ending in .fmu", option="-o")
-    if out.suffix != ".fmu":
-        raise OutputError(out, "must end in .fmu", option="-o")
+    if not str(out).strip():  # an empty shell variable
+        raise OutputError(repr(str(out)), "is empty; give a file name ending in .fmu", option="-o")
+    out = Path(out)
     if out.is_dir():
         raise OutputError(out, "is a folder; give a file name ending in .fmu", option="-o")
+    if out.suffix != ".fmu":
+        raise OutputError(out, "must end in .fmu", option="-o")
     probe_new_file(out, _existing_ancestor(out.parent), "-o", prefix=tag(f".{out.name}.") + "probe",
                    hint="; give a writable place for the FMU")
     return out
@@ -230,7 +232,7 @@ def build_fmu(scene_path: str | Path | None, out: str | Path, fmi_version: int =
     """Build the FMU for a scene file (None: the embedded default scene) into ``out`` (.fmu):
     FMI 2.0 with pythonfmu (the default) or, with ``fmi_version=3``, FMI 3.0 with pythonfmu3."""
     fmi_version = check_fmi_version(fmi_version)
-    out = check_output(Path(out))  # before any compiling: OutputError -> exit 2
+    out = check_output(out)  # before any compiling: OutputError -> exit 2
     if fmi_version == 3:
         from pythonfmu3 import FmuBuilder
 

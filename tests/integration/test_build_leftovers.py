@@ -29,7 +29,9 @@ def test_an_output_that_cannot_be_written_is_exit_2_without_traceback(tmp_path):
     f = tmp_path / "file"
     f.write_text("x")
     for out, why in (("/proc/x.fmu", "-o /proc/x.fmu: cannot write there"), (f / "sub" / "x.fmu", "cannot write there"),
-                     (tmp_path, "must end in .fmu"), ("", "-o '': is empty; give a file name ending in .fmu"),
+                     (tmp_path, "is a folder; give a file name ending in .fmu"),
+                     ("", "-o '': is empty; give a file name ending in .fmu"),
+                     (tmp_path / "x.txt", "must end in .fmu"),
                      ("/proc/x.fmu", "making a file in /proc failed")):
         r = _build("-o", out)
         assert r.returncode == 2 and "Traceback" not in r.stderr and why in r.stderr, r.stderr
@@ -37,6 +39,10 @@ def test_an_output_that_cannot_be_written_is_exit_2_without_traceback(tmp_path):
     d.mkdir()
     r = _build("-o", d)
     assert r.returncode == 2 and "is a folder" in r.stderr
+    # the current folder, as "." or "./": a folder, not an empty name
+    for dot in (".", "./"):
+        r = _build("-o", dot)
+        assert r.returncode == 2 and "-o .: is a folder; give a file name ending in .fmu" in r.stderr, r.stderr
     assert sorted(p.name for p in tmp_path.iterdir()) == ["d.fmu", "file"]
 
 
