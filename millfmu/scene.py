@@ -27,6 +27,9 @@ from .kinetics.stress import PHI_MAX_RCP
 from .text_files import NotUtf8, utf8_text
 from .unit_names import read_as_current
 
+#: [s] the longest run a scene may make (run.t_end_s), about 3.2 years
+T_END_MAX_S = 1e8
+
 INF = math.inf
 
 
@@ -220,7 +223,7 @@ class Operation:
 
 @dataclass(frozen=True)
 class Run:
-    t_end_s: float = _f(1800.0, unit="s", lo=0.0, lo_open=True, hi=1e8, doc="end time")
+    t_end_s: float = _f(1800.0, unit="s", lo=0.0, lo_open=True, hi=T_END_MAX_S, doc="end time")
     dt_s: float = _f(1.0, unit="s", lo=0.0, lo_open=True, doc="step size")
     output_interval_s: float = _f(60.0, unit="s", lo=0.0, lo_open=True, doc="time between outputs")
     integrator: str = _f("exact", choices=("exact", "adaptive"),

@@ -15,10 +15,15 @@ import math
 from dataclasses import dataclass, replace
 from pathlib import Path
 
+from ..scene import T_END_MAX_S
 from ..text_files import NotUtf8, utf8_text
 
 #: Measured quantities, by column: residual kind and unit.
 SIZE_COLUMNS = ("x10_m", "x50_m", "x90_m")
+#: a size later in a test that exceeds an earlier one of the same column by more than this
+#: share is noted: breakage only makes particles finer (the scatter of a laser-diffraction
+#: x50 between repeats is a few per cent)
+RISE_NOTED = 0.10
 #: Largest particle size [m] a bead mill's data may give: beyond it a value is taken to be
 #: in another unit (a size of 25 meant as micrometres), since mills grind feeds below 1 cm.
 MAX_SIZE_M = 0.01
@@ -161,7 +166,10 @@ def parse_data(text: str, source: str = "data") -> Data:
         raise CalibrationError(f"{source}: no header and no data rows")
     reader = list(csv.reader(io.StringIO("\n".join(ln for _, ln in lines))))
     header, cols, kind = _header(reader, source)
-    rows, feed, feed_values, q3_lines = [], 0, [], []
+    if len(lines) == 1:
+        raise CalibrationError(f"{source}: a header and no data rows (one row per time: t_s and the "
+                               f"measured values)")
+    rows, feed, feed_values, q3_lines, empty = [], 0, [], [], []
     for (lineno, _), rec in zip(lines[1:], reader[1:]):
         where = f"{source} line {lineno}"
         if len(rec) != len(header):
@@ -170,7 +178,15 @@ def parse_data(text: str, source: str = "data") -> Data:
         t = _num(cell["t_s"], where, "t_s")
         if t < 0.0:
             raise CalibrationError(f"{where}: column t_s = {t:g}: must be >= 0 s")
+        # a time no run reaches (the longest a scene may make: run.t_end_s)
+        if t > T_END_MAX_S:
+            raise CalibrationError(f"{where}: column t_s = {t:g}: must be <= {T_END_MAX_S:g} s (about "
+                                   f"{T_END_MAX_S / 3.15576e7:.1f} years, the longest run a scene may make); "
+                                   "t_s is in seconds")
         got = _row_values(cell, kind, cols, where, t)
+        if not got:
+            empty.append(f"{where}: t_s = {t:g} has no measured value (an empty cell is a value not "
+                         "measured); the row is left out")
         if kind == "q3":
             q3_lines += [(lineno, r) for r in got]
         if t == 0.0:
@@ -187,11 +203,33 @@ def parse_data(text: str, source: str = "data") -> Data:
         if key in seen and key not in dup:
             dup.append(key)
         seen.add(key)
-    notes = tuple(f"{source}: {col}{'' if x is None else f' at x_m = {x:g}'} at t_s = {t:g} is given more than once; "
-                  "each is fitted as an independent measurement (average repeats first if they are one sample's)"
-                  for t, col, x in dup)
+    notes = tuple(empty) + tuple(
+        f"{source}: {col}{'' if x is None else f' at x_m = {x:g}'} at t_s = {t:g} is given more than once; "
+        "each is fitted as an independent measurement (average repeats first if they are one sample's)"
+        for t, col, x in dup) + _rises(kind, rows, source)
     return Data(kind, tuple(rows), source, hashlib.sha256(text.encode()).hexdigest(), feed, notes,
                 tuple(feed_values))
+
+
+def _rises(kind: str, rows: list, source: str) -> tuple:
+    """Notes on size columns that rise with time by more than :data:`RISE_NOTED` over their
+    smallest earlier value: grinding makes particles only finer, so the model cannot follow
+    such a rise (agglomeration, samples mixed up, a value in another unit)."""
+    if kind != "sizes":
+        return ()
+    out = []
+    for col in SIZE_COLUMNS:
+        series = sorted((t, v) for t, c, _, v in rows if c == col)
+        low = None
+        for t, v in series:
+            if low is not None and v > low[1] * (1.0 + RISE_NOTED):
+                out.append(f"{source}: {col} rises from {low[1]:.4g} m at t_s = {low[0]:g} to {v:.4g} m at "
+                           f"t_s = {t:g}: breakage makes particles only finer, so no constant of the model "
+                           "follows this rise (agglomeration? samples mixed up? a value in another unit?)")
+                break
+            if low is None or v < low[1]:
+                low = (t, v)
+    return tuple(out)
 
 
 def _check_q3_rises(q3_lines: list, source: str):

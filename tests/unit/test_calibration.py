@@ -281,6 +281,28 @@ def test_a_byte_order_mark_is_accepted():
     assert d.rows == ((60.0, "x50_m", None, 8e-6),) and d.notes == ()
 
 
+def test_a_row_without_values_a_rising_size_and_a_time_no_run_reaches_are_said():
+    from millfmu.calibration import CalibrationError, parse_data
+
+    # a row with its time only: left out, with a note naming its line (not silently)
+    d = parse_data("t_s,x50_m\n0,1e-5\n600,\n1800,2.88e-6\n", "blank.csv")
+    assert d.rows == ((1800.0, "x50_m", None, 2.88e-6),)
+    assert d.notes == ("blank.csv line 3: t_s = 600 has no measured value (an empty cell is a value not measured); "
+                       "the row is left out",)
+    # a size that grows later in the test (more than 10 % over its smallest before): noted once
+    d = parse_data("t_s,x50_m,x90_m\n600,4e-6,9e-6\n1800,2.88e-6,8e-6\n3600,9e-6,1.2e-5\n", "grow.csv")
+    assert d.notes[0] == ("grow.csv: x50_m rises from 2.88e-06 m at t_s = 1800 to 9e-06 m at t_s = 3600: breakage "
+                          "makes particles only finer, so no constant of the model follows this rise (agglomeration? "
+                          "samples mixed up? a value in another unit?)")
+    assert len(d.notes) == 2 and d.notes[1].startswith("grow.csv: x90_m rises from 8e-06 m at t_s = 1800 to 1.2e-05")
+    assert parse_data("t_s,x50_m\n600,4e-6\n1800,4.3e-6\n", "scatter.csv").notes == ()  # within 10 %
+    with pytest.raises(CalibrationError, match=r"line 2: column t_s = 1e\+09: must be <= 1e\+08 s \(about 3.2 "
+                       r"years, the longest run a scene may make\); t_s is in seconds"):
+        parse_data("t_s,x50_m\n1e9,4.3e-6\n", "bigt.csv")
+    with pytest.raises(CalibrationError, match="hdr.csv: a header and no data rows"):
+        parse_data("t_s,x50_m\n# nothing yet\n", "hdr.csv")
+
+
 @pytest.mark.parametrize("text, words", [
     ("t_s,x10_m,x50_m,x90_m\n60,3e-6,2e-6,9e-6\n", "line 2: x10_m = 3e-06 m is larger than x50_m = 2e-06 m"),
     ("t_s,x50_m,x90_m\n60,9e-6,8e-6\n", "x50_m = 9e-06 m is larger than x90_m = 8e-06 m"),
