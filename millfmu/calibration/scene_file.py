@@ -22,9 +22,11 @@ _LINE = re.compile(r"^(\s*)([A-Za-z0-9_]+)(\s*=\s*)([^#\n]*?)(\s*(#.*)?)$")
 _HEADER = re.compile(r"^\s*\[([A-Za-z0-9_.]+)\]\s*(#.*)?$")
 
 
-def set_toml_values(text: str, values: dict) -> str:
+def set_toml_values(text: str, values: dict, comment: str | None = None) -> str:
     """``text`` (a scene file) with dotted keys set to ``values`` (numbers, strings), comments kept; a
-    key not in the file is added to its section (the section appended if missing)."""
+    key not in the file is added to its section (the section appended if missing). ``comment``:
+    the new comment of a value line that had one at its end (which described the old value) for
+    the keys of ``values`` that are not in the ``scene`` section."""
     lines = text.splitlines()
     todo = dict(values)
     section = ""
@@ -36,7 +38,10 @@ def set_toml_values(text: str, values: dict) -> str:
         m = _LINE.match(ln)
         if m and f"{section}.{m.group(2)}" in todo:
             v = todo.pop(f"{section}.{m.group(2)}")
-            lines[i] = f"{m.group(1)}{m.group(2)}{m.group(3)}{toml_value(v)}{m.group(5)}"
+            tail = m.group(5)
+            if comment is not None and m.group(6) and section != "scene":
+                tail = tail[:len(tail) - len(m.group(6))] + f"# {comment}"
+            lines[i] = f"{m.group(1)}{m.group(2)}{m.group(3)}{toml_value(v)}{tail}"
     for key, v in todo.items():
         sec, name = key.rsplit(".", 1)
         idx = next((i for i, ln in enumerate(lines) if (h := _HEADER.match(ln)) and h.group(1) == sec), None)
@@ -45,6 +50,20 @@ def set_toml_values(text: str, values: dict) -> str:
         else:
             lines.insert(idx + 1, f"{name} = {toml_value(v)}")
     return "\n".join(lines) + "\n"
+
+
+#: the first words of the head :func:`write` puts above a calibrated scene
+HEAD_START = "# Calibrated by millfmu calibrate on"
+
+
+def _without_earlier_head(text: str) -> str:
+    """``text`` without the head an earlier :func:`write` put at its top (a calibrated scene
+    calibrated again): its comment lines up to the first line that is not one."""
+    lines = text.splitlines()
+    if not lines or not lines[0].startswith(HEAD_START):
+        return text
+    n = next((i for i, ln in enumerate(lines) if not ln.startswith("#")), len(lines))
+    return "\n".join(lines[n:]) + "\n"
 
 
 def _scene_text(scene: Scene, scene_path) -> str:
@@ -66,19 +85,22 @@ def write(cal: Calibration, out_dir, scene_path=None) -> list:
     from ..runner import check_out_dir, staging_dir
 
     out = check_out_dir(out_dir)
-    head = (f"# Calibrated by millfmu calibrate on {cal.date_utc}: {', '.join(cal.constants)} fitted to\n"
+    head = (f"{HEAD_START} {cal.date_utc}: {', '.join(cal.constants)} fitted to\n"
             f"# {Path(cal.data_source).name} (sha256 {cal.data_sha256}); values, 95 % intervals and residuals in\n"
-            f"# calibration.json. Fitted at this scene's operating point.\n")
+            f"# calibration.json. Fitted at this scene's operating point. Comments further down that\n"
+            f"# describe an earlier calibration are the scene file's own: these values replace it.\n")
     for k, c in cal.constants.items():
         ci = f"[{c.ci95[0]:.4g}, {c.ci95[1]:.4g}]" if c.ci95 else "(no interval)"
-        head += f"#   {k} = {c.value:.6g} {c.unit}, 95 % interval {ci}\n"
+        unit = "" if c.unit in ("", "1", "-") else f" {c.unit}"
+        head += f"#   {k} = {c.value:.6g}{unit}, 95 % interval {ci}\n"
     # the constants with an interval, which the prediction band carries through the model
     fitted = [(k, c.ci95) for k, c in cal.constants.items() if c.ci95]
-    text = head + set_toml_values(_scene_text(cal.scene, scene_path),
+    text = head + set_toml_values(_without_earlier_head(_scene_text(cal.scene, scene_path)),
                                   {**{k: c.value for k, c in cal.constants.items()}, "scene.calibration": cal.record(),
                                    "scene.fitted": [k for k, _ in fitted],
                                    "scene.fitted_ci95_low": [float(ci[0]) for _, ci in fitted],
-                                   "scene.fitted_ci95_high": [float(ci[1]) for _, ci in fitted]})
+                                   "scene.fitted_ci95_high": [float(ci[1]) for _, ci in fitted]},
+                                  comment=f"fitted: see the head of this file ({cal.date_utc})")
     check = load_any(text)
     for k, c in cal.constants.items():
         if number_key(check, k) != c.value:  # pragma: no cover - set_toml_values is tested

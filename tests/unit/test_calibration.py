@@ -225,6 +225,28 @@ def test_cli_writes_a_calibrated_scene_and_the_record(tmp_path):
     assert "When to use it" in text  # the scene's own comments are kept
 
 
+def test_a_calibrated_scene_calibrated_again_carries_one_head_and_no_stale_value_comment(tmp_path):
+    key = "mill.stress_frequency_factor"
+    with resources.as_file(LIMESTONE.data_path()) as p:
+        data = cal.read_data(p)
+    first = cal.calibrate(millfmu.load_scene(), data, [key])
+    cal.write(first, tmp_path / "a", scene_path="default")
+    a = tmp_path / "a" / "calibrated.toml"
+    # a value line with a comment of its own, as a hand-kept scene has one
+    a.write_text(a.read_text().replace("\nstress_frequency_factor = ", "\nstress_frequency_factor = 7.0  # k_c of May\n"
+                                       "#stress_frequency_factor = ", 1))
+    assert "k_c of May" in a.read_text()
+    again = cal.calibrate(millfmu.load_scene(str(a)), data, [key])
+    cal.write(again, tmp_path / "b", scene_path=str(a))
+    text = (tmp_path / "b" / "calibrated.toml").read_text()
+    assert text.count(cal.scene_file.HEAD_START) == 1 and text.startswith(cal.scene_file.HEAD_START)
+    assert "these values replace it" in text
+    v = again.constants[key].value
+    assert f"#   {key} = {v:.6g}, 95 % interval [" in text  # no unit for a number without one
+    assert "k_c of May" not in text and f"stress_frequency_factor = {v!r}  # fitted: see the head of this file" in text
+    assert millfmu.load_scene(str(tmp_path / "b" / "calibrated.toml")).mill.stress_frequency_factor == v
+
+
 def test_cli_refusal_exits_2_and_writes_nothing(tmp_path):
     bad = tmp_path / "d.csv"
     bad.write_text("t_s,x50_m\n1800,2.88e-6\n")
