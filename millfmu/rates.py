@@ -474,13 +474,24 @@ def compute(scene, name: str | None = None, sizes_m=None, values: dict | None = 
         x = max(sizes)
         raise SceneError("--sizes", sizes, f"must be sizes in m up to {MAX_SIZE_M:g} m, which no bead mill grinds "
                          f"beyond (if {x:g} is in micrometres, write {x * 1e-6:g})", "millfmu rates")
+    lo, hi = simple.grid.edges_m[0], simple.grid.edges_m[-1]
+    outside = [x for x in sizes if not lo <= x <= hi]
+    if outside:
+        # S(x) is the model's on its classes: a size beyond them has no rate of the model
+        raise SceneError("--sizes", ",".join(f"{x:g}" for x in outside),
+                         f"must lie on the size grid of scene {scene.scene.name!r}, [{lo:.4g}, {hi:.4g}] m (widen its "
+                         "[grid] x_min_m, x_max_m)", "millfmu rates")
     is_cells = scene.material.model == "yeast"
     quantities = tuple(_size_key(x) for x in sizes) + (("disruption_rate",) if is_cells else ())
     x = np.array(sizes)
     values = values or {}
     for p, vs in values.items():
         if p not in PARAMETERS:
-            raise SceneError("--values", p, "unknown parameter" + did_you_mean(p, PARAMETERS) + "; allowed: "
+            # a scene key, an operating point's or a table axis's name of a parameter
+            alias = next((q for q, (_, _, sec, key, op_f, tax) in PARAMETERS.items()
+                          if p in (key, f"{sec}.{key}", op_f, tax)), None)
+            hint = f" (did you mean {alias}?)" if alias else did_you_mean(p, PARAMETERS)
+            raise SceneError("--values", p, "unknown parameter" + hint + "; allowed: "
                              + ", ".join(PARAMETERS), "millfmu rates")
         for v in vs:
             _check_value(p, v, scene)
