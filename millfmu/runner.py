@@ -445,6 +445,12 @@ def run_warnings(model: MillModel, records) -> list:
         out.extend(model.output_warnings(max(records, key=lambda r: r.get("below_grid_fraction", 0.0))))
         if not model.continuous:  # a continuous mill may start in its steady state
             out.extend(_nothing_breaks(records))
+        if not any(float(r.get("tip_speed_m_per_s", 0.0)) > 0.0 for r in records):
+            out.append("the stirrer does not turn (tip speed 0 m/s throughout: mill.tip_speed_m_per_s, "
+                       "run.tip_speed_profile): no bead is stressed and nothing breaks")
+    if model.continuous and model.scene.operation.feed_mass_flow_kg_per_s == 0.0:
+        out.append("operation.mode = 'continuous' with operation.feed_mass_flow_kg_per_s = 0: nothing flows "
+                   "through the mill, which grinds its content as a batch (set the feed mass flow)")
     return out
 
 

@@ -84,6 +84,19 @@ def test_a_run_that_breaks_almost_nothing_says_so(tmp_path, capsys):
     assert "breaks almost nothing" not in capsys.readouterr().err
 
 
+@pytest.mark.parametrize("text, words", [
+    ("[mill]\ntip_speed_m_per_s = 0.0\n", "the stirrer does not turn (tip speed 0 m/s throughout"),
+    ("[operation]\nmode = \"continuous\"\n",
+     "operation.mode = 'continuous' with operation.feed_mass_flow_kg_per_s = 0: nothing flows through the mill"),
+])
+def test_a_still_stirrer_or_a_continuous_mill_without_feed_is_said(text, words, tmp_path, capsys):
+    f = tmp_path / "s.toml"
+    f.write_text(text + "[run]\nt_end_s = 60.0\n")
+    assert main(["run", str(f), "--out", str(tmp_path / "o"), "-q", "--no-plots"]) == 0
+    assert f"millfmu: warning: {words}" in capsys.readouterr().err
+    assert any(words in w for w in json.loads((tmp_path / "o" / "result.json").read_text())["warnings"])
+
+
 def test_python_dash_m_millfmu_is_the_command():
     """Where the environment's scripts folder is not on the PATH, ``python -m millfmu`` runs
     the same command."""
