@@ -441,7 +441,7 @@ def _check_value(parameter, v, scene):
     if not (math.isfinite(v) and lo < v < hi):
         unit = PARAMETERS[parameter][1]
         raise SceneError(f"--values {parameter}", v,
-                         f"must lie in ({lo:g}, {hi:g})" + ("" if unit == "-" else f" {unit}"), "millfmu rates")
+                         f"must lie in ({lo:g}, {hi:g})" + ("" if unit == "-" else f" {unit}"), None)
 
 
 def compute(scene, name: str | None = None, sizes_m=None, values: dict | None = None,
@@ -467,20 +467,20 @@ def compute(scene, name: str | None = None, sizes_m=None, values: dict | None = 
     reference = {p: float(getattr(op_ref, PARAMETERS[p][4])) for p in PARAMETERS}
     sizes = tuple(float(x) for x in (sizes_m if sizes_m is not None else _default_sizes(scene, simple)))
     if not sizes or any(not (math.isfinite(x) and x > 0.0) for x in sizes):
-        raise SceneError("--sizes", ",".join(f"{x:g}" for x in sizes), "must be positive sizes in m", "millfmu rates")
+        raise SceneError("--sizes", ",".join(f"{x:g}" for x in sizes), "must be positive sizes in m", None)
     from .calibration.measured import MAX_SIZE_M
 
     if max(sizes) > MAX_SIZE_M:
         x = max(sizes)
         raise SceneError("--sizes", sizes, f"must be sizes in m up to {MAX_SIZE_M:g} m, which no bead mill grinds "
-                         f"beyond (if {x:g} is in micrometres, write {x * 1e-6:g})", "millfmu rates")
+                         f"beyond (if {x:g} is in micrometres, write {x * 1e-6:g})", None)
     lo, hi = simple.grid.edges_m[0], simple.grid.edges_m[-1]
     outside = [x for x in sizes if not lo <= x <= hi]
     if outside:
         # S(x) is the model's on its classes: a size beyond them has no rate of the model
         raise SceneError("--sizes", ",".join(f"{x:g}" for x in outside),
                          f"must lie on the size grid of scene {scene.scene.name!r}, [{lo:.4g}, {hi:.4g}] m (widen its "
-                         "[grid] x_min_m, x_max_m)", "millfmu rates")
+                         "[grid] x_min_m, x_max_m)", None)
     is_cells = scene.material.model == "yeast"
     quantities = tuple(_size_key(x) for x in sizes) + (("disruption_rate",) if is_cells else ())
     x = np.array(sizes)
@@ -492,7 +492,7 @@ def compute(scene, name: str | None = None, sizes_m=None, values: dict | None = 
                           if p in (key, f"{sec}.{key}", op_f, tax)), None)
             hint = f" (did you mean {alias}?)" if alias else did_you_mean(p, PARAMETERS)
             raise SceneError("--values", p, "unknown parameter" + hint + "; allowed: "
-                             + ", ".join(PARAMETERS), "millfmu rates")
+                             + ", ".join(PARAMETERS), None)
         for v in vs:
             _check_value(p, v, scene)
     w_feed = psd_fractions(simple.grid, scene.feed)
@@ -815,14 +815,14 @@ def _parse_values(items) -> dict:
         name, _, rest = item.partition("=")
         if name.strip() in out:
             raise SceneError("--values", item, f"{name.strip()} is given twice; give its values once, "
-                             "PARAMETER=V1,V2,...", "millfmu rates")
+                             "PARAMETER=V1,V2,...", None)
         try:
             out[name.strip()] = [float(v) for v in rest.split(",") if v.strip()]
         except ValueError:
             raise SceneError("--values", item, "must be PARAMETER=V1,V2,... with numbers in SI units",
-                             "millfmu rates") from None
+                             None) from None
         if not out[name.strip()]:
-            raise SceneError("--values", item, "must be PARAMETER=V1,V2,... with at least one value", "millfmu rates")
+            raise SceneError("--values", item, "must be PARAMETER=V1,V2,... with at least one value", None)
     return out
 
 

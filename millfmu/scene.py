@@ -25,7 +25,7 @@ else:  # pragma: no cover
 
 from .kinetics.stress import PHI_MAX_RCP
 from .text_files import NotUtf8, utf8_text
-from .unit_names import read_as_current
+from .unit_names import GivenTwice, read_as_current
 
 #: [s] the longest run a scene may make (run.t_end_s), about 3.2 years
 T_END_MAX_S = 1e8
@@ -36,10 +36,11 @@ INF = math.inf
 class SceneError(ValueError):
     """A scene value is missing, mistyped or out of range. ``key`` is the dotted key."""
 
-    def __init__(self, key: str, value: Any, allowed: str, source: str = "scene"):
+    def __init__(self, key: str, value: Any, allowed: str, source: str | None = "scene"):
         self.key, self.value, self.allowed, self.source = key, value, allowed, source
         shown = "(missing)" if value is MISSING else repr(value)
-        super().__init__(f"{source}: {key} = {shown}: {allowed}")
+        # source None: a command's own option, which the command line's prefix names
+        super().__init__(f"{source + ': ' if source else ''}{key} = {shown}: {allowed}")
 
 
 def _f(default=MISSING, *, unit="", lo=None, hi=None, lo_open=False, hi_open=False, choices=None, allow_inf=False,
@@ -560,9 +561,8 @@ def _current_spelling(d: dict, source: str) -> dict:
     ``similar_axes``) in the current spelling, with a note naming each (FutureWarning)."""
     try:
         return read_as_current(d, source, value_keys=("similar_axes",), stacklevel=3)
-    except ValueError as e:
-        key, _, msg = str(e).partition(": ")
-        raise SceneError(key, "both spellings", msg, source) from None
+    except GivenTwice as e:
+        raise SceneError(e.where, e.value, e.allowed, source) from None
 
 
 def scene_to_dict(s: Scene) -> dict:

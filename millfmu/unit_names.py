@@ -48,6 +48,20 @@ def earlier_name(name: str) -> str:
     return name
 
 
+class GivenTwice(ValueError):
+    """A key given in both spellings: ``where`` (its dotted path) = ``value``, and its
+    current spelling ``current`` = ``current_value`` beside it."""
+
+    def __init__(self, where: str, value, current: str, current_value):
+        self.where, self.value, self.current, self.current_value = where, value, current, current_value
+        super().__init__(f"{where}: given twice, also as {current!r} (its current spelling); give one")
+
+    @property
+    def allowed(self) -> str:
+        """What a scene's refusal says after the key and its value."""
+        return f"given twice, also as {self.current} = {self.current_value!r} (its current spelling); give one"
+
+
 def _map_keys(obj, fn, renamed: list | None, path: str, value_keys, values: bool = False):
     if isinstance(obj, dict):
         out = {}
@@ -56,7 +70,7 @@ def _map_keys(obj, fn, renamed: list | None, path: str, value_keys, values: bool
             where = f"{path}.{k}" if path else str(k)
             if nk != k:
                 if nk in obj:
-                    raise ValueError(f"{where}: given twice, also as {nk!r} (its current spelling); give one")
+                    raise GivenTwice(where, v, nk, obj[nk])
                 if renamed is not None:
                     renamed.append((where, nk))
             out[nk] = _map_keys(v, fn, renamed, where, value_keys, nk in value_keys)

@@ -60,9 +60,18 @@ def test_the_sources_use_the_current_spelling_only():
     assert not bad, "\n".join(bad[:20])
 
 
-def test_modernize_refuses_a_key_given_in_both_spellings():
+def test_modernize_refuses_a_key_given_in_both_spellings(tmp_path):
     with pytest.raises(ValueError, match=r"mill.tip_speed_m_s: given twice, also as 'tip_speed_m_per_s'"):
         modernize({"mill": {"tip_speed_m_s": 8.0, "tip_speed_m_per_s": 10.0}})
+    # a scene names both values, not a placeholder
+    from millfmu.scene import SceneError, load_scene
+
+    f = tmp_path / "both.toml"
+    f.write_text("[mill]\ntip_speed_m_s = 8.0\ntip_speed_m_per_s = 10.0\n")
+    with pytest.raises(SceneError) as e:
+        load_scene(f)
+    assert str(e.value).endswith("mill.tip_speed_m_s = 8.0: given twice, also as tip_speed_m_per_s = 10.0 (its "
+                                 "current spelling); give one")
 
 
 def _old_dem_scene():
