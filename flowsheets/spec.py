@@ -47,6 +47,7 @@ import numpy as np
 
 from millfmu.kinetics.grid import SizeGrid
 from millfmu.mill import psd_fractions
+from millfmu.scene import did_you_mean
 from millfmu.scene import SceneError, default_scene_text, scene_from_dict
 from millfmu.text_files import NotUtf8, utf8_text
 
@@ -82,9 +83,21 @@ def _take(given: dict, spec: dict, prefix: str, source: str) -> dict:
         if v is _MISSING:
             raise FlowsheetError(f"{prefix}.{k}", _MISSING, "required", source)
         if v is not None and (err := check(v)):
+            unit = _unit_of(k)
+            if unit and err.startswith("must be ") and err[-1].isdigit():
+                err += f" {unit}"  # the bounds in the key's unit
             raise FlowsheetError(f"{prefix}.{k}", v, err, source)
         out[k] = v
     return out
+
+
+#: a key's unit by its name's suffix (longest first), for the bounds a refusal names
+_SUFFIX_UNITS = (("_kg_per_s", "kg/s"), ("_m_per_s", "m/s"), ("_kg_per_m3", "kg/m3"), ("_Pa_s", "Pa s"),
+                 ("_kg", "kg"), ("_s", "s"), ("_m", "m"))
+
+
+def _unit_of(key: str) -> str:
+    return next((u for suf, u in _SUFFIX_UNITS if key.endswith(suf)), "")
 
 
 def _num(lo=None, hi=None, lo_open=False, hi_open=False):
@@ -276,7 +289,8 @@ def _flowsheet_section(d: dict, source: str) -> dict:
     allowed_top = {"connections", "products", "flowsheet", "units"}
     for k in d:
         if k not in allowed_top:
-            raise FlowsheetError(k, d[k], "unknown key; allowed: " + ", ".join(sorted(allowed_top)), source)
+            raise FlowsheetError(k, d[k], "unknown key" + did_you_mean(k, allowed_top) + "; allowed: "
+                                 + ", ".join(sorted(allowed_top)), source)
     fs = d.get("flowsheet", {})
     fs_keys = {"name": ("unnamed", lambda v: None if isinstance(v, str) else "must be a string"),
                "description": ("", lambda v: None if isinstance(v, str) else "must be a string"),
@@ -290,7 +304,8 @@ def _flowsheet_section(d: dict, source: str) -> dict:
                "output_interval_s": (None, _num(0.0, None, True))}
     for k in fs:
         if k not in fs_keys:
-            raise FlowsheetError(f"flowsheet.{k}", fs[k], "unknown key; allowed: " + ", ".join(fs_keys), source)
+            raise FlowsheetError(f"flowsheet.{k}", fs[k], "unknown key" + did_you_mean(k, fs_keys) + "; allowed: "
+                                 + ", ".join(fs_keys), source)
     vals = _take(fs, fs_keys, "flowsheet", source)
     n_steps = vals["t_end_s"] / vals["step_s"]
     if abs(n_steps - round(n_steps)) > 1e-9 * n_steps:
@@ -311,11 +326,13 @@ def _unit(name: str, u, mill_scene: dict | None, source: str) -> tuple[Unit, dic
         raise FlowsheetError(key, u, "must be a table", source)
     t = u.get("type", _MISSING)
     if t not in UNIT_TYPES:
-        raise FlowsheetError(f"{key}.type", t, "allowed: " + ", ".join(UNIT_TYPES), source)
+        raise FlowsheetError(f"{key}.type", t, "allowed: " + ", ".join(UNIT_TYPES) + did_you_mean(t, UNIT_TYPES),
+                             source)
     spec = UNIT_KEYS[t]
     for k in u:
         if k not in spec and k not in COMMON_KEYS:
-            raise FlowsheetError(f"{key}.{k}", u[k], f"unknown key for a {t}; allowed: "
+            raise FlowsheetError(f"{key}.{k}", u[k], f"unknown key for a {t}"
+                                 + did_you_mean(k, list(spec) + sorted(COMMON_KEYS)) + "; allowed: "
                                  + ", ".join(list(spec) + sorted(COMMON_KEYS)), source)
     params = _take(u, spec, key, source)
     start = u.get("start", {})

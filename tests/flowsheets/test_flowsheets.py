@@ -194,6 +194,16 @@ def test_bad_input_exits_2_and_writes_nothing(tmp_path):
     r = cli("run", f, "--out", tmp_path / "out")
     assert r.returncode == 2 and "mill has no input psd[1]" in r.stderr, r.stderr
     assert not (tmp_path / "out").exists()
+    # a misspelt key is named with its likely meaning; a number out of range with its unit
+    for old, new, words in (('algorithm = "jacobi"', 'algoritm = "jacobi"',
+                             "flowsheet.algoritm = 'jacobi': unknown key (did you mean algorithm?)"),
+                            ("pump_mass_flow_kg_per_s = ", "pump_mass_flow_kg_per_s = -1.0 #",
+                             "pump_mass_flow_kg_per_s = -1.0: must be >= 0 and <= 1000 kg/s")):
+        text = (FLOWSHEETS / "circuit.toml").read_text()
+        assert old in text
+        f.write_text(text.replace(old, new, 1))
+        r = cli("run", f, "--out", tmp_path / "out")
+        assert r.returncode == 2 and words in r.stderr, r.stderr
     r = cli("run", tmp_path / "missing.toml", "--out", tmp_path / "out")
     assert r.returncode == 2 and "missing.toml" in r.stderr and "cannot be read" in r.stderr
     r = cli("run", FLOWSHEETS / "circuit.toml", "--step", "7", "--out", tmp_path / "out")
