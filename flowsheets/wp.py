@@ -30,7 +30,7 @@ def _series(res, variable, times):
 
 def work_precision(fs: Flowsheet, steps, reference: float, out: Path, fmu_dir: Path, variable="mill.x50", log=print,
                    fmi_version=2) -> str:
-    """Run the study; write wp.csv, wp.json and wp.png into ``out``; return the table text."""
+    """Run the study; write wp.csv, wp.json, wp.txt and wp.png into ``out``; return the table text."""
     paths = build_fmus(fs, fmu_dir, log=log, fmi_version=fmi_version)
     h_max = max(steps)
     times = [k * h_max for k in range(1, int(round(fs.t_end_s / h_max)) + 1)]

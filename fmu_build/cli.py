@@ -9,6 +9,7 @@ from __future__ import annotations
 import sys
 
 from millfmu.arg_types import whole_number
+from millfmu.scene import SCENE_ARG_HELP
 
 
 def _cmd_build_fmu(args) -> int:
@@ -97,7 +98,7 @@ def _cmd_bench_fmu(args) -> int:
 def register(subparsers) -> None:
     b = subparsers.add_parser("build-fmu",
                               help="build an FMI 2.0 (pythonfmu) or 3.0 (pythonfmu3) co-simulation FMU of a scene")
-    b.add_argument("scene", nargs="?", default=None, help="scene file (TOML); omitted: the embedded default scene")
+    b.add_argument("scene", nargs="?", default=None, help=SCENE_ARG_HELP)
     b.add_argument("-o", "--output", required=True, help="FMU file to write (.fmu)")
     b.add_argument("--fmi-version", type=int, choices=(2, 3), default=2, help="FMI version of the FMU (default 2)")
     b.add_argument("--yes", action="store_true",
@@ -115,8 +116,8 @@ def register_bench(bench_subparsers) -> None:
                                          "version in the same run")
     f.add_argument("--classes", type=whole_number(2), default=BENCH_FMU_CLASSES,
                    help=f"size classes of the mill FMU (default {BENCH_FMU_CLASSES})")
-    f.add_argument("--steps", type=whole_number(1), default=2000, help="steps per timing run")
-    f.add_argument("--repeats", type=whole_number(1), default=5, help="timing runs; the best is reported")
+    f.add_argument("--steps", type=whole_number(1), default=2000, help="steps per timing run (default 2000)")
+    f.add_argument("--repeats", type=whole_number(1), default=5, help="timing runs; the best is reported (default 5)")
     f.add_argument("--fmi-version", type=int, choices=(2, 3), action="append",
                    help="FMI version to measure (repeatable; default: 2 and 3)")
     f.add_argument("--json", metavar="FILE", help="also write the figures to FILE as one JSON record (with the "

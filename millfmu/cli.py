@@ -13,6 +13,7 @@ import time
 import warnings
 
 from .arg_types import positive_number, whole_number
+from .scene import SCENE_ARG_HELP
 
 # The population balance works on small matrices, where multithreaded BLAS only adds
 # overhead (and, on a busy machine, oversubscription slows expm a hundredfold). Set before
@@ -223,11 +224,14 @@ def build_parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(prog="millfmu",
                                 description="Wet stirred media mill (bead mill) model: population balance with Kwade's "
                                             "stress model.")
+    from . import __version__
+
+    p.add_argument("--version", action="version", version=f"millfmu {__version__}")
     sub = p.add_subparsers(dest="command", metavar="COMMAND")
     sub.required = True
 
     r = sub.add_parser("run", help="run a scene (default: the embedded default scene)")
-    r.add_argument("scene", nargs="?", default=None, help="scene file (TOML); omitted: the embedded default scene")
+    r.add_argument("scene", nargs="?", default=None, help=SCENE_ARG_HELP)
     r.add_argument("--out", default="out", help="output folder for result.json, psd.csv and plots (default: ./out)")
     r.add_argument("--no-plots", action="store_true", help="skip the PNG plots")
     r.add_argument("-q", "--quiet", action="store_true", help="no progress bar")

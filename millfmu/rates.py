@@ -867,7 +867,8 @@ def register(sub):
     r = sub.add_parser("rates", help="breakage rates of the simple and the detailed model against each operating "
                                      "parameter, relative to the scene's operating point (CSV, PNG)")
     r.add_argument("scene", nargs="*",
-                   help="scene files (TOML); none: the shipped calibrated pairs of yeast and limestone")
+                   help="scene files (TOML) or shipped examples' names; none: the shipped calibrated pairs of "
+                        "yeast and limestone")
     r.add_argument("--out", default="out/rates", help="output folder (default: ./out/rates)")
     r.add_argument("--sizes", type=float, nargs="+", default=None,
                    help="sizes [m] of S(x) (default: the feed's x10, x50, x90; cells: x50)")

@@ -29,6 +29,9 @@ from .unit_names import GivenTwice, read_as_current
 
 #: [s] the longest run a scene may make (run.t_end_s), about 3.2 years
 T_END_MAX_S = 1e8
+#: the help of a command's scene argument
+SCENE_ARG_HELP = ("scene file (TOML), or a shipped example's name (e.g. limestone_detailed; the list: "
+                  "docs/scenes.md); omitted: the embedded default scene")
 
 INF = math.inf
 

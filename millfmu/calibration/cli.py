@@ -9,6 +9,7 @@ import sys
 from ..runner import OutputError, check_out_dir
 from ..scene import SceneError, load_scene
 from . import FITTABLE, CalibrationError, calibrate, read_data, write
+from ..scene import SCENE_ARG_HELP
 
 #: The command's options for the arguments of :func:`millfmu.calibration.calibrate` that a
 #: refusal names ({}: what the option gave; for --start, the constant's key).
@@ -57,7 +58,7 @@ def register(sub):
     c = sub.add_parser("calibrate", help="fit one or two scene constants to measured batch data (with 95 %% intervals)",
                        description="Fit scene constants to measured batch grinding data at the scene's operating "
                                    f"point. Fittable: {', '.join(FITTABLE)}.")
-    c.add_argument("scene", nargs="?", default=None, help="scene file (TOML); omitted: the embedded default scene")
+    c.add_argument("scene", nargs="?", default=None, help=SCENE_ARG_HELP)
     c.add_argument("--data", required=True, help="CSV: t_s and x10_m/x50_m/x90_m, or x_m and Q3, or disrupted_fraction")
     c.add_argument("--fit", required=True, help="KEY[,KEY]: the constants to fit (dotted scene keys)")
     c.add_argument("--out", default=None, help="folder for calibrated.toml and calibration.json (omitted: print only)")

@@ -235,8 +235,9 @@ class Calibration:
                 f"{self.rms_residual:.3g} ({self.residual_unit})")
 
     def summary(self) -> str:
-        out = [f"calibration of {self.scene.scene.name!r} to {self.data_source} ({len(self.residuals)} values, "
-               f"{self.dof} degrees of freedom)"]
+        n = len(self.residuals)
+        out = [f"calibration of {self.scene.scene.name!r} to {self.data_source} ({n} value{'s' if n != 1 else ''}, "
+               f"{self.dof} degree{'s' if self.dof != 1 else ''} of freedom)"]
         for k, c in self.constants.items():
             ci = f"95 % interval [{c.ci95[0]:.4g}, {c.ci95[1]:.4g}]" if c.ci95 else "no interval (no degree of freedom)"
             out.append(f"  {k} = {c.value:.5g}{_unit(c.unit)}  ({ci}; start {c.start:.4g})")

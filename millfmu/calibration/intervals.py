@@ -96,11 +96,11 @@ def intervals(data: Data, J: np.ndarray, r: np.ndarray, model: str) -> Intervals
         cov = cluster_cov(J, r, groups, JtJinv, CLUSTER_CORRECTION)
         t_dof = n_groups - 1
         method = (f"cluster-robust (sandwich) covariance, one cluster per measurement time ({n_groups}), "
-                  f"{CLUSTER_CORRECTION} small-sample correction, Student's t with {t_dof} degrees of freedom")
+                  f"{CLUSTER_CORRECTION} small-sample correction, Student's t with {_dof_words(t_dof)}")
     else:
         cov = float(r @ r) / (n - p) * JtJinv
         t_dof = n - p
-        method = f"s^2 (J^T J)^-1 (independent errors), Student's t with {t_dof} degrees of freedom"
+        method = f"s^2 (J^T J)^-1 (independent errors), Student's t with {_dof_words(t_dof)}"
     sd = np.sqrt(np.diag(cov))
     corr = (cov / np.outer(sd, sd)).tolist()
     return Intervals(cov, sd, corr, float(stats.t.ppf(0.975, t_dof)), t_dof, method, JtJinv)
@@ -212,3 +212,7 @@ def _column_offsets(data: Data, r: np.ndarray, J) -> str | None:
             f"(F = {F:.3g}, p = {pv:.2g}); the model's distribution is {'wider' if spread > 0 else 'narrower'} "
             f"than the data's ({cols[-1].split('_')[0]}/{cols[0].split('_')[0]} off by a factor "
             f"{math.exp(abs(spread)):.3g})")
+
+
+def _dof_words(n: int) -> str:
+    return f"{n} degree{'s' if n != 1 else ''} of freedom"

@@ -109,6 +109,22 @@ def test_python_dash_m_millfmu_is_the_command():
     assert r.stdout.startswith("usage: millfmu"), r.stdout[:80]
 
 
+def test_the_version_is_asked_as_usual(capsys):
+    import millfmu
+
+    with pytest.raises(SystemExit) as e:
+        main(["--version"])
+    assert e.value.code == 0 and capsys.readouterr().out == f"millfmu {millfmu.__version__}\n"
+
+
+def test_one_value_and_one_degree_of_freedom_are_singular(tmp_path, capsys):
+    data = tmp_path / "d.csv"
+    data.write_text("t_s,x50_m\n300,5.277e-6\n1800,2.875e-6\n")
+    assert main(["calibrate", "--data", str(data), "--fit", "mill.stress_frequency_factor", "-q"]) == 0
+    out = capsys.readouterr().out
+    assert "(2 values, 1 degree of freedom)" in out and "Student's t with 1 degree of freedom" in out, out
+
+
 @pytest.mark.parametrize("value", [5, True, 1.5, "x", [1, 2]])
 @pytest.mark.parametrize("section", ["mill", "scene", "material", "kinetics", "run", "beads"])
 def test_a_section_given_as_a_value_is_refused_by_name(section, value):
