@@ -101,7 +101,7 @@ def band_lines(band: dict, last: dict) -> list:
         lines.append(f"  from the table's stated error: {rng(t['outputs'])} ({why})")
     if "calibration" in parts:
         c = parts["calibration"]
-        consts = ", ".join(f"{x['key']} = {x['value']:.4g} in [{x['ci95'][0]:.4g}, {x['ci95'][1]:.4g}]"
+        consts = ", ".join(f"{x['key']} = {x['value']:.5g} in [{x['ci95'][0]:.4g}, {x['ci95'][1]:.4g}]"
                            for x in c["constants"])
         lines.append(f"  from the calibration's 95 % intervals: {rng(c['outputs'])} ({consts})")
     lines += [f"  note: {n}" for n in band.get("notes", [])]
