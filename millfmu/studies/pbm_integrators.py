@@ -13,6 +13,7 @@ change in time, with measured orders (``millfmu bench integrators``, ``millfmu r
 
 from __future__ import annotations
 
+import math
 import time
 
 import numpy as np
@@ -295,9 +296,13 @@ def integrator_study(quick: bool = False, repeats: int | None = None, out=print)
             f"estimate {r['reference_error']:.1e})")
         out(f"  {'method':22s} {'steps':>7s} {'rtol':>7s} {'error':>9s} {'wall [s]':>9s} {'min mass':>9s}")
         for row in r["rows"]:
-            out(f"  {row['method']:22s} {row['steps']:7d} {row.get('rtol', float('nan')):7.0e} {row['error']:9.2e} "
+            rtol = row.get("rtol", float("nan"))
+            # a fixed-step method has no tolerance
+            rtol = f"{rtol:7.0e}" if math.isfinite(rtol) else f"{'-':>7s}"
+            out(f"  {row['method']:22s} {row['steps']:7d} {rtol} {row['error']:9.2e} "
                 f"{row['wall_s']:9.3g} {row['min_mass']:9.1e}")
-        out("  measured orders: " + ", ".join(f"{k} {v:.2f}" for k, v in r["orders"].items()))
+        out("  measured orders: " + ", ".join(f"{k} {v:.2f}" if math.isfinite(v) else f"{k} none (its error grows)"
+                                              for k, v in r["orders"].items()))
     return res
 
 

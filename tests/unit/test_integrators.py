@@ -63,3 +63,18 @@ def test_bench_pbm_writes_its_figures_as_one_record(tmp_path):
     assert all(v > 0 for v in d["figures"].values())
     assert not list(tmp_path.glob(".*"))  # written whole, no part file left
     assert main(["bench", "pbm", "--json", str(tmp_path)]) == 2  # a folder: refused before timing
+
+
+def test_the_integrator_table_prints_no_nan_for_a_missing_tolerance_or_order():
+    """Fixed-step methods have no tolerance and diverging ones no order: the table says so in
+    words, not as 'nan'."""
+    from millfmu.studies.pbm_integrators import integrator_study
+
+    lines = []
+    res = integrator_study(quick=True, repeats=1, out=lines.append)
+    text = "\n".join(lines)
+    rows = [ln for ln in lines if ln.startswith("  exact step ") or ln.startswith("  Taylor ")]
+    assert rows and all(ln.split()[3] == "-" for ln in rows)  # the rtol column of fixed-step methods
+    assert any("none (its error grows)" in ln for ln in lines if ln.startswith("  measured orders"))
+    assert res["stiff"]["orders"]["Taylor 1"] != res["stiff"]["orders"]["Taylor 1"]  # nan kept in the record
+    assert "measured orders: exact step 2." in text
