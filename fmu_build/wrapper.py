@@ -90,9 +90,28 @@ EDITS = (
      "            PyGILState_Release(gilState);\n"
      "            throw std::runtime_error(what + \": failed without a Python exception\");\n"
      "        }\n        {\n"),
+    #    The slave's own refusal (an exception named FMUCallError) is logged as its message
+    #    alone; any other exception with the call's name and its repr.
     ("src/pythonfmu/PySlaveInstance.cpp",
-     'oss << "Fatal py exception encountered: ";',
-     'oss << "Python exception: ";'),
+     '            oss << "Fatal py exception encountered: ";\n'
+     '            oss << what << "\\n";\n'
+     '            if (pExcValue != nullptr) {\n'
+     '                PyObject* pRepr = PyObject_Repr(pExcValue);\n',
+     '            PyErr_NormalizeException(&pExcType, &pExcValue, &pExcTraceback);\n'
+     '            bool own = false;\n'
+     '            if (pExcType != nullptr) {\n'
+     '                PyObject* pName = PyObject_GetAttrString(pExcType, "__name__");\n'
+     '                if (pName != nullptr) {\n'
+     '                    own = PyUnicode_CompareWithASCIIString(pName, "FMUCallError") == 0;\n'
+     '                    Py_DECREF(pName);\n'
+     '                }\n'
+     '                PyErr_Clear();\n'
+     '            }\n'
+     '            if (!own) {\n'
+     '                oss << "Python exception: " << what << "\\n";\n'
+     '            }\n'
+     '            if (pExcValue != nullptr) {\n'
+     '                PyObject* pRepr = own ? PyObject_Str(pExcValue) : PyObject_Repr(pExcValue);\n'),
     ("src/pythonfmu/PySlaveInstance.cpp",
      "            throw fatal_error(oss.str());",
      "            throw std::runtime_error(oss.str());"),

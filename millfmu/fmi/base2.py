@@ -10,9 +10,9 @@ carry it. Statuses, as FMI 2.0 intends them:
 - fmi2Error where a call cannot be honoured but the instance survives: a parameter value
   refused at ``fmi2ExitInitializationMode`` (every later step is refused too), a
   currentCommunicationPoint that is not the FMU's time, a serialized state that is damaged
-  or from another FMU, a state that cannot be applied. The reason is logged and an
-  :class:`FMUCallError` raised, which millfmu's rebuilt pythonfmu wrapper returns as
-  fmi2Error with the instance intact (see ``fmu_build.wrapper``). Under pythonfmu's own
+  or from another FMU, a state that cannot be applied. An :class:`FMUCallError` is raised,
+  which millfmu's rebuilt pythonfmu wrapper returns as fmi2Error with the instance intact,
+  logging its message as it is (see ``fmu_build.wrapper``). Under pythonfmu's own
   wrapper an exception would be fmi2Fatal and wreck the instance, so there the same cases
   are logged errors only (steps then refused with fmi2Discard, a state not applied);
 - setting an output, or a fixed parameter after initialization: an error logged, the value
@@ -119,10 +119,9 @@ class Fmi2Base(Fmi2Slave):
         super().log(msg.replace("%", "%%"), status, category, debug)
 
     def _refuse(self, msg: str, fallback=Fmi2Status.error):
-        """Log ``msg``; raise FMUCallError (-> fmi2Error) under the fixed wrapper, else log
-        only, with ``fallback`` as the logged status."""
+        """Raise FMUCallError (-> fmi2Error, the wrapper logging ``msg`` as it is) under the
+        fixed wrapper, else log ``msg`` only, with ``fallback`` as the logged status."""
         if self._raise_errors:
-            self.log(msg, Fmi2Status.error)
             raise FMUCallError(msg)
         self.log(msg, fallback)
 
