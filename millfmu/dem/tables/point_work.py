@@ -38,8 +38,8 @@ except ImportError:  # pragma: no cover - not on the platforms the tests run on
     fcntl = None
 
 #: [s of wall time] how often a point's run writes its checkpoint: at most this much of a
-#: point's run is lost when a build is stopped (a coupled 0.5 mm point's checkpoint is a few
-#: MB and takes well under a second to write)
+#: point's run is lost when a build is stopped (a coupled 0.5 mm point's checkpoint holds
+#: 30-45 MB, most of it the recorded samples, and takes about a second to write)
 POINT_CHECKPOINT_EVERY_S = 600.0
 #: the folder of a point store that holds the points being run
 RUNNING_DIR = "running"
