@@ -134,3 +134,28 @@ def test_a_point_another_process_holds_runs_apart(tmp_path, capsys):
         assert PW.clear_running(tmp_path, False, "kv") == []
     assert PW.clear_running(tmp_path, False, "kv") == [f"{PW.RUNNING_DIR}/{names['kv']}"]
     assert _running(tmp_path) == []
+
+
+def test_tables_status_lists_the_points_running_or_stopped(tmp_path, capsys):
+    from millfmu.cli import main
+
+    store = tmp_path / "points"
+    sc = {"mill": {"tip_speed_m_per_s": 6.0}, "beads": {"filling": 0.6, "diameter_m": 5e-4,
+                                                        "density_kg_per_m3": 2510.0}}
+    kv = T.dem_kernel_version()
+    with PW.point_work(store, PW.work_key(sc, kv, {}), "p") as held:
+        (held.folder / R.CHECKPOINT).write_bytes(b"x")
+        with pytest.raises(Stopped), PW.point_work(store, PW.work_key(dict(sc, x=1), "kv-old", {}), "q") as w:
+            (w.folder / R.CHECKPOINT).write_bytes(b"x")
+            raise Stopped
+        (store / "a.json").write_text("{}")
+        pts = {p["running"]: p for p in PW.running_points(store)}
+        assert pts[True]["values"] == {"tip_speed_m_per_s": 6.0, "filling": 0.6, "bead_diameter_m": 5e-4,
+                                       "bead_density_kg_per_m3": 2510.0}
+        assert pts[False]["kernel_version"] == "kv-old" and pts[False]["checkpoint_age_s"] >= 0.0
+        assert main(["tables", "status", "--cache-dir", str(tmp_path)]) == 0
+        out = capsys.readouterr().out
+    assert f"points {store}: 1 finished (0 of the installed DEM version)" in out
+    assert "6 m/s, filling 0.6, beads 0.5 mm 2510 kg/m3: running, checkpoint 0 min ago" in out
+    assert "stopped, checkpoint 0 min ago (another DEM version: tables clear --stale)" in out
+    assert f"    millfmu dem progress {held.folder}" in out

@@ -377,7 +377,37 @@ def _status(args) -> int:
         shape = "x".join(map(str, e.get("shape", []))) or "?"
         print(f"  {e['key'][:16]}  {e['state']:5s}  {e.get('scene', '?'):12s} "
               f"{shape:>8s}  {e['bytes']:>9d} B  {e['reason']}")
+    _points_status(root / T.POINTS_DIR, T.dem_kernel_version())
     return 0
+
+
+def _points_status(folder: Path, kernel_version: str) -> None:
+    """The point store's finished points, and those a build runs now or left stopped with a
+    checkpoint (each with the command that shows how far it is)."""
+    from .point_work import running_points
+
+    stored = sorted(folder.glob("*.json")) if folder.is_dir() else []
+    mine = 0
+    for f in stored:
+        try:
+            mine += json.loads(f.read_text())["key_content"]["kernel_version"] == kernel_version
+        except (OSError, ValueError, KeyError, TypeError):
+            pass
+    run = running_points(folder)
+    if not stored and not run:
+        return
+    print(f"points {folder}: {len(stored)} finished ({mine} of the installed DEM version)")
+    for r in run:
+        v = r["values"]
+        what = ("?" if v is None else f"{v['tip_speed_m_per_s']:g} m/s, filling {v['filling']:g}, beads "
+                f"{v['bead_diameter_m'] * 1e3:g} mm {v['bead_density_kg_per_m3']:g} kg/m3")
+        age = r["checkpoint_age_s"]
+        state = ("running" if r["running"] else "stopped") + (
+            f", checkpoint {age / 60:.0f} min ago" if age is not None else ", no checkpoint yet")
+        other = "" if r["kernel_version"] in (None, kernel_version) else " (another DEM version: tables clear --stale)"
+        print(f"  {what}: {state}{other}")
+        if age is not None:
+            print(f"    millfmu dem progress {r['path']}")
 
 
 def _verify(args) -> int:

@@ -161,6 +161,46 @@ def _claim(store, content: dict):
     return path, fh
 
 
+def _held(path: Path) -> bool:
+    """Whether a process holds the point folder ``path`` (runs its point now)."""
+    if fcntl is None:
+        return False
+    try:
+        with open(path / LOCK, "a+") as fh:
+            fcntl.flock(fh.fileno(), fcntl.LOCK_EX | fcntl.LOCK_NB)
+            fcntl.flock(fh.fileno(), fcntl.LOCK_UN)
+        return False
+    except OSError:
+        return True
+
+
+def running_points(folder) -> list[dict]:
+    """The points of the point store ``folder`` that a build runs now or left stopped with a
+    checkpoint: per folder its ``path``, the point's ``values`` (tip speed [m/s], filling
+    [-], bead diameter [m] and density [kg/m3] of its scene), its DEM ``kernel_version``,
+    whether a process runs it now (``running``) and the wall time [s] since its last
+    checkpoint was written (``checkpoint_age_s``, None without one)."""
+    from millfmu.dem.run import CHECKPOINT
+
+    root = Path(folder) / RUNNING_DIR
+    out = []
+    for path in sorted(p for p in root.iterdir() if p.is_dir()) if root.is_dir() else ():
+        try:
+            meta = json.loads((path / META).read_text())
+            sc = meta["scene"]
+            values = {"tip_speed_m_per_s": sc["mill"]["tip_speed_m_per_s"], "filling": sc["beads"]["filling"],
+                      "bead_diameter_m": sc["beads"]["diameter_m"],
+                      "bead_density_kg_per_m3": sc["beads"]["density_kg_per_m3"]}
+            kv = meta["kernel_version"]
+        except (OSError, ValueError, KeyError, TypeError):
+            values, kv = None, None
+        ck = path / CHECKPOINT
+        age = time.time() - ck.stat().st_mtime if ck.exists() else None
+        out.append({"path": str(path), "values": values, "kernel_version": kv, "running": _held(path),
+                    "checkpoint_age_s": age})
+    return out
+
+
 def clear_running(folder, only_stale: bool, kernel_version: str) -> list[str]:
     """Remove the folders of points being run in the point store ``folder`` (all, or those
     of another DEM kernel version or without a readable description), skipping any that a
