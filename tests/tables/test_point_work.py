@@ -99,6 +99,7 @@ def test_an_unusable_checkpoint_starts_the_point_again(tmp_path, scene, monkeypa
         b(scene, POINT)
     monkeypatch.setattr(R, "_write_checkpoint", write)
     (folder,) = _running(store)
+    good = (folder / R.CHECKPOINT).read_bytes()
     (folder / R.CHECKPOINT).write_bytes(b"not a checkpoint")
     capsys.readouterr()
     again = b(scene, POINT)
@@ -106,6 +107,16 @@ def test_an_unusable_checkpoint_starts_the_point_again(tmp_path, scene, monkeypa
     assert f"the checkpoint in {folder} is not used (" in err and "the point starts again" in err
     assert again["start"]["start"] == "cold" and sum(again["collision_count"]) > 0
     assert _running(store) == []
+    # one of DEM sources that give other results: not used either
+    import pickle
+
+    state = pickle.loads(good)
+    state["kernel_version"] = "sha256:other"
+    folder.mkdir(parents=True)
+    R._write_checkpoint(folder / R.CHECKPOINT, state)
+    (folder / PW.START).write_text(json.dumps(again["start"]))
+    np.testing.assert_array_equal(b(scene, POINT)["collision_count"], again["collision_count"])
+    assert "is not used (made by other DEM sources (sha256:other))" in capsys.readouterr().err
 
 
 def test_a_point_another_process_holds_runs_apart(tmp_path, capsys):

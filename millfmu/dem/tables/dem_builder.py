@@ -145,7 +145,7 @@ class DemBuilder:
                 lambda out, every, on_start: run_point(
                     s, at, out, window_s=window_s, checkpoint_every_s=every, on_start=on_start,
                     **kw, **self.start_kw()),
-                lambda out, start: resume_point(out, at, start, state_dir=self.state_dir, **kw))
+                lambda out, start, state: resume_point(out, at, start, state, state_dir=self.state_dir, **kw))
             out = normalize_stats(stats, s)
             out["drift"] = recording_drift(work.folder / "windows.csv", out["zone_names"])
         out["wall_time_s"] = time.perf_counter() - t0 + work.wall_before_s

@@ -69,27 +69,14 @@ class PointWork:
         self.wall_before_s = 0.0
 
     def run(self, run_new, resume):
-        """The point's statistics and start record: ``resume(folder, start)`` (returns the
-        statistics) where the folder holds a usable checkpoint, else ``run_new(folder,
-        checkpoint_every_s, on_start)`` (returns (statistics, start))."""
-        from millfmu.dem.run import CHECKPOINT, DemRunError, load_checkpoint
-
-        if self.checkpointed and (self.folder / CHECKPOINT).exists():
-            try:
-                start = json.loads((self.folder / START).read_text())
-                state = load_checkpoint(self.folder)
-                loop, scene = state["loop"], state["scene"]
-                self.wall_before_s = float(loop.get("wall_s", 0.0))
-                print(f"millfmu: table point {self.label} goes on from its checkpoint "
-                      f"({loop['done'] * scene.dt_s:.4g} of {scene.spin_up_s + scene.record_s:.4g} s "
-                      f"simulated, {self.wall_before_s:.0f} s run before)", file=sys.stderr, flush=True)
-                del state
-                return resume(self.folder, start), start
-            except (OSError, ValueError, KeyError, TypeError, AttributeError, DemRunError) as e:
-                print(f"millfmu: table point {self.label}: the checkpoint in {self.folder} is not "
-                      f"used ({e}); the point starts again", file=sys.stderr, flush=True)
-                self.wall_before_s = 0.0
-                _empty(self.folder)
+        """The point's statistics and start record: ``resume(folder, start, state)`` (returns
+        the statistics; ``state``: the checkpoint as read) where the folder holds a usable
+        checkpoint, else ``run_new(folder, checkpoint_every_s, on_start)`` (returns
+        (statistics, start))."""
+        got = self._checkpoint() if self.checkpointed else None
+        if got is not None:
+            start, state = got
+            return resume(self.folder, start, state), start
 
         def on_start(start: dict):
             if self.checkpointed:
@@ -97,6 +84,33 @@ class PointWork:
 
         every = POINT_CHECKPOINT_EVERY_S if self.checkpointed else None
         return run_new(self.folder, every, on_start)
+
+    def _checkpoint(self):
+        """(start record, checkpoint state) of the folder's checkpoint where it can be used
+        (said on stderr), else None: none there, or one that cannot be read or was made by
+        DEM sources that give other results (said, and the folder emptied)."""
+        from millfmu.dem import run as R
+        from millfmu.dem.tables.cache import SAME_DEM_AS
+
+        if not (self.folder / R.CHECKPOINT).exists():
+            return None
+        try:
+            start = json.loads((self.folder / START).read_text())
+            state = R.load_checkpoint(self.folder)
+            made, here = state["kernel_version"], R._kernel_version()
+            if SAME_DEM_AS.get(made, made) != SAME_DEM_AS.get(here, here):
+                raise R.DemRunError(f"made by other DEM sources ({made})")
+            loop, scene = state["loop"], state["scene"]
+            done_s, total_s = loop["done"] * scene.dt_s, scene.spin_up_s + scene.record_s
+        except (OSError, ValueError, KeyError, TypeError, AttributeError, R.DemRunError) as e:
+            print(f"millfmu: table point {self.label}: the checkpoint in {self.folder} is not "
+                  f"used ({e}); the point starts again", file=sys.stderr, flush=True)
+            _empty(self.folder)
+            return None
+        self.wall_before_s = float(loop.get("wall_s", 0.0))
+        print(f"millfmu: table point {self.label} goes on from its checkpoint ({done_s:.4g} of "
+              f"{total_s:.4g} s simulated, {self.wall_before_s:.0f} s run before)", file=sys.stderr, flush=True)
+        return start, state
 
 
 def _empty(folder: Path) -> None:

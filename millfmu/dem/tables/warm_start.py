@@ -494,12 +494,13 @@ def keep_state(state_dir, scene_at_point: dict, kernel_version: str, sim, cpl, s
             pass  # the point's result is what counts; a later point starts cold
 
 
-def resume_point(out_dir, scene_at_point: dict, start: dict, *, threads=None, state_dir=None,
-                 kernel_version=None, checkpoint_every_s=None):
+def resume_point(out_dir, scene_at_point: dict, start: dict, state: dict | None = None, *, threads=None,
+                 state_dir=None, kernel_version=None, checkpoint_every_s=None):
     """Go on with the table point whose run (:func:`run_point` with ``checkpoint_every_s``)
-    left its checkpoint in ``out_dir``; ``start``: the start record the run began with.
-    Returns the statistics, those of the run that was not stopped to the digit (the DEM's
-    resume), and keeps the settled state as :func:`run_point` does. DemRunError (from
+    left its checkpoint in ``out_dir`` (``state``: that checkpoint, already read; None:
+    read here); ``start``: the start record the run began with. Returns the statistics,
+    those of the run that was not stopped to the digit (the DEM's resume), and keeps the
+    settled state as :func:`run_point` does. DemRunError (from
     :func:`~millfmu.dem.run.load_checkpoint`) where the checkpoint cannot be read or was
     made by DEM sources that do not give the same results."""
     from millfmu.dem import run as R
@@ -507,7 +508,8 @@ def resume_point(out_dir, scene_at_point: dict, start: dict, *, threads=None, st
 
     if kernel_version is None:
         kernel_version = dem_kernel_version()
-    state = R.load_checkpoint(out_dir)
+    if state is None:
+        state = R.load_checkpoint(out_dir)
     made, here = state["kernel_version"], R._kernel_version()
     if SAME_DEM_AS.get(made, made) != SAME_DEM_AS.get(here, here):
         raise R.DemRunError(f"{out_dir}: its checkpoint was made by other DEM sources ({made}); "
