@@ -7,9 +7,8 @@ from __future__ import annotations
 import sys
 
 from ..runner import OutputError, check_out_dir
-from ..scene import SceneError, load_scene
+from ..scene import SCENE_ARG_HELP, SceneError, load_scene
 from . import FITTABLE, CalibrationError, calibrate, read_data, write
-from ..scene import SCENE_ARG_HELP
 
 #: The command's options for the arguments of :func:`millfmu.calibration.calibrate` that a
 #: refusal names ({}: what the option gave; for --start, the constant's key).

@@ -16,7 +16,7 @@ import numpy as np
 from ..api import load_scene as load_any
 from ..mill import MillModel, StepError, q3_at_edges
 from ..scene import Scene, did_you_mean, number_key
-from .intervals import ERROR_MODELS, Intervals, error_model as choose_error_model, intervals, lack_of_fit
+from .intervals import ERROR_MODELS, Intervals, dof_words, error_model as choose_error_model, intervals, lack_of_fit
 from .measured import SIZE_COLUMNS, CalibrationError, Data, parse_data, read_data
 
 
@@ -237,7 +237,7 @@ class Calibration:
     def summary(self) -> str:
         n = len(self.residuals)
         out = [f"calibration of {self.scene.scene.name!r} to {self.data_source} ({n} value{'s' if n != 1 else ''}, "
-               f"{self.dof} degree{'s' if self.dof != 1 else ''} of freedom)"]
+               f"{dof_words(self.dof)})"]
         for k, c in self.constants.items():
             ci = f"95 % interval [{c.ci95[0]:.4g}, {c.ci95[1]:.4g}]" if c.ci95 else "no interval (no degree of freedom)"
             out.append(f"  {k} = {c.value:.5g}{_unit(c.unit)}  ({ci}; start {c.start:.4g})")

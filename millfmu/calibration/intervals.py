@@ -96,11 +96,11 @@ def intervals(data: Data, J: np.ndarray, r: np.ndarray, model: str) -> Intervals
         cov = cluster_cov(J, r, groups, JtJinv, CLUSTER_CORRECTION)
         t_dof = n_groups - 1
         method = (f"cluster-robust (sandwich) covariance, one cluster per measurement time ({n_groups}), "
-                  f"{CLUSTER_CORRECTION} small-sample correction, Student's t with {_dof_words(t_dof)}")
+                  f"{CLUSTER_CORRECTION} small-sample correction, Student's t with {dof_words(t_dof)}")
     else:
         cov = float(r @ r) / (n - p) * JtJinv
         t_dof = n - p
-        method = f"s^2 (J^T J)^-1 (independent errors), Student's t with {_dof_words(t_dof)}"
+        method = f"s^2 (J^T J)^-1 (independent errors), Student's t with {dof_words(t_dof)}"
     sd = np.sqrt(np.diag(cov))
     corr = (cov / np.outer(sd, sd)).tolist()
     return Intervals(cov, sd, corr, float(stats.t.ppf(0.975, t_dof)), t_dof, method, JtJinv)
@@ -214,5 +214,6 @@ def _column_offsets(data: Data, r: np.ndarray, J) -> str | None:
             f"{math.exp(abs(spread)):.3g})")
 
 
-def _dof_words(n: int) -> str:
+def dof_words(n: int) -> str:
+    """'1 degree of freedom', 'n degrees of freedom'."""
     return f"{n} degree{'s' if n != 1 else ''} of freedom"
