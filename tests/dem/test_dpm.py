@@ -264,3 +264,12 @@ def test_dem_run_primed_from_the_command_line(tmp_path, capsys):
     assert a.func(a) == 2
     assert "a primed start needs the coupled fluid" in capsys.readouterr().err
     assert not (tmp_path / "no").exists()
+
+
+def test_every_dpm_drag_law_has_its_name_in_the_scene_description():
+    """The scene's description names each drag law the discrete phase model takes (the
+    settings list the laws, the scene their names): the two lists name the same laws."""
+    from millfmu.dem.coupling.settings import DPM_DRAG_LAWS
+    from millfmu.dem.scene import DPM_DRAG_NAMES
+
+    assert set(DPM_DRAG_NAMES) == set(DPM_DRAG_LAWS)
