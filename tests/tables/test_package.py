@@ -28,7 +28,8 @@ def test_reader_package_holds_the_reading_modules():
     # The builder's side keeps none of them.
     builder = sorted(p.name for p in resources.files("millfmu.dem.tables").iterdir() if p.name.endswith(".py"))
     assert builder == ["__init__.py", "build.py", "cache.py", "cells.py", "cli.py", "dem_builder.py", "equivalence.py",
-                       "on_demand.py", "point_work.py", "state_files.py", "warm_start.py"]
+                       "on_demand.py", "point_folders.py", "point_work.py", "state_files.py",
+                       "warm_start.py"]
 
 
 @pytest.mark.parametrize("module", READERS)

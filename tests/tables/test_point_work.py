@@ -12,6 +12,7 @@ import numpy as np
 import pytest
 
 from millfmu.dem import tables as T
+from millfmu.dem.tables import point_folders as PF
 from millfmu.dem.tables import point_work as PW
 from millfmu.dem.tables import warm_start as W
 from millfmu.stress_tables.table import read_table_ref
@@ -129,7 +130,7 @@ def test_a_point_another_process_holds_runs_apart(tmp_path, capsys):
         assert "another process runs the table point" in capsys.readouterr().err
         assert mine.folder.exists()
         # clearing leaves a held folder alone
-        assert PW.clear_running(tmp_path, False, "kv") == []
+        assert PF.clear_running(tmp_path, False, "kv") == []
     assert not mine.folder.exists()
     # stale folders: another kernel version's goes, this one's stays, a held one stays
     old = PW.work_key({"a": 1}, "kv-old", {})
@@ -139,11 +140,11 @@ def test_a_point_another_process_holds_runs_apart(tmp_path, capsys):
             raise Stopped
     names = {json.loads((p / PW.META).read_text())["kernel_version"]: p.name for p in _running(tmp_path)}
     assert set(names) == {"kv", "kv-old"}
-    assert PW.clear_running(tmp_path, True, "kv") == [f"{PW.RUNNING_DIR}/{names['kv-old']}"]
+    assert PF.clear_running(tmp_path, True, "kv") == [f"{PW.RUNNING_DIR}/{names['kv-old']}"]
     with open(tmp_path / PW.RUNNING_DIR / names["kv"] / PW.LOCK, "a+") as fh:
         fcntl.flock(fh.fileno(), fcntl.LOCK_EX)
-        assert PW.clear_running(tmp_path, False, "kv") == []
-    assert PW.clear_running(tmp_path, False, "kv") == [f"{PW.RUNNING_DIR}/{names['kv']}"]
+        assert PF.clear_running(tmp_path, False, "kv") == []
+    assert PF.clear_running(tmp_path, False, "kv") == [f"{PW.RUNNING_DIR}/{names['kv']}"]
     assert _running(tmp_path) == []
 
 

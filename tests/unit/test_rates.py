@@ -203,7 +203,8 @@ def test_rates_command_writes_csv_json_png(tmp_path, capsys):
     (["--values", "filling=0.5,1.5"], "--values filling = 1.5: must lie in (0, 1)\n"),  # no unit '-' after it
     (["--values", "spin=1,2"], "--values"),
     (["--sizes", "0"], "--sizes = '0': must be positive sizes in m"),
-    (["--sizes", "1e-9", "1e-6"], "--sizes = '1e-09': must lie on the size grid of scene 'pm1-limestone-batch', [2e-08, 0.0002317] m"),
+    (["--sizes", "1e-9", "1e-6"],
+     "--sizes = '1e-09': must lie on the size grid of scene 'pm1-limestone-batch', [2e-08, 0.0002317] m"),
     (["--sizes", "1e-3"], "--sizes = '0.001': must lie on the size grid of scene 'pm1-limestone-batch', ["),
     (["--values", "bead_filling=0.7"], "--values = 'bead_filling': unknown parameter (did you mean filling?)"),
     (["--values", "beads.diameter_m=0.001"], "unknown parameter (did you mean bead_diameter?)"),

@@ -629,7 +629,7 @@ def _clear_points(folder: Path, only_stale: bool, kernel_version: str) -> list[s
         f.unlink(missing_ok=True)
         removed.append(f"{POINTS_DIR}/{f.stem}")
     removed += _clear_states(folder, only_stale, kernel_version)
-    from .point_work import clear_running
+    from .point_folders import clear_running
 
     removed += [f"{POINTS_DIR}/{r}" for r in clear_running(folder, only_stale, kernel_version)]
     # Temporary files of a point being written live for milliseconds; one older than an

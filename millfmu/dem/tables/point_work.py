@@ -17,7 +17,8 @@ A checkpoint that cannot be used (unreadable, another layout, made by DEM source
 not give the same results) is said on stderr and the point starts again. Without a store,
 or where another process holds the folder (its ``lock``, taken with ``flock``), the point
 runs in a temporary folder without checkpoints. ``millfmu tables clear
---stale`` removes the folders of other DEM kernel versions (:func:`clear_running`).
+--stale`` removes the folders of other DEM kernel versions
+(:func:`.point_folders.clear_running`).
 """
 
 from __future__ import annotations
@@ -31,25 +32,12 @@ from contextlib import contextmanager
 from pathlib import Path
 
 from ...stress_tables.files import canonical_json, sha256_bytes, write_replacing
-
-try:  # POSIX; elsewhere a point's folder is not locked
-    import fcntl
-except ImportError:  # pragma: no cover - not on the platforms the tests run on
-    fcntl = None
+from .point_folders import LOCK, META, RUNNING_DIR, START, fcntl, held
 
 #: [s of wall time] how often a point's run writes its checkpoint: at most this much of a
 #: point's run is lost when a build is stopped (a coupled 0.5 mm point's checkpoint holds
 #: 30-45 MB, most of it the recorded samples, and takes about a second to write)
 POINT_CHECKPOINT_EVERY_S = 600.0
-#: the folder of a point store that holds the points being run
-RUNNING_DIR = "running"
-#: a point folder's description: its key's content (JSON)
-META = "meta.json"
-#: a point folder's start record (JSON), written before the run begins
-START = "start.json"
-LOCK = "lock"
-
-
 def work_key(scene_at_point: dict, kernel_version: str, how: dict) -> dict:
     """The content of a point folder's key: the scene the point runs, the DEM kernel version
     and ``how`` (what else decides the run: its windows, the warm start's spin-up)."""
@@ -175,19 +163,6 @@ def _claim(store, content: dict):
     return path, fh
 
 
-def _held(path: Path) -> bool:
-    """Whether a process holds the point folder ``path`` (runs its point now)."""
-    if fcntl is None:
-        return False
-    try:
-        with open(path / LOCK, "a+") as fh:
-            fcntl.flock(fh.fileno(), fcntl.LOCK_EX | fcntl.LOCK_NB)
-            fcntl.flock(fh.fileno(), fcntl.LOCK_UN)
-        return False
-    except OSError:
-        return True
-
-
 def running_points(folder) -> list[dict]:
     """The points of the point store ``folder`` that a build runs now or left stopped with a
     checkpoint: per folder its ``path``, the point's ``values`` (tip speed [m/s], filling
@@ -210,36 +185,6 @@ def running_points(folder) -> list[dict]:
             values, kv = None, None
         ck = path / CHECKPOINT
         age = time.time() - ck.stat().st_mtime if ck.exists() else None
-        out.append({"path": str(path), "values": values, "kernel_version": kv, "running": _held(path),
+        out.append({"path": str(path), "values": values, "kernel_version": kv, "running": held(path),
                     "checkpoint_age_s": age})
     return out
-
-
-def clear_running(folder, only_stale: bool, kernel_version: str) -> list[str]:
-    """Remove the folders of points being run in the point store ``folder`` (all, or those
-    of another DEM kernel version or without a readable description), skipping any that a
-    process holds; returns 'running/KEY' for each removed folder."""
-    removed = []
-    root = Path(folder) / RUNNING_DIR
-    if not root.is_dir():
-        return removed
-    for path in sorted(p for p in root.iterdir() if p.is_dir()):
-        if only_stale:
-            try:
-                if json.loads((path / META).read_text())["kernel_version"] == kernel_version:
-                    continue
-            except (OSError, ValueError, KeyError, TypeError):
-                # a folder made a moment ago has no description yet
-                if time.time() - path.stat().st_mtime < 3600.0:
-                    continue
-        if fcntl is not None:
-            try:
-                with open(path / LOCK, "a+") as fh:
-                    fcntl.flock(fh.fileno(), fcntl.LOCK_EX | fcntl.LOCK_NB)
-                    shutil.rmtree(path, ignore_errors=True)
-            except OSError:
-                continue  # a build runs this point now
-        else:
-            shutil.rmtree(path, ignore_errors=True)
-        removed.append(f"{RUNNING_DIR}/{path.name}")
-    return removed
