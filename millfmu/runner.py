@@ -443,9 +443,10 @@ def run_warnings(model: MillModel, records) -> list:
     out.extend(model.similarity_warnings().values())
     if records:
         out.extend(model.output_warnings(max(records, key=lambda r: r.get("below_grid_fraction", 0.0))))
-        if not model.continuous:  # a continuous mill may start in its steady state
+        turned = any(float(r.get("tip_speed_m_per_s", 0.0)) > 0.0 for r in records)
+        if turned and not model.continuous:  # a continuous mill may start in its steady state
             out.extend(_nothing_breaks(records))
-        if not any(float(r.get("tip_speed_m_per_s", 0.0)) > 0.0 for r in records):
+        if not turned:
             out.append("the stirrer does not turn (tip speed 0 m/s throughout: mill.tip_speed_m_per_s, "
                        "run.tip_speed_profile): no bead is stressed and nothing breaks")
     if model.continuous and model.scene.operation.feed_mass_flow_kg_per_s == 0.0:
@@ -460,13 +461,13 @@ UNCHANGED_X50 = 1e-3
 
 
 def _nothing_breaks(records) -> list:
-    """A warning where x50 [m] hardly moved over a batch run in which the stirrer turned,
-    naming the stress frequency at x50 [1/s] against the run time [s]; empty otherwise."""
+    """A warning where x50 [m] hardly moved over a batch run (``records``, in which the
+    stirrer turned), naming the stress frequency at x50 [1/s] against the run time [s];
+    empty otherwise."""
     first, last = records[0], records[-1]
     t_s = float(last.get("t_s", 0.0)) - float(first.get("t_s", 0.0))
     x0, x1 = first.get("x50_m"), last.get("x50_m")
-    turned = any(float(r.get("tip_speed_m_per_s", 0.0)) > 0.0 for r in records)
-    if not (turned and t_s > 0.0 and x0 and x1 and abs(x1 / x0 - 1.0) < UNCHANGED_X50):
+    if not (t_s > 0.0 and x0 and x1 and abs(x1 / x0 - 1.0) < UNCHANGED_X50):
         return []
     sf = max(float(r.get("sf_per_s", 0.0)) for r in records)
     return [f"x50 moved by {abs(x1 / x0 - 1.0):.1e} of itself in {t_s:g} s: the stress model breaks almost "
