@@ -229,7 +229,7 @@ class Calibration:
         parts = []
         for k, c in self.constants.items():
             ci = f" (95 % interval {c.ci95[0]:.4g} to {c.ci95[1]:.4g})" if c.ci95 else " (exact, no interval)"
-            parts.append(f"{k} = {c.value:.6g}{_unit(c.unit)}{ci}")
+            parts.append(f"{k} = {c.value:.6g}{unit_after(c.unit)}{ci}")
         return (f"{', '.join(parts)} fitted at this operating point to {Path(self.data_source).name} (sha256 "
                 f"{self.data_sha256[:16]}...) by millfmu calibrate on {self.date_utc}, rms residual "
                 f"{self.rms_residual:.3g} ({self.residual_unit})")
@@ -240,7 +240,7 @@ class Calibration:
                f"{dof_words(self.dof)})"]
         for k, c in self.constants.items():
             ci = f"95 % interval [{c.ci95[0]:.4g}, {c.ci95[1]:.4g}]" if c.ci95 else "no interval (no degree of freedom)"
-            out.append(f"  {k} = {c.value:.5g}{_unit(c.unit)}  ({ci}; start {c.start:.4g})")
+            out.append(f"  {k} = {c.value:.5g}{unit_after(c.unit)}  ({ci}; start {c.start:.4g})")
         if self.correlation is not None and len(self.constants) == 2:
             out.append(f"  correlation of the pair: {self.correlation[0][1]:+.3f}")
         out.append(f"  rms residual {self.rms_residual:.3g} ({self.residual_unit})")
@@ -251,7 +251,7 @@ class Calibration:
         return "\n".join(out)
 
 
-def _unit(unit: str) -> str:
+def unit_after(unit: str) -> str:
     """' UNIT' after a value; nothing for a dimensionless constant (unit '1')."""
     return "" if unit in ("1", "") else f" {unit}"
 

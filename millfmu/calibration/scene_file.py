@@ -83,6 +83,7 @@ def write(cal: Calibration, out_dir, scene_path=None) -> list:
     naming the data file, its sha256 and the date) and ``out_dir/calibration.json``; both
     appear together or not at all."""
     from ..runner import check_out_dir, staging_dir
+    from .fitting import unit_after
 
     out = check_out_dir(out_dir)
     head = (f"{HEAD_START} {cal.date_utc}: {', '.join(cal.constants)} fitted to\n"
@@ -91,8 +92,7 @@ def write(cal: Calibration, out_dir, scene_path=None) -> list:
             f"# describe an earlier calibration are the scene file's own: these values replace it.\n")
     for k, c in cal.constants.items():
         ci = f"[{c.ci95[0]:.4g}, {c.ci95[1]:.4g}]" if c.ci95 else "(no interval)"
-        unit = "" if c.unit in ("", "1", "-") else f" {c.unit}"
-        head += f"#   {k} = {c.value:.6g}{unit}, 95 % interval {ci}\n"
+        head += f"#   {k} = {c.value:.6g}{unit_after(c.unit)}, 95 % interval {ci}\n"
     # the constants with an interval, which the prediction band carries through the model
     fitted = [(k, c.ci95) for k, c in cal.constants.items() if c.ci95]
     text = head + set_toml_values(_without_earlier_head(_scene_text(cal.scene, scene_path)),
