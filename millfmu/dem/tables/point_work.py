@@ -38,6 +38,8 @@ from .point_folders import LOCK, META, RUNNING_DIR, START, fcntl, held
 #: point's run is lost when a build is stopped (a coupled 0.5 mm point's checkpoint holds
 #: 30-45 MB, most of it the recorded samples, and takes about a second to write)
 POINT_CHECKPOINT_EVERY_S = 600.0
+
+
 def work_key(scene_at_point: dict, kernel_version: str, how: dict) -> dict:
     """The content of a point folder's key: the scene the point runs, the DEM kernel version
     and ``how`` (what else decides the run: its windows, the warm start's spin-up)."""
@@ -78,16 +80,14 @@ class PointWork:
         (said on stderr), else None: none there, or one that cannot be read or was made by
         DEM sources that give other results (said, and the folder emptied)."""
         from millfmu.dem import run as R
-        from millfmu.dem.tables.cache import SAME_DEM_AS
+
+        from .warm_start import point_checkpoint
 
         if not (self.folder / R.CHECKPOINT).exists():
             return None
         try:
             start = json.loads((self.folder / START).read_text())
-            state = R.load_checkpoint(self.folder)
-            made, here = state["kernel_version"], R._kernel_version()
-            if SAME_DEM_AS.get(made, made) != SAME_DEM_AS.get(here, here):
-                raise R.DemRunError(f"made by other DEM sources ({made})")
+            state = point_checkpoint(self.folder)
             loop, scene = state["loop"], state["scene"]
             done_s, total_s = loop["done"] * scene.dt_s, scene.spin_up_s + scene.record_s
         except (OSError, ValueError, KeyError, TypeError, AttributeError, R.DemRunError) as e:

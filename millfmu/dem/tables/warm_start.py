@@ -494,26 +494,33 @@ def keep_state(state_dir, scene_at_point: dict, kernel_version: str, sim, cpl, s
             pass  # the point's result is what counts; a later point starts cold
 
 
-def resume_point(out_dir, scene_at_point: dict, start: dict, state: dict | None = None, *, threads=None,
-                 state_dir=None, kernel_version=None, checkpoint_every_s=None):
-    """Go on with the table point whose run (:func:`run_point` with ``checkpoint_every_s``)
-    left its checkpoint in ``out_dir`` (``state``: that checkpoint, already read; None:
-    read here); ``start``: the start record the run began with. Returns the statistics,
-    those of the run that was not stopped to the digit (the DEM's resume), and keeps the
-    settled state as :func:`run_point` does. DemRunError (from
-    :func:`~millfmu.dem.run.load_checkpoint`) where the checkpoint cannot be read or was
-    made by DEM sources that do not give the same results."""
+def point_checkpoint(out_dir) -> dict:
+    """The checkpoint a table point's run (:func:`run_point` with ``checkpoint_every_s``)
+    left in ``out_dir``, for :func:`resume_point`. DemRunError (from
+    :func:`~millfmu.dem.run.load_checkpoint`) where it cannot be read, or where it was made
+    by DEM sources that do not give the same results (:data:`~.cache.SAME_DEM_AS`)."""
     from millfmu.dem import run as R
-    from millfmu.dem.tables.cache import SAME_DEM_AS, dem_kernel_version
+    from millfmu.dem.tables.cache import SAME_DEM_AS
 
-    if kernel_version is None:
-        kernel_version = dem_kernel_version()
-    if state is None:
-        state = R.load_checkpoint(out_dir)
+    state = R.load_checkpoint(out_dir)
     made, here = state["kernel_version"], R._kernel_version()
     if SAME_DEM_AS.get(made, made) != SAME_DEM_AS.get(here, here):
-        raise R.DemRunError(f"{out_dir}: its checkpoint was made by other DEM sources ({made}); "
-                            f"these are {here}")
+        raise R.DemRunError(f"made by other DEM sources ({made})")
+    return state
+
+
+def resume_point(out_dir, scene_at_point: dict, start: dict, state: dict, *, threads=None,
+                 state_dir=None, kernel_version=None, checkpoint_every_s=None):
+    """Go on with the table point whose run left the checkpoint ``state`` in ``out_dir``
+    (:func:`point_checkpoint`); ``start``: the start record the run began with. Returns the
+    statistics, those of the run that was not stopped to the digit (the DEM's resume), and
+    keeps the settled state as :func:`run_point` does."""
+    from millfmu.dem import run as R
+
+    if kernel_version is None:
+        from .cache import dem_kernel_version
+
+        kernel_version = dem_kernel_version()
     if threads is not None:
         state["sim"].threads = int(threads)
     every = checkpoint_every_s if checkpoint_every_s is not None else state["checkpoint_every_s"]
