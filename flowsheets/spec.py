@@ -47,8 +47,7 @@ import numpy as np
 
 from millfmu.kinetics.grid import SizeGrid
 from millfmu.mill import psd_fractions
-from millfmu.scene import did_you_mean
-from millfmu.scene import SceneError, default_scene_text, scene_from_dict
+from millfmu.scene import SceneError, default_scene_text, did_you_mean, scene_from_dict
 from millfmu.text_files import NotUtf8, utf8_text
 
 ALGORITHMS = ("jacobi", "gauss-seidel")
