@@ -257,7 +257,8 @@ def register(subparsers):
     w.add_argument("--reference", type=float, default=0.125, help="communication step [s] of the reference run")
     w.add_argument("--t-end", type=float, default=None, help="simulated time [s] instead of the file's t_end_s")
     w.add_argument("--variable", default="mill.x50", help="output compared (unit.variable; default mill.x50)")
-    w.add_argument("--out", default="out_wp", help="output folder: wp.csv, wp.json, wp.txt, wp.png (default out_wp)")
+    w.add_argument("--out", default="out_wp",
+                   help="output folder: wp.csv, wp.json, wp.txt, wp.png (default %(default)s)")
     w.add_argument("--fmu-dir", default=None, help="where the unit FMUs are built and reused (default: OUT/fmus)")
     w.add_argument("--fmi-version", type=int, choices=(2, 3), default=2,
                    help="FMI version of all the unit FMUs (default 2)")

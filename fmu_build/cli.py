@@ -115,9 +115,10 @@ def register_bench(bench_subparsers) -> None:
                                     help="FMU doStep + reading all outputs, against a trivial FMU of the same FMI "
                                          "version in the same run")
     f.add_argument("--classes", type=whole_number(2), default=BENCH_FMU_CLASSES,
-                   help=f"size classes of the mill FMU (default {BENCH_FMU_CLASSES})")
-    f.add_argument("--steps", type=whole_number(1), default=2000, help="steps per timing run (default 2000)")
-    f.add_argument("--repeats", type=whole_number(1), default=5, help="timing runs; the best is reported (default 5)")
+                   help="size classes of the mill FMU (default %(default)s)")
+    f.add_argument("--steps", type=whole_number(1), default=2000, help="steps per timing run (default %(default)s)")
+    f.add_argument("--repeats", type=whole_number(1), default=5,
+                   help="timing runs; the best is reported (default %(default)s)")
     f.add_argument("--fmi-version", type=int, choices=(2, 3), action="append",
                    help="FMI version to measure (repeatable; default: 2 and 3)")
     f.add_argument("--json", metavar="FILE", help="also write the figures to FILE as one JSON record (with the "

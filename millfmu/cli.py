@@ -264,9 +264,9 @@ def build_parser() -> argparse.ArgumentParser:
     bp.add_argument("--classes", type=whole_number(2), nargs="+", default=BENCH_PBM_DEFAULTS["classes"],
                     help="size classes of the grids to time (default: 50 100 200)")
     bp.add_argument("--hours", type=positive_number, default=BENCH_PBM_DEFAULTS["hours"],
-                    help="simulated batch time [h] at 1 s steps (default: 1)")
+                    help="simulated batch time [h] at 1 s steps (default: %(default)g)")
     bp.add_argument("--repeats", type=whole_number(1), default=BENCH_PBM_DEFAULTS["repeats"],
-                    help="timed repeats, the best counted (default: 3)")
+                    help="timed repeats, the best counted (default: %(default)s)")
     bp.add_argument("--tanks", type=whole_number(0), default=BENCH_PBM_DEFAULTS["tanks"],
                     help="tanks in series of the continuous row (0: leave it out)")
     bp.add_argument("--no-dense", action="store_true",
