@@ -8,6 +8,7 @@ from __future__ import annotations
 import argparse
 import importlib
 import os
+import re
 import sys
 import time
 import warnings
@@ -220,8 +221,17 @@ def _cmd_examples(args) -> int:
     return 0
 
 
+class _Parser(argparse.ArgumentParser):
+    """argparse's parser that also reads negative numbers in exponent form (-1e-6) as values, as Python 3.13's
+    does, so that a bad value reaches the option's own check and message instead of "expected one argument"."""
+
+    def __init__(self, *args, **kwargs):
+        super().__init__(*args, **kwargs)
+        self._negative_number_matcher = re.compile(r"^-(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?$")
+
+
 def build_parser() -> argparse.ArgumentParser:
-    p = argparse.ArgumentParser(prog="millfmu",
+    p = _Parser(prog="millfmu",
                                 description="Wet stirred media mill (bead mill) model: population balance with Kwade's "
                                             "stress model.")
     from . import __version__

@@ -191,7 +191,9 @@ def test_calibrate_names_the_fittable_constant_closest_to_a_misspelt_one(tmp_pat
 @pytest.mark.parametrize("argv, shown", [(["--sizes", "10"], "if 10 is in micrometres, write 1e-05"),
                                          (["--values", "tip_speed=6,8", "--values", "tip_speed=10"],
                                           "tip_speed is given twice"),
-                                         (["--values", "tip_sped=6"], "(did you mean tip_speed?)")])
+                                         (["--values", "tip_sped=6"], "(did you mean tip_speed?)"),
+                                         (["--sizes", "-1e-6"], "--sizes = '-1e-06': must be positive sizes in m"),
+                                         (["--sizes", "2e-6", "-.5"], "--sizes = '2e-06,-0.5': must be positive")])
 def test_rates_refuses_sizes_in_micrometres_and_a_parameter_given_twice(argv, shown, tmp_path, capsys):
     scene = tmp_path / "s.toml"
     scene.write_text(SHORT)
