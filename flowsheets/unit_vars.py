@@ -18,7 +18,7 @@ import os
 
 import numpy as np
 
-from .units import Classifier, Feed, PIController, StepDiscarded, Tank, UnitInputError
+from .units import Classifier, Feed, PIController, StepDiscarded, Tank, UnitInputError, checked_fractions
 
 #: SI base-unit exponents of the units used (BaseUnit in FMI 2.0 and 3.0).
 BASE_UNITS = {
@@ -121,7 +121,12 @@ class UnitAdapter:
             self.refuse_configuration(f"parameter {e}")
         self.core = core
         self._config_error = None
+        self._start_from_inputs()
         self._publish()
+
+    def _start_from_inputs(self):
+        """What a unit's start outputs take from the inputs set before initialization ended
+        (the master sets a connected input from its sender's start output); nothing by default."""
 
     def _take_step(self, h):
         if not (math.isfinite(h) and h > 0.0):
@@ -242,6 +247,13 @@ class ClassifierUnit:
         if not 0.0 <= p["liquid_to_coarse"] <= 1.0:
             raise UnitInputError("liquid_to_coarse", p["liquid_to_coarse"], "must lie in [0, 1]")
         return Classifier(self.edges_m, p["cut_size"], p["sharpness"], p["bypass"], p["liquid_to_coarse"])
+
+    def _start_from_inputs(self):
+        try:
+            psd = checked_fractions("feed_psd", self.vec("feed_psd"), self.n, UnitInputError)
+        except UnitInputError:
+            return  # the first step refuses it by name
+        self.core.await_feed(psd)
 
     def _step(self, h):
         value = self.value

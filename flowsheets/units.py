@@ -292,10 +292,16 @@ class Classifier:
 
     def reset(self):
         self.t_s = 0.0
-        w0 = np.full(self.n, 1.0 / self.n)
-        self._c = {"coarse": (0.0, 0.5, _split_psd(self.T * w0, w0)),
-                   "fine": (0.0, 0.5, _split_psd((1 - self.T) * w0, w0))}
+        self.await_feed(np.full(self.n, 1.0 / self.n))
         self.in_kg = 0.0
+
+    def await_feed(self, psd):
+        """Before anything has flowed: both streams empty, their size distributions the split
+        of ``psd`` (the feed expected, class mass fractions), so that their x50 at t = 0 is the
+        split's and not that of an arbitrary distribution."""
+        w = np.asarray(psd, float)
+        self._c = {"coarse": (0.0, 0.5, _split_psd(self.T * w, w)),
+                   "fine": (0.0, 0.5, _split_psd((1 - self.T) * w, w))}
 
     def step(self, h, mass_flow, solids_mass_fraction, psd):
         _check_flow("feed_mass_flow", mass_flow)

@@ -105,6 +105,18 @@ def test_classifier_split_conserves_each_class_and_follows_tromp():
     assert o["coarse_solids_mass_fraction"] == pytest.approx(m_c / (m_c + 0.3 * 0.04), rel=1e-12)
 
 
+def test_classifier_before_any_flow_shows_the_split_of_the_feed_it_awaits():
+    c = Classifier(GRID.edges_m, 8e-6, 3.0, 0.05, 0.3)
+    w = _psd()
+    c.await_feed(w)
+    o = c.outputs()
+    assert o["coarse_mass_flow"] == o["fine_mass_flow"] == 0.0
+    c.step(2.0, 0.01, 0.2, w)  # the same feed flowing: the same distributions
+    for s in ("coarse", "fine"):
+        np.testing.assert_allclose(o[f"{s}_psd"], c.outputs()[f"{s}_psd"], rtol=1e-12, atol=1e-16)
+        assert o[f"{s}_x50"] == pytest.approx(c.outputs()[f"{s}_x50"], rel=1e-12)
+
+
 def test_feed_integrates_steps_and_ramps_exactly():
     w1, w2 = _psd(), _psd()
     prof = [[0.0, 1e-3], [10.0, 1e-3], [10.0, 2e-3], [30.0, 4e-3]]  # step at 10 s, ramp to 30 s, then constant
