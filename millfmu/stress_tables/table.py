@@ -529,8 +529,12 @@ class Table:
     def _measured_distance(self, name: str, point: dict) -> float:
         """Largest distance of ``point`` over the grid axes from where one-at-a-time axis
         ``name`` was run, in units of each axis's range [-]: from the anchor's value, or on a
-        grid axis its side table spans (``across``), from the nearest of its values there."""
-        side = self.side_of(name, float(point.get(name, self.one_at_a_time_ref[name])))
+        grid axis its side table spans (``across``), from the nearest of its values there;
+        and, where the side table holds ``name`` itself at several values (run across), along
+        ``name`` from the nearest of them in units of their range: a value between them is
+        interpolated as the grid axes are."""
+        x_a = float(point.get(name, self.one_at_a_time_ref[name]))
+        side = self.side_of(name, x_a)
         d = 0.0
         for ax, a in self.anchor.items():
             grid = self.axes.get(ax)
@@ -539,6 +543,9 @@ class Table:
             x = float(point[ax])
             near = side.axes[ax] if ax in side.axes else np.array([float(a)])
             d = max(d, float(np.min(np.abs(near - x))) / float(grid[-1] - grid[0]))
+        own = side.axes.get(name)
+        if own is not None and own.size >= 2:
+            d = max(d, float(np.min(np.abs(own - x_a))) / float(own[-1] - own[0]))
         return d
 
     def node_sigma(self) -> dict:
@@ -1053,7 +1060,7 @@ REBUILD_DEFAULT = (
     "millfmu tables build --scene disc_slice --tip-speed 6,8,10,12,14 --filling "
     "0.5,0.6,0.7,0.8,0.9 --bead-diameter 0.0005,0.0008,0.0012 --bead-density "
     "2510,6040 --one-at-a-time bead-diameter,bead-density --across "
-    "bead-diameter=0.0008,0.0012:tip-speed=6,10,14:filling=0.5,0.6,0.8,0.9 --across "
+    "bead-diameter:tip-speed=6,10,14:filling=0.5,0.6,0.8,0.9 --across "
     "bead-density:tip-speed=6,10,14:filling=0.5,0.6,0.8,0.9 --sector-deg 10 --spin-up "
     "1.5 --record 0.4 --sample-every 0.01 --initial-rotation 0.1 --no-gravity "
     "--fluid coupled --export millfmu/data/coupled_table")

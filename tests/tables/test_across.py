@@ -4,6 +4,7 @@ sub-grid (exact at its nodes), files, the separability error's distance and the 
 
 from __future__ import annotations
 
+import copy
 import json
 import math
 
@@ -181,6 +182,35 @@ def test_separability_error_counts_the_distance_from_the_sub_grid(tables):
     assert t.separability_error(_point(8.0, 0.5))["collision_frequency"][0] == pytest.approx(0.1)
     # off the sub-grid with no check: not stated
     assert math.isnan(across.separability_error(_point(8.0, 0.5))["collision_frequency"][0])
+
+
+def test_separability_error_of_an_axis_run_at_the_anchor_alone(tables):
+    """The diameter run at the anchor alone (10 m/s, 70 %) at 0.5/0.8/1.2 mm: b = b_c (g /
+    g_c) (h / h_c), g the largest distance from the anchor over tip speed and filling and
+    along the diameter from the nearest value run, each in units of its range; h = |ln(d /
+    0.8 mm)|."""
+    _, alone = tables
+    t = copy.copy(alone)
+    c = {"point": _point(6.0, 0.5, rho=RHO_KG_PER_M3, d=D_LO),
+         "collision_frequency_norm": {"lookup_rel_diff": [1.0, -0.5]},
+         "se_tn_q50_norm": {"lookup_rel_diff": [0.25, None]}}
+    t.manifest = dict(alone.manifest, separability_check={"measure": "test", "points": [c]})
+
+    def cf(v, phi, d, rho=RHO_KG_PER_M3):
+        return t.separability_error(_point(v, phi, rho=rho, d=d))["collision_frequency"]
+
+    assert np.allclose(cf(6.0, 0.5, D_LO), [1.0, 1.0])  # g_c = 0.5 (4 of 8 m/s, 0.2 of 0.4)
+    assert math.isnan(t.separability_error(_point(6.0, 0.5, rho=RHO_KG_PER_M3, d=D_LO))["se_median"][1])
+    for p in ((10.0, 0.7, D_LO), (6.0, 0.5, D_GB_M)):  # the anchor's run; the reference
+        assert np.all(cf(*p) == 0.0)
+    assert np.allclose(cf(10.0, 0.6, D_LO), [0.5, 0.5])  # g = 0.25
+    h = math.log(D_GB_M / 0.6e-3) / math.log(D_GB_M / D_LO)
+    assert cf(6.0, 0.5, 0.6e-3)[0] == pytest.approx(h)  # g = g_c, nearer the reference
+    # at the anchor, between 0.5 and 0.8 mm: g = 0.1 / 0.7 along the diameter
+    assert cf(10.0, 0.7, 0.6e-3)[0] == pytest.approx((0.1 / 0.7) / 0.5 * h)
+    # the density run at the anchor alone with no check: NaN off the anchor, 0 at its run
+    assert np.all(np.isnan(cf(8.0, 0.6, D_GB_M, RHO_HI)))
+    assert np.all(cf(10.0, 0.7, D_GB_M, RHO_HI) == 0.0)
 
 
 def test_a_node_run_again_states_its_difference_near_that_node(tables):

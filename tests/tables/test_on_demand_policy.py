@@ -143,7 +143,7 @@ def test_run_with_a_stale_kernel_on_the_coupled_table(tmp_path, capsys, monkeypa
                      '[kinetics.stress_distribution]\nsource = "table"\ntable = "coupled"\non_outside = "build"\n')
     assert main(["run", str(scene), "--out", str(tmp_path / "out"), "-q", "--no-plots"]) == 2
     err = capsys.readouterr().err
-    assert "beads.diameter_m = 0.0014" in err and "51 points, 0 already built, 51 to run" in err
+    assert "beads.diameter_m = 0.0014" in err and "73 points, 0 already built, 73 to run" in err
     assert "h of point runs" in err and "refused" in err
 
 

@@ -35,46 +35,41 @@ def _check(point, cf, se):
             "se_tn_q50_norm": {"lookup_rel_diff": se}}
 
 
-def test_separability_error_grows_with_the_distances_from_the_anchor_and_the_reference(coupled):
-    """b = b_c (g / g_c) (h / h_c): b_c = max(l/r, r/l) - 1 at the check (lookup twice the
-    run and half of it both give 1), g the largest distance from the anchor (10 m/s, 80 %)
-    in units of each grid axis's range, h = |ln(d / 0.8 mm)|: the bead diameter below 0.8 mm,
-    which was run at the anchor alone."""
+def test_separability_error_counts_the_distance_along_the_axis_run_across(coupled):
+    """Every bead diameter of the coupled table is run across 6/10/14 m/s x 50/60/80/90 %:
+    b = b_c (g / g_c) (h / h_c), g the largest distance from where the diameter was run, over
+    tip speed and filling from the sub-grid's nearest values and along the diameter from the
+    nearest value run (0.5/0.8/1.2 mm), each in units of its range; h = |ln(d / 0.8 mm)|."""
     c = _check({"tip_speed_m_per_s": 6.0, "filling": 0.5, "bead_diameter_m": 0.6e-3},
                [1.0, -0.5, 0.0, None], [0.25, -0.2, None, None])
     t = _with_checks(coupled, [c])
-    d06 = {"bead_diameter_m": 0.6e-3, "bead_density_kg_per_m3": 2510.0}
-    at_check = t.separability_error({"tip_speed_m_per_s": 6.0, "filling": 0.5, **d06})
+
+    def sep(v, phi, d, rho=2510.0):
+        return t.separability_error({"tip_speed_m_per_s": v, "filling": phi, "bead_diameter_m": d,
+                                     "bead_density_kg_per_m3": rho})
+
+    at_check = sep(6.0, 0.5, 0.6e-3)
     assert np.allclose(at_check["collision_frequency"][:3], [1.0, 1.0, 0.0])
     assert math.isnan(at_check["collision_frequency"][3])  # a zone the check found empty
     assert np.allclose(at_check["se_median"][:2], [0.25, 0.25])
-    # the anchor itself (the side table's own point) and the axes' references add nothing
-    for p in ({"tip_speed_m_per_s": 10.0, "filling": 0.8, **d06},
-              {"tip_speed_m_per_s": 6.0, "filling": 0.5, "bead_diameter_m": 0.8e-3,
-               "bead_density_kg_per_m3": 2510.0}):
-        e = t.separability_error(p)
+    # at the sub-grid's nodes (0.5 and 1.2 mm at 6 m/s, 50 %) and on the references: nothing
+    for e in (sep(6.0, 0.5, 0.5e-3), sep(14.0, 0.9, 1.2e-3), sep(8.0, 0.7, 0.8e-3)):
         assert np.all(e["collision_frequency"] == 0.0) and np.all(e["se_median"] == 0.0)
-    # a third of the check's distance from the anchor: g = 0.25 against 0.75
-    e = t.separability_error({"tip_speed_m_per_s": 10.0, "filling": 0.7, **d06})
-    assert np.allclose(e["collision_frequency"][:2], [1 / 3, 1 / 3])
-    # farther along the axis than the check: ln(0.8 / 0.5) / ln(0.8 / 0.6)
-    e = t.separability_error({"tip_speed_m_per_s": 6.0, "filling": 0.5, "bead_diameter_m": 0.5e-3,
-                              "bead_density_kg_per_m3": 2510.0})
-    assert e["collision_frequency"][0] == pytest.approx(math.log(1.6) / math.log(4 / 3))
-    # 1.2 mm, run across 6/10/14 m/s x 50/60/80/90 %: none at its sub-grid's nodes; between
-    # them the check below 0.8 mm is not its side's, so nothing measured it (NaN)
-    d12 = {"bead_diameter_m": 1.2e-3, "bead_density_kg_per_m3": 2510.0}
-    e = t.separability_error({"tip_speed_m_per_s": 6.0, "filling": 0.5, **d12})
-    assert np.all(e["collision_frequency"] == 0.0)
-    e = t.separability_error({"tip_speed_m_per_s": 8.0, "filling": 0.7, **d12})
-    assert np.all(np.isnan(e["collision_frequency"]))
+    # 0.6 mm lies 0.1 mm from 0.5 mm (of 0.7 mm): g_c = 1/7 at the check and at the anchor too,
+    # which is a node in tip speed and filling only
+    assert np.allclose(sep(10.0, 0.8, 0.6e-3)["collision_frequency"][:2], [1.0, 1.0])
+    # g = 0.25 (8 m/s: 2 of 8 from 6 and 10 m/s), 1.75 times the check's
+    assert np.allclose(sep(8.0, 0.8, 0.6e-3)["collision_frequency"][:2], [1.75, 1.75])
+    # 0.7 mm at the check's tip speed and filling: g = g_c, h / h_c = ln(0.8 / 0.7) / ln(0.8 / 0.6)
+    assert sep(6.0, 0.5, 0.7e-3)["collision_frequency"][0] == pytest.approx(math.log(8 / 7) / math.log(4 / 3))
+    # 1.2 mm between the sub-grid's nodes reads the same check: g / g_c = 1.75, h / h_c =
+    # ln(1.5) / ln(4 / 3)
+    assert sep(8.0, 0.7, 1.2e-3)["collision_frequency"][0] == pytest.approx(1.75 * math.log(1.5) / math.log(4 / 3))
     # an axis off its reference away from where it was run that no check measured: not
-    # stated (NaN); where it was run (the density across 6/10/14 m/s x 50/80/90 %): none
-    rho = {"bead_diameter_m": 0.8e-3, "bead_density_kg_per_m3": 6040.0}
-    e = t.separability_error({"tip_speed_m_per_s": 8.0, "filling": 0.6, **rho})
-    assert np.all(np.isnan(e["collision_frequency"]))
-    e = t.separability_error({"tip_speed_m_per_s": 6.0, "filling": 0.5, **rho})
-    assert np.all(e["collision_frequency"] == 0.0)
+    # stated (NaN); where it was run (the density across 6/10/14 m/s x 50/60/80/90 %): none
+    rho = 6040.0
+    assert np.all(np.isnan(sep(8.0, 0.6, 0.8e-3, rho)["collision_frequency"]))
+    assert np.all(sep(6.0, 0.5, 0.8e-3, rho)["collision_frequency"] == 0.0)
 
 
 def test_realization_error_is_the_manifests_spread_times_its_factor(coupled):

@@ -231,7 +231,7 @@ def test_an_unwritable_output_folder_is_the_one_named(tmp_path, monkeypatch):
 
 
 def test_a_bead_size_the_dem_cell_cannot_hold_is_refused_before_its_cost(tmp_path, capsys):
-    """4 mm beads at 80 % filling on the coupled table (on_outside = 'build'): no sector of up
+    """4 mm beads on the coupled table (on_outside = 'build'): no sector of up
     to 90 degrees holds them, so they are refused by the bead size, before a build line or any
     DEM run."""
     scene = tmp_path / "s.toml"
@@ -241,7 +241,7 @@ def test_a_bead_size_the_dem_cell_cannot_hold_is_refused_before_its_cost(tmp_pat
     err = capsys.readouterr().err
     assert "beads.diameter_m = 0.004: the DEM scene disc_slice" in err, err
     assert "holds at most 352 beads of 4 mm placed without overlap in a sector of 90 degrees" in err
-    assert "a filling of 0.8 needs 471" in err
+    assert "a filling of 0.6 needs 353" in err  # the sub-grid's first filling it cannot hold
     assert "building a table" not in err and "lower the filling" not in err and "Traceback" not in err
     assert not (tmp_path / "out").exists()
 
@@ -328,7 +328,7 @@ def test_a_bad_build_limit_is_refused_by_name(monkeypatch, value):
 
 
 def test_run_refuses_the_stale_coupled_tables_full_rebuild_without_yes(tmp_path, capsys, monkeypatch):
-    """--on-stale rebuild of the coupled table (62 DEM points with the steel beads, hours): refused before any point
+    """--on-stale rebuild of the coupled table (73 DEM points with the steel beads, hours): refused before any point
     runs, naming the cost, the limit and --yes."""
     from millfmu.dem.tables import cache
 
@@ -339,7 +339,7 @@ def test_run_refuses_the_stale_coupled_tables_full_rebuild_without_yes(tmp_path,
                      '[kinetics.stress_distribution]\nsource = "table"\ntable = "coupled"\non_outside = "build"\n')
     assert main(["run", str(scene), "--out", str(tmp_path / "out"), "-q", "--no-plots", "--on-stale", "rebuild"]) == 2
     err = capsys.readouterr().err
-    assert ("62 points, 0 already built, 62 to run" in err
+    assert ("73 points, 0 already built, 73 to run" in err
             and "over the 30 min a build may take without confirmation" in err)
     assert "--yes" in err and "Traceback" not in err and not (tmp_path / "out").exists()
 

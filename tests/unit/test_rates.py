@@ -133,11 +133,11 @@ def test_detailed_model_moves_with_the_simple_one_for_tip_speed_and_bead_density
 
 
 def test_points_the_table_does_not_resolve_are_labelled_or_refused(limestone):
-    # bead diameter and density: the coupled table varies them one at a time (0.5-1.2 mm
-    # around its anchor, 2510-6040 kg/m3 across a sub-grid of tip speeds and fillings); inside,
-    # the grid's fields are scaled (separability or the sub-grid's change, noted per point); a
-    # bead diameter beyond them is refused, left empty, never faked
-    for p, how in (("bead_diameter", "separability assumed"),
+    # bead diameter and density: the coupled table varies them one at a time (0.5-1.2 mm and
+    # 2510-6040 kg/m3, each across a sub-grid of tip speeds and fillings); inside, the grid's
+    # fields are scaled by the sub-grid's change, noted per point; a bead diameter beyond them
+    # is refused, left empty, never faked
+    for p, how in (("bead_diameter", "across tip_speed_m_per_s 6/10/14, filling 0.5/0.6/0.8/0.9"),
                    ("bead_density", "across tip_speed_m_per_s 6/10/14, filling 0.5/0.6/0.8/0.9")):
         c = limestone.curve(p, "detailed")
         i = limestone.reference_index(p)
