@@ -37,9 +37,11 @@ def test_kernel_modules_are_found_by_label():
 
 def test_tables_verify_passes_on_the_shipped_tables():
     r = subprocess.run([sys.executable, "-m", "millfmu.cli", "tables", "verify", "--default",
-                        str(DATA / "coupled_table"), str(DATA / "accelerator_table")],
+                        str(DATA / "coupled_table"), str(DATA / "accelerator_table"), "prescribed", "default"],
                        capture_output=True, text=True)
     assert r.returncode == 0, r.stdout + r.stderr
+    # a shipped table by name, as a scene and tables check name it
+    assert "prescribed: ok" in r.stdout and "default: ok" in r.stdout and "5 checked, 0 bad" in r.stdout
 
 
 def test_same_results_as_an_accepted_change_take_its_version(monkeypatch):

@@ -128,8 +128,8 @@ def register(subparsers) -> argparse.ArgumentParser:
 
     v = sub.add_parser("verify", help="verify cache entries, table files, the default table")
     _cache_opt(v)
-    v.add_argument("paths", nargs="*", help="cache entry folders or PREFIX of PREFIX.npz/.json "
-                   "(default: every cache entry)")
+    v.add_argument("paths", nargs="*", help="cache entry folders, shipped tables' names (default, coupled, "
+                   "prescribed, accelerator) or PREFIX of PREFIX.npz/.json (default: every cache entry)")
     v.add_argument("--default", action="store_true", help="verify the shipped default table")
     v.set_defaults(func=_verify)
 
@@ -440,8 +440,9 @@ def _verify(args) -> int:
         try:
             if Path(p).is_dir():
                 T.read_table(p)
-            else:
-                T.read_table(npz=p + ".npz", manifest_path=p + ".json")
+            else:  # a shipped table's name (default, coupled, ...) or PREFIX
+                prefix = str(T.table_ref_prefix(p))
+                T.read_table(npz=prefix + ".npz", manifest_path=prefix + ".json")
             print(f"{p}: ok")
         except T.TableError as e:
             print(f"{p}: BAD: {e}")
