@@ -232,8 +232,7 @@ class _Parser(argparse.ArgumentParser):
 
 def build_parser() -> argparse.ArgumentParser:
     p = _Parser(prog="millfmu",
-                                description="Wet stirred media mill (bead mill) model: population balance with Kwade's "
-                                            "stress model.")
+                description="Wet stirred media mill (bead mill) model: population balance with Kwade's stress model.")
     from . import __version__
 
     p.add_argument("--version", action="version", version=f"millfmu {__version__}")
