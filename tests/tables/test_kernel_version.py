@@ -42,6 +42,10 @@ def test_tables_verify_passes_on_the_shipped_tables():
     assert r.returncode == 0, r.stdout + r.stderr
     # a shipped table by name, as a scene and tables check name it
     assert "prescribed: ok" in r.stdout and "default: ok" in r.stdout and "5 checked, 0 bad" in r.stdout
+    r = subprocess.run([sys.executable, "-m", "millfmu.cli", "tables", "verify", "copled"], capture_output=True,
+                       text=True)
+    assert r.returncode == 1 and "copled: BAD: no copled.npz or copled.json, and not a shipped table's name " \
+        "(default, accelerator, coupled, prescribed)" in r.stdout, r.stdout
 
 
 def test_same_results_as_an_accepted_change_take_its_version(monkeypatch):

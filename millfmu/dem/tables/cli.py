@@ -442,6 +442,9 @@ def _verify(args) -> int:
                 T.read_table(p)
             else:  # a shipped table's name (default, coupled, ...) or PREFIX
                 prefix = str(T.table_ref_prefix(p))
+                if not any(Path(prefix + e).exists() for e in (".npz", ".json")):
+                    raise T.TableError(f"no {prefix}.npz or {prefix}.json, and not a shipped table's name "
+                                       f"({', '.join(('default',) + tuple(T.SHIPPED_TABLES))})")
                 T.read_table(npz=prefix + ".npz", manifest_path=prefix + ".json")
             print(f"{p}: ok")
         except T.TableError as e:
