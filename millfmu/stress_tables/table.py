@@ -1118,8 +1118,7 @@ def read_table_ref(ref: str) -> Table:
         if not npz.exists():
             return read_default_table()  # names what is missing
         return _read_cached(npz, man)
-    prefix = str(table_ref_prefix(ref))
-    return _read_cached(Path(prefix + ".npz"), Path(prefix + ".json"))
+    return _read_cached(*table_ref_files(ref))
 
 
 def table_ref_prefix(ref: str) -> Path:
@@ -1130,6 +1129,18 @@ def table_ref_prefix(ref: str) -> Path:
     if ref in SHIPPED_TABLES:
         return default_table_paths()[0].parent / f"{ref}_table"
     return Path(ref)
+
+
+def table_ref_files(ref: str) -> tuple[Path, Path]:
+    """The files (PREFIX.npz, PREFIX.json) of the table ``ref`` names ("default", a shipped
+    table's name or PREFIX, see :func:`read_table_ref`). Raises TableError where
+    neither exists, naming the shipped tables: a misspelt name is no file to rebuild."""
+    prefix = str(table_ref_prefix(ref))
+    npz, man = Path(prefix + ".npz"), Path(prefix + ".json")
+    if not (npz.exists() or man.exists()):
+        raise TableError(f"no {npz} or {man}, and not a shipped table's name "
+                         f"({', '.join(('default',) + SHIPPED_TABLES)})")
+    return npz, man
 
 
 def read_default_table() -> Table:

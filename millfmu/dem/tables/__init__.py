@@ -50,7 +50,7 @@ _EXPORTS = {
         "FIXED_AXIS_RTOL", "Lookup", "ONE_AT_A_TIME_PREFIX", "OutsideGridError", "REBUILD_DEFAULT",
         "Table",
         "SHIPPED_TABLES", "default_table_paths", "shift_log_density",
-        "read_default_table", "read_table", "read_table_ref", "table_ref_prefix"), "table"),
+        "read_default_table", "read_table", "read_table_ref", "table_ref_files", "table_ref_prefix"), "table"),
     "TableStressSource": "stress_source",
     **dict.fromkeys(("CHECK_FIELDS", "PointStore", "assemble", "build_table", "check_point",
                      "order_by_cost", "point_scene", "record_check", "run_points", "stationarity_summary",

@@ -441,11 +441,8 @@ def _verify(args) -> int:
             if Path(p).is_dir():
                 T.read_table(p)
             else:  # a shipped table's name (default, coupled, ...) or PREFIX
-                prefix = str(T.table_ref_prefix(p))
-                if not any(Path(prefix + e).exists() for e in (".npz", ".json")):
-                    raise T.TableError(f"no {prefix}.npz or {prefix}.json, and not a shipped table's name "
-                                       f"({', '.join(('default',) + tuple(T.SHIPPED_TABLES))})")
-                T.read_table(npz=prefix + ".npz", manifest_path=prefix + ".json")
+                npz, man = T.table_ref_files(p)
+                T.read_table(npz=npz, manifest_path=man)
             print(f"{p}: ok")
         except T.TableError as e:
             print(f"{p}: BAD: {e}")
