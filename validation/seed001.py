@@ -9,9 +9,13 @@ their ``stats.json`` and prints one row per statement: the paper's value, ours (
 ours (prescribed), verdict. ``python -m validation.seed001 summarize --out DIR`` keeps what
 the table reads of the coupled cases in ``validation/runs/seed001_sector.json`` (zone
 statistics and the flow's census); ``table`` without ``--out`` computes the table from it.
-The verdict compares the coupled runs; a quantitative statement counts as met within the
-tolerance named in its row; a statement the runs' statistics cannot judge is listed as not
-evaluated, and the count below the table says how many of each.
+``run --out DIR --full-slice`` runs seed 001's own configuration (the whole slice with
+gravity) at the same cases, each from its checkpoint, into ``DIR/c360_v<tip speed>_f<filling
+%>``; ``summarize --full-slice`` keeps them beside the sector's. The verdict is the full
+slice's where it decides the statement (every case of it run, or a miss at a case run), else
+the sector's; a quantitative statement counts as met within the tolerance named in its row;
+a statement the runs' statistics cannot judge is listed as not evaluated, and the count below
+the table says how many of each.
 """
 
 from __future__ import annotations
@@ -85,40 +89,73 @@ def run_campaign(out_dir, fluids=("coupled", "prescribed"), sector_deg: float = 
             run_scene(sc, d, progress=progress, threads=threads, window_s=WINDOW_S)
 
 
-#: seed 001's own configuration, one case: the whole slice (360 degrees) with the scene's
-#: gravity across the axis, the liquid in 32 theta cells, by the sector campaign's protocol
-#: (coupled, started at COUPLED_INITIAL_ROTATION, COUPLED_SPIN_UP_S, RECORD_S in windows of
-#: WINDOW_S); 2.0-2.5 h per simulated second on 2 threads, so it keeps a checkpoint
-FULL_CASE = (10.0, 0.8)
+#: seed 001's own configuration: the whole slice (360 degrees) with the scene's gravity
+#: across the axis, the liquid in 32 theta cells, at the sector campaign's cases (CASES,
+#: 10 m/s and 80 % first) and by its protocol (coupled, started at
+#: COUPLED_INITIAL_ROTATION, COUPLED_SPIN_UP_S, RECORD_S in windows of WINDOW_S); 2.5-4 h a
+#: case on 2 threads, so each keeps a checkpoint
+FULL_CASES = CASES
 FULL_SECTOR_DEG = 360.0
 FULL_THETA_CELLS = 32
 #: [s of wall time] between the full slice's checkpoints
 FULL_CHECKPOINT_EVERY_S = 600.0
+#: a full-slice case folder's lock, held by the process that runs the case
+FULL_LOCK = "running.lock"
 
 
-def run_full_slice(out_dir, threads=None, progress=True) -> Path:
-    """Run (or, from its checkpoint, go on with) the full slice's case into
-    ``out_dir/c360_v10_f80``; nothing where its stats.json is there. Returns the folder."""
+def case_label(vt: float, fill: float) -> str:
+    """A case as the summary and the table name it: '10 m/s, 80 %'."""
+    return f"{vt:g} m/s, {round(fill * 100)} %"
+
+
+def run_full_slice(out_dir, cases=FULL_CASES, threads=None, progress=True, say=None) -> list[Path]:
+    """Run the full slice's ``cases`` one after the other into ``out_dir/c360_v<tip
+    speed>_f<filling %>``, each from its checkpoint where it has one; a case with its
+    stats.json is done, a case whose folder another process holds (its lock) is left to it.
+    Returns the folders of the cases done."""
     from millfmu.dem.run import CHECKPOINT, resume_run, run_scene
 
-    vt, fill = FULL_CASE
-    d = case_dir(out_dir, "coupled", vt, fill, FULL_SECTOR_DEG)
-    if (d / "stats.json").exists():
-        return d
-    if (d / CHECKPOINT).exists():
-        resume_run(d, progress=progress, threads=threads)
-        return d
-    run_scene(full_slice_scene(), d, progress=progress, threads=threads, window_s=WINDOW_S,
-              checkpoint_every_s=FULL_CHECKPOINT_EVERY_S)
-    return d
+    say = say or (lambda m: print(m, file=sys.stderr, flush=True))
+    done = []
+    for vt, fill in cases:
+        d = case_dir(out_dir, "coupled", vt, fill, FULL_SECTOR_DEG)
+        if (d / "stats.json").exists():
+            done.append(d)
+            continue
+        d.mkdir(parents=True, exist_ok=True)
+        with open(d / FULL_LOCK, "a+") as lock:
+            try:
+                _lock(lock)
+            except OSError:
+                say(f"{d}: run by another process; the next case")
+                continue
+            if (d / "stats.json").exists():
+                pass
+            elif (d / CHECKPOINT).exists():
+                say(f"{d}: going on from its checkpoint")
+                resume_run(d, progress=progress, threads=threads)
+            else:
+                run_scene(full_slice_scene(vt, fill), d, progress=progress, threads=threads,
+                          window_s=WINDOW_S, checkpoint_every_s=FULL_CHECKPOINT_EVERY_S)
+        done.append(d)
+    return done
 
 
-def full_slice_scene():
-    """The full slice's case as a DEM scene (disc_slice with the overrides of
-    :data:`FULL_CASE` and the campaign's protocol; the scene's gravity kept)."""
+def _lock(fh) -> None:
+    """Hold ``fh``'s file for this process (OSError where another holds it); nothing where
+    the platform has no flock."""
+    try:
+        import fcntl
+    except ImportError:  # pragma: no cover - not on the platforms the campaign runs on
+        return
+    fcntl.flock(fh.fileno(), fcntl.LOCK_EX | fcntl.LOCK_NB)
+
+
+def full_slice_scene(vt: float = 10.0, fill: float = 0.8):
+    """The full slice at tip speed ``vt`` [m/s] and filling ``fill`` [-] as a DEM scene
+    (disc_slice with the campaign's protocol; the scene's gravity kept)."""
     from millfmu.dem.scene import load_scene
 
-    vt, fill = FULL_CASE
     return load_scene("disc_slice").with_overrides(
         fluid_mode="coupled", tip_speed_m_per_s=vt, filling=fill, sector_deg=FULL_SECTOR_DEG,
         n_theta=FULL_THETA_CELLS, spin_up_s=COUPLED_SPIN_UP_S, record_s=RECORD_S,
@@ -214,8 +251,9 @@ def compact(st: dict) -> dict:
 def summarize(out_dir, path=None, full_slice: bool = False, smoothing_diameters=None) -> Path:
     """Write the compact stats of the coupled cases in ``out_dir`` (:func:`compact`) to
     ``path`` (default :data:`SUMMARY`), with the protocol and the command that made them;
-    ``full_slice``: instead the full slice's case (:func:`run_full_slice`), kept under
-    ``full_slice`` beside the sector's cases. Either keeps the other's part of the file.
+    ``full_slice``: instead the full slice's cases found there (:func:`run_full_slice`),
+    kept under ``full_slice`` beside the sector's cases with those kept before. Either keeps
+    the other's part of the file.
     ``smoothing_diameters``: the runs' smoothing length where it is not the scene's (a
     variant campaign, summarized into a file of its own)."""
     p = Path(path) if path is not None else SUMMARY
@@ -223,29 +261,37 @@ def summarize(out_dir, path=None, full_slice: bool = False, smoothing_diameters=
     protocol = {"initial_rotation": COUPLED_INITIAL_ROTATION, "spin_up_s": COUPLED_SPIN_UP_S,
                 "record_s": RECORD_S, "window_s": WINDOW_S, "sample_every_s": 0.01}
     if full_slice:
-        vt, fl = FULL_CASE
-        st = _load(out_dir, "coupled", vt, fl, FULL_SECTOR_DEG)
-        if st is None:
-            raise FileNotFoundError(f"{case_dir(out_dir, 'coupled', vt, fl, FULL_SECTOR_DEG)}: no "
-                                    f"stats.json (run it: python -m validation.seed001 run --out "
-                                    f"{out_dir} --full-slice)")
+        runs = dict((old.get("full_slice") or {}).get("runs", {}))
+        found = 0
+        for vt, fl in FULL_CASES:
+            st = _load(out_dir, "coupled", vt, fl, FULL_SECTOR_DEG)
+            if st is not None:
+                found += 1
+                runs[case_label(vt, fl)] = {"tip_speed_m_per_s": vt, "filling": fl, "stats": compact(st)}
+        if not found:
+            first = case_dir(out_dir, "coupled", *FULL_CASES[0], FULL_SECTOR_DEG).name
+            raise FileNotFoundError(f"{out_dir}: no full-slice case with a stats.json ({first}, ...; "
+                                    f"run them: python -m validation.seed001 run --out {out_dir} "
+                                    "--full-slice)")
+        order = [case_label(*k) for k in FULL_CASES]
         doc = dict(old)
         doc["full_slice"] = {
-            "note": ("seed 001's own configuration, one case: the whole disc slice with gravity "
-                     "across the axis, coupled; what the deviation table reads (units as above)"),
+            "note": ("seed 001's own configuration: the whole disc slice with gravity across the "
+                     "axis, coupled, at the cases run so far; what the deviation table reads (units as "
+                     "above)"),
             "protocol": dict(protocol, sector_deg=FULL_SECTOR_DEG, theta_cells=FULL_THETA_CELLS,
                              gravity_m_per_s2="the scene's"),
-            "command": "python -m validation.seed001 run --out DIR --full-slice --threads 2, then "
-                       "python -m validation.seed001 summarize --out DIR --full-slice",
-            "runs": {f"{vt:g} m/s, {round(fl * 100)} %": {"tip_speed_m_per_s": vt, "filling": fl,
-                                                          "stats": compact(st)}}}
+            "command": "python -m validation.seed001 run --out DIR --full-slice [--case 10:0.8 ...] "
+                       "--threads 2, then python -m validation.seed001 summarize --out DIR --full-slice",
+            "runs": {k: runs[k] for k in sorted(runs, key=lambda k: order.index(k) if k in order
+                                                else len(order))}}
     else:
         runs = {}
         for vt, fl in CASES:
             st = _load(out_dir, "coupled", vt, fl)
             if st is not None:
-                runs[f"{vt:g} m/s, {round(fl * 100)} %"] = {"tip_speed_m_per_s": vt, "filling": fl,
-                                                            "stats": compact(st)}
+                runs[case_label(vt, fl)] = {"tip_speed_m_per_s": vt, "filling": fl,
+                                            "stats": compact(st)}
         var = "" if smoothing_diameters is None else f" --smoothing-diameters {smoothing_diameters:g}"
         dest = "" if path is None else f" --summary validation/runs/{Path(path).name}"
         doc = {"note": ("seed 001's cases on the coupled 10-degree disc sector without gravity: per zone "
@@ -268,7 +314,7 @@ def summarize(out_dir, path=None, full_slice: bool = False, smoothing_diameters=
 
 def summary_stats(path=None, full_slice: bool = False) -> dict:
     """{(tip speed, filling): compact stats} of the shipped summary (:data:`SUMMARY`): its
-    sector cases, or (``full_slice``) its full slice's case, {} where it has none."""
+    sector cases, or (``full_slice``) its full slice's cases, {} where it has none."""
     doc = json.loads(Path(path if path is not None else SUMMARY).read_text())
     part = doc.get("full_slice", {}) if full_slice else doc
     return {(r["tip_speed_m_per_s"], r["filling"]): r["stats"]
@@ -354,19 +400,21 @@ def _fmt(x, nd=3):
 
 
 def deviation_rows(out_dir=None, summary=None) -> list[dict]:
-    """One dict per statement of seed 001 section 3: statement, paper, coupled, full (the
-    full slice at its one case: the value and whether the statement holds there, not
-    counted), prescribed, verdict (from the coupled sector runs): of the run folders in
-    ``out_dir``, or with None of the summary ``summary`` (default the shipped one,
-    :data:`SUMMARY`)."""
+    """One dict per statement of seed 001 section 3: statement, paper, coupled (the sector
+    campaign), full (the full slice, seed 001's configuration, at the cases it has run: the
+    values and whether the statement holds there), prescribed, verdict: of the run folders
+    in ``out_dir``, or with None of the summary ``summary`` (default the shipped one,
+    :data:`SUMMARY`). The verdict is the full slice's where it has run every case of the
+    statement, or misses it at a case it has run (the statement then fails on seed 001's
+    configuration whatever the other cases give); else the sector's."""
     if out_dir is None:
         shipped = summary_stats(summary)
         full = summary_stats(summary, full_slice=True)
         runs = {"coupled": {k: shipped.get(k) for k in CASES}, "prescribed": {k: None for k in CASES}}
     else:
         runs = {f: {(vt, fl): _load(out_dir, f, vt, fl) for vt, fl in CASES} for f in FLUIDS}
-        st = _load(out_dir, "coupled", *FULL_CASE, FULL_SECTOR_DEG)
-        full = {} if st is None else {FULL_CASE: st}
+        full = {k: _load(out_dir, "coupled", *k, FULL_SECTOR_DEG) for k in FULL_CASES}
+        full = {k: v for k, v in full.items() if v is not None}
     runs["full"] = {k: full.get(k) for k in CASES}
     has_full = bool(full)
     source = "prescribed-swirl runs in the folder"
@@ -388,31 +436,53 @@ def deviation_rows(out_dir=None, summary=None) -> list[dict]:
                          else f"{k[0]:g} m/s {round(k[1] * 100)} %: {_fmt(v, nd)}"
                          for v, k in zip(vals, keys) if v is not None) or "not run"
 
-    def full_cell(fn, keys, accept, value=lambda v: v, text=None):
-        """The full slice's cell: its value at its one case (fn(stats), shown by text, judged
-        by accept([value]))) and whether the statement holds there (nothing to judge where
-        value is None)."""
+    def full_cell(fn, keys, accept, value=lambda v: v, text=None, keyed=False):
+        """The full slice's cell and its verdict: fn(stats) at each case of ``keys`` it has
+        run, shown by ``text``, judged by accept([value]) (``keyed``: accept([(case,
+        value)])); (cell, True or False where the full slice decides the statement, else
+        None): it decides where it has run every case, or misses the statement at those
+        run."""
         if not has_full:
+            return "not run", None
+        cases = [k for k in keys if runs["full"].get(k) is not None]
+        if not cases:
+            return "not run at these cases", None
+        got = [(k, fn(runs["full"][k])) for k in cases]
+        got = [(k, v) for k, v in got if v is not None]
+        if not got:
+            return "not evaluated", None
+        shown = [text(v) if text else v if isinstance(v, str) else _fmt(v) for _, v in got]
+        cell = shown[0] if len(keys) == 1 else "; ".join(
+            f"{k[0]:g} m/s {round(k[1] * 100)} %: {t}" for (k, _), t in zip(got, shown))
+        judged = [(k, value(v)) for k, v in got if value(v) is not None]
+        if not judged:
+            return cell, None
+        ok = accept(judged if keyed else [v for _, v in judged])
+        if not ok:
+            return f"{cell} (missed)", False
+        if len(judged) == len(keys):
+            return f"{cell} (holds)", True
+        return f"{cell} (holds at the {len(judged)} of {len(keys)} cases run)", None
+
+    def verdict(sector_ok, full_ok, note=""):
+        """The row's verdict: the full slice's where it decides, else the sector's (None:
+        not run)."""
+        if full_ok is not None:
+            return ("matches" if full_ok else "missed") + " on the full slice" + note
+        if sector_ok is None:
             return "not run"
-        if FULL_CASE not in keys:
-            return f"not run (its one case: {FULL_CASE[0]:g} m/s, {round(FULL_CASE[1] * 100)} %)"
-        v = fn(runs["full"][FULL_CASE])
-        if v is None:
-            return "not evaluated"
-        txt = text(v) if text else v if isinstance(v, str) else _fmt(v)
-        judged = value(v)
-        return txt if judged is None else f"{txt} ({'holds' if accept([judged]) else 'missed'})"
+        return ("matches" if sector_ok else "missed") + note
 
     def add_row(statement, paper, fn, keys, accept, note=""):
-        """A row from fn(stats) per case in keys; verdict from accept(coupled values)."""
+        """A row from fn(stats) per case in keys; verdict from accept(values)."""
         vals = {f: per(f, fn, keys) for f in FLUIDS}
         got = [v for v in vals["coupled"] if v is not None]
+        cell, full_ok = full_cell(fn, keys, accept)
         rows.append(dict(statement=statement, paper=paper,
                          coupled=show(vals["coupled"], keys),
-                         full=full_cell(fn, keys, accept),
+                         full=cell,
                          prescribed=show(vals["prescribed"], keys),
-                         verdict=("matches" if accept(got) else "missed") + note if got
-                         else "not run"))
+                         verdict=verdict(accept(got) if got else None, full_ok, note)))
 
     keys80 = [(vt, 0.8) for vt in at80]
     all_keys = list(CASES)
@@ -470,15 +540,28 @@ def deviation_rows(out_dir=None, summary=None) -> list[dict]:
                f"{b / (a * 10 + b):+.2f}")
         return (r2, b / (a * 10 + b)), txt
 
+    def linear(lin):
+        return lin[0] >= 0.95 and abs(lin[1]) > 0.05
+
     lin_c, txt_c = linearity("coupled")
     lin_p, txt_p = linearity("prescribed")
-    ok = lin_c is not None and lin_c[0] >= 0.95 and abs(lin_c[1]) > 0.05
+    lin_f, txt_f = linearity("full")
+    n_full = sum(runs["full"].get((vt, 0.8)) is not None for vt in at80)
+    full_ok = None
+    if not has_full:
+        cell = "not run"
+    elif lin_f is None:
+        cell = f"not evaluated ({'one tip speed' if n_full == 1 else f'{n_full} tip speeds'})"
+    elif n_full == len(at80):
+        full_ok = linear(lin_f)
+        cell = f"{txt_f} ({'holds' if full_ok else 'missed'})"
+    else:
+        cell = f"{txt_f} (not judged: {n_full} of {len(at80)} tip speeds run)"
     rows.append(dict(statement="collision density of the chamber about linear in tip speed, "
                                "not proportional (section 3.4)",
                      paper="linear, not proportional", coupled=txt_c, prescribed=txt_p,
-                     full="not evaluated (one tip speed)" if has_full else "not run",
-                     verdict=("matches" if ok else "missed") + " (R^2 >= 0.95, intercept "
-                     "beyond 5 %)" if lin_c is not None else "not run"))
+                     full=cell, verdict=verdict(None if lin_c is None else linear(lin_c), full_ok,
+                                                " (R^2 >= 0.95, intercept beyond 5 %)")))
 
     # 7. V4 power about a decade below V1 (power density)
     def p_ratio(st):
@@ -529,15 +612,16 @@ def deviation_rows(out_dir=None, summary=None) -> list[dict]:
                     f"fluid: {census(st, 'vortices_fluid', region) or 'not evaluated'} / beads: "
                     f"{census(st, 'vortices_beads', region) or 'not evaluated'}")
 
-        full = full_cell(full_census, keys80, lambda ns, holds=holds: all(holds(FULL_CASE, n) for n in ns),
-                         value=lambda v: v[0], text=lambda v: v[1])
+        full, full_ok = full_cell(full_census, keys80,
+                                  lambda kv, holds=holds: all(holds(k, n) for k, n in kv),
+                                  value=lambda v: v[0], text=lambda v: v[1], keyed=True)
         rows.append(dict(statement=stmt, paper=paper_v, full=full,
                          coupled="fluid: " + show(fl, keys80) + " / beads: " + show(bc, keys80),
                          prescribed="beads: " + show(bp, keys80) +
                          " (the prescribed swirl has no meridional flow)",
-                         verdict=("matches" if ok else "missed") + " (census of the "
-                         "stream function above 1 % of its largest value)" if got
-                         else "not run"))
+                         verdict=verdict(ok if got else None, full_ok, " (census of the stream "
+                                                                      "function above 1 % of its "
+                                                                      "largest value)")))
 
     # 10. V3 the slowest zone (section 3.2: "the mean of the grinding media velocities in
     # V3 was the lowest in all investigated cases")
@@ -581,20 +665,21 @@ def deviation_rows(out_dir=None, summary=None) -> list[dict]:
              "the map of the collision power")):
         got = [(k, fn(runs["coupled"][k])) for k in all_keys if runs["coupled"].get(k) is not None]
         got = [(k, v) for k, v in got if v is not None]
-        full = full_cell(fn, all_keys, lambda vs, ok=ok: all(ok(v) for v in vs),
-                         value=lambda v: v[0], text=lambda v: v[1])
+        full, full_ok = full_cell(fn, all_keys, lambda vs, ok=ok: all(ok(v) for v in vs),
+                                  value=lambda v: v[0], text=lambda v: v[1])
         if full == "not evaluated":
-            full = "not evaluated (its run kept no collision maps)"
-        if not got:
+            full = "not evaluated (its runs kept no collision maps)"
+        if not got and full_ok is None:
             rows.append(dict(statement=stmt, paper=paper_v, coupled="not evaluated", full=full,
                              prescribed="not evaluated",
                              verdict=f"not evaluated (no collision_maps.npz behind {what})"))
             continue
         rows.append(dict(statement=stmt, paper=paper_v, full=full,
-                         coupled=show([v[1] for _, v in got], [k for k, _ in got]),
+                         coupled=show([v[1] for _, v in got], [k for k, _ in got]) if got
+                         else "not evaluated",
                          prescribed="not run (the shipped table keeps no maps)",
-                         verdict=("matches" if all(ok(v[0]) for _, v in got) else "missed") +
-                         f" ({rule})"))
+                         verdict=verdict(all(ok(v[0]) for _, v in got) if got else None, full_ok,
+                                         f" ({rule})")))
     for r in rows:
         r["prescribed_source"] = source
     return rows
@@ -612,9 +697,9 @@ def count(rows) -> dict:
 
 
 def markdown(rows) -> str:
-    lines = ["| seed 001 statement | paper | ours (coupled sector) | full slice, gravity, coupled "
-             f"({FULL_CASE[0]:g} m/s, {round(FULL_CASE[1] * 100)} %; not counted) | ours (prescribed) | "
-             "verdict (sector) |", "|---|---|---|---|---|---|"]
+    lines = ["| seed 001 statement | paper | ours (coupled sector) | full slice, gravity, coupled (the "
+             "cases run) | ours (prescribed) | verdict (the full slice where it decides, else the sector) |",
+             "|---|---|---|---|---|---|"]
     for r in rows:
         lines.append("| " + " | ".join(str(r[k]).replace("|", "/") for k in
                                        ("statement", "paper", "coupled", "full", "prescribed",
@@ -631,6 +716,24 @@ def markdown(rows) -> str:
 
 
 # --- the command: python -m validation.seed001 -------------------------------------------
+
+def parse_cases(texts) -> list[tuple[float, float]]:
+    """The cases 'V:F' (tip speed m/s, filling) of ``texts``, each one of :data:`CASES`;
+    ValueError naming a case that is not."""
+    out = []
+    allowed = ", ".join(f"{vt:g}:{fl:g}" for vt, fl in CASES)
+    for t in texts:
+        try:
+            vt, fl = (float(x) for x in t.split(":"))
+        except ValueError:
+            raise ValueError(f"--case {t!r}: expected tip speed:filling, one of {allowed}") from None
+        k = next((c for c in CASES if math.isclose(c[0], vt) and math.isclose(c[1], fl)), None)
+        if k is None:
+            raise ValueError(f"--case {t!r}: not one of the campaign's cases ({allowed})")
+        if k not in out:
+            out.append(k)
+    return out
+
 
 def parser() -> argparse.ArgumentParser:
     """The campaign's options."""
@@ -650,17 +753,22 @@ def parser() -> argparse.ArgumentParser:
     s.add_argument("--summary", metavar="FILE", help="summarize and table: this summary instead of "
                    "validation/runs/seed001_sector.json")
     s.add_argument("--full-slice", action="store_true", help="run: instead seed 001's own "
-                   "configuration at 10 m/s and 80 %% (the whole slice with gravity, 32 theta "
-                   "cells, a checkpoint every 600 s; run again to go on from it), into "
-                   "DIR/c360_v10_f80; summarize: keep it in the summary beside the sector's cases")
+                   "configuration (the whole slice with gravity, 32 theta cells, a checkpoint "
+                   "every 600 s; run again to go on from it) at the cases of --case, into "
+                   "DIR/c360_v<tip speed>_f<filling %%>; summarize: keep the full-slice cases found "
+                   "there in the summary beside the sector's cases")
+    s.add_argument("--case", action="append", metavar="V:F", help="run --full-slice: this case "
+                   "only (tip speed m/s : filling, one of the campaign's: "
+                   + ", ".join(f"{vt:g}:{fl:g}" for vt, fl in CASES) + "); repeat for several; "
+                   "default all, 10:0.8 first. A case that another process runs is left to it")
     return s
 
 
 def main(argv=None) -> int:
     """``python -m validation.seed001 run|table --out DIR``: print the deviation table (after
-    running the missing cases with ``run``, or with ``--full-slice`` the full slice's case);
-    ``summarize``: keep them in the summary; 2 for a fluid model it does not know or a
-    full slice not run."""
+    running the missing cases with ``run``, or with ``--full-slice`` the full slice's);
+    ``summarize``: keep them in the summary; 2 for a fluid model or case it does not know
+    or a full slice not run."""
     args = parser().parse_args(argv)
     if args.out is None and args.action != "table":
         print(f"python -m validation.seed001 {args.action}: give --out DIR", file=sys.stderr)
@@ -674,8 +782,16 @@ def main(argv=None) -> int:
             print(f"python -m validation.seed001 summarize: {e}", file=sys.stderr)
             return 2
         return 0
+    if args.case and not (args.action == "run" and args.full_slice):
+        print("python -m validation.seed001: --case is for run --full-slice", file=sys.stderr)
+        return 2
     if args.action == "run" and args.full_slice:
-        run_full_slice(args.out, threads=args.threads)
+        try:
+            cases = parse_cases(args.case) if args.case else FULL_CASES
+        except ValueError as e:
+            print(f"python -m validation.seed001: {e}", file=sys.stderr)
+            return 2
+        run_full_slice(args.out, cases=cases, threads=args.threads)
     elif args.action == "run":
         fluids = [f.strip() for f in args.fluid.split(",") if f.strip()]
         bad = [f for f in fluids if f not in FLUIDS]

@@ -66,46 +66,76 @@ def test_the_table_command_reads_the_summary_without_a_run_folder(capsys):
     assert S.main(["summarize"]) == 2
 
 
-def _with_full_slice(tmp_path, stats):
-    """The shipped summary with ``stats`` as its full slice's case, written to tmp_path."""
+def _with_full_slice(tmp_path, cases):
+    """The shipped summary with ``cases`` ({(tip speed, filling): stats}) as its full
+    slice's, written to tmp_path."""
     doc = json.loads(S.SUMMARY.read_text())
-    doc["full_slice"] = {"runs": {"10 m/s, 80 %": {"tip_speed_m_per_s": 10.0, "filling": 0.8,
-                                                   "stats": stats}}}
+    doc["full_slice"] = {"runs": {S.case_label(*k): {"tip_speed_m_per_s": k[0], "filling": k[1],
+                                                     "stats": st} for k, st in cases.items()}}
     p = tmp_path / "summary.json"
     p.write_text(json.dumps(doc))
     return p
 
 
-def test_the_full_slice_column_is_computed_from_the_summary_and_never_counted(tmp_path, rows):
-    """A summary with a full slice (here, synthetically, the sector's 10 m/s, 80 % case in
-    its place): its column shows the value at its one case and whether the statement holds
-    there; the verdicts and the count stay the sector's."""
-    sector = S.summary_stats()[(10.0, 0.8)]
-    got = S.deviation_rows(summary=_with_full_slice(tmp_path, sector))
-    assert [r["verdict"] for r in got] == [r["verdict"] for r in rows]
-    assert S.count(got) == S.count(rows)
+def _cell(rows, start, key="full"):
+    return next(r[key] for r in rows if r["statement"].startswith(start))
 
-    def full(start):
-        return next(r["full"] for r in got if r["statement"].startswith(start))
-    assert full("mean bead speed / tip speed in V1 at 80 ") == "0.136 (holds)"
-    assert full("mean bead speed / tip speed in V3 at 80 ") == "0.0976 (holds)"  # the sector misses it
-    assert full("angular velocity of the first bead layer") == "0.16 (missed)"
-    assert full("at 90 % filling V3 has the lowest collis").startswith("not run (its one case")
-    assert full("collision density of the chamber about l") == "not evaluated (one tip speed)"
-    assert full("mean bead speed lowest in V3 in all case") == "slowest V2 (missed)"
-    assert full("collision frequency peaks about two bead ") == "0.8 mm (1.0 d) (missed)"
-    assert full("locally highest collision power at the s").endswith("0.88 d from the rim (holds)")
-    assert full("a secondary vortex between disc tip and c") == "fluid: none / beads: none (missed)"
+
+def test_the_full_slice_column_at_one_case_decides_only_what_it_misses(tmp_path, rows):
+    """A summary with a full slice at one case (here, synthetically, the sector's 10 m/s,
+    80 % case in its place): its column shows the value there and whether the statement
+    holds at the cases run; a statement it misses there is missed on seed 001's
+    configuration (the verdict says so), one it holds there keeps the sector's verdict."""
+    sector = S.summary_stats()[(10.0, 0.8)]
+    got = S.deviation_rows(summary=_with_full_slice(tmp_path, {(10.0, 0.8): sector}))
+    one = "(holds at the 1 of 5 cases run)"
+    assert _cell(got, "mean bead speed / tip speed in V1 at 80 ") == f"10 m/s 80 %: 0.136 {one}"
+    assert _cell(got, "mean bead speed / tip speed in V3 at 80 ") == f"10 m/s 80 %: 0.0976 {one}"
+    assert _cell(got, "mean bead speed / tip speed in V3 at 80 ", "verdict") == "missed (within 15%)"  # the sector's
+    assert _cell(got, "angular velocity of the first bead layer") == "10 m/s 80 %: 0.16 (missed)"
+    assert _cell(got, "angular velocity of the first bead layer", "verdict") == \
+        "missed on the full slice (within 15 %)"
+    assert _cell(got, "at 90 % filling V3 has the lowest collis") == "not run at these cases"
+    assert _cell(got, "collision density of the chamber about l") == "not evaluated (one tip speed)"
+    assert _cell(got, "mean bead speed lowest in V3 in all case") == "10 m/s 80 %: slowest V2 (missed)"
+    assert _cell(got, "collision frequency peaks about two bead ") == "10 m/s 80 %: 0.8 mm (1.0 d) (missed)"
+    assert _cell(got, "locally highest collision power at the s").endswith(
+        "0.88 d from the rim (holds at the 1 of 7 cases run)")
+    assert _cell(got, "a secondary vortex between disc tip and c") == \
+        "10 m/s 80 %: fluid: none / beads: none (missed)"
+    # here every miss at 10 m/s, 80 % is a miss of the sector too: the count stays
+    assert S.count(got) == S.count(rows)
+    for r, g in zip(rows, got):
+        assert g["verdict"] in (r["verdict"], r["verdict"].replace("missed", "missed on the full slice", 1))
     # without the maps the map rows cannot be judged there
     bare = {k: v for k, v in sector.items() if k != "maps"}
-    got = S.deviation_rows(summary=_with_full_slice(tmp_path, bare))
-    assert got[-1]["full"] == "not evaluated (its run kept no collision maps)"
+    got = S.deviation_rows(summary=_with_full_slice(tmp_path, {(10.0, 0.8): bare}))
+    assert got[-1]["full"] == "not evaluated (its runs kept no collision maps)"
     assert all(r["full"] == "not run" for r in rows)  # the shipped summary has none yet
 
 
+def test_the_full_slice_decides_every_statement_whose_cases_it_has_run(tmp_path, rows):
+    """With every case run on the full slice (synthetically the sector's, so that the
+    judgements agree), every verdict is the full slice's: the sector's words with "on the
+    full slice", and the same count."""
+    got = S.deviation_rows(summary=_with_full_slice(tmp_path, S.summary_stats()))
+    for r, g in zip(rows, got):
+        word = r["verdict"].split()[0]
+        assert g["verdict"] == r["verdict"].replace(word, f"{word} on the full slice", 1), r["statement"]
+    assert S.count(got) == S.count(rows)
+    assert _cell(got, "collision density of the chamber about l").endswith("(holds)")
+    # four of the five speeds at 80 %: the fit is shown, not judged, and the sector decides
+    four = {k: v for k, v in S.summary_stats().items() if k != (14.0, 0.8)}
+    got = S.deviation_rows(summary=_with_full_slice(tmp_path, four))
+    assert _cell(got, "collision density of the chamber about l").endswith("(not judged: 4 of 5 tip speeds run)")
+    assert _cell(got, "collision density of the chamber about l", "verdict") == \
+        _cell(rows, "collision density of the chamber about l", "verdict")
+
+
 def test_summarize_keeps_the_sector_cases_and_the_full_slice_apart(tmp_path):
-    """summarize --full-slice adds the full slice's case beside the sector's cases, and a
-    summary of the sector's cases keeps it; each from its own run folders."""
+    """summarize --full-slice adds the full slice's cases beside the sector's cases, keeps
+    those summarized before, and a summary of the sector's cases keeps them; each from its
+    own run folders."""
     shipped = S.summary_stats()
     out = tmp_path / "runs"
     for (vt, fl), st in shipped.items():
@@ -125,7 +155,41 @@ def test_summarize_keeps_the_sector_cases_and_the_full_slice_apart(tmp_path):
     S.summarize(out, path=p)  # the sector's again: the full slice stays
     assert S.summary_stats(p) == shipped
     assert S.summary_stats(p, full_slice=True) == {(10.0, 0.8): shipped[(6.0, 0.8)]}
-    assert S.deviation_rows(out)[0]["full"] == "0.147 (holds)"  # from the run folders too
+    assert S.deviation_rows(out)[0]["full"] == "10 m/s 80 %: 0.147 (holds at the 1 of 5 cases run)"
+    # a second case, run in another folder later: both kept
+    out2 = tmp_path / "runs2"
+    d = S.case_dir(out2, "coupled", 6.0, 0.5, S.FULL_SECTOR_DEG)
+    d.mkdir(parents=True)
+    (d / "stats.json").write_text(json.dumps(shipped[(6.0, 0.5)]))
+    S.summarize(out2, path=p, full_slice=True)
+    assert S.summary_stats(p, full_slice=True) == {(10.0, 0.8): shipped[(6.0, 0.8)],
+                                                   (6.0, 0.5): shipped[(6.0, 0.5)]}
+    doc = json.loads(p.read_text())
+    assert list(doc["full_slice"]["runs"]) == ["10 m/s, 80 %", "6 m/s, 50 %"]  # the campaign's order
+
+
+def test_full_slice_cases_are_chosen_by_name_and_a_held_case_is_left_alone(tmp_path, capsys):
+    """run --full-slice --case V:F takes the campaign's cases only, named; a case whose
+    folder another process holds is left to it, one with its stats.json is done."""
+    assert S.parse_cases(["6:0.5", "10:0.8", "6:0.5"]) == [(6.0, 0.5), (10.0, 0.8)]
+    for bad, why in (("7:0.8", "not one of the campaign's cases"), ("fast", "expected tip speed:filling")):
+        with pytest.raises(ValueError, match=why):
+            S.parse_cases([bad])
+    assert S.main(["run", "--out", str(tmp_path), "--full-slice", "--case", "7:0.8"]) == 2
+    assert "6:0.5" in capsys.readouterr().err  # the allowed cases named
+    assert S.main(["table", "--case", "6:0.5"]) == 2
+    assert "--case is for run --full-slice" in capsys.readouterr().err
+    done = S.case_dir(tmp_path, "coupled", 10.0, 0.8, S.FULL_SECTOR_DEG)
+    done.mkdir(parents=True)
+    (done / "stats.json").write_text("{}")
+    held = S.case_dir(tmp_path, "coupled", 6.0, 0.5, S.FULL_SECTOR_DEG)
+    held.mkdir(parents=True)
+    said = []
+    with open(held / S.FULL_LOCK, "a+") as fh:
+        S._lock(fh)
+        got = S.run_full_slice(tmp_path, cases=[(10.0, 0.8), (6.0, 0.5)], say=said.append)
+    assert got == [done]
+    assert said == [f"{held}: run by another process; the next case"]
 
 
 def test_the_full_slice_is_seed_001s_configuration_as_the_page_runs_it():
@@ -133,7 +197,7 @@ def test_the_full_slice_is_seed_001s_configuration_as_the_page_runs_it():
     gravity, 360 degrees, 32 theta cells, the sector campaign's protocol)."""
     from millfmu.dem.scene import load_scene
 
-    sc = S.full_slice_scene()
+    sc = S.full_slice_scene(10.0, 0.8)
     assert sc == load_scene("disc_slice").with_overrides(
         tip_speed_m_per_s=10.0, filling=0.8, n_theta=32, spin_up_s=1.0, record_s=0.3,
         sample_every_s=0.01, initial_rotation=0.1)
