@@ -5,8 +5,10 @@ Each measure is the wall time of ``millfmu dem run`` (the command below) in a ne
 with NUMBA_CACHE_DIR set to an empty folder: first with MILLFMU_COMPILE_PROCESSES=1 (the
 kernels compiled one after another in the run's process), then as a user's first run
 (compiled from the shipped plan in as many processes as the cores,
-:mod:`millfmu.dem.first_compile`), then the same command again on that cache. Prints the
-figures and their ratio; ``--out FILE`` writes them as JSON (the README's row). About 5
+:mod:`millfmu.dem.first_compile`), then the same command again on that cache, then on a new
+empty cache with the fused exchange (MILLFMU_FUSED_EXCHANGE=1: what a long run compiles,
+the short run's form before it took the exchange by calls). Prints the figures and their
+ratios; ``--out FILE`` writes them as JSON (the README's row). About 8
 minutes on 2 cores. ``--report-out FILE`` measures ``millfmu report --quick`` instead, with
 empty kernel and table caches (NUMBA_CACHE_DIR, MILLFMU_CACHE_DIR) and again on them, and
 writes that (about 2.5 minutes).
@@ -62,16 +64,19 @@ def report_times() -> dict:
 
 
 def measure() -> dict:
-    from millfmu.dem.first_compile import processes_here
+    from millfmu.dem.first_compile import FUSED_ENV, processes_here
 
     with tempfile.TemporaryDirectory() as tmp:
         t = Path(tmp)
         one, _ = timed_run(t / "cache1", t / "r1", MILLFMU_COMPILE_PROCESSES="1")
         first, err = timed_run(t / "cache2", t / "r2")
         second, _ = timed_run(t / "cache2", t / "r3")
+        fused, _ = timed_run(t / "cache3", t / "r4", **{FUSED_ENV: "1"})
     return {"first_run_wall_s": round(first, 1), "second_run_wall_s": round(second, 2),
             "first_run_one_process_wall_s": round(one, 1),
             "one_process_over_first": round(one / first, 2),
+            "first_run_fused_wall_s": round(fused, 1),
+            "fused_over_first": round(fused / first, 2),
             "compiling_processes": processes_here(),
             "said": [x for x in err.splitlines() if x.startswith("millfmu: compil")]}
 
@@ -102,7 +107,8 @@ def main(argv=None) -> int:
     print("\n".join(said))
     print(f"first run {f['first_run_wall_s']} s in {f['compiling_processes']} compiling processes, "
           f"{f['first_run_one_process_wall_s']} s in one ({f['one_process_over_first']}x), "
-          f"second run {f['second_run_wall_s']} s")
+          f"second run {f['second_run_wall_s']} s; with the fused exchange compiled first (as a "
+          f"long run does) {f['first_run_fused_wall_s']} s ({f['fused_over_first']}x)")
     if a.out:
         Path(a.out).write_text(json.dumps({
             "commit": commit, "host": a.host, "date": datetime.date.today().isoformat(),
@@ -110,7 +116,8 @@ def main(argv=None) -> int:
             "figures": f, "aim": {"first_run_wall_s": 90},
             "unit": "wall time of the short coupled DEM run [s], numba's kernel cache empty (first: "
                     "compiled in the processes the cores allow; one process: "
-                    "MILLFMU_COMPILE_PROCESSES=1) and filled by the first (second)",
+                    "MILLFMU_COMPILE_PROCESSES=1; fused: MILLFMU_FUSED_EXCHANGE=1, the fused "
+                    "exchange compiled and taken as by a long run) and filled by the first (second)",
             "note": "each run a new process with NUMBA_CACHE_DIR set to an empty folder, one after "
                     "the other in one session"}, indent=2) + "\n")
     return 0

@@ -441,7 +441,7 @@ def dem_section(out: Path, quick: bool, dem_runs=None, log=print) -> str:
     elif quick:
         from .dem.first_compile import compile_if_cold
 
-        compile_if_cold(coupled=True, log=log)
+        compile_if_cold(coupled=True, log=log, run_s=W.QUICK["spin_up_s"] + W.QUICK["record_s"])
         run_dir = W.run_quick(Path(tempfile.mkdtemp(prefix="millfmu-report-dem-")) / "quick")
         try:
             res = W.analyse_quick(run_dir)

@@ -180,7 +180,8 @@ def _run(args) -> int:
     from millfmu.dem.first_compile import compile_if_cold
 
     # the cores the user gave the run (--threads) are those its compilation takes too
-    compile_if_cold(coupled=scene.fluid_mode == "coupled", processes=args.threads)
+    compile_if_cold(coupled=scene.fluid_mode == "coupled", processes=args.threads,
+                    run_s=scene.spin_up_s + scene.record_s)
     try:
         stats = run_scene(scene, args.out, progress=not args.no_progress, threads=args.threads,
                           window_s=args.window_s, checkpoint_every_s=args.checkpoint_every_s,

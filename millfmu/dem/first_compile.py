@@ -18,8 +18,12 @@ does not hold, or a plan of other sources, is compiled by the run itself, and ea
 that takes :data:`SAY_ABOVE_S` or more is named on stderr when it is done
 (:func:`watch_compiles`).
 
-The plan is made from a checkout with ``python -m millfmu.dem.first_compile record`` (two
-short runs on an empty cache, about 4 minutes) whenever the kernel sources change; a test
+A short coupled run takes the exchange by calls where the fused exchange's kernels are not
+compiled yet (:func:`fused_exchange`): the same results to the bit, two fifths less to
+compile. The plan holds both forms.
+
+The plan is made from a checkout with ``python -m millfmu.dem.first_compile record`` (three
+short runs on an empty cache, about 8 minutes) whenever the kernel sources change; a test
 fails while it names other sources.
 """
 
@@ -31,7 +35,7 @@ from pathlib import Path
 
 #: Compile times [s] of a short run compiled in one process on 2 cores, by what runs:
 #: the estimate where no current plan is shipped (see the module docstring).
-SECONDS = {"dem": 30, "coupled": 165}
+SECONDS = {"dem": 30, "coupled": 165, "coupled_calls": 105}
 #: the plan of what a short run compiles, shipped with the package
 PLAN_FILE = Path(__file__).with_name("compile_plan.json")
 #: the short runs the plan is recorded from, by what runs (``millfmu dem run`` arguments)
@@ -41,6 +45,10 @@ PLAN_RUNS = {
     "coupled": ["disc_slice", "--sector-deg", "10", "--no-gravity", "--fluid", "coupled",
                 "--spin-up", "0.002", "--record", "0.002", "--threads", "2"],
 }
+PLAN_RUNS["coupled_calls"] = PLAN_RUNS["coupled"]
+#: how each recorded run's exchange is taken (:data:`FUSED_ENV`): the coupled run's fused,
+#: as a long run takes it, the other's by calls, as a short run on a cold cache does
+PLAN_FUSED = {"dem": "", "coupled": "1", "coupled_calls": "0"}
 #: at most this many compiling processes (each holds numba and LLVM: 290-310 MB resident
 #: while compiling, measured)
 MAX_PROCESSES = 8
@@ -52,6 +60,17 @@ PROCESS_START_S = 1.0
 SAY_ABOVE_S = 5.0
 #: the listener of :func:`watch_compiles` where one is registered (one per process)
 _watching = []
+#: a coupled run of at least this many simulated seconds (spin-up and recording) takes the
+#: fused exchange (:mod:`millfmu.dem.coupling.fused_exchange`, the same results to the bit
+#: as the exchange by calls) even where its kernels are not compiled yet; a shorter run
+#: takes it only where they are. The fused kernels are two fifths of the coupled run's
+#: compile time (a short coupled run by calls: 162 s in one process on 2 cores, against
+#: 250 s fused), and a short run, a user's first trial, gains little from them; runs this
+#: long (a table point, a campaign's case) are where they pay
+FUSED_FROM_S = 0.5
+#: the environment variable that decides instead: "1" the fused exchange wherever its form
+#: allows, "0" the exchange by calls
+FUSED_ENV = "MILLFMU_FUSED_EXCHANGE"
 
 
 def kernel_cache_is_cold() -> Path | None:
@@ -291,16 +310,40 @@ def compile_plan(jobs: list[dict], processes: int, log=None) -> tuple[float, lis
     return time.perf_counter() - t0, errors
 
 
+def fused_exchange(run_s: float | None, plan: Path = PLAN_FILE, log=None) -> bool:
+    """Whether a coupled run of ``run_s`` simulated seconds (None: not known, a long one)
+    takes the fused exchange: :data:`FUSED_ENV` where set to 0 or 1 (another value is named
+    on stderr or ``log`` and ignored); else where the run lasts :data:`FUSED_FROM_S` or
+    longer, or the fused kernels are compiled already, or no plan is shipped for these
+    sources (nothing to tell them by)."""
+    import os
+
+    given = os.environ.get(FUSED_ENV, "").strip()
+    if given in ("0", "1"):
+        return given == "1"
+    if given:
+        _say(log)(f"millfmu: {FUSED_ENV} = {given!r}: 0 (the exchange by calls) or 1 (fused); "
+                  "ignored")
+    if run_s is None or run_s >= FUSED_FROM_S:
+        return True
+    jobs = load_plan("coupled", plan)
+    return jobs is None or not missing(jobs)
+
+
 def compile_if_cold(coupled: bool, log=None, processes: int | None = None,
-                    plan: Path = PLAN_FILE) -> bool:
+                    plan: Path = PLAN_FILE, run_s: float | None = None) -> bool:
     """Where the kernels a run needs are not compiled for the installed sources yet: say so
     on stderr (or ``log``), with for about how long and where they are kept; compile them
     in several processes from the shipped plan where there is one for these sources
     (:func:`compile_plan`); name each later long compilation of the run when it is done
-    (:func:`watch_compiles`). True where the kernels were not compiled."""
+    (:func:`watch_compiles`). ``run_s``: the run's simulated seconds, which decide whether
+    a coupled run's exchange is fused (:func:`fused_exchange`) and so which kernels it
+    needs. True where the kernels were not compiled."""
     from .engine._jit import kernel_cache_dir
 
-    what = "coupled" if coupled else "dem"
+    what = "dem"
+    if coupled:
+        what = "coupled" if fused_exchange(run_s, plan, log) else "coupled_calls"
     jobs = load_plan(what, plan)
     if jobs is None:
         if kernel_cache_is_cold() is None:
@@ -522,7 +565,7 @@ def record(path: Path = PLAN_FILE, log=print) -> dict:
         with tempfile.TemporaryDirectory() as tmp:
             out = Path(tmp) / "plan.json"
             env = dict(os.environ, NUMBA_CACHE_DIR=str(Path(tmp) / "cache"),
-                       MILLFMU_COMPILE_PROCESSES="1")
+                       MILLFMU_COMPILE_PROCESSES="1", **{FUSED_ENV: PLAN_FUSED[what]})
             code = f"from millfmu.dem.first_compile import _record_child; _record_child({what!r}, {str(out)!r})"
             subprocess.run([sys.executable, "-c", code], env=env, check=True)
             run = json.loads(out.read_text())
@@ -539,7 +582,7 @@ if __name__ == "__main__":
 
     ap = argparse.ArgumentParser(prog="python -m millfmu.dem.first_compile",
                                  description="Record the compile plan shipped with the package "
-                                             "(two short DEM runs on an empty cache).")
+                                             "(three short DEM runs on an empty cache).")
     ap.add_argument("command", choices=["record"])
     ap.add_argument("--out", default=str(PLAN_FILE), help="where to write the plan (JSON)")
     a = ap.parse_args()

@@ -128,7 +128,7 @@ def test_the_shipped_plan_is_of_the_installed_kernel_sources():
     assert plan["sources_key"] == sources_key(), (
         "the kernel sources changed: record the plan again "
         "(python -m millfmu.dem.first_compile record)")
-    for what in ("dem", "coupled"):
+    for what in ("dem", "coupled", "coupled_calls"):
         jobs = load_plan(what)
         assert jobs and all(k < i for i, j in enumerate(jobs) for k in j["after"])
         for j in jobs:
@@ -137,6 +137,11 @@ def test_the_shipped_plan_is_of_the_installed_kernel_sources():
     coupled = {j["kernel"] for j in load_plan("coupled")}
     assert "millfmu.dem.coupling.fused_exchange.coupled_intervals" in coupled
     assert "millfmu.dem.engine.kernels.compute_forces" in coupled
+    calls = {j["kernel"] for j in load_plan("coupled_calls")}
+    assert "millfmu.dem.engine.kernels.compute_forces" in calls
+    assert not any(k.startswith("millfmu.dem.coupling.fused_exchange.") for k in calls)
+    took = {w: sum(j["seconds"] for j in load_plan(w)) for w in ("coupled", "coupled_calls")}
+    assert took["coupled_calls"] < 0.75 * took["coupled"], took  # what the short run is spared
 
 
 TOY = r"""
@@ -191,7 +196,9 @@ os.environ["NUMBA_CACHE_DIR"] = sys.argv[1]
 from numba.core import event
 import millfmu.dem.first_compile as fc
 lines = []
-assert fc.compile_if_cold(sys.argv[2] == "coupled", log=lines.append, processes=2)
+# a long run's form (the fused exchange) for "coupled", a short run's for "coupled_calls"
+run_s = 0.004 if sys.argv[2] == "coupled_calls" else None
+assert fc.compile_if_cold(sys.argv[2] != "dem", log=lines.append, processes=2, run_s=run_s)
 compiled = []
 class L(event.Listener):
     def on_start(self, ev):
@@ -211,14 +218,18 @@ import os, sys
 os.environ["NUMBA_CACHE_DIR"] = sys.argv[1]
 import millfmu.dem.first_compile as fc
 lines = []
-print(repr((fc.compile_if_cold(sys.argv[2] == "coupled", log=lines.append), lines)))
+run_s = 0.004 if sys.argv[2] == "coupled_calls" else None
+print(repr((fc.compile_if_cold(sys.argv[2] != "dem", log=lines.append, run_s=run_s), lines)))
 """
 
 
-@pytest.mark.parametrize("what", ["dem", pytest.param("coupled", marks=pytest.mark.slow)])
+@pytest.mark.parametrize("what", ["dem", pytest.param("coupled", marks=pytest.mark.slow),
+                                  pytest.param("coupled_calls", marks=pytest.mark.slow)])
 def test_the_shipped_plan_covers_its_run(tmp_path, what):
     """Compiled from the plan in 2 processes, the plan's own short run compiles no kernel of
-    the package (numba's helpers it may). dem: about 25 s on 2 cores; coupled: about 100 s.
+    the package (numba's helpers it may): with the fused exchange compiled first (as for a
+    long run) the short run takes it; with the plan's short form, the exchange by calls.
+    dem: about 25 s on 2 cores; coupled: about 100 s; coupled_calls: about 70 s.
     A new process then finds the kernels cached and says nothing (the check loads no kernel:
     a cached parallel kernel loaded before numba's threading layer had started aborted the
     process)."""
@@ -244,7 +255,7 @@ def test_dem_run_compiles_in_as_many_processes_as_its_threads(monkeypatch, tmp_p
     monkeypatch.setattr(run, "run_scene", stop)
     for extra, want in ((["--threads", "1"], 1), ([], None)):
         assert main(["dem", "run", "annulus", "--fluid", "none", "--out", str(tmp_path / "o"), *extra]) == 2
-        assert asked.pop() == {"processes": want}
+        assert asked.pop()["processes"] == want
 
 
 def test_a_resumed_run_compiles_a_cold_cache_first(monkeypatch, tmp_path):
@@ -297,3 +308,51 @@ def test_the_variable_sets_the_compiling_processes_whatever_cores_the_run_has(mo
     monkeypatch.setenv("MILLFMU_COMPILE_PROCESSES", "two")
     assert fc.processes_here(log=said.append, cores=3) == 3
     assert said and "MILLFMU_COMPILE_PROCESSES = 'two' is not a whole number" in said[0]
+
+
+def test_a_short_coupled_run_takes_the_exchange_by_calls_until_the_fused_one_is_compiled(monkeypatch):
+    """The fused exchange (the same results to the bit) is taken by a run of FUSED_FROM_S
+    or longer, or where its kernels are compiled, or where no plan tells them; a shorter run
+    on a cold cache takes the exchange by calls, with two fifths less to compile; the
+    variable decides instead where set to 0 or 1, another value is named and ignored."""
+    from millfmu.dem import first_compile as fc
+
+    monkeypatch.delenv(fc.FUSED_ENV, raising=False)
+    monkeypatch.setattr(fc, "missing", lambda jobs: True)  # the fused kernels not compiled
+    assert fc.fused_exchange(None) and fc.fused_exchange(fc.FUSED_FROM_S)
+    assert not fc.fused_exchange(0.004)
+    assert fc.fused_exchange(0.004, plan=Path("no-such-plan.json"))  # nothing to tell them by
+    monkeypatch.setattr(fc, "missing", lambda jobs: False)  # compiled
+    assert fc.fused_exchange(0.004)
+    monkeypatch.setenv(fc.FUSED_ENV, "0")
+    assert not fc.fused_exchange(None)
+    monkeypatch.setenv(fc.FUSED_ENV, "1")
+    monkeypatch.setattr(fc, "missing", lambda jobs: True)
+    assert fc.fused_exchange(0.004)
+    said = []
+    monkeypatch.setenv(fc.FUSED_ENV, "yes")
+    assert not fc.fused_exchange(0.004, log=said.append)
+    assert said == [f"millfmu: {fc.FUSED_ENV} = 'yes': 0 (the exchange by calls) or 1 (fused); ignored"]
+
+
+def test_the_run_and_its_compilation_take_the_same_form(monkeypatch, tmp_path):
+    """``dem run`` compiles the plan of the form the run then takes: the run's simulated
+    seconds (spin-up and recording) go to both decisions, compile_if_cold's and run_scene's
+    on the coupling."""
+    import millfmu.dem.first_compile as fc
+    import millfmu.dem.run as run
+    from millfmu.cli import main
+
+    asked, decided, taken = [], [], []
+    monkeypatch.setattr(fc, "compile_if_cold", lambda coupled, **kw: asked.append(kw) or False)
+    monkeypatch.setattr(fc, "fused_exchange", lambda run_s, *a, **kw: decided.append(run_s) or False)
+
+    def record(scene, sim, cpl, *a, **kw):
+        taken.append(cpl.fused)
+        raise run.DemRunError("stopped by the test")
+
+    monkeypatch.setattr(run, "_record", record)
+    assert main(["dem", "run", "disc_slice", "--out", str(tmp_path / "o"), "--sector-deg", "10",
+                 "--no-gravity", "--spin-up", "0.002", "--record", "0.002"]) == 2
+    assert asked[0]["run_s"] == pytest.approx(0.004) and decided == [pytest.approx(0.004)]
+    assert taken == [False]
