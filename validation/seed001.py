@@ -101,6 +101,12 @@ FULL_THETA_CELLS = 32
 FULL_CHECKPOINT_EVERY_S = 600.0
 #: a full-slice case folder's lock, held by the process that runs the case
 FULL_LOCK = "running.lock"
+#: the full slice's pressure solver: the direct solver's pressure equation by an FFT along
+#: theta (to round-off; 9 ms a solve on this grid against 60 for the default direct_ldl,
+#: about 16 % of a case's time; docs/dem-full-slices.md). A case goes on from its
+#: checkpoint with the solver it was started with (10 m/s, 80 %: direct_ldl); each run's
+#: summary names its own (``fluid_model``)
+FULL_PRESSURE_SOLVER = "theta_fft"
 
 
 def case_label(vt: float, fill: float) -> str:
@@ -153,13 +159,15 @@ def _lock(fh) -> None:
 
 def full_slice_scene(vt: float = 10.0, fill: float = 0.8):
     """The full slice at tip speed ``vt`` [m/s] and filling ``fill`` [-] as a DEM scene
-    (disc_slice with the campaign's protocol; the scene's gravity kept)."""
+    (disc_slice with the campaign's protocol and :data:`FULL_PRESSURE_SOLVER`; the scene's
+    gravity kept)."""
     from millfmu.dem.scene import load_scene
 
     return load_scene("disc_slice").with_overrides(
         fluid_mode="coupled", tip_speed_m_per_s=vt, filling=fill, sector_deg=FULL_SECTOR_DEG,
         n_theta=FULL_THETA_CELLS, spin_up_s=COUPLED_SPIN_UP_S, record_s=RECORD_S,
-        sample_every_s=0.01, initial_rotation=COUPLED_INITIAL_ROTATION)
+        sample_every_s=0.01, initial_rotation=COUPLED_INITIAL_ROTATION,
+        pressure_solver=FULL_PRESSURE_SOLVER)
 
 
 def _load(out_dir, fluid, vt, fill, sector_deg=None):
@@ -243,6 +251,8 @@ def compact(st: dict) -> dict:
         zones.append(c)
     flow = st.get("flow", {})
     out = {"zones": zones, "flow": {k: flow[k] for k in FLOW_KEYS if k in flow}}
+    if st.get("fluid_model"):  # the liquid's model and solvers, in words
+        out["fluid_model"] = st["fluid_model"]
     if "maps" in st:
         out["maps"] = st["maps"]
     return out

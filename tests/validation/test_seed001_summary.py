@@ -200,11 +200,14 @@ def test_the_full_slice_is_seed_001s_configuration_as_the_page_runs_it():
     sc = S.full_slice_scene(10.0, 0.8)
     assert sc == load_scene("disc_slice").with_overrides(
         tip_speed_m_per_s=10.0, filling=0.8, n_theta=32, spin_up_s=1.0, record_s=0.3,
-        sample_every_s=0.01, initial_rotation=0.1)
+        sample_every_s=0.01, initial_rotation=0.1, pressure_solver="theta_fft")
     assert sc.geometry.sector_deg == 360.0 and sc.gravity_m_per_s2 == (0.0, -9.81, 0.0)
     assert sc.coupling.n_theta == 32 and sc.fluid_mode == "coupled"
-    text = PAGE.read_text(encoding="utf-8")
+    text = " ".join(PAGE.read_text(encoding="utf-8").split())
     assert "python -m validation.seed001 run --out DIR --full-slice" in text
+    assert ("millfmu dem run disc_slice --out DIR --tip-speed 10 --filling 0.8 --theta-cells 32 "
+            "--pressure-solver theta_fft --spin-up 1.0 --record 0.3 --sample-every 0.01 "
+            "--initial-rotation 0.1 --windows 0.1 --checkpoint-every 600") in text
 
 
 def test_a_smoothing_variant_runs_and_is_summarized_as_such(tmp_path):
