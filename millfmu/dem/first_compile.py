@@ -35,7 +35,7 @@ from pathlib import Path
 
 #: Compile times [s] of a short run compiled in one process on 2 cores, by what runs:
 #: the estimate where no current plan is shipped (see the module docstring).
-SECONDS = {"dem": 30, "coupled": 165, "coupled_calls": 105}
+SECONDS = {"dem": 30, "coupled": 165, "coupled_calls": 115}
 #: the plan of what a short run compiles, shipped with the package
 PLAN_FILE = Path(__file__).with_name("compile_plan.json")
 #: the short runs the plan is recorded from, by what runs (``millfmu dem run`` arguments)
@@ -64,13 +64,15 @@ _watching = []
 #: fused exchange (:mod:`millfmu.dem.coupling.fused_exchange`, the same results to the bit
 #: as the exchange by calls) even where its kernels are not compiled yet; a shorter run
 #: takes it only where they are. The fused kernels are two fifths of the coupled run's
-#: compile time (a short coupled run by calls: 162 s in one process on 2 cores, against
-#: 250 s fused), and a short run, a user's first trial, gains little from them; runs this
-#: long (a table point, a campaign's case) are where they pay
+#: compile time (the shipped plan: 156 s in one process by calls, 221 s fused), and a short
+#: run, a user's first trial, gains little from them; runs this long (a table point, a
+#: campaign's case) are where they pay
 FUSED_FROM_S = 0.5
 #: the environment variable that decides instead: "1" the fused exchange wherever its form
 #: allows, "0" the exchange by calls
 FUSED_ENV = "MILLFMU_FUSED_EXCHANGE"
+#: the values of FUSED_ENV named as ignored in this process (each once)
+_named = set()
 
 
 def kernel_cache_is_cold() -> Path | None:
@@ -313,7 +315,7 @@ def compile_plan(jobs: list[dict], processes: int, log=None) -> tuple[float, lis
 def fused_exchange(run_s: float | None, plan: Path = PLAN_FILE, log=None) -> bool:
     """Whether a coupled run of ``run_s`` simulated seconds (None: not known, a long one)
     takes the fused exchange: :data:`FUSED_ENV` where set to 0 or 1 (another value is named
-    on stderr or ``log`` and ignored); else where the run lasts :data:`FUSED_FROM_S` or
+    on stderr or ``log`` once and ignored); else where the run lasts :data:`FUSED_FROM_S` or
     longer, or the fused kernels are compiled already, or no plan is shipped for these
     sources (nothing to tell them by)."""
     import os
@@ -321,7 +323,8 @@ def fused_exchange(run_s: float | None, plan: Path = PLAN_FILE, log=None) -> boo
     given = os.environ.get(FUSED_ENV, "").strip()
     if given in ("0", "1"):
         return given == "1"
-    if given:
+    if given and given not in _named:
+        _named.add(given)
         _say(log)(f"millfmu: {FUSED_ENV} = {given!r}: 0 (the exchange by calls) or 1 (fused); "
                   "ignored")
     if run_s is None or run_s >= FUSED_FROM_S:

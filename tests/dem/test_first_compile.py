@@ -331,7 +331,9 @@ def test_a_short_coupled_run_takes_the_exchange_by_calls_until_the_fused_one_is_
     assert fc.fused_exchange(0.004)
     said = []
     monkeypatch.setenv(fc.FUSED_ENV, "yes")
+    monkeypatch.setattr(fc, "_named", set())
     assert not fc.fused_exchange(0.004, log=said.append)
+    assert not fc.fused_exchange(0.004, log=said.append)  # named once: compilation and run both ask
     assert said == [f"millfmu: {fc.FUSED_ENV} = 'yes': 0 (the exchange by calls) or 1 (fused); ignored"]
 
 
