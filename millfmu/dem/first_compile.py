@@ -280,11 +280,13 @@ def missing(jobs: list[dict]) -> bool:
     return not all(_is_cached(j) for i, j in enumerate(jobs) if i not in called)
 
 
-def compile_plan(jobs: list[dict], processes: int, log=None) -> tuple[float, list[str]]:
+def compile_plan(jobs: list[dict], processes: int, log=None,
+                 skip: frozenset = frozenset()) -> tuple[float, list[str], int]:
     """Compile the plan's jobs in ``processes`` new processes (spawned: the caller may have
     run OpenMP), each job once the jobs it calls are done, the longest chain first; name
-    each that took :data:`SAY_ABOVE_S` or more. (wall time [s], the errors of jobs that
-    failed: the run compiles those itself)."""
+    each that took :data:`SAY_ABOVE_S` or more. ``skip``: the indices of jobs compiled
+    already (:func:`cached_jobs`), counted as done. (wall time [s], the errors of jobs that
+    failed: the run compiles those itself, the jobs compiled)."""
     import multiprocessing as mp
     from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
 
@@ -292,12 +294,19 @@ def compile_plan(jobs: list[dict], processes: int, log=None) -> tuple[float, lis
     t0 = time.perf_counter()
     ready = _Ready(jobs)
     errors = []
+    submitted = 0
     with ProcessPoolExecutor(max_workers=processes, mp_context=mp.get_context("spawn")) as pool:
         running = {}
         while ready or running:
             while ready and len(running) < processes:
                 i = ready.pop()
+                if i in skip:
+                    ready.done(i)
+                    continue
                 running[pool.submit(_compile_job, jobs[i]["kernel"], jobs[i]["args"])] = i
+                submitted += 1
+            if not running:
+                continue
             done, _ = wait(running, return_when=FIRST_COMPLETED)
             for f in done:
                 i = running.pop(f)
@@ -309,7 +318,13 @@ def compile_plan(jobs: list[dict], processes: int, log=None) -> tuple[float, lis
                     say(f"millfmu: compiled {name} in {took:.0f} s "
                         f"({time.perf_counter() - t0:.0f} s so far)")
                 ready.done(i)
-    return time.perf_counter() - t0, errors
+    return time.perf_counter() - t0, errors, submitted
+
+
+def cached_jobs(jobs: list[dict]) -> frozenset:
+    """The indices of the jobs whose kernel and argument types numba's cache holds already
+    (a long run after a short one compiles only the fused exchange's kernels)."""
+    return frozenset(i for i, j in enumerate(jobs) if _is_cached(j))
 
 
 def fused_exchange(run_s: float | None, plan: Path = PLAN_FILE, log=None) -> bool:
@@ -358,19 +373,24 @@ def compile_if_cold(coupled: bool, log=None, processes: int | None = None,
     label = "with the coupled liquid" if coupled else "of the DEM"
     # the variable, where set, says how to compile whatever cores the run was given
     n = processes_here(log, cores=processes)
+    skip = frozenset() if jobs is None else cached_jobs(jobs)
+    # the estimate counts what is left: those compiled before cost nothing
+    todo = None if jobs is None else [dict(j, seconds=0.0) if i in skip else j
+                                      for i, j in enumerate(jobs)]
+    some = f"{len(jobs) - len(skip)} of {len(jobs)} not compiled yet; " if skip else ""
     if jobs is None or n < 2:
-        est = SECONDS[what] if jobs is None else estimate_s(jobs, 1)
-        say(f"millfmu: compiling the kernels {label} for this machine first (about {est:.0f} s "
-            f"on one core; numba, once for these sources): later runs load them from {d} in "
-            "seconds")
+        est = SECONDS[what] if jobs is None else estimate_s(todo, 1)
+        say(f"millfmu: compiling the kernels {label} for this machine first ({some}about "
+            f"{est:.0f} s on one core; numba, once for these sources): later runs load them "
+            f"from {d} in seconds")
         watch_compiles(log)
         return True
     say(f"millfmu: compiling the kernels {label} for this machine first, in {n} processes "
-        f"(about {estimate_s(jobs, n):.0f} s on {n} free cores; numba, once for these "
+        f"({some}about {estimate_s(todo, n):.0f} s on {n} free cores; numba, once for these "
         f"sources): later runs load them from {d} in seconds")
-    took, errors = compile_plan(jobs, n, log)
+    took, errors, count = compile_plan(jobs, n, log, skip)
     left = f"; {len(errors)} left to the run ({errors[0]})" if errors else ""
-    say(f"millfmu: compiled the kernels in {took:.0f} s{left}")
+    say(f"millfmu: compiled {count} kernel{'' if count == 1 else 's'} in {took:.0f} s{left}")
     watch_compiles(log)
     return True
 

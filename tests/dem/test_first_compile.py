@@ -162,7 +162,14 @@ plan.write_text(json.dumps({"sources_key": sources_key(), "runs": {"dem": {"jobs
 lines = []
 said = fc.compile_if_cold(False, log=lines.append, processes=2, plan=plan)
 again = fc.compile_if_cold(False, log=lines.append, processes=2, plan=plan)
-print(repr((said, again, lines)))
+# a plan with one more job (another signature of inner): only that one is compiled and counted
+jobs.append({"kernel": "tests.dem._plan_kernels.inner",
+             "args": [fc.encode_type(types.Array(types.float32, 1, "C")), "bool"],
+             "seconds": 7.0, "after": []})
+plan.write_text(json.dumps({"sources_key": sources_key(), "runs": {"dem": {"jobs": jobs}}}))
+more = []
+fc.compile_if_cold(False, log=more.append, processes=2, plan=plan)
+print(repr((said, again, lines, more)))
 """
 
 LOAD = r"""
@@ -182,10 +189,13 @@ print(repr((outer(x, (x, x)), compiled)))
 
 
 def test_a_plan_compiled_in_two_processes_is_loaded_by_the_run(tmp_path):
-    said, again, lines = _run(TOY, tmp_path)
+    said, again, lines, more = _run(TOY, tmp_path)
     assert said and not again
-    assert "in 2 processes" in lines[0] and lines[-1].startswith("millfmu: compiled the kernels in ")
+    assert "in 2 processes" in lines[0] and lines[-1].startswith("millfmu: compiled 2 kernels in ")
     assert "left to the run" not in lines[-1]
+    # what was compiled before is neither estimated nor compiled again
+    assert "(1 of 3 not compiled yet; about 8 s on 2 free cores" in more[0], more
+    assert more[-1].startswith("millfmu: compiled 1 kernel in "), more
     value, compiled = _run(LOAD, tmp_path)
     assert value == 5.0 + 3.0 and compiled == []  # both loaded from the cache, none compiled
 
