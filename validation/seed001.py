@@ -120,6 +120,7 @@ def run_full_slice(out_dir, cases=FULL_CASES, threads=None, progress=True, say=N
     stats.json is done, a case whose folder another process holds (its lock) is left to it.
     Returns the folders of the cases done."""
     from millfmu.dem.run import CHECKPOINT, resume_run, run_scene
+    from millfmu.dem.tables.point_folders import hold
 
     say = say or (lambda m: print(m, file=sys.stderr, flush=True))
     done = []
@@ -130,12 +131,10 @@ def run_full_slice(out_dir, cases=FULL_CASES, threads=None, progress=True, say=N
             continue
         d.mkdir(parents=True, exist_ok=True)
         with open(d / FULL_LOCK, "a+") as lock:
-            try:
-                _lock(lock)
-            except OSError:
+            if not hold(lock):
                 say(f"{d}: run by another process; the next case")
                 continue
-            if (d / "stats.json").exists():
+            if (d / "stats.json").exists():  # finished by another process meanwhile
                 pass
             elif (d / CHECKPOINT).exists():
                 say(f"{d}: going on from its checkpoint")
@@ -145,16 +144,6 @@ def run_full_slice(out_dir, cases=FULL_CASES, threads=None, progress=True, say=N
                           window_s=WINDOW_S, checkpoint_every_s=FULL_CHECKPOINT_EVERY_S)
         done.append(d)
     return done
-
-
-def _lock(fh) -> None:
-    """Hold ``fh``'s file for this process (OSError where another holds it); nothing where
-    the platform has no flock."""
-    try:
-        import fcntl
-    except ImportError:  # pragma: no cover - not on the platforms the campaign runs on
-        return
-    fcntl.flock(fh.fileno(), fcntl.LOCK_EX | fcntl.LOCK_NB)
 
 
 def full_slice_scene(vt: float = 10.0, fill: float = 0.8):

@@ -185,8 +185,10 @@ def test_full_slice_cases_are_chosen_by_name_and_a_held_case_is_left_alone(tmp_p
     held = S.case_dir(tmp_path, "coupled", 6.0, 0.5, S.FULL_SECTOR_DEG)
     held.mkdir(parents=True)
     said = []
+    from millfmu.dem.tables.point_folders import hold
+
     with open(held / S.FULL_LOCK, "a+") as fh:
-        S._lock(fh)
+        assert hold(fh)
         got = S.run_full_slice(tmp_path, cases=[(10.0, 0.8), (6.0, 0.5)], say=said.append)
     assert got == [done]
     assert said == [f"{held}: run by another process; the next case"]

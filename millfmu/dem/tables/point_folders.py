@@ -23,6 +23,18 @@ START = "start.json"
 LOCK = "lock"
 
 
+def hold(fh) -> bool:
+    """Hold the open lock file ``fh`` for this process without waiting (flock): False where
+    another process holds it; True where the platform has no flock (nothing is locked)."""
+    if fcntl is None:
+        return True
+    try:
+        fcntl.flock(fh.fileno(), fcntl.LOCK_EX | fcntl.LOCK_NB)
+    except OSError:
+        return False
+    return True
+
+
 def held(path: Path) -> bool:
     """Whether a process holds the point folder ``path`` (runs its point now)."""
     if fcntl is None:

@@ -32,7 +32,7 @@ from contextlib import contextmanager
 from pathlib import Path
 
 from ...stress_tables.files import canonical_json, sha256_bytes, write_replacing
-from .point_folders import LOCK, META, RUNNING_DIR, START, fcntl, held
+from .point_folders import LOCK, META, RUNNING_DIR, START, held, hold
 
 #: [s of wall time] how often a point's run writes its checkpoint: at most this much of a
 #: point's run is lost when a build is stopped (a coupled 0.5 mm point's checkpoint holds
@@ -149,14 +149,11 @@ def _claim(store, content: dict):
         print(f"millfmu: a table point's folder {path} cannot be made ({e}); the point runs "
               f"without checkpoints", file=sys.stderr, flush=True)
         return None
-    if fcntl is not None:
-        try:
-            fcntl.flock(fh.fileno(), fcntl.LOCK_EX | fcntl.LOCK_NB)
-        except OSError:
-            fh.close()
-            print(f"millfmu: another process runs the table point of {path}; this one runs it "
-                  f"apart, without checkpoints", file=sys.stderr, flush=True)
-            return None
+    if not hold(fh):
+        fh.close()
+        print(f"millfmu: another process runs the table point of {path}; this one runs it "
+              f"apart, without checkpoints", file=sys.stderr, flush=True)
+        return None
     meta = path / META
     if not meta.exists():
         write_replacing(meta, canonical_json(content).encode(), prefix=".tmp-meta-")
