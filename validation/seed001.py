@@ -451,8 +451,7 @@ def deviation_rows(out_dir=None, summary=None) -> list[dict]:
         if not got:
             return "not evaluated", None
         shown = [text(v) if text else v if isinstance(v, str) else _fmt(v) for _, v in got]
-        cell = shown[0] if len(keys) == 1 else "; ".join(
-            f"{k[0]:g} m/s {round(k[1] * 100)} %: {t}" for (k, _), t in zip(got, shown))
+        cell = shown[0] if len(keys) == 1 else show(shown, [k for k, _ in got])
         judged = [(k, value(v)) for k, v in got if value(v) is not None]
         if not judged:
             return cell, None
