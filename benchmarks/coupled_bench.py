@@ -72,6 +72,10 @@ class CoupledBenchResult:
     # coupled block time / the DEM-alone block before it - 1, every block of every repeat
     # (their median is steadier than the ratio of the bests on a shared machine)
     block_added_costs: list = field(default_factory=list)
+    # the DEM on the GPU: the same coupled blocks with the beads' side of the exchange on
+    # the CPU (CfdDem.set_gpu_beads(False)), interleaved with the others; empty on the CPU
+    cpu_beads_times_s: list = field(default_factory=list)
+    cpu_beads_particle_steps_per_s: float = 0.0
 
     @property
     def added_cost_median(self) -> float:
@@ -186,9 +190,15 @@ def run_coupled_bench(steps: int = 2000, repeats: int = 3, threads: int | None =
     steps = nblocks * block
     start_s = sim.step_count * sc.dt_s
     sim.run(k)  # compiled
-    td, tc, ratios = [], [], []
+    # on the GPU, also the beads' side of the exchange on the CPU, in the same run
+    both = device == "gpu" and getattr(cpl, "_gpu_side", None) is not None
+    if both:
+        cpl.set_gpu_beads(False)
+        cpl.run(k)  # compiled
+        cpl.set_gpu_beads(True)
+    td, tc, th, ratios = [], [], [], []
     for _ in range(repeats):
-        a = b = 0.0
+        a = b = h = 0.0
         for _ in range(nblocks):
             t0 = time.perf_counter()
             sim.run(block)
@@ -198,8 +208,16 @@ def run_coupled_bench(steps: int = 2000, repeats: int = 3, threads: int | None =
             a += t1 - t0
             b += t2 - t1
             ratios.append((t2 - t1) / (t1 - t0) - 1.0)
+            if both:
+                cpl.set_gpu_beads(False)
+                t0 = time.perf_counter()
+                cpl.run(block)
+                h += time.perf_counter() - t0
+                cpl.set_gpu_beads(True)
         td.append(a)
         tc.append(b)
+        if both:
+            th.append(h)
     bd, bc = min(td), min(tc)
     from benchmarks.dem_peers import threading_layer
 
@@ -211,7 +229,9 @@ def run_coupled_bench(steps: int = 2000, repeats: int = 3, threads: int | None =
                               coupled_particle_steps_per_s=sim.n * steps / bc,
                               added_cost=bc / bd - 1.0, dem_times_s=td, coupled_times_s=tc,
                               threading_layer=layer, start=start, start_s=start_s,
-                              block_added_costs=ratios)
+                              block_added_costs=ratios, cpu_beads_times_s=th,
+                              cpu_beads_particle_steps_per_s=(sim.n * steps / min(th)
+                                                              if th else 0.0))
 
 
 #: the parts of a coupled interval that :func:`profile_coupled` times, in the order they
@@ -238,7 +258,7 @@ COUPLED_PARTS = (
 
 def profile_coupled(steps: int = 2000, threads: int | None = None, start: str = "running",
                     running_s: float = RUNNING_S, warm_s: float = 0.01, out=print,
-                    state=None) -> dict:
+                    state=None, scene: str = "sector") -> dict:
     """Where a coupled interval's time goes, measured inside the coupled run (the sector
     row's scene): every call of :data:`COUPLED_PARTS` timed (wall clock) over ``steps``
     DEM steps, then as many DEM steps alone in blocks of 200 (the DEM's pace without the
@@ -252,13 +272,18 @@ def profile_coupled(steps: int = 2000, threads: int | None = None, start: str = 
     steps".
     ``state``: a (sim, coupling) pair to profile as it is (start and warm_s are then not
     used): the sector, or another disc_slice such as the full slice, which the heading
-    names."""
+    names. ``scene``: the row's scene otherwise, "sector" or "full" (the full slice from
+    the early start only: it takes hours to spin up on 2 cores)."""
     import types
 
     if start not in STARTS:
         raise ValueError(f"start = {start!r}: allowed {STARTS}")
-    sim, cpl = state if state is not None else _start("sector", start, threads, "cpu",
-                                                         warm_s, running_s, out)
+    if scene not in SCENES:
+        raise ValueError(f"scene = {scene!r}: allowed {SCENES}")
+    if state is None and scene == "full" and start == "running":
+        raise ValueError("start = 'running': the sector only; the full slice from 'early'")
+    sim, cpl = state if state is not None else _start(scene, start, threads, "cpu", warm_s,
+                                                         running_s, out)
     k = cpl.settings.steps
     intervals = max(1, steps // k)
     cpl.run(2 * k)  # compiled
@@ -350,7 +375,11 @@ def row_line(c: dict) -> str:
             f"coupling add {c['added_cost']:.0%} (median of the "
             f"{len(c['block_added_costs'])} block pairs {c['added_cost_median']:.0%}); "
             f"beads timed from {c['start_s']:.3f} s after the start "
-            f"({'the running mill' if c['start'] == 'running' else 'early'})")
+            f"({'the running mill' if c['start'] == 'running' else 'early'})"
+            + (f"; with the beads' side of the exchange on the CPU instead (the same blocks, "
+               f"interleaved) {c['cpu_beads_particle_steps_per_s']:.4g} particle-steps/s, "
+               f"the GPU's side {c['coupled_particle_steps_per_s'] / c['cpu_beads_particle_steps_per_s']:.2f}x"
+               if c.get("cpu_beads_times_s") else ""))
 
 
 def main(argv=None) -> int:
@@ -378,7 +407,7 @@ def main(argv=None) -> int:
                     help="where the beads start: the running mill (the sector's default) or "
                          "early (see 'python -m benchmarks.dem_peers --help')")
     ap.add_argument("--profile", action="store_true", help="instead: where a coupled "
-                    "interval's time goes, part by part (the sector on the CPU)")
+                    "interval's time goes, part by part (the DEM on the CPU)")
     ap.add_argument("--json", action="store_true", help="also print the row as JSON")
     ap.add_argument("--record", metavar="FILE", help="write the row's figures as one JSON record (commit, date, "
                                                      "machine)")

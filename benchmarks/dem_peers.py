@@ -850,7 +850,8 @@ def parser() -> argparse.ArgumentParser:
                    help="instead: where millfmu.dem's time goes, per kernel (1 and 2 threads; "
                         "with --device gpu, or where a GPU is present, per GPU phase); with "
                         "--coupled, where a coupled interval's time goes, part by part, "
-                        "inside the coupled run (the sector; --bed none for it alone)")
+                        "inside the coupled run (the sector, or the full slice from the early "
+                        "start; --bed none for it alone)")
     b.add_argument("--regenerate-bed", action="store_true",
                    help="make the bed again (it is made once and cached)")
     b.add_argument("--json", action="store_true", help="also print every run as JSON")
@@ -882,9 +883,8 @@ def _refusal(args) -> str | None:
     """Why these options cannot run together (None: they can)."""
     if args.bed == "none" and not args.coupled:
         return "--bed none: nothing to run without --coupled"
-    if args.profile and args.coupled and (args.coupled == "full" or args.device == "gpu"):
-        return (f"--profile --coupled: the 10-degree sector with the DEM on the CPU (here "
-                f"--coupled {args.coupled}{', --device gpu' if args.device == 'gpu' else ''})")
+    if args.profile and args.coupled and args.device == "gpu":
+        return "--profile --coupled: the DEM on the CPU (here --device gpu)"
     if args.coupled_start and not args.coupled:
         return (f"--coupled-start {args.coupled_start}: applies to the coupled row; add "
                 f"--coupled")
@@ -927,8 +927,9 @@ def main(argv=None) -> int:
         if args.coupled:
             from benchmarks.coupled_bench import profile_coupled
 
-            profile_coupled(steps=args.steps or 2000, threads=max(cores),
-                            start=args.coupled_start or "running")
+            profile_coupled(steps=args.steps or 2000, threads=max(cores), scene=args.coupled,
+                            start=args.coupled_start
+                            or ("running" if args.coupled == "sector" else "early"))
         for bed in beds:
             path = bed_file(BEDS[bed], regenerate=args.regenerate_bed)
             if args.device != "gpu":

@@ -210,3 +210,106 @@ def test_coupled_primed_disc_sector_matches_cpu():
     for name in ("ur", "ut", "uz"):
         a, b = getattr(sg, name), getattr(sc_, name)
         np.testing.assert_allclose(a, b, rtol=0, atol=1e-9 * np.abs(b).max(), err_msg=name)
+
+
+@pytest.mark.parametrize("n_theta", [1, 4])
+def test_coupled_beads_side_on_the_gpu_matches_the_cpu_kernels(n_theta):
+    """The beads' side of the exchange on the GPU (coupling.gpu_exchange): stencils, drag
+    coefficients and deposit columns, their deposit on the cells, and the held forces with
+    the fluid at the beads, against the CPU's kernels on the same beads and cell fields: on
+    the axisymmetric grid (4-wide stencils) and with theta cells (8-wide, the angle by
+    atan2), in model A (the pressure gradient's part)."""
+    from millfmu.dem.coupling import exchange_kernels as EK
+    from millfmu.dem.coupling import projection as PJ
+    from millfmu.dem.run import make_simulation
+    from millfmu.dem.scene import load_scene
+
+    sc = load_scene("disc_slice").with_overrides(
+        bead_diameter_m=2.4e-3, filling=0.5, sector_deg=40.0,
+        gravity_m_per_s2=(0.0, 0.0, 0.0), initial_rotation=0.3, n_theta=n_theta)
+    sim, cpl = make_simulation(sc, 1, "gpu")
+    side = cpl._gpu_side
+    assert side is not None and sim._gpu.fext_on_device
+    assert 100 < sim.n < 1000
+    cpl.model_b = False  # model A: the pressure gradient's share of q and the force
+    rng = np.random.default_rng(7)
+    g, s, pj = cpl.grid, cpl.solver, cpl.projector
+    nr, nt, nz = g.shape
+    ncell = nr * nt * nz
+    fab = rng.normal(0.0, 1.0, (sim.n, 6)) * np.array([0.3, 2.0, 0.3, 50.0, 50.0, 50.0])
+    sim.per_bead["fluid_at_bead"][:] = fab
+    side.upload_fluid_at_beads()
+    eps_cells = rng.uniform(0.45, 1.0, ncell)
+    # the CPU's kernels on the same beads
+    ns = cpl._idx.shape[1]
+    assert ns == (8 if n_theta > 1 else 4)
+    idx, w = np.zeros((sim.n, ns), np.int64), np.zeros((sim.n, ns))
+    cyl, c, q, xm = np.zeros((sim.n, 4)), np.zeros(sim.n), np.zeros((sim.n, 6)), np.zeros(sim.n)
+    fab_c = fab.copy()
+    EK.beads_in(sim.x, sim.v, sim.rad, sim.mass, fab_c, eps_cells, s.body_z, 1.0, False,
+                s.fluid.viscosity_Pa_s, s.rho, cpl.interval_s, pj.rc, pj.rtab, pj.rh,
+                g.dtheta_rad, nt, g.dz_m, nz, g.height_m, g.solid, idx, w, cyl, c, q, xm)
+    tot = np.zeros((6, ncell))
+    PJ.deposit(idx, w, q, tot)
+    tot_g = np.zeros((6, ncell))
+    stiff = side.beads_in_and_deposit(eps_cells, tot_g)
+    np.testing.assert_array_equal(side.idx.copy_to_host(), idx)
+    np.testing.assert_allclose(side.w.copy_to_host(), w, rtol=0, atol=1e-14)
+    for name, a in (("cyl", cyl), ("c", c), ("q", q)):
+        np.testing.assert_allclose(getattr(side, name).copy_to_host(), a, rtol=1e-12,
+                                   atol=1e-12 * np.abs(a).max(), err_msg=name)
+    assert stiff == pytest.approx(xm.max(), rel=1e-12)
+    assert np.abs(tot[1]).max() > 0.0  # drag coefficients deposited
+    for m in range(6):
+        np.testing.assert_allclose(tot_g[m], tot[m], rtol=0,
+                                   atol=1e-12 * np.abs(tot[m]).max(), err_msg=f"column {m}")
+    # every bead's volume, and nothing else, went onto the cells
+    assert tot_g[0].sum() == pytest.approx(np.sum(np.pi / 6.0 * (2.0 * sim.rad) ** 3),
+                                           rel=1e-12)
+    cellv = rng.normal(0.0, 1.0, (6, ncell)) * np.array([[0.5], [3.0], [0.5], [80.0],
+                                                          [80.0], [80.0]])
+    for now in (False, True):
+        fext = np.zeros((sim.n, 3))
+        fab_n = fab_c.copy()
+        ts, fs = EK.bead_forces(idx, w, cellv, c, cyl, sim.rad, fab_n, 1.0, now, s.body_z,
+                                fext)
+        side.fab.copy_to_device(fab_c)
+        tg, fg = side.bead_forces(cellv, 1.0, now, s.body_z)
+        fe_g = sim._gpu.fext.copy_to_host()
+        np.testing.assert_allclose(fe_g, fext, rtol=0, atol=1e-12 * np.abs(fext).max())
+        np.testing.assert_allclose(side.fab.copy_to_host(), fab_n, rtol=0,
+                                   atol=1e-12 * np.abs(fab_n).max())
+        assert tg == pytest.approx(ts, rel=1e-9, abs=1e-12 * np.abs(fext[:, 1]).sum())
+        assert fg == pytest.approx(fs, rel=1e-9, abs=1e-12 * np.abs(fext[:, 2]).sum())
+    # the host copies follow on demand; the DEM's run no longer uploads the held force
+    side.to_host()
+    np.testing.assert_array_equal(sim.fext, fe_g)
+    sim.fext[:] = 0.0
+    sim.run(1)
+    np.testing.assert_array_equal(sim._gpu.fext.copy_to_host(), fe_g)
+
+
+def test_coupled_gpu_beads_side_switched_off_and_on_gives_the_cpu_intervals():
+    """A coupled disc sector whose beads' side runs on the GPU for an interval, then on the
+    CPU (set_gpu_beads(False): the host arrays brought back), then on the GPU again, ends
+    where the CPU's coupled run does, to round-off; the CPU's DEM refuses the GPU's side."""
+    from millfmu.dem.run import make_simulation
+    from millfmu.dem.scene import load_scene
+
+    sc = load_scene("disc_slice").with_overrides(
+        bead_diameter_m=2.4e-3, filling=0.5, sector_deg=10.0, gravity_m_per_s2=(0.0, 0.0, 0.0),
+        initial_rotation=0.3)
+    made = {dev: make_simulation(sc, 1, dev) for dev in ("cpu", "gpu")}
+    with pytest.raises(ValueError, match="CPU"):
+        made["cpu"][1].set_gpu_beads(True)
+    sg, cg = made["gpu"]
+    k = cg.settings.steps
+    for on in (True, False, True):
+        cg.set_gpu_beads(on)
+        assert (cg._gpu_side is not None) == on == sg._gpu.fext_on_device
+        cg.run(k)
+    made["cpu"][1].run(3 * k)
+    sims = {dev: m[0] for dev, m in made.items()}
+    assert_same_state(sims, atol_x=1e-14, rtol_v=1e-8)
+    np.testing.assert_allclose(cg.solver.ut, made["cpu"][1].solver.ut, rtol=0,
+                               atol=1e-9 * np.abs(made["cpu"][1].solver.ut).max())

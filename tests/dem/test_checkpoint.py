@@ -203,10 +203,13 @@ def test_gpu_device_refusals_name_the_item(tmp_path, capsys, monkeypatch):
         assert "--device gpu: numba.cuda finds no CUDA GPU" in capsys.readouterr().err
     assert bench_main(["--bed", "none"]) == 2
     assert "--bed none: nothing to run without --coupled" in capsys.readouterr().err
-    for argv in (["--coupled", "full"], ["--coupled", "--device", "gpu"]):
-        assert bench_main(["--bed", "none", "--profile"] + argv) == 2
-        assert "--profile --coupled: the 10-degree sector with the DEM on the CPU" in \
-            capsys.readouterr().err
+    assert bench_main(["--bed", "none", "--profile", "--coupled", "--device", "gpu"]) == 2
+    assert "--profile --coupled: the DEM on the CPU (here --device gpu)" in \
+        capsys.readouterr().err
+    assert bench_main(["--bed", "none", "--profile", "--coupled", "full", "--coupled-start",
+                       "running"]) == 2
+    assert "--coupled-start running: the 10-degree sector on the CPU only" in \
+        capsys.readouterr().err
     assert bench_main(["--coupled-start", "early"]) == 2
     assert "--coupled-start early: applies to the coupled row" in capsys.readouterr().err
     for argv in (["--coupled", "full"], ["--coupled", "--device", "gpu"]):

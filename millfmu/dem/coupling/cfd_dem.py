@@ -114,6 +114,31 @@ class CfdDem:
         #: the fused exchange's two-task forms (None: where numba runs one or two threads;
         #: the same results either way)
         self.two_tasks = None
+        #: the beads' side of each exchange (stencils, deposit, held forces) on the GPU
+        #: where the DEM steps there (:mod:`millfmu.dem.coupling.gpu_exchange`); None on
+        #: the CPU
+        self._gpu_side = None
+        self.set_gpu_beads(sim._gpu is not None)
+
+    def set_gpu_beads(self, on: bool) -> None:
+        """Whether the beads' side of each exchange runs on the GPU (the default where the
+        DEM steps there) or on the CPU's threads, from the beads' state copied to the host
+        and with the held force uploaded before the DEM's steps (a bench times the two on
+        the same beads). Either way the same model, to round-off. On the CPU's DEM only
+        False is allowed (ValueError)."""
+        sim = self.sim
+        if on and sim._gpu is None:
+            raise ValueError("set_gpu_beads(True): the DEM steps on the CPU")
+        if bool(on) == (self._gpu_side is not None):
+            return
+        if on:
+            from millfmu.dem.coupling.gpu_exchange import GpuBeadSide
+
+            self._gpu_side = GpuBeadSide(self)
+        else:
+            self._gpu_side.to_host()
+            sim._gpu.fext_on_device = False
+            self._gpu_side = None
 
     def fused_possible(self) -> bool:
         """Whether :mod:`millfmu.dem.coupling.fused_exchange` can take this coupling's
@@ -128,20 +153,25 @@ class CfdDem:
         coefficients on the nodes (in self._eps, self._kd, self._sd)."""
         sim, g, s = self.sim, self.grid, self.solver
         nr, nt, nz = g.shape
-        self.EK.beads_in(sim.x, sim.v, sim.rad, sim.mass, sim.per_bead["fluid_at_bead"],
-                         eps_cells, s.body_z, 0.0 if self.model_b else 1.0, self.model_b,
-                         s.fluid.viscosity_Pa_s, s.rho, self.interval_s, self.projector.rc,
-                         self.projector.rtab, self.projector.rh, g.dtheta_rad, nt, g.dz_m,
-                         nz, g.height_m, g.solid, self._idx, self._w, self._cyl, self._c,
-                         self._q, self._x)
-        self.PJ.deposit(self._idx, self._w, self._q, self._tot)
+        gpu = getattr(self, "_gpu_side", None)
+        if gpu is not None:
+            stiffness = gpu.beads_in_and_deposit(eps_cells, self._tot)
+        else:
+            self.EK.beads_in(sim.x, sim.v, sim.rad, sim.mass, sim.per_bead["fluid_at_bead"],
+                             eps_cells, s.body_z, 0.0 if self.model_b else 1.0,
+                             self.model_b, s.fluid.viscosity_Pa_s, s.rho, self.interval_s,
+                             self.projector.rc, self.projector.rtab, self.projector.rh,
+                             g.dtheta_rad, nt, g.dz_m, nz, g.height_m, g.solid, self._idx,
+                             self._w, self._cyl, self._c, self._q, self._x)
+            self.PJ.deposit(self._idx, self._w, self._q, self._tot)
+            stiffness = float(self._x.max()) if self._x.size else 0.0
         self.projector.smooth_totals(self._tot)
         e = self._eps
         self.clipped_cells = self.EK.cells_to_exchange(
             self._tot.reshape((6,) + g.shape), self._vc,
             self.settings.eps_min, g.solid, s.kr, s.kt, s.kz, self._vol_r, self.projector.rc,
             e[0], e[1], e[2], e[3], *self._kd, *self._sd)
-        self.stiffness = float(self._x.max()) if self._x.size else 0.0
+        self.stiffness = stiffness
 
     # ---- one coupling interval ----------------------------------------------------------
     def exchange(self):
@@ -155,7 +185,7 @@ class CfdDem:
         # chamber). The liquid and the drag laws take the beads' present void fraction.
         gap = sim.step_count - self._synced_step not in (0, self.settings.steps)
         self._synced_step = sim.step_count
-        if self.fused:
+        if self.fused and self._gpu_side is None:
             return self._exchange_fused(gap)
         if gap:
             self._deposit_and_split(self._eps_cells)
@@ -176,10 +206,14 @@ class CfdDem:
         # only the velocity needs the transpose of the deposit (the drag's exchange is
         # exact through it); the pressure gradient, a smooth field, is read by the stencil
         self.projector.smooth_values(self._cellv, ncols=3)
-        ts, fs = self.EK.bead_forces(self._idx, self._w, self._cellv, self._c, self._cyl,
-                                     sim.rad, sim.per_bead["fluid_at_bead"],
-                                     0.0 if self.model_b else 1.0, self._gradient_now,
-                                     s.body_z, sim.fext)
+        if self._gpu_side is not None:
+            ts, fs = self._gpu_side.bead_forces(self._cellv, 0.0 if self.model_b else 1.0,
+                                                self._gradient_now, s.body_z)
+        else:
+            ts, fs = self.EK.bead_forces(self._idx, self._w, self._cellv, self._c,
+                                         self._cyl, sim.rad, sim.per_bead["fluid_at_bead"],
+                                         0.0 if self.model_b else 1.0, self._gradient_now,
+                                         s.body_z, sim.fext)
         self.angular_impulse_to_beads_nms += ts * self.interval_s
         self.axial_impulse_to_beads_ns += fs * self.interval_s
         self.intervals += 1
@@ -352,6 +386,8 @@ class CfdDem:
         sim.v[:, 2] = u[:, 2]
         sim.host_state_changed("v")
         sim.per_bead["fluid_at_bead"][:, 0:3] = u
+        if self._gpu_side is not None:
+            self._gpu_side.upload_fluid_at_beads()
         # the beads' void fractions without rescaling the liquid's velocities
         self._deposit_and_split(self._eps_cells)
         e = self._eps
@@ -370,6 +406,7 @@ class CfdDem:
             self.fused = self.fused_possible()
         self.__dict__.setdefault("compiled", True)
         self.__dict__.setdefault("two_tasks", None)
+        self.__dict__.setdefault("_gpu_side", None)  # checkpoints are of CPU runs
 
     def gravity_torque_nm(self) -> float:
         """Torque [N m] about the axis (+z) of the beads' buoyancy-reduced weight at
@@ -432,6 +469,8 @@ class CfdDem:
             st, tau = self._dem_run(k, record, tau)
             out.append(st)
             left -= 1
+        if self._gpu_side is not None:
+            self._gpu_side.to_host()
         return out
 
     # ---- observation --------------------------------------------------------------------

@@ -390,7 +390,7 @@ def g_forces(x, v, w, f, t, rad, mass, inertia, nb, img, nnb, sh, fl, shw, flw, 
 class GpuStepper:
     """Owns the device copies of a :class:`millfmu.dem.engine.sim.DemSimulation`'s state and
     advances them; the simulation's host arrays (x, v, w, f, t) are refreshed after every
-    run() call, its held force fext is uploaded before each."""
+    run() call, its held force fext is uploaded before each (unless ``fext_on_device``)."""
 
     CELL_CAP = 16  # beads per cell to start with (a dense bed holds 3 to 4)
 
@@ -420,6 +420,9 @@ class GpuStepper:
         self.shw = d(np.zeros((n, K.NWALL, 3)))
         self.flw = d(np.zeros((n, K.NWALL), np.uint8))
         self.fext = d(sim.fext)
+        #: the held force is set on the device (a coupling's beads' side on the GPU,
+        #: millfmu.dem.coupling.gpu_exchange), not uploaded from sim.fext before each run
+        self.fext_on_device = False
         # the initial forces: with history_at_start "zero" no spring increment (dt 0 in the
         # contact law), as on the CPU
         p0 = sim.prm.copy()
@@ -525,7 +528,8 @@ class GpuStepper:
             return np.zeros((0, K.EV_NF)), 0.0, 0.0, 0, 0
         sim = self.sim
         dt = sim.dt_s
-        self.fext.copy_to_device(sim.fext)
+        if not self.fext_on_device:
+            self.fext.copy_to_device(sim.fext)
         self.acc.copy_to_device(np.zeros(2))
         events: list = []
         dropped = 0

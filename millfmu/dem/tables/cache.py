@@ -368,6 +368,12 @@ SAME_DEM_AS = {
     # the same to the bit by either, the fused-exchange tests in both forms)
     "sha256:2ec323aa6e6d5813793e79d48ebfe53c062ba71a48e06396d8e608ade0800fb1":
         "sha256:97f753cea048d151d29bfc09ed08fc9161f206eb44b7bf748a0474d96810be97",
+    # and the coupling's beads' side on the GPU where the DEM steps there
+    # (coupling.gpu_exchange; the CPU's path unchanged: the coupled disc sector on 1 and 2
+    # threads, one with 4 theta cells and theta_fft, and the accelerator slice give the
+    # same outputs to the bit; then a docstring reworded, no code changed)
+    "sha256:32e599996135f5179a549a20ef8809faea0e19fe6c11219bccf5e592d028521c":
+        "sha256:97f753cea048d151d29bfc09ed08fc9161f206eb44b7bf748a0474d96810be97",
 }
 
 
