@@ -113,8 +113,9 @@ def initial_positions(scene: DemScene) -> np.ndarray:
 
 def make_simulation(scene: DemScene, threads: int | None = None, device: str = "cpu"):
     """The DEM of ``scene`` and, for the coupled fluid, its :class:`CfdDem` (else None).
-    ``device``: where the DEM steps ("cpu": numba threads; "gpu": numba.cuda, the liquid
-    and the exchange staying on the CPU's ``threads``)."""
+    ``device``: where the DEM steps ("cpu": numba threads; "gpu": numba.cuda, with the
+    beads' side of the coupled exchange, :mod:`millfmu.dem.coupling.gpu_exchange`; the
+    liquid and the exchange's cell side staying on the CPU's ``threads``)."""
     x0 = initial_positions(scene)
     v0 = None
     if scene.initial_rotation:

@@ -374,6 +374,10 @@ SAME_DEM_AS = {
     # same outputs to the bit; then a docstring reworded, no code changed)
     "sha256:32e599996135f5179a549a20ef8809faea0e19fe6c11219bccf5e592d028521c":
         "sha256:97f753cea048d151d29bfc09ed08fc9161f206eb44b7bf748a0474d96810be97",
+    # and make_simulation's docstring saying where the GPU's coupled exchange runs (no
+    # code changed)
+    "sha256:279ba3777b182df7026a85cd23473e36fd6b75b7223b62b5d56a2b9888fb9aab":
+        "sha256:97f753cea048d151d29bfc09ed08fc9161f206eb44b7bf748a0474d96810be97",
 }
 
 
