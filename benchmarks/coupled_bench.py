@@ -170,7 +170,9 @@ def run_coupled_bench(steps: int = 2000, repeats: int = 3, threads: int | None =
     liquid takes the beads' present void fraction after each DEM-alone block (see
     ``CfdDem.exchange``). Best of ``repeats``. ``start``: "running" (the default for the
     sector on the CPU: from :func:`running_state`) or "early" (``warm_s`` after the start;
-    the full slice and the GPU always)."""
+    the full slice and the GPU always). With the DEM on the GPU, each block is also run
+    coupled with the beads' side of the exchange on the CPU (``CfdDem.set_gpu_beads``),
+    right after the same block with it on the GPU: both forms timed on the same beads."""
 
     if scene not in SCENES:
         raise ValueError(f"scene = {scene!r}: allowed {SCENES}")
