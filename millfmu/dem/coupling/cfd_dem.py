@@ -96,6 +96,10 @@ class CfdDem:
         #: (buoyancy-reduced) weight exerts: nonzero where gravity lies across the axis of a
         #: full slice and the bed's centre of mass is off the vertical through the axis
         self.gravity_angular_impulse_nms = 0.0
+        #: the beads' side of each exchange (stencils, deposit, held forces) on the GPU
+        #: where the DEM steps there (:mod:`millfmu.dem.coupling.gpu_exchange`; set at the
+        #: end of construction); None on the CPU
+        self._gpu_side = None
         # the beads' drag law reads the void fraction of the previous interval (one
         # interval late, which saves a second smoothing per interval); start with the
         # initial beads'
@@ -114,10 +118,6 @@ class CfdDem:
         #: the fused exchange's two-task forms (None: where numba runs one or two threads;
         #: the same results either way)
         self.two_tasks = None
-        #: the beads' side of each exchange (stencils, deposit, held forces) on the GPU
-        #: where the DEM steps there (:mod:`millfmu.dem.coupling.gpu_exchange`); None on
-        #: the CPU
-        self._gpu_side = None
         self.set_gpu_beads(sim._gpu is not None)
 
     def set_gpu_beads(self, on: bool) -> None:
@@ -153,7 +153,7 @@ class CfdDem:
         coefficients on the nodes (in self._eps, self._kd, self._sd)."""
         sim, g, s = self.sim, self.grid, self.solver
         nr, nt, nz = g.shape
-        gpu = getattr(self, "_gpu_side", None)
+        gpu = self._gpu_side
         if gpu is not None:
             stiffness = gpu.beads_in_and_deposit(eps_cells, self._tot)
         else:
@@ -476,6 +476,8 @@ class CfdDem:
     # ---- observation --------------------------------------------------------------------
     def void_fraction_at_beads(self) -> np.ndarray:
         """Void fraction [-] read at each bead from the latest cell field."""
+        if self._gpu_side is not None:
+            self._gpu_side.stencils_to_host()
         out = np.zeros((self.sim.n, 1))
         self.PJ.gather(self._idx, self._w, self._eps_cells.reshape(1, -1), out)
         return out[:, 0]

@@ -50,6 +50,42 @@ def split(kind_a, kind_b):
     return (1.0 if fa else 0.0), (1.0 if fb else 0.0)
 
 
+@inlined
+def bead_in(b, x, v, rad, mass, fab, eps_cells, body_z, pf, model_b, mu, rho, interval,
+            rc, rtab, rh, dth, nt, dz, nz, lz, solid, idx, w, cyl, c, q):
+    """Bead b's part of :func:`beads_in` (its stencil, cylindrical coordinates, drag
+    coefficient and deposit columns); returns x = interval c / m [-]. One body for the
+    CPU's loop and the GPU's thread (:mod:`millfmu.dem.coupling.gpu_exchange`)."""
+    r = stencil_one(b, x, rc, rtab, rh, dth, nt, dz, nz, lz, solid, idx, w)
+    inv = 1.0 / r if r > 0.0 else 0.0
+    vr = (x[b, 0] * v[b, 0] + x[b, 1] * v[b, 1]) * inv
+    vt = (x[b, 0] * v[b, 1] - x[b, 1] * v[b, 0]) * inv
+    vz = v[b, 2]
+    eb = 0.0
+    for s in range(idx.shape[1]):
+        if w[b, s] != 0.0:
+            eb += w[b, s] * eps_cells[nonneg(idx[b, s])]
+    d = 2.0 * rad[b]
+    vol = math.pi / 6.0 * d * d * d
+    urel = math.sqrt((fab[b, 0] - vr) ** 2 + (fab[b, 1] - vt) ** 2 + (fab[b, 2] - vz) ** 2)
+    bt = beta(d, eb, mu, rho, urel)
+    if model_b:
+        bt /= eb
+    cc, xx = held_coefficient(vol * bt, mass[b], interval)
+    c[b] = cc
+    cyl[b, 0] = r
+    cyl[b, 1] = vr
+    cyl[b, 2] = vt
+    cyl[b, 3] = vz
+    q[b, 0] = vol
+    q[b, 1] = cc
+    q[b, 2] = cc * r
+    q[b, 3] = cc * vr + pf * vol * fab[b, 3]
+    q[b, 4] = r * (cc * vt + pf * vol * fab[b, 4])
+    q[b, 5] = cc * vz + pf * vol * (fab[b, 5] - body_z)
+    return xx
+
+
 @kernel
 def beads_in(x, v, rad, mass, fab, eps_cells, body_z, pf, model_b, mu, rho, interval,
              rc, rtab, rh, dth, nt, dz, nz, lz, solid, idx, w, cyl, c, q, xmax):
@@ -59,34 +95,8 @@ def beads_in(x, v, rad, mass, fab, eps_cells, body_z, pf, model_b, mu, rho, inte
     :func:`held_coefficient`) and the deposit columns q of every bead; xmax[b] =
     interval c / m."""
     for b in prange(x.shape[0]):
-        r = stencil_one(b, x, rc, rtab, rh, dth, nt, dz, nz, lz, solid, idx, w)
-        inv = 1.0 / r if r > 0.0 else 0.0
-        vr = (x[b, 0] * v[b, 0] + x[b, 1] * v[b, 1]) * inv
-        vt = (x[b, 0] * v[b, 1] - x[b, 1] * v[b, 0]) * inv
-        vz = v[b, 2]
-        eb = 0.0
-        for s in range(idx.shape[1]):
-            if w[b, s] != 0.0:
-                eb += w[b, s] * eps_cells[nonneg(idx[b, s])]
-        d = 2.0 * rad[b]
-        vol = math.pi / 6.0 * d * d * d
-        urel = math.sqrt((fab[b, 0] - vr) ** 2 + (fab[b, 1] - vt) ** 2 + (fab[b, 2] - vz) ** 2)
-        bt = beta(d, eb, mu, rho, urel)
-        if model_b:
-            bt /= eb
-        cc, xx = held_coefficient(vol * bt, mass[b], interval)
-        xmax[b] = xx
-        c[b] = cc
-        cyl[b, 0] = r
-        cyl[b, 1] = vr
-        cyl[b, 2] = vt
-        cyl[b, 3] = vz
-        q[b, 0] = vol
-        q[b, 1] = cc
-        q[b, 2] = cc * r
-        q[b, 3] = cc * vr + pf * vol * fab[b, 3]
-        q[b, 4] = r * (cc * vt + pf * vol * fab[b, 4])
-        q[b, 5] = cc * vz + pf * vol * (fab[b, 5] - body_z)
+        xmax[b] = bead_in(b, x, v, rad, mass, fab, eps_cells, body_z, pf, model_b, mu, rho,
+                          interval, rc, rtab, rh, dth, nt, dz, nz, lz, solid, idx, w, cyl, c, q)
 
 
 @serial
@@ -235,6 +245,53 @@ def held_sums(fext):
     return tsum, fsum
 
 
+@inlined
+def bead_force(b, idx, w, cellv, c, cyl, rad, fab, pf, now, body_z, fext):
+    """Bead b's part of :func:`bead_forces` (the cell values read back at it, its held
+    force fext[b] and its fab[b]); returns (T_z [N m], F_z [N]). One body for the CPU's
+    loop and the GPU's thread (:mod:`millfmu.dem.coupling.gpu_exchange`)."""
+    at0 = 0.0
+    at1 = 0.0
+    at2 = 0.0
+    at3 = 0.0
+    at4 = 0.0
+    at5 = 0.0
+    for s in range(idx.shape[1]):
+        ww = w[b, s]
+        if ww != 0.0:
+            cc = nonneg(idx[b, s])
+            at0 += ww * cellv[0, cc]
+            at1 += ww * cellv[1, cc]
+            at2 += ww * cellv[2, cc]
+            at3 += ww * cellv[3, cc]
+            at4 += ww * cellv[4, cc]
+            at5 += ww * cellv[5, cc]
+    d = 2.0 * rad[b]
+    vol = math.pi / 6.0 * d * d * d
+    r = cyl[b, 0]
+    if now:
+        g3 = at3
+        g4 = at4
+        g5 = at5
+    else:
+        g3 = fab[b, 3]
+        g4 = fab[b, 4]
+        g5 = fab[b, 5]
+    fr = c[b] * (at0 - cyl[b, 1]) - pf * vol * g3
+    tz = r * (c[b] * (at1 - cyl[b, 2]) - pf * vol * g4)
+    fz = c[b] * (at2 - cyl[b, 3]) - pf * vol * (g5 - body_z)
+    fext[b, 0] = fr
+    fext[b, 1] = tz
+    fext[b, 2] = fz
+    fab[b, 0] = at0
+    fab[b, 1] = at1
+    fab[b, 2] = at2
+    fab[b, 3] = at3
+    fab[b, 4] = at4
+    fab[b, 5] = at5
+    return tz, fz
+
+
 @kernel
 def bead_forces(idx, w, cellv, c, cyl, rad, fab, pf, now, body_z, fext):
     """Read the smoothed cell values back at each bead (fluid velocity and pressure
@@ -245,43 +302,5 @@ def bead_forces(idx, w, cellv, c, cyl, rad, fab, pf, now, body_z, fext):
     (now = True); then store the new values in fab. Returns the sums of T_z and F_z over
     the beads."""
     for b in prange(idx.shape[0]):
-        at0 = 0.0
-        at1 = 0.0
-        at2 = 0.0
-        at3 = 0.0
-        at4 = 0.0
-        at5 = 0.0
-        for s in range(idx.shape[1]):
-            ww = w[b, s]
-            if ww != 0.0:
-                cc = nonneg(idx[b, s])
-                at0 += ww * cellv[0, cc]
-                at1 += ww * cellv[1, cc]
-                at2 += ww * cellv[2, cc]
-                at3 += ww * cellv[3, cc]
-                at4 += ww * cellv[4, cc]
-                at5 += ww * cellv[5, cc]
-        d = 2.0 * rad[b]
-        vol = math.pi / 6.0 * d * d * d
-        r = cyl[b, 0]
-        if now:
-            g3 = at3
-            g4 = at4
-            g5 = at5
-        else:
-            g3 = fab[b, 3]
-            g4 = fab[b, 4]
-            g5 = fab[b, 5]
-        fr = c[b] * (at0 - cyl[b, 1]) - pf * vol * g3
-        tz = r * (c[b] * (at1 - cyl[b, 2]) - pf * vol * g4)
-        fz = c[b] * (at2 - cyl[b, 3]) - pf * vol * (g5 - body_z)
-        fext[b, 0] = fr
-        fext[b, 1] = tz
-        fext[b, 2] = fz
-        fab[b, 0] = at0
-        fab[b, 1] = at1
-        fab[b, 2] = at2
-        fab[b, 3] = at3
-        fab[b, 4] = at4
-        fab[b, 5] = at5
+        bead_force(b, idx, w, cellv, c, cyl, rad, fab, pf, now, body_z, fext)
     return held_sums(fext)

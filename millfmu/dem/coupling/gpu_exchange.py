@@ -12,11 +12,11 @@ velocities, radii, masses, the held force):
   over the next interval (:func:`millfmu.dem.coupling.exchange_kernels.bead_forces`),
   written straight into the DEM's held force on the device.
 
-The formulas are the CPU's: the stencil (:func:`~millfmu.dem.coupling.projection.stencil_one`),
-the Koch-Hill drag (:mod:`millfmu.dem.engine.koch_hill2001`) and the held coefficient
-(:func:`~millfmu.dem.coupling.exchange_kernels.held_coefficient`) are compiled for CUDA
-from their Python source (:func:`millfmu.dem.engine._jit.gpu_device`); the per-bead
-algebra around them is that of ``beads_in`` and ``bead_forces`` line for line. The cell
+The formulas are the CPU's: each bead's part of ``beads_in`` and ``bead_forces``
+(:func:`~millfmu.dem.coupling.exchange_kernels.bead_in`,
+:func:`~millfmu.dem.coupling.exchange_kernels.bead_force`), with the stencil, the Koch-Hill
+drag and the held coefficient they call, is compiled for CUDA from its Python source
+(:func:`millfmu.dem.engine._jit.gpu_device`). The cell
 side (smoothing, void fractions, the liquid) stays on the CPU: per interval the cell totals
 (6 x cells) go to the host and the cell values (6 x cells) come back, instead of every
 bead's position, velocity and held force.
@@ -32,8 +32,6 @@ NUMBA_ENABLE_CUDASIM=1 the kernels run in numba's CUDA simulator (how the tests 
 """
 
 from __future__ import annotations
-
-import math
 
 import numpy as np
 from numba import cuda
@@ -53,8 +51,10 @@ def _nonneg(i):
 
 _wrap = gpu_device(VK.wrap, nonneg=_nonneg)
 stencil_one = gpu_device(PJ.stencil_one, nonneg=_nonneg, wrap=_wrap)
-beta = gpu_device(KH.beta, f0_f3=gpu_device(KH.f0_f3))
-held_coefficient = gpu_device(EK.held_coefficient)
+bead_in = gpu_device(EK.bead_in, nonneg=_nonneg, stencil_one=stencil_one,
+                     beta=gpu_device(KH.beta, f0_f3=gpu_device(KH.f0_f3)),
+                     held_coefficient=gpu_device(EK.held_coefficient))
+bead_force = gpu_device(EK.bead_force, nonneg=_nonneg)
 
 
 @gpu_kernel
@@ -65,34 +65,9 @@ def g_beads_in(x, v, rad, mass, fab, eps_cells, body_z, pf, model_b, mu, rho, in
     b = cuda.grid(1)
     if b >= x.shape[0]:
         return
-    r = stencil_one(b, x, rc, rtab, rh, dth, nt, dz, nz, lz, solid, idx, w)
-    inv = 1.0 / r if r > 0.0 else 0.0
-    vr = (x[b, 0] * v[b, 0] + x[b, 1] * v[b, 1]) * inv
-    vt = (x[b, 0] * v[b, 1] - x[b, 1] * v[b, 0]) * inv
-    vz = v[b, 2]
-    eb = 0.0
-    for s in range(idx.shape[1]):
-        if w[b, s] != 0.0:
-            eb += w[b, s] * eps_cells[idx[b, s]]
-    d = 2.0 * rad[b]
-    vol = math.pi / 6.0 * d * d * d
-    urel = math.sqrt((fab[b, 0] - vr) ** 2 + (fab[b, 1] - vt) ** 2 + (fab[b, 2] - vz) ** 2)
-    bt = beta(d, eb, mu, rho, urel)
-    if model_b:
-        bt /= eb
-    cc, xx = held_coefficient(vol * bt, mass[b], interval)
+    xx = bead_in(b, x, v, rad, mass, fab, eps_cells, body_z, pf, model_b, mu, rho, interval,
+                 rc, rtab, rh, dth, nt, dz, nz, lz, solid, idx, w, cyl, c, q)
     cuda.atomic.max(xmax, 0, xx)
-    c[b] = cc
-    cyl[b, 0] = r
-    cyl[b, 1] = vr
-    cyl[b, 2] = vt
-    cyl[b, 3] = vz
-    q[b, 0] = vol
-    q[b, 1] = cc
-    q[b, 2] = cc * r
-    q[b, 3] = cc * vr + pf * vol * fab[b, 3]
-    q[b, 4] = r * (cc * vt + pf * vol * fab[b, 4])
-    q[b, 5] = cc * vz + pf * vol * (fab[b, 5] - body_z)
 
 
 @gpu_kernel
@@ -127,45 +102,7 @@ def g_bead_forces(idx, w, cellv, c, cyl, rad, fab, pf, now, body_z, fext, sums):
     b = cuda.grid(1)
     if b >= idx.shape[0]:
         return
-    at0 = 0.0
-    at1 = 0.0
-    at2 = 0.0
-    at3 = 0.0
-    at4 = 0.0
-    at5 = 0.0
-    for s in range(idx.shape[1]):
-        ww = w[b, s]
-        if ww != 0.0:
-            cc = idx[b, s]
-            at0 += ww * cellv[0, cc]
-            at1 += ww * cellv[1, cc]
-            at2 += ww * cellv[2, cc]
-            at3 += ww * cellv[3, cc]
-            at4 += ww * cellv[4, cc]
-            at5 += ww * cellv[5, cc]
-    d = 2.0 * rad[b]
-    vol = math.pi / 6.0 * d * d * d
-    r = cyl[b, 0]
-    if now:
-        g3 = at3
-        g4 = at4
-        g5 = at5
-    else:
-        g3 = fab[b, 3]
-        g4 = fab[b, 4]
-        g5 = fab[b, 5]
-    fr = c[b] * (at0 - cyl[b, 1]) - pf * vol * g3
-    tz = r * (c[b] * (at1 - cyl[b, 2]) - pf * vol * g4)
-    fz = c[b] * (at2 - cyl[b, 3]) - pf * vol * (g5 - body_z)
-    fext[b, 0] = fr
-    fext[b, 1] = tz
-    fext[b, 2] = fz
-    fab[b, 0] = at0
-    fab[b, 1] = at1
-    fab[b, 2] = at2
-    fab[b, 3] = at3
-    fab[b, 4] = at4
-    fab[b, 5] = at5
+    tz, fz = bead_force(b, idx, w, cellv, c, cyl, rad, fab, pf, now, body_z, fext)
     cuda.atomic.add(sums, 0, tz)
     cuda.atomic.add(sums, 1, fz)
 
@@ -186,11 +123,12 @@ class GpuBeadSide:
         ns = cpl._idx.shape[1]
         ncell = int(np.prod(g.shape))
         d = cuda.to_device
-        self.idx = d(cpl._idx)
-        self.w = d(cpl._w)
-        self.cyl = d(cpl._cyl)
-        self.c = d(cpl._c)
-        self.q = d(cpl._q)
+        # set by every exchange's beads_in before anything reads them: not uploaded
+        self.idx = cuda.device_array(cpl._idx.shape, cpl._idx.dtype)
+        self.w = cuda.device_array(cpl._w.shape)
+        self.cyl = cuda.device_array(cpl._cyl.shape)
+        self.c = cuda.device_array(cpl._c.shape)
+        self.q = cuda.device_array(cpl._q.shape)
         self.fab = d(sim.per_bead["fluid_at_bead"])
         self.eps_cells = d(np.ones(ncell))
         self.tot = cuda.device_array((6, ncell))
@@ -246,13 +184,15 @@ class GpuBeadSide:
         return float(ts), float(fs)
 
     def to_host(self):
-        """Copy the stencils, the fluid at the beads and the held force to the host arrays
-        (``cpl._idx``, ``cpl._w``, ``sim.per_bead["fluid_at_bead"]``, ``sim.fext``), for
-        what reads them there (the void fraction at the beads, a table point's settled
-        state)."""
-        cpl = self.cpl
-        sim = cpl.sim
-        self.idx.copy_to_host(cpl._idx)
-        self.w.copy_to_host(cpl._w)
+        """Copy the state the device holds, the fluid at the beads and the held force, to
+        the host arrays (``sim.per_bead["fluid_at_bead"]``, ``sim.fext``), for what reads
+        them there (a table point's settled state, the CPU's exchange after a switch)."""
+        sim = self.cpl.sim
         self.fab.copy_to_host(sim.per_bead["fluid_at_bead"])
         self.gpu.fext.copy_to_host(sim.fext)
+
+    def stencils_to_host(self):
+        """Copy the stencils of the last exchange to the host's (``cpl._idx``, ``cpl._w``),
+        for the void fraction read at the beads."""
+        self.idx.copy_to_host(self.cpl._idx)
+        self.w.copy_to_host(self.cpl._w)

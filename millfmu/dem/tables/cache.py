@@ -378,6 +378,12 @@ SAME_DEM_AS = {
     # code changed)
     "sha256:279ba3777b182df7026a85cd23473e36fd6b75b7223b62b5d56a2b9888fb9aab":
         "sha256:97f753cea048d151d29bfc09ed08fc9161f206eb44b7bf748a0474d96810be97",
+    # and each bead's part of the exchange's beads_in and bead_forces as an inlined
+    # function that the GPU's kernels share (the coupled disc sector on 1 and 2 threads,
+    # primed, with 4 theta cells and theta_fft, and the accelerator slice give the same
+    # outputs to the bit)
+    "sha256:a3596a93f9f0e1c6e312586030a9f2999e1c4ea3776e684517be5798b2957369":
+        "sha256:97f753cea048d151d29bfc09ed08fc9161f206eb44b7bf748a0474d96810be97",
 }
 
 
