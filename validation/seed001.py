@@ -160,7 +160,13 @@ def full_slice_scene(vt: float = 10.0, fill: float = 0.8):
 
 
 def _load(out_dir, fluid, vt, fill, sector_deg=None):
-    d = case_dir(out_dir, fluid, vt, fill, sector_deg)
+    return load_dir(case_dir(out_dir, fluid, vt, fill, sector_deg))
+
+
+def load_dir(d) -> dict | None:
+    """A run folder's stats.json with its vortices recounted and its collision maps' peaks
+    (:func:`map_peaks`) as ``maps``; None where the run has not finished."""
+    d = Path(d)
     p = d / "stats.json"
     if not p.exists():
         return None
