@@ -305,8 +305,12 @@ def test_coupled_gpu_beads_side_switched_off_and_on_gives_the_cpu_intervals():
     sg, cg = made["gpu"]
     k = cg.settings.steps
     for on in (True, False, True):
+        side = cg._gpu_side
         cg.set_gpu_beads(on)
         assert (cg._gpu_side is not None) == on == sg._gpu.fext_on_device
+        if not on:  # the host's stencils are the last exchange's, not those before the GPU's
+            np.testing.assert_array_equal(cg._idx, side.idx.copy_to_host())
+            np.testing.assert_array_equal(cg._w, side.w.copy_to_host())
         cg.run(k)
     made["cpu"][1].run(3 * k)
     sims = {dev: m[0] for dev, m in made.items()}

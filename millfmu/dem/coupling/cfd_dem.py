@@ -137,6 +137,7 @@ class CfdDem:
             self._gpu_side = GpuBeadSide(self)
         else:
             self._gpu_side.to_host()
+            self._gpu_side.stencils_to_host()  # read by void_fraction_at_beads until the next exchange
             sim._gpu.fext_on_device = False
             self._gpu_side = None
 

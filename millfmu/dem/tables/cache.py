@@ -384,6 +384,10 @@ SAME_DEM_AS = {
     # outputs to the bit)
     "sha256:a3596a93f9f0e1c6e312586030a9f2999e1c4ea3776e684517be5798b2957369":
         "sha256:97f753cea048d151d29bfc09ed08fc9161f206eb44b7bf748a0474d96810be97",
+    # and the GPU's stencils copied to the host when the beads' side leaves the GPU (a
+    # branch that runs only where the DEM steps on a GPU; the CPU's runs never reach it)
+    "sha256:f718db700a5b547d693d3f0d8aaac512884f6e2b15e0da3d0c7ad6b8b519f316":
+        "sha256:97f753cea048d151d29bfc09ed08fc9161f206eb44b7bf748a0474d96810be97",
 }
 
 
