@@ -342,23 +342,23 @@ def windows_markdown(windows: list) -> str:
     return "\n".join(lines)
 
 
-def kept_windows(path=SUMMARY) -> dict:
-    """{(tip speed, filling): windows} of the kept warm runs (:func:`_windows`)."""
+def _kept(path, field: str) -> dict:
+    """{(tip speed, filling): run[field]} of the kept warm runs in ``path``, {} where none."""
     p = Path(path)
     if not p.exists():
         return {}
     doc = json.loads(p.read_text())
-    return {(r["tip_speed_m_per_s"], r["filling"]): r.get("windows", [])
-            for r in doc.get("runs", {}).values()}
+    return {(r["tip_speed_m_per_s"], r["filling"]): r[field] for r in doc.get("runs", {}).values()}
+
+
+def kept_windows(path=SUMMARY) -> dict:
+    """{(tip speed, filling): windows} of the kept warm runs (:func:`_windows`)."""
+    return _kept(path, "windows")
 
 
 def kept_runs(path=SUMMARY) -> dict:
     """{(tip speed, filling): compact stats} of the kept warm runs, {} where none."""
-    p = Path(path)
-    if not p.exists():
-        return {}
-    doc = json.loads(p.read_text())
-    return {(r["tip_speed_m_per_s"], r["filling"]): r["stats"] for r in doc.get("runs", {}).values()}
+    return _kept(path, "stats")
 
 
 def markdown(cmp: dict) -> str:
