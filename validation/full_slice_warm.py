@@ -236,15 +236,6 @@ def _summary_with(summary_doc: dict, label: str, vt: float, fill: float, stats: 
     return doc
 
 
-def _state_of(cell: str) -> str:
-    """'holds', 'missed' or what else the full slice's cell says (not evaluated, not run)."""
-    if cell.endswith("(missed)"):
-        return "missed"
-    if "(holds" in cell:
-        return "holds"
-    return "not judged"
-
-
 def comparison(warm: dict, vt: float = 10.0, fill: float = 0.8, summary=None) -> dict:
     """The warm run's compact statistics ``warm`` beside the cold run of the same case that
     the seed 001 summary ``summary`` (default the shipped one) keeps: each of
@@ -272,7 +263,7 @@ def comparison(warm: dict, vt: float = 10.0, fill: float = 0.8, summary=None) ->
     statements = []
     for rw, rc in zip(cells["warm"], cells["cold"]):
         statements.append({"statement": rw["statement"], "warm": rw["full"], "cold": rc["full"],
-                           "warm_state": _state_of(rw["full"]), "cold_state": _state_of(rc["full"])})
+                           "warm_state": rw["full_state"], "cold_state": rc["full_state"]})
     judged = [s for s in statements if s["cold_state"] != "not judged" or s["warm_state"] != "not judged"]
     same = sum(s["warm_state"] == s["cold_state"] for s in judged)
     return {"case": label, "quantities": quantities, "statements": statements,

@@ -445,28 +445,28 @@ def deviation_rows(out_dir=None, summary=None) -> list[dict]:
         """The full slice's cell and its verdict: fn(stats) at each case of ``keys`` it has
         run, shown by ``text``, judged by accept([value]) (``keyed``: accept([(case,
         value)])); (cell, True or False where the full slice decides the statement, else
-        None): it decides where it has run every case, or misses the statement at those
-        run."""
+        None, and its state at the cases run: 'holds', 'missed' or 'not judged'): it
+        decides where it has run every case, or misses the statement at those run."""
         if not has_full:
-            return "not run", None
+            return "not run", None, "not judged"
         cases = [k for k in keys if runs["full"].get(k) is not None]
         if not cases:
-            return "not run at these cases", None
+            return "not run at these cases", None, "not judged"
         got = [(k, fn(runs["full"][k])) for k in cases]
         got = [(k, v) for k, v in got if v is not None]
         if not got:
-            return "not evaluated", None
+            return "not evaluated", None, "not judged"
         shown = [text(v) if text else v if isinstance(v, str) else _fmt(v) for _, v in got]
         cell = shown[0] if len(keys) == 1 else show(shown, [k for k, _ in got])
         judged = [(k, value(v)) for k, v in got if value(v) is not None]
         if not judged:
-            return cell, None
+            return cell, None, "not judged"
         ok = accept(judged if keyed else [v for _, v in judged])
         if not ok:
-            return f"{cell} (missed)", False
+            return f"{cell} (missed)", False, "missed"
         if len(judged) == len(keys):
-            return f"{cell} (holds)", True
-        return f"{cell} (holds at the {len(judged)} of {len(keys)} cases run)", None
+            return f"{cell} (holds)", True, "holds"
+        return f"{cell} (holds at the {len(judged)} of {len(keys)} cases run)", None, "holds"
 
     def verdict(sector_ok, full_ok, note=""):
         """The row's verdict: the full slice's where it decides, else the sector's (None:
@@ -481,10 +481,10 @@ def deviation_rows(out_dir=None, summary=None) -> list[dict]:
         """A row from fn(stats) per case in keys; verdict from accept(values)."""
         vals = {f: per(f, fn, keys) for f in FLUIDS}
         got = [v for v in vals["coupled"] if v is not None]
-        cell, full_ok = full_cell(fn, keys, accept)
+        cell, full_ok, state = full_cell(fn, keys, accept)
         rows.append(dict(statement=statement, paper=paper,
                          coupled=show(vals["coupled"], keys),
-                         full=cell,
+                         full=cell, full_state=state,
                          prescribed=show(vals["prescribed"], keys),
                          verdict=verdict(accept(got) if got else None, full_ok, note)))
 
@@ -552,19 +552,22 @@ def deviation_rows(out_dir=None, summary=None) -> list[dict]:
     lin_f, txt_f = linearity("full")
     n_full = sum(runs["full"].get((vt, 0.8)) is not None for vt in at80)
     full_ok = None
+    state = "not judged"
     if not has_full:
         cell = "not run"
     elif lin_f is None:
         cell = f"not evaluated ({'one tip speed' if n_full == 1 else f'{n_full} tip speeds'})"
     elif n_full == len(at80):
         full_ok = linear(lin_f)
-        cell = f"{txt_f} ({'holds' if full_ok else 'missed'})"
+        state = "holds" if full_ok else "missed"
+        cell = f"{txt_f} ({state})"
     else:
         cell = f"{txt_f} (not judged: {n_full} of {len(at80)} tip speeds run)"
     rows.append(dict(statement="collision density of the chamber about linear in tip speed, "
                                "not proportional (section 3.4)",
                      paper="linear, not proportional", coupled=txt_c, prescribed=txt_p,
-                     full=cell, verdict=verdict(None if lin_c is None else linear(lin_c), full_ok,
+                     full=cell, full_state=state,
+                     verdict=verdict(None if lin_c is None else linear(lin_c), full_ok,
                                                 " (R^2 >= 0.95, intercept beyond 5 %)")))
 
     # 7. V4 power about a decade below V1 (power density)
@@ -616,10 +619,10 @@ def deviation_rows(out_dir=None, summary=None) -> list[dict]:
                     f"fluid: {census(st, 'vortices_fluid', region) or 'not evaluated'} / beads: "
                     f"{census(st, 'vortices_beads', region) or 'not evaluated'}")
 
-        full, full_ok = full_cell(full_census, keys80,
+        full, full_ok, state = full_cell(full_census, keys80,
                                   lambda kv, holds=holds: all(holds(k, n) for k, n in kv),
                                   value=lambda v: v[0], text=lambda v: v[1], keyed=True)
-        rows.append(dict(statement=stmt, paper=paper_v, full=full,
+        rows.append(dict(statement=stmt, paper=paper_v, full=full, full_state=state,
                          coupled="fluid: " + show(fl, keys80) + " / beads: " + show(bc, keys80),
                          prescribed="beads: " + show(bp, keys80) +
                          " (the prescribed swirl has no meridional flow)",
@@ -669,16 +672,16 @@ def deviation_rows(out_dir=None, summary=None) -> list[dict]:
              "the map of the collision power")):
         got = [(k, fn(runs["coupled"][k])) for k in all_keys if runs["coupled"].get(k) is not None]
         got = [(k, v) for k, v in got if v is not None]
-        full, full_ok = full_cell(fn, all_keys, lambda vs, ok=ok: all(ok(v) for v in vs),
+        full, full_ok, state = full_cell(fn, all_keys, lambda vs, ok=ok: all(ok(v) for v in vs),
                                   value=lambda v: v[0], text=lambda v: v[1])
         if full == "not evaluated":
             full = "not evaluated (its runs kept no collision maps)"
         if not got and full_ok is None:
             rows.append(dict(statement=stmt, paper=paper_v, coupled="not evaluated", full=full,
-                             prescribed="not evaluated",
+                             full_state=state, prescribed="not evaluated",
                              verdict=f"not evaluated (no collision_maps.npz behind {what})"))
             continue
-        rows.append(dict(statement=stmt, paper=paper_v, full=full,
+        rows.append(dict(statement=stmt, paper=paper_v, full=full, full_state=state,
                          coupled=show([v[1] for _, v in got], [k for k, _ in got]) if got
                          else "not evaluated",
                          prescribed="not run (the shipped table keeps no maps)",

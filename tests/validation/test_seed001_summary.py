@@ -113,6 +113,17 @@ def test_the_full_slice_column_at_one_case_decides_only_what_it_misses(tmp_path,
         "0.88 d from the rim (holds at the 1 of 7 cases run)")
     assert _cell(got, "a secondary vortex between disc tip and c") == \
         "10 m/s 80 %: fluid: none / beads: none (missed)"
+    # each row's state at the cases run is what its cell says
+    for key, state in (("mean bead speed / tip speed in V1 at 80 ", "holds"),
+                       ("angular velocity of the first bead layer", "missed"),
+                       ("at 90 % filling V3 has the lowest collis", "not judged"),
+                       ("collision density of the chamber about l", "not judged"),
+                       ("a secondary vortex between disc tip and c", "missed"),
+                       ("locally highest collision power at the s", "holds")):
+        assert _cell(got, key, "full_state") == state, key
+    for r in got:
+        said = "missed" if r["full"].endswith("(missed)") else "holds" if "(holds" in r["full"] else "not judged"
+        assert r["full_state"] == said, r["statement"]
     # here every miss at 10 m/s, 80 % is a miss of the sector too: the count stays
     assert S.count(got) == S.count(sector_rows)
     for r, g in zip(sector_rows, got):
@@ -134,6 +145,7 @@ def test_the_full_slice_decides_every_statement_whose_cases_it_has_run(tmp_path,
         assert g["verdict"] == r["verdict"].replace(word, f"{word} on the full slice", 1), r["statement"]
     assert S.count(got) == S.count(sector_rows)
     assert _cell(got, "collision density of the chamber about l").endswith("(holds)")
+    assert _cell(got, "collision density of the chamber about l", "full_state") == "holds"
     # four of the five speeds at 80 %: the fit is shown, not judged, and the sector decides
     four = {k: v for k, v in S.summary_stats().items() if k != (14.0, 0.8)}
     got = S.deviation_rows(summary=_with_full_slice(tmp_path, four))
