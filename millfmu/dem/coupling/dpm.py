@@ -43,9 +43,9 @@ from millfmu.dem.coupling import exchange_kernels as EK
 from millfmu.dem.coupling import projection as PJ
 from millfmu.dem.coupling.cfd_dem import CfdDem
 from millfmu.dem.coupling.exchange_kernels import held_coefficient, held_sums
-from millfmu.dem.coupling.projection import stencil_one
+from millfmu.dem.coupling.projection import at_bead, at_bead3, bead_cyl
 from millfmu.dem.coupling.schiller_naumann import drag_coefficient
-from millfmu.dem.engine._jit import kernel, nonneg
+from millfmu.dem.engine._jit import kernel
 from millfmu.dem.engine.koch_hill2001 import beta
 
 
@@ -61,27 +61,11 @@ def particle_drag(x, v, rad, mass, cellv, mu, rho, interval, rc, rtab, rh, dth, 
     columns q (0, c, c r, c v_r, r c v_theta, c v_z) and fab[:, 0:3] the liquid's velocity
     at the bead. Returns the sums of T_z and F_z."""
     for b in prange(x.shape[0]):
-        r = stencil_one(b, x, rc, rtab, rh, dth, nt, dz, nz, lz, solid, idx, w)
-        inv = 1.0 / r if r > 0.0 else 0.0
-        vr = (x[b, 0] * v[b, 0] + x[b, 1] * v[b, 1]) * inv
-        vt = (x[b, 0] * v[b, 1] - x[b, 1] * v[b, 0]) * inv
-        vz = v[b, 2]
-        u0 = 0.0
-        u1 = 0.0
-        u2 = 0.0
-        for s in range(idx.shape[1]):
-            ww = w[b, s]
-            if ww != 0.0:
-                cc = nonneg(idx[b, s])
-                u0 += ww * cellv[0, cc]
-                u1 += ww * cellv[1, cc]
-                u2 += ww * cellv[2, cc]
+        r, vr, vt, vz = bead_cyl(b, x, v, rc, rtab, rh, dth, nt, dz, nz, lz, solid, idx, w)
+        u0, u1, u2 = at_bead3(b, idx, w, cellv, 0)
         urel = math.sqrt((u0 - vr) ** 2 + (u1 - vt) ** 2 + (u2 - vz) ** 2)
         if koch_hill:
-            eb = 0.0
-            for s in range(idx.shape[1]):
-                if w[b, s] != 0.0:
-                    eb += w[b, s] * eps_cells[nonneg(idx[b, s])]
+            eb = at_bead(b, idx, w, eps_cells)
             d = 2.0 * rad[b]
             cf = math.pi / 6.0 * d * d * d * beta(d, eb, mu, rho, urel) / eb
         else:

@@ -13,8 +13,8 @@ import math
 
 from numba import prange
 
-from millfmu.dem.coupling.projection import stencil_one
-from millfmu.dem.engine._jit import inlined, kernel, nonneg, serial
+from millfmu.dem.coupling.projection import at_bead, at_bead3, bead_cyl
+from millfmu.dem.engine._jit import inlined, kernel, serial
 from millfmu.dem.engine.koch_hill2001 import beta
 from millfmu.dem.fluid.vans_kernels import wrap
 
@@ -56,15 +56,8 @@ def bead_in(b, x, v, rad, mass, fab, eps_cells, body_z, pf, model_b, mu, rho, in
     """Bead b's part of :func:`beads_in` (its stencil, cylindrical coordinates, drag
     coefficient and deposit columns); returns x = interval c / m [-]. One body for the
     CPU's loop and the GPU's thread (:mod:`millfmu.dem.coupling.gpu_exchange`)."""
-    r = stencil_one(b, x, rc, rtab, rh, dth, nt, dz, nz, lz, solid, idx, w)
-    inv = 1.0 / r if r > 0.0 else 0.0
-    vr = (x[b, 0] * v[b, 0] + x[b, 1] * v[b, 1]) * inv
-    vt = (x[b, 0] * v[b, 1] - x[b, 1] * v[b, 0]) * inv
-    vz = v[b, 2]
-    eb = 0.0
-    for s in range(idx.shape[1]):
-        if w[b, s] != 0.0:
-            eb += w[b, s] * eps_cells[nonneg(idx[b, s])]
+    r, vr, vt, vz = bead_cyl(b, x, v, rc, rtab, rh, dth, nt, dz, nz, lz, solid, idx, w)
+    eb = at_bead(b, idx, w, eps_cells)
     d = 2.0 * rad[b]
     vol = math.pi / 6.0 * d * d * d
     urel = math.sqrt((fab[b, 0] - vr) ** 2 + (fab[b, 1] - vt) ** 2 + (fab[b, 2] - vz) ** 2)
@@ -250,22 +243,8 @@ def bead_force(b, idx, w, cellv, c, cyl, rad, fab, pf, now, body_z, fext):
     """Bead b's part of :func:`bead_forces` (the cell values read back at it, its held
     force fext[b] and its fab[b]); returns (T_z [N m], F_z [N]). One body for the CPU's
     loop and the GPU's thread (:mod:`millfmu.dem.coupling.gpu_exchange`)."""
-    at0 = 0.0
-    at1 = 0.0
-    at2 = 0.0
-    at3 = 0.0
-    at4 = 0.0
-    at5 = 0.0
-    for s in range(idx.shape[1]):
-        ww = w[b, s]
-        if ww != 0.0:
-            cc = nonneg(idx[b, s])
-            at0 += ww * cellv[0, cc]
-            at1 += ww * cellv[1, cc]
-            at2 += ww * cellv[2, cc]
-            at3 += ww * cellv[3, cc]
-            at4 += ww * cellv[4, cc]
-            at5 += ww * cellv[5, cc]
+    at0, at1, at2 = at_bead3(b, idx, w, cellv, 0)
+    at3, at4, at5 = at_bead3(b, idx, w, cellv, 3)
     d = 2.0 * rad[b]
     vol = math.pi / 6.0 * d * d * d
     r = cyl[b, 0]

@@ -50,11 +50,11 @@ def _nonneg(i):
 
 
 _wrap = gpu_device(VK.wrap, nonneg=_nonneg)
-stencil_one = gpu_device(PJ.stencil_one, nonneg=_nonneg, wrap=_wrap)
-bead_in = gpu_device(EK.bead_in, nonneg=_nonneg, stencil_one=stencil_one,
+_bead_cyl = gpu_device(PJ.bead_cyl, stencil_one=gpu_device(PJ.stencil_one, nonneg=_nonneg, wrap=_wrap))
+bead_in = gpu_device(EK.bead_in, bead_cyl=_bead_cyl, at_bead=gpu_device(PJ.at_bead, nonneg=_nonneg),
                      beta=gpu_device(KH.beta, f0_f3=gpu_device(KH.f0_f3)),
                      held_coefficient=gpu_device(EK.held_coefficient))
-bead_force = gpu_device(EK.bead_force, nonneg=_nonneg)
+bead_force = gpu_device(EK.bead_force, at_bead3=gpu_device(PJ.at_bead3, nonneg=_nonneg))
 
 
 @gpu_kernel

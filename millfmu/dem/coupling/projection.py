@@ -136,6 +136,45 @@ def stencil_width(nt: int) -> int:
     return 8 if int(nt) > 1 else 4
 
 
+
+@inlined
+def bead_cyl(b, x, v, rc, rtab, rh, dth, nt, dz, nz, lz, solid, idx, w):
+    """Bead b's stencil (idx[b], w[b]; :func:`stencil_one`) and its cylindrical coordinates:
+    returns (r [m], v_r, v_theta, v_z [m/s])."""
+    r = stencil_one(b, x, rc, rtab, rh, dth, nt, dz, nz, lz, solid, idx, w)
+    inv = 1.0 / r if r > 0.0 else 0.0
+    vr = (x[b, 0] * v[b, 0] + x[b, 1] * v[b, 1]) * inv
+    vt = (x[b, 0] * v[b, 1] - x[b, 1] * v[b, 0]) * inv
+    return r, vr, vt, v[b, 2]
+
+
+@inlined
+def at_bead(b, idx, w, field):
+    """A cell field (one value per cell, [any unit]) read at bead b through its stencil."""
+    a = 0.0
+    for s in range(idx.shape[1]):
+        ww = w[b, s]
+        if ww != 0.0:
+            a += ww * field[nonneg(idx[b, s])]
+    return a
+
+
+@inlined
+def at_bead3(b, idx, w, cellv, k):
+    """Three cell fields, cellv[k], cellv[k + 1], cellv[k + 2], read at bead b through its
+    stencil in one pass (each summed in the order :func:`at_bead` sums it)."""
+    a0 = 0.0
+    a1 = 0.0
+    a2 = 0.0
+    for s in range(idx.shape[1]):
+        ww = w[b, s]
+        if ww != 0.0:
+            cc = nonneg(idx[b, s])
+            a0 += ww * cellv[k, cc]
+            a1 += ww * cellv[k + 1, cc]
+            a2 += ww * cellv[k + 2, cc]
+    return a0, a1, a2
+
 @kernel
 def bead_stencils(x, rc, rtab, rh, dth, nt, dz, nz, lz, solid, idx, w, r_out):
     """Trilinear cell stencils of beads at Cartesian x [m] (n, 3): idx (n, ns) flat cell

@@ -388,6 +388,14 @@ SAME_DEM_AS = {
     # branch that runs only where the DEM steps on a GPU; the CPU's runs never reach it)
     "sha256:f718db700a5b547d693d3f0d8aaac512884f6e2b15e0da3d0c7ad6b8b519f316":
         "sha256:97f753cea048d151d29bfc09ed08fc9161f206eb44b7bf748a0474d96810be97",
+    # and a bead's stencil with its cylindrical velocity, and the cell values read back at
+    # it, as inlined functions (projection.bead_cyl, at_bead, at_bead3) that the exchange and
+    # the discrete phase model's drag share (the coupled disc sector on 1 and 2 threads,
+    # primed, with 4 theta cells and theta_fft, the accelerator slice, and seed 002's
+    # discrete phase model with Koch-Hill and Schiller-Naumann drag give the same outputs
+    # to the bit)
+    "sha256:0ce8364e820e5394da6b0dd39c382cdad5204871baf995d583a7d0564e137867":
+        "sha256:97f753cea048d151d29bfc09ed08fc9161f206eb44b7bf748a0474d96810be97",
 }
 
 
