@@ -1,0 +1,87 @@
+"""Seed 001's full slice by seed 001's own protocol (validation/full_slice_paper.py): the
+scene is the full-slice column's but for the protocol; a snapshot's zone state against a
+closed form; the run keeps a snapshot at its checkpoints, and the trace reads them."""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+import math
+
+import numpy as np
+import pytest
+
+from millfmu.dem.mills import zones_for
+from millfmu.dem.scene import load_scene
+from validation import full_slice_paper as P
+from validation import seed001 as S
+
+
+def test_the_scene_is_the_full_slice_columns_with_seed_001s_protocol():
+    paper, column = P.scene(), S.full_slice_scene(*P.CASE)
+    differ = {f.name for f in dataclasses.fields(paper)
+              if repr(getattr(paper, f.name)) != repr(getattr(column, f.name))}
+    assert differ == {"spin_up_s", "record_s", "sample_every_s", "initial_rotation"}
+    assert (paper.spin_up_s, paper.record_s, paper.initial_rotation) == (2.0, 1.0, 0.0)
+    assert round(paper.record_s / paper.sample_every_s) == 50  # seed 001's 50 samples
+    assert paper.geometry.sector_deg == 360.0 and paper.gravity_m_per_s2[1] == -9.81
+
+
+def test_a_snapshots_zone_state_against_a_closed_form():
+    """Beads scattered over the slice with one speed per zone: each zone's filling is its
+    beads' volume over the zone's volume times (1 - the bulk porosity), its speed that
+    zone's speed over the tip speed."""
+    sc = P.scene()
+    zones = zones_for(sc)
+    rng = np.random.default_rng(5)
+    g = sc.geometry
+    n = 4000
+    r = rng.uniform(g.shaft_radius_m, g.chamber_radius_m, n)
+    t = rng.uniform(0.0, 2 * math.pi, n)
+    z = rng.uniform(0.0, g.height_m, n)
+    x = np.column_stack([r * np.cos(t), r * np.sin(t), z])
+    zid = zones.classify(x)
+    speeds = np.array([0.3, 0.7, 1.1, 1.9])  # [m/s] per zone
+    v = np.zeros((n, 3))
+    inside = zid >= 0
+    v[inside, 2] = speeds[zid[inside]]
+    rad = np.full(n, 0.5 * sc.bead_diameter_m)
+    got = P.zone_state(sc, x, v, rad)
+    vols = zones.volumes_m3()
+    vb = 4.0 / 3.0 * math.pi * rad[0] ** 3
+    for k, name in enumerate(zones.names):
+        m = int((zid == k).sum())
+        assert m > 0
+        fill, speed = got[name]
+        assert fill == pytest.approx(m * vb / (vols[k] * (1.0 - sc.bulk_porosity)), rel=1e-12)
+        assert speed == pytest.approx(speeds[k] / sc.tip_speed_m_per_s, rel=1e-12)
+
+
+def test_the_run_keeps_snapshots_at_its_checkpoints_and_the_trace_reads_them(tmp_path):
+    """A short DEM-only sector in the study's child process, a checkpoint at every sample:
+    the snapshots are the run's states in time order, and what ``trace`` keeps holds them,
+    the windows and the run's compact statistics."""
+    sc = load_scene("disc_slice").with_overrides(
+        sector_deg=10.0, gravity_m_per_s2=(0.0, 0.0, 0.0), fluid_mode="none", spin_up_s=0.006,
+        record_s=0.004, sample_every_s=0.002)
+    d = P.run(tmp_path, threads=1, sc=sc, checkpoint_every_s=1e-3, poll_s=0.05)
+    assert (d / "stats.json").exists() and not (d / "checkpoint.pkl").exists()
+    snaps = sorted((d / "snapshots").glob("snap_*.npz"))
+    assert snaps, "no snapshot kept"
+    for p in snaps:
+        a = np.load(p)
+        assert int(a["step"]) == int(p.stem.split("_")[1])
+        assert float(a["t_s"]) == pytest.approx(int(a["step"]) * sc.dt_s, rel=1e-12)
+        assert a["x"].shape == (len(a["rad"]), 3)
+    kept = P.keep(tmp_path, path=tmp_path / "kept.json")
+    doc = json.loads(kept.read_text())
+    assert doc["finished"] and doc["stats"]["zones"] and doc["windows"]
+    times = [row["t_s"] for row in doc["trace"]]
+    assert times == sorted(times) and len(times) == len(snaps)
+    for row in doc["trace"]:
+        assert set(row["zones"]) == {"V1", "V2", "V3", "V4"}
+        assert all(0.0 <= z["filling"] < 2.0 for z in row["zones"].values())
+    table = P.markdown(doc)
+    assert table.count("(window)") == len(doc["windows"])
+    # a finished run is not run again
+    assert P.run(tmp_path, threads=1, sc=sc) == d
