@@ -35,8 +35,8 @@ SECTOR_DEG = 90.0
 CAMPAIGN = "physical, model B"
 #: (sector [degrees], bead placement seed) of the runs this study makes
 RUNS = ((SECTOR_DEG, 1), (S2.SECTOR_DEG, 2), (SECTOR_DEG, 2))
-#: every column of the comparison, the kept campaign case first
-COLUMNS = ((S2.SECTOR_DEG, 1),) + RUNS
+#: every column of the comparison: the kept campaign case and the runs, by width
+COLUMNS = ((S2.SECTOR_DEG, 1), (S2.SECTOR_DEG, 2), (SECTOR_DEG, 1), (SECTOR_DEG, 2))
 #: what this study keeps
 SUMMARY = Path(__file__).resolve().parent / "runs" / "seed002_sector_size.json"
 

@@ -13,7 +13,7 @@ import pytest
 from validation import seed002 as S2
 from validation import seed002_sector_size as Z
 
-PAGE = Path(__file__).resolve().parents[2] / "docs" / "validation-seed002.md"
+PAGE = Path(__file__).resolve().parents[2] / "docs" / "validation-seed002-sector.md"
 
 
 def test_the_runs_are_the_campaigns_case_but_for_sector_and_placement():
@@ -69,3 +69,13 @@ def test_se_cs_sum_holds_its_shear_and_normal_parts():
     t = st["flow"]["seed002"]["total"]
     assert fn(st) >= (t["SE_ts_sum_w"] + t["SE_tn_sum_w"]) * (1 - 1e-12)
     assert fn(st) * t["ts_share"] == pytest.approx(t["SE_ts_sum_w"], rel=1e-12)
+
+
+def test_the_page_shows_the_kept_comparison():
+    doc = json.loads(Z.SUMMARY.read_text())
+    page = PAGE.read_text(encoding="utf-8")
+    for line in Z.markdown(doc).splitlines():
+        assert line in page, line
+    assert sorted(tuple((r["sector_deg"], r["seed"])) for r in doc["runs"].values()) == sorted(Z.RUNS)
+    # the kept campaign case is the shipped summary's own
+    assert doc["comparison"][0]["values"][Z._label(*Z.COLUMNS[0])] == Z.QUANTITIES[0][2](Z.kept_case())
