@@ -39,7 +39,9 @@ CASES = tuple([(n, 0.8) for n in SPEEDS] + [(1200.0, f) for f in FILLINGS if f !
 #: 1200 rpm and 80 % a 30 degree sector (one vane pitch) gave the same zone speeds (0.1 %),
 #: fillings (0.02) and stress numbers (within 8 %), but collision energies in SEV_1 25-40 %
 #: lower (SE_cs,sum -30 %), steady over its windows: 30 degrees constrain the packed layer
-#: at the wall.
+#: at the wall. 90 degrees (three pitches) change the figures by less than a second random
+#: placement of the beads does, but for SEV_1's collision density (-9 %;
+#: validation.seed002_sector_size, docs/validation-seed002-sector.md).
 SECTOR_DEG = 60.0
 SPIN_UP_S = 1.0
 RECORD_S = 0.5
