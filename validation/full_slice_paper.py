@@ -70,9 +70,14 @@ def case_dir(out_dir) -> Path:
 
 
 def _child(d: str, sc, threads, checkpoint_every_s: float) -> None:
-    """The run in the child process: ``sc`` from its start, or (None) from the checkpoint."""
+    """The run in the child process: ``sc`` from its start, or (None) from the checkpoint;
+    it holds the folder's lock while it runs (exit code 3 where another process holds it)."""
     from millfmu.dem.run import resume_run, run_scene
+    from millfmu.dem.tables.point_folders import hold
 
+    lock = open(Path(d) / S.FULL_LOCK, "a+")
+    if not hold(lock):
+        sys.exit(3)
     if sc is not None:
         run_scene(sc, d, threads=threads, window_s=S.WINDOW_S, checkpoint_every_s=checkpoint_every_s,
                   progress=sys.stderr.isatty())
@@ -109,11 +114,16 @@ def run(out_dir, threads=None, sc=None, checkpoint_every_s: float = CHECKPOINT_E
     ``checkpoint_every_s`` [s of wall time], looked for every ``poll_s`` [s]); says each on
     stderr; returns the folder."""
     from millfmu.dem.run import CHECKPOINT
+    from millfmu.dem.tables.point_folders import hold
 
     d = case_dir(out_dir)
     if (d / "stats.json").exists():
         return d
     d.mkdir(parents=True, exist_ok=True)
+    # a run whose parent was stopped goes on in its child: never two runs on one folder
+    with open(d / S.FULL_LOCK, "a+") as lock:
+        if not hold(lock):
+            raise RuntimeError(f"{d}: run by another process (it holds {S.FULL_LOCK})")
     fresh = not (d / CHECKPOINT).exists()
     child = multiprocessing.get_context("spawn").Process(
         target=_child, args=(str(d), (sc or scene()) if fresh else None, threads, checkpoint_every_s))
@@ -128,6 +138,8 @@ def run(out_dir, threads=None, sc=None, checkpoint_every_s: float = CHECKPOINT_E
             if kept is not None:
                 seen = m
                 print(f"{kept.name}: t = {float(np.load(kept)['t_s']):.3f} s", file=sys.stderr, flush=True)
+    if child.exitcode == 3:
+        raise RuntimeError(f"{d}: run by another process (it holds {S.FULL_LOCK})")
     if child.exitcode != 0:
         raise RuntimeError(f"{d}: the run stopped with exit code {child.exitcode}; "
                            "start it again to go on from its checkpoint")

@@ -7,6 +7,7 @@ from __future__ import annotations
 import dataclasses
 import json
 import math
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -15,6 +16,8 @@ from millfmu.dem.mills import zones_for
 from millfmu.dem.scene import load_scene
 from validation import full_slice_paper as P
 from validation import seed001 as S
+
+PAGE = Path(__file__).resolve().parents[2] / "docs" / "dem-full-slices.md"
 
 
 def test_the_scene_is_the_full_slice_columns_with_seed_001s_protocol():
@@ -85,3 +88,32 @@ def test_the_run_keeps_snapshots_at_its_checkpoints_and_the_trace_reads_them(tmp
     assert table.count("(window)") == len(doc["windows"])
     # a finished run is not run again
     assert P.run(tmp_path, threads=1, sc=sc) == d
+
+
+def test_a_folder_another_process_runs_is_left_alone(tmp_path):
+    """Where another process holds the case folder's lock (a run whose parent stopped goes
+    on in its child), ``run`` refuses by name instead of starting a second run on it."""
+    from millfmu.dem.tables.point_folders import hold
+
+    d = P.case_dir(tmp_path)
+    d.mkdir(parents=True)
+    with open(d / S.FULL_LOCK, "a+") as lock:
+        assert hold(lock)
+        with pytest.raises(RuntimeError, match="run by another process"):
+            P.run(tmp_path, threads=1)
+    assert not (d / "checkpoint.pkl").exists() and not (d / "snapshots").exists()
+
+def test_the_page_shows_the_kept_course():
+    """The kept summary is this protocol's, and the page shows its course as `trace` prints
+    it, with the time the run has reached."""
+    doc = json.loads(P.SUMMARY.read_text())
+    assert doc["protocol"] == {"spin_up_s": P.SPIN_UP_S, "record_s": P.RECORD_S,
+                               "sample_every_s": P.SAMPLE_EVERY_S, "initial_rotation": P.INITIAL_ROTATION,
+                               "window_s": S.WINDOW_S}
+    times = [row["t_s"] for row in doc["trace"]]
+    assert times == sorted(times) and times[-1] <= P.SPIN_UP_S + P.RECORD_S
+    page = PAGE.read_text(encoding="utf-8")
+    for line in P.markdown(doc).splitlines():
+        assert line in page, line
+    if not doc["finished"]:
+        assert f"has reached t = {times[-1]:.2f} s of its {P.SPIN_UP_S + P.RECORD_S:g} s" in page
