@@ -203,10 +203,28 @@ def keep(out_dir, path=SUMMARY) -> Path:
     return p
 
 
+#: [s] the page's table shows the course at this spacing (the first snapshot at or after
+#: each multiple)
+SHOWN_EVERY_S = 0.1
+
+
+def shown(trace: list, every_s: float = SHOWN_EVERY_S) -> list:
+    """The snapshots the table shows: the first at or after each multiple of ``every_s``
+    [s], and the last."""
+    out, mark = [], 0.0
+    for r in trace:
+        if r["t_s"] >= mark - 1e-9:
+            out.append(r)
+            mark = (int(r["t_s"] / every_s + 1e-9) + 1) * every_s
+    if trace and out[-1] is not trace[-1]:
+        out.append(trace[-1])
+    return out
+
+
 def markdown(doc: dict) -> str:
-    """The kept course as a markdown table: per snapshot (and recording window) each zone's
-    local filling and mean bead speed / tip speed."""
-    rows = doc["trace"]
+    """The kept course as a markdown table: per shown snapshot (:func:`shown`) and
+    recording window each zone's local filling and mean bead speed / tip speed."""
+    rows = shown(doc["trace"])
     zones = list(rows[0]["zones"]) if rows else ["V1", "V2", "V3", "V4"]
     lines = ["| t [s] | " + " | ".join(f"filling {z}" for z in zones) + " | "
              + " | ".join(f"speed / tip {z}" for z in zones) + " |",

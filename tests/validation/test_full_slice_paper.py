@@ -103,6 +103,13 @@ def test_a_folder_another_process_runs_is_left_alone(tmp_path):
             P.run(tmp_path, threads=1)
     assert not (d / "checkpoint.pkl").exists() and not (d / "snapshots").exists()
 
+def test_the_table_shows_the_course_every_tenth_of_a_second_and_its_end():
+    rows = [{"t_s": t} for t in (0.04, 0.08, 0.12, 0.16, 0.2, 0.24, 0.28, 0.32)]
+    assert [r["t_s"] for r in P.shown(rows)] == [0.04, 0.12, 0.2, 0.32]
+    rows = [{"t_s": t} for t in (0.1, 0.13, 0.2, 0.21)]
+    assert [r["t_s"] for r in P.shown(rows)] == [0.1, 0.2, 0.21]
+    assert P.shown([]) == []
+
 def test_the_page_shows_the_kept_course():
     """The kept summary is this protocol's, and the page shows its course as `trace` prints
     it, with the time the run has reached."""
