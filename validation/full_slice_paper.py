@@ -10,7 +10,7 @@ study measures:
 
 - ``run``: the column's scene (:func:`validation.seed001.full_slice_scene`) with seed
   001's protocol: from rest, 2.0 s of spin-up, 1.0 s recorded with a sample every 0.02 s,
-  in 0.1 s windows; 600,000 steps, about 7 h on 2 cores. It runs in a child process with a
+  in 0.1 s windows; 600,000 steps, about 6 h on 2 idle cores. It runs in a child process with a
   checkpoint every 300 s of wall time, and goes on from the checkpoint when started again.
   At each checkpoint the parent keeps the beads' positions and velocities in
   ``DIR/snapshots/snap_<step>.npz`` (13 MB each): the spin-up's course, which the run's
@@ -40,6 +40,7 @@ from pathlib import Path
 import numpy as np
 
 from validation import seed001 as S
+from validation.run_summary import read_windows
 
 #: the case: seed 001's reference point, the one the cold and warm full slices ran
 CASE = (10.0, 0.8)
@@ -180,7 +181,7 @@ def trace(out_dir) -> list:
 def keep(out_dir, path=SUMMARY) -> Path:
     """Keep the trace, and the run's windows and compact statistics where it has finished,
     in ``path``."""
-    from validation.full_slice_warm import _windows
+    from validation.full_slice_warm import WINDOW_KEYS
 
     d = case_dir(out_dir)
     st = S.load_dir(d)
@@ -196,7 +197,7 @@ def keep(out_dir, path=SUMMARY) -> Path:
            "case": S.case_label(vt, fill), "trace": trace(out_dir),
            "finished": st is not None}
     if st is not None:
-        doc["windows"] = _windows(d)
+        doc["windows"] = read_windows(d, WINDOW_KEYS)
         doc["stats"] = S.compact(st)
     p = Path(path)
     p.write_text(json.dumps(doc, indent=1) + "\n")
@@ -260,8 +261,9 @@ def main(argv=None) -> int:
             return 1
         print(f"wrote {d} ({time.time() - t0:.0f} s)")
         return 0
-    if not (case_dir(args.out) / "snapshots").is_dir() and S.load_dir(case_dir(args.out)) is None:
-        print(f"{case_dir(args.out)}: no snapshots and no finished run (python -m "
+    d = case_dir(args.out)
+    if not (d / "snapshots").is_dir() and not (d / "stats.json").exists():
+        print(f"{d}: no snapshots and no finished run (python -m "
               f"validation.full_slice_paper run --out {args.out})", file=sys.stderr)
         return 1
     kept = keep(args.out)

@@ -45,6 +45,7 @@ from pathlib import Path
 import numpy as np
 
 from validation import seed001 as S
+from validation.run_summary import read_windows
 
 #: the state the full slice starts from: the coupled table's anchor (the campaign's scene
 #: in the 10-degree sector without gravity, 10 m/s, 80 %)
@@ -284,7 +285,7 @@ def keep(out_dir, vt: float, fill: float, path=SUMMARY) -> Path:
     doc = json.loads(p.read_text()) if p.exists() else {}
     runs = dict(doc.get("runs", {}))
     runs[S.case_label(vt, fill)] = {"tip_speed_m_per_s": vt, "filling": fill, "start": start,
-                                    "stats": S.compact(st), "windows": _windows(d)}
+                                    "stats": S.compact(st), "windows": read_windows(d, WINDOW_KEYS)}
     doc = {"note": ("seed 001's full slice (whole disc slice, gravity across the axis, coupled) "
                     "started warm from the settled 10-degree sector repeated around the axis; "
                     "compact statistics as in seed001_sector.json (units: m3, 1/(m3 s), W, J)"),
@@ -302,20 +303,6 @@ def keep(out_dir, vt: float, fill: float, path=SUMMARY) -> Path:
 #: what :func:`keep` keeps of each 0.1 s window per zone (``windows.csv``; units: -, -,
 #: 1/(m3 s), J)
 WINDOW_KEYS = ("filling", "speed_over_tip_speed", "collision_frequency_per_m3_s", "se_tn_q50_j")
-
-
-def _windows(d: Path) -> list:
-    """The run's recording window by window (``windows.csv``): per window its start [s]
-    and per zone :data:`WINDOW_KEYS` (local filling, speed, collision density, median
-    SE_tn), whether the zones still drift over the recording."""
-    import csv
-
-    out = {}
-    with open(d / "windows.csv", newline="") as f:
-        for row in csv.DictReader(f):
-            w = out.setdefault(float(row["t_start_s"]), {"t_start_s": float(row["t_start_s"]), "zones": {}})
-            w["zones"][row["zone"]] = {k: float(row[k]) for k in WINDOW_KEYS}
-    return [out[t] for t in sorted(out)]
 
 
 def windows_markdown(windows: list) -> str:
@@ -343,7 +330,8 @@ def _kept(path, field: str) -> dict:
 
 
 def kept_windows(path=SUMMARY) -> dict:
-    """{(tip speed, filling): windows} of the kept warm runs (:func:`_windows`)."""
+    """{(tip speed, filling): windows} of the kept warm runs
+    (:func:`validation.run_summary.read_windows` of :data:`WINDOW_KEYS`)."""
     return _kept(path, "windows")
 
 

@@ -33,6 +33,20 @@ def summary(runs: dict, commands: dict | None = None, note: str = "") -> dict:
     return out
 
 
+def read_windows(d, keys) -> list:
+    """A run folder's recording window by window (its ``windows.csv``): per window its
+    start [s] and per zone the columns ``keys`` (e.g. local filling, speed / tip speed),
+    in time order; whether the zones still drift over the recording."""
+    import csv
+
+    out = {}
+    with open(Path(d) / "windows.csv", newline="") as f:
+        for row in csv.DictReader(f):
+            w = out.setdefault(float(row["t_start_s"]), {"t_start_s": float(row["t_start_s"]), "zones": {}})
+            w["zones"][row["zone"]] = {k: float(row[k]) for k in keys}
+    return [out[t] for t in sorted(out)]
+
+
 def write_json(path, doc: dict) -> None:
     """Write a run summary to ``path`` as indented JSON and say so on stdout."""
     Path(path).write_text(json.dumps(doc, indent=1) + "\n")

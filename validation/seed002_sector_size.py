@@ -20,12 +20,12 @@ the table. A study: nothing in the package imports it.
 from __future__ import annotations
 
 import argparse
-import csv
 import json
 import sys
 from pathlib import Path
 
 from validation import seed002 as S2
+from validation.run_summary import read_windows
 
 #: the case: the campaign's reference point
 CASE = (1200.0, 0.8)
@@ -37,6 +37,8 @@ CAMPAIGN = "physical, model B"
 RUNS = ((SECTOR_DEG, 1), (S2.SECTOR_DEG, 2), (SECTOR_DEG, 2))
 #: every column of the comparison: the kept campaign case and the runs, by width
 COLUMNS = ((S2.SECTOR_DEG, 1), (S2.SECTOR_DEG, 2), (SECTOR_DEG, 1), (SECTOR_DEG, 2))
+#: what it keeps of each 0.1 s window per zone (``windows.csv``; units: -, -)
+WINDOW_KEYS = ("filling", "speed_over_tip_speed")
 #: what this study keeps
 SUMMARY = Path(__file__).resolve().parent / "runs" / "seed002_sector_size.json"
 
@@ -68,18 +70,14 @@ def run(out_dir, threads=None, progress: bool = True) -> list:
     return out
 
 
-def _zone(st, z):
-    return next(x for x in st["zones"] if x["name"] == z)
-
-
 def _q(st):
     return st["flow"]["seed002"]
 
 
 #: (label, unit, value of a compact run) the comparison reads
 QUANTITIES = tuple(
-    [(f"local filling {z}", "-", lambda st, z=z: _zone(st, z)["filling"]) for z in S2.ZONE_NAMES]
-    + [(f"bead speed / tip speed {z}", "-", lambda st, z=z: _zone(st, z)["speed_over_tip_speed"])
+    [(f"local filling {z}", "-", lambda st, z=z: S2._zone(st, z)["filling"]) for z in S2.ZONE_NAMES]
+    + [(f"bead speed / tip speed {z}", "-", lambda st, z=z: S2._zone(st, z)["speed_over_tip_speed"])
        for z in S2.ZONE_NAMES]
     + [(f"SN_g {z}", "1/(m3 s)", lambda st, z=z: _q(st)["zones"][z]["SN_g_per_m3_s"]) for z in S2.ZONE_NAMES]
     + [(f"SI {z}", "J", lambda st, z=z: _q(st)["zones"][z]["SI_j"]) for z in S2.ZONE_NAMES]
@@ -122,16 +120,6 @@ def comparison(stats: dict) -> list:
     return out
 
 
-def _windows(d: Path) -> list:
-    """Per 0.1 s window (``windows.csv``) each zone's local filling and speed / tip speed."""
-    out = {}
-    with open(d / "windows.csv", newline="") as f:
-        for row in csv.DictReader(f):
-            w = out.setdefault(float(row["t_start_s"]), {"t_start_s": float(row["t_start_s"]), "zones": {}})
-            w["zones"][row["zone"]] = {k: float(row[k]) for k in ("filling", "speed_over_tip_speed")}
-    return [out[t] for t in sorted(out)]
-
-
 def keep(out_dir, path=SUMMARY) -> Path:
     """Keep the runs (compact statistics, windows) and the comparison in ``path``.
     FileNotFoundError where a run has not finished."""
@@ -144,7 +132,7 @@ def keep(out_dir, path=SUMMARY) -> Path:
                                     f"run --out {out_dir})")
         stats[(deg, seed)] = S2.compact(json.loads(p.read_text()))
         runs[_label(deg, seed)] = {"sector_deg": deg, "seed": seed, "stats": stats[(deg, seed)],
-                                   "windows": _windows(d)}
+                                   "windows": read_windows(d, WINDOW_KEYS)}
     doc = {"note": ("seed 002's campaign case at 1200 rpm, 80 % (physical, model B, the campaign's "
                     f"protocol) on {S2.SECTOR_DEG:g} and {SECTOR_DEG:g} degrees, each from two bead "
                     f"placements; the {_label(*COLUMNS[0])} run is the campaign's, kept in "
