@@ -163,9 +163,25 @@ def zone_state(sc, x, v, rad) -> dict:
     return {z.name: (z.filling, z.speed_over_tip_speed) for z in st.zones}
 
 
+#: seed 001's first bead layer: bead centres within this many bead diameters of a disc face
+#: (its 0.6 mm for its 0.8 mm beads), as the run statistics' ``first_bead_layer_*``
+FIRST_LAYER_DIAMETERS = 0.75
+
+
+def first_layer(sc, sample_x, sample_v) -> dict:
+    """The first bead layer's mean angular velocity over the stirrer's [-] over the samples
+    (positions [m], velocities [m/s]) by the run statistics' formula, and the bead samples
+    it averages."""
+    from millfmu.dem.analysis.flow_structure import first_layer_angular_velocity
+
+    ratio, n = first_layer_angular_velocity(sample_x, sample_v, sc.geometry, sc.omega_rad_per_s,
+                                            FIRST_LAYER_DIAMETERS * sc.bead_diameter_m)
+    return {"angular_velocity_ratio": ratio, "bead_samples": n}
+
+
 def trace(out_dir) -> list:
-    """The spin-up's course: per snapshot its time [s] and per zone its local filling and
-    mean bead speed / tip speed, in time order."""
+    """The spin-up's course: per snapshot its time [s], per zone its local filling and mean
+    bead speed / tip speed, and its first bead layer (:func:`first_layer`), in time order."""
     sc = scene()
     rows = []
     for p in sorted((case_dir(out_dir) / "snapshots").glob("snap_*.npz")):
@@ -174,8 +190,21 @@ def trace(out_dir) -> list:
         a = np.load(p)
         zs = zone_state(sc, a["x"], a["v"], a["rad"])
         rows.append({"t_s": float(a["t_s"]),
-                     "zones": {z: {"filling": f, "speed_over_tip_speed": s} for z, (f, s) in zs.items()}})
+                     "zones": {z: {"filling": f, "speed_over_tip_speed": s} for z, (f, s) in zs.items()},
+                     "first_layer": first_layer(sc, [a["x"]], [a["v"]])})
     return rows
+
+
+def window_first_layers(d, record_s: float) -> list:
+    """The first bead layer (:func:`first_layer`) of each recording window of a finished
+    run in ``d`` that recorded ``record_s`` [s], from its kept samples
+    (``bead_samples.npz``, evenly spaced), the windows' samples taken in order as the run
+    cuts them."""
+    a = np.load(Path(d) / "bead_samples.npz")
+    x, v = a["x_m"].astype(float), a["v_m_per_s"].astype(float)
+    per = max(1, round(S.WINDOW_S * len(x) / record_s))
+    sc = scene()
+    return [first_layer(sc, x[i:i + per], v[i:i + per]) for i in range(0, len(x), per)]
 
 
 def keep(out_dir, path=SUMMARY) -> Path:
@@ -198,6 +227,8 @@ def keep(out_dir, path=SUMMARY) -> Path:
            "finished": st is not None}
     if st is not None:
         doc["windows"] = read_windows(d, WINDOW_KEYS)
+        for w, fl in zip(doc["windows"], window_first_layers(d, st["record_s"]), strict=True):
+            w["first_layer"] = fl
         doc["stats"] = S.compact(st)
     p = Path(path)
     p.write_text(json.dumps(doc, indent=1) + "\n")
@@ -224,20 +255,24 @@ def shown(trace: list, every_s: float = SHOWN_EVERY_S) -> list:
 
 def markdown(doc: dict) -> str:
     """The kept course as a markdown table: per shown snapshot (:func:`shown`) and
-    recording window each zone's local filling and mean bead speed / tip speed."""
+    recording window each zone's local filling and mean bead speed / tip speed, and the
+    first bead layer's angular velocity over the disc's."""
     rows = shown(doc["trace"])
     zones = list(rows[0]["zones"]) if rows else ["V1", "V2", "V3", "V4"]
     lines = ["| t [s] | " + " | ".join(f"filling {z}" for z in zones) + " | "
-             + " | ".join(f"speed / tip {z}" for z in zones) + " |",
-             "|" + "---|" * (1 + 2 * len(zones))]
+             + " | ".join(f"speed / tip {z}" for z in zones) + " | first layer / disc |",
+             "|" + "---|" * (2 + 2 * len(zones))]
+
+    def cells(label, r):
+        return (f"| {label} | " + " | ".join(f"{r['zones'][z]['filling']:.3f}" for z in zones) + " | "
+                + " | ".join(f"{r['zones'][z]['speed_over_tip_speed']:.4f}" for z in zones)
+                + f" | {r['first_layer']['angular_velocity_ratio']:.3f} |")
+
     for r in rows:
-        lines.append(f"| {r['t_s']:.3f} | " + " | ".join(f"{r['zones'][z]['filling']:.3f}" for z in zones)
-                     + " | " + " | ".join(f"{r['zones'][z]['speed_over_tip_speed']:.4f}" for z in zones) + " |")
+        lines.append(cells(f"{r['t_s']:.3f}", r))
     for w in doc.get("windows", []):
         t = w["t_start_s"]
-        lines.append(f"| {t:.1f}-{t + S.WINDOW_S:.1f} (window) | "
-                     + " | ".join(f"{w['zones'][z]['filling']:.3f}" for z in zones) + " | "
-                     + " | ".join(f"{w['zones'][z]['speed_over_tip_speed']:.4f}" for z in zones) + " |")
+        lines.append(cells(f"{t:.1f}-{t + S.WINDOW_S:.1f} (window)", w))
     return "\n".join(lines)
 
 

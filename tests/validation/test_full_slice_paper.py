@@ -60,7 +60,31 @@ def test_a_snapshots_zone_state_against_a_closed_form():
         assert speed == pytest.approx(speeds[k] / sc.tip_speed_m_per_s, rel=1e-12)
 
 
-def test_the_run_keeps_snapshots_at_its_checkpoints_and_the_trace_reads_them(tmp_path):
+def test_the_first_layer_against_a_closed_form():
+    """Beads turning rigidly at 0.23 of the stirrer's angular velocity within 0.75 d of a
+    disc face, and at 0.9 of it beyond: the first layer turns at 0.23 and counts the beads
+    inside; two samples count twice."""
+    sc = P.scene()
+    g = sc.geometry
+    d = sc.bead_diameter_m
+    rng = np.random.default_rng(7)
+    n = 3000
+    r = rng.uniform(g.shaft_radius_m + d, g.disc_radius_m - d, n)
+    t = rng.uniform(0.0, 2 * math.pi, n)
+    gap = rng.uniform(0.0, 3.0 * d, n)  # from the disc face
+    side = np.where(rng.random(n) < 0.5, 1.0, -1.0)
+    z = g.disc_z_m + side * (0.5 * g.disc_thickness_m + gap)
+    x = np.column_stack([r * np.cos(t), r * np.sin(t), z])
+    inside = gap < P.FIRST_LAYER_DIAMETERS * d
+    om = np.where(inside, 0.23, 0.9) * sc.omega_rad_per_s
+    v = np.column_stack([-om * x[:, 1], om * x[:, 0], np.zeros(n)])
+    got = P.first_layer(sc, [x], [v])
+    assert got["angular_velocity_ratio"] == pytest.approx(0.23, rel=1e-12)
+    assert got["bead_samples"] == int(inside.sum()) > 0
+    assert P.first_layer(sc, [x, x], [v, v])["bead_samples"] == 2 * int(inside.sum())
+
+
+def test_the_run_keeps_snapshots_at_its_checkpoints_and_the_trace_reads_them(tmp_path, monkeypatch):
     """A short DEM-only sector in the study's child process, a checkpoint at every sample:
     the snapshots are the run's states in time order, and what ``trace`` keeps holds them,
     the windows and the run's compact statistics."""
@@ -84,6 +108,23 @@ def test_the_run_keeps_snapshots_at_its_checkpoints_and_the_trace_reads_them(tmp
     for row in doc["trace"]:
         assert set(row["zones"]) == {"V1", "V2", "V3", "V4"}
         assert all(0.0 <= z["filling"] < 2.0 for z in row["zones"].values())
+        fl = row["first_layer"]
+        assert fl["bead_samples"] >= 0 and (fl["bead_samples"] > 0) == math.isfinite(fl["angular_velocity_ratio"])
+    # the windows' first layers together are the recording's, as the run's statistics count it
+    st = json.loads((d / "stats.json").read_text())
+    samples = [w["first_layer"]["bead_samples"] for w in doc["windows"]]
+    assert sum(samples) == st["flow"]["first_bead_layer_samples"]
+    # so soon after the placement no bead lies within 0.75 d of a disc face: a thicker
+    # layer holds beads, and the windows cut the kept samples in order
+    monkeypatch.setattr(P, "FIRST_LAYER_DIAMETERS", 2.0)
+    a = np.load(d / "bead_samples.npz")
+    x, v = a["x_m"].astype(float), a["v_m_per_s"].astype(float)
+    per = round(S.WINDOW_S / sc.sample_every_s)
+    wins = P.window_first_layers(d, st["record_s"])
+    assert len(wins) == len(doc["windows"]) == -(-len(x) // per)
+    for k, w in enumerate(wins):
+        assert w == P.first_layer(P.scene(), x[k * per:(k + 1) * per], v[k * per:(k + 1) * per])
+    assert sum(w["bead_samples"] for w in wins) == P.first_layer(P.scene(), x, v)["bead_samples"] > 0
     table = P.markdown(doc)
     assert table.count("(window)") == len(doc["windows"])
     # a finished run is not run again
@@ -124,3 +165,24 @@ def test_the_page_shows_the_kept_course():
         assert line in page, line
     if not doc["finished"]:
         assert f"has reached t = {times[-1]:.2f} s of its {P.SPIN_UP_S + P.RECORD_S:g} s" in page
+
+
+def test_the_windows_first_layers_take_their_own_samples(tmp_path):
+    """Ten samples over 0.2 s make two 0.1 s windows of five: each window's first layer is
+    that of its own samples (beads in the layer turning at 0.1 in the first window's
+    samples, 0.3 in the second's)."""
+    sc = P.scene()
+    g = sc.geometry
+    d = sc.bead_diameter_m
+    r = np.linspace(g.shaft_radius_m + d, g.disc_radius_m - d, 50)
+    x = np.column_stack([r, np.zeros_like(r), np.full_like(r, g.disc_z_m + 0.5 * g.disc_thickness_m + 0.3 * d)])
+    xs, vs = [], []
+    for k in range(10):
+        om = (0.1 if k < 5 else 0.3) * sc.omega_rad_per_s
+        xs.append(x)
+        vs.append(np.column_stack([np.zeros_like(r), om * r, np.zeros_like(r)]))
+    np.savez_compressed(tmp_path / "bead_samples.npz", x_m=np.array(xs, np.float32),
+                        v_m_per_s=np.array(vs, np.float32), radii_m=np.full(r.size, 0.5 * d))
+    wins = P.window_first_layers(tmp_path, 0.2)
+    assert [w["bead_samples"] for w in wins] == [250, 250]
+    assert [round(w["angular_velocity_ratio"], 6) for w in wins] == [0.1, 0.3]
