@@ -54,8 +54,8 @@ INITIAL_ROTATION = 0.0
 CHECKPOINT_EVERY_S = 300.0
 #: [s of wall time] between the parent's looks for a new checkpoint
 POLL_S = 20.0
-#: what this study keeps
-SUMMARY = Path(__file__).resolve().parent / "runs" / "seed001_full_paper.json"
+#: what this study keeps (seed 001's table takes the case from it once the run has finished)
+SUMMARY = S.FULL_PAPER_SUMMARY
 
 
 def scene():
@@ -223,7 +223,8 @@ def keep(out_dir, path=SUMMARY) -> Path:
                         "initial_rotation": INITIAL_ROTATION, "window_s": S.WINDOW_S},
            "command": ("python -m validation.full_slice_paper run --out DIR --threads 2, then "
                        "python -m validation.full_slice_paper trace --out DIR"),
-           "case": S.case_label(vt, fill), "trace": trace(out_dir),
+           "case": S.case_label(vt, fill), "tip_speed_m_per_s": vt, "filling": fill,
+           "trace": trace(out_dir),
            "finished": st is not None}
     if st is not None:
         doc["windows"] = read_windows(d, WINDOW_KEYS)

@@ -234,6 +234,13 @@ ZONE_KEYS = ("name", "volume_m3", "speed_over_tip_speed", "collision_frequency_p
 FLOW_KEYS = ("first_bead_layer_angular_velocity_ratio", "vortices_fluid", "vortices_beads")
 #: The shipped summary of the coupled sector cases, from which the page's table is computed.
 SUMMARY = Path(__file__).resolve().parent / "runs" / "seed001_sector.json"
+#: The kept summary of the full slice run by seed 001's own protocol (2 s of spin-up from
+#: rest, 1 s recorded with 50 samples; :mod:`validation.full_slice_paper`). Once that run has
+#: finished, the full-slice column takes its case from it instead of the run by the
+#: campaign's shorter protocol: the same configuration, by the paper's method.
+FULL_PAPER_SUMMARY = Path(__file__).resolve().parent / "runs" / "seed001_full_paper.json"
+#: how the table marks a full-slice case taken from that run
+BY_PAPER_PROTOCOL = "by seed 001's protocol"
 
 
 def compact(st: dict) -> dict:
@@ -326,6 +333,19 @@ def summary_stats(path=None, full_slice: bool = False) -> dict:
             for r in part.get("runs", {}).values()}
 
 
+def paper_protocol_stats(path=None) -> dict:
+    """{(tip speed [m/s], filling [-]): compact stats} of the full slice run by seed 001's
+    own protocol (:data:`FULL_PAPER_SUMMARY`, or ``path``) once it has finished; {} while it
+    runs or where no such summary is kept."""
+    p = Path(path) if path is not None else FULL_PAPER_SUMMARY
+    if not p.exists():
+        return {}
+    doc = json.loads(p.read_text())
+    if not doc.get("finished"):
+        return {}
+    return {(doc["tip_speed_m_per_s"], doc["filling"]): doc["stats"]}
+
+
 def _recount_vortices(d: Path, st: dict):
     """Vortex census from the saved section fields (fluid_fields.npz, bead_fields.npz) with
     the current rule of :mod:`millfmu.dem.analysis.flow_structure`, so that runs made before a change
@@ -404,22 +424,34 @@ def _fmt(x, nd=3):
         f"{x:.{nd}g}"
 
 
-def deviation_rows(out_dir=None, summary=None) -> list[dict]:
+def deviation_rows(out_dir=None, summary=None, paper_summary=None) -> list[dict]:
     """One dict per statement of seed 001 section 3: statement, paper, coupled (the sector
     campaign), full (the full slice, seed 001's configuration, at the cases it has run: the
     values and whether the statement holds there), prescribed, verdict: of the run folders
     in ``out_dir``, or with None of the summary ``summary`` (default the shipped one,
-    :data:`SUMMARY`). The verdict is the full slice's where it has run every case of the
-    statement, or misses it at a case it has run (the statement then fails on seed 001's
-    configuration whatever the other cases give); else the sector's."""
+    :data:`SUMMARY`). A full-slice case run by seed 001's own protocol takes the place of the
+    same case by the campaign's protocol, and its cells say so: from its run folder in
+    ``out_dir``, else from ``paper_summary`` (default: :data:`FULL_PAPER_SUMMARY` with the
+    shipped summary, none with another, such as a variant campaign's). The
+    verdict is the full slice's where it has run every case of the statement, or misses it
+    at a case it has run (the statement then fails on seed 001's configuration whatever the
+    other cases give); else the sector's."""
     if out_dir is None:
         shipped = summary_stats(summary)
         full = summary_stats(summary, full_slice=True)
+        if paper_summary is None and summary is None:
+            paper_summary = FULL_PAPER_SUMMARY
+        by_protocol = paper_protocol_stats(paper_summary) if paper_summary is not None else {}
         runs = {"coupled": {k: shipped.get(k) for k in CASES}, "prescribed": {k: None for k in CASES}}
     else:
+        from validation import full_slice_paper
+
         runs = {f: {(vt, fl): _load(out_dir, f, vt, fl) for vt, fl in CASES} for f in FLUIDS}
         full = {k: _load(out_dir, "coupled", *k, FULL_SECTOR_DEG) for k in FULL_CASES}
         full = {k: v for k, v in full.items() if v is not None}
+        st = load_dir(full_slice_paper.case_dir(out_dir))
+        by_protocol = {} if st is None else {full_slice_paper.CASE: st}
+    full.update(by_protocol)
     runs["full"] = {k: full.get(k) for k in CASES}
     has_full = bool(full)
     source = "prescribed-swirl runs in the folder"
@@ -436,9 +468,13 @@ def deviation_rows(out_dir=None, summary=None) -> list[dict]:
             out.append(None if st is None else fn(st))
         return out
 
-    def show(vals, keys, nd=3):
-        return "; ".join(f"{k[0]:g} m/s {round(k[1] * 100)} %: {v}" if isinstance(v, str)
-                         else f"{k[0]:g} m/s {round(k[1] * 100)} %: {_fmt(v, nd)}"
+    def show(vals, keys, nd=3, marked=()):
+        """'10 m/s 80 %: value; ...' of the cases run; a case in ``marked`` is named as run
+        by seed 001's protocol."""
+        def label(k):
+            return f"{k[0]:g} m/s {round(k[1] * 100)} %" + (f" ({BY_PAPER_PROTOCOL})" if k in marked else "")
+
+        return "; ".join(f"{label(k)}: {v}" if isinstance(v, str) else f"{label(k)}: {_fmt(v, nd)}"
                          for v, k in zip(vals, keys) if v is not None) or "not run"
 
     def full_cell(fn, keys, accept, value=lambda v: v, text=None, keyed=False):
@@ -457,7 +493,10 @@ def deviation_rows(out_dir=None, summary=None) -> list[dict]:
         if not got:
             return "not evaluated", None, "not judged"
         shown = [text(v) if text else v if isinstance(v, str) else _fmt(v) for _, v in got]
-        cell = shown[0] if len(keys) == 1 else show(shown, [k for k, _ in got])
+        if len(keys) == 1:
+            cell = shown[0] + (f" ({BY_PAPER_PROTOCOL})" if keys[0] in by_protocol else "")
+        else:
+            cell = show(shown, [k for k, _ in got], marked=by_protocol)
         judged = [(k, value(v)) for k, v in got if value(v) is not None]
         if not judged:
             return cell, None, "not judged"
@@ -539,7 +578,9 @@ def deviation_rows(out_dir=None, summary=None) -> list[dict]:
         x, y = np.array(pts).T
         a, b = np.polyfit(x, y, 1)
         r2 = 1.0 - ((y - (a * x + b)) ** 2).sum() / ((y - y.mean()) ** 2).sum()
-        txt = (", ".join(f"{vt:g}: {d:.3g}" for vt, d in pts) +
+        mark = by_protocol if f == "full" else ()
+        txt = (", ".join(f"{vt:g}" + (f" ({BY_PAPER_PROTOCOL})" if (vt, 0.8) in mark else "")
+                         + f": {d:.3g}" for vt, d in pts) +
                f" 1/(m3 s); linear fit R^2 {r2:.3f}, intercept / value at 10 m/s "
                f"{b / (a * 10 + b):+.2f}")
         return (r2, b / (a * 10 + b)), txt

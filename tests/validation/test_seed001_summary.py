@@ -272,3 +272,64 @@ def test_the_no_smoothing_variants_count_on_the_page_is_its_summarys():
     assert f"the sector matches {c['matches']} of the {c['statements']} statements: it gains the first layer" in text
     layer = next(r for r in rows if r["statement"].startswith("angular velocity of the first bead layer"))
     assert layer["verdict"].startswith("matches")
+
+
+def _paper_summary(tmp_path, stats, finished=True):
+    """A kept summary of the full slice by seed 001's protocol (validation.full_slice_paper)
+    at 10 m/s, 80 %, with ``stats`` as its compact statistics."""
+    doc = {"case": S.case_label(10.0, 0.8), "tip_speed_m_per_s": 10.0, "filling": 0.8,
+           "trace": [], "finished": finished}
+    if finished:
+        doc["stats"] = stats
+    p = tmp_path / "paper.json"
+    p.write_text(json.dumps(doc))
+    return p
+
+
+def test_a_finished_run_by_seed_001s_protocol_takes_its_case_in_the_full_slice(tmp_path):
+    """Once the full slice by seed 001's own protocol has finished, its case replaces the
+    one by the campaign's protocol, and the cells name it; while it runs, nothing changes;
+    a variant campaign's summary is not combined with it unless asked."""
+    shipped = S.summary_stats()
+    kept = _with_full_slice(tmp_path, {(10.0, 0.8): shipped[(10.0, 0.8)]})
+    before = S.deviation_rows(summary=kept)
+    assert before[0]["full"] == "10 m/s 80 %: 0.136 (holds at the 1 of 5 cases run)"
+    running = _paper_summary(tmp_path, None, finished=False)
+    assert S.paper_protocol_stats(running) == {}
+    assert S.deviation_rows(summary=kept, paper_summary=running) == before
+    paper = _paper_summary(tmp_path, shipped[(6.0, 0.8)])
+    assert S.paper_protocol_stats(paper) == {(10.0, 0.8): shipped[(6.0, 0.8)]}
+    got = S.deviation_rows(summary=kept, paper_summary=paper)
+    assert got[0]["full"] == "10 m/s 80 % (by seed 001's protocol): 0.147 (holds at the 1 of 5 cases run)"
+    # every judged cell of the full slice is now that case's, by that name
+    for r in got:
+        if r["full_state"] != "not judged":
+            assert "10 m/s 80 % (by seed 001's protocol)" in r["full"], r["statement"]
+    assert _cell(got, "angular velocity of the first bead layer").startswith(
+        "10 m/s 80 % (by seed 001's protocol): 0.173")
+    # the sector's cells and the prescribed column stay as they were
+    assert [r["coupled"] for r in got] == [r["coupled"] for r in before]
+    # a summary other than the shipped one takes it only when named
+    assert S.deviation_rows(summary=kept) == before
+
+
+def test_the_run_folders_protocol_run_takes_its_case(tmp_path):
+    """From run folders: the full slice by seed 001's protocol in its own folder
+    (validation.full_slice_paper.case_dir) takes the place of the campaign's case."""
+    from validation import full_slice_paper as P
+
+    shipped = S.summary_stats()
+    out = tmp_path / "runs"
+    for (vt, fl), st in shipped.items():
+        d = S.case_dir(out, "coupled", vt, fl)
+        d.mkdir(parents=True)
+        (d / "stats.json").write_text(json.dumps(st))
+    d = S.case_dir(out, "coupled", 10.0, 0.8, S.FULL_SECTOR_DEG)
+    d.mkdir()
+    (d / "stats.json").write_text(json.dumps(shipped[(10.0, 0.8)]))
+    assert S.deviation_rows(out)[0]["full"] == "10 m/s 80 %: 0.136 (holds at the 1 of 5 cases run)"
+    d = P.case_dir(out)
+    d.mkdir()
+    (d / "stats.json").write_text(json.dumps(shipped[(6.0, 0.8)]))
+    assert S.deviation_rows(out)[0]["full"] == (
+        "10 m/s 80 % (by seed 001's protocol): 0.147 (holds at the 1 of 5 cases run)")
