@@ -335,10 +335,14 @@ def slide_roll_closed_form(v0: float, mu: float, mur: float, moving_wall: bool, 
     return q
 
 
-def case_slide_roll(moving_wall: bool, mur: float, workdir: Path | None) -> dict:
-    """Cases a, c and d on seed 001's bead."""
-    mat, r = SEED001, SEED001_RADIUS_M
-    mu = mat["friction"]
+def case_slide_roll(moving_wall: bool, mur: float, workdir: Path | None, mat: dict | None = None) -> dict:
+    """Cases a, c and d on seed 001's bead (or the material ``mat``, BeadMaterial's keys; mur
+    its bead-bead rolling friction). The bead touches only the wall, so the closed forms and
+    LIGGGHTS take the bead-wall coefficients (``wall_friction``, ``wall_rolling_friction``
+    where ``mat`` gives them, else the bead-bead ones)."""
+    mat, r = (SEED001 if mat is None else mat), SEED001_RADIUS_M
+    mu = mat.get("wall_friction", mat["friction"])
+    mur_bead, mur = mur, mat.get("wall_rolling_friction", mur)
     v0 = SLIP_SPEED_M_PER_S
     dt = _contact_time_s(mat, r, 1.0) / 100.0
     t1 = v0 / ((3.5 * mu - 2.5 * mur) * G_M_PER_S2)
@@ -356,13 +360,15 @@ def case_slide_roll(moving_wall: bool, mur: float, workdir: Path | None) -> dict
     omega = v0 / DISC_RADIUS_POSITION_M if moving_wall else 0.0
     vel = (0.0, 0.0, 0.0) if moving_wall else (v0, 0.0, 0.0)
     x0 = DISC_RADIUS_POSITION_M
-    args = (mat, mur, r, h, vel, omega, dt, True, steps, SAMPLE_STEPS)
+    args = (mat, mur_bead, r, h, vel, omega, dt, True, steps, SAMPLE_STEPS)
     ours = slide_roll_quantities(run_ours(*args, x0), r, v0, omega, t_end, mu, mur)
     lig = None
     if workdir is not None:
         name = ("c" if moving_wall else "a") + ("_rolling" if mur else "")
         x_l = x0 if moving_wall else 0.0
-        run = run_liggghts(*args, x_l, workdir, name)
+        # one coefficient for every contact there: the bead-wall ones
+        lig_mat = dict({k: v for k, v in mat.items() if not k.startswith("wall_")}, friction=mu)
+        run = run_liggghts(lig_mat, mur, *args[2:], x_l, workdir, name)
         if run is not None:
             lig = slide_roll_quantities(run, r, v0, omega, t_end, mu, mur)
     closed = slide_roll_closed_form(v0, mu, mur, moving_wall, omega)

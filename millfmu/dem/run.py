@@ -960,9 +960,10 @@ def summary_table(stats: DemStats) -> str:
             lines.append(
                 f"return leg (between the rotors): beads swirl at k = {rl['k_beads']:.3f} of "
                 f"the rotor, liquid at {kl:.3f}; "
-                f"solids fraction {rl['solids_fraction']:.3f}; weight over rotor head R = "
-                f"{rl['R']:.3g} (a bead circulation needs R < 1, i.e. k < "
-                f"{(rl['k_for_R_1'] or float('nan')):.3f})")
+                f"solids fraction {rl['solids_fraction']:.3f}; "
+                + (f"weight over rotor head R = {rl['R']:.3g} (a bead circulation needs R < 1, "
+                   f"i.e. k < {(rl['k_for_R_1'] or float('nan')):.3f})" if rl["R"] is not None
+                   else "weight over rotor head R: none without a liquid"))
     if fl.get("first_bead_layer_angular_velocity_ratio") is not None:
         vf = fl.get("vortices_fluid")
         lines.append("first bead layer at the disc: angular velocity "

@@ -303,10 +303,11 @@ def _check_ranges(s: DemScene):
         raise DemSceneError(f"beads.restitution = {m.restitution!r}: allowed 0 < e <= 1")
     if not -1.0 < m.poisson_ratio < 0.5:
         raise DemSceneError(f"beads.poisson_ratio = {m.poisson_ratio!r}: allowed -1 < nu < 0.5")
-    for name, v in (("beads.friction", m.friction), ("beads.rolling_friction",
-                                                       m.rolling_friction)):
-        if v < 0:
-            raise DemSceneError(f"{name} = {v!r}: must be >= 0")
+    for name, v in (("beads.friction", m.friction), ("beads.rolling_friction", m.rolling_friction),
+                    ("beads.wall_friction", m.wall_friction),
+                    ("beads.wall_rolling_friction", m.wall_rolling_friction)):
+        if v is not None and not (v >= 0 and math.isfinite(v)):
+            raise DemSceneError(f"{name} = {v!r}: must be a finite number >= 0")
     if s.geometry.sector_deg != 360.0 and any(s.gravity_m_per_s2):
         raise DemSceneError(
             f"run.gravity_m_per_s2 = {list(s.gravity_m_per_s2)!r}: an angular sector "
@@ -376,6 +377,9 @@ def scene_from_dict(d: dict, default_name: str = "scene") -> DemScene:
     run = d.get("run", {})
     output = d.get("output", {})
     f = float
+    for k in beads:
+        if k not in BEAD_KEYS:
+            raise DemSceneError(f"beads.{k}: unknown key; allowed: {sorted(BEAD_KEYS)}")
     geo = _geometry_from_dict(kind, mill)
     dia = _get(beads, "diameter_m", "beads", f, 0.8e-3)
     _positive("beads.diameter_m", dia)
@@ -440,6 +444,13 @@ def _geometry_from_dict(kind: str, mill: dict) -> MillGeometry:
     return geo
 
 
+#: the keys of a scene's ``[beads]`` table
+BEAD_KEYS = ("diameter_m", "density_kg_per_m3", "youngs_modulus_pa", "poisson_ratio",
+             "restitution", "friction", "rolling_friction", "wall_friction",
+             "wall_rolling_friction", "bulk_porosity", "placement", "filling",
+             "lattice_spacing_m", "lattice_r_range_m")
+
+
 def _material_from_dict(beads: dict) -> BeadMaterial:
     """The bead material of a ``[beads]`` table (defaults: seed 001's glass)."""
     f = float
@@ -449,7 +460,9 @@ def _material_from_dict(beads: dict) -> BeadMaterial:
         poisson_ratio=_get(beads, "poisson_ratio", "beads", f, 0.25),
         restitution=_get(beads, "restitution", "beads", f, 0.99),
         friction=_get(beads, "friction", "beads", f, 0.3),
-        rolling_friction=_get(beads, "rolling_friction", "beads", f, 0.10))
+        rolling_friction=_get(beads, "rolling_friction", "beads", f, 0.10),
+        wall_friction=_get(beads, "wall_friction", "beads", f, None),
+        wall_rolling_friction=_get(beads, "wall_rolling_friction", "beads", f, None))
     _positive("beads.density_kg_per_m3", mat.density_kg_per_m3)
     _positive("beads.youngs_modulus_pa", mat.youngs_modulus_pa)
     return mat

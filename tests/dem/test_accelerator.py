@@ -317,6 +317,23 @@ def _write_case(folder, case, st: dict):
     return d
 
 
+def test_a_run_without_liquid_writes_its_statistics_and_summary(tmp_path, capsys):
+    """``dem run accelerator_slice --fluid none``: beads in vacuum have no rotor head to
+    weigh the return leg against; the run writes its statistics and says so instead of
+    failing after the run."""
+    pytest.importorskip("numba")
+    from millfmu.dem.analysis.stats import DemStats
+
+    out = tmp_path / "dry"
+    a = _parser().parse_args(["dem", "run", "accelerator_slice", "--out", str(out), "--fluid",
+                              "none", "--no-gravity", "--spin-up", "2e-3", "--record", "2e-3",
+                              "--sample-every", "1e-3", "--no-progress", "--threads", "1"])
+    assert a.func(a) == 0
+    leg = DemStats.from_json((out / "stats.json").read_text()).flow["seed002"]["return_leg"]
+    assert leg["R"] is None and leg["k_for_R_1"] is None and leg["k_beads"] is not None
+    assert "weight over rotor head R: none without a liquid" in capsys.readouterr().out
+
+
 def test_seed002_table_gives_verdicts_from_the_runs(tmp_path):
     from validation import seed002 as S
 

@@ -275,6 +275,12 @@ def test_return_leg_swirl_and_weight_ratio_by_hand():
         (1050 * (0.0222 ** 2 - 0.014 ** 2))
     assert out["R"] == pytest.approx(big_r, rel=1e-12)
     assert out["k_for_R_1"] == pytest.approx(0.5 / math.sqrt(big_r), rel=1e-12)
+    # beads without a liquid (dem run --fluid none): no head to weigh the leg against
+    dry = return_leg([np.vstack([x, xr])], [np.vstack([v, 2.0 * v])], g, om, 0.8e-3, 6040.0,
+                     0.0, None)
+    assert dry["R"] is None and dry["k_for_R_1"] is None and dry["k_liquid"] is None
+    assert dry["k_beads"] == pytest.approx(0.5, rel=1e-12)
+    assert dry["solids_fraction"] == pytest.approx(phi, rel=1e-12)
 
 
 def test_seed002_baffled_campaign_is_its_own(tmp_path):

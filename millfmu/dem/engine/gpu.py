@@ -241,6 +241,8 @@ def g_forces(x, v, w, f, t, rad, mass, inertia, nb, img, nnb, sh, fl, shw, flw, 
     beta = prm[K.P_BETA]
     mu = prm[K.P_MU]
     mur = prm[K.P_MUR]
+    muw = prm[K.P_MUW]
+    murw = prm[K.P_MURW]
     eta = prm[K.P_LUB_ETA]
     hcut = prm[K.P_LUB_HCUT]
     hmin = prm[K.P_LUB_HMIN]
@@ -359,7 +361,7 @@ def g_forces(x, v, w, f, t, rad, mass, inertia, nb, img, nnb, sh, fl, shw, flw, 
          twall) = wall_response(xi, yi, zi, v[i, 0], v[i, 1], v[i, 2], w[i, 0],
                                         w[i, 1], w[i, 2], ri, mi, q, shw[i, q, 0],
                                         shw[i, q, 1], shw[i, q, 2], prm, ystar, gstar, beta,
-                                        mu, mur, dt)
+                                        muw, murw, dt)
         if not touch:
             release_wall(flw, shw, i, q)
             continue

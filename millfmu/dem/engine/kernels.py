@@ -99,7 +99,9 @@ P_WET = 40
 P_WET_ETA = 41  # viscosity of the contact's Stokes number [Pa s]
 P_WET_ST = 42  # Stokes number scale of e / e_dry = exp(-scale / St) [-]
 P_WTAB = 43  # 256 entries: damping ratio beta [-] of each contact level (legendre2006.beta_table)
-N_PRM = P_WTAB + 256
+P_MUW = P_WTAB + 256  # Coulomb friction coefficient of bead-wall contacts [-]
+P_MURW = P_MUW + 1  # rolling friction coefficient of bead-wall contacts [-]
+N_PRM = P_MURW + 1
 
 # wall ids: 0 shaft (rotating), 1 chamber (fixed), 2 disc or shrouds (rotating), 3 vanes
 # (rotating), 4 baffles (fixed)
@@ -894,6 +896,8 @@ def compute_forces(x, v, w, fb, tb, rad, mass, inertia, pst, nnb, pj, pim, psh, 
     beta = prm[P_BETA]
     mu = prm[P_MU]
     mur = prm[P_MUR]
+    muw = prm[P_MUW]
+    murw = prm[P_MURW]
     eta = prm[P_LUB_ETA]
     hcut = prm[P_LUB_HCUT]
     hmin = prm[P_LUB_HMIN]
@@ -1089,8 +1093,8 @@ def compute_forces(x, v, w, fb, tb, rad, mass, inertia, pst, nnb, pj, pim, psh, 
                     (touch, vrx, vry, vrz, nx, ny, nz, wz_w, gx, gy, gz, tix, tiy, tiz, s0, s1,
                      s2, twall) = wall_response(
                         xi, yi, zi, v[i, 0], v[i, 1], v[i, 2], w[i, 0], w[i, 1], w[i, 2], ri, mi,
-                        q, shw[i, q, 0], shw[i, q, 1], shw[i, q, 2], prm, ystar, gstar, bk, mu,
-                        mur, dt)
+                        q, shw[i, q, 0], shw[i, q, 1], shw[i, q, 2], prm, ystar, gstar, bk, muw,
+                        murw, dt)
                     if not touch:
                         release_wall(flw, shw, i, q)
                         continue

@@ -21,6 +21,21 @@ class BeadMaterial:
     restitution: float = 0.99
     friction: float = 0.3
     rolling_friction: float = 0.10
+    #: bead-wall Coulomb and rolling friction coefficients [-] where they differ from the
+    #: bead-bead ones (None: the bead-bead values, as seeds 001 and 002 give one value for
+    #: both): the walls being another material, or to see which contacts a result hangs on
+    wall_friction: float | None = None
+    wall_rolling_friction: float | None = None
+
+    @property
+    def bead_wall_friction(self) -> float:
+        """Coulomb friction coefficient [-] of bead-wall contacts."""
+        return self.friction if self.wall_friction is None else self.wall_friction
+
+    @property
+    def bead_wall_rolling_friction(self) -> float:
+        """Rolling friction coefficient [-] of bead-wall contacts."""
+        return self.rolling_friction if self.wall_rolling_friction is None else self.wall_rolling_friction
 
     @property
     def effective_youngs_pa(self) -> float:

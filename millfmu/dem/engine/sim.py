@@ -197,6 +197,8 @@ class DemSimulation:
         prm[K.P_BETA] = material.damping_beta
         prm[K.P_MU] = material.friction
         prm[K.P_MUR] = material.rolling_friction
+        prm[K.P_MUW] = material.bead_wall_friction
+        prm[K.P_MURW] = material.bead_wall_rolling_friction
         g = np.asarray(gravity_m_per_s2, dtype=float)
         if fluid is not None:
             # buoyancy: the fluid's pressure gradient carries rho_f / rho_p of the weight
@@ -277,12 +279,18 @@ class DemSimulation:
 
     def __setstate__(self, state: dict) -> None:
         """A checkpoint whose parameter vector predates the wet restitution's entries goes
-        on with them zero: the lubrication law it was made with."""
+        on with them zero: the lubrication law it was made with; one that predates the
+        bead-wall friction's entries, with the bead-bead friction for its walls, as it was
+        made."""
         self.__dict__.update(state)
         self.__dict__.setdefault("wet_restitution", False)
-        n_prm = self.K.N_PRM
-        if self.prm.shape[0] < n_prm:
-            self.prm = np.concatenate([self.prm, np.zeros(n_prm - self.prm.shape[0])])
+        K = self.K
+        n_old = self.prm.shape[0]
+        if n_old < K.N_PRM:
+            self.prm = np.concatenate([self.prm, np.zeros(K.N_PRM - n_old)])
+            if n_old <= K.P_MUW:
+                self.prm[K.P_MUW] = self.prm[K.P_MU]
+                self.prm[K.P_MURW] = self.prm[K.P_MUR]
 
     def _start_cpu(self) -> None:
         """The first neighbour lists (made to fit where ``max_neighbours`` was generous),

@@ -321,7 +321,7 @@ def return_leg(sample_x, sample_v, geometry: MillGeometry, omega_rad_per_s: floa
     - ``R``: the buoyant weight of such a return leg over the rotor's head (the shared
       analysis of the slice), phi (rho_b - rho_f) k^2 (r_w^2 - r_1^2) /
       (rho_f (r_2^2 - r_1^2)) with phi the solids fraction, k = k_beads and r_2 the rim:
-      a circulation of the beads needs R < 1;
+      a circulation of the beads needs R < 1; None without a liquid (no head);
     - ``k_beads_profile``: k_beads in five equal radial bins from r_1 to r_w."""
     g = geometry
     r1, rw, r2 = g.eye_radius_m, g.chamber_radius_m, g.disc_radius_m
@@ -368,8 +368,9 @@ def return_leg(sample_x, sample_v, geometry: MillGeometry, omega_rad_per_s: floa
             w = np.broadcast_to(rr[:, None], ut.shape)[sel]
             k_liq = float(np.sum(ut[sel] / (omega_rad_per_s * w) * w) / np.sum(w))
     rb, rf = bead_density_kg_per_m3, fluid_density_kg_per_m3
+    # without a liquid (rf 0) there is no head to weigh the leg against: R is not defined
     big_r = (phi * (rb - rf) * k_beads ** 2 * (rw ** 2 - r1 ** 2) / (rf * (r2 ** 2 - r1 ** 2))
-             if k_beads is not None and phi is not None else None)
+             if k_beads is not None and phi is not None and rf > 0.0 else None)
     with np.errstate(invalid="ignore"):
         prof = acc / cnt
     return dict(
@@ -377,7 +378,7 @@ def return_leg(sample_x, sample_v, geometry: MillGeometry, omega_rad_per_s: floa
                "to chamber wall",
         k_beads=k_beads, k_liquid=k_liq, solids_fraction=phi, R=big_r,
         k_for_R_1=(math.sqrt(rf * (r2 ** 2 - r1 ** 2) / (phi * (rb - rf) * (rw ** 2 - r1 ** 2)))
-                   if phi else None),
+                   if phi and rf > 0.0 else None),
         k_beads_profile=dict(r_m=list(np.round(0.5 * (edges[1:] + edges[:-1]), 6)),
                              k=[None if not np.isfinite(p) else round(float(p), 6)
                                 for p in prof]))

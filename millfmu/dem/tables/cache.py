@@ -396,6 +396,13 @@ SAME_DEM_AS = {
     # to the bit)
     "sha256:0ce8364e820e5394da6b0dd39c382cdad5204871baf995d583a7d0564e137867":
         "sha256:97f753cea048d151d29bfc09ed08fc9161f206eb44b7bf748a0474d96810be97",
+    # and the bead-wall friction and rolling friction as parameter entries of their own,
+    # the bead-bead values where a scene names none (the plain disc sector on 1 and 2
+    # threads, the coupled disc sector on 1 and 2 threads, the accelerator slice, and seed
+    # 002's discrete phase model with Koch-Hill and Schiller-Naumann drag give the same
+    # outputs to the bit); and a run's summary line for an accelerator slice without liquid
+    "sha256:ff37c85dee21753cc551979310020cd098213e8088bd9d7f06b99de03f4a09e2":
+        "sha256:97f753cea048d151d29bfc09ed08fc9161f206eb44b7bf748a0474d96810be97",
 }
 
 
