@@ -258,6 +258,34 @@ def test_a_smoothing_variant_runs_and_is_summarized_as_such(tmp_path):
     assert S.summary_stats(p) == {(10.0, 0.8): S.summary_stats()[(10.0, 0.8)]}
 
 
+def test_a_wall_friction_variant_runs_and_is_summarized_as_such(tmp_path):
+    """--wall-friction MU: the campaign's scene with the bead-wall friction MU, the beads'
+    own kept (refused below 0), its summary in a file of its own saying so, with the
+    commands that rebuild it."""
+    from millfmu.dem.scene import load_scene
+
+    base = load_scene("disc_slice")
+    assert S.with_wall_friction(base, None) is base
+    var = S.with_wall_friction(base, 0.6)
+    assert (var.material.bead_wall_friction, var.material.friction) == (0.6, 0.3)
+    assert var.coupling == base.coupling and var.geometry == base.geometry
+    for bad in (-0.1, float("nan")):
+        with pytest.raises(ValueError, match="wall friction = .*: must be a finite number >= 0"):
+            S.with_wall_friction(base, bad)
+    out = tmp_path / "runs"
+    d = S.case_dir(out, "coupled", 10.0, 0.8)
+    d.mkdir(parents=True)
+    (d / "stats.json").write_text(json.dumps(S.summary_stats()[(10.0, 0.8)]))
+    p = S.summarize(out, path=tmp_path / "seed001_sector_wall_friction.json", wall_friction=0.6)
+    doc = json.loads(p.read_text())
+    assert doc["protocol"]["wall_friction"] == 0.6 and "bead-wall friction 0.6" in doc["note"]
+    assert doc["command"].startswith("python -m validation.seed001 run --out DIR --fluid coupled "
+                                      "--threads 1 --wall-friction 0.6, then")
+    assert doc["command"].endswith("summarize --out DIR --wall-friction 0.6 --summary "
+                                   "validation/runs/seed001_sector_wall_friction.json")
+    assert S.main(["run", "--out", str(out), "--wall-friction", "-1", "--fluid", "coupled"]) == 2
+
+
 def test_the_no_smoothing_variants_count_on_the_page_is_its_summarys():
     """The page's count of the campaign with no smoothing (a variant, not counted) follows
     from its kept summary, validation/runs/seed001_sector_smoothing0.json."""
