@@ -114,7 +114,7 @@ COLUMNS = (("first layer / disc", "first bead layer / disc angular velocity", "l
            ("speed / tip V3", "bead speed / tip speed V3", "V3"),
            ("median SE_tn V2 [J]", "median SE_tn V2", None),
            ("power number", "power number", None),
-           ("torque by the liquid's shear", "stirrer torque: fluid shear share", None))
+           ("liquid's share of the stirrer torque", "stirrer torque: fluid shear share", None))
 
 
 def band(key):

@@ -46,3 +46,26 @@ def test_the_kept_summary_holds_every_case_by_its_command():
     for label, run in doc["runs"].items():
         assert run["command"] == W.command(label)
         assert 0.0 < run["values"]["first bead layer / disc angular velocity"] < 1.0
+
+
+def test_the_page_shows_the_kept_cases():
+    from pathlib import Path
+
+    page = (Path(__file__).resolve().parents[2] / "docs" / "validation-seed001.md").read_text(encoding="utf-8")
+    for line in W.markdown(json.loads(W.SUMMARY.read_text())).splitlines():
+        assert line in page, line
+    assert "python -m validation.wall_friction run" in page
+
+
+def test_the_table_marks_what_lies_in_seed_001s_bands():
+    doc = {"runs": {"a": {"values": {q: 1e-10 for _, q, _ in W.COLUMNS}},
+                    "b": {"values": {q: 1e-10 for _, q, _ in W.COLUMNS}}}}
+    doc["runs"]["a"]["values"].update({"first bead layer / disc angular velocity": 0.17,
+                                       "bead speed / tip speed V1": 0.1611,
+                                       "bead speed / tip speed V2": 0.0808,
+                                       "bead speed / tip speed V3": 0.0977})
+    lines = W.markdown(doc).splitlines()
+    # 0.17 is 0.20 less 15 %; 0.1611 lies beyond 0.14 plus 15 % (0.161); V2 and V3 at their edges
+    assert lines[2].endswith("| 3 of 4: first layer, V2, V3 |")
+    assert "| 0.17 (in band) | 0.161 | 0.0808 (in band) | 0.0977 (in band) |" in lines[2]
+    assert lines[3].endswith("| 0 of 4 |")
