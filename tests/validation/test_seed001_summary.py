@@ -361,3 +361,30 @@ def test_the_run_folders_protocol_run_takes_its_case(tmp_path):
     (d / "stats.json").write_text(json.dumps(shipped[(6.0, 0.8)]))
     assert S.deviation_rows(out)[0]["full"] == (
         "10 m/s 80 % (by seed 001's protocol): 0.147 (holds at the 1 of 5 cases run)")
+
+
+def test_the_wall_friction_variants_count_on_the_page_is_its_summarys():
+    """The page's count of the campaign with the walls' friction at 0.6 (a variant, not
+    counted) and the verdicts it names follow from its kept summary,
+    validation/runs/seed001_sector_wall_friction.json."""
+    p = S.SUMMARY.parent / "seed001_sector_wall_friction.json"
+    doc = json.loads(p.read_text())
+    assert doc["protocol"]["wall_friction"] == 0.6 and "a variant" in doc["note"]
+    assert sorted((r["tip_speed_m_per_s"], r["filling"]) for r in doc["runs"].values()) == sorted(S.CASES)
+    rows = S.deviation_rows(summary=p)
+    c = S.count(rows)
+    text = " ".join(PAGE.read_text(encoding="utf-8").split())
+    assert "--wall-friction 0.6 --summary validation/runs/seed001_sector_wall_friction.json`; 53 minutes" in text
+    assert f"the sector matches {c['matches']} of the {c['statements']} statements. The layer turns at" in text
+    def verdict(start):
+        return next(r["verdict"].split()[0] for r in rows if r["statement"].startswith(start))
+
+    assert verdict("angular velocity of the first bead layer") == "missed"
+    assert verdict("mean bead speed / tip speed in V3") == "matches"
+    assert verdict("collision frequency peaks about two bead") == "matches"
+    assert verdict("mean bead speed / tip speed in V2") == "missed"
+    assert verdict("median SE_tn: V1 > V2 > V3 > V4") == "missed"
+    assert verdict("at 90 % filling V3 has the lowest") == "missed"
+    layer = next(r for r in rows if r["statement"].startswith("angular velocity of the first bead layer"))
+    assert layer["coupled"] == ("6 m/s 80 %: 0.179; 8 m/s 80 %: 0.175; 10 m/s 80 %: 0.174; "
+                                "12 m/s 80 %: 0.168; 14 m/s 80 %: 0.167")
