@@ -234,6 +234,29 @@ def test_the_full_slice_is_seed_001s_configuration_as_the_page_runs_it():
             "--initial-rotation 0.1 --windows 0.1 --checkpoint-every 600") in text
 
 
+def _variant_summarized(tmp_path, name, **variant):
+    """(runs folder, summary path, summary) of a variant campaign's folder holding the
+    shipped 10 m/s, 80 % case, summarized into ``name`` with ``variant``
+    (smoothing_diameters= or wall_friction=)."""
+    out = tmp_path / "runs"
+    d = S.case_dir(out, "coupled", 10.0, 0.8)
+    d.mkdir(parents=True)
+    (d / "stats.json").write_text(json.dumps(S.summary_stats()[(10.0, 0.8)]))
+    p = S.summarize(out, path=tmp_path / name, **variant)
+    return out, p, json.loads(p.read_text())
+
+
+def _kept_variant(name, key, value):
+    """(rows, count, the page's text) of a kept variant campaign ``name`` whose protocol
+    sets ``key`` to ``value``, every case of the campaign run."""
+    p = S.SUMMARY.parent / name
+    doc = json.loads(p.read_text())
+    assert doc["protocol"][key] == value and "a variant" in doc["note"]
+    assert sorted((r["tip_speed_m_per_s"], r["filling"]) for r in doc["runs"].values()) == sorted(S.CASES)
+    rows = S.deviation_rows(summary=p)
+    return rows, S.count(rows), " ".join(PAGE.read_text(encoding="utf-8").split())
+
+
 def test_a_smoothing_variant_runs_and_is_summarized_as_such(tmp_path):
     """--smoothing-diameters D: the campaign's scene with the exchange smoothed over D bead
     diameters (refused below 0), its summary in a file of its own saying so, with the
@@ -246,12 +269,7 @@ def test_a_smoothing_variant_runs_and_is_summarized_as_such(tmp_path):
     assert S.with_smoothing(base, 0.0).coupling.cell_m == base.coupling.cell_m
     with pytest.raises(ValueError, match="smoothing_diameters = -1: must be a number >= 0"):
         S.with_smoothing(base, -1)
-    out = tmp_path / "runs"
-    d = S.case_dir(out, "coupled", 10.0, 0.8)
-    d.mkdir(parents=True)
-    (d / "stats.json").write_text(json.dumps(S.summary_stats()[(10.0, 0.8)]))
-    p = S.summarize(out, path=tmp_path / "seed001_sector_smoothing0.json", smoothing_diameters=0.0)
-    doc = json.loads(p.read_text())
+    out, p, doc = _variant_summarized(tmp_path, "seed001_sector_smoothing0.json", smoothing_diameters=0.0)
     assert doc["protocol"]["smoothing_diameters"] == 0.0 and "a variant" in doc["note"]
     assert doc["command"].endswith("summarize --out DIR --smoothing-diameters 0 --summary "
                                    "validation/runs/seed001_sector_smoothing0.json")
@@ -272,12 +290,7 @@ def test_a_wall_friction_variant_runs_and_is_summarized_as_such(tmp_path):
     for bad in (-0.1, float("nan")):
         with pytest.raises(ValueError, match="wall friction = .*: must be a finite number >= 0"):
             S.with_wall_friction(base, bad)
-    out = tmp_path / "runs"
-    d = S.case_dir(out, "coupled", 10.0, 0.8)
-    d.mkdir(parents=True)
-    (d / "stats.json").write_text(json.dumps(S.summary_stats()[(10.0, 0.8)]))
-    p = S.summarize(out, path=tmp_path / "seed001_sector_wall_friction.json", wall_friction=0.6)
-    doc = json.loads(p.read_text())
+    out, p, doc = _variant_summarized(tmp_path, "seed001_sector_wall_friction.json", wall_friction=0.6)
     assert doc["protocol"]["wall_friction"] == 0.6 and "bead-wall friction 0.6" in doc["note"]
     assert doc["command"].startswith("python -m validation.seed001 run --out DIR --fluid coupled "
                                       "--threads 1 --wall-friction 0.6, then")
@@ -289,13 +302,7 @@ def test_a_wall_friction_variant_runs_and_is_summarized_as_such(tmp_path):
 def test_the_no_smoothing_variants_count_on_the_page_is_its_summarys():
     """The page's count of the campaign with no smoothing (a variant, not counted) follows
     from its kept summary, validation/runs/seed001_sector_smoothing0.json."""
-    p = S.SUMMARY.parent / "seed001_sector_smoothing0.json"
-    doc = json.loads(p.read_text())
-    assert doc["protocol"]["smoothing_diameters"] == 0.0
-    assert sorted((r["tip_speed_m_per_s"], r["filling"]) for r in doc["runs"].values()) == sorted(S.CASES)
-    rows = S.deviation_rows(summary=p)
-    c = S.count(rows)
-    text = " ".join(PAGE.read_text(encoding="utf-8").split())
+    rows, c, text = _kept_variant("seed001_sector_smoothing0.json", "smoothing_diameters", 0.0)
     assert "with no smoothing (a variant, not counted:" in text
     assert f"the sector matches {c['matches']} of the {c['statements']} statements: it gains the first layer" in text
     layer = next(r for r in rows if r["statement"].startswith("angular velocity of the first bead layer"))
@@ -367,15 +374,10 @@ def test_the_wall_friction_variants_count_on_the_page_is_its_summarys():
     """The page's count of the campaign with the walls' friction at 0.6 (a variant, not
     counted) and the verdicts it names follow from its kept summary,
     validation/runs/seed001_sector_wall_friction.json."""
-    p = S.SUMMARY.parent / "seed001_sector_wall_friction.json"
-    doc = json.loads(p.read_text())
-    assert doc["protocol"]["wall_friction"] == 0.6 and "a variant" in doc["note"]
-    assert sorted((r["tip_speed_m_per_s"], r["filling"]) for r in doc["runs"].values()) == sorted(S.CASES)
-    rows = S.deviation_rows(summary=p)
-    c = S.count(rows)
-    text = " ".join(PAGE.read_text(encoding="utf-8").split())
+    rows, c, text = _kept_variant("seed001_sector_wall_friction.json", "wall_friction", 0.6)
     assert "--wall-friction 0.6 --summary validation/runs/seed001_sector_wall_friction.json`; 53 minutes" in text
     assert f"the sector matches {c['matches']} of the {c['statements']} statements. The layer turns at" in text
+
     def verdict(start):
         return next(r["verdict"].split()[0] for r in rows if r["statement"].startswith(start))
 
