@@ -154,16 +154,21 @@ def test_the_full_slice_decides_every_statement_whose_cases_it_has_run(tmp_path,
         _cell(sector_rows, "collision density of the chamber about l", "verdict")
 
 
+def _sector_folders(out, cases):
+    """A campaign's run folders in ``out``, a stats.json per case of ``cases``."""
+    for (vt, fl), st in cases.items():
+        d = S.case_dir(out, "coupled", vt, fl)
+        d.mkdir(parents=True)
+        (d / "stats.json").write_text(json.dumps(st))
+    return out
+
+
 def test_summarize_keeps_the_sector_cases_and_the_full_slice_apart(tmp_path):
     """summarize --full-slice adds the full slice's cases beside the sector's cases, keeps
     those summarized before, and a summary of the sector's cases keeps them; each from its
     own run folders."""
     shipped = S.summary_stats()
-    out = tmp_path / "runs"
-    for (vt, fl), st in shipped.items():
-        d = S.case_dir(out, "coupled", vt, fl)
-        d.mkdir(parents=True)
-        (d / "stats.json").write_text(json.dumps(st))
+    out = _sector_folders(tmp_path / "runs", shipped)
     p = tmp_path / "summary.json"
     S.summarize(out, path=p)
     assert S.summary_stats(p) == shipped and S.summary_stats(p, full_slice=True) == {}
@@ -238,10 +243,7 @@ def _variant_summarized(tmp_path, name, **variant):
     """(runs folder, summary path, summary) of a variant campaign's folder holding the
     shipped 10 m/s, 80 % case, summarized into ``name`` with ``variant``
     (smoothing_diameters= or wall_friction=)."""
-    out = tmp_path / "runs"
-    d = S.case_dir(out, "coupled", 10.0, 0.8)
-    d.mkdir(parents=True)
-    (d / "stats.json").write_text(json.dumps(S.summary_stats()[(10.0, 0.8)]))
+    out = _sector_folders(tmp_path / "runs", {(10.0, 0.8): S.summary_stats()[(10.0, 0.8)]})
     p = S.summarize(out, path=tmp_path / name, **variant)
     return out, p, json.loads(p.read_text())
 
@@ -354,11 +356,7 @@ def test_the_run_folders_protocol_run_takes_its_case(tmp_path):
     from validation import full_slice_paper as P
 
     shipped = S.summary_stats()
-    out = tmp_path / "runs"
-    for (vt, fl), st in shipped.items():
-        d = S.case_dir(out, "coupled", vt, fl)
-        d.mkdir(parents=True)
-        (d / "stats.json").write_text(json.dumps(st))
+    out = _sector_folders(tmp_path / "runs", shipped)
     d = S.case_dir(out, "coupled", 10.0, 0.8, S.FULL_SECTOR_DEG)
     d.mkdir()
     (d / "stats.json").write_text(json.dumps(shipped[(10.0, 0.8)]))
