@@ -16,8 +16,8 @@ beside its table, never counted.
     python -m validation.wall_friction run --out DIR [--case LABEL ...]
     python -m validation.wall_friction summarize --out DIR
 
-``run`` runs the cases not finished in ``DIR`` one after the other (about 4 minutes each on
-one idle core); ``summarize`` keeps what ``millfmu dem compare`` shows of each finished case
+``run`` runs the cases not finished in ``DIR`` one after the other (5-7 minutes each on one
+core beside a 2-thread run); ``summarize`` keeps what ``millfmu dem compare`` shows of each finished case
 in ``validation/runs/seed001_wall_friction.json``. A study: nothing in the package imports
 it.
 """

@@ -373,7 +373,7 @@ def test_the_wall_friction_variants_count_on_the_page_is_its_summarys():
     counted) and the verdicts it names follow from its kept summary,
     validation/runs/seed001_sector_wall_friction.json."""
     rows, c, text = _kept_variant("seed001_sector_wall_friction.json", "wall_friction", 0.6)
-    assert "--wall-friction 0.6 --summary validation/runs/seed001_sector_wall_friction.json`; 53 minutes" in text
+    assert "--wall-friction 0.6 --summary validation/runs/seed001_sector_wall_friction.json`; 52 minutes" in text
     assert f"the sector matches {c['matches']} of the {c['statements']} statements. The layer turns at" in text
 
     def verdict(start):
