@@ -43,7 +43,7 @@ from validation import seed001 as S
 from validation.run_summary import read_windows
 
 #: the case: seed 001's reference point, the one the cold and warm full slices ran
-CASE = (10.0, 0.8)
+CASE = S.PAPER_CASE
 #: seed 001's protocol (section 2): 2 s before the analysis, 1 s recorded with 50 samples,
 #: the beads started from rest
 SPIN_UP_S = 2.0
@@ -66,8 +66,8 @@ def scene():
 
 
 def case_dir(out_dir) -> Path:
-    vt, fill = CASE
-    return Path(out_dir) / f"p360_v{vt:g}_f{round(fill * 100)}"
+    """The run's folder in ``out_dir``."""
+    return S.paper_case_dir(out_dir)
 
 
 def _child(d: str, sc, threads, checkpoint_every_s: float) -> None:

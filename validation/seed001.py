@@ -258,6 +258,14 @@ SUMMARY = Path(__file__).resolve().parent / "runs" / "seed001_sector.json"
 FULL_PAPER_SUMMARY = Path(__file__).resolve().parent / "runs" / "seed001_full_paper.json"
 #: how the table marks a full-slice case taken from that run
 BY_PAPER_PROTOCOL = "by seed 001's protocol"
+#: that run's case: seed 001's reference point, which the cold and warm full slices ran
+PAPER_CASE = (10.0, 0.8)
+
+
+def paper_case_dir(out_dir) -> Path:
+    """The folder of the full slice by seed 001's protocol in ``out_dir``."""
+    vt, fill = PAPER_CASE
+    return Path(out_dir) / f"p360_v{vt:g}_f{round(fill * 100)}"
 
 
 def compact(st: dict) -> dict:
@@ -482,13 +490,11 @@ def deviation_rows(out_dir=None, summary=None, paper_summary=None) -> list[dict]
         by_protocol = paper_protocol_stats(paper_summary) if paper_summary is not None else {}
         runs = {"coupled": {k: shipped.get(k) for k in CASES}, "prescribed": {k: None for k in CASES}}
     else:
-        from validation import full_slice_paper
-
         runs = {f: {(vt, fl): _load(out_dir, f, vt, fl) for vt, fl in CASES} for f in FLUIDS}
         full = {k: _load(out_dir, "coupled", *k, FULL_SECTOR_DEG) for k in FULL_CASES}
         full = {k: v for k, v in full.items() if v is not None}
-        st = load_dir(full_slice_paper.case_dir(out_dir))
-        by_protocol = {} if st is None else {full_slice_paper.CASE: st}
+        st = load_dir(paper_case_dir(out_dir))
+        by_protocol = {} if st is None else {PAPER_CASE: st}
     full.update(by_protocol)
     runs["full"] = {k: full.get(k) for k in CASES}
     has_full = bool(full)
