@@ -163,19 +163,15 @@ def zone_state(sc, x, v, rad) -> dict:
     return {z.name: (z.filling, z.speed_over_tip_speed) for z in st.zones}
 
 
-#: seed 001's first bead layer: bead centres within this many bead diameters of a disc face
-#: (its 0.6 mm for its 0.8 mm beads), as the run statistics' ``first_bead_layer_*``
-FIRST_LAYER_DIAMETERS = 0.75
-
-
 def first_layer(sc, sample_x, sample_v) -> dict:
     """The first bead layer's mean angular velocity over the stirrer's [-] over the samples
-    (positions [m], velocities [m/s]) by the run statistics' formula, and the bead samples
-    it averages."""
-    from millfmu.dem.analysis.flow_structure import first_layer_angular_velocity
+    (positions [m], velocities [m/s]) by the run statistics' formula and layer
+    (:data:`millfmu.dem.analysis.flow_structure.FIRST_LAYER_DIAMETERS`), and the bead
+    samples it averages."""
+    from millfmu.dem.analysis import flow_structure as FS
 
-    ratio, n = first_layer_angular_velocity(sample_x, sample_v, sc.geometry, sc.omega_rad_per_s,
-                                            FIRST_LAYER_DIAMETERS * sc.bead_diameter_m)
+    ratio, n = FS.first_layer_angular_velocity(sample_x, sample_v, sc.geometry, sc.omega_rad_per_s,
+                                               FS.FIRST_LAYER_DIAMETERS * sc.bead_diameter_m)
     return {"angular_velocity_ratio": ratio, "bead_samples": n}
 
 

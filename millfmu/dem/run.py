@@ -802,9 +802,8 @@ def _disc_flow(scene, sim, cpl, sx, sv, fields) -> dict:
     om = scene.omega_rad_per_s
     out = {}
     d = scene.bead_diameter_m
-    # seed 001's first layer: bead centres within 0.6 mm of the disc face (its stated
-    # distance, 0.75 d for its 0.8 mm beads); also the layer one bead diameter thick
-    ratio, n = FS.first_layer_angular_velocity(sx, sv, g, om, 0.75 * d)
+    # seed 001's first layer (FS.FIRST_LAYER_DIAMETERS); also the layer one bead diameter thick
+    ratio, n = FS.first_layer_angular_velocity(sx, sv, g, om, FS.FIRST_LAYER_DIAMETERS * d)
     out["first_bead_layer_angular_velocity_ratio"] = ratio
     out["first_bead_layer_samples"] = n
     out["bead_layer_1d_angular_velocity_ratio"] = FS.first_layer_angular_velocity(

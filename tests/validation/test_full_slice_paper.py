@@ -12,6 +12,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from millfmu.dem.analysis import flow_structure as FS
 from millfmu.dem.mills import zones_for
 from millfmu.dem.scene import load_scene
 from validation import full_slice_paper as P
@@ -75,7 +76,7 @@ def test_the_first_layer_against_a_closed_form():
     side = np.where(rng.random(n) < 0.5, 1.0, -1.0)
     z = g.disc_z_m + side * (0.5 * g.disc_thickness_m + gap)
     x = np.column_stack([r * np.cos(t), r * np.sin(t), z])
-    inside = gap < P.FIRST_LAYER_DIAMETERS * d
+    inside = gap < FS.FIRST_LAYER_DIAMETERS * d
     om = np.where(inside, 0.23, 0.9) * sc.omega_rad_per_s
     v = np.column_stack([-om * x[:, 1], om * x[:, 0], np.zeros(n)])
     got = P.first_layer(sc, [x], [v])
@@ -116,7 +117,7 @@ def test_the_run_keeps_snapshots_at_its_checkpoints_and_the_trace_reads_them(tmp
     assert sum(samples) == st["flow"]["first_bead_layer_samples"]
     # so soon after the placement no bead lies within 0.75 d of a disc face: a thicker
     # layer holds beads, and the windows cut the kept samples in order
-    monkeypatch.setattr(P, "FIRST_LAYER_DIAMETERS", 2.0)
+    monkeypatch.setattr(FS, "FIRST_LAYER_DIAMETERS", 2.0)
     a = np.load(d / "bead_samples.npz")
     x, v = a["x_m"].astype(float), a["v_m_per_s"].astype(float)
     per = round(S.WINDOW_S / sc.sample_every_s)

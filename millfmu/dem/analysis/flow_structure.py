@@ -96,6 +96,12 @@ def fold_zeta(z, disc_z_m, period_m):
     return zr - period_m * np.floor(zr / period_m + 0.5)
 
 
+#: seed 001's first bead layer: bead centres within this many bead diameters of a disc face
+#: (its 0.6 mm for its 0.8 mm beads, section 3.2); what the run statistics'
+#: ``first_bead_layer_*`` and ``dem progress`` measure
+FIRST_LAYER_DIAMETERS = 0.75
+
+
 def first_layer_angular_velocity(sample_x, sample_v, geometry, omega_rad_per_s,
                                  max_distance_m):
     """Mean angular velocity about the axis, over the stirrer's, of the beads whose centre

@@ -36,7 +36,8 @@ from millfmu.dem.analysis.circumferential import circumferential
 def run_progress(out_dir) -> dict:
     """The figures of the module docstring for the run whose checkpoint is in ``out_dir``;
     raises DemRunError (by name) where there is none or it cannot be read."""
-    from millfmu.dem.analysis.flow_structure import first_layer_angular_velocity
+    from millfmu.dem.analysis.flow_structure import (FIRST_LAYER_DIAMETERS,
+                                                     first_layer_angular_velocity)
     from millfmu.dem.run import CHECKPOINT, load_checkpoint
 
     state = load_checkpoint(out_dir)
@@ -65,7 +66,7 @@ def run_progress(out_dir) -> dict:
     out["angular_velocity_over_stirrer"] = float(om_i.mean() / omega)
     if g.has_disc and not g.has_channel:
         d = scene.bead_diameter_m
-        ratio, n = first_layer_angular_velocity([x], [v], g, omega, 0.75 * d)
+        ratio, n = first_layer_angular_velocity([x], [v], g, omega, FIRST_LAYER_DIAMETERS * d)
         out["first_bead_layer_angular_velocity_ratio"] = ratio
         out["first_bead_layer_beads"] = n
     out.update(circumferential(x, scene.gravity_m_per_s2, g.sector_deg))
