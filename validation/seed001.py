@@ -66,16 +66,11 @@ def with_smoothing(scene, diameters: float | None):
 
 def with_wall_friction(scene, mu: float | None):
     """The scene with the bead-wall friction coefficient ``mu`` [-] (None: the beads' own,
-    seed 001's one value for every contact); refused by name below 0."""
-    import dataclasses
-
-    from millfmu.dem.scene import DemSceneError
-
+    seed 001's one value for every contact); refused by name below 0
+    (:meth:`DemScene.with_overrides`)."""
     if mu is None:
         return scene
-    if not (mu >= 0.0 and math.isfinite(mu)):
-        raise DemSceneError(f"wall friction = {mu!r}: must be a finite number >= 0")
-    return dataclasses.replace(scene, material=dataclasses.replace(scene.material, wall_friction=float(mu)))
+    return scene.with_overrides(wall_friction=mu)
 
 
 def run_campaign(out_dir, fluids=("coupled", "prescribed"), sector_deg: float = 10.0,
@@ -512,11 +507,15 @@ def deviation_rows(out_dir=None, summary=None, paper_summary=None) -> list[dict]
             out.append(None if st is None else fn(st))
         return out
 
-    def show(vals, keys, nd=3, marked=()):
-        """'10 m/s 80 %: value; ...' of the cases run; a case in ``marked`` is named as run
-        by seed 001's protocol."""
+    def mark(k):
+        """How a full-slice case names its run by seed 001's protocol ('' for the others)."""
+        return f" ({BY_PAPER_PROTOCOL})" if k in by_protocol else ""
+
+    def show(vals, keys, nd=3, full=False):
+        """'10 m/s 80 %: value; ...' of the cases run; the full slice's (``full``) named as
+        run by seed 001's protocol where they were (:func:`mark`)."""
         def label(k):
-            return f"{k[0]:g} m/s {round(k[1] * 100)} %" + (f" ({BY_PAPER_PROTOCOL})" if k in marked else "")
+            return f"{k[0]:g} m/s {round(k[1] * 100)} %" + (mark(k) if full else "")
 
         return "; ".join(f"{label(k)}: {v}" if isinstance(v, str) else f"{label(k)}: {_fmt(v, nd)}"
                          for v, k in zip(vals, keys) if v is not None) or "not run"
@@ -538,9 +537,9 @@ def deviation_rows(out_dir=None, summary=None, paper_summary=None) -> list[dict]
             return "not evaluated", None, "not judged"
         shown = [text(v) if text else v if isinstance(v, str) else _fmt(v) for _, v in got]
         if len(keys) == 1:
-            cell = shown[0] + (f" ({BY_PAPER_PROTOCOL})" if keys[0] in by_protocol else "")
+            cell = shown[0] + mark(keys[0])
         else:
-            cell = show(shown, [k for k, _ in got], marked=by_protocol)
+            cell = show(shown, [k for k, _ in got], full=True)
         judged = [(k, value(v)) for k, v in got if value(v) is not None]
         if not judged:
             return cell, None, "not judged"
@@ -621,9 +620,8 @@ def deviation_rows(out_dir=None, summary=None, paper_summary=None) -> list[dict]
         x, y = np.array(pts).T
         a, b = np.polyfit(x, y, 1)
         r2 = 1.0 - ((y - (a * x + b)) ** 2).sum() / ((y - y.mean()) ** 2).sum()
-        mark = by_protocol if f == "full" else ()
-        txt = (", ".join(f"{vt:g}" + (f" ({BY_PAPER_PROTOCOL})" if (vt, 0.8) in mark else "")
-                         + f": {d:.3g}" for vt, d in pts) +
+        txt = (", ".join(f"{vt:g}" + (mark((vt, 0.8)) if f == "full" else "") + f": {d:.3g}"
+                         for vt, d in pts) +
                f" 1/(m3 s); linear fit R^2 {r2:.3f}, intercept / value at 10 m/s "
                f"{b / (a * 10 + b):+.2f}")
         return (r2, b / (a * 10 + b)), txt

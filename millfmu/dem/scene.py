@@ -108,7 +108,8 @@ class DemScene:
         liquid's theta cells; smoothing_diameters: its exchange's smoothing length [bead
         diameters], >= 0; smoothing: its smoothing (SMOOTHINGS); pressure_solver: its
         pressure equation's solver (PRESSURE_SOLVERS); ``baffles``: a dict of the [mill]
-        baffle keys, BAFFLE_KEYS); validated like file values."""
+        baffle keys, BAFFLE_KEYS; wall_friction: the beads' [beads] wall_friction);
+        validated like file values."""
         geo = self.geometry
         if kw.get("baffles") is not None:
             geo = _with_baffles(geo, kw["baffles"], "baffles")
@@ -121,6 +122,7 @@ class DemScene:
         smoothing_d = kw.pop("smoothing_diameters", None)
         smoothing = kw.pop("smoothing", None)
         pressure_solver = kw.pop("pressure_solver", None)
+        wall_friction = kw.pop("wall_friction", None)
         if kw.get("filling") is not None and self.placement != "filling":
             raise DemSceneError(f"beads.filling = {kw['filling']!r}: this scene places its beads on a lattice "
                                 f"(beads.placement = {self.placement!r}); a filling is used only with placement "
@@ -156,6 +158,10 @@ class DemScene:
                 raise DemSceneError(f"{key} = {value!r}: the coupled liquid's; the fluid "
                                     f"here is {new.fluid_mode!r}")
             new = replace(new, coupling=replace(new.coupling, **{key: value}))
+        if wall_friction is not None:
+            if isinstance(wall_friction, bool) or not isinstance(wall_friction, (int, float)):
+                raise DemSceneError(f"beads.wall_friction = {wall_friction!r}: must be a float")
+            new = replace(new, material=replace(new.material, wall_friction=float(wall_friction)))
         _check_ranges(new)
         return new
 

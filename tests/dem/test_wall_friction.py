@@ -95,6 +95,13 @@ def test_a_scene_names_the_walls_friction_or_takes_the_beads():
         d["beads"][key] = bad
         with pytest.raises(DemSceneError, match=msg):
             scene_from_dict(d)
+    # the same checks where a run overrides the scene's value
+    base = scene_from_dict(load_scene_dict("disc_slice"))
+    assert base.with_overrides(wall_friction=0.6).material.bead_wall_friction == 0.6
+    for bad, msg in ((-0.1, "beads.wall_friction = -0.1: must be a finite number >= 0"),
+                     ("high", "beads.wall_friction = 'high': must be a float")):
+        with pytest.raises(DemSceneError, match=msg):
+            base.with_overrides(wall_friction=bad)
     d = load_scene_dict("disc_slice")
     d["beads"]["wall_fricton"] = 0.6
     with pytest.raises(DemSceneError, match=r"beads.wall_fricton: unknown key; allowed: \[.*'wall_friction'"):

@@ -290,7 +290,7 @@ def test_a_wall_friction_variant_runs_and_is_summarized_as_such(tmp_path):
     assert (var.material.bead_wall_friction, var.material.friction) == (0.6, 0.3)
     assert var.coupling == base.coupling and var.geometry == base.geometry
     for bad in (-0.1, float("nan")):
-        with pytest.raises(ValueError, match="wall friction = .*: must be a finite number >= 0"):
+        with pytest.raises(ValueError, match="beads.wall_friction = .*: must be a finite number >= 0"):
             S.with_wall_friction(base, bad)
     out, p, doc = _variant_summarized(tmp_path, "seed001_sector_wall_friction.json", wall_friction=0.6)
     assert doc["protocol"]["wall_friction"] == 0.6 and "bead-wall friction 0.6" in doc["note"]
