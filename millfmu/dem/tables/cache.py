@@ -402,7 +402,8 @@ SAME_DEM_AS = {
     # 002's discrete phase model with Koch-Hill and Schiller-Naumann drag give the same
     # outputs to the bit); and a run's summary line for an accelerator slice without liquid
     "sha256:ff37c85dee21753cc551979310020cd098213e8088bd9d7f06b99de03f4a09e2":
-        "sha256:97f753cea048d151d29bfc09ed08fc9161f206eb44b7bf748a0474d96810be97",    # and the first bead layer's distance from the disc face read from
+        "sha256:97f753cea048d151d29bfc09ed08fc9161f206eb44b7bf748a0474d96810be97",
+    # and the first bead layer's distance from the disc face read from
     # analysis.flow_structure.FIRST_LAYER_DIAMETERS (0.75, the literal it replaces) in the
     # run's statistics (a plain disc sector gives the same outputs to the bit)
     "sha256:59694c5e4e2752822505257f14a45f8d10106172c5a73c4a16744fa0d41b8c48":
