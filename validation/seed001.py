@@ -73,15 +73,53 @@ def with_wall_friction(scene, mu: float | None):
     return scene.with_overrides(wall_friction=mu)
 
 
+#: seed 001's stated numbers of beads in its slice at its lowest and highest filling [-]
+#: (section 2.1: "between 155,520 and 289,951" for 50 to 90 %)
+STATED_BEAD_COUNTS = ((0.5, 155_520), (0.9, 289_951))
+
+
+def stated_count_filling(filling: float, scene=None) -> float:
+    """Eq. 2's filling [-] on the scene's slice (default disc_slice: seed 001's stated
+    geometry, the whole circle) that holds the number of beads seed 001 states for its
+    filling ``filling`` [-]: :data:`STATED_BEAD_COUNTS` at 50 and 90 %, linear in between
+    (seed 001 states none for 60-80 %; a power law through the two points differs by 0.1 %
+    at 80 %). The stated counts are 5.7 and 9.5 % above eq. 2 on the stated geometry (0.8 mm
+    beads, porosity 0.4), so this gives 0.529 and 0.986 for 50 and 90 %. Refused outside
+    50-90 %."""
+    from millfmu.dem.scene import load_scene
+
+    (f0, n0), (f1, n1) = STATED_BEAD_COUNTS
+    if not (f0 <= filling <= f1):
+        raise ValueError(f"filling = {filling!r}: seed 001 states bead counts for {f0:g} to "
+                         f"{f1:g} only")
+    sc = scene if scene is not None else load_scene("disc_slice")
+    v_free = sc.with_overrides(sector_deg=360.0).geometry.free_volume_m3()
+    per_filling = (1.0 - sc.bulk_porosity) * v_free / (math.pi / 6.0 * sc.bead_diameter_m ** 3)
+    return (n0 + (filling - f0) / (f1 - f0) * (n1 - n0)) / per_filling
+
+
+def with_stated_count(scene, stated: bool):
+    """The scene (its ``filling`` the campaign's nominal one) with as many beads as seed 001
+    states for that filling (:func:`stated_count_filling`) where ``stated``. Set past the
+    scene's range check: at 90 % the stated count lies at eq. 2's 0.986, above the 0.9 the
+    scenes allow (seed 001's nominal range)."""
+    from dataclasses import replace
+
+    if not stated:
+        return scene
+    return replace(scene, filling=stated_count_filling(scene.filling, scene))
+
+
 def run_campaign(out_dir, fluids=("coupled", "prescribed"), sector_deg: float = 10.0,
                  cases=CASES, threads=None, progress=True, smoothing_diameters=None,
-                 wall_friction=None):
+                 wall_friction=None, stated_counts=False):
     """Run the cases that have no stats.json yet, the protocol of the table in docs/validation-seed001.md:
     no gravity, 10 degree sector, coupled runs started at COUPLED_INITIAL_ROTATION and spun
     up for COUPLED_SPIN_UP_S (27-62 stirrer revolutions at 6-14 m/s); RECORD_S of recording
     in windows of WINDOW_S; samples every 0.01 s. ``smoothing_diameters``: the coupled
     exchange's smoothing length instead of the scene's, ``wall_friction`` the bead-wall
-    friction instead of the beads' (variants of the campaign)."""
+    friction instead of the beads', ``stated_counts`` the number of beads seed 001 states
+    instead of eq. 2's at each filling (variants of the campaign)."""
     from millfmu.dem.run import run_scene
     from millfmu.dem.scene import load_scene
 
@@ -98,7 +136,8 @@ def run_campaign(out_dir, fluids=("coupled", "prescribed"), sector_deg: float = 
                 spin_up_s=COUPLED_SPIN_UP_S if fluid == "coupled" else PRESCRIBED_SPIN_UP_S,
                 record_s=RECORD_S, sample_every_s=0.01,
                 initial_rotation=COUPLED_INITIAL_ROTATION if fluid == "coupled" else 0.0)
-            run_scene(sc, d, progress=progress, threads=threads, window_s=WINDOW_S)
+            run_scene(with_stated_count(sc, stated_counts), d, progress=progress,
+                      threads=threads, window_s=WINDOW_S)
 
 
 #: seed 001's own configuration: the whole slice (360 degrees) with the scene's gravity
@@ -281,15 +320,16 @@ def compact(st: dict) -> dict:
 
 
 def summarize(out_dir, path=None, full_slice: bool = False, smoothing_diameters=None,
-              wall_friction=None) -> Path:
+              wall_friction=None, stated_counts=False) -> Path:
     """Write the compact stats of the coupled cases in ``out_dir`` (:func:`compact`) to
     ``path`` (default :data:`SUMMARY`), with the protocol and the command that made them;
     ``full_slice``: instead the full slice's cases found there (:func:`run_full_slice`),
     kept under ``full_slice`` beside the sector's cases with those kept before. Either keeps
     the other's part of the file.
     ``smoothing_diameters``: the runs' smoothing length where it is not the scene's,
-    ``wall_friction`` their bead-wall friction where it is not the beads' (a variant
-    campaign, summarized into a file of its own)."""
+    ``wall_friction`` their bead-wall friction where it is not the beads', ``stated_counts``
+    where they hold seed 001's stated number of beads (a variant campaign, summarized into a
+    file of its own; each run keeps eq. 2's filling it ran at)."""
     p = Path(path) if path is not None else SUMMARY
     old = json.loads(p.read_text()) if p.exists() else {}
     protocol = {"initial_rotation": COUPLED_INITIAL_ROTATION, "spin_up_s": COUPLED_SPIN_UP_S,
@@ -325,9 +365,12 @@ def summarize(out_dir, path=None, full_slice: bool = False, smoothing_diameters=
             st = _load(out_dir, "coupled", vt, fl)
             if st is not None:
                 runs[case_label(vt, fl)] = {"tip_speed_m_per_s": vt, "filling": fl,
+                                            **({"filling_eq2": stated_count_filling(fl)}
+                                               if stated_counts else {}),
                                             "stats": compact(st)}
         var = ("" if smoothing_diameters is None else f" --smoothing-diameters {smoothing_diameters:g}") + \
-            ("" if wall_friction is None else f" --wall-friction {wall_friction:g}")
+            ("" if wall_friction is None else f" --wall-friction {wall_friction:g}") + \
+            (" --stated-bead-counts" if stated_counts else "")
         dest = "" if path is None else f" --summary validation/runs/{Path(path).name}"
         doc = {"note": ("seed 001's cases on the coupled 10-degree disc sector without gravity: per zone "
                         "what the deviation table reads (units: m3, 1/(m3 s), W, J), the flow's first "
@@ -337,11 +380,16 @@ def summarize(out_dir, path=None, full_slice: bool = False, smoothing_diameters=
                            "not the scene's 1")
                         + ("" if wall_friction is None else
                            f"; a variant: bead-wall friction {wall_friction:g}, not seed 001's one "
-                           "value (0.3) for every contact")),
+                           "value (0.3) for every contact")
+                        + ("" if not stated_counts else
+                           "; a variant: the number of beads seed 001 states (155,520 at 50 %, "
+                           "289,951 at 90 %, linear between), not eq. 2's on its stated geometry; "
+                           "each run's filling_eq2 is eq. 2's filling it ran at")),
                "protocol": dict(protocol, sector_deg=10.0, gravity_m_per_s2=[0.0, 0.0, 0.0], threads=1,
                                 **({} if smoothing_diameters is None else
                                    {"smoothing_diameters": smoothing_diameters}),
-                                **({} if wall_friction is None else {"wall_friction": wall_friction})),
+                                **({} if wall_friction is None else {"wall_friction": wall_friction}),
+                                **({"bead_counts": "seed 001's stated"} if stated_counts else {})),
                "command": f"python -m validation.seed001 run --out DIR --fluid coupled --threads 1{var}, then "
                           f"python -m validation.seed001 summarize --out DIR{var}{dest}",
                "runs": runs}
@@ -842,6 +890,10 @@ def parser() -> argparse.ArgumentParser:
     s.add_argument("--wall-friction", type=float, metavar="MU", help="run and summarize: a variant "
                    "of the sector campaign with the bead-wall friction MU instead of seed 001's one "
                    "value (0.3) for every contact")
+    s.add_argument("--stated-bead-counts", action="store_true", help="run and summarize: a "
+                   "variant of the sector campaign with the number of beads seed 001 states "
+                   "(155,520 at 50 %%, 289,951 at 90 %%, linear between) instead of its eq. 2's "
+                   "on its stated geometry (5.7-9.5 %% fewer)")
     s.add_argument("--summary", metavar="FILE", help="summarize and table: this summary instead of "
                    "validation/runs/seed001_sector.json")
     s.add_argument("--full-slice", action="store_true", help="run: instead seed 001's own "
@@ -869,7 +921,8 @@ def main(argv=None) -> int:
         try:
             wrote = summarize(args.out, path=args.summary, full_slice=args.full_slice,
                               smoothing_diameters=args.smoothing_diameters,
-                              wall_friction=args.wall_friction)
+                              wall_friction=args.wall_friction,
+                              stated_counts=args.stated_bead_counts)
             print(f"wrote {wrote}")
         except FileNotFoundError as e:
             print(f"python -m validation.seed001 summarize: {e}", file=sys.stderr)
@@ -895,7 +948,8 @@ def main(argv=None) -> int:
         try:
             run_campaign(args.out, fluids=fluids, threads=args.threads,
                          smoothing_diameters=args.smoothing_diameters,
-                         wall_friction=args.wall_friction)
+                         wall_friction=args.wall_friction,
+                         stated_counts=args.stated_bead_counts)
         except ValueError as e:
             print(f"python -m validation.seed001: {e}", file=sys.stderr)
             return 2

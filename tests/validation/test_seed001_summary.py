@@ -368,6 +368,47 @@ def test_the_run_folders_protocol_run_takes_its_case(tmp_path):
         "10 m/s 80 % (by seed 001's protocol): 0.147 (holds at the 1 of 5 cases run)")
 
 
+def test_seed_001s_stated_bead_counts_give_eq_2s_filling_on_its_geometry():
+    """Seed 001 states 155,520 beads at 50 % and 289,951 at 90 %; eq. 2 on its stated
+    geometry (the whole slice, 0.8 mm beads, porosity 0.4) holds them at 0.529 and 0.986,
+    linear in between; the variant's scene holds that count, to the bead, in the whole
+    slice and its share of it in the 10-degree sector. Outside 50-90 % it is refused."""
+    from millfmu.dem.mills.geometry import bead_count_for_filling
+    from millfmu.dem.scene import load_scene
+
+    base = load_scene("disc_slice")
+    assert S.with_stated_count(base, False) is base
+    for fill, n in S.STATED_BEAD_COUNTS:
+        full = S.with_stated_count(base.with_overrides(filling=fill), True)
+        assert bead_count_for_filling(full.geometry, full.filling, full.bead_diameter_m) == n
+        sector = S.with_stated_count(base.with_overrides(filling=fill, sector_deg=10.0,
+                                                         gravity_m_per_s2=(0.0, 0.0, 0.0)), True)
+        assert bead_count_for_filling(sector.geometry, sector.filling,
+                                      sector.bead_diameter_m) == round(n / 36)
+    # eq. 2 on the stated geometry: 294,131 beads per unit filling (0.6 of 131.4 mL)
+    assert bead_count_for_filling(base.geometry, 1.0, base.bead_diameter_m) == 294_131
+    assert [round(S.stated_count_filling(f), 3) for f in (0.5, 0.8, 0.9)] == [0.529, 0.872, 0.986]
+    for bad in (0.4, 0.95):
+        with pytest.raises(ValueError, match=f"filling = {bad}: seed 001 states bead counts for "
+                                             "0.5 to 0.9 only"):
+            S.stated_count_filling(bad)
+
+
+def test_a_stated_count_variant_is_summarized_as_such(tmp_path):
+    """--stated-bead-counts: its summary in a file of its own saying so, each run with
+    eq. 2's filling it ran at, and the commands that rebuild it."""
+    out, p, doc = _variant_summarized(tmp_path, "seed001_sector_stated_counts.json",
+                                      stated_counts=True)
+    assert doc["protocol"]["bead_counts"] == "seed 001's stated" and "a variant" in doc["note"]
+    assert "289,951 at 90 %" in doc["note"]
+    assert doc["runs"]["10 m/s, 80 %"]["filling_eq2"] == pytest.approx(0.8715, abs=1e-4)
+    assert doc["command"].startswith("python -m validation.seed001 run --out DIR --fluid coupled "
+                                      "--threads 1 --stated-bead-counts, then")
+    assert doc["command"].endswith("summarize --out DIR --stated-bead-counts --summary "
+                                   "validation/runs/seed001_sector_stated_counts.json")
+    assert S.summary_stats(p) == {(10.0, 0.8): S.summary_stats()[(10.0, 0.8)]}
+
+
 def test_the_wall_friction_variants_count_on_the_page_is_its_summarys():
     """The page's count of the campaign with the walls' friction at 0.6 (a variant, not
     counted) and the verdicts it names follow from its kept summary,
