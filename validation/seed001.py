@@ -98,6 +98,27 @@ def stated_count_filling(filling: float, scene=None) -> float:
     return (n0 + (filling - f0) / (f1 - f0) * (n1 - n0)) / per_filling
 
 
+def stated_count_sector_deg(filling: float, sector_deg: float = 10.0, scene=None) -> float:
+    """The sector [deg] a stated-count case runs in: ``sector_deg``, or the smallest multiple
+    of it whose initial lattice (fcc with the placement's gap) holds the stated count
+    (:func:`stated_count_filling`); at 90 % the 10-degree sector holds 7,644 beads of the
+    8,054 stated for it, a 20-degree one 16,376 of 16,108."""
+    from millfmu.dem.mills.geometry import bead_count_for_filling, fcc_sites, placement_gap_m
+    from millfmu.dem.scene import load_scene
+
+    sc = scene if scene is not None else load_scene("disc_slice")
+    phi = stated_count_filling(filling, sc)
+    r = 0.5 * sc.bead_diameter_m
+    k = 1
+    while k * sector_deg < 360.0:
+        g = sc.with_overrides(sector_deg=k * sector_deg, gravity_m_per_s2=(0.0, 0.0, 0.0)).geometry
+        if bead_count_for_filling(g, phi, sc.bead_diameter_m, sc.bulk_porosity) <= \
+                fcc_sites(g, r, placement_gap_m(r)).shape[0]:
+            break
+        k += 1
+    return min(k * sector_deg, 360.0)
+
+
 def with_stated_count(scene, stated: bool):
     """The scene (its ``filling`` the campaign's nominal one) with as many beads as seed 001
     states for that filling (:func:`stated_count_filling`) where ``stated``. Set past the
@@ -127,11 +148,12 @@ def run_campaign(out_dir, fluids=("coupled", "prescribed"), sector_deg: float = 
                               wall_friction)
     for fluid in fluids:
         for vt, fill in cases:
-            d = case_dir(out_dir, fluid, vt, fill, sector_deg)
+            deg = stated_count_sector_deg(fill, sector_deg, base) if stated_counts else sector_deg
+            d = case_dir(out_dir, fluid, vt, fill, deg)
             if (d / "stats.json").exists():
                 continue
             sc = base.with_overrides(
-                fluid_mode=fluid, tip_speed_m_per_s=vt, filling=fill, sector_deg=sector_deg,
+                fluid_mode=fluid, tip_speed_m_per_s=vt, filling=fill, sector_deg=deg,
                 gravity_m_per_s2=(0.0, 0.0, 0.0),
                 spin_up_s=COUPLED_SPIN_UP_S if fluid == "coupled" else PRESCRIBED_SPIN_UP_S,
                 record_s=RECORD_S, sample_every_s=0.01,
@@ -212,6 +234,17 @@ def full_slice_scene(vt: float = 10.0, fill: float = 0.8):
 
 def _load(out_dir, fluid, vt, fill, sector_deg=None):
     return load_dir(case_dir(out_dir, fluid, vt, fill, sector_deg))
+
+
+def _load_sector(out_dir, fluid, vt, fill):
+    """A sector case's stats: the 10-degree sector's, else the larger sector a stated-count
+    variant runs it in where seed 001's count does not fit (:func:`stated_count_sector_deg`)."""
+    st = _load(out_dir, fluid, vt, fill)
+    if st is None:
+        deg = stated_count_sector_deg(fill)
+        if deg != 10.0:
+            st = _load(out_dir, fluid, vt, fill, deg)
+    return st
 
 
 def load_dir(d) -> dict | None:
@@ -362,11 +395,12 @@ def summarize(out_dir, path=None, full_slice: bool = False, smoothing_diameters=
     else:
         runs = {}
         for vt, fl in CASES:
-            st = _load(out_dir, "coupled", vt, fl)
+            deg = stated_count_sector_deg(fl) if stated_counts else None
+            st = _load(out_dir, "coupled", vt, fl, deg)
             if st is not None:
                 runs[case_label(vt, fl)] = {"tip_speed_m_per_s": vt, "filling": fl,
-                                            **({"filling_eq2": stated_count_filling(fl)}
-                                               if stated_counts else {}),
+                                            **({"filling_eq2": stated_count_filling(fl),
+                                                "sector_deg": deg} if stated_counts else {}),
                                             "stats": compact(st)}
         var = ("" if smoothing_diameters is None else f" --smoothing-diameters {smoothing_diameters:g}") + \
             ("" if wall_friction is None else f" --wall-friction {wall_friction:g}") + \
@@ -533,7 +567,7 @@ def deviation_rows(out_dir=None, summary=None, paper_summary=None) -> list[dict]
         by_protocol = paper_protocol_stats(paper_summary) if paper_summary is not None else {}
         runs = {"coupled": {k: shipped.get(k) for k in CASES}, "prescribed": {k: None for k in CASES}}
     else:
-        runs = {f: {(vt, fl): _load(out_dir, f, vt, fl) for vt, fl in CASES} for f in FLUIDS}
+        runs = {f: {(vt, fl): _load_sector(out_dir, f, vt, fl) for vt, fl in CASES} for f in FLUIDS}
         full = {k: _load(out_dir, "coupled", *k, FULL_SECTOR_DEG) for k in FULL_CASES}
         full = {k: v for k, v in full.items() if v is not None}
         st = load_dir(paper_case_dir(out_dir))

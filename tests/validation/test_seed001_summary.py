@@ -394,6 +394,34 @@ def test_seed_001s_stated_bead_counts_give_eq_2s_filling_on_its_geometry():
             S.stated_count_filling(bad)
 
 
+def test_a_stated_count_case_runs_in_the_smallest_sector_that_holds_it(tmp_path):
+    """At 90 % the 10-degree sector's initial lattice holds fewer beads than seed 001's
+    count (7,644 of 8,054): the case runs in 20 degrees (16,108 of 16,376); 50 and 80 % stay
+    in 10. The table and the summary read such a case from its folder."""
+    from millfmu.dem.mills.geometry import bead_count_for_filling, fcc_sites, placement_gap_m
+    from millfmu.dem.scene import load_scene
+
+    assert [S.stated_count_sector_deg(f) for f in (0.5, 0.8, 0.9)] == [10.0, 10.0, 20.0]
+    base = load_scene("disc_slice")
+    r = 0.5 * base.bead_diameter_m
+    for deg, n_sites in ((10.0, 7644), (20.0, 16376)):
+        sc = S.with_stated_count(base.with_overrides(filling=0.9, sector_deg=deg,
+                                                     gravity_m_per_s2=(0.0, 0.0, 0.0)), True)
+        assert fcc_sites(sc.geometry, r, placement_gap_m(r)).shape[0] == n_sites
+        assert bead_count_for_filling(sc.geometry, sc.filling, sc.bead_diameter_m) == \
+            round(289_951 * deg / 360)
+    shipped = S.summary_stats()
+    out = _sector_folders(tmp_path / "runs", {k: v for k, v in shipped.items() if k != (6.0, 0.9)})
+    d = S.case_dir(out, "coupled", 6.0, 0.9, 20.0)
+    d.mkdir()
+    (d / "stats.json").write_text(json.dumps(shipped[(6.0, 0.9)]))
+    assert d.name == "c20_v6_f90"
+    assert S.deviation_rows(out) == S.deviation_rows(_sector_folders(tmp_path / "ref", shipped))
+    doc = json.loads(S.summarize(out, path=tmp_path / "s.json", stated_counts=True).read_text())
+    assert doc["runs"]["6 m/s, 90 %"]["sector_deg"] == 20.0
+    assert doc["runs"]["10 m/s, 80 %"]["sector_deg"] == 10.0
+
+
 def test_a_stated_count_variant_is_summarized_as_such(tmp_path):
     """--stated-bead-counts: its summary in a file of its own saying so, each run with
     eq. 2's filling it ran at, and the commands that rebuild it."""
