@@ -337,10 +337,13 @@ def paper_case_dir(out_dir) -> Path:
 
 def compact(st: dict) -> dict:
     """The part of a run's stats (vortices recounted) that :func:`deviation_rows` reads: zone
-    statistics and the flow's census, no raw contacts or maps."""
+    statistics (with the local filling where the run has it) and the flow's census, no raw
+    contacts or maps."""
     zones = []
     for z in st["zones"]:
         c = {k: z.get(k) for k in ZONE_KEYS}
+        if z.get("filling") is not None:  # local filling [-], where the run has it
+            c["filling"] = z["filling"]
         c["se"] = {"tn": {"quantiles_j": {"q50": z["se"]["tn"]["quantiles_j"]["q50"]}}}
         zones.append(c)
     flow = st.get("flow", {})

@@ -457,3 +457,44 @@ def test_the_wall_friction_variants_count_on_the_page_is_its_summarys():
     layer = next(r for r in rows if r["statement"].startswith("angular velocity of the first bead layer"))
     assert layer["coupled"] == ("6 m/s 80 %: 0.179; 8 m/s 80 %: 0.175; 10 m/s 80 %: 0.174; "
                                 "12 m/s 80 %: 0.168; 14 m/s 80 %: 0.167")
+
+
+def test_the_stated_count_variants_figures_on_the_page_are_its_summarys():
+    """The page's figures for the campaign with seed 001's stated bead counts (a variant, not
+    counted) follow from its kept summary, validation/runs/seed001_sector_stated_counts.json:
+    the count, the slowing at 80 %, the layer, V2 and V3 at 80 %, and the jammed bed at 90 %."""
+    rows, c, text = _kept_variant("seed001_sector_stated_counts.json", "bead_counts",
+                                  "seed 001's stated")
+    assert "--stated-bead-counts --summary validation/runs/seed001_sector_stated_counts.json`" in text
+    assert f"the sector matches {c['matches']} of the {c['statements']} statements." in text
+    var = S.summary_stats(S.SUMMARY.parent / "seed001_sector_stated_counts.json")
+    base = S.summary_stats()
+    at80 = [k for k in S.CASES if k[1] == 0.8]
+
+    def speed(st, zn):
+        return S.zone(st, zn)["speed_over_tip_speed"]
+
+    slow = [100 * (1 - speed(var[k], zn) / speed(base[k], zn)) for k in at80
+            for zn in ("V1", "V2", "V3", "V4")]
+    assert f"every zone slows by {min(slow):.0f}-{max(slow):.0f} %" in text
+    layer = [var[k]["flow"]["first_bead_layer_angular_velocity_ratio"] for k in at80]
+    assert f"first layer turns at {min(layer):.3f}-{max(layer):.3f}" in text
+    v3 = [speed(var[k], "V3") for k in at80]
+    v2 = [speed(var[k], "V2") for k in at80]
+    assert f"V3 comes to {min(v3):.3g}-{max(v3):.3g}" in text
+    assert f"V2 leaves its band ({min(v2):.3g}-{max(v2):.3g})" in text
+    lo, hi = S.SPEED_BANDS["V3"]
+    assert [S.within_band(v, lo, hi) for v in v3] == [k[0] != 14.0 for k in at80]
+    jam, ref = var[(6.0, 0.9)], base[(6.0, 0.9)]
+    assert (f"V2 and V3 move at {100 * speed(jam, 'V2'):.1f} and {100 * speed(jam, 'V3'):.1f} % "
+            f"of the tip speed (eq. 2's count: {100 * speed(ref, 'V2'):.1f} %)") in text
+    fills = [z["filling"] for z in jam["zones"]]
+    assert f"local filling {min(fills):.2f}-{max(fills):.2f} in every zone" in text
+    assert round(S.zone(ref, "V2")["collision_frequency_per_m3_s"] /
+                 S.zone(jam, "V2")["collision_frequency_per_m3_s"]) == 8  # "an eighth"
+
+    def ratio(rows_):
+        r = next(r for r in rows_ if r["statement"].startswith("collision power density of V1"))
+        return float(dict(x.split(": ") for x in r["coupled"].split("; "))["6 m/s 50 %"])
+
+    assert f"moves from {ratio(S.deviation_rows()):.3g} to {ratio(rows):.2g}" in text
