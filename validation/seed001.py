@@ -537,6 +537,12 @@ SPEED_BANDS = {"V1": (0.12, 0.14), "V2": (0.095, 0.095), "V3": (0.085, 0.085)}
 FIRST_LAYER_BAND = (0.20, 0.26)
 #: how far beyond seed 001's value or range a figure still matches it [-]
 BAND_TOLERANCE = 0.15
+#: "no significant influence" of the tip speed on a zone's local filling (seed 001 section
+#: 3.1): its spread (max - min) over its mean across 6-14 m/s at most this [-]
+FILLING_SPREAD = 0.15
+#: "about proportional" (seed 001 section 3.1): local over total filling of V1 and of V4
+#: at 50, 80 and 90 % within a factor 1 + this of each other [-]
+FILLING_PROPORTIONAL = 0.5
 
 
 def within_band(v: float, lo: float, hi: float, tol: float = BAND_TOLERANCE) -> bool:
@@ -854,6 +860,88 @@ def deviation_rows(out_dir=None, summary=None, paper_summary=None) -> list[dict]
                          prescribed="not run (the shipped table keeps no maps)",
                          verdict=verdict(all(ok(v[0]) for _, v in got) if got else None, full_ok,
                                          f" ({rule})")))
+    # 13.-17. the local filling per zone (section 3.1, Fig. 4), from the zones' ``filling``
+    # (eq. 2 with porosity 0.4 per zone); a summary made before its zones kept it leaves
+    # these statements unevaluated
+    def fillings(st):
+        f = {z["name"]: z.get("filling") for z in st["zones"]}
+        return None if any(v is None for v in f.values()) else f
+
+    def ranked(st, first):
+        """'lowest V1, V4' (the two least filled zones) or 'max V2' (the most filled)."""
+        f = fillings(st)
+        if f is None:
+            return None
+        o = sorted(f, key=f.get)
+        return f"lowest {o[0]}, {o[1]}" if first == "lowest" else f"max {o[-1]}"
+
+    def filling_row(statement, paper, fn, keys, accept, note):
+        n0 = len(rows)
+        add_row(statement, paper, fn, keys, accept, note)
+        r = rows[n0]
+        if r["coupled"] == "not run" and any(runs["coupled"].get(k) for k in keys):
+            r["verdict"] = "not evaluated (its summary keeps no local filling)"
+        if r["full"] == "not evaluated":
+            r["full"] = "not evaluated (its summary keeps no local filling)"
+        if r["prescribed"] == "not run" and any(runs["prescribed"].get(k) for k in keys):
+            r["prescribed"] = "not evaluated (the table keeps no local filling)"
+
+    filling_row("local filling lowest in V1 and V4, all cases (section 3.1, Fig. 4)",
+                "lowest V1, V4", lambda st: ranked(st, "lowest"), all_keys,
+                lambda got: all(set(v[len("lowest "):].split(", ")) == {"V1", "V4"} for v in got), "")
+    filling_row("local filling highest in V3 in most cases (section 3.1: \"mainly\")", "max V3",
+                lambda st: ranked(st, "max"), all_keys,
+                lambda got: 2 * sum(v == "max V3" for v in got) > len(got),
+                " (in more than half of the cases)")
+    filling_row("at 90 % filling V2 holds the highest local filling (6 m/s; section 3.1, Fig. 4b)",
+                "max V2", lambda st: ranked(st, "max"), [(6.0, 0.9)],
+                lambda got: got[0] == "max V2", "")
+
+    def spread_row(statement, paper, keys, value, accept, text, rule):
+        """A statement on how the zones' local filling varies over ``keys`` (all of them
+        run, else not judged): value(fillings by case) -> figures, judged by accept."""
+        def over(f):
+            got = {k: fillings(runs[f][k]) for k in keys if runs[f].get(k) is not None}
+            got = {k: v for k, v in got.items() if v is not None}
+            return (value(got), text(got)) if len(got) == len(keys) else (None, (
+                f"not judged: {len(got)} of {len(keys)} cases with local filling" if got
+                else "not evaluated"))
+        sec, sec_txt = over("coupled")
+        fs, fs_txt = over("full") if has_full else (None, "not run")
+        if fs_txt == "not evaluated":
+            fs_txt = "not evaluated (its summary keeps no local filling)"
+        full_ok = None if fs is None else accept(fs)
+        if sec is None:
+            verdict_txt = ("not evaluated (its summary keeps no local filling)"
+                           if any(runs["coupled"].get(k) for k in keys) else "not run")
+        else:
+            verdict_txt = verdict(accept(sec), full_ok, f" ({rule})")
+        rows.append(dict(statement=statement, paper=paper, coupled=sec_txt,
+                         full=fs_txt if fs is None else f"{fs_txt} ({'holds' if full_ok else 'missed'})",
+                         full_state="not judged" if fs is None else "holds" if full_ok else "missed",
+                         prescribed="not evaluated (the table keeps no local filling)",
+                         verdict=verdict_txt))
+
+    def by_zone(got, fn):
+        return {z: fn([f[z] for f in got.values()]) for z in ("V1", "V2", "V3", "V4")}
+
+    spread_row("tip speed leaves the zones' local filling unchanged at 80 % (section 3.1, Fig. 4a)",
+               "no significant influence", keys80,
+               lambda got: by_zone(got, lambda v: (max(v) - min(v)) / (sum(v) / len(v))),
+               lambda sp: all(x <= FILLING_SPREAD for x in sp.values()),
+               lambda got: "; ".join(f"{z} {lo:.2f}-{hi:.2f}" for z, (lo, hi) in by_zone(
+                   got, lambda v: (min(v), max(v))).items()) + " over 6-14 m/s",
+               f"each zone's spread over its mean at most {FILLING_SPREAD:.0%}")
+    at6 = sorted((k for k in all_keys if k[0] == 6.0), key=lambda k: k[1])
+    spread_row("local filling of V1 and V4 about proportional to the total filling (6 m/s; "
+               "section 3.1, Fig. 4b)", "about proportional", at6,
+               lambda got: {z: [got[k][z] / k[1] for k in at6] for z in ("V1", "V4")},
+               lambda q: all(max(v) <= (1 + FILLING_PROPORTIONAL) * min(v) for v in q.values()),
+               lambda got: "; ".join(f"{z} " + ", ".join(f"{got[k][z]:.2f}" for k in at6)
+                                     for z in ("V1", "V4")) + " at " +
+               ", ".join(f"{round(k[1] * 100)}" for k in at6) + " %",
+               f"local over total filling within a factor {1 + FILLING_PROPORTIONAL:g} at "
+               "every filling")
     for r in rows:
         r["prescribed_source"] = source
     return rows

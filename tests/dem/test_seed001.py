@@ -6,7 +6,10 @@ import json
 from validation import seed001
 
 
-def fake_stats(vt, fill, speeds=(0.13, 0.095, 0.085, 0.10), layer=0.22, secondary=None):
+def fake_stats(vt, fill, speeds=(0.13, 0.095, 0.085, 0.10), layer=0.22, secondary=None,
+               fillings=True):
+    """A run's stats as seed 001 has them; ``fillings``: the zones' local filling (V1 and V4
+    the least filled, in proportion to the total; V3 the most but at 90 %, where V2 is)."""
     zones = []
     vols = {"V1": 1.0, "V2": 2.0, "V3": 4.0, "V4": 3.0}
     dens = {"V1": 1.0, "V2": 3.0, "V3": 2.0 if fill < 0.9 else 0.5, "V4": 1.5}
@@ -17,6 +20,10 @@ def fake_stats(vt, fill, speeds=(0.13, 0.095, 0.085, 0.10), layer=0.22, secondar
                           collision_frequency_per_m3_s=dens[z] * (vt + 4.0),
                           collision_power_w=power[z] * vols[z],
                           se={"tn": {"quantiles_j": {"q50": med[z]}}}))
+        if fillings:
+            zones[-1]["filling"] = {"V1": 0.5 * fill, "V4": 0.6 * fill,
+                                    "V2": 1.0 if fill >= 0.9 else 0.93,
+                                    "V3": 0.95 if fill >= 0.9 else 0.97}[z]
     sec = (0 if vt < 7 else 1) if secondary is None else secondary
     vort = [dict(r_m=0.03, zeta_m=0.006, sign=-1, strength=1.0, region="between discs")]
     vort += [dict(r_m=0.042, zeta_m=0.005, sign=1, strength=0.05,
@@ -27,31 +34,32 @@ def fake_stats(vt, fill, speeds=(0.13, 0.095, 0.085, 0.10), layer=0.22, secondar
     return dict(zones=zones, flow=flow)
 
 
-def write(tmp_path, fluid, **kw):
+def write(tmp_path, fluid, make=None, **kw):
+    """Every case's stats.json, made by ``make`` (default :func:`fake_stats`)."""
     for vt, fill in seed001.CASES:
         d = seed001.case_dir(tmp_path, fluid, vt, fill)
         d.mkdir(parents=True)
-        (d / "stats.json").write_text(json.dumps(fake_stats(vt, fill, **kw)))
+        (d / "stats.json").write_text(json.dumps((make or fake_stats)(vt, fill, **kw)))
 
 
 def test_deviation_table_verdicts(tmp_path):
     write(tmp_path, "coupled")
     rows = seed001.deviation_rows(tmp_path)
-    assert len(rows) == 14
+    assert len(rows) == 19
     # the two statements on the local maps are listed, not judged
     judged = [r for r in rows if not r["verdict"].startswith("not evaluated")]
-    assert len(judged) == 12 and all(r["verdict"].startswith("matches") for r in judged), \
+    assert len(judged) == 17 and all(r["verdict"].startswith("matches") for r in judged), \
         [r for r in judged if not r["verdict"].startswith("matches")]
-    assert seed001.count(rows) == {"statements": 14, "matches": 12, "missed": 0,
+    assert seed001.count(rows) == {"statements": 19, "matches": 17, "missed": 0,
                                    "not evaluated": 2}
     # without prescribed runs in the folder the column comes from the shipped table
     assert rows[0]["prescribed_source"] == seed001.TABLE_NOTE
     assert "10 m/s 80 %: 0.325" in rows[0]["prescribed"]
     md = seed001.markdown(rows)
-    assert md.count("\n") == 19 and seed001.TABLE_NOTE in md
+    assert md.count("\n") == 24 and seed001.TABLE_NOTE in md
     assert "| verdict (the full slice where it decides, else the sector) |" in md
     assert all(r["full"] == "not run" for r in rows)  # no full slice in the folder
-    assert "Coupled runs: 12 of 14 statements match, 0 missed, 2 not evaluated." in md
+    assert "Coupled runs: 17 of 19 statements match, 0 missed, 2 not evaluated." in md
 
 
 def write_maps(tmp_path, wall_peak_d=2.0, rim_bin=(18, 20)):
@@ -117,8 +125,52 @@ def test_v3_slowest_is_judged_in_every_case(tmp_path):
     row = next(r for r in rows if r["statement"].startswith("mean bead speed lowest in V3"))
     assert row["verdict"] == "missed" and "10 m/s 80 %: slowest V2" in row["coupled"]
     # V3 at 0.095 is within 15 % of seed 001's 0.085, yet not the slowest zone
-    assert seed001.count(rows) == {"statements": 14, "matches": 11, "missed": 1,
+    assert seed001.count(rows) == {"statements": 19, "matches": 16, "missed": 1,
                                    "not evaluated": 2}
+
+
+def _filling_rows(tmp_path, **kw):
+    write(tmp_path, "coupled", **kw)
+    return {r["statement"]: r for r in seed001.deviation_rows(tmp_path)
+            if "local filling" in r["statement"]}
+
+
+def test_the_local_filling_statements_are_judged_from_the_zones_filling(tmp_path):
+    """Section 3.1 (Fig. 4): V1 and V4 the least filled and about in proportion to the
+    total filling, V3 the most in most cases, V2 at 90 %, no influence of the tip speed at
+    80 %; each missed where a zone's filling says otherwise, unevaluated without it."""
+    rows = _filling_rows(tmp_path / "a")
+    assert len(rows) == 5 and all(r["verdict"].startswith("matches") for r in rows.values())
+    spread = rows["tip speed leaves the zones' local filling unchanged at 80 % (section 3.1, Fig. 4a)"]
+    assert spread["coupled"] == "V1 0.40-0.40; V2 0.93-0.93; V3 0.97-0.97; V4 0.48-0.48 over 6-14 m/s"
+    prop = rows["local filling of V1 and V4 about proportional to the total filling (6 m/s; "
+                "section 3.1, Fig. 4b)"]
+    assert prop["coupled"] == "V1 0.25, 0.40, 0.45; V4 0.30, 0.48, 0.54 at 50, 80, 90 %"
+    # a run without its zones' filling leaves all five unevaluated, by name
+    rows = _filling_rows(tmp_path / "b", fillings=False)
+    assert {r["verdict"] for r in rows.values()} == {
+        "not evaluated (its summary keeps no local filling)"}
+
+
+def test_a_local_filling_that_departs_misses(tmp_path):
+    """V4 empty at 50 % (as without gravity) misses the proportionality, a tip speed that
+    fills V1 more misses 'unchanged'; V1 and V4 stay the least filled."""
+    def fake(vt, fill, **kw):
+        st = fake_stats(vt, fill, **kw)
+        z = {x["name"]: x for x in st["zones"]}
+        if fill == 0.5:
+            z["V4"]["filling"] = 0.03
+        if vt == 14.0:
+            z["V1"]["filling"] = 0.6
+        return st
+
+    rows = _filling_rows(tmp_path, make=fake)
+    verdict = {k[:40]: r["verdict"].split(" (")[0] for k, r in rows.items()}
+    assert verdict == {"local filling lowest in V1 and V4, all c": "matches",
+                       "local filling highest in V3 in most case": "matches",
+                       "at 90 % filling V2 holds the highest loc": "matches",
+                       "tip speed leaves the zones' local fillin": "missed",
+                       "local filling of V1 and V4 about proport": "missed"}
 
 
 def test_campaign_runs_the_stated_protocol(tmp_path, monkeypatch):

@@ -51,7 +51,7 @@ def test_the_kept_summary_holds_every_case_by_its_command():
 def test_the_page_shows_the_kept_cases():
     from pathlib import Path
 
-    page = (Path(__file__).resolve().parents[2] / "docs" / "validation-seed001.md").read_text(encoding="utf-8")
+    page = (Path(__file__).resolve().parents[2] / "docs" / "validation-seed001-variants.md").read_text(encoding="utf-8")
     for line in W.markdown(json.loads(W.SUMMARY.read_text())).splitlines():
         assert line in page, line
     assert "python -m validation.wall_friction run" in page
