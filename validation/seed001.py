@@ -863,6 +863,9 @@ def deviation_rows(out_dir=None, summary=None, paper_summary=None) -> list[dict]
     # 13.-17. the local filling per zone (section 3.1, Fig. 4), from the zones' ``filling``
     # (eq. 2 with porosity 0.4 per zone); a summary made before its zones kept it leaves
     # these statements unevaluated
+    no_filling = "not evaluated (its summary keeps no local filling)"
+    no_filling_table = "not evaluated (the table keeps no local filling)"
+
     def fillings(st):
         f = {z["name"]: z.get("filling") for z in st["zones"]}
         return None if any(v is None for v in f.values()) else f
@@ -880,11 +883,11 @@ def deviation_rows(out_dir=None, summary=None, paper_summary=None) -> list[dict]
         add_row(statement, paper, fn, keys, accept, note)
         r = rows[n0]
         if r["coupled"] == "not run" and any(runs["coupled"].get(k) for k in keys):
-            r["verdict"] = "not evaluated (its summary keeps no local filling)"
+            r["verdict"] = no_filling
         if r["full"] == "not evaluated":
-            r["full"] = "not evaluated (its summary keeps no local filling)"
+            r["full"] = no_filling
         if r["prescribed"] == "not run" and any(runs["prescribed"].get(k) for k in keys):
-            r["prescribed"] = "not evaluated (the table keeps no local filling)"
+            r["prescribed"] = no_filling_table
 
     filling_row("local filling lowest in V1 and V4, all cases (section 3.1, Fig. 4)",
                 "lowest V1, V4", lambda st: ranked(st, "lowest"), all_keys,
@@ -909,17 +912,16 @@ def deviation_rows(out_dir=None, summary=None, paper_summary=None) -> list[dict]
         sec, sec_txt = over("coupled")
         fs, fs_txt = over("full") if has_full else (None, "not run")
         if fs_txt == "not evaluated":
-            fs_txt = "not evaluated (its summary keeps no local filling)"
+            fs_txt = no_filling
         full_ok = None if fs is None else accept(fs)
         if sec is None:
-            verdict_txt = ("not evaluated (its summary keeps no local filling)"
-                           if any(runs["coupled"].get(k) for k in keys) else "not run")
+            verdict_txt = no_filling if any(runs["coupled"].get(k) for k in keys) else "not run"
         else:
             verdict_txt = verdict(accept(sec), full_ok, f" ({rule})")
         rows.append(dict(statement=statement, paper=paper, coupled=sec_txt,
                          full=fs_txt if fs is None else f"{fs_txt} ({'holds' if full_ok else 'missed'})",
                          full_state="not judged" if fs is None else "holds" if full_ok else "missed",
-                         prescribed="not evaluated (the table keeps no local filling)",
+                         prescribed=no_filling_table,
                          verdict=verdict_txt))
 
     def by_zone(got, fn):
