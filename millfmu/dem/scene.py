@@ -26,8 +26,9 @@ if sys.version_info >= (3, 11):
 else:  # pragma: no cover
     import tomli as tomllib
 
-from millfmu.dem.coupling.settings import (DPM_DRAG_LAWS, PRESSURE_GRADIENT_TIMINGS,
-                                           SMOOTHINGS, CouplingSettings)
+from millfmu.dem.coupling.settings import (BEAD_STRESS_FORCES, DPM_DRAG_LAWS,
+                                           PRESSURE_GRADIENT_TIMINGS, SMOOTHINGS,
+                                           CouplingSettings)
 from millfmu.dem.engine.params import BeadMaterial
 from millfmu.dem.engine.sim import DemSimulation, FluidSettings
 from millfmu.dem.fluid.settings import DEFAULT_PRESSURE_SOLVER, PRESSURE_SOLVERS
@@ -188,6 +189,9 @@ class DemScene:
             smoothing += f", pressure by {c.pressure_solver}"
         timing = (" (pressure gradient of the interval just solved)"
                   if c.model == "A" and c.pressure_gradient == "this_interval" else "")
+        if c.bead_stress_force != "none":
+            timing += (" with the beads' viscous-stress force (Anderson & Jackson 1967, "
+                       "CFDEM's viscForce)")
         return (f"coupled CFD-DEM: volume-averaged Navier-Stokes model {c.model}{timing}, "
                 f"turbulence {c.turbulence}, Koch-Hill drag, cylindrical grid of "
                 f"~{c.cell_m * 1e3:g} mm cells, {c.n_theta} theta cell(s), coupling every "
@@ -553,7 +557,7 @@ _COUPLED_KEYS = {"vans_model": str, "turbulence": str, "coupling_steps": int, "c
                  "n_theta": int, "smoothing_diameters": float, "eps_min": float,
                  "cfl": float, "scheme": str, "cfd_step_s": float,
                  "pressure_gradient": str, "smoothing": str, "smoothing_steps": int,
-                 "pressure_solver": str, "dpm_drag": str}
+                 "pressure_solver": str, "dpm_drag": str, "bead_stress_force": str}
 
 
 def _fluid_from_dict(fluid: dict, dia: float):
@@ -631,7 +635,9 @@ def _coupling_from_dict(c: dict) -> CouplingSettings:
                          else d.smoothing_steps),
         pressure_solver=(kw["pressure_solver"] if kw["pressure_solver"] is not None
                          else d.pressure_solver),
-        dpm_drag=kw["dpm_drag"] if kw["dpm_drag"] is not None else d.dpm_drag)
+        dpm_drag=kw["dpm_drag"] if kw["dpm_drag"] is not None else d.dpm_drag,
+        bead_stress_force=(kw["bead_stress_force"] if kw["bead_stress_force"] is not None
+                           else d.bead_stress_force))
     if out.pressure_solver not in PRESSURE_SOLVERS:
         raise DemSceneError(f"fluid.coupled.pressure_solver = {out.pressure_solver!r}: "
                             f"allowed {list(PRESSURE_SOLVERS)}")
@@ -670,6 +676,14 @@ def _coupling_from_dict(c: dict) -> CouplingSettings:
                             f"pressure-gradient force; leave it out")
     if out.model not in ("A", "B"):
         raise DemSceneError(f"fluid.coupled.vans_model = {out.model!r}: allowed 'A', 'B'")
+    if out.bead_stress_force not in BEAD_STRESS_FORCES:
+        raise DemSceneError(f"fluid.coupled.bead_stress_force = {out.bead_stress_force!r}: "
+                            f"allowed {list(BEAD_STRESS_FORCES)}")
+    if out.bead_stress_force != "none" and (out.scheme == "dpm" or out.model != "A"):
+        raise DemSceneError(f"fluid.coupled.bead_stress_force = {out.bead_stress_force!r}: "
+                            f"only model A (vans_model = 'A', scheme 'vans') gives the beads "
+                            f"the generalized buoyancy; model B's drag over eps carries it, "
+                            f"the discrete phase model has no stresses of the mixture")
     if out.turbulence not in ("k_epsilon", "laminar"):
         raise DemSceneError(f"fluid.coupled.turbulence = {out.turbulence!r}: allowed "
                             f"'k_epsilon', 'laminar'")

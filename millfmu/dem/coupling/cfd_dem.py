@@ -14,8 +14,10 @@ and coupling 5e-5 s):
    the drag implicit in its velocity;
 3. grid -> beads: the fluid velocity averaged over the interval's substeps and the pressure
    gradient, read at each bead through the transposed projection; the bead's force
-   F_i = c_i (u(x_i) - v_i) - V_i grad p(x_i) (model A; model B: drag only, beta / eps) is
-   held over the next ``steps`` DEM steps (``DemSimulation.fext``, in cylindrical
+   F_i = c_i (u(x_i) - v_i) - V_i grad p(x_i) (model A; model B: drag only, beta / eps;
+   model A with ``bead_stress_force``: its last term - V_i (grad p - div tau)(x_i),
+   :mod:`millfmu.dem.fluid.anderson_jackson1967`, the reaction deposited as the pressure
+   part's) is held over the next ``steps`` DEM steps (``DemSimulation.fext``, in cylindrical
    components so that its torque about the axis is exact).
 
 Conservation: the fluid's momentum sink sum_f (C_f u_f - D_f) equals the beads' gain
@@ -60,7 +62,8 @@ class CfdDem:
         self._gradient_now = settings.pressure_gradient == "this_interval"
         self.solver = FluidSolver(grid, fluid, omega_rad_per_s, settings.turbulence,
                                   settings.model, cfl=settings.cfl,
-                                  pressure_solver=settings.pressure_solver)
+                                  pressure_solver=settings.pressure_solver,
+                                  stress_force=settings.bead_stress_force != "none")
         d = 2.0 * float(sim.rad.max())
         self.projector = Projector(grid, settings.smoothing_diameters * d, settings.eps_min,
                                    settings.smoothing, settings.smoothing_steps)
@@ -249,7 +252,8 @@ class CfdDem:
             (s._F, s._W, s._K, s._driven, s._acc, s.wall, s.wall_om, s.rf, s.rc, s.dr,
              s.vc),
             (s.rho, s.nu, VANE_SLIP_TIME_S, s.omega, s.om_shaft, s.body_z, s.dth, s.dz,
-             s.cfl, s.interval_s or 0.0, s.turbulence == "k_epsilon", s.model == "A"),
+             s.cfl, s.interval_s or 0.0, s.turbulence == "k_epsilon", s.model == "A",
+             s.stress_force),
             (s.pressure._cells, s.pressure.volume, s.pressure._volume_sum, fac.indptr,
              fac.indices, fac.values, fac.inv_d, fac.order, fac._rhs, fac._work, fac._x,
              phi, s._div))

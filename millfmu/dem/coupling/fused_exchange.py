@@ -59,7 +59,7 @@ def exchange_interval(beads, bead_prm, stencil, grid, smooth, nodes, liquid, liq
     - nodes: eps_c, eps_r, eps_t, eps_z, kd_r, kd_t, kd_z, sd_r, sd_t, sd_z;
     - liquid: F, W, K, driven, acc, wall, wall_om, rf, rc, dr, vc;
     - liquid_prm: rho, nu, slip_s, omega, om_shaft, body_z, dth, dz, cfl, interval_s
-      (the solver's), kturb, model_a;
+      (the solver's), kturb, model_a, stress_force;
     - factor: cells, volume, volume_sum, lp, li, lx, inv_d, order, rhs, y, x, phi, div.
 
     same_eps: the liquid's previous void fraction taken as the new one (the first
@@ -77,7 +77,7 @@ def exchange_interval(beads, bead_prm, stencil, grid, smooth, nodes, liquid, liq
     eps_c, eps_r, eps_t, eps_z, kd_r, kd_t, kd_z, sd_r, sd_t, sd_z = nodes
     F, W, K, driven, acc, wall, wall_om, rf, rc, dr, vc = liquid
     (rho, nu, slip_s, omega, om_sh, body_z, dth, dz, cfl, interval_s, kturb,
-     model_a) = liquid_prm
+     model_a, stress_force) = liquid_prm
     cells, volume, volume_sum, lp, li, lx, inv_d, order, rhs, y, xs, phi, div = factor
     shapev = (cellv.shape[0], solid.shape[0], solid.shape[1], solid.shape[2])
 
@@ -113,7 +113,7 @@ def exchange_interval(beads, bead_prm, stencil, grid, smooth, nodes, liquid, liq
         nsub = max(1, int(math.ceil(rest / dt_stable - 1e-9)))
         dt = rest / nsub
         predict_velocities(F, W, K, rf, rc, dr, vc, dth, dz, om_sh, rho, nu, kturb,
-                           model_a, body_z, dt)
+                           model_a, stress_force, body_z, dt)
         if tasks:
             solve_beside_sums(F, W, K, rf, rc, dr, vc, dth, dz, rho, dt, interval_s, acc,
                               div.reshape(-1), cells, volume, volume_sum, lp, li, lx, inv_d,

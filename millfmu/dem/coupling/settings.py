@@ -9,7 +9,7 @@ from dataclasses import dataclass
 from millfmu.dem.fluid.settings import DEFAULT_PRESSURE_SOLVER, PRESSURE_SOLVERS
 
 __all__ = ["PRESSURE_GRADIENT_TIMINGS", "SMOOTHINGS", "DPM_DRAG_LAWS", "PRESSURE_SOLVERS",
-           "DEFAULT_PRESSURE_SOLVER", "CouplingSettings"]
+           "DEFAULT_PRESSURE_SOLVER", "BEAD_STRESS_FORCES", "CouplingSettings"]
 
 
 #: Model A's pressure-gradient force on the beads, by the interval whose gradient it takes:
@@ -42,6 +42,14 @@ SMOOTHINGS = ("explicit_diffusion", "split_implicit")
 #:   sees no void fraction.
 DPM_DRAG_LAWS = ("schiller_naumann", "koch_hill2001")
 
+#: Model A's generalized buoyancy on the beads (``bead_stress_force``):
+#: - ``none``: its pressure part -V_i grad p only, the liquid's stresses weighted by eps (the
+#:   share (1 - eps) div tau reaches neither phase);
+#: - ``anderson_jackson1967``: its viscous part V_i div tau too, as Anderson and Jackson's
+#:   equations and CFDEM's model A (``viscForce``) have it; the liquid's stresses carry no
+#:   eps and the beads' force is taken from them (millfmu.dem.fluid.anderson_jackson1967).
+BEAD_STRESS_FORCES = ("none", "anderson_jackson1967")
+
 
 @dataclass(frozen=True)
 class CouplingSettings:
@@ -68,3 +76,6 @@ class CouplingSettings:
     pressure_gradient: str = "previous_interval"
     cfd_step_s: float = 0.01  # dpm: CFD step and exchange interval [s] (seed 002: 0.01)
     dpm_drag: str = "schiller_naumann"  # dpm: the beads' drag law (DPM_DRAG_LAWS)
+    # model A: whether the beads take the viscous part of the generalized buoyancy
+    # (BEAD_STRESS_FORCES)
+    bead_stress_force: str = "none"

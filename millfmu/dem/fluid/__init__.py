@@ -7,7 +7,9 @@ cylindrical staggered grid (unresolved CFD-DEM, the CFD half).
 - :mod:`~millfmu.dem.fluid.pressure`: the projection's pressure equation;
 - :mod:`~millfmu.dem.fluid.k_epsilon`: standard k-epsilon with wall functions
   (Launder & Spalding 1974), or ``laminar``;
-- :mod:`~millfmu.dem.fluid.solver`: :class:`FluidSolver`, the state and the time step.
+- :mod:`~millfmu.dem.fluid.solver`: :class:`FluidSolver`, the state and the time step;
+- :mod:`~millfmu.dem.fluid.anderson_jackson1967`: model A's beads' share of the viscous
+  stress (an option: ``[fluid.coupled] bead_stress_force``).
 
 The beads are coupled by :mod:`millfmu.dem.coupling`. numba is imported only by the kernel
 modules, which the solver loads when it is built.

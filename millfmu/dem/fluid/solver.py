@@ -12,7 +12,9 @@ use that).
 One call of :meth:`FluidSolver.advance` covers a coupling interval in as many equal
 substeps as the advective CFL number (default 0.4) and the explicit diffusion limit need,
 and returns nothing; the node velocities and pressure gradients averaged over the
-substeps (what the beads feel over that interval) are in ``mean_u`` and ``mean_gp``.
+substeps (what the beads feel over that interval) are in ``mean_u`` and ``mean_gp`` (with
+``stress_force``, model A's beads' share of the viscous stress too: ``mean_gp`` then holds
+grad p - div tau, :mod:`~millfmu.dem.fluid.anderson_jackson1967`).
 Torques the fluid exerts on rotor and stator are accumulated as angular impulse [N m s]
 over time so that any window's mean torque follows from two readings.
 """
@@ -61,10 +63,14 @@ class FluidProperties:
         return self.viscosity_Pa_s / self.density_kg_per_m3
 
 
-def _check_options(model: str, turbulence: str, cfl: float) -> None:
-    """Refuse by name (FluidError) a model, turbulence model or CFL number not allowed."""
+def _check_options(model: str, turbulence: str, cfl: float, stress_force: bool = False) -> None:
+    """Refuse by name (FluidError) a model, turbulence model or CFL number not allowed, and
+    the beads' stress force with a model other than A."""
     if model not in MODELS:
         raise FluidError(f"fluid model = {model!r}: allowed {list(MODELS)}")
+    if stress_force and model != "A":
+        raise FluidError(f"stress_force with fluid model = {model!r}: only model A gives the "
+                         f"beads the generalized buoyancy (model B's drag over eps carries it)")
     if turbulence not in TURBULENCE:
         raise FluidError(f"turbulence = {turbulence!r}: allowed {list(TURBULENCE)}")
     if not 0.0 < cfl <= 0.5:
@@ -74,17 +80,19 @@ def _check_options(model: str, turbulence: str, cfl: float) -> None:
 class FluidSolver:
     """VANS solver (model "A" or "B", turbulence "k_epsilon" or "laminar") on ``grid``,
     with the rotor (shaft if ``grid.shaft_rotates``, and ROTOR cells) turning at
-    ``omega_rad_per_s`` [rad/s] about +z."""
+    ``omega_rad_per_s`` [rad/s] about +z. ``stress_force`` (model A): the beads take their
+    share of the resolved viscous stress (:mod:`~millfmu.dem.fluid.anderson_jackson1967`)."""
 
     def __init__(self, grid: CylGrid, fluid: FluidProperties = FluidProperties(),
                  omega_rad_per_s: float = 0.0, turbulence: str = "k_epsilon", model: str = "A",
-                 cfl: float = 0.4, pressure_solver: str = DEFAULT_PRESSURE_SOLVER):
+                 cfl: float = 0.4, pressure_solver: str = DEFAULT_PRESSURE_SOLVER,
+                 stress_force: bool = False):
         # numba kernels: compiled when a fluid is built, not with a scene file.
         from millfmu.dem.fluid import k_epsilon as KE
         from millfmu.dem.fluid import step_kernels as SK
         from millfmu.dem.fluid import vans_kernels as VK
 
-        _check_options(model, turbulence, cfl)
+        _check_options(model, turbulence, cfl, stress_force)
         self.VK = VK
         self.KE = KE
         self.SK = SK
@@ -93,6 +101,7 @@ class FluidSolver:
         self.rho = float(fluid.density_kg_per_m3)
         self.nu = float(fluid.nu_m2_per_s)
         self.model = model
+        self.stress_force = bool(stress_force)
         self.turbulence = turbulence
         self.cfl = float(cfl)
         g = grid
@@ -332,7 +341,7 @@ class FluidSolver:
             dt = rest / max(1, int(math.ceil(rest / self._dt_stable - 1e-9)))
             SK.predictor(self._F, self._W, self._K, self.rf, self.rc, self.dr, self.vc,
                          self.dth, self.dz, self.om_shaft, rho, nu, kturb, model_a,
-                         self.body_z, dt, self.interval_s or 0.0, acc)
+                         self.stress_force, self.body_z, dt, self.interval_s or 0.0, acc)
             phi = self.pressure.solve(self._div)
             self._dt_stable = SK.corrector(self._F, self._W, self._K, phi, self.wall,
                                            self.wall_om, self.rf, self.rc, self.dr, self.vc,
@@ -408,6 +417,9 @@ class FluidSolver:
         # a solver pickled by sources before the plates' torque was counted (a run's
         # checkpoint) goes on with it counted from the resume on
         self.__dict__.update(state)
+        if "stress_force" not in state:
+            # sources before the beads' stress force: model A's beads had none
+            self.stress_force = False
         if "_plate_faces" not in state:
             self._plate_faces = self._find_plate_faces()
             self.angular_impulse_plates_nms = 0.0
@@ -451,7 +463,10 @@ class FluidSolver:
         return float(np.abs(b[self.solid == FLUID]).max())
 
     def describe(self) -> dict:
-        return dict(model=self.model, turbulence=self.turbulence, grid=self.grid.describe(),
-                    density_kg_per_m3=self.rho, viscosity_Pa_s=self.fluid.viscosity_Pa_s,
-                    pressure=PRESSURE_DESCRIPTIONS[self.pressure.method],
-                    cfl=self.cfl)
+        d = dict(model=self.model, turbulence=self.turbulence, grid=self.grid.describe(),
+                 density_kg_per_m3=self.rho, viscosity_Pa_s=self.fluid.viscosity_Pa_s,
+                 pressure=PRESSURE_DESCRIPTIONS[self.pressure.method],
+                 cfl=self.cfl)
+        if self.stress_force:
+            d["bead_stress_force"] = "anderson_jackson1967"
+        return d

@@ -14,6 +14,7 @@ import math
 import numpy as np
 
 from millfmu.dem.engine._jit import serial
+from millfmu.dem.fluid import anderson_jackson1967 as AJ
 from millfmu.dem.fluid import k_epsilon as KE
 from millfmu.dem.fluid import vans_kernels as VK
 
@@ -27,8 +28,8 @@ KR, KTH, KZ, SOLID = range(4)
 
 
 @serial
-def predictor(F, W, K, rf, rc, dr, vc, dth, dz, om_sh, rho, nu, kturb, model_a, body_z,
-              dt, interval, acc):
+def predictor(F, W, K, rf, rc, dr, vc, dth, dz, om_sh, rho, nu, kturb, model_a,
+              stress_force, body_z, dt, interval, acc):
     """Explicit part and implicit-drag predictor of one substep of dt [s]; leaves the
     projection's right-hand side (rho / dt) (net outflow of eps u* + V d eps / dt) in
     W[DIV] and adds to acc: [0] shaft, [1] rotor cells and vanes, [2] stator angular impulse
@@ -38,16 +39,19 @@ def predictor(F, W, K, rf, rc, dr, vc, dth, dz, om_sh, rho, nu, kturb, model_a, 
     the last two are independent (the fused exchange runs them side by side):
     :func:`predict_velocities`, :func:`predictor_sums`, :func:`projection_rhs`."""
     predict_velocities(F, W, K, rf, rc, dr, vc, dth, dz, om_sh, rho, nu, kturb, model_a,
-                       body_z, dt)
+                       stress_force, body_z, dt)
     predictor_sums(F, W, K, rf, rc, vc, dth, dz, dt, acc)
     projection_rhs(F, W, rf, dr, vc, dth, dz, rho, dt, interval)
 
 
 @serial
 def predict_velocities(F, W, K, rf, rc, dr, vc, dth, dz, om_sh, rho, nu, kturb, model_a,
-                       body_z, dt):
+                       stress_force, body_z, dt):
     """The predictor's first part: fluxes, stresses, explicit rates, pressure gradients and
-    the implicit-drag predicted velocities u* (in place of u)."""
+    the implicit-drag predicted velocities u* (in place of u). stress_force (model A): the
+    beads take the resolved viscous stress's share too
+    (:mod:`~millfmu.dem.fluid.anderson_jackson1967`): the stresses carry no eps, and
+    -dt div tau joins the interval's pressure-gradient sums, which the beads read."""
     kr, kt, kz, solid = K[KR], K[KTH], K[KZ], K[SOLID]
     ur, ut, uz = F[UR], F[UT], F[UZ]
     VK.face_fluxes(ur, ut, uz, F[EPSR], F[EPST], F[EPSZ], rf, dr, vc, dth, dz, W[FR], W[FT],
@@ -55,6 +59,8 @@ def predict_velocities(F, W, K, rf, rc, dr, vc, dth, dz, om_sh, rho, nu, kturb, 
     if kturb:
         KE.eddy_viscosity(F[KT], F[ET], solid, F[NUT])
     em = W[EM]
+    # the stresses' weight: eps in model A, unless the beads take their share of them
+    eps_weight = model_a and not stress_force
     nr, nt, nz = ut.shape
     for i in range(nr):
         for j in range(nt):
@@ -62,13 +68,16 @@ def predict_velocities(F, W, K, rf, rc, dr, vc, dth, dz, om_sh, rho, nu, kturb, 
                 if solid[i, j, k] != 0:
                     em[i, j, k] = 0.0
                 else:
-                    a = F[EPSC][i, j, k] if model_a else 1.0
+                    a = F[EPSC][i, j, k] if eps_weight else 1.0
                     em[i, j, k] = a * rho * (nu + F[NUT][i, j, k])
     VK.stresses(ur, ut, uz, kr, kt, kz, em, F[EPSC], F[KT], solid, rf, rc, dr, dth, dz, om_sh,
-                rho, nu, kturb, model_a, W[TRR], W[TTT], W[TZZ], W[S2], W[ERT], W[ERZ],
+                rho, nu, kturb, eps_weight, W[TRR], W[TTT], W[TZZ], W[S2], W[ERT], W[ERZ],
                 W[ETZ], W[GRT], W[GRZ], W[GTZ])
     VK.rates(ur, ut, uz, W[FR], W[FT], W[FZ], kr, kt, kz, W[TRR], W[TTT], W[TZZ], W[ERT],
              W[ERZ], W[ETZ], F[EPSR], rf, rc, dr, vc, dth, dz, rho, W[RR], W[RT], W[RZ])
+    if stress_force:
+        AJ.add_stress_force(W[TRR], W[TTT], W[TZZ], W[ERT], W[ERZ], W[ETZ], kr, kt, kz, rf, rc,
+                            dr, vc, dth, dz, -dt, F[MGR], F[MGT], F[MGZ])
     VK.pressure_gradients(F[P], solid, rc, dr, dth, dz, W[GPR], W[GPT], W[GPZ])
     VK.predict(ur.reshape(-1), kr.reshape(-1), F[EPSR].reshape(-1), W[RR].reshape(-1),
                F[KDR].reshape(-1), F[SDR].reshape(-1), W[GPR].reshape(-1), 0.0, rho, dt,

@@ -72,6 +72,8 @@ KERNEL_MODULES = {
     "millfmu.dem.coupling.fused_exchange": "millfmu.dem.coupling.fused_exchange",
     # the neighbour lists carried through a reordering of the beads
     "millfmu.dem.engine.reorder": "millfmu.dem.engine.reorder",
+    # model A's beads' share of the viscous stress (off unless a scene names it)
+    "millfmu.dem.fluid.anderson_jackson1967": "millfmu.dem.fluid.anderson_jackson1967",
 }
 
 #: Source hash -> the kernel version it stands for, where sources changed without changing
@@ -407,6 +409,13 @@ SAME_DEM_AS = {
     # analysis.flow_structure.FIRST_LAYER_DIAMETERS (0.75, the literal it replaces) in the
     # run's statistics (a plain disc sector gives the same outputs to the bit)
     "sha256:59694c5e4e2752822505257f14a45f8d10106172c5a73c4a16744fa0d41b8c48":
+        "sha256:97f753cea048d151d29bfc09ed08fc9161f206eb44b7bf748a0474d96810be97",
+    # and model A's beads' viscous-stress force as an option of its own
+    # ([fluid.coupled] bead_stress_force, fluid.anderson_jackson1967; off by default: the
+    # coupled disc sector on 1 and 2 threads, with direct_lu and with 4 theta cells, the plain
+    # disc sector, the accelerator slice by model B and A and by the discrete phase model give
+    # the same outputs to the bit, the new sources' kernels compiled afresh)
+    "sha256:7ab47fda7f5e5a82dbddfe4d09b663cffa6a9670eb3a100726a39c851bf9c682":
         "sha256:97f753cea048d151d29bfc09ed08fc9161f206eb44b7bf748a0474d96810be97",
 }
 
