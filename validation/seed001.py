@@ -73,6 +73,21 @@ def with_wall_friction(scene, mu: float | None):
     return scene.with_overrides(wall_friction=mu)
 
 
+def with_bead_stress_force(scene, name: str | None):
+    """The scene with model A's beads' viscous-stress force ``name`` (one of
+    :data:`millfmu.dem.coupling.settings.BEAD_STRESS_FORCES`; None: the scene's own, none);
+    ValueError naming an unknown one."""
+    from dataclasses import replace
+
+    from millfmu.dem.coupling.settings import BEAD_STRESS_FORCES
+
+    if name is None:
+        return scene
+    if name not in BEAD_STRESS_FORCES:
+        raise ValueError(f"bead stress force {name!r}: allowed {list(BEAD_STRESS_FORCES)}")
+    return replace(scene, coupling=replace(scene.coupling, bead_stress_force=name))
+
+
 #: seed 001's stated numbers of beads in its slice at its lowest and highest filling [-]
 #: (section 2.1: "between 155,520 and 289,951" for 50 to 90 %)
 STATED_BEAD_COUNTS = ((0.5, 155_520), (0.9, 289_951))
@@ -133,19 +148,21 @@ def with_stated_count(scene, stated: bool):
 
 def run_campaign(out_dir, fluids=("coupled", "prescribed"), sector_deg: float = 10.0,
                  cases=CASES, threads=None, progress=True, smoothing_diameters=None,
-                 wall_friction=None, stated_counts=False):
+                 wall_friction=None, stated_counts=False, bead_stress_force=None):
     """Run the cases that have no stats.json yet, the protocol of the table in docs/validation-seed001.md:
     no gravity, 10 degree sector, coupled runs started at COUPLED_INITIAL_ROTATION and spun
     up for COUPLED_SPIN_UP_S (27-62 stirrer revolutions at 6-14 m/s); RECORD_S of recording
     in windows of WINDOW_S; samples every 0.01 s. ``smoothing_diameters``: the coupled
     exchange's smoothing length instead of the scene's, ``wall_friction`` the bead-wall
     friction instead of the beads', ``stated_counts`` the number of beads seed 001 states
-    instead of eq. 2's at each filling (variants of the campaign)."""
+    instead of eq. 2's at each filling, ``bead_stress_force`` model A's beads' viscous-stress
+    force by name (:func:`with_bead_stress_force`) (variants of the campaign)."""
     from millfmu.dem.run import run_scene
     from millfmu.dem.scene import load_scene
 
-    base = with_wall_friction(with_smoothing(load_scene("disc_slice"), smoothing_diameters),
-                              wall_friction)
+    base = with_bead_stress_force(
+        with_wall_friction(with_smoothing(load_scene("disc_slice"), smoothing_diameters),
+                           wall_friction), bead_stress_force)
     for fluid in fluids:
         for vt, fill in cases:
             deg = stated_count_sector_deg(fill, sector_deg, base) if stated_counts else sector_deg
@@ -356,7 +373,7 @@ def compact(st: dict) -> dict:
 
 
 def summarize(out_dir, path=None, full_slice: bool = False, smoothing_diameters=None,
-              wall_friction=None, stated_counts=False) -> Path:
+              wall_friction=None, stated_counts=False, bead_stress_force=None) -> Path:
     """Write the compact stats of the coupled cases in ``out_dir`` (:func:`compact`) to
     ``path`` (default :data:`SUMMARY`), with the protocol and the command that made them;
     ``full_slice``: instead the full slice's cases found there (:func:`run_full_slice`),
@@ -364,8 +381,9 @@ def summarize(out_dir, path=None, full_slice: bool = False, smoothing_diameters=
     the other's part of the file.
     ``smoothing_diameters``: the runs' smoothing length where it is not the scene's,
     ``wall_friction`` their bead-wall friction where it is not the beads', ``stated_counts``
-    where they hold seed 001's stated number of beads (a variant campaign, summarized into a
-    file of its own; each run keeps eq. 2's filling it ran at)."""
+    where they hold seed 001's stated number of beads, ``bead_stress_force`` the beads'
+    viscous-stress force they ran with (a variant campaign, summarized into a file of its
+    own; a stated-count run keeps eq. 2's filling it ran at)."""
     p = Path(path) if path is not None else SUMMARY
     old = json.loads(p.read_text()) if p.exists() else {}
     protocol = {"initial_rotation": COUPLED_INITIAL_ROTATION, "spin_up_s": COUPLED_SPIN_UP_S,
@@ -407,7 +425,8 @@ def summarize(out_dir, path=None, full_slice: bool = False, smoothing_diameters=
                                             "stats": compact(st)}
         var = ("" if smoothing_diameters is None else f" --smoothing-diameters {smoothing_diameters:g}") + \
             ("" if wall_friction is None else f" --wall-friction {wall_friction:g}") + \
-            (" --stated-bead-counts" if stated_counts else "")
+            (" --stated-bead-counts" if stated_counts else "") + \
+            ("" if bead_stress_force is None else f" --bead-stress-force {bead_stress_force}")
         dest = "" if path is None else f" --summary validation/runs/{Path(path).name}"
         doc = {"note": ("seed 001's cases on the coupled 10-degree disc sector without gravity: per zone "
                         "what the deviation table reads (units: m3, 1/(m3 s), W, J), the flow's first "
@@ -421,12 +440,18 @@ def summarize(out_dir, path=None, full_slice: bool = False, smoothing_diameters=
                         + ("" if not stated_counts else
                            "; a variant: the number of beads seed 001 states (155,520 at 50 %, "
                            "289,951 at 90 %, linear between), not eq. 2's on its stated geometry; "
-                           "each run's filling_eq2 is eq. 2's filling it ran at")),
+                           "each run's filling_eq2 is eq. 2's filling it ran at")
+                        + ("" if bead_stress_force is None else
+                           f"; a variant: model A's beads take the viscous stress's share too "
+                           f"({bead_stress_force}), which seed 001 (CFDEM's model A) names no "
+                           f"force models of")),
                "protocol": dict(protocol, sector_deg=10.0, gravity_m_per_s2=[0.0, 0.0, 0.0], threads=1,
                                 **({} if smoothing_diameters is None else
                                    {"smoothing_diameters": smoothing_diameters}),
                                 **({} if wall_friction is None else {"wall_friction": wall_friction}),
-                                **({"bead_counts": "seed 001's stated"} if stated_counts else {})),
+                                **({"bead_counts": "seed 001's stated"} if stated_counts else {}),
+                                **({} if bead_stress_force is None else
+                                   {"bead_stress_force": bead_stress_force})),
                "command": f"python -m validation.seed001 run --out DIR --fluid coupled --threads 1{var}, then "
                           f"python -m validation.seed001 summarize --out DIR{var}{dest}",
                "runs": runs}
@@ -1021,6 +1046,9 @@ def parser() -> argparse.ArgumentParser:
                    "variant of the sector campaign with the number of beads seed 001 states "
                    "(155,520 at 50 %%, 289,951 at 90 %%, linear between) instead of its eq. 2's "
                    "on its stated geometry (5.7-9.5 %% fewer)")
+    s.add_argument("--bead-stress-force", metavar="NAME", help="run and summarize: a variant of "
+                   "the sector campaign whose model A beads take the viscous stress's share too "
+                   "(anderson_jackson1967) instead of the pressure's alone")
     s.add_argument("--summary", metavar="FILE", help="summarize and table: this summary instead of "
                    "validation/runs/seed001_sector.json")
     s.add_argument("--full-slice", action="store_true", help="run: instead seed 001's own "
@@ -1049,7 +1077,8 @@ def main(argv=None) -> int:
             wrote = summarize(args.out, path=args.summary, full_slice=args.full_slice,
                               smoothing_diameters=args.smoothing_diameters,
                               wall_friction=args.wall_friction,
-                              stated_counts=args.stated_bead_counts)
+                              stated_counts=args.stated_bead_counts,
+                              bead_stress_force=args.bead_stress_force)
             print(f"wrote {wrote}")
         except FileNotFoundError as e:
             print(f"python -m validation.seed001 summarize: {e}", file=sys.stderr)
@@ -1076,7 +1105,8 @@ def main(argv=None) -> int:
             run_campaign(args.out, fluids=fluids, threads=args.threads,
                          smoothing_diameters=args.smoothing_diameters,
                          wall_friction=args.wall_friction,
-                         stated_counts=args.stated_bead_counts)
+                         stated_counts=args.stated_bead_counts,
+                         bead_stress_force=args.bead_stress_force)
         except ValueError as e:
             print(f"python -m validation.seed001: {e}", file=sys.stderr)
             return 2

@@ -305,6 +305,30 @@ def test_a_wall_friction_variant_runs_and_is_summarized_as_such(tmp_path):
     assert S.main(["run", "--out", str(out), "--wall-friction", "-1", "--fluid", "coupled"]) == 2
 
 
+def test_a_stress_force_variant_runs_and_is_summarized_as_such(tmp_path):
+    """--bead-stress-force NAME: the campaign's scene whose model A beads take the viscous
+    stress's share too (an unknown name refused), its summary in a file of its own saying
+    so, with the commands that rebuild it."""
+    from millfmu.dem.scene import load_scene
+
+    base = load_scene("disc_slice")
+    assert S.with_bead_stress_force(base, None) is base
+    var = S.with_bead_stress_force(base, "anderson_jackson1967")
+    assert var.coupling.bead_stress_force == "anderson_jackson1967" and base.coupling.bead_stress_force == "none"
+    assert var.geometry == base.geometry and var.material == base.material
+    with pytest.raises(ValueError, match=r"bead stress force 'viscForce': allowed \['none', 'anderson_jackson1967'\]"):
+        S.with_bead_stress_force(base, "viscForce")
+    out, p, doc = _variant_summarized(tmp_path, "seed001_sector_stress_force.json",
+                                      bead_stress_force="anderson_jackson1967")
+    assert doc["protocol"]["bead_stress_force"] == "anderson_jackson1967"
+    assert "viscous stress's share too (anderson_jackson1967)" in doc["note"]
+    assert doc["command"].startswith("python -m validation.seed001 run --out DIR --fluid coupled "
+                                      "--threads 1 --bead-stress-force anderson_jackson1967, then")
+    assert doc["command"].endswith("summarize --out DIR --bead-stress-force anderson_jackson1967 "
+                                   "--summary validation/runs/seed001_sector_stress_force.json")
+    assert S.main(["run", "--out", str(out), "--bead-stress-force", "viscForce", "--fluid", "coupled"]) == 2
+
+
 def test_the_no_smoothing_variants_count_on_the_page_is_its_summarys():
     """The page's count of the campaign with no smoothing (a variant, not counted) follows
     from its kept summary, validation/runs/seed001_sector_smoothing0.json."""
@@ -312,6 +336,20 @@ def test_the_no_smoothing_variants_count_on_the_page_is_its_summarys():
     assert "with no smoothing (a variant, not counted:" in text
     judged = c["statements"] - c["not evaluated"]
     assert f"the sector matches {c['matches']} of the {judged} statements it judges: it gains the first layer" in text
+    layer = next(r for r in rows if r["statement"].startswith("angular velocity of the first bead layer"))
+    assert layer["verdict"].startswith("matches")
+
+
+def test_the_stress_force_variants_count_on_the_page_is_its_summarys():
+    """The page's count of the campaign whose beads take the viscous stress's share (a
+    variant, not counted) follows from its kept summary,
+    validation/runs/seed001_sector_stress_force.json, beside the campaign's own count; the
+    variant gains the first layer."""
+    rows, c, text = _kept_variant("seed001_sector_stress_force.json", "bead_stress_force",
+                                  "anderson_jackson1967")
+    own = S.count(S.deviation_rows())
+    assert (f"the sector matches {c['matches']} of the {c['statements']} statements (without it: "
+            f"{own['matches']})") in text
     layer = next(r for r in rows if r["statement"].startswith("angular velocity of the first bead layer"))
     assert layer["verdict"].startswith("matches")
 
