@@ -80,6 +80,34 @@ def test_the_source_flows_stress_divergence_vanishes():
         assert err < 1e-10
 
 
+def test_the_force_is_the_momentum_rows_viscous_term():
+    """The beads' div tau is the liquid's own viscous term: on a swirl u_theta(r) and an
+    axial flow u_z(r), which nothing advects, the theta and z rows' explicit rates times
+    rho are div tau to round-off (the kernel repeats the rows' finite volumes; this ties
+    them together)."""
+    from millfmu.dem.fluid import step_kernels as SK
+
+    for field in ("ut", "uz"):
+        g = annulus_grid(R1, R2, 0.004, 12, 4)
+        s = FluidSolver(g, FluidProperties(RHO, MU), C * R1, turbulence="laminar")
+        rc = g.r_centres_m
+        s.ur[:] = 0.0
+        s.ut[:] = (C * rc ** 2)[:, None, None] if field == "ut" else 0.0
+        s.uz[:] = (C * rc ** 2)[:, None, None] if field == "uz" else 0.0
+        _, d_t, d_z = AJ.stress_divergence(s)
+        W, F = s._W, s._F
+        s.VK.face_fluxes(s.ur, s.ut, s.uz, F[SK.EPSR], F[SK.EPST], F[SK.EPSZ], s.rf, s.dr,
+                         s.vc, s.dth, s.dz, W[SK.FR], W[SK.FT], W[SK.FZ])
+        s.VK.rates(s.ur, s.ut, s.uz, W[SK.FR], W[SK.FT], W[SK.FZ], s.kr, s.kt, s.kz,
+                   W[SK.TRR], W[SK.TTT], W[SK.TZZ], W[SK.ERT], W[SK.ERZ], W[SK.ETZ],
+                   F[SK.EPSR], s.rf, s.rc, s.dr, s.vc, s.dth, s.dz, s.rho, W[SK.RR],
+                   W[SK.RT], W[SK.RZ])
+        rate, div, kind = ((W[SK.RT], d_t, s.kt) if field == "ut" else (W[SK.RZ], d_z, s.kz))
+        solved = kind == 0
+        assert np.any(div[solved] != 0.0)
+        np.testing.assert_allclose(rate[solved] * RHO, div[solved], rtol=1e-12, atol=0.0)
+
+
 def _coupled(key):
     d = load_scene_dict("disc_slice")
     d["fluid"]["coupled"]["bead_stress_force"] = key
