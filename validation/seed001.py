@@ -443,8 +443,8 @@ def summarize(out_dir, path=None, full_slice: bool = False, smoothing_diameters=
                            "each run's filling_eq2 is eq. 2's filling it ran at")
                         + ("" if bead_stress_force is None else
                            f"; a variant: model A's beads take the viscous stress's share too "
-                           f"({bead_stress_force}), which seed 001 (CFDEM's model A) names no "
-                           f"force models of")),
+                           f"({bead_stress_force}), as CFDEMcoupling's model A requires; seed 001 "
+                           f"names no model type")),
                "protocol": dict(protocol, sector_deg=10.0, gravity_m_per_s2=[0.0, 0.0, 0.0], threads=1,
                                 **({} if smoothing_diameters is None else
                                    {"smoothing_diameters": smoothing_diameters}),
