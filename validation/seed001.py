@@ -76,16 +76,11 @@ def with_wall_friction(scene, mu: float | None):
 def with_bead_stress_force(scene, name: str | None):
     """The scene with model A's beads' viscous-stress force ``name`` (one of
     :data:`millfmu.dem.coupling.settings.BEAD_STRESS_FORCES`; None: the scene's own, none);
-    ValueError naming an unknown one."""
-    from dataclasses import replace
-
-    from millfmu.dem.coupling.settings import BEAD_STRESS_FORCES
-
+    refused by name when unknown or when the scene's liquid is not model A
+    (:meth:`DemScene.with_overrides`)."""
     if name is None:
         return scene
-    if name not in BEAD_STRESS_FORCES:
-        raise ValueError(f"bead stress force {name!r}: allowed {list(BEAD_STRESS_FORCES)}")
-    return replace(scene, coupling=replace(scene.coupling, bead_stress_force=name))
+    return scene.with_overrides(bead_stress_force=name)
 
 
 #: seed 001's stated numbers of beads in its slice at its lowest and highest filling [-]

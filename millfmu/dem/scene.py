@@ -108,7 +108,8 @@ class DemScene:
         record_s, dt_s, fluid_mode, initial_rotation, primed_s, n_theta: the coupled
         liquid's theta cells; smoothing_diameters: its exchange's smoothing length [bead
         diameters], >= 0; smoothing: its smoothing (SMOOTHINGS); pressure_solver: its
-        pressure equation's solver (PRESSURE_SOLVERS); ``baffles``: a dict of the [mill]
+        pressure equation's solver (PRESSURE_SOLVERS); bead_stress_force: model A's beads'
+        viscous-stress force (BEAD_STRESS_FORCES); ``baffles``: a dict of the [mill]
         baffle keys, BAFFLE_KEYS; wall_friction: the beads' [beads] wall_friction);
         validated like file values."""
         geo = self.geometry
@@ -123,6 +124,7 @@ class DemScene:
         smoothing_d = kw.pop("smoothing_diameters", None)
         smoothing = kw.pop("smoothing", None)
         pressure_solver = kw.pop("pressure_solver", None)
+        bead_stress_force = kw.pop("bead_stress_force", None)
         wall_friction = kw.pop("wall_friction", None)
         if kw.get("filling") is not None and self.placement != "filling":
             raise DemSceneError(f"beads.filling = {kw['filling']!r}: this scene places its beads on a lattice "
@@ -150,7 +152,8 @@ class DemScene:
             new = replace(new, coupling=replace(new.coupling, smoothing_diameters=float(smoothing_d)))
         # the coupled liquid's choices by name
         for key, value, allowed in (("smoothing", smoothing, SMOOTHINGS),
-                                    ("pressure_solver", pressure_solver, PRESSURE_SOLVERS)):
+                                    ("pressure_solver", pressure_solver, PRESSURE_SOLVERS),
+                                    ("bead_stress_force", bead_stress_force, BEAD_STRESS_FORCES)):
             if value is None:
                 continue
             if value not in allowed:
@@ -158,6 +161,12 @@ class DemScene:
             if new.coupling is None:
                 raise DemSceneError(f"{key} = {value!r}: the coupled liquid's; the fluid "
                                     f"here is {new.fluid_mode!r}")
+            if (key == "bead_stress_force" and value != "none"
+                    and (new.coupling.scheme == "dpm" or new.coupling.model != "A")):
+                raise DemSceneError(f"bead_stress_force = {value!r}: only model A (vans_model = 'A', "
+                                    f"scheme 'vans') gives the beads the generalized buoyancy; this "
+                                    f"scene's liquid is scheme {new.coupling.scheme!r}, model "
+                                    f"{new.coupling.model!r}")
             new = replace(new, coupling=replace(new.coupling, **{key: value}))
         if wall_friction is not None:
             if isinstance(wall_friction, bool) or not isinstance(wall_friction, (int, float)):

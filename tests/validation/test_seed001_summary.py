@@ -5,6 +5,7 @@ a summary and a verdict that disagree fail here."""
 from __future__ import annotations
 
 import json
+from dataclasses import replace
 from pathlib import Path
 
 import pytest
@@ -316,8 +317,12 @@ def test_a_stress_force_variant_runs_and_is_summarized_as_such(tmp_path):
     var = S.with_bead_stress_force(base, "anderson_jackson1967")
     assert var.coupling.bead_stress_force == "anderson_jackson1967" and base.coupling.bead_stress_force == "none"
     assert var.geometry == base.geometry and var.material == base.material
-    with pytest.raises(ValueError, match=r"bead stress force 'viscForce': allowed \['none', 'anderson_jackson1967'\]"):
+    with pytest.raises(ValueError,
+                       match=r"bead_stress_force = 'viscForce': allowed \['none', 'anderson_jackson1967'\]"):
         S.with_bead_stress_force(base, "viscForce")
+    with pytest.raises(ValueError, match=r"bead_stress_force = 'anderson_jackson1967': only model A .* model 'B'"):
+        S.with_bead_stress_force(replace(base, coupling=replace(base.coupling, model="B")),
+                                 "anderson_jackson1967")
     out, p, doc = _variant_summarized(tmp_path, "seed001_sector_stress_force.json",
                                       bead_stress_force="anderson_jackson1967")
     assert doc["protocol"]["bead_stress_force"] == "anderson_jackson1967"
