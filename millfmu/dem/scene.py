@@ -396,9 +396,12 @@ def scene_from_dict(d: dict, default_name: str = "scene") -> DemScene:
     run = d.get("run", {})
     output = d.get("output", {})
     f = float
-    for k in beads:
-        if k not in BEAD_KEYS:
-            raise DemSceneError(f"beads.{k}: unknown key; allowed: {sorted(BEAD_KEYS)}")
+    for table, keys, allowed in (("beads", beads, BEAD_KEYS), ("mill", mill, mill_keys(kind)),
+                                 ("run", run, RUN_KEYS), ("output", output, OUTPUT_KEYS)):
+        for k in keys:
+            if k not in allowed:
+                raise DemSceneError(f"{table}.{k}: unknown key" + (f" for {kind}" if table == "mill" else "")
+                                    + f"; allowed: {sorted(allowed)}")
     geo = _geometry_from_dict(kind, mill)
     dia = _get(beads, "diameter_m", "beads", f, 0.8e-3)
     _positive("beads.diameter_m", dia)
@@ -463,6 +466,26 @@ def _geometry_from_dict(kind: str, mill: dict) -> MillGeometry:
     return geo
 
 
+#: the keys of a scene's ``[mill]`` table for every kind, and those of each kind
+MILL_KEYS = ("shaft_radius_m", "chamber_radius_m", "sector_deg", "tip_speed_m_per_s") + BAFFLE_KEYS
+MILL_KIND_KEYS = {"disc_slice": ("disc_radius_m", "disc_thickness_m", "disc_spacing_m"),
+                  "accelerator_slice": ("rotor_radius_m", "rotor_thickness_m", "rotor_pitch_m",
+                                        "eye_radius_m", "channel_height_m", "vane_count",
+                                        "vane_thickness_m", "rotor_speed_rpm"),
+                  "annulus": ("height_m",)}
+#: the keys of a scene's ``[run]`` and ``[output]`` tables
+RUN_KEYS = ("gravity_m_per_s2", "dt_s", "spin_up_s", "record_s", "sample_every_s", "seed",
+            "initial_rotation", "primed_s")
+OUTPUT_KEYS = ("map_bins_r", "map_bins_z")
+#: the keys of a disc mill's (and an annulus's) ``[zones]`` table: seed 001's V1-V4
+DISC_ZONE_KEYS = ("v1_width_m", "r_v1_over_disc_radius", "r_v3_over_disc_radius")
+
+
+def mill_keys(kind: str) -> tuple:
+    """The keys a ``[mill]`` table of a scene of ``kind`` may hold."""
+    return MILL_KEYS + MILL_KIND_KEYS.get(kind, ())
+
+
 #: the keys of a scene's ``[beads]`` table
 BEAD_KEYS = ("diameter_m", "density_kg_per_m3", "youngs_modulus_pa", "poisson_ratio",
              "restitution", "friction", "rolling_friction", "wall_friction",
@@ -519,6 +542,9 @@ def _zones_from_dict(kind: str, zones: dict):
     slice, else seed 001's V1-V4."""
     f = float
     if kind != "accelerator_slice":
+        for k in zones:
+            if k not in DISC_ZONE_KEYS:
+                raise DemSceneError(f"zones.{k}: unknown key for {kind}; allowed: {sorted(DISC_ZONE_KEYS)}")
         return ZoneSpec(v1_width_m=_get(zones, "v1_width_m", "zones", f, 2.5e-3),
                         r_v1_over_disc_radius=_get(zones, "r_v1_over_disc_radius", "zones",
                                                    f, 0.55),
