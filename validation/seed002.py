@@ -128,16 +128,24 @@ CIRC_MAX_OVER_MEAN = 1.02
 
 def scene_for(rpm: float, filling: float, sector_deg: float | None = None,
               method: str = "physical", primed: bool = False, baffles: bool = False,
-              full_slice: bool = False):
+              full_slice: bool = False, changes: dict | None = None):
     """The accelerator slice at ``rpm`` [1/min] and ``filling`` [-] with the protocol,
     computed by ``method`` (:data:`METHODS`), with a primed start or from rest, with the
     stationary :data:`BAFFLES` or without; ``full_slice``: the paper's whole slice with
-    gravity (:data:`FULL_SLICE`) instead of the sector without."""
+    gravity (:data:`FULL_SLICE`) instead of the sector without. ``changes``: scene-file
+    values put in before the scene is validated, {"table.key": value} (``"mill.rotor_radius_m"``,
+    ``"fluid.coupled.turbulence"``), for studies of the dimensions seed 002 does not state."""
     from millfmu.dem.scene import load_scene_dict, scene_from_dict
 
     if method not in METHODS:
         raise ValueError(f"method = {method!r}: allowed {list(METHODS)}")
     d = load_scene_dict("accelerator_slice")
+    for dotted, value in (changes or {}).items():
+        *tables, key = dotted.split(".")
+        t = d
+        for name in tables:
+            t = t.setdefault(name, {})
+        t[key] = value
     c = d["fluid"].setdefault("coupled", {})
     if METHODS[method]["scheme"] == "dpm":
         c.pop("vans_model", None)
