@@ -83,6 +83,15 @@ def with_bead_stress_force(scene, name: str | None):
     return scene.with_overrides(bead_stress_force=name)
 
 
+def with_vans_model(scene, model: str | None):
+    """The scene with its volume-averaged liquid by ``model`` ('A' or 'B'; None: the scene's
+    own, A); refused by name when unknown or when the scene's liquid is not volume-averaged
+    (:meth:`DemScene.with_overrides`)."""
+    if model is None:
+        return scene
+    return scene.with_overrides(vans_model=model)
+
+
 #: seed 001's stated numbers of beads in its slice at its lowest and highest filling [-]
 #: (section 2.1: "between 155,520 and 289,951" for 50 to 90 %)
 STATED_BEAD_COUNTS = ((0.5, 155_520), (0.9, 289_951))
@@ -143,7 +152,7 @@ def with_stated_count(scene, stated: bool):
 
 def run_campaign(out_dir, fluids=("coupled", "prescribed"), sector_deg: float = 10.0,
                  cases=CASES, threads=None, progress=True, smoothing_diameters=None,
-                 wall_friction=None, stated_counts=False, bead_stress_force=None):
+                 wall_friction=None, stated_counts=False, bead_stress_force=None, vans_model=None):
     """Run the cases that have no stats.json yet, the protocol of the table in docs/validation-seed001.md:
     no gravity, 10 degree sector, coupled runs started at COUPLED_INITIAL_ROTATION and spun
     up for COUPLED_SPIN_UP_S (27-62 stirrer revolutions at 6-14 m/s); RECORD_S of recording
@@ -151,13 +160,14 @@ def run_campaign(out_dir, fluids=("coupled", "prescribed"), sector_deg: float = 
     exchange's smoothing length instead of the scene's, ``wall_friction`` the bead-wall
     friction instead of the beads', ``stated_counts`` the number of beads seed 001 states
     instead of eq. 2's at each filling, ``bead_stress_force`` model A's beads' viscous-stress
-    force by name (:func:`with_bead_stress_force`) (variants of the campaign)."""
+    force by name (:func:`with_bead_stress_force`), ``vans_model`` the liquid's model
+    (:func:`with_vans_model`) (variants of the campaign)."""
     from millfmu.dem.run import run_scene
     from millfmu.dem.scene import load_scene
 
-    base = with_bead_stress_force(
+    base = with_vans_model(with_bead_stress_force(
         with_wall_friction(with_smoothing(load_scene("disc_slice"), smoothing_diameters),
-                           wall_friction), bead_stress_force)
+                           wall_friction), bead_stress_force), vans_model)
     for fluid in fluids:
         for vt, fill in cases:
             deg = stated_count_sector_deg(fill, sector_deg, base) if stated_counts else sector_deg
@@ -368,7 +378,7 @@ def compact(st: dict) -> dict:
 
 
 def summarize(out_dir, path=None, full_slice: bool = False, smoothing_diameters=None,
-              wall_friction=None, stated_counts=False, bead_stress_force=None) -> Path:
+              wall_friction=None, stated_counts=False, bead_stress_force=None, vans_model=None) -> Path:
     """Write the compact stats of the coupled cases in ``out_dir`` (:func:`compact`) to
     ``path`` (default :data:`SUMMARY`), with the protocol and the command that made them;
     ``full_slice``: instead the full slice's cases found there (:func:`run_full_slice`),
@@ -377,8 +387,8 @@ def summarize(out_dir, path=None, full_slice: bool = False, smoothing_diameters=
     ``smoothing_diameters``: the runs' smoothing length where it is not the scene's,
     ``wall_friction`` their bead-wall friction where it is not the beads', ``stated_counts``
     where they hold seed 001's stated number of beads, ``bead_stress_force`` the beads'
-    viscous-stress force they ran with (a variant campaign, summarized into a file of its
-    own; a stated-count run keeps eq. 2's filling it ran at)."""
+    viscous-stress force they ran with, ``vans_model`` their liquid's model (a variant campaign,
+    summarized into a file of its own; a stated-count run keeps eq. 2's filling it ran at)."""
     p = Path(path) if path is not None else SUMMARY
     old = json.loads(p.read_text()) if p.exists() else {}
     protocol = {"initial_rotation": COUPLED_INITIAL_ROTATION, "spin_up_s": COUPLED_SPIN_UP_S,
@@ -421,7 +431,8 @@ def summarize(out_dir, path=None, full_slice: bool = False, smoothing_diameters=
         var = ("" if smoothing_diameters is None else f" --smoothing-diameters {smoothing_diameters:g}") + \
             ("" if wall_friction is None else f" --wall-friction {wall_friction:g}") + \
             (" --stated-bead-counts" if stated_counts else "") + \
-            ("" if bead_stress_force is None else f" --bead-stress-force {bead_stress_force}")
+            ("" if bead_stress_force is None else f" --bead-stress-force {bead_stress_force}") + \
+            ("" if vans_model is None else f" --vans-model {vans_model}")
         dest = "" if path is None else f" --summary validation/runs/{Path(path).name}"
         doc = {"note": ("seed 001's cases on the coupled 10-degree disc sector without gravity: per zone "
                         "what the deviation table reads (units: m3, 1/(m3 s), W, J), the flow's first "
@@ -439,14 +450,19 @@ def summarize(out_dir, path=None, full_slice: bool = False, smoothing_diameters=
                         + ("" if bead_stress_force is None else
                            f"; a variant: model A's beads take the viscous stress's share too "
                            f"({bead_stress_force}), as CFDEMcoupling's model A requires; seed 001 "
-                           f"names no model type")),
+                           f"names no model type")
+                        + ("" if vans_model is None else
+                           f"; a variant: the liquid by model {vans_model} (model B: the beads feel "
+                           "the drag alone, over eps, which carries the pressure's and stresses' share; "
+                           "seed 001 names no model type, the scene's is A)")),
                "protocol": dict(protocol, sector_deg=10.0, gravity_m_per_s2=[0.0, 0.0, 0.0], threads=1,
                                 **({} if smoothing_diameters is None else
                                    {"smoothing_diameters": smoothing_diameters}),
                                 **({} if wall_friction is None else {"wall_friction": wall_friction}),
                                 **({"bead_counts": "seed 001's stated"} if stated_counts else {}),
                                 **({} if bead_stress_force is None else
-                                   {"bead_stress_force": bead_stress_force})),
+                                   {"bead_stress_force": bead_stress_force}),
+                                **({} if vans_model is None else {"vans_model": vans_model})),
                "command": f"python -m validation.seed001 run --out DIR --fluid coupled --threads 1{var}, then "
                           f"python -m validation.seed001 summarize --out DIR{var}{dest}",
                "runs": runs}
@@ -1044,6 +1060,9 @@ def parser() -> argparse.ArgumentParser:
     s.add_argument("--bead-stress-force", metavar="NAME", help="run and summarize: a variant of "
                    "the sector campaign whose model A beads take the viscous stress's share too "
                    "(anderson_jackson1967) instead of the pressure's alone")
+    s.add_argument("--vans-model", choices=("A", "B"), help="run and summarize: a variant of the "
+                   "sector campaign with the liquid by this model instead of the scene's A (B: drag "
+                   "alone on the beads)")
     s.add_argument("--summary", metavar="FILE", help="summarize and table: this summary instead of "
                    "validation/runs/seed001_sector.json")
     s.add_argument("--full-slice", action="store_true", help="run: instead seed 001's own "
@@ -1073,7 +1092,8 @@ def main(argv=None) -> int:
                               smoothing_diameters=args.smoothing_diameters,
                               wall_friction=args.wall_friction,
                               stated_counts=args.stated_bead_counts,
-                              bead_stress_force=args.bead_stress_force)
+                              bead_stress_force=args.bead_stress_force,
+                              vans_model=args.vans_model)
             print(f"wrote {wrote}")
         except FileNotFoundError as e:
             print(f"python -m validation.seed001 summarize: {e}", file=sys.stderr)
@@ -1101,7 +1121,8 @@ def main(argv=None) -> int:
                          smoothing_diameters=args.smoothing_diameters,
                          wall_friction=args.wall_friction,
                          stated_counts=args.stated_bead_counts,
-                         bead_stress_force=args.bead_stress_force)
+                         bead_stress_force=args.bead_stress_force,
+                         vans_model=args.vans_model)
         except ValueError as e:
             print(f"python -m validation.seed001: {e}", file=sys.stderr)
             return 2

@@ -109,7 +109,8 @@ class DemScene:
         liquid's theta cells; smoothing_diameters: its exchange's smoothing length [bead
         diameters], >= 0; smoothing: its smoothing (SMOOTHINGS); pressure_solver: its
         pressure equation's solver (PRESSURE_SOLVERS); bead_stress_force: model A's beads'
-        viscous-stress force (BEAD_STRESS_FORCES); ``baffles``: a dict of the [mill]
+        viscous-stress force (BEAD_STRESS_FORCES); vans_model: the volume-averaged liquid's
+        model, 'A' or 'B'; ``baffles``: a dict of the [mill]
         baffle keys, BAFFLE_KEYS; wall_friction: the beads' [beads] wall_friction);
         validated like file values."""
         geo = self.geometry
@@ -125,6 +126,7 @@ class DemScene:
         smoothing = kw.pop("smoothing", None)
         pressure_solver = kw.pop("pressure_solver", None)
         bead_stress_force = kw.pop("bead_stress_force", None)
+        vans_model = kw.pop("vans_model", None)
         wall_friction = kw.pop("wall_friction", None)
         if kw.get("filling") is not None and self.placement != "filling":
             raise DemSceneError(f"beads.filling = {kw['filling']!r}: this scene places its beads on a lattice "
@@ -150,6 +152,20 @@ class DemScene:
                 raise DemSceneError(f"smoothing_diameters = {smoothing_d!r}: the coupled liquid's; the fluid "
                                     f"here is {new.fluid_mode!r}")
             new = replace(new, coupling=replace(new.coupling, smoothing_diameters=float(smoothing_d)))
+        if vans_model is not None:
+            if vans_model not in ("A", "B"):
+                raise DemSceneError(f"vans_model = {vans_model!r}: allowed ['A', 'B']")
+            if new.coupling is None or new.coupling.scheme != "vans":
+                raise DemSceneError(f"vans_model = {vans_model!r}: the volume-averaged coupled liquid's; "
+                                    f"the fluid here is {new.fluid_mode!r}"
+                                    + ("" if new.coupling is None else f", scheme {new.coupling.scheme!r}"))
+            # a force named alongside is checked against model A in the loop below
+            keeps_force = bead_stress_force is None and new.coupling.bead_stress_force != "none"
+            if vans_model == "B" and keeps_force:
+                raise DemSceneError(f"vans_model = 'B': this scene's beads take model A's viscous-stress "
+                                    f"force ({new.coupling.bead_stress_force!r}); model B's drag over eps "
+                                    f"carries it (give bead_stress_force = 'none')")
+            new = replace(new, coupling=replace(new.coupling, model=vans_model))
         # the coupled liquid's choices by name
         for key, value, allowed in (("smoothing", smoothing, SMOOTHINGS),
                                     ("pressure_solver", pressure_solver, PRESSURE_SOLVERS),

@@ -334,6 +334,36 @@ def test_a_stress_force_variant_runs_and_is_summarized_as_such(tmp_path):
     assert S.main(["run", "--out", str(out), "--bead-stress-force", "viscForce", "--fluid", "coupled"]) == 2
 
 
+def test_a_model_b_variant_runs_and_is_summarized_as_such(tmp_path):
+    """--vans-model B: the campaign's scene with the liquid by model B (an unknown model, a
+    liquid that is not volume-averaged, and model B beside model A's viscous-stress force
+    refused by name), its summary in a file of its own saying so, with the commands that
+    rebuild it."""
+    from millfmu.dem.scene import load_scene
+
+    base = load_scene("disc_slice")
+    assert S.with_vans_model(base, None) is base and base.coupling.model == "A"
+    var = S.with_vans_model(base, "B")
+    assert var.coupling == replace(base.coupling, model="B")
+    assert var.geometry == base.geometry and var.material == base.material
+    with pytest.raises(ValueError, match=r"vans_model = 'C': allowed \['A', 'B'\]"):
+        S.with_vans_model(base, "C")
+    with pytest.raises(ValueError, match=r"vans_model = 'B': this scene's beads take model A's viscous-stress"):
+        S.with_vans_model(S.with_bead_stress_force(base, "anderson_jackson1967"), "B")
+    with pytest.raises(ValueError, match=r"vans_model = 'B': the volume-averaged coupled liquid's; the fluid "
+                                         r"here is 'coupled', scheme 'dpm'"):
+        S.with_vans_model(replace(base, coupling=replace(base.coupling, scheme="dpm")), "B")
+    out, p, doc = _variant_summarized(tmp_path, "seed001_sector_model_b.json", vans_model="B")
+    assert doc["protocol"]["vans_model"] == "B"
+    assert "a variant: the liquid by model B" in doc["note"]
+    assert doc["command"].startswith("python -m validation.seed001 run --out DIR --fluid coupled "
+                                      "--threads 1 --vans-model B, then")
+    assert doc["command"].endswith("summarize --out DIR --vans-model B "
+                                   "--summary validation/runs/seed001_sector_model_b.json")
+    with pytest.raises(SystemExit):
+        S.main(["run", "--out", str(out), "--vans-model", "C", "--fluid", "coupled"])
+
+
 def test_the_no_smoothing_variants_count_on_the_page_is_its_summarys():
     """The page's count of the campaign with no smoothing (a variant, not counted) follows
     from its kept summary, validation/runs/seed001_sector_smoothing0.json."""
