@@ -389,6 +389,19 @@ def test_the_stress_force_variants_count_on_the_page_is_its_summarys():
     assert layer["verdict"].startswith("matches")
 
 
+def test_the_model_b_variants_count_on_the_page_is_its_summarys():
+    """The page's count of the campaign by model B (a variant, not counted) follows from its
+    kept summary, validation/runs/seed001_sector_model_b.json, beside model A's count; the
+    variant gains V3's speed."""
+    rows, c, text = _kept_variant("seed001_sector_model_b.json", "vans_model", "B")
+    own = S.count(S.deviation_rows())
+    assert (f"the sector matches {c['matches']} of the {c['statements']} statements (model A: "
+            f"{own['matches']})") in text
+    assert f"model B: {c['matches']} of {c['statements']})" in text
+    v3 = next(r for r in rows if r["statement"].startswith("mean bead speed / tip speed in V3"))
+    assert v3["verdict"].startswith("matches")
+
+
 def _paper_summary(tmp_path, stats, finished=True):
     """A kept summary of the full slice by seed 001's protocol (validation.full_slice_paper)
     at 10 m/s, 80 %, with ``stats`` as its compact statistics."""
