@@ -592,7 +592,7 @@ def _fmt(x, nd=3):
         f"{x:.{nd}g}"
 
 
-def deviation_rows(out_dir=None, summary=None, paper_summary=None) -> list[dict]:
+def deviation_rows(out_dir=None, summary=None, paper_summary=None, full_slice: bool = True) -> list[dict]:
     """One dict per statement of seed 001 section 3: statement, paper, coupled (the sector
     campaign), full (the full slice, seed 001's configuration, at the cases it has run: the
     values and whether the statement holds there), prescribed, verdict: of the run folders
@@ -603,7 +603,8 @@ def deviation_rows(out_dir=None, summary=None, paper_summary=None) -> list[dict]
     shipped summary, none with another, such as a variant campaign's). The
     verdict is the full slice's where it has run every case of the statement, or misses it
     at a case it has run (the statement then fails on seed 001's configuration whatever the
-    other cases give); else the sector's."""
+    other cases give); else the sector's. ``full_slice`` False: the sector's verdicts alone
+    (no full-slice case read), as a variant campaign is judged."""
     if out_dir is None:
         shipped = summary_stats(summary)
         full = summary_stats(summary, full_slice=True)
@@ -618,6 +619,8 @@ def deviation_rows(out_dir=None, summary=None, paper_summary=None) -> list[dict]
         st = load_dir(paper_case_dir(out_dir))
         by_protocol = {} if st is None else {PAPER_CASE: st}
     full.update(by_protocol)
+    if not full_slice:
+        full = {}
     runs["full"] = {k: full.get(k) for k in CASES}
     has_full = bool(full)
     source = "prescribed-swirl runs in the folder"

@@ -64,12 +64,16 @@ def test_the_pages_figures_verdicts_and_count_are_the_summarys(rows):
         if S.summary_stats(full_slice=True):  # the full slice's column, once its summary is kept
             assert cells[3] == r["full"].replace("|", "/"), r["statement"]
     c = S.count(rows)
+    sector = S.count(S.deviation_rows(full_slice=False))
     text = " ".join(PAGE.read_text(encoding="utf-8").split())
     left = c["not evaluated"] or "none"
-    assert (f"The sector campaign matches {c['matches']} of the {c['statements']} statements" in text
-            and f"misses {c['missed']}" in text and f"leaves {left} unevaluated" in text)
+    assert f"**Count.** {c['matches']} of the {c['statements']} statements match, {c['missed']} are missed" in text
+    assert f"and {left} is left unevaluated" in text
+    assert (f"sector campaign alone matches {sector['matches']} of them" in text
+            and f"misses {sector['missed']} (" in text)
     readme = " ".join((PAGE.parents[1] / "README.md").read_text(encoding="utf-8").split())
-    assert f"seed 001 (disc mill): {c['matches']} of {c['statements']} statements match on a sector" in readme
+    assert (f"seed 001 (disc mill): {c['matches']} of {c['statements']} statements match (the sector, the "
+            "full slice where it decides)") in readme
 
 
 def test_the_table_command_reads_the_summary_without_a_run_folder(capsys):
@@ -382,7 +386,7 @@ def test_the_stress_force_variants_count_on_the_page_is_its_summarys():
     variant gains the first layer."""
     rows, c, text = _kept_variant("seed001_sector_stress_force.json", "bead_stress_force",
                                   "anderson_jackson1967")
-    own = S.count(S.deviation_rows())
+    own = S.count(S.deviation_rows(full_slice=False))  # the sector's own, as a variant is judged
     assert (f"the sector matches {c['matches']} of the {c['statements']} statements (without it: "
             f"{own['matches']})") in text
     layer = next(r for r in rows if r["statement"].startswith("angular velocity of the first bead layer"))
@@ -394,7 +398,7 @@ def test_the_model_b_variants_count_on_the_page_is_its_summarys():
     kept summary, validation/runs/seed001_sector_model_b.json, beside model A's count; the
     variant gains V3's speed."""
     rows, c, text = _kept_variant("seed001_sector_model_b.json", "vans_model", "B")
-    own = S.count(S.deviation_rows())
+    own = S.count(S.deviation_rows(full_slice=False))  # the sector's own, as a variant is judged
     assert (f"the sector matches {c['matches']} of the {c['statements']} statements (model A: "
             f"{own['matches']})") in text
     assert f"model B: {c['matches']} of {c['statements']})" in text
@@ -560,7 +564,7 @@ def test_the_stated_count_variants_figures_on_the_page_are_its_summarys():
                                   "seed 001's stated")
     assert "--stated-bead-counts --summary validation/runs/seed001_sector_stated_counts.json`" in text
     assert c["not evaluated"] == 0
-    eq2 = S.count(S.deviation_rows())["matches"]
+    eq2 = S.count(S.deviation_rows(full_slice=False))["matches"]
     assert (f"the sector matches {c['matches']} of the {c['statements']} statements (eq. 2's "
             f"count: {eq2})") in text
     var = S.summary_stats(S.SUMMARY.parent / "seed001_sector_stated_counts.json")
