@@ -72,8 +72,8 @@ def test_the_pages_figures_verdicts_and_count_are_the_summarys(rows):
     assert (f"sector campaign alone matches {sector['matches']} of them" in text
             and f"misses {sector['missed']} (" in text)
     readme = " ".join((PAGE.parents[1] / "README.md").read_text(encoding="utf-8").split())
-    assert (f"seed 001 (disc mill): {c['matches']} of {c['statements']} statements match (the sector, the "
-            "full slice where it decides)") in readme
+    assert (f"seed 001 (disc mill): {c['matches']} of {c['statements']} statements match (full slice "
+            "where it decides)") in readme
 
 
 def test_the_table_command_reads_the_summary_without_a_run_folder(capsys):
