@@ -605,22 +605,23 @@ def deviation_rows(out_dir=None, summary=None, paper_summary=None, full_slice: b
     at a case it has run (the statement then fails on seed 001's configuration whatever the
     other cases give); else the sector's. ``full_slice`` False: the sector's verdicts alone
     (no full-slice case read), as a variant campaign is judged."""
+    full, by_protocol = {}, {}
     if out_dir is None:
         shipped = summary_stats(summary)
-        full = summary_stats(summary, full_slice=True)
-        if paper_summary is None and summary is None:
-            paper_summary = FULL_PAPER_SUMMARY
-        by_protocol = paper_protocol_stats(paper_summary) if paper_summary is not None else {}
+        if full_slice:
+            full = summary_stats(summary, full_slice=True)
+            if paper_summary is None and summary is None:
+                paper_summary = FULL_PAPER_SUMMARY
+            by_protocol = paper_protocol_stats(paper_summary) if paper_summary is not None else {}
         runs = {"coupled": {k: shipped.get(k) for k in CASES}, "prescribed": {k: None for k in CASES}}
     else:
         runs = {f: {(vt, fl): _load_sector(out_dir, f, vt, fl) for vt, fl in CASES} for f in FLUIDS}
-        full = {k: _load(out_dir, "coupled", *k, FULL_SECTOR_DEG) for k in FULL_CASES}
-        full = {k: v for k, v in full.items() if v is not None}
-        st = load_dir(paper_case_dir(out_dir))
-        by_protocol = {} if st is None else {PAPER_CASE: st}
+        if full_slice:
+            full = {k: _load(out_dir, "coupled", *k, FULL_SECTOR_DEG) for k in FULL_CASES}
+            full = {k: v for k, v in full.items() if v is not None}
+            st = load_dir(paper_case_dir(out_dir))
+            by_protocol = {} if st is None else {PAPER_CASE: st}
     full.update(by_protocol)
-    if not full_slice:
-        full = {}
     runs["full"] = {k: full.get(k) for k in CASES}
     has_full = bool(full)
     source = "prescribed-swirl runs in the folder"
