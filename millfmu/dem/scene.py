@@ -152,38 +152,33 @@ class DemScene:
                 raise DemSceneError(f"smoothing_diameters = {smoothing_d!r}: the coupled liquid's; the fluid "
                                     f"here is {new.fluid_mode!r}")
             new = replace(new, coupling=replace(new.coupling, smoothing_diameters=float(smoothing_d)))
-        if vans_model is not None:
-            if vans_model not in ("A", "B"):
-                raise DemSceneError(f"vans_model = {vans_model!r}: allowed ['A', 'B']")
-            if new.coupling is None or new.coupling.scheme != "vans":
-                raise DemSceneError(f"vans_model = {vans_model!r}: the volume-averaged coupled liquid's; "
-                                    f"the fluid here is {new.fluid_mode!r}"
-                                    + ("" if new.coupling is None else f", scheme {new.coupling.scheme!r}"))
-            # a force named alongside is checked against model A in the loop below
-            keeps_force = bead_stress_force is None and new.coupling.bead_stress_force != "none"
-            if vans_model == "B" and keeps_force:
-                raise DemSceneError(f"vans_model = 'B': this scene's beads take model A's viscous-stress "
-                                    f"force ({new.coupling.bead_stress_force!r}); model B's drag over eps "
-                                    f"carries it (give bead_stress_force = 'none')")
-            new = replace(new, coupling=replace(new.coupling, model=vans_model))
-        # the coupled liquid's choices by name
-        for key, value, allowed in (("smoothing", smoothing, SMOOTHINGS),
-                                    ("pressure_solver", pressure_solver, PRESSURE_SOLVERS),
-                                    ("bead_stress_force", bead_stress_force, BEAD_STRESS_FORCES)):
+        # the coupled liquid's choices by name: (key, value, allowed, its CouplingSettings field)
+        for key, value, allowed, field in (
+                ("smoothing", smoothing, SMOOTHINGS, "smoothing"),
+                ("pressure_solver", pressure_solver, PRESSURE_SOLVERS, "pressure_solver"),
+                ("bead_stress_force", bead_stress_force, BEAD_STRESS_FORCES, "bead_stress_force"),
+                ("vans_model", vans_model, VANS_MODELS, "model")):
             if value is None:
                 continue
             if value not in allowed:
                 raise DemSceneError(f"{key} = {value!r}: allowed {list(allowed)}")
+            if key == "vans_model" and (new.coupling is None or new.coupling.scheme != "vans"):
+                raise DemSceneError(f"{key} = {value!r}: the volume-averaged coupled liquid's; "
+                                    f"the fluid here is {new.fluid_mode!r}"
+                                    + ("" if new.coupling is None else f", scheme {new.coupling.scheme!r}"))
             if new.coupling is None:
                 raise DemSceneError(f"{key} = {value!r}: the coupled liquid's; the fluid "
                                     f"here is {new.fluid_mode!r}")
-            if (key == "bead_stress_force" and value != "none"
-                    and (new.coupling.scheme == "dpm" or new.coupling.model != "A")):
-                raise DemSceneError(f"bead_stress_force = {value!r}: only model A (vans_model = 'A', "
-                                    f"scheme 'vans') gives the beads the generalized buoyancy; this "
-                                    f"scene's liquid is scheme {new.coupling.scheme!r}, model "
-                                    f"{new.coupling.model!r}")
-            new = replace(new, coupling=replace(new.coupling, **{key: value}))
+            new = replace(new, coupling=replace(new.coupling, **{field: value}))
+        why = None if new.coupling is None else _stress_force_refusal(new.coupling)
+        if why is not None:
+            # name the override that broke the rule: a model named without the force keeps
+            # the scene's force
+            if vans_model is not None and bead_stress_force is None:
+                raise DemSceneError(f"vans_model = {vans_model!r}: this scene's beads take model A's "
+                                    f"viscous-stress force ({new.coupling.bead_stress_force!r}); {why} "
+                                    f"(give bead_stress_force = 'none')")
+            raise DemSceneError(f"bead_stress_force = {new.coupling.bead_stress_force!r}: {why}")
         if wall_friction is not None:
             if isinstance(wall_friction, bool) or not isinstance(wall_friction, (int, float)):
                 raise DemSceneError(f"beads.wall_friction = {wall_friction!r}: must be a float")
@@ -658,6 +653,21 @@ def _fluid_from_dict(fluid: dict, dia: float):
     return mode, fl, cpl if mode == "coupled" else None
 
 
+#: the volume-averaged liquid's models: A (the beads feel the pressure gradient and the drag)
+#: and B (the drag alone, over the void fraction)
+VANS_MODELS = ("A", "B")
+
+
+def _stress_force_refusal(c: CouplingSettings) -> str | None:
+    """Why the coupling ``c`` cannot give its beads model A's viscous-stress force, or None
+    where it can (or has none): the one place of this rule for scene files and overrides."""
+    if c.bead_stress_force == "none" or (c.scheme == "vans" and c.model == "A"):
+        return None
+    return (f"only model A (vans_model = 'A', scheme 'vans') gives the beads the generalized "
+            f"buoyancy; this liquid is scheme {c.scheme!r}, model {c.model!r} (model B's drag over "
+            f"eps carries it, the discrete phase model has no stresses of the mixture)")
+
+
 def _coupling_from_dict(c: dict) -> CouplingSettings:
     for k in c:
         if k not in _COUPLED_KEYS:
@@ -725,16 +735,14 @@ def _coupling_from_dict(c: dict) -> CouplingSettings:
         raise DemSceneError(f"fluid.coupled.pressure_gradient = {out.pressure_gradient!r}: "
                             f"only model A (vans_model = 'A', scheme 'vans') gives the beads a "
                             f"pressure-gradient force; leave it out")
-    if out.model not in ("A", "B"):
-        raise DemSceneError(f"fluid.coupled.vans_model = {out.model!r}: allowed 'A', 'B'")
+    if out.model not in VANS_MODELS:
+        raise DemSceneError(f"fluid.coupled.vans_model = {out.model!r}: allowed {list(VANS_MODELS)}")
     if out.bead_stress_force not in BEAD_STRESS_FORCES:
         raise DemSceneError(f"fluid.coupled.bead_stress_force = {out.bead_stress_force!r}: "
                             f"allowed {list(BEAD_STRESS_FORCES)}")
-    if out.bead_stress_force != "none" and (out.scheme == "dpm" or out.model != "A"):
-        raise DemSceneError(f"fluid.coupled.bead_stress_force = {out.bead_stress_force!r}: "
-                            f"only model A (vans_model = 'A', scheme 'vans') gives the beads "
-                            f"the generalized buoyancy; model B's drag over eps carries it, "
-                            f"the discrete phase model has no stresses of the mixture")
+    why = _stress_force_refusal(out)
+    if why is not None:
+        raise DemSceneError(f"fluid.coupled.bead_stress_force = {out.bead_stress_force!r}: {why}")
     if out.turbulence not in ("k_epsilon", "laminar"):
         raise DemSceneError(f"fluid.coupled.turbulence = {out.turbulence!r}: allowed "
                             f"'k_epsilon', 'laminar'")

@@ -132,6 +132,29 @@ def test_the_scene_key_and_its_refusals():
         FluidSolver(g, model="B", stress_force=True)
 
 
+def test_the_model_a_rule_is_one_check_for_files_and_overrides():
+    """A scene file and an override refuse the force beside model B for the same reason,
+    each naming its own item; a model and the force given together are judged after both
+    are applied (model A with the force is fine, model B without it too)."""
+    d = load_scene_dict("accelerator_slice")  # model B
+    d["fluid"]["coupled"]["bead_stress_force"] = "anderson_jackson1967"
+    with pytest.raises(DemSceneError) as from_file:
+        scene_from_dict(d)
+    base = load_scene("accelerator_slice")
+    with pytest.raises(DemSceneError) as from_override:
+        base.with_overrides(bead_stress_force="anderson_jackson1967")
+    reason = "only model A (vans_model = 'A', scheme 'vans') gives the beads the generalized buoyancy"
+    assert str(from_file.value).startswith(f"fluid.coupled.bead_stress_force = 'anderson_jackson1967': {reason}")
+    assert str(from_override.value).startswith(f"bead_stress_force = 'anderson_jackson1967': {reason}")
+    both = base.with_overrides(vans_model="A", bead_stress_force="anderson_jackson1967")
+    assert (both.coupling.model, both.coupling.bead_stress_force) == ("A", "anderson_jackson1967")
+    with_force = _coupled("anderson_jackson1967")
+    with pytest.raises(DemSceneError, match=r"vans_model = 'B': this scene's beads take model A's "
+                                            r"viscous-stress force \('anderson_jackson1967'\); only model A"):
+        with_force.with_overrides(vans_model="B")
+    assert with_force.with_overrides(vans_model="B", bead_stress_force="none").coupling.model == "B"
+
+
 def test_a_coupled_run_with_the_stress_force_closes_its_budget(tmp_path):
     """The beads' stress force and its reaction on the liquid cancel: stirrer drive =
     change of fluid + bead angular momentum + chamber wall impulse, as without it, over
