@@ -24,6 +24,8 @@ import argparse
 import json
 import math
 import sys
+from collections.abc import Callable
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
@@ -55,41 +57,96 @@ RECORD_S = 0.3
 WINDOW_S = 0.1
 
 
-def with_smoothing(scene, diameters: float | None):
-    """The scene with the coupled exchange's smoothing length ``diameters`` [bead diameters]
-    (None: the scene's own, 1 d for disc_slice); refused by name below 0
-    (:meth:`DemScene.with_overrides`)."""
-    if diameters is None:
+@dataclass(frozen=True)
+class Variant:
+    """One variant of the sector campaign, in one place for its run, its summary and its
+    command line: ``key`` names it in :func:`run_campaign`, :func:`summarize` and the
+    summary's protocol; ``override`` is the :meth:`DemScene.with_overrides` key it sets
+    (None: not a scene override, the stated bead counts, which set each case's sector);
+    ``flag`` its command-line option; ``note`` what the summary's note says of a value;
+    ``protocol`` what the summary's protocol keeps of it (default ``{key: value}``);
+    ``cli`` the option's argparse settings."""
+
+    key: str
+    override: str | None
+    flag: str
+    note: Callable[[object], str]
+    cli: dict
+    protocol: Callable[[object], dict] | None = None
+
+    def flag_text(self, value) -> str:
+        """The option as the summary's commands give it (' --flag value')."""
+        if value is True:
+            return f" {self.flag}"
+        return f" {self.flag} {value:g}" if isinstance(value, float) else f" {self.flag} {value}"
+
+    def protocol_items(self, value) -> dict:
+        return self.protocol(value) if self.protocol is not None else {self.key: value}
+
+
+#: the sector campaign's variants, in the order their options and phrases appear
+VARIANTS = (
+    Variant("smoothing_diameters", "smoothing_diameters", "--smoothing-diameters",
+            lambda v: f"the exchange smoothed over {v:g} bead diameters, not the scene's 1",
+            dict(type=float, metavar="D", help="run and summarize: a variant of the sector "
+                 "campaign with the coupled exchange smoothed over D bead diameters instead of "
+                 "the scene's 1")),
+    Variant("wall_friction", "wall_friction", "--wall-friction",
+            lambda v: f"bead-wall friction {v:g}, not seed 001's one value (0.3) for every contact",
+            dict(type=float, metavar="MU", help="run and summarize: a variant of the sector "
+                 "campaign with the bead-wall friction MU instead of seed 001's one value (0.3) "
+                 "for every contact")),
+    Variant("stated_counts", None, "--stated-bead-counts",
+            lambda v: ("the number of beads seed 001 states (155,520 at 50 %, 289,951 at 90 %, "
+                       "linear between), not eq. 2's on its stated geometry; each run's "
+                       "filling_eq2 is eq. 2's filling it ran at"),
+            dict(action="store_true", dest="stated_counts", help="run and summarize: a variant "
+                 "of the sector campaign with the number of beads seed 001 states (155,520 at "
+                 "50 %%, 289,951 at 90 %%, linear between) instead of its eq. 2's on its stated "
+                 "geometry (5.7-9.5 %% fewer)"),
+            protocol=lambda v: {"bead_counts": "seed 001's stated"}),
+    Variant("bead_stress_force", "bead_stress_force", "--bead-stress-force",
+            lambda v: (f"model A's beads take the viscous stress's share too ({v}), as "
+                       f"CFDEMcoupling's model A requires; seed 001 names no model type"),
+            dict(metavar="NAME", help="run and summarize: a variant of the sector campaign whose "
+                 "model A beads take the viscous stress's share too (anderson_jackson1967) "
+                 "instead of the pressure's alone")),
+    Variant("vans_model", "vans_model", "--vans-model",
+            lambda v: (f"the liquid by model {v} (model B: the beads feel the drag alone, over "
+                       "eps, which carries the pressure's and stresses' share; seed 001 names no "
+                       "model type, the scene's is A)"),
+            dict(choices=("A", "B"), help="run and summarize: a variant of the sector campaign "
+                 "with the liquid by this model instead of the scene's A (B: drag alone on the "
+                 "beads)")),
+)
+_VARIANT = {v.key: v for v in VARIANTS}
+
+
+def _variants(given: dict) -> dict:
+    """The variants named in ``given`` (keyword: value) that are set (not None, not False);
+    an unknown keyword refused by name."""
+    unknown = sorted(set(given) - set(_VARIANT))
+    if unknown:
+        raise TypeError(f"unknown campaign variant(s) {unknown}: allowed {sorted(_VARIANT)}")
+    # in the table's order, so that a summary's phrases and options read the same however
+    # they were given; identity tests, since a variant may be 0 (0.0 == False)
+    return {v.key: given[v.key] for v in VARIANTS
+            if given.get(v.key) is not None and given.get(v.key) is not False}
+
+
+def with_variant(scene, key: str, value):
+    """The scene with the variant ``key`` (one of :data:`VARIANTS`' scene overrides) at
+    ``value`` (None: the scene as it is), checked by :meth:`DemScene.with_overrides`:
+    smoothing_diameters [bead diameters] >= 0, wall_friction [-] >= 0, bead_stress_force
+    by name and only with model A, vans_model 'A' or 'B' and only on the volume-averaged
+    liquid."""
+    var = _VARIANT[key]
+    if var.override is None:
+        raise ValueError(f"{key}: not a scene override (the stated counts set each case's "
+                         f"sector: with_stated_count)")
+    if value is None:
         return scene
-    return scene.with_overrides(smoothing_diameters=diameters)
-
-
-def with_wall_friction(scene, mu: float | None):
-    """The scene with the bead-wall friction coefficient ``mu`` [-] (None: the beads' own,
-    seed 001's one value for every contact); refused by name below 0
-    (:meth:`DemScene.with_overrides`)."""
-    if mu is None:
-        return scene
-    return scene.with_overrides(wall_friction=mu)
-
-
-def with_bead_stress_force(scene, name: str | None):
-    """The scene with model A's beads' viscous-stress force ``name`` (one of
-    :data:`millfmu.dem.coupling.settings.BEAD_STRESS_FORCES`; None: the scene's own, none);
-    refused by name when unknown or when the scene's liquid is not model A
-    (:meth:`DemScene.with_overrides`)."""
-    if name is None:
-        return scene
-    return scene.with_overrides(bead_stress_force=name)
-
-
-def with_vans_model(scene, model: str | None):
-    """The scene with its volume-averaged liquid by ``model`` ('A' or 'B'; None: the scene's
-    own, A); refused by name when unknown or when the scene's liquid is not volume-averaged
-    (:meth:`DemScene.with_overrides`)."""
-    if model is None:
-        return scene
-    return scene.with_overrides(vans_model=model)
+    return scene.with_overrides(**{var.override: value})
 
 
 #: seed 001's stated numbers of beads in its slice at its lowest and highest filling [-]
@@ -151,23 +208,22 @@ def with_stated_count(scene, stated: bool):
 
 
 def run_campaign(out_dir, fluids=("coupled", "prescribed"), sector_deg: float = 10.0,
-                 cases=CASES, threads=None, progress=True, smoothing_diameters=None,
-                 wall_friction=None, stated_counts=False, bead_stress_force=None, vans_model=None):
+                 cases=CASES, threads=None, progress=True, **variants):
     """Run the cases that have no stats.json yet, the protocol of the table in docs/validation-seed001.md:
     no gravity, 10 degree sector, coupled runs started at COUPLED_INITIAL_ROTATION and spun
     up for COUPLED_SPIN_UP_S (27-62 stirrer revolutions at 6-14 m/s); RECORD_S of recording
-    in windows of WINDOW_S; samples every 0.01 s. ``smoothing_diameters``: the coupled
-    exchange's smoothing length instead of the scene's, ``wall_friction`` the bead-wall
-    friction instead of the beads', ``stated_counts`` the number of beads seed 001 states
-    instead of eq. 2's at each filling, ``bead_stress_force`` model A's beads' viscous-stress
-    force by name (:func:`with_bead_stress_force`), ``vans_model`` the liquid's model
-    (:func:`with_vans_model`) (variants of the campaign)."""
+    in windows of WINDOW_S; samples every 0.01 s. ``variants``: keyword = value of the
+    campaign's :data:`VARIANTS` (smoothing_diameters, wall_friction, stated_counts,
+    bead_stress_force, vans_model; None or False: as the scene has it)."""
     from millfmu.dem.run import run_scene
     from millfmu.dem.scene import load_scene
 
-    base = with_vans_model(with_bead_stress_force(
-        with_wall_friction(with_smoothing(load_scene("disc_slice"), smoothing_diameters),
-                           wall_friction), bead_stress_force), vans_model)
+    chosen = _variants(variants)
+    stated_counts = bool(chosen.get("stated_counts"))
+    base = load_scene("disc_slice")
+    for key, value in chosen.items():
+        if _VARIANT[key].override is not None:
+            base = with_variant(base, key, value)
     for fluid in fluids:
         for vt, fill in cases:
             deg = stated_count_sector_deg(fill, sector_deg, base) if stated_counts else sector_deg
@@ -377,18 +433,17 @@ def compact(st: dict) -> dict:
     return out
 
 
-def summarize(out_dir, path=None, full_slice: bool = False, smoothing_diameters=None,
-              wall_friction=None, stated_counts=False, bead_stress_force=None, vans_model=None) -> Path:
+def summarize(out_dir, path=None, full_slice: bool = False, **variants) -> Path:
     """Write the compact stats of the coupled cases in ``out_dir`` (:func:`compact`) to
     ``path`` (default :data:`SUMMARY`), with the protocol and the command that made them;
     ``full_slice``: instead the full slice's cases found there (:func:`run_full_slice`),
     kept under ``full_slice`` beside the sector's cases with those kept before. Either keeps
     the other's part of the file.
-    ``smoothing_diameters``: the runs' smoothing length where it is not the scene's,
-    ``wall_friction`` their bead-wall friction where it is not the beads', ``stated_counts``
-    where they hold seed 001's stated number of beads, ``bead_stress_force`` the beads'
-    viscous-stress force they ran with, ``vans_model`` their liquid's model (a variant campaign,
-    summarized into a file of its own; a stated-count run keeps eq. 2's filling it ran at)."""
+    ``variants``: the :data:`VARIANTS` the runs were made with (keyword = value, as
+    :func:`run_campaign` took them; a variant campaign, summarized into a file of its own; a
+    stated-count run keeps eq. 2's filling it ran at)."""
+    chosen = _variants(variants)
+    stated_counts = bool(chosen.get("stated_counts"))
     p = Path(path) if path is not None else SUMMARY
     old = json.loads(p.read_text()) if p.exists() else {}
     protocol = {"initial_rotation": COUPLED_INITIAL_ROTATION, "spin_up_s": COUPLED_SPIN_UP_S,
@@ -428,41 +483,15 @@ def summarize(out_dir, path=None, full_slice: bool = False, smoothing_diameters=
                                             **({"filling_eq2": stated_count_filling(fl),
                                                 "sector_deg": deg} if stated_counts else {}),
                                             "stats": compact(st)}
-        var = ("" if smoothing_diameters is None else f" --smoothing-diameters {smoothing_diameters:g}") + \
-            ("" if wall_friction is None else f" --wall-friction {wall_friction:g}") + \
-            (" --stated-bead-counts" if stated_counts else "") + \
-            ("" if bead_stress_force is None else f" --bead-stress-force {bead_stress_force}") + \
-            ("" if vans_model is None else f" --vans-model {vans_model}")
+        var = "".join(_VARIANT[k].flag_text(v) for k, v in chosen.items())
         dest = "" if path is None else f" --summary validation/runs/{Path(path).name}"
         doc = {"note": ("seed 001's cases on the coupled 10-degree disc sector without gravity: per zone "
                         "what the deviation table reads (units: m3, 1/(m3 s), W, J), the flow's first "
                         "bead layer and vortex census"
-                        + ("" if smoothing_diameters is None else
-                           f"; a variant: the exchange smoothed over {smoothing_diameters:g} bead diameters, "
-                           "not the scene's 1")
-                        + ("" if wall_friction is None else
-                           f"; a variant: bead-wall friction {wall_friction:g}, not seed 001's one "
-                           "value (0.3) for every contact")
-                        + ("" if not stated_counts else
-                           "; a variant: the number of beads seed 001 states (155,520 at 50 %, "
-                           "289,951 at 90 %, linear between), not eq. 2's on its stated geometry; "
-                           "each run's filling_eq2 is eq. 2's filling it ran at")
-                        + ("" if bead_stress_force is None else
-                           f"; a variant: model A's beads take the viscous stress's share too "
-                           f"({bead_stress_force}), as CFDEMcoupling's model A requires; seed 001 "
-                           f"names no model type")
-                        + ("" if vans_model is None else
-                           f"; a variant: the liquid by model {vans_model} (model B: the beads feel "
-                           "the drag alone, over eps, which carries the pressure's and stresses' share; "
-                           "seed 001 names no model type, the scene's is A)")),
+                        + "".join(f"; a variant: {_VARIANT[k].note(v)}" for k, v in chosen.items())),
                "protocol": dict(protocol, sector_deg=10.0, gravity_m_per_s2=[0.0, 0.0, 0.0], threads=1,
-                                **({} if smoothing_diameters is None else
-                                   {"smoothing_diameters": smoothing_diameters}),
-                                **({} if wall_friction is None else {"wall_friction": wall_friction}),
-                                **({"bead_counts": "seed 001's stated"} if stated_counts else {}),
-                                **({} if bead_stress_force is None else
-                                   {"bead_stress_force": bead_stress_force}),
-                                **({} if vans_model is None else {"vans_model": vans_model})),
+                                **{k2: v2 for k, v in chosen.items()
+                                   for k2, v2 in _VARIANT[k].protocol_items(v).items()}),
                "command": f"python -m validation.seed001 run --out DIR --fluid coupled --threads 1{var}, then "
                           f"python -m validation.seed001 summarize --out DIR{var}{dest}",
                "runs": runs}
@@ -1051,22 +1080,8 @@ def parser() -> argparse.ArgumentParser:
     s.add_argument("--fluid", default="coupled,prescribed",
                    help="fluid models to run (comma-separated; default both)")
     s.add_argument("--threads", type=int, help="numba threads (default: all cores)")
-    s.add_argument("--smoothing-diameters", type=float, metavar="D", help="run and summarize: a "
-                   "variant of the sector campaign with the coupled exchange smoothed over D bead "
-                   "diameters instead of the scene's 1")
-    s.add_argument("--wall-friction", type=float, metavar="MU", help="run and summarize: a variant "
-                   "of the sector campaign with the bead-wall friction MU instead of seed 001's one "
-                   "value (0.3) for every contact")
-    s.add_argument("--stated-bead-counts", action="store_true", help="run and summarize: a "
-                   "variant of the sector campaign with the number of beads seed 001 states "
-                   "(155,520 at 50 %%, 289,951 at 90 %%, linear between) instead of its eq. 2's "
-                   "on its stated geometry (5.7-9.5 %% fewer)")
-    s.add_argument("--bead-stress-force", metavar="NAME", help="run and summarize: a variant of "
-                   "the sector campaign whose model A beads take the viscous stress's share too "
-                   "(anderson_jackson1967) instead of the pressure's alone")
-    s.add_argument("--vans-model", choices=("A", "B"), help="run and summarize: a variant of the "
-                   "sector campaign with the liquid by this model instead of the scene's A (B: drag "
-                   "alone on the beads)")
+    for v in VARIANTS:
+        s.add_argument(v.flag, **v.cli)
     s.add_argument("--summary", metavar="FILE", help="summarize and table: this summary instead of "
                    "validation/runs/seed001_sector.json")
     s.add_argument("--full-slice", action="store_true", help="run: instead seed 001's own "
@@ -1087,17 +1102,14 @@ def main(argv=None) -> int:
     ``summarize``: keep them in the summary; 2 for a fluid model or case it does not know
     or a full slice not run."""
     args = parser().parse_args(argv)
+    variants = {v.key: getattr(args, v.key) for v in VARIANTS}
     if args.out is None and args.action != "table":
         print(f"python -m validation.seed001 {args.action}: give --out DIR", file=sys.stderr)
         return 2
     if args.action == "summarize":
         try:
             wrote = summarize(args.out, path=args.summary, full_slice=args.full_slice,
-                              smoothing_diameters=args.smoothing_diameters,
-                              wall_friction=args.wall_friction,
-                              stated_counts=args.stated_bead_counts,
-                              bead_stress_force=args.bead_stress_force,
-                              vans_model=args.vans_model)
+                              **variants)
             print(f"wrote {wrote}")
         except FileNotFoundError as e:
             print(f"python -m validation.seed001 summarize: {e}", file=sys.stderr)
@@ -1121,12 +1133,7 @@ def main(argv=None) -> int:
                   f"{sorted(FLUIDS)}", file=sys.stderr)
             return 2
         try:
-            run_campaign(args.out, fluids=fluids, threads=args.threads,
-                         smoothing_diameters=args.smoothing_diameters,
-                         wall_friction=args.wall_friction,
-                         stated_counts=args.stated_bead_counts,
-                         bead_stress_force=args.bead_stress_force,
-                         vans_model=args.vans_model)
+            run_campaign(args.out, fluids=fluids, threads=args.threads, **variants)
         except ValueError as e:
             print(f"python -m validation.seed001: {e}", file=sys.stderr)
             return 2

@@ -249,8 +249,8 @@ def test_the_full_slice_is_seed_001s_configuration_as_the_page_runs_it():
 
 def _variant_summarized(tmp_path, name, **variant):
     """(runs folder, summary path, summary) of a variant campaign's folder holding the
-    shipped 10 m/s, 80 % case, summarized into ``name`` with ``variant``
-    (smoothing_diameters= or wall_friction=)."""
+    shipped 10 m/s, 80 % case, summarized into ``name`` with ``variant`` (keyword = value
+    of the campaign's VARIANTS)."""
     out = _sector_folders(tmp_path / "runs", {(10.0, 0.8): S.summary_stats()[(10.0, 0.8)]})
     p = S.summarize(out, path=tmp_path / name, **variant)
     return out, p, json.loads(p.read_text())
@@ -268,104 +268,107 @@ def _kept_variant(name, key, value):
     return rows, S.count(rows), " ".join(text.split())
 
 
-def test_a_smoothing_variant_runs_and_is_summarized_as_such(tmp_path):
-    """--smoothing-diameters D: the campaign's scene with the exchange smoothed over D bead
-    diameters (refused below 0), its summary in a file of its own saying so, with the
-    commands that rebuild it."""
-    from millfmu.dem.scene import load_scene
+#: each kept variant campaign's summary and the variant it was made with
+KEPT_VARIANTS = {"seed001_sector_smoothing0.json": {"smoothing_diameters": 0.0},
+                 "seed001_sector_wall_friction.json": {"wall_friction": 0.6},
+                 "seed001_sector_stated_counts.json": {"stated_counts": True},
+                 "seed001_sector_stress_force.json": {"bead_stress_force": "anderson_jackson1967"},
+                 "seed001_sector_model_b.json": {"vans_model": "B"}}
 
-    base = load_scene("disc_slice")
-    assert S.with_smoothing(base, None) is base
-    assert S.with_smoothing(base, 0.0).coupling.smoothing_diameters == 0.0
-    assert S.with_smoothing(base, 0.0).coupling.cell_m == base.coupling.cell_m
-    with pytest.raises(ValueError, match="smoothing_diameters = -1: must be a number >= 0"):
-        S.with_smoothing(base, -1)
-    out, p, doc = _variant_summarized(tmp_path, "seed001_sector_smoothing0.json", smoothing_diameters=0.0)
-    assert doc["protocol"]["smoothing_diameters"] == 0.0 and "a variant" in doc["note"]
-    assert doc["command"].endswith("summarize --out DIR --smoothing-diameters 0 --summary "
-                                   "validation/runs/seed001_sector_smoothing0.json")
+
+@pytest.mark.parametrize("name", sorted(KEPT_VARIANTS))
+def test_a_kept_variant_summary_is_what_summarize_writes_for_its_variant(tmp_path, name):
+    """A kept variant campaign's summary names its variant in its note, its protocol and both
+    its commands, and its summarize command, parsed by the campaign's own options, gives
+    that variant back: summarize with it writes the same note, protocol and commands, and
+    keeps the case's statistics."""
+    kept = json.loads((S.SUMMARY.parent / name).read_text())
+    variant = KEPT_VARIANTS[name]
+    run_cmd, summarize_cmd = kept["command"].split(", then ")
+    assert summarize_cmd.startswith("python -m validation.seed001 summarize ")
+    args = S.parser().parse_args(summarize_cmd.split()[3:])
+    parsed = {v.key: getattr(args, v.key) for v in S.VARIANTS}
+    assert {k: v for k, v in parsed.items() if v is not None and v is not False} == variant
+    assert args.summary == f"validation/runs/{name}"
+    (key, value), = variant.items()
+    flag = S.VARIANTS[[v.key for v in S.VARIANTS].index(key)].flag
+    assert flag in run_cmd and "a variant" in kept["note"]
+    out, p, doc = _variant_summarized(tmp_path, name, **variant)
+    assert {k: doc[k] for k in ("note", "protocol", "command")} == \
+        {k: kept[k] for k in ("note", "protocol", "command")}
     assert S.summary_stats(p) == {(10.0, 0.8): S.summary_stats()[(10.0, 0.8)]}
+    with pytest.raises(TypeError, match=r"unknown campaign variant\(s\) \['smothing'\]"):
+        S.summarize(out, path=tmp_path / "x.json", smothing=1.0)
 
 
-def test_a_wall_friction_variant_runs_and_is_summarized_as_such(tmp_path):
-    """--wall-friction MU: the campaign's scene with the bead-wall friction MU, the beads'
-    own kept (refused below 0), its summary in a file of its own saying so, with the
-    commands that rebuild it."""
+def test_the_smoothing_variants_scene_and_refusals(tmp_path):
+    """--smoothing-diameters D: the campaign's scene with the exchange smoothed over D bead
+    diameters (refused below 0; its summary: the kept variants' test)."""
     from millfmu.dem.scene import load_scene
 
     base = load_scene("disc_slice")
-    assert S.with_wall_friction(base, None) is base
-    var = S.with_wall_friction(base, 0.6)
+    assert S.with_variant(base, "smoothing_diameters", None) is base
+    assert S.with_variant(base, "smoothing_diameters", 0.0).coupling.smoothing_diameters == 0.0
+    assert S.with_variant(base, "smoothing_diameters", 0.0).coupling.cell_m == base.coupling.cell_m
+    with pytest.raises(ValueError, match="smoothing_diameters = -1: must be a number >= 0"):
+        S.with_variant(base, "smoothing_diameters", -1)
+
+
+def test_the_wall_friction_variants_scene_and_refusals(tmp_path):
+    """--wall-friction MU: the campaign's scene with the bead-wall friction MU, the beads'
+    own kept (refused below 0, also on the command line)."""
+    from millfmu.dem.scene import load_scene
+
+    base = load_scene("disc_slice")
+    assert S.with_variant(base, "wall_friction", None) is base
+    var = S.with_variant(base, "wall_friction", 0.6)
     assert (var.material.bead_wall_friction, var.material.friction) == (0.6, 0.3)
     assert var.coupling == base.coupling and var.geometry == base.geometry
     for bad in (-0.1, float("nan")):
         with pytest.raises(ValueError, match="beads.wall_friction = .*: must be a finite number >= 0"):
-            S.with_wall_friction(base, bad)
-    out, p, doc = _variant_summarized(tmp_path, "seed001_sector_wall_friction.json", wall_friction=0.6)
-    assert doc["protocol"]["wall_friction"] == 0.6 and "bead-wall friction 0.6" in doc["note"]
-    assert doc["command"].startswith("python -m validation.seed001 run --out DIR --fluid coupled "
-                                      "--threads 1 --wall-friction 0.6, then")
-    assert doc["command"].endswith("summarize --out DIR --wall-friction 0.6 --summary "
-                                   "validation/runs/seed001_sector_wall_friction.json")
-    assert S.main(["run", "--out", str(out), "--wall-friction", "-1", "--fluid", "coupled"]) == 2
+            S.with_variant(base, "wall_friction", bad)
+    assert S.main(["run", "--out", str(tmp_path), "--wall-friction", "-1", "--fluid", "coupled"]) == 2
 
 
-def test_a_stress_force_variant_runs_and_is_summarized_as_such(tmp_path):
+def test_the_stress_force_variants_scene_and_refusals(tmp_path):
     """--bead-stress-force NAME: the campaign's scene whose model A beads take the viscous
-    stress's share too (an unknown name refused), its summary in a file of its own saying
-    so, with the commands that rebuild it."""
+    stress's share too (an unknown name and model B refused by name)."""
     from millfmu.dem.scene import load_scene
 
     base = load_scene("disc_slice")
-    assert S.with_bead_stress_force(base, None) is base
-    var = S.with_bead_stress_force(base, "anderson_jackson1967")
+    assert S.with_variant(base, "bead_stress_force", None) is base
+    var = S.with_variant(base, "bead_stress_force", "anderson_jackson1967")
     assert var.coupling.bead_stress_force == "anderson_jackson1967" and base.coupling.bead_stress_force == "none"
     assert var.geometry == base.geometry and var.material == base.material
     with pytest.raises(ValueError,
                        match=r"bead_stress_force = 'viscForce': allowed \['none', 'anderson_jackson1967'\]"):
-        S.with_bead_stress_force(base, "viscForce")
+        S.with_variant(base, "bead_stress_force", "viscForce")
     with pytest.raises(ValueError, match=r"bead_stress_force = 'anderson_jackson1967': only model A .* model 'B'"):
-        S.with_bead_stress_force(replace(base, coupling=replace(base.coupling, model="B")),
-                                 "anderson_jackson1967")
-    out, p, doc = _variant_summarized(tmp_path, "seed001_sector_stress_force.json",
-                                      bead_stress_force="anderson_jackson1967")
-    assert doc["protocol"]["bead_stress_force"] == "anderson_jackson1967"
-    assert "viscous stress's share too (anderson_jackson1967)" in doc["note"]
-    assert doc["command"].startswith("python -m validation.seed001 run --out DIR --fluid coupled "
-                                      "--threads 1 --bead-stress-force anderson_jackson1967, then")
-    assert doc["command"].endswith("summarize --out DIR --bead-stress-force anderson_jackson1967 "
-                                   "--summary validation/runs/seed001_sector_stress_force.json")
-    assert S.main(["run", "--out", str(out), "--bead-stress-force", "viscForce", "--fluid", "coupled"]) == 2
+        S.with_variant(replace(base, coupling=replace(base.coupling, model="B")), "bead_stress_force",
+                       "anderson_jackson1967")
+    assert S.main(["run", "--out", str(tmp_path), "--bead-stress-force", "viscForce", "--fluid", "coupled"]) == 2
 
 
-def test_a_model_b_variant_runs_and_is_summarized_as_such(tmp_path):
+def test_the_model_b_variants_scene_and_refusals(tmp_path):
     """--vans-model B: the campaign's scene with the liquid by model B (an unknown model, a
     liquid that is not volume-averaged, and model B beside model A's viscous-stress force
-    refused by name), its summary in a file of its own saying so, with the commands that
-    rebuild it."""
+    refused by name)."""
     from millfmu.dem.scene import load_scene
 
     base = load_scene("disc_slice")
-    assert S.with_vans_model(base, None) is base and base.coupling.model == "A"
-    var = S.with_vans_model(base, "B")
+    assert S.with_variant(base, "vans_model", None) is base and base.coupling.model == "A"
+    var = S.with_variant(base, "vans_model", "B")
     assert var.coupling == replace(base.coupling, model="B")
     assert var.geometry == base.geometry and var.material == base.material
     with pytest.raises(ValueError, match=r"vans_model = 'C': allowed \['A', 'B'\]"):
-        S.with_vans_model(base, "C")
+        S.with_variant(base, "vans_model", "C")
     with pytest.raises(ValueError, match=r"vans_model = 'B': this scene's beads take model A's viscous-stress"):
-        S.with_vans_model(S.with_bead_stress_force(base, "anderson_jackson1967"), "B")
+        S.with_variant(S.with_variant(base, "bead_stress_force", "anderson_jackson1967"), "vans_model", "B")
     with pytest.raises(ValueError, match=r"vans_model = 'B': the volume-averaged coupled liquid's; the fluid "
                                          r"here is 'coupled', scheme 'dpm'"):
-        S.with_vans_model(replace(base, coupling=replace(base.coupling, scheme="dpm")), "B")
-    out, p, doc = _variant_summarized(tmp_path, "seed001_sector_model_b.json", vans_model="B")
-    assert doc["protocol"]["vans_model"] == "B"
-    assert "a variant: the liquid by model B" in doc["note"]
-    assert doc["command"].startswith("python -m validation.seed001 run --out DIR --fluid coupled "
-                                      "--threads 1 --vans-model B, then")
-    assert doc["command"].endswith("summarize --out DIR --vans-model B "
-                                   "--summary validation/runs/seed001_sector_model_b.json")
+        S.with_variant(replace(base, coupling=replace(base.coupling, scheme="dpm")), "vans_model", "B")
     with pytest.raises(SystemExit):
-        S.main(["run", "--out", str(out), "--vans-model", "C", "--fluid", "coupled"])
+        S.main(["run", "--out", str(tmp_path), "--vans-model", "C", "--fluid", "coupled"])
 
 
 def test_the_no_smoothing_variants_count_on_the_page_is_its_summarys():
@@ -517,19 +520,12 @@ def test_a_stated_count_case_runs_in_the_smallest_sector_that_holds_it(tmp_path)
     assert doc["runs"]["10 m/s, 80 %"]["sector_deg"] == 10.0
 
 
-def test_a_stated_count_variant_is_summarized_as_such(tmp_path):
-    """--stated-bead-counts: its summary in a file of its own saying so, each run with
-    eq. 2's filling it ran at, and the commands that rebuild it."""
+def test_a_stated_count_variant_keeps_each_runs_eq_2_filling(tmp_path):
+    """--stated-bead-counts: each run in its summary with eq. 2's filling it ran at (the
+    note, protocol and commands: the kept variants' test)."""
     out, p, doc = _variant_summarized(tmp_path, "seed001_sector_stated_counts.json",
                                       stated_counts=True)
-    assert doc["protocol"]["bead_counts"] == "seed 001's stated" and "a variant" in doc["note"]
-    assert "289,951 at 90 %" in doc["note"]
     assert doc["runs"]["10 m/s, 80 %"]["filling_eq2"] == pytest.approx(0.8715, abs=1e-4)
-    assert doc["command"].startswith("python -m validation.seed001 run --out DIR --fluid coupled "
-                                      "--threads 1 --stated-bead-counts, then")
-    assert doc["command"].endswith("summarize --out DIR --stated-bead-counts --summary "
-                                   "validation/runs/seed001_sector_stated_counts.json")
-    assert S.summary_stats(p) == {(10.0, 0.8): S.summary_stats()[(10.0, 0.8)]}
 
 
 def test_the_wall_friction_variants_count_on_the_page_is_its_summarys():
