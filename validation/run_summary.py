@@ -53,6 +53,21 @@ def write_json(path, doc: dict) -> None:
     print(f"wrote {path}")
 
 
+def keep_and_show(keep, out_dir, markdown) -> int:
+    """A study's ``summarize`` step on its command line: keep its summary from the runs in
+    ``out_dir`` (``keep(out_dir)`` returns the file it wrote), print the summary's table
+    (``markdown(doc)``) and where it is kept; 0, or 1 with the reason on stderr where
+    the runs are missing (``keep`` raises FileNotFoundError)."""
+    try:
+        kept = keep(out_dir)
+    except FileNotFoundError as e:
+        print(e, file=sys.stderr)
+        return 1
+    print(markdown(json.loads(Path(kept).read_text())))
+    print(f"kept in {kept}")
+    return 0
+
+
 def _pairs(items, what) -> dict:
     out = {}
     for it in items or []:

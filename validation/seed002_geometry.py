@@ -44,6 +44,7 @@ import sys
 from pathlib import Path
 
 from validation import seed002 as S2
+from validation.run_summary import keep_and_show
 
 #: the case: the campaign's reference point (rpm [1/min], filling [-])
 CASE = (1200.0, 0.8)
@@ -184,14 +185,7 @@ def main(argv=None) -> int:
         for d in run(args.out, probes=args.probe, threads=args.threads):
             print(f"wrote {d}")
         return 0
-    try:
-        kept = summarize(args.out)
-    except FileNotFoundError as e:
-        print(e, file=sys.stderr)
-        return 1
-    print(markdown(json.loads(kept.read_text())))
-    print(f"kept in {kept}")
-    return 0
+    return keep_and_show(summarize, args.out, markdown)
 
 
 if __name__ == "__main__":

@@ -91,3 +91,18 @@ def test_the_page_shows_the_kept_probes():
     page = PAGE.read_text(encoding="utf-8")
     for line in G.markdown(doc).splitlines():
         assert line in page, line
+
+
+def test_summarize_on_the_command_line_keeps_and_shows_or_names_what_is_missing(tmp_path, capsys):
+    """The studies' shared summarize step (validation.run_summary.keep_and_show): the
+    table and where it is kept, or 1 with the missing runs named and nothing written."""
+    from validation import seed002_sector_size as W
+    from validation.run_summary import keep_and_show
+
+    assert G.main(["summarize", "--out", str(tmp_path / "none")]) == 1
+    assert W.main(["compare", "--out", str(tmp_path / "none")]) == 1
+    assert "no stats.json" in capsys.readouterr().err
+    kept = tmp_path / "kept.json"
+    kept.write_text(json.dumps({"runs": {"a": 1}}))
+    assert keep_and_show(lambda out: kept, tmp_path, lambda doc: f"table of {sorted(doc['runs'])}") == 0
+    assert capsys.readouterr().out == f"table of ['a']\nkept in {kept}\n"
