@@ -112,10 +112,18 @@ def test_page_shows_the_comparison_the_summaries_give(kept_comparison):
     assert len(W.kept_windows()[(10.0, 0.8)]) == 3  # the recording's three 0.1 s windows
 
 
-def test_comparison_reads_every_statement_of_the_deviation_table(kept_comparison):
-    rows = S.deviation_rows(summary=S.SUMMARY)  # the campaign's protocol: the cold run
+def test_comparison_reads_every_statement_of_the_deviation_table(kept_comparison, tmp_path):
+    """The comparison's cold cells are the deviation table's full-slice cells with the
+    shipped summary's full slice holding this one case (the campaign's protocol: the cold
+    run)."""
+    doc = json.loads(S.SUMMARY.read_text())
+    label = S.case_label(10.0, 0.8)
+    doc["full_slice"]["runs"] = {label: doc["full_slice"]["runs"][label]}
+    one = tmp_path / "one_case.json"
+    one.write_text(json.dumps(doc))
+    rows = S.deviation_rows(summary=one)
     assert [s["statement"] for s in kept_comparison["statements"]] == [r["statement"] for r in rows]
     cold = {s["statement"]: s["cold"] for s in kept_comparison["statements"]}
-    for r in rows:  # the shipped full slice holds only this case: the same cells
+    for r in rows:
         assert cold[r["statement"]] == r["full"]
     assert json.loads(W.SUMMARY.read_text())["runs"]["10 m/s, 80 %"]["start"]["spin_up_s"] == W.SPIN_UP_S
