@@ -40,7 +40,7 @@ from pathlib import Path
 import numpy as np
 
 from validation import seed001 as S
-from validation.run_summary import read_windows
+from validation.run_summary import keep_and_show, read_windows
 
 #: the case: seed 001's reference point, the one the cold and warm full slices ran
 CASE = S.PAPER_CASE
@@ -298,10 +298,7 @@ def main(argv=None) -> int:
         print(f"{d}: no snapshots and no finished run (python -m "
               f"validation.full_slice_paper run --out {args.out})", file=sys.stderr)
         return 1
-    kept = keep(args.out)
-    print(markdown(json.loads(kept.read_text())))
-    print(f"kept in {kept}")
-    return 0
+    return keep_and_show(keep, args.out, markdown)
 
 
 if __name__ == "__main__":

@@ -116,11 +116,9 @@ def test_comparison_reads_every_statement_of_the_deviation_table(kept_comparison
     """The comparison's cold cells are the deviation table's full-slice cells with the
     shipped summary's full slice holding this one case (the campaign's protocol: the cold
     run)."""
-    doc = json.loads(S.SUMMARY.read_text())
-    label = S.case_label(10.0, 0.8)
-    doc["full_slice"]["runs"] = {label: doc["full_slice"]["runs"][label]}
     one = tmp_path / "one_case.json"
-    one.write_text(json.dumps(doc))
+    one.write_text(json.dumps(W._summary_with(json.loads(S.SUMMARY.read_text()), S.case_label(10.0, 0.8),
+                                              10.0, 0.8, S.summary_stats(full_slice=True)[(10.0, 0.8)])))
     rows = S.deviation_rows(summary=one)
     assert [s["statement"] for s in kept_comparison["statements"]] == [r["statement"] for r in rows]
     cold = {s["statement"]: s["cold"] for s in kept_comparison["statements"]}
