@@ -187,17 +187,20 @@ def test_contact_carried_across_a_sector_wrap_matches_cpu():
 
 
 def test_coupled_primed_disc_sector_matches_cpu():
-    """``dem run --device gpu`` with the coupled liquid: the liquid and the exchange on the
-    CPU, the DEM on the GPU. The primed start gives the beads the liquid's velocity on the
-    host (uploaded through host_state_changed); two coupling intervals then agree with
-    the CPU's in the beads and the liquid."""
+    """``dem run --device gpu`` with the coupled liquid: the liquid on the CPU; the DEM,
+    the beads' side of the exchange and the smoothing on the GPU. The primed start gives
+    the beads the liquid's velocity on the host (uploaded through host_state_changed); two
+    coupling intervals then agree with the CPU's in the beads and the liquid."""
     from millfmu.dem.run import make_simulation
     from millfmu.dem.scene import load_scene
 
+    # smoothing over a quarter bead diameter: a few sweeps instead of about eighty (the
+    # simulator runs one Python call per cell and sweep), the GPU's smoothing among them
     sc = load_scene("disc_slice").with_overrides(
         bead_diameter_m=2.4e-3, filling=0.5, sector_deg=10.0, gravity_m_per_s2=(0.0, 0.0, 0.0),
-        primed_s=1e-3)
+        primed_s=1e-3, smoothing_diameters=0.25)
     made = {dev: make_simulation(sc, 1, dev) for dev in ("cpu", "gpu")}
+    assert made["gpu"][1]._gpu_side.smoother is not None
     sims = {dev: m[0] for dev, m in made.items()}
     assert 100 < sims["gpu"].n < 1000
     # the primed start moved the beads with the liquid (and the GPU holds that velocity)
@@ -298,7 +301,7 @@ def test_coupled_gpu_beads_side_switched_off_and_on_gives_the_cpu_intervals():
 
     sc = load_scene("disc_slice").with_overrides(
         bead_diameter_m=2.4e-3, filling=0.5, sector_deg=10.0, gravity_m_per_s2=(0.0, 0.0, 0.0),
-        initial_rotation=0.3)
+        initial_rotation=0.3, smoothing_diameters=0.25)  # few sweeps: see above
     made = {dev: make_simulation(sc, 1, dev) for dev in ("cpu", "gpu")}
     with pytest.raises(ValueError, match="CPU"):
         made["cpu"][1].set_gpu_beads(True)
@@ -317,3 +320,51 @@ def test_coupled_gpu_beads_side_switched_off_and_on_gives_the_cpu_intervals():
     assert_same_state(sims, atol_x=1e-14, rtol_v=1e-8)
     np.testing.assert_allclose(cg.solver.ut, made["cpu"][1].solver.ut, rtol=0,
                                atol=1e-9 * np.abs(made["cpu"][1].solver.ut).max())
+
+
+@pytest.mark.parametrize("n_theta", [1, 4])
+def test_gpu_smoothing_matches_the_cpu_sweeps(n_theta):
+    """The Projector's explicit-diffusion smoothing on the GPU
+    (coupling.gpu_exchange.GpuSmoother, each cell gathering its faces' fluxes) against the
+    CPU's sweeps (projection.diffuse, each face adding to its two cells): cell totals
+    (conserved) and the first three columns of cell values (the rest untouched), on the disc
+    sector's grid with its solid disc, axisymmetric and with theta cells."""
+    from numba import cuda
+
+    from millfmu.dem.run import make_simulation
+    from millfmu.dem.scene import load_scene
+
+    sc = load_scene("disc_slice").with_overrides(
+        bead_diameter_m=2.4e-3, filling=0.5, sector_deg=40.0,
+        gravity_m_per_s2=(0.0, 0.0, 0.0), n_theta=n_theta)
+    sim, cpl = make_simulation(sc, 1, "gpu")
+    side = cpl._gpu_side
+    assert side.smoother is not None and side.smoother.sweeps == cpl.projector.sweeps
+    g = cpl.grid
+    assert np.any(g.solid != 0)
+    ncell = int(np.prod(g.shape))
+    pj, sm = cpl.projector, side.smoother
+    rng = np.random.default_rng(3)
+    a = rng.uniform(0.0, 1.0, (6, ncell)) * np.array([[1e-9], [5.0], [1e-3], [2e-4], [1e-6],
+                                                       [3e-6]])
+    a[:, (g.solid != 0).ravel()] = 0.0
+    # one and two of the projector's sweeps (the simulator runs one Python call per cell
+    # and sweep): the result in the second array (1) and in the first (2)
+    for sweeps, totals, ncols in ((1, True, 6), (2, True, 6), (1, False, 3)):
+        pj.sweeps = sm.sweeps = sweeps
+        cpu = a.copy()
+        pj._smooth(cpu, totals, ncols)
+        d = cuda.to_device(a)
+        out = sm.smooth(d, totals, ncols)
+        assert (out is d) == (sweeps % 2 == 0) and sm.buf is not out
+        res = out.copy_to_host()
+        for m in range(6):
+            ref = cpu[m]
+            np.testing.assert_allclose(res[m], ref, rtol=0, atol=1e-13 * np.abs(ref).max(),
+                                       err_msg=f"{sweeps} sweeps, totals {totals}, column {m}")
+            if m >= ncols:
+                np.testing.assert_array_equal(res[m], a[m])
+            else:
+                assert np.abs(ref - a[m]).max() > 1e-3 * np.abs(a[m]).max()  # it did smooth
+            if totals:
+                assert res[m].sum() == pytest.approx(a[m].sum(), rel=1e-13)

@@ -99,9 +99,10 @@ class CfdDem:
         #: (buoyancy-reduced) weight exerts: nonzero where gravity lies across the axis of a
         #: full slice and the bed's centre of mass is off the vertical through the axis
         self.gravity_angular_impulse_nms = 0.0
-        #: the beads' side of each exchange (stencils, deposit, held forces) on the GPU
-        #: where the DEM steps there (:mod:`millfmu.dem.coupling.gpu_exchange`; set at the
-        #: end of construction); None on the CPU
+        #: the beads' side of each exchange (stencils, deposit, held forces) and the
+        #: smoothing of the cell fields on the GPU where the DEM steps there
+        #: (:mod:`millfmu.dem.coupling.gpu_exchange`; set at the end of construction); None
+        #: on the CPU
         self._gpu_side = None
         # the beads' drag law reads the void fraction of the previous interval (one
         # interval late, which saves a second smoothing per interval); start with the
@@ -124,11 +125,11 @@ class CfdDem:
         self.set_gpu_beads(sim._gpu is not None)
 
     def set_gpu_beads(self, on: bool) -> None:
-        """Whether the beads' side of each exchange runs on the GPU (the default where the
-        DEM steps there) or on the CPU's threads, from the beads' state copied to the host
-        and with the held force uploaded before the DEM's steps (a bench times the two on
-        the same beads). Either way the same model, to round-off. On the CPU's DEM only
-        False is allowed (ValueError)."""
+        """Whether the beads' side of each exchange and the smoothing run on the GPU (the
+        default where the DEM steps there) or on the CPU's threads, from the beads' state
+        copied to the host and with the held force uploaded before the DEM's steps (a bench
+        times the two on the same beads). Either way the same model, to round-off. On the
+        CPU's DEM only False is allowed (ValueError)."""
         sim = self.sim
         if on and sim._gpu is None:
             raise ValueError("set_gpu_beads(True): the DEM steps on the CPU")
@@ -158,8 +159,9 @@ class CfdDem:
         sim, g, s = self.sim, self.grid, self.solver
         nr, nt, nz = g.shape
         gpu = self._gpu_side
+        smoothed = gpu is not None and gpu.smoother is not None
         if gpu is not None:
-            stiffness = gpu.beads_in_and_deposit(eps_cells, self._tot)
+            stiffness = gpu.beads_in_and_deposit(eps_cells, self._tot, smooth=smoothed)
         else:
             self.EK.beads_in(sim.x, sim.v, sim.rad, sim.mass, sim.per_bead["fluid_at_bead"],
                              eps_cells, s.body_z, 0.0 if self.model_b else 1.0,
@@ -169,7 +171,8 @@ class CfdDem:
                              self._w, self._cyl, self._c, self._q, self._x)
             self.PJ.deposit(self._idx, self._w, self._q, self._tot)
             stiffness = float(self._x.max()) if self._x.size else 0.0
-        self.projector.smooth_totals(self._tot)
+        if not smoothed:
+            self.projector.smooth_totals(self._tot)
         e = self._eps
         self.clipped_cells = self.EK.cells_to_exchange(
             self._tot.reshape((6,) + g.shape), self._vc,
@@ -208,11 +211,16 @@ class CfdDem:
                                      s.mean_gp[1], s.mean_gp[2], s.kr, s.kt, s.kz,
                                      self.grid.solid, self._cellv)
         # only the velocity needs the transpose of the deposit (the drag's exchange is
-        # exact through it); the pressure gradient, a smooth field, is read by the stencil
-        self.projector.smooth_values(self._cellv, ncols=3)
-        if self._gpu_side is not None:
-            ts, fs = self._gpu_side.bead_forces(self._cellv, 0.0 if self.model_b else 1.0,
-                                                self._gradient_now, s.body_z)
+        # exact through it); the pressure gradient, a smooth field, is read by the stencil.
+        # With the beads' side on the GPU its smoother does this there (the host's cell
+        # values then stay unsmoothed).
+        gpu = self._gpu_side
+        if gpu is None or gpu.smoother is None:
+            self.projector.smooth_values(self._cellv, ncols=3)
+        if gpu is not None:
+            ts, fs = gpu.bead_forces(self._cellv, 0.0 if self.model_b else 1.0,
+                                     self._gradient_now, s.body_z,
+                                     smooth=gpu.smoother is not None)
         else:
             ts, fs = self.EK.bead_forces(self._idx, self._w, self._cellv, self._c,
                                          self._cyl, sim.rad, sim.per_bead["fluid_at_bead"],

@@ -417,6 +417,12 @@ SAME_DEM_AS = {
     # the same outputs to the bit, the new sources' kernels compiled afresh)
     "sha256:7ab47fda7f5e5a82dbddfe4d09b663cffa6a9670eb3a100726a39c851bf9c682":
         "sha256:97f753cea048d151d29bfc09ed08fc9161f206eb44b7bf748a0474d96810be97",
+    # and the smoothing on the GPU where the DEM steps there (coupling.gpu_exchange; the
+    # CPU's path unchanged: the coupled disc sector on 1 and 2 threads, primed, with 4 theta
+    # cells and theta_fft, the plain disc sector and the accelerator slice give the same
+    # outputs to the bit, the new sources' kernels compiled afresh)
+    "sha256:92ab6ca92d467bfd409679c5f7effb202c408a1c621c7a7e2d10e47f35ac70b7":
+        "sha256:97f753cea048d151d29bfc09ed08fc9161f206eb44b7bf748a0474d96810be97",
 }
 
 
