@@ -138,7 +138,7 @@ BENCH_PBM_DEFAULTS = {"classes": [50, 100, 200], "hours": 1.0, "repeats": 3, "ta
 
 
 def _cmd_bench_pbm(args) -> int:
-    from .studies.pbm_integrators import MICRO_REPEATS, bench_pbm
+    from .studies.pbm_integrators import bench_pbm, micro_blocks
 
     if args.hours * 3600.0 < 1.0:
         print(f"millfmu: error: bench pbm: --hours {args.hours:g}: allowed 1/3600 h (one 1 s step) or more",
@@ -174,7 +174,7 @@ def _cmd_bench_pbm(args) -> int:
                              unit="us per MillModel.step with all outputs (step_us), per exact step alone "
                                   "(exact_step_us); scipy BDF's time over ours at equal accuracy, restarted at every "
                                   f"1 s step and over the whole span; {args.hours:g} h at 1 s steps, best of "
-                                  f"{args.repeats} (the steps in us: of {max(args.repeats, MICRO_REPEATS)} blocks of "
+                                  f"{args.repeats} (the steps in us: of {micro_blocks(args.repeats)} blocks of "
                                   "1000); tanks: the continuous mill's step and propagator")
         print(f"wrote {wrote}")
     return 0

@@ -33,6 +33,13 @@ ACCURACY_TARGET = 1e-6
 MICRO_REPEATS = 15
 
 
+def micro_blocks(repeats: int) -> int:
+    """Blocks of 1000 calls timed for a per-call figure in microseconds: a shared machine's
+    pauses hit single blocks, so the best of many short blocks (a few ms each), at least
+    :data:`MICRO_REPEATS` whatever ``repeats`` says."""
+    return max(repeats, MICRO_REPEATS)
+
+
 def _best(f, repeats):
     best = np.inf
     for _ in range(repeats):
@@ -132,9 +139,7 @@ def bench_pbm(classes=(50, 100, 200), hours=1.0, repeats=3, dt_s=1.0, out=print,
         err_ours = max(np.max(np.abs(hist[k] - ref[k])) for k in check if k > 0) / total
         t_setup, (phi_only, _) = _best(lambda: pbm.propagators(g, None, dt_s), repeats)
         y = y0.copy()
-        # Microseconds a call: a shared machine's pauses hit single blocks, so the best of
-        # many short blocks (a few ms each), at least MICRO_REPEATS whatever --repeats says.
-        micro = max(repeats, MICRO_REPEATS)
+        micro = micro_blocks(repeats)
         t_step, _ = _best(lambda: [phi_only @ y for _ in range(1000)], micro)
         t_step /= 1000
         model.step(dt_s)
