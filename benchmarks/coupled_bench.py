@@ -73,7 +73,8 @@ class CoupledBenchResult:
     # (their median is steadier than the ratio of the bests on a shared machine)
     block_added_costs: list = field(default_factory=list)
     # the DEM on the GPU: the same coupled blocks with the beads' side of the exchange and
-    # the smoothing on the CPU (CfdDem.set_gpu_beads(False)), interleaved with the others; empty on the CPU
+    # the smoothing on the CPU (CfdDem.set_gpu_beads(False)), interleaved with the others;
+    # empty on the CPU
     cpu_beads_times_s: list = field(default_factory=list)
     cpu_beads_particle_steps_per_s: float = 0.0
 
@@ -172,8 +173,8 @@ def run_coupled_bench(steps: int = 2000, repeats: int = 3, threads: int | None =
     sector on the CPU: from :func:`running_state`) or "early" (``warm_s`` after the start;
     the full slice and the GPU always). With the DEM on the GPU, each block is also run
     coupled with the beads' side of the exchange and the smoothing on the CPU
-    (``CfdDem.set_gpu_beads``),
-    right after the same block with it on the GPU: both forms timed on the same beads."""
+    (``CfdDem.set_gpu_beads``), right after the same block with them on the GPU: both forms
+    timed on the same beads."""
 
     if scene not in SCENES:
         raise ValueError(f"scene = {scene!r}: allowed {SCENES}")
@@ -380,8 +381,8 @@ def row_line(c: dict) -> str:
             f"beads timed from {c['start_s']:.3f} s after the start "
             f"({'the running mill' if c['start'] == 'running' else 'early'})"
             + (f"; with the beads' side of the exchange and the smoothing on the CPU instead "
-               f"(the same blocks, "
-               f"interleaved) {c['cpu_beads_particle_steps_per_s']:.4g} particle-steps/s, "
+               f"(the same blocks, interleaved) {c['cpu_beads_particle_steps_per_s']:.4g} "
+               f"particle-steps/s, "
                f"the GPU's side {c['coupled_particle_steps_per_s'] / c['cpu_beads_particle_steps_per_s']:.2f}x"
                if c.get("cpu_beads_times_s") else ""))
 
